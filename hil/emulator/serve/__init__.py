@@ -1,0 +1,1 @@
+"""Servers that put the emulator on a wire: FATEK (TCP, pty) and Modbus (TCP, RTU on a pty)."""

@@ -1,0 +1,61 @@
+"""The harness's exception tree: every failure names what was wrong and, where it can, what to do next."""
+
+from __future__ import annotations
+
+
+class HilError(Exception):
+    """Base of every error the harness raises on purpose."""
+
+
+class AddressError(HilError, ValueError):
+    """An FBs element name that does not parse or lies outside the model's ranges."""
+
+
+class UnreachableAddress(AddressError):
+    """An address the chosen transport or map cannot reach (e.g. D4054 over the default Modbus map)."""
+
+    def __init__(self, address: str, via: str, detail: str = "") -> None:
+        self.address = address
+        self.via = via
+        msg = f"{address} cannot be reached over {via}"
+        super().__init__(msg + (f": {detail}" if detail else ""))
+
+
+class ProtocolError(HilError):
+    """A frame that does not follow the protocol (checksum, station, command echo, length, format)."""
+
+
+class PlcErrorReply(HilError):
+    """The PLC answered with an error code instead of data."""
+
+    def __init__(self, code: str, meaning: str, request: str = "") -> None:
+        self.code = code
+        self.meaning = meaning
+        self.request = request
+        where = f" to {request}" if request else ""
+        super().__init__(f"PLC replied error {code} ({meaning}){where}")
+
+
+class TransportError(HilError):
+    """The wire failed: cannot open, disconnected, or no usable reply."""
+
+
+class ReplyTimeout(TransportError):
+    """No complete reply within the timeout; the message says what was sent, to whom and how long we waited."""
+
+
+class WriteRefused(HilError):
+    """The safety guard refused a write before any byte was sent."""
+
+
+class RestoreError(HilError):
+    """The guard could not put the PLC back as it found it; lists what it could not restore."""
+
+    def __init__(self, failures: list[tuple[str, int, str]]) -> None:
+        self.failures = failures
+        lines = "; ".join(f"{addr} (original {value}): {why}" for addr, value, why in failures)
+        super().__init__(f"could not restore {len(failures)} address(es): {lines}")
+
+
+class ProfileError(HilError):
+    """A bench profile that is invalid; the message names the file and key."""

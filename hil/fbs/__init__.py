@@ -1,0 +1,1 @@
+"""What hil knows about the FBs itself: named addresses, power-on defaults, codecs of its special registers."""
