@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from typing import Any, Coroutine, TypeVar
+from typing import Any, Callable, Coroutine, TypeVar
 
 T = TypeVar("T")
 
@@ -36,3 +36,21 @@ class LoopThread:
     def run(self, coro: Coroutine[Any, Any, T], timeout: float = 10.0) -> T:
         """Run ``coro`` on the loop and wait for its result."""
         return asyncio.run_coroutine_threadsafe(coro, self.loop).result(timeout)
+
+
+class ServerHandle:
+    """A running emulator server: what kind, where a client connects, and how to stop it (idempotent)."""
+
+    def __init__(self, kind: str, address: str, stop: "Callable[[], None]") -> None:
+        self.kind = kind  # "fatek-tcp", "fatek-pty", "modbus-tcp", "modbus-rtu"
+        self.address = address  # "127.0.0.1:40123" or a pty path such as "/dev/pts/7"
+        self._stop = stop
+        self.stopped = False
+
+    def stop(self) -> None:
+        if not self.stopped:
+            self.stopped = True
+            self._stop()
+
+    def __repr__(self) -> str:
+        return f"<ServerHandle {self.kind} {self.address}>"
