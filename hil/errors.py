@@ -59,3 +59,7 @@ class RestoreError(HilError):
 
 class ProfileError(HilError):
     """A bench profile that is invalid; the message names the file and key."""
+
+
+class TargetError(HilError, ValueError):
+    """A target URL that cannot be understood; the message lists the forms that are."""

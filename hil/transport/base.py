@@ -147,6 +147,11 @@ class Transport(ABC):
         with self._lock:
             return self._count(self._status())
 
+    def unreachable_reason(self, address: NameLike) -> str | None:
+        """Why this transport cannot reach ``address`` (e.g. D4054 over the default Modbus map), or None."""
+        parse(address)
+        return None
+
     def close(self) -> None:
         if self.closed:
             return

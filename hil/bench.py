@@ -1,0 +1,88 @@
+"""A bench: the profile made live — the PLC behind its guard, the bench's time, and the per-test restore.
+
+The pytest plugin builds one Bench per session; suites see it as the ``bench`` fixture.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Callable
+
+from hil.device.plc import FbsPlc
+from hil.emulator.core import Emulator
+from hil.fbs import registers as reg
+from hil.profile import Profile
+from hil.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.transport.base import Transport
+from hil.transport.factory import open_transport
+from hil.transport.guard import GuardedTransport, expand
+from hil.transport.url import Target, parse_target
+
+EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
+
+# Writes to these mean the RTC may be left off host time: sync it after the test.
+_RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S])
+
+
+class Bench:
+    def __init__(self, profile: Profile, *, target: str | None = None,
+                 emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
+        self.profile = profile
+        self.target: Target = parse_target(target or profile.target)
+        self.allow_destructive = allow_destructive or profile.safety.allow_destructive
+        epoch = dt.datetime.now().replace(microsecond=0)
+        if emulator_builder is None:
+            from hil.emulator.build import build_emulator
+            emulator_builder = build_emulator
+        self.raw: Transport = open_transport(self.target, timeout=profile.timeout,
+                                             emulator_factory=lambda: emulator_builder(profile, epoch))
+        self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
+        self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
+                               else HostTimebase(profile.time_scale))
+        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+
+    # -- what suites use ----------------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    @property
+    def is_emulator(self) -> bool:
+        """True when the PLC is the in-process emulator (virtual time, direct fault injection)."""
+        return self.raw.emulator is not None
+
+    def wait(self, seconds: float) -> None:
+        """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
+        self.time.wait(seconds)
+
+    def settle(self) -> None:
+        self.plc.settle()
+
+    def cannot_reach(self, *names: str) -> str | None:
+        """Why this bench cannot read and write ``names`` (unreachable over the wire, or not writable), or None."""
+        for name in names:
+            reason = self.raw.unreachable_reason(name)
+            if reason:
+                return reason
+        refused = [n for n in names if not self.profile.can_write(n)]
+        if refused:
+            return f"{', '.join(refused)} not in the bench's [safety] writable list"
+        return None
+
+    # -- per-test bookkeeping --------------------------------------------------------------------------------
+    def begin_test(self) -> None:
+        self.io.start_journal()
+
+    def end_test(self) -> None:
+        """Put the PLC back as it was found: journaled values, then the RTC if a test touched it."""
+        touched_rtc = bool(self.io.touched & _RTC_TOUCHES)
+        try:
+            self.io.restore()
+        finally:
+            if touched_rtc:
+                self.plc.rtc.sync_to_host()
+                self.io.restore()  # the sync's own writes (M1952) are journaled: verify they are back
+            self.io.start_journal()
+
+    def close(self) -> None:
+        self.io.close()

@@ -1,0 +1,1 @@
+"""One module per ``hil`` subcommand; :mod:`hil.cli` wires them to argparse."""

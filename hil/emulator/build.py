@@ -1,0 +1,19 @@
+"""Build an emulator the way a bench profile describes it ([emulator], [rtc], and later the other areas)."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+from hil.emulator.core import Emulator
+from hil.profile import Profile
+
+
+def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
+    """An emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
+    emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
+                        seed=profile.emulator.seed)
+    from hil.emulator.models.rtc import RtcModel  # noqa: PLC0415 - models import the engine
+    rtc = profile.rtc
+    emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,
+                                start=(rtc.start if rtc and rtc.start else epoch)))
+    return emulator

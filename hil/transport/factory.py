@@ -1,0 +1,82 @@
+"""open_transport(url): the only way to get a Transport, for every target form in :mod:`hil.transport.url`."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from hil.emulator.core import Emulator
+from hil.emulator.serve.runtime import ServerHandle
+from hil.transport.base import Transport
+from hil.transport.url import Target, parse_target
+
+EmulatorFactory = Callable[[], Emulator]
+
+
+def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
+                   timeout: float | None = None) -> Transport:
+    """Open the target named by ``url``.
+
+    For ``emulator…`` targets a fresh in-process emulator is built by ``emulator_factory`` (default: a plain
+    FBs main unit) and, for the wire variants, served on loopback or a pty; the returned transport's
+    ``.emulator`` is that emulator and closing the transport stops its server.
+    """
+    target = url if isinstance(url, Target) else parse_target(url)
+    if target.in_process:
+        return _open_emulator(target, (emulator_factory or Emulator)(), timeout)
+    params = dict(target.params)
+    if timeout is not None:
+        params.setdefault("timeout", timeout)
+    if target.protocol == "fatek":
+        from hil.transport.fatek import FatekTransport
+        port_url = f"socket://{target.host}:{target.port}" if target.host else target.device
+        return FatekTransport(port_url, description=str(target), **params)
+    from hil.transport.modbus import ModbusTransport
+    if target.scheme == "modbus+tcp":
+        return ModbusTransport.tcp(target.host, target.port, **params)
+    return ModbusTransport.rtu(target.device, **params)
+
+
+def _open_emulator(target: Target, emulator: Emulator, timeout: float | None) -> Transport:
+    wire = target.scheme.partition("+")[2]
+    if not wire:
+        from hil.transport.local import LocalTransport
+        return LocalTransport(emulator)
+    server = serve(emulator, wire)
+    try:
+        transport = _client_for(wire, server, emulator.station, timeout or 2.0)
+    except BaseException:
+        server.stop()
+        raise
+    transport.emulator = emulator
+    transport.description = f"{target.scheme} ({transport.description})"
+    transport.on_close(server.stop)
+    return transport
+
+
+def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0) -> ServerHandle:
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")."""
+    if wire == "fatek-tcp":
+        from hil.emulator.serve.fatek import start_fatek_tcp
+        return start_fatek_tcp(emulator, host, port)
+    if wire == "fatek-serial":
+        from hil.emulator.serve.fatek import start_fatek_pty
+        return start_fatek_pty(emulator)
+    if wire == "modbus-tcp":
+        from hil.emulator.serve.modbus import start_modbus_tcp
+        return start_modbus_tcp(emulator, host, port, unit=emulator.station)
+    if wire == "modbus-rtu":
+        from hil.emulator.serve.modbus import start_modbus_rtu_pty
+        return start_modbus_rtu_pty(emulator, unit=emulator.station)
+    raise ValueError(f"unknown emulator wire {wire!r}")
+
+
+def _client_for(wire: str, server: ServerHandle, station: int, timeout: float) -> Transport:
+    if wire.startswith("fatek"):
+        from hil.transport.fatek import FatekTransport
+        port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
+        return FatekTransport(port_url, station=station, timeout=timeout)
+    from hil.transport.modbus import ModbusTransport
+    if wire == "modbus-tcp":
+        host, _, port = server.address.rpartition(":")
+        return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
+    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout)
