@@ -77,6 +77,14 @@ class RequestError(ProtocolError):
         super().__init__(f"error {code} ({ERROR_CODES[code]}): {detail}")
 
 
+_HEX = frozenset("0123456789ABCDEFabcdef")
+
+
+def _is_hex(text: str) -> bool:
+    """Strict hex digits (``int(x, 16)`` alone would accept " 1", "+1", "0x1" and "1_0")."""
+    return bool(text) and all(c in _HEX for c in text)
+
+
 # --- frames -------------------------------------------------------------------------------------------------
 def checksum(body: bytes) -> bytes:
     """Two uppercase hex characters: the low byte of the sum of ``body`` (which starts with STX)."""
@@ -118,9 +126,11 @@ def split_frame(frame: bytes) -> Frame:
                             f"{checksum(body).decode()!r} computed over STX…data of {frame!r}")
     try:
         text = body[1:].decode("ascii")
-        station = int(text[0:2], 16)
-    except (UnicodeDecodeError, ValueError):
-        raise MalformedFrame(f"station is not two hex digits in {frame!r}") from None
+    except UnicodeDecodeError:
+        raise MalformedFrame(f"non-ASCII bytes in {frame!r}") from None
+    if not _is_hex(text[0:2]):
+        raise MalformedFrame(f"station is not two hex digits in {frame!r}")
+    station = int(text[0:2], 16)
     command = text[2:4].upper()
     if len(command) != 2 or any(c not in "0123456789ABCDEF" for c in command):
         raise MalformedFrame(f"command is not two hex digits in {frame!r}")
@@ -207,11 +217,9 @@ def _count(n: int) -> str:
 
 
 def _parse_count(text: str, what: str) -> int:
-    try:
-        n = int(text, 16)
-    except ValueError:
-        raise RequestError("4", f"{what} count {text!r} is not hex") from None
-    return n or 256
+    if len(text) != 2 or not _is_hex(text):
+        raise RequestError("4", f"{what} count {text!r} is not two hex digits")
+    return int(text, 16) or 256
 
 
 def _hex_width(address: Address) -> int:
@@ -235,10 +243,9 @@ def _parse_values(text: str, address: Address, count: int) -> list[int]:
     width = _hex_width(address)
     if len(text) != width * count:
         raise MalformedFrame(f"expected {count} values of {width} hex characters, got {len(text)} characters")
-    try:
-        return [int(text[i:i + width], 16) for i in range(0, len(text), width)]
-    except ValueError:
-        raise MalformedFrame(f"non-hex characters in register data {text!r}") from None
+    if count and not _is_hex(text):
+        raise MalformedFrame(f"non-hex characters in register data {text!r}")
+    return [int(text[i:i + width], 16) for i in range(0, len(text), width)]
 
 
 def _take_name(data: str, pos: int) -> tuple[Address, int]:
@@ -254,11 +261,9 @@ def _take_value(data: str, pos: int, address: Address) -> tuple[int, int]:
     chunk = data[pos:pos + width]
     if len(chunk) != width:
         raise RequestError("4", f"value for {address} is cut short")
-    try:
-        value = int(chunk, 2 if address.is_bit else 16)
-    except ValueError:
-        raise RequestError("4", f"value {chunk!r} for {address} is not valid") from None
-    return value, pos + width
+    if not (chunk in ("0", "1") if address.is_bit else _is_hex(chunk)):
+        raise RequestError("4", f"value {chunk!r} for {address} is not valid")
+    return int(chunk, 2 if address.is_bit else 16), pos + width
 
 
 def _expect_end(data: str, pos: int) -> None:
@@ -315,10 +320,9 @@ class StatusReply:
 def _parse_hex_bytes(data: str, what: str) -> list[int]:
     if len(data) % 2:
         raise MalformedFrame(f"{what}: odd number of hex characters in {data!r}")
-    try:
-        return [int(data[i:i + 2], 16) for i in range(0, len(data), 2)]
-    except ValueError:
-        raise MalformedFrame(f"{what}: non-hex characters in {data!r}") from None
+    if data and not _is_hex(data):
+        raise MalformedFrame(f"{what}: non-hex characters in {data!r}")
+    return [int(data[i:i + 2], 16) for i in range(0, len(data), 2)]
 
 
 @dataclass
@@ -649,6 +653,8 @@ class Loopback(Command):
 
     @classmethod
     def from_request(cls, data: str) -> "Loopback":
+        if len(data) > 256:  # the dataclass check raises ValueError; a server must answer error 4 instead
+            raise RequestError("4", f"loop-back text of {len(data)} characters exceeds 256")
         return cls(data)
 
     def decode(self, data: str) -> str:
