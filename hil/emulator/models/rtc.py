@@ -1,0 +1,198 @@
+"""RtcModel: the FBs real-time clock (manual ch. 15, restated in shared/spec/fbs-rtc.md).
+
+The chip keeps time *analytically* from the emulator's virtual clock: its reading is
+``anchor + (now − anchor_t) × rate`` where ``rate = 1 + ppm·1e−6 − correction/86400``.  There is no
+per-second event, so ``emu.advance(86400)`` is one jump and a simulated day of drift costs nothing.  Anything
+that changes the chip (a set, a ±30 s correction, a new D4054 code) re-anchors it at the scan that sees it.
+
+Each behaviour the spec describes is one small method with a docstring, so a test can build a deliberately
+broken PLC by subclassing and overriding exactly one of them (e.g. a ``validate`` that forgets 31 April).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from typing import TYPE_CHECKING
+
+from hil.address import parse
+from hil.emulator.model import Model
+from hil.fbs import registers as reg
+from hil.fbs.d4054 import rate_for_code
+from hil.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime, weekday_of
+
+if TYPE_CHECKING:
+    from hil.emulator.core import Emulator
+
+# Direct bank indexes: models touch memory banks directly for speed (memory.py).
+_FIRST = parse(reg.RTC_SECOND).index  # R4128
+_HOUR_MINUTE = parse(reg.RTC_HOUR_MINUTE).index  # R4135
+_HOLD = parse(reg.RTC_HOLD).index  # M1952
+_ADJUST = parse(reg.RTC_ADJUST_30S).index  # M1953
+_INSTALLED = parse(reg.RTC_INSTALLED).index  # M1954
+_SET_ERROR = parse(reg.RTC_SET_ERROR).index  # M1955
+_CHIP = parse(reg.RTC_CHIP).index  # D4053
+_RATE_CODE = parse(reg.RTC_RATE_CODE).index  # D4054
+
+S35390A = 3
+
+
+def seconds_of(t: RtcTime) -> int:
+    """Whole seconds since 2000-01-01 00:00:00 for a valid ``t`` (the weekday is ignored)."""
+    return int((t.to_datetime() - EPOCH).total_seconds())
+
+
+class RtcModel(Model):
+    """An RTC chip behind R4128–R4135, M1952–M1955, D4053, D4054.
+
+    ``chip``: 0 none, 1 HT1381, 2 ISL1208, 3 S-35390A.  ``crystal_ppm``: positive = the chip runs fast.
+    ``start``: what the chip shows at virtual t = 0.
+    """
+
+    name = "rtc"
+
+    def __init__(self, chip: int = S35390A, crystal_ppm: float = 0.0,
+                 start: dt.datetime | RtcTime | None = None) -> None:
+        if chip not in CHIP_NAMES:
+            raise ValueError(f"RTC chip must be one of {CHIP_NAMES} (D4053 codes), not {chip!r}")
+        self.chip = chip
+        self.crystal_ppm = float(crystal_ppm)
+        if start is None:
+            start = dt.datetime(2024, 1, 1)
+        start_time = start if isinstance(start, RtcTime) else RtcTime.from_datetime(start)
+        # The chip: its reading (seconds since 2000-01-01, fractional = sub-second phase) at virtual time
+        # _anchor_t, and how many chip seconds pass per virtual second from then on.
+        self._anchor_t = 0.0
+        self._anchor_s = float(seconds_of(start_time))
+        self._code = 0  # the D4054 value in force
+        self._rate = self.chip_rate(self._code)
+        self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
+        self._adjust = 0
+        self._emu: Emulator | None = None
+
+    # -- the engine's hooks ---------------------------------------------------------------------------------
+    def power_on(self, emu: "Emulator") -> None:
+        self._emu = emu
+        mem = emu.memory
+        self._hold = mem.bits["M"][_HOLD]
+        self._adjust = mem.bits["M"][_ADJUST]
+        self.on_rate_code(emu, mem.words["D"][_RATE_CODE])
+        self.publish_chip(emu)
+        if self.chip:
+            self.copy_out(emu, self.read_chip(emu.now))
+
+    def scan(self, emu: "Emulator") -> None:
+        mem = emu.memory
+        self.publish_chip(emu)
+        hold, adjust = mem.bits["M"][_HOLD], mem.bits["M"][_ADJUST]
+        if self.chip:
+            code = mem.words["D"][_RATE_CODE]
+            if code != self._code:
+                self.on_rate_code(emu, code)
+            if self._hold and not hold:
+                self.on_hold_edge(emu)
+            if adjust and not self._adjust:
+                self.on_adjust_edge(emu)
+            if not hold:
+                self.copy_out(emu, self.read_chip(emu.now))
+        self._hold, self._adjust = hold, adjust
+
+    def next_event(self, now: float) -> float:
+        """``now`` while an edge or a new D4054 code waits to be seen, so a time jump cannot skip past it."""
+        emu = self._emu
+        if emu is None:
+            return math.inf
+        mem = emu.memory
+        pending = (mem.bits["M"][_HOLD] != self._hold or mem.bits["M"][_ADJUST] != self._adjust
+                   or mem.words["D"][_RATE_CODE] != self._code or mem.words["D"][_CHIP] != self.chip
+                   or mem.bits["M"][_INSTALLED] != (1 if self.chip else 0))
+        return now if pending else math.inf
+
+    # -- the chip -------------------------------------------------------------------------------------------
+    def chip_seconds(self, now: float) -> float:
+        """The chip's reading at virtual time ``now``: seconds since 2000-01-01, wrapped at 2099 → 2000."""
+        return (self._anchor_s + (now - self._anchor_t) * self._rate) % CENTURY_SECONDS
+
+    def read_chip(self, now: float) -> RtcTime:
+        """The time the chip shows at ``now`` (whole seconds; weekday from :meth:`weekday_for`)."""
+        when = EPOCH + dt.timedelta(seconds=math.floor(self.chip_seconds(now)))
+        year = when.year - 2000
+        return RtcTime(when.second, when.minute, when.hour, when.day, when.month, year,
+                       self.weekday_for(year, when.month, when.day))
+
+    def write_chip(self, emu: "Emulator", t: RtcTime) -> None:
+        """Load ``t`` into the chip at ``emu.now``.  Writing restarts the chip's second: the sub-second phase is
+        zero at the write, so the next tick comes one (chip) second later — what a sync at a whole second wants."""
+        self._anchor_t = emu.now
+        self._anchor_s = float(seconds_of(t))
+
+    def chip_rate(self, code: int) -> float:
+        """Chip seconds per virtual second with D4054 = ``code``."""
+        return 1.0 + self.crystal_ppm * 1e-6 - self.correction_rate(code) / 86400.0
+
+    def correction_rate(self, code: int) -> float:
+        """s/day the chip is slowed by for D4054 = ``code``, in the manual's sign (the code for +r cancels a
+        clock fast by r).  Only the S-35390A has one; 0000H and codes that are not 56xxH apply nothing
+        ([our choice] — the manual is silent)."""
+        if self.chip != S35390A:
+            return 0.0
+        try:
+            return rate_for_code(code).s_per_day
+        except ValueError:
+            return 0.0
+
+    def weekday_for(self, year: int, month: int, day: int) -> int:
+        """The weekday the chip reports for a date (0 = Sunday): it follows the date, whatever was written."""
+        return weekday_of(year, month, day)
+
+    # -- PLC behaviour ----------------------------------------------------------------------------------------
+    def publish_chip(self, emu: "Emulator") -> None:
+        """D4053 = chip code (read-only for users, so rewritten every scan); M1954 = a chip is fitted."""
+        emu.memory.words["D"][_CHIP] = self.chip
+        emu.memory.bits["M"][_INSTALLED] = 1 if self.chip else 0
+
+    def copy_out(self, emu: "Emulator", t: RtcTime) -> None:
+        """Read-out: R4128–R4134 := ``t`` and R4135 := hour<<8 | minute (every scan while M1952 = 0)."""
+        words = emu.memory.words["R"]
+        words[_FIRST:_FIRST + 7] = t.to_registers()
+        words[_HOUR_MINUTE] = t.hour_minute_word()
+
+    def validate(self, t: RtcTime) -> list[str]:
+        """The fields the PLC finds invalid in a set request (empty = accept)."""
+        return t.validate()
+
+    def on_hold_edge(self, emu: "Emulator") -> None:
+        """Falling edge of M1952: set the chip from R4128–R4134 if valid (M1955 := 0), else leave the chip
+        running on its previous time and M1955 := 1."""
+        words = emu.memory.words["R"]
+        requested = RtcTime.from_registers(words[_FIRST:_FIRST + 7])
+        if self.validate(requested):
+            emu.memory.bits["M"][_SET_ERROR] = 1
+            return
+        self.write_chip(emu, requested)
+        emu.memory.bits["M"][_SET_ERROR] = 0
+
+    def apply_30s(self, t: RtcTime) -> RtcTime:
+        """±30 s correction of ``t``: seconds 0–29 → :00; 30–59 → :00 of the next minute, carrying through hour,
+        day, month and year (2099 → 2000); the weekday follows the date."""
+        when = t.to_datetime().replace(second=0)
+        if t.second >= 30:
+            when += dt.timedelta(minutes=1)
+        if when.year > 2099:  # the chip's two-digit year wraps
+            when = when.replace(year=2000)
+        return RtcTime.from_datetime(when)
+
+    def on_adjust_edge(self, emu: "Emulator") -> None:
+        """Rising edge of M1953: apply :meth:`apply_30s` to the chip's current time."""
+        self.write_chip(emu, self.apply_30s(self.read_chip(emu.now)))
+
+    def on_rate_code(self, emu: "Emulator", code: int) -> None:
+        """A new D4054 value: re-anchor at ``emu.now`` (keeping the phase) and run at the new rate from here."""
+        self._anchor_s = self.chip_seconds(emu.now)
+        self._anchor_t = emu.now
+        self._code = code
+        self._rate = self.chip_rate(code)
+
+    def __repr__(self) -> str:
+        return (f"<RtcModel {CHIP_NAMES[self.chip]} {self.crystal_ppm:+g} ppm "
+                f"D4054={self._code:04X}H>")
