@@ -1,0 +1,266 @@
+"""Serve the emulator over Modbus (TCP, and RTU on a pty) with pymodbus's own server.
+
+The server is pymodbus's: a :class:`SimDevice` whose four tables cover exactly the default FBs map
+(:mod:`hil.protocol.modbus_map`), and an async ``action`` that forwards every read and write into
+:meth:`Emulator.service` — so each request is handled at a scan boundary against live memory; the SimDevice's own
+registers are only a staging area.
+
+A request gate (pymodbus's ``trace_pdu`` hook, which may replace a received request) answers what an FBs
+would refuse before the data store sees it:
+
+* function codes other than 01/03/05/06/15/16 → exception 1 (illegal function), as the FBs supports only those;
+* a quantity beyond the protocol limits → exception 3 (illegal data value);
+* any unit outside the map → exception 2 (illegal data address).  pymodbus marks holes between holding blocks
+  itself, but a bit table is one block to it (gaps read as 0), so the gate checks coils exactly;
+* another unit id: RTU stays silent, as a slave on a shared line must; TCP answers exception 0x0B
+  (gateway target failed to respond) — [our choice], a clear answer instead of a timeout.
+* unit 0 on RTU is broadcast: writes are executed and never answered.
+
+``emulator.stats`` counts ``modbus_requests`` (every decoded request), ``modbus_exceptions`` (exception replies
+sent), ``modbus_exception_<code>`` and ``modbus_ignored`` (requests for another unit on RTU).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import threading
+from typing import Callable
+
+from pymodbus.constants import ExcCodes
+from pymodbus.exceptions import NoSuchIdException
+from pymodbus.pdu import ExceptionResponse, ModbusPDU
+from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+from hil.emulator.core import Emulator
+from hil.emulator.memory import Memory
+from hil.emulator.serve.ptypair import PtyPair
+from hil.emulator.serve.runtime import LoopThread, ServerHandle
+from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, locate, segments, unmapped_in
+
+_COIL_FCS = {1: "read", 5: "write", 15: "write"}
+_HOLDING_FCS = {3: "read", 6: "write", 16: "write"}
+# Emulator.service() can wait on the emulator lock (a test advancing virtual time holds it), so it runs on
+# worker threads: the shared loop keeps serving every other server meanwhile.
+_SERVICE_POOL = concurrent.futures.ThreadPoolExecutor(max_workers=4, thread_name_prefix="hil-modbus-service")
+
+
+# -- the SimDevice -------------------------------------------------------------------------------------------------
+def build_device(emulator: Emulator, unit: int) -> SimDevice:
+    """A SimDevice whose coil and holding tables cover exactly the default FBs map, backed by ``emulator``."""
+    coils = [SimData(s.pdu, values=[False] * (s.pdu_end - s.pdu), datatype=DataType.BITS) for s in segments(COIL)]
+    holding = [SimData(s.pdu, count=s.pdu_end - s.pdu, values=0, datatype=DataType.REGISTERS)
+               for s in segments(HOLDING)]
+    # The FBs has no discrete inputs or input registers (X are coils); the gate refuses FC02/FC04 before these
+    # placeholders (required non-empty by SimDevice) could be reached.
+    discrete = [SimData(0, values=[False] * 16, datatype=DataType.BITS)]
+    inputs = [SimData(0, count=1, datatype=DataType.INVALID)]
+    return SimDevice(id=unit, simdata=(coils, discrete, holding, inputs), action=_make_action(emulator))
+
+
+def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
+    async def action(function_code: int, start_address: int, address: int, count: int,
+                     registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
+        if function_code in _COIL_FCS:
+            request = _coil_request(start_address, address, count, registers, set_values)
+        elif function_code in _HOLDING_FCS:
+            request = _holding_request(start_address, address, count, registers, set_values)
+        else:
+            return ExcCodes.ILLEGAL_FUNCTION
+        fill = await asyncio.get_running_loop().run_in_executor(_SERVICE_POOL, emulator.service, request)
+        # Fill the staging registers only now, after the await, so no other request can interleave before
+        # pymodbus copies them into the reply.
+        fill()
+        return None
+    return action
+
+
+def _coil_request(start_address: int, address: int, count: int, registers: list[int],
+                  set_values: list[int] | list[bool] | None) -> Callable[[Memory], Callable[[], None]]:
+    """For coils pymodbus passes ``count`` packed 16-bit registers covering the request, from bit ``address``."""
+    if set_values is not None:
+        targets = [locate(COIL, address + i) for i in range(len(set_values))]
+        values = [1 if v else 0 for v in set_values]
+
+        def write(mem: Memory) -> Callable[[], None]:
+            for found, value in zip(targets, values):
+                if found is not None:  # the gate refused unmapped coils; stay safe regardless
+                    mem.bits[found[0].kind][found[0].index] = value
+            return lambda: None
+        return write
+
+    first_reg = address // 16
+    slots = [(r, b, locate(COIL, (first_reg + r) * 16 + b)) for r in range(count) for b in range(16)]
+    slots = [(r, b, found[0]) for r, b, found in slots if found is not None]
+    offset = first_reg - start_address
+
+    def read(mem: Memory) -> Callable[[], None]:
+        words = [0] * count
+        for r, b, element in slots:
+            words[r] |= mem.bits[element.kind][element.index] << b
+
+        def fill() -> None:
+            registers[offset:offset + count] = words
+        return fill
+    return read
+
+
+def _holding_request(start_address: int, address: int, count: int, registers: list[int],
+                     set_values: list[int] | list[bool] | None) -> Callable[[Memory], Callable[[], None]]:
+    n = len(set_values) if set_values is not None else count
+    targets = [locate(HOLDING, address + i) for i in range(n)]
+    if set_values is not None:
+        values = [int(v) & 0xFFFF for v in set_values]
+
+        def write(mem: Memory) -> Callable[[], None]:
+            for found, value in zip(targets, values):
+                if found is not None:
+                    _set_register(mem, *found, value)
+            return lambda: None
+        return write
+
+    offset = address - start_address
+
+    def read(mem: Memory) -> Callable[[], None]:
+        words = [_get_register(mem, *found) if found else 0 for found in targets]
+
+        def fill() -> None:
+            registers[offset:offset + count] = words
+        return fill
+    return read
+
+
+def _get_register(mem: Memory, element, part: int) -> int:  # noqa: ANN001 - an Address
+    if element.kind == "DRC":  # 32-bit counter: 2 registers, low word at the lower address
+        return mem.get(element) >> (16 * part) & 0xFFFF
+    return mem.words[element.kind][element.index]
+
+
+def _set_register(mem: Memory, element, part: int, value: int) -> None:  # noqa: ANN001 - an Address
+    if element.kind == "DRC":  # writing one half keeps the other, as two FC06 writes must compose
+        old = mem.get(element)
+        mem.set(element, old & ~(0xFFFF << (16 * part)) | value << (16 * part))
+    else:
+        mem.words[element.kind][element.index] = value
+
+
+# -- the request gate ----------------------------------------------------------------------------------------------
+class _Refusal(ModbusPDU):
+    """Stands in for a refused request: its ``datastore_update`` answers an exception and touches nothing."""
+
+    def __init__(self, request: ModbusPDU, code: ExcCodes | None) -> None:
+        super().__init__(dev_id=request.dev_id, transaction_id=request.transaction_id)
+        self.function_code = request.function_code
+        self.code = code  # None: stay silent
+
+    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+        if self.code is None:
+            raise NoSuchIdException(f"unit {device_id}")  # with ignore_missing_devices: no reply at all
+        return ExceptionResponse(self.function_code, self.code)
+
+
+def _request_extent(pdu: ModbusPDU) -> tuple[str, int, int, bool] | None:
+    """(table, address, count, is_write) of a request the FBs supports, else None."""
+    fc = pdu.function_code
+    if fc in (5, 6):
+        return (COIL if fc == 5 else HOLDING), pdu.address, 1, True
+    if fc in (15, 16):  # decode() sets count from the frame's quantity field
+        return (COIL if fc == 15 else HOLDING), pdu.address, pdu.count, True
+    if fc in (1, 3):
+        return (COIL if fc == 1 else HOLDING), pdu.address, pdu.count, False
+    return None
+
+
+def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, ModbusPDU], ModbusPDU]:
+    stats = emulator.stats  # only this loop thread writes the modbus_* keys, so no lock is needed
+
+    def gate(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+        if sending:
+            if isinstance(pdu, ExceptionResponse):
+                stats["modbus_exceptions"] += 1
+                stats[f"modbus_exception_{pdu.exception_code}"] += 1
+            return pdu
+        stats["modbus_requests"] += 1
+        if pdu.dev_id != unit and not (serial and pdu.dev_id == 0):
+            if serial:
+                stats["modbus_ignored"] += 1
+                return _Refusal(pdu, None)
+            return _Refusal(pdu, ExcCodes.GATEWAY_NO_RESPONSE)
+        extent = _request_extent(pdu)
+        if extent is None:
+            return _Refusal(pdu, ExcCodes.ILLEGAL_FUNCTION)
+        table, address, count, is_write = extent
+        limit = (MAX_WRITE if is_write else MAX_READ)[table]
+        if not 1 <= count <= limit:
+            return _Refusal(pdu, ExcCodes.ILLEGAL_VALUE)
+        if unmapped_in(table, address, count) is not None:
+            return _Refusal(pdu, ExcCodes.ILLEGAL_ADDRESS)
+        return pdu
+    return gate
+
+
+# -- servers -------------------------------------------------------------------------------------------------------
+def start_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, unit: int = 1) -> ServerHandle:
+    """Serve ``emulator`` as Modbus/TCP unit ``unit``; port 0 picks a free port (the handle's address has it)."""
+    runtime = LoopThread.shared()
+
+    async def start() -> ModbusTcpServer:
+        server = ModbusTcpServer(build_device(emulator, unit), address=(host, port),
+                                 trace_pdu=_make_gate(emulator, unit, serial=False))
+        await server.serve_forever(background=True)
+        return server
+
+    server = runtime.run(start())
+    actual = server.transport.sockets[0].getsockname()[1]
+
+    async def stop() -> None:
+        await server.shutdown()
+
+    return ServerHandle("modbus-tcp", f"{host}:{actual}", _stopper(runtime, stop))
+
+
+def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1) -> ServerHandle:
+    """Serve ``emulator`` as Modbus RTU unit ``unit`` on a pty; the handle's address is the path a client opens.
+
+    Settings (baud rate, parity) mean nothing on a pty; any client settings work.
+    """
+    runtime = LoopThread.shared()
+
+    async def start() -> tuple[PtyPair, ModbusSerialServer]:
+        pair = PtyPair(asyncio.get_running_loop())
+        try:
+            server = ModbusSerialServer(build_device(emulator, unit), port=pair.path_a, baudrate=9600, parity="N",
+                                        ignore_missing_devices=True, broadcast_enable=True, reconnect_delay=0.1,
+                                        trace_pdu=_make_gate(emulator, unit, serial=True))
+            await server.serve_forever(background=True)
+        except BaseException:
+            pair.close()
+            raise
+        return pair, server
+
+    pair, server = runtime.run(start())
+
+    async def stop() -> None:
+        try:
+            await server.shutdown()
+        finally:
+            pair.close()
+
+    handle = ServerHandle("modbus-rtu", pair.path_b, _stopper(runtime, stop))
+    handle.ptys = pair  # type: ignore[attr-defined]  # byte counters for tests
+    return handle
+
+
+def _stopper(runtime: LoopThread, stop: Callable[[], "asyncio.Future | object"]) -> Callable[[], None]:
+    lock = threading.Lock()
+
+    def run() -> None:
+        with lock:
+            if runtime.loop.is_closed() or not runtime.loop.is_running():
+                return  # the loop is gone, and with it every socket and fd it served
+            runtime.run(stop())
+    return run
+
+
+__all__ = ["start_modbus_tcp", "start_modbus_rtu_pty", "build_device"]

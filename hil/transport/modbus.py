@@ -1,0 +1,231 @@
+"""ModbusTransport: an FBs reached over Modbus/TCP or Modbus RTU through the default map, with pymodbus's clients.
+
+Every request is resolved through :mod:`hil.protocol.modbus_map` *before* anything is sent, so an element the
+default map cannot reach (D4054, R4168…) raises :class:`~hil.errors.UnreachableAddress` instead of silently
+reading some other register.  Requests of any shape become contiguous runs per table — coils via FC01/FC15,
+holding registers via FC03/FC16 — split at the protocol limits (2000/1968 coils, 125/123 registers).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Callable, Iterable, Mapping, Sequence
+
+from pymodbus import FramerType
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+from pymodbus.pdu import ModbusPDU
+
+from hil.address import Address, parse, span
+from hil.errors import PlcErrorReply, ReplyTimeout, TransportError
+from hil.protocol import modbus_map as mm
+from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, Run
+from hil.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
+
+#: Modbus exception codes and their standard names.
+EXCEPTION_NAMES = {
+    1: "illegal function", 2: "illegal data address", 3: "illegal data value", 4: "server device failure",
+    5: "acknowledge", 6: "server device busy", 7: "negative acknowledge", 8: "memory parity error",
+    10: "gateway path unavailable", 11: "gateway target device failed to respond",
+}
+_FC_NAMES = {1: "FC01 read coils", 3: "FC03 read holding registers", 15: "FC15 write coils",
+             16: "FC16 write holding registers"}
+#: A cheap read that proves the PLC answers: R4128 (RTC seconds), always mapped.
+PROBE = Run(HOLDING, 4128, 1)
+
+
+class ModbusTransport(Transport):
+    """An FBs over Modbus (default map).  Build with :meth:`tcp` or :meth:`rtu`; use as a context manager."""
+
+    # The base class splits read_* and write_* at one size; these are the read limits (FC01/FC03).  Runs are split
+    # again at the (smaller) write limits, and Modbus requests are counted one by one in ``requests``.
+    limits = Limits(words=MAX_READ[HOLDING], bits=MAX_READ[COIL], mixed_read_words=MAX_READ[HOLDING],
+                    mixed_write_words=MAX_WRITE[HOLDING])
+
+    def __init__(self, client: ModbusTcpClient | ModbusSerialClient, description: str, *, unit: int,
+                 timeout: float, retries: int, hint: str) -> None:
+        super().__init__(description)
+        self.client = client
+        self.unit = unit
+        self.timeout = timeout
+        self.retries = retries
+        self._hint = hint
+        if not client.connect():
+            client.close()
+            raise TransportError(f"cannot connect to {description}: {hint}")
+
+    # -- constructors -----------------------------------------------------------------------------------------
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0,
+            retries: int = 2) -> "ModbusTransport":
+        """Modbus/TCP to ``host:port`` (an FBs Ethernet module serves port 502, at most 8 clients)."""
+        client = ModbusTcpClient(host, port=port, timeout=timeout, retries=retries)
+        hint = (f"is the PLC powered and reachable at {host}:{port} (ping it), does its Ethernet module serve "
+                f"Modbus/TCP on that port, and are fewer than 8 clients connected?")
+        return cls(client, f"modbus+tcp://{host}:{port}?unit={unit}", unit=unit, timeout=timeout,
+                   retries=retries, hint=hint)
+
+    @classmethod
+    def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
+            unit: int = 1, timeout: float = 1.0, retries: int = 2) -> "ModbusTransport":
+        """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL)."""
+        if _is_pty(device):
+            # A pty has no line coding, and recent Linux kernels refuse (EINVAL) PARENB on one, which pyserial
+            # sets again on every reconfigure; RTU bytes pass unchanged through 8N1.
+            bytesize, parity, stopbits = 8, "N", 1
+        client = ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
+                                    parity=parity, stopbits=stopbits, timeout=timeout, retries=retries)
+        hint = (f"does {device} exist, and is no other program holding it open? The PLC port must be in Modbus "
+                f"RTU slave mode (R4047, e.g. 5502H for port 1; port 0 never speaks Modbus)")
+        return cls(client, f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit}", unit=unit,
+                   timeout=timeout, retries=retries, hint=hint)
+
+    # -- validation before anything is sent --------------------------------------------------------------------
+    def unreachable_reason(self, address: NameLike) -> str | None:
+        return mm.unreachable_reason(address)
+
+    def read_words(self, address: NameLike, count: int = 1) -> list[int]:
+        self._check_run(address, count)
+        return super().read_words(address, count)
+
+    def write_words(self, address: NameLike, values: Sequence[int]) -> None:
+        self._check_run(address, len(values))
+        super().write_words(address, values)
+
+    def read_bits(self, address: NameLike, count: int = 1) -> list[int]:
+        self._check_run(address, count)
+        return super().read_bits(address, count)
+
+    def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
+        self._check_run(address, len(values))
+        super().write_bits(address, values)
+
+    def read_many(self, names: Iterable[NameLike]) -> list[int]:
+        names = list(names)
+        for name in names:
+            mm.to_modbus(name)
+        return super().read_many(names)
+
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
+        pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
+        for name, _ in pairs:
+            mm.to_modbus(name)
+        super().write_many(pairs)
+
+    @staticmethod
+    def _check_run(address: NameLike, count: int) -> None:
+        """The base class sends large requests in pieces; refuse the whole request before the first piece."""
+        if count >= 1:
+            for a in span(parse(address), count):
+                mm.to_modbus(a)
+
+    # -- primitives ---------------------------------------------------------------------------------------------
+    def _read_words(self, first: Address, count: int) -> list[int]:
+        return self._read_addresses(span(first, count))
+
+    def _write_words(self, first: Address, values: list[int]) -> None:
+        self._write_items(list(zip(span(first, len(values)), values)))
+
+    _read_bits = _read_words
+    _write_bits = _write_words
+
+    def _read_many(self, addresses: list[Address]) -> list[int]:
+        return self._read_addresses(addresses)
+
+    def _write_many(self, items: list[tuple[Address, int]]) -> None:
+        self._write_items(items)
+
+    def _status(self) -> PlcStatus:
+        """Modbus has no status command: RUN/STOP is unknown here (a FATEK target can tell).
+
+        A real read of R4128 (holding 4128, always mapped) proves that the PLC answers, so a status that
+        returns means the wire and the unit work.
+        """
+        (seconds,) = self._read_run(PROBE)
+        return PlcStatus(running=None, via="modbus",
+                         identity={"transport": self.description, "unit": str(self.unit),
+                                   "probe": f"R4128 = {seconds}"})
+
+    def _close(self) -> None:
+        self.client.close()
+
+    def _count(self, result):  # noqa: ANN001, ANN202 - requests are counted per Modbus frame in _exchange
+        return result
+
+    # -- runs -------------------------------------------------------------------------------------------------
+    def _read_addresses(self, addresses: Sequence[Address]) -> list[int]:
+        runs = mm.coalesce(addresses, limits=MAX_READ)  # raises UnreachableAddress before any I/O
+        values: dict[mm.Unit, int] = {}
+        for run in runs:
+            for i, value in enumerate(self._read_run(run)):
+                values[(run.table, run.pdu + i)] = value
+        return [mm.decode(a, values) for a in addresses]
+
+    def _write_items(self, items: Sequence[tuple[Address, int]]) -> None:
+        checked = [(a, check_value(a, v)) for a, v in items]
+        for run, values in mm.coalesce_writes(checked, limits=MAX_WRITE):  # all resolved before any I/O
+            self._write_run(run, values)
+
+    def _read_run(self, run: Run) -> list[int]:
+        if run.table == COIL:
+            rr = self._exchange(1, run, lambda: self.client.read_coils(run.pdu, count=run.count,
+                                                                       device_id=self.unit))
+            return [1 if b else 0 for b in rr.bits[:run.count]]  # bits come padded to a multiple of 8
+        rr = self._exchange(3, run, lambda: self.client.read_holding_registers(run.pdu, count=run.count,
+                                                                               device_id=self.unit))
+        if len(rr.registers) != run.count:
+            raise TransportError(f"{self.description}: asked for {run.count} registers from {run}, "
+                                 f"got {len(rr.registers)}")
+        return list(rr.registers)
+
+    def _write_run(self, run: Run, values: list[int]) -> None:
+        if run.table == COIL:
+            self._exchange(15, run, lambda: self.client.write_coils(run.pdu, [bool(v) for v in values],
+                                                                    device_id=self.unit))
+        else:
+            self._exchange(16, run, lambda: self.client.write_registers(run.pdu, values, device_id=self.unit))
+
+    def _exchange(self, fc: int, run: Run, send: Callable[[], ModbusPDU]) -> ModbusPDU:
+        """One Modbus request; turn every failure into a harness error naming the request and the target."""
+        what = f"{_FC_NAMES[fc]} at {run.pdu} ×{run.count} ({self._names(run)})"
+        self.requests += 1
+        try:
+            rr = send()
+        except ModbusIOException as exc:
+            waited = self.timeout * (self.retries + 1)
+            raise ReplyTimeout(
+                f"no reply to {what} from {self.description} after {self.retries + 1} tries of {self.timeout:g} s "
+                f"({waited:g} s): check the unit id, wiring/serial settings and that the PLC is powered "
+                f"[pymodbus: {exc}]") from None
+        except ConnectionException as exc:
+            raise TransportError(f"lost the connection to {self.description} during {what}: {self._hint} "
+                                 f"[pymodbus: {exc}]") from None
+        except ModbusException as exc:
+            raise TransportError(f"{what} to {self.description} failed: {exc}") from None
+        if rr.isError():
+            code = getattr(rr, "exception_code", None)
+            meaning = EXCEPTION_NAMES.get(code, "unknown Modbus exception") if code is not None else "error reply"
+            raise PlcErrorReply(str(code), meaning, f"{what} on {self.description}")
+        return rr
+
+    @staticmethod
+    def _names(run: Run) -> str:
+        """The FBs elements at the ends of a run, for error messages."""
+        first = mm.locate(run.table, run.pdu)
+        last = mm.locate(run.table, run.end - 1)
+        a = str(first[0]) if first else "unmapped"
+        b = str(last[0]) if last else "unmapped"
+        return a if run.count == 1 or a == b else f"{a}–{b}"
+
+
+def _is_pty(device: str) -> bool:
+    """True for a pseudo-terminal slave (``/dev/pts/N``): Unix98 pty slaves have majors 136–143."""
+    if "://" in device:
+        return False
+    try:
+        return 136 <= os.major(os.stat(device).st_rdev) <= 143
+    except OSError:
+        return False
+
+
+__all__ = ["ModbusTransport", "EXCEPTION_NAMES"]
