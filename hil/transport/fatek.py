@@ -12,6 +12,7 @@ from __future__ import annotations
 import errno
 import os
 import select
+import socket
 import termios
 import time
 from typing import Callable
@@ -123,6 +124,18 @@ class FatekTransport(Transport):
                          via=f"FATEK station {self.station} on {self.port_url}")
 
     def _close(self) -> None:
+        sock = getattr(self._serial, "_socket", None)
+        if sock is not None:
+            # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a request/response client has
+            # nothing in flight at close, so close the socket directly and skip the sleep.
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            sock.close()
+            self._serial._socket = None  # noqa: SLF001
+            self._serial.is_open = False
+            return
         self._serial.close()
 
     # -- the exchange -------------------------------------------------------------------------------------------
