@@ -143,7 +143,8 @@ class FatekTransport(Transport):
         if self._identity is None and self._identity_error is None:
             try:
                 self._identity = self._exchange(DetailedStatus())
-            except PlcErrorReply as exc:  # an older unit without 53: the status is still useful
+            except (PlcErrorReply, ReplyTimeout) as exc:
+                # A unit that refuses or ignores 53 still has a useful short status; ask only once.
                 self._identity_error = str(exc)
         if self._identity is None:
             return {"detailed status": f"unavailable: {self._identity_error}"}
