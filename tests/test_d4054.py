@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.fbs.d4054 import (COARSE_STEP, FINE_STEP, MISPRINTS, TABLE, code_for_rate, code_for_steps,
+from hil.fbs.d4054 import (COARSE_STEP, FINE_STEP, MISPRINTS, TABLE, RateCode, code_for_rate, code_for_steps,
                            rate_for_code)
 from hil.fbs.d4054_table import ROWS
 
@@ -51,7 +51,7 @@ def test_manual_worked_examples() -> None:
 def test_misprints_return_the_consistent_codes() -> None:
     assert code_for_rate(2.05) == 0x5619
     assert code_for_rate(1.63) == 0x56C9
-    assert rate_for_code(0x5619) == rate_for_code(0x5619).__class__("fine", 24, 24 * FINE_STEP)
+    assert rate_for_code(0x5619) == RateCode("fine", 24, 24 * FINE_STEP)
     assert rate_for_code(0x56C9).steps == 19 and rate_for_code(0x56C9).mode == "fine"
     assert MISPRINTS == {2.05: (0x5618, 0x5619), 1.63: (0x56C8, 0x56C9)}
     assert dict(ROWS)[2.05] == 0x5618 and dict(TABLE)[2.05] == 0x5619  # printed vs corrected
@@ -102,10 +102,10 @@ def test_decoder_covers_every_56xx_code_exactly() -> None:
 
 def test_decoding_example_bits() -> None:
     # 56E5H: low byte 11100101 reversed = 10100111: fine, steps 0100111 = +39 → 3.427734375 s/day
-    assert rate_for_code(0x56E5) == rate_for_code(0x56E5).__class__("fine", 39, 39 * FINE_STEP)
+    assert rate_for_code(0x56E5) == RateCode("fine", 39, 39 * FINE_STEP)
     # 5603H: 00000011 reversed = 11000000: fine, steps 1000000 = −64
     assert rate_for_code(0x5603).steps == -64 and rate_for_code(0x5603).s_per_day == -5.625
-    assert rate_for_code(0x56FC) == rate_for_code(0x56FC).__class__("coarse", 63, 63 * COARSE_STEP)
+    assert rate_for_code(0x56FC) == RateCode("coarse", 63, 63 * COARSE_STEP)
 
 
 def test_code_for_steps_rejects_bad_input() -> None:

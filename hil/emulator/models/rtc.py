@@ -38,8 +38,18 @@ S35390A = 3
 
 
 def seconds_of(t: RtcTime) -> int:
-    """Whole seconds since 2000-01-01 00:00:00 for a valid ``t`` (the weekday is ignored)."""
-    return int((t.to_datetime() - EPOCH).total_seconds())
+    """Seconds since 2000-01-01 00:00:00 for ``t`` (the weekday is ignored).
+
+    Exact for a valid time.  An invalid one only reaches the chip through a deliberately broken ``validate``;
+    it is then taken arithmetically (31 April = 1 May, second 60 = the next minute), as a counter chip would
+    roll it over, instead of crashing the emulator.
+    """
+    if t.is_valid:
+        return int((t.to_datetime() - EPOCH).total_seconds())
+    month = min(max(t.month, 1), 12)
+    first = dt.date(2000 + t.year % 100, month, 1)
+    days = (first - EPOCH.date()).days + t.day - 1
+    return (days * 86400 + t.hour * 3600 + t.minute * 60 + t.second) % CENTURY_SECONDS
 
 
 class RtcModel(Model):
