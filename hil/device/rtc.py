@@ -7,7 +7,6 @@ time, sleeping) and the emulator (virtual time, a simulated day in milliseconds)
 from __future__ import annotations
 
 import datetime as dt
-import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
