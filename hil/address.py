@@ -85,8 +85,11 @@ class Address:
 
     def offset(self, n: int) -> "Address":
         """The element ``n`` places on in the same kind (validated)."""
-        # W*/DW* step by whole values so consecutive WM800, WM816 … read contiguous memory.
-        step = 16 if self.kind in PACKED_16 else 32 if self.kind in PACKED_32 else 1
+        # Step by whole values so consecutive elements never overlap: WM800, WM816 …; DR0, DR2 ….
+        if self.kind in PACKED_16 or self.kind in PACKED_32:
+            step = self.bits
+        else:
+            step = 2 if self.kind in PAIRED_32 else 1
         return parse(f"{self.kind}{self.index + n * step}")
 
     def elements(self) -> Iterator["Address"]:

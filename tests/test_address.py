@@ -99,10 +99,10 @@ def test_span_and_offsets():
         span("R0", 0)
 
 
-@pytest.mark.xfail(reason="DR/DD/DRT runs step by one register, so consecutive DR values overlap (DR0 = R0:R1, "
-                          "next = R1:R2); a FATEK 46 run of DR names moves two registers per value")
 def test_paired_32_bit_runs_do_not_overlap():
+    # A FATEK 46 run of DR names moves two registers per value: DR0 = R0:R1, the next is DR2 = R2:R3.
     assert str(parse("DR0").offset(1)) == "DR2"
+    assert [str(a) for a in span("DD10", 3)] == ["DD10", "DD12", "DD14"]
 
 
 def test_elements_covered():

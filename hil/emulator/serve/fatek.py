@@ -276,7 +276,7 @@ def start_fatek_pty(emulator: Emulator) -> ServerHandle:
 
 def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], "asyncio.Future | object"]) -> None:
     """Run a stop coroutine on the server loop; from the loop thread itself, schedule it instead of deadlocking."""
-    if threading.current_thread() is runtime._thread:  # noqa: SLF001 - the runtime exposes no thread accessor
+    if threading.current_thread() is runtime.thread:
         runtime.loop.create_task(coro_fn())
     elif runtime.loop.is_running():
         runtime.run(coro_fn())

@@ -29,6 +29,10 @@ class LoopThread:
                 cls._shared = cls()
             return cls._shared
 
+    @property
+    def thread(self) -> threading.Thread:
+        return self._thread
+
     def _run(self) -> None:
         asyncio.set_event_loop(self.loop)
         self.loop.run_forever()
