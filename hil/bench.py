@@ -40,6 +40,12 @@ class Bench:
         self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
                                else HostTimebase(profile.time_scale))
         self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+        if "temperature" in profile.areas:
+            from hil.fbs.temperature import parse_temperature
+            self.plc.temperature.config = parse_temperature(profile.areas["temperature"],
+                                                            str(profile.path or "<profile>"))
+        from hil.faults import Faults
+        self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
 
     # -- what suites use ----------------------------------------------------------------------------------
     @property
@@ -74,10 +80,15 @@ class Bench:
         self.io.start_journal()
 
     def end_test(self) -> None:
-        """Put the PLC back as it was found: journaled values, then the RTC if a test touched it."""
+        """Put the PLC back as it was found: injected faults, journaled values, then the RTC if a test touched it.
+
+        Idempotent: a second call finds nothing left to undo."""
         touched_rtc = bool(self.io.touched & _RTC_TOUCHES)
         try:
-            self.io.restore()
+            try:
+                self.faults.undo_all()  # first: a plc-bit injector's own writes are then restored and verified
+            finally:
+                self.io.restore()
         finally:
             if touched_rtc:
                 self.plc.rtc.sync_to_host()
@@ -85,4 +96,5 @@ class Bench:
             self.io.start_journal()
 
     def close(self) -> None:
+        self.faults.close()
         self.io.close()

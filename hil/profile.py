@@ -127,12 +127,18 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         reader.done(rtc_t, "rtc")
 
     areas = {s: reader.table(data, s) for s in AREA_SECTIONS if s in data}
+    if "temperature" in areas:  # refuse a bad [temperature] when the profile is read, not when a test runs
+        from hil.fbs.temperature import parse_temperature
+        parse_temperature(areas["temperature"], where)
     faults_t = reader.table(data, "faults")
     faults = {}
     for fault, table in faults_t.items():
         if not isinstance(table, dict):
             raise ProfileError(f"{where}: [faults.{fault}] must be a table")
         faults[fault] = table
+    if faults:
+        from hil.faults import check_fault_configs
+        check_fault_configs(faults, where)
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, rtc, areas,
                    faults, digest)
 

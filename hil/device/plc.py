@@ -19,6 +19,8 @@ class FbsPlc:
         self.settle_scans = settle_scans
         from hil.device.rtc import Rtc  # noqa: PLC0415 - areas import FbsPlc's module for typing
         self.rtc = Rtc(self)
+        from hil.device.temperature import Temperature  # noqa: PLC0415
+        self.temperature = Temperature(self)  # configured by the bench from the profile's [temperature]
 
     def status(self) -> PlcStatus:
         return self.io.status()

@@ -16,4 +16,9 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
     rtc = profile.rtc
     emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,
                                 start=(rtc.start if rtc and rtc.start else epoch)))
+    if "temperature" in profile.areas:
+        from hil.emulator.models.temperature import TemperatureModel  # noqa: PLC0415
+        from hil.fbs.temperature import parse_temperature  # noqa: PLC0415
+        emulator.add_model(TemperatureModel(parse_temperature(profile.areas["temperature"],
+                                                              str(profile.path or "<profile>"))))
     return emulator

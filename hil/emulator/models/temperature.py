@@ -1,0 +1,250 @@
+"""FBs temperature modules in the emulator (manual ch. 20.1–20.4; spec/fbs-temperature.md).
+
+What the model does every scan, as the FBs OS does:
+
+* reads the temperature table at SR (the profile's ``table``); without A556H at SR+0 nothing is measured;
+* checks it (module count 1–8 else FEH, at most 32 points else FFH), compares each table module with the module
+  actually fitted (``fitted``; mismatch → bit k of TW+0's low byte, its points are not measured);
+* measures the fitted modules' points one at a time (the modules multiplex), each module going round all its
+  points once per update time; each measurement reads the point's installed bit (R4010/R4011) then writes its
+  reading and its break bit (TW+1/TW+2);
+* writes the execution code 56H once every point has been measured once.
+
+Each point's true temperature comes from a *source*: any callable ``source(t) -> °C`` of virtual time
+(:class:`Fixed`, :class:`Ramp`, or a thermal plant later), set with :meth:`TemperatureModel.set_source`.
+
+The decisions a broken PLC could get wrong are small methods (``installed``, ``point_result``,
+``break_position``, ``execution_code``) so the harness's tests can build broken variants as tiny subclasses.
+On a real PLC the ladder/WinProladder writes the table; here :meth:`power_on` plays that part.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable, Sequence
+
+from hil.emulator.model import Model
+from hil.fbs import registers as reg
+from hil.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
+                                 EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
+                                 TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
+
+if TYPE_CHECKING:
+    from hil.emulator.core import Emulator
+    from hil.emulator.memory import Memory
+
+Source = Callable[[float], float]  # virtual seconds since power-on → true temperature, °C
+
+_MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
+
+
+@dataclass(frozen=True)
+class Fixed:
+    celsius: float
+
+    def __call__(self, t: float) -> float:
+        return self.celsius
+
+
+@dataclass(frozen=True)
+class Ramp:
+    start: float
+    per_s: float
+    low: float = -math.inf
+    high: float = math.inf
+
+    def __call__(self, t: float) -> float:
+        return min(max(self.start + self.per_s * t, self.low), self.high)
+
+
+def source_from_spec(spec: dict) -> Source:
+    if spec["kind"] == "fixed":
+        return Fixed(float(spec["celsius"]))
+    return Ramp(float(spec["start"]), float(spec["per_s"]), float(spec.get("low", -math.inf)),
+                float(spec.get("high", math.inf)))
+
+
+class TemperatureModel(Model):
+    name = "temperature"
+
+    def __init__(self, config: TemperatureConfig, *, fitted: Sequence[ModuleType] | None = None,
+                 write_table: bool = True) -> None:
+        self.config = config
+        #: The modules physically plugged in, in expansion order (default: those the profile names).
+        self.fitted: list[ModuleType] = list(fitted if fitted is not None else (m.type for m in config.modules))
+        self.write_table = write_table
+        self.sources: dict[int, Source] = {}
+        for point in range(config.points):
+            _, module = config.point_module(point)
+            low, high = module.sensor.low_c, module.sensor.high_c
+            base = 25.0 if low <= 25.0 <= high else low + 50.0
+            self.sources[point] = Fixed(round(base + 0.3 * point, 1))
+        for point, spec in config.sources.items():
+            self.sources[point] = source_from_spec(spec)
+        self.broken: set[int] = set()
+        self.state = "idle"
+        self._samples: dict[int, collections.deque[float]] = {}
+        self._measured: set[int] = set()
+        self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
+        self._mux: list[int] = [0] * len(self.fitted)  # the point (within the module) measured next
+        self._breaks = 0  # 32 break bits as the model last wrote them
+        self._due = math.inf
+
+    # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
+    def set_source(self, point: int, source: Source) -> None:
+        self._check_point(point)
+        self.sources[point] = source
+        self._samples.pop(point, None)
+
+    def open(self, point: int) -> None:
+        """Open point's sensor circuit (a broken thermocouple); seen at the point's next measurement."""
+        self._check_point(point)
+        self.broken.add(point)
+
+    def repair(self, point: int) -> None:
+        self._check_point(point)
+        self.broken.discard(point)
+
+    @staticmethod
+    def _check_point(point: int) -> None:
+        if not 0 <= point < MAX_POINTS:
+            raise ValueError(f"temperature point {point} is outside 0–{MAX_POINTS - 1}")
+
+    # -- the seams broken variants override ----------------------------------------------------------------------
+    def installed(self, mem: "Memory", point: int) -> bool:
+        """Point's bit in R4010 (points 0–15) or R4011 (16–31)."""
+        return bool(mem.words["R"][_MASK_LOW + point // 16] >> (point % 16) & 1)
+
+    def point_result(self, point: int, installed: bool, broken: bool, live: int) -> tuple[int, bool]:
+        """(reading, break bit) of one measurement."""
+        if not installed:
+            return 0, False
+        if broken:
+            return BREAK_VALUE, True
+        return live, False
+
+    def break_position(self, point: int) -> tuple[int, int]:
+        """(offset from TW, bit) of the point's break bit."""
+        return 1 + point // 16, point % 16
+
+    def execution_code(self, state: str, all_measured: bool) -> int:
+        if state == "bad_module_count":
+            return EXEC_BAD_MODULE_COUNT
+        if state == "too_many_points":
+            return EXEC_TOO_MANY_POINTS
+        if state == "measuring" and all_measured:
+            return EXEC_MEASURING
+        return EXEC_IDLE
+
+    # -- the engine ---------------------------------------------------------------------------------------------
+    def power_on(self, emu: "Emulator") -> None:
+        if self.write_table:
+            emu.memory.write(self.config.table, self.config.table_words())
+        for k, module in enumerate(self.fitted):
+            self._next[k] = emu.now + self._step(module)
+
+    def next_event(self, now: float) -> float:
+        return self._due
+
+    def _step(self, module: ModuleType) -> float:
+        return module.update_s[self.config.rate] / module.points
+
+    def scan(self, emu: "Emulator") -> None:
+        mem = emu.memory
+        words = mem.words[self.config.table.kind]
+        sr = self.config.table.index
+        self._due = math.inf
+        if words[sr] != TABLE_MARKER:
+            self.state = "idle"
+            return
+        count = words[sr + 1]
+        readings, work = decode_start(words[sr + 2]), decode_start(words[sr + 3])
+        if work is None:  # nowhere to report anything
+            self.state = "idle"
+            return
+        codes = words[sr + 4:sr + 4 + min(count, MAX_MODULES)]
+        table_modules = [MODULE_BY_CODE.get(c & 0xFF) for c in codes]
+        total = sum(m.points for m in table_modules if m)
+        if count == 0 or count > MAX_MODULES:
+            self.state = "bad_module_count"
+        elif total > MAX_POINTS:
+            self.state = "too_many_points"
+        else:
+            self.state = "measuring"
+        mismatch = 0
+        expected: set[int] = set()
+        entries: list[int] = []
+        if self.state == "measuring" and readings is not None:
+            first = 0
+            for k, (code, tm) in enumerate(zip(codes, table_modules)):
+                points = tm.points if tm else 0
+                matches = tm is not None and k < len(self.fitted) and self.fitted[k] is tm
+                if not matches:
+                    mismatch |= 1 << k
+                else:
+                    expected.update(range(first, first + points))
+                    self._measure_module(emu, k, first, code >> 8, readings)
+                entries += [(code & 0xFF00) | (8 * k & 0xFF), points << 8 | k,
+                            (words[sr + 2] + first) & 0xFFFF, self._mux[k] if k < len(self._mux) else 0]
+                first += points
+        all_measured = bool(expected) and expected <= self._measured
+        head = self.execution_code(self.state, all_measured) << 8 | mismatch
+        low, high = self._break_words()
+        block = [head, low, high, (total if self.state != "bad_module_count" else 0) << 8 | count & 0xFF]
+        mem.write(work, block + entries)
+
+    def _break_words(self) -> tuple[int, int]:
+        """TW+1 and TW+2 from the break bits, each placed where :meth:`break_position` says."""
+        words = {1: 0, 2: 0}
+        for point in range(MAX_POINTS):
+            if self._breaks >> point & 1:
+                offset, bit = self.break_position(point)
+                words[offset] = words.get(offset, 0) | 1 << bit
+        return words[1] & 0xFFFF, words[2] & 0xFFFF
+
+    def _measure_module(self, emu: "Emulator", k: int, first: int, sensor_code: int, readings) -> None:  # noqa: ANN001
+        module = self.fitted[k]
+        step = self._step(module)
+        if emu.now - self._next[k] > module.update_s[self.config.rate]:
+            self._next[k] = emu.now  # long idle (no valid table): do not replay the missed cycles
+        while self._next[k] <= emu.now + 1e-9:
+            point = first + self._mux[k]
+            self._measure_point(emu, point, sensor_code, readings)
+            self._mux[k] = (self._mux[k] + 1) % module.points
+            self._next[k] += step
+        self._due = min(self._due, self._next[k])
+
+    def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings) -> None:  # noqa: ANN001
+        mem = emu.memory
+        installed = self.installed(mem, point)
+        broken = point in self.broken
+        live = self._live(emu.now, point, sensor_code) if installed and not broken else 0
+        if broken or not installed:
+            self._samples.pop(point, None)  # [our choice] a repaired sensor reads its live value at once
+        reading, flagged = self.point_result(point, installed, broken, live)
+        mem.words[readings.kind][readings.index + point] = reading & 0xFFFF
+        if flagged:
+            self._breaks |= 1 << point
+        else:
+            self._breaks &= ~(1 << point)
+        self._measured.add(point)
+
+    def _live(self, now: float, point: int, sensor_code: int) -> int:
+        """The reading of a working sensor: source → unit → range → averaging → resolution, in 0.1°."""
+        sensor = SENSOR_BY_CODE.get(sensor_code)
+        celsius = self.sources[point](now)
+        if sensor is not None:
+            celsius = min(max(celsius, sensor.low_c), sensor.high_c)
+        value = to_unit(celsius, self.config.unit)
+        samples = self._samples.setdefault(point, collections.deque(maxlen=self.config.averaging))
+        samples.append(value)
+        mean = sum(samples) / len(samples)
+        if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
+            return int(round(mean)) * 10
+        return int(round(mean * 10))
+
+
+def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
+    return TemperatureModel(config)
