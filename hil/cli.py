@@ -46,12 +46,21 @@ def build_parser() -> argparse.ArgumentParser:
     emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
     emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
     emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
+                         help="also serve a sensor-break fault rig: Modbus/TCP coil FIRST+point = 1 opens the "
+                              "point's sensor (profile: [faults.sensor_break] kind = \"modbus-coil\")")
+    emulate.add_argument("--rig-first-coil", type=int, default=0, metavar="N",
+                         help="coil of temperature point 0 on the rig (default 0)")
     emulate.add_argument("--time-scale", type=float, default=1.0, metavar="X",
                          help="virtual seconds per wall second (default 1)")
 
     probe = sub.add_parser("probe", help="show a PLC's status and key registers",
                            epilog="example: hil probe fatek+tcp://192.168.1.5:500")
-    probe.add_argument("url", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp")
+    probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
+                                              "(default: the --bench profile's target)")
+    probe.add_argument("--bench", metavar="FILE",
+                       help="bench profile: its [temperature] section adds the temperature points to the report "
+                            "(and configures an emulator… target)")
     return parser
 
 
@@ -83,10 +92,13 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         if not endpoints:
             raise ValueError("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
                              "or --modbus-pty")
-        return emulate(args.bench or str(default_bench()), endpoints, args.time_scale)
+        return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
+                       args.rig_first_coil)
     if args.command == "probe":
         from hil.commands.probe import probe
-        return probe(args.url, console)
+        if not args.url and not args.bench:
+            raise ValueError("probe what? give a target URL, or --bench FILE to use the profile's target")
+        return probe(args.url, console, bench=args.bench)
     raise AssertionError(args.command)
 
 

@@ -20,8 +20,12 @@ def split_host_port(text: str) -> tuple[str, int]:
     return host or "127.0.0.1", int(port)
 
 
-def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float) -> int:
-    """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint."""
+def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
+            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0) -> int:
+    """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
+
+    ``rig_modbus_tcp``: also serve a sensor-break fault rig (Modbus/TCP coils, see hil.emulator.serve.rig).
+    """
     profile = load_profile(bench)
     emulator = build_emulator(profile, dt.datetime.now().replace(microsecond=0))
     servers: list[ServerHandle] = []
@@ -30,6 +34,12 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
             handle = serve(emulator, wire, host, port)
+            servers.append(handle)
+            print(f"{handle.kind} {handle.address}", flush=True)
+        if rig_modbus_tcp:
+            from hil.emulator.serve.rig import start_rig_modbus_tcp
+            host, port = split_host_port(rig_modbus_tcp)
+            handle = start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil)
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):

@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import datetime as dt
+
 from rich.console import Console
 from rich.table import Table
 
+from hil.device.plc import FbsPlc
+from hil.device.temperature import Temperature
+from hil.errors import HilError
+from hil.fbs.temperature import BREAK_VALUE, parse_temperature
+from hil.profile import Profile, load_profile
+from hil.timebase import HostTimebase
+from hil.transport.base import Transport
 from hil.transport.factory import open_transport
 
 # (label, element) — read only where the wire can reach them.
@@ -17,8 +26,15 @@ PROBE_REGISTERS = [
 _COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
 
 
-def probe(url: str, console: Console) -> int:
-    with open_transport(url) as transport:
+def probe(url: str | None, console: Console, bench: str | None = None) -> int:
+    """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
+    profile = load_profile(bench) if bench else None
+    factory = None
+    if profile is not None:
+        from hil.emulator.build import build_emulator
+        factory = lambda: build_emulator(profile, dt.datetime.now().replace(microsecond=0))  # noqa: E731
+    with open_transport(url or profile.target, emulator_factory=factory,
+                        timeout=profile.timeout if profile else None) as transport:
         status = transport.status()
         table = Table(title=f"PLC at {transport.description}", show_header=True)
         table.add_column("item")
@@ -34,4 +50,37 @@ def probe(url: str, console: Console) -> int:
             values = transport.read_words(element, _COUNTS.get(element, 1))
             table.add_row(label, " ".join(f"{v} ({v:04X}H)" for v in values))
         console.print(table)
+        if profile is not None and "temperature" in profile.areas:
+            console.print(temperature_table(transport, profile))
     return 0
+
+
+def temperature_table(transport: Transport, profile: Profile) -> Table:
+    """One row per configured point: module, sensor, installed bit, reading, break bit; the caption has the
+    table marker, execution code and counts as the PLC reports them."""
+    config = parse_temperature(profile.areas["temperature"], str(profile.path))
+    if transport.emulator is not None:  # a freshly built emulator: let every point be measured once
+        transport.emulator.advance(config.update_period() * 1.5)
+    temp = Temperature(FbsPlc(transport, HostTimebase()), config)
+    unit = f"°{config.unit}"
+    table = Table(title=f"temperature points ({len(config.modules)} modules, {config.points} points)")
+    for column in ("point", "module", "sensor", "installed", f"reading {unit}", "break"):
+        table.add_column(column, justify="right" if column == "point" else "left")
+    try:
+        head, work = temp.read_table(), temp.read_work()
+        readings = temp.readings()
+        mask = transport.read_words("R4010", 2)
+    except HilError as exc:
+        table.caption = f"[red]cannot read the temperature area: {exc}[/red]"
+        return table
+    breaks = set(work.break_points)
+    for point, value in enumerate(readings):
+        k, module = config.point_module(point)
+        installed = bool(mask[point // 16] >> (point % 16) & 1)
+        shown = "[red]28767 (open)[/red]" if value == BREAK_VALUE else f"{value / 10:.1f}"
+        table.add_row(str(point), f"{k + 1}: FBs-{module.type.name}", module.sensor.name,
+                      "yes" if installed else "[dim]no[/dim]", shown, "[red]BREAK[/red]" if point in breaks else "")
+    table.caption = (f"table {config.table}: SR+0 = {head.marker:04X}H; work {config.work}: execution code "
+                     f"{work.execution_code:02X}H, mismatch bits {work.mismatch_bits:08b}, "
+                     f"{work.total_points} points / {work.module_count} modules")
+    return table
