@@ -1,0 +1,194 @@
+"""The temperature suites end to end: every emulator wire, an external ``hil emulate`` with a fault rig, and
+broken emulators that the suites must catch (a suite that passes on a faulty PLC is the worst bug we can have)."""
+
+from __future__ import annotations
+
+import os
+import queue
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+# Imported here, outside the inner runs: pytester restores sys.modules after each inner run, so whatever the
+# inner run imports first is imported (and assertion-rewritten, being part of the plugin's distribution) again
+# in every run — seconds per run.
+import hil.device.temperature  # noqa: F401
+import hil.emulator.serve.fatek  # noqa: F401
+import hil.emulator.serve.modbus  # noqa: F401
+import hil.faults  # noqa: F401
+import hil.pytest_plugin  # noqa: F401
+import hil.transport.fatek  # noqa: F401
+import hil.transport.local  # noqa: F401
+import hil.transport.modbus  # noqa: F401
+from hil.emulator.build import build_emulator
+from hil.emulator.models.temperature import TemperatureModel
+from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
+
+SUITE = str(REPO / "suites" / "test_temperature.py")
+SUITE_TESTS = 14  # 2 + 3 × 4 points
+# The inner runs need no hypothesis; loading its plugin re-imports (and rewrites) ~70 modules per run.
+INNER = ("-p", "no:hypothesispytest")
+
+
+@pytest.mark.parametrize("target", EMULATOR_TARGETS)
+def test_temperature_suite_passes_on_every_emulator_target(pytester, target):
+    result = pytester.runpytest_inprocess(SUITE, *INNER, "--bench", str(EMULATOR_BENCH), "--target", target)
+    result.assert_outcomes(passed=SUITE_TESTS)
+
+
+# -- broken emulators -------------------------------------------------------------------------------------------
+class BreakValue28766(TemperatureModel):
+    def point_result(self, point, installed, broken, live):
+        reading, flag = super().point_result(point, installed, broken, live)
+        return (28766 if broken and installed else reading), flag
+
+
+class BreakValueZero(TemperatureModel):
+    def point_result(self, point, installed, broken, live):
+        reading, flag = super().point_result(point, installed, broken, live)
+        return (0 if broken and installed else reading), flag
+
+
+class BreakBitOnNextPoint(TemperatureModel):
+    def break_position(self, point):
+        return super().break_position((point + 1) % 32)
+
+
+class UnfittedPointStillFlagged(TemperatureModel):
+    def point_result(self, point, installed, broken, live):
+        reading, flag = super().point_result(point, installed, broken, live)
+        return reading, flag or broken
+
+
+class R4011Ignored(TemperatureModel):
+    """Takes every point's installed bit from R4010 (point % 16): R4011 is never read."""
+
+    def installed(self, mem, point):
+        return super().installed(mem, point % 16)
+
+
+class BreakBitsOfHighPointsInTW1(TemperatureModel):
+    def break_position(self, point):
+        return 1, point % 16
+
+
+class MaskLatchedAtPowerOn(TemperatureModel):
+    def power_on(self, emu):
+        super().power_on(emu)
+        self._latched = list(emu.memory.words["R"][4010:4012])
+
+    def installed(self, mem, point):
+        return bool(self._latched[point // 16] >> (point % 16) & 1)
+
+
+class ExecutionCode55(TemperatureModel):
+    def execution_code(self, state, all_measured):
+        code = super().execution_code(state, all_measured)
+        return 0x55 if code == 0x56 else code
+
+
+class RepairNeverSeen(TemperatureModel):
+    def repair(self, point):
+        pass
+
+
+class Variant:
+    """A plugin for the inner pytest run whose emulator has ``model_class`` in place of the temperature model."""
+
+    def __init__(self, model_class: type[TemperatureModel]) -> None:
+        self.model_class = model_class
+
+    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        emulator = build_emulator(profile, epoch)
+        good = emulator.model(TemperatureModel)
+        emulator.models.remove(good)
+        emulator.add_model(self.model_class(good.config))
+        return emulator
+
+
+# variant → the suite tests that must catch it (each listed test must fail)
+CAUGHT_BY = {
+    BreakValue28766: ["test_broken_sensor_reads_28767_with_only_its_bit"],
+    BreakValueZero: ["test_broken_sensor_reads_28767_with_only_its_bit"],
+    BreakBitOnNextPoint: ["test_broken_sensor_reads_28767_with_only_its_bit"],
+    UnfittedPointStillFlagged: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back"],
+    R4011Ignored: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back[16]",
+                   "test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back[31]"],
+    BreakBitsOfHighPointsInTW1: ["test_broken_sensor_reads_28767_with_only_its_bit[16]",
+                                 "test_broken_sensor_reads_28767_with_only_its_bit[31]"],
+    MaskLatchedAtPowerOn: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back"],
+    ExecutionCode55: ["test_table_is_recognised_and_measuring"],
+    RepairNeverSeen: ["test_repair_brings_the_live_value_back"],
+}
+
+
+@pytest.mark.parametrize("variant", list(CAUGHT_BY), ids=lambda v: v.__name__)
+def test_the_suite_catches_a_broken_emulator(pytester, variant):
+    result = pytester.inline_run(SUITE, *INNER, "--bench", str(EMULATOR_BENCH), plugins=[Variant(variant)])
+    failed = {r.nodeid.split("::")[-1] for r in result.getreports("pytest_runtest_logreport")
+              if r.when == "call" and r.failed}
+    for name in CAUGHT_BY[variant]:
+        assert any(f == name or f.startswith(name + "[") for f in failed), (
+            f"{variant.__name__} passed {name}; failed only: {sorted(failed)}")
+
+
+def test_the_correct_emulator_passes_through_the_same_hook(pytester):
+    result = pytester.inline_run(SUITE, *INNER, "--bench", str(EMULATOR_BENCH), plugins=[Variant(TemperatureModel)])
+    result.assertoutcome(passed=SUITE_TESTS)
+
+
+# -- an external emulator, reached only over the wire, sensors opened through the fault rig ---------------------
+TIME_SCALE = 100
+
+
+def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> dict[str, str]:
+    lines: queue.Queue[str] = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True).start()
+    found: dict[str, str] = {}
+    deadline = time.monotonic() + timeout
+    while set(found) != kinds:
+        try:
+            line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+        except queue.Empty:
+            raise AssertionError(f"hil emulate printed only {found} within {timeout} s") from None
+        kind, _, address = line.strip().partition(" ")
+        found[kind] = address
+    return found
+
+
+def test_temperature_suite_against_hil_emulate_with_a_modbus_coil_rig(pytester, tmp_path):
+    emulator_profile = EMULATOR_BENCH.read_text()
+    (tmp_path / "emulated.toml").write_text(emulator_profile)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "emulate", "--bench", str(tmp_path / "emulated.toml"),
+         "--fatek-tcp", "127.0.0.1:0", "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(TIME_SCALE)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        where = _read_endpoints(proc, {"fatek-tcp", "rig-modbus-tcp"}, timeout=15)
+        client = re.sub(r'(?m)^target = "emulator"', f'target = "fatek+tcp://{where["fatek-tcp"]}"', emulator_profile)
+        client = re.sub(r"(?m)^time_scale = .*", f"time_scale = {TIME_SCALE}", client)
+        client = re.sub(r'(?m)^kind = "emulator".*',
+                        f'kind = "modbus-coil"\ntarget = "modbus+tcp://{where["rig-modbus-tcp"]}?unit=1"\n'
+                        f"first_coil = 0", client)
+        assert 'kind = "modbus-coil"' in client and "fatek+tcp://" in client
+        bench_file = tmp_path / "client.toml"
+        bench_file.write_text(client)
+        started = time.monotonic()
+        result = pytester.runpytest_inprocess(SUITE, *INNER, "--bench", str(bench_file), "-rs")
+        elapsed = time.monotonic() - started
+        result.assert_outcomes(passed=SUITE_TESTS)
+        assert elapsed < 30, f"the external-emulator run took {elapsed:.1f} s"
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, proc.stderr.read()
