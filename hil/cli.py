@@ -6,6 +6,7 @@ import argparse
 import sys
 
 from rich.console import Console
+from rich.markup import escape
 
 from hil import __version__
 from hil.errors import HilError
@@ -16,6 +17,8 @@ EXAMPLES = """examples:
   hil run --bench my-bench.toml -- -k rtc   a real bench, RTC suites only (pytest args after --)
   hil emulate --fatek-tcp 127.0.0.1:5000    serve the emulator for external clients
   hil probe fatek+serial:///dev/ttyUSB0     status and key registers of a PLC
+  hil rtc read fatek+tcp://192.168.1.5:500  the PLC's clock against host time
+  hil drift code 3.38                       the D4054 code for a clock 3.38 s/day fast
 """
 
 
@@ -61,7 +64,71 @@ def build_parser() -> argparse.ArgumentParser:
     probe.add_argument("--bench", metavar="FILE",
                        help="bench profile: its [temperature] section adds the temperature points to the report "
                             "(and configures an emulator… target)")
+    _add_clock_commands(sub)
     return parser
+
+
+def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
+    """``hil rtc read|set|sync`` and ``hil drift code|decode|measure`` (see hil/commands/rtc.py)."""
+    raw = argparse.RawDescriptionHelpFormatter
+    url_help = "target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp"
+    bench_help = "bench profile for an emulator… target (default fixtures/benches/emulator.toml: an S-35390A RTC)"
+
+    rtc = sub.add_parser("rtc", help="read, set or sync a PLC's real-time clock", formatter_class=raw,
+                         description="The PLC's real-time clock (R4128–R4135, M1952–M1955, D4053/D4054). Writes go "
+                                     "straight to the PLC: no bench profile guards them.",
+                         epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                "  hil rtc set fatek+serial:///dev/ttyUSB0 \"2024-02-29 12:00:00\"\n"
+                                "  hil rtc sync emulator+modbus-tcp\n")
+    rtc_sub = rtc.add_subparsers(dest="rtc_command", metavar="ACTION", required=True)
+    read = rtc_sub.add_parser("read", help="the time, chip, flags and rate code, and the difference from host time",
+                              formatter_class=raw,
+                              epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                     "  hil rtc read emulator+modbus-tcp    (D4053/D4054 are not on the Modbus map)\n")
+    set_ = rtc_sub.add_parser("set", help="set the clock (M1952 procedure); exit 1 if the PLC refuses (M1955 = 1)",
+                              formatter_class=raw,
+                              epilog="examples:\n  hil rtc set fatek+tcp://192.168.1.5:500 \"2024-02-29 12:00:00\"\n"
+                                     "  hil rtc set emulator 2024-02-29T12:00\n"
+                                     "An invalid date (2023-02-29) is sent as is, so you see whether the PLC takes "
+                                     "it.\n")
+    sync = rtc_sub.add_parser("sync", help="set the clock to host time, on a whole second", formatter_class=raw,
+                              epilog="example:\n  hil rtc sync fatek+serial:///dev/ttyUSB0\n")
+    for p in (read, set_, sync):
+        p.add_argument("url", metavar="URL", help=url_help)
+    set_.add_argument("time", metavar="TIME", help="YYYY-MM-DD HH:MM:SS (ISO; 'T' or space; seconds optional)")
+    for p in (read, set_, sync):
+        p.add_argument("--bench", metavar="FILE", help=bench_help)
+
+    drift = sub.add_parser("drift", help="D4054 rate codes, and measuring a PLC clock's drift", formatter_class=raw,
+                           description="S-35390A clock-rate compensation (D4054). Positive rates mean the PLC clock "
+                                       "runs fast.",
+                           epilog="examples:\n  hil drift code 3.38\n  hil drift decode 56E5H\n"
+                                  "  hil drift measure fatek+tcp://192.168.1.5:500 --duration 3600\n")
+    drift_sub = drift.add_subparsers(dest="drift_command", metavar="ACTION", required=True)
+    code = drift_sub.add_parser("code", help="the manual's D4054 code for a clock error in s/day", formatter_class=raw,
+                                epilog="examples:\n  hil drift code 3.38     -> 56E5H\n"
+                                       "  hil drift code -5.62    -> 5603H (a clock 5.62 s/day slow)\n")
+    code.add_argument("rate", metavar="RATE", help="s/day the PLC clock runs fast (negative: slow), "
+                                                  "-16.88 … +16.61")
+    decode = drift_sub.add_parser("decode", help="what a D4054 code does: mode, steps, s/day, ppm",
+                                  formatter_class=raw,
+                                  epilog="examples:\n  hil drift decode 56E5\n  hil drift decode 0x5603\n"
+                                         "  hil drift decode 56E5H\n")
+    decode.add_argument("code", metavar="CODE", help="hex: 56E5, 56E5H or 0x56E5")
+    measure = drift_sub.add_parser("measure", help="measure the clock's error in s/day against host time",
+                                   formatter_class=raw,
+                                   epilog="examples:\n  hil drift measure fatek+tcp://192.168.1.5:500 --duration 3600\n"
+                                          "  hil drift measure emulator --duration 86400   (virtual time: instant)\n"
+                                          "  hil drift measure fatek+serial:///dev/ttyUSB0 --duration 86400 --apply\n"
+                                          "Longer is finer: the resolution is one polling bracket (tens of ms) over "
+                                          "the duration, about ±0.03 s/day over a day. Without --apply D4054 is left "
+                                          "as it is.\n")
+    measure.add_argument("url", metavar="URL", help=url_help)
+    measure.add_argument("--duration", type=float, required=True, metavar="SECONDS",
+                         help="bench seconds to measure over (more than 5)")
+    measure.add_argument("--apply", action="store_true",
+                         help="then write the compensating code to D4054 (S-35390A; not over the default Modbus map)")
+    measure.add_argument("--bench", metavar="FILE", help=bench_help)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,7 +141,9 @@ def main(argv: list[str] | None = None) -> int:
     except (HilError, OSError, ValueError) as exc:
         if args.debug:
             raise
-        Console(stderr=True).print(f"[bold red]hil {args.command}:[/] {exc}", highlight=False)
+        # soft_wrap: one line whatever the width; escape: messages quote "[sections]" that are not markup
+        Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(str(exc))}",
+                                                   highlight=False)
         return 2
 
 
@@ -99,6 +168,20 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         if not args.url and not args.bench:
             raise ValueError("probe what? give a target URL, or --bench FILE to use the profile's target")
         return probe(args.url, console, bench=args.bench)
+    if args.command == "rtc":
+        from hil.commands import rtc
+        if args.rtc_command == "read":
+            return rtc.rtc_read(args.url, console, bench=args.bench)
+        if args.rtc_command == "set":
+            return rtc.rtc_set(args.url, args.time, console, bench=args.bench)
+        return rtc.rtc_sync(args.url, console, bench=args.bench)
+    if args.command == "drift":
+        from hil.commands import rtc
+        if args.drift_command == "code":
+            return rtc.drift_code(args.rate, console)
+        if args.drift_command == "decode":
+            return rtc.drift_decode(args.code, console)
+        return rtc.drift_measure(args.url, args.duration, console, bench=args.bench, apply=args.apply)
     raise AssertionError(args.command)
 
 
