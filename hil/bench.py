@@ -8,6 +8,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Callable
 
+from hil.address import parse_range
 from hil.device.plc import FbsPlc
 from hil.emulator.core import Emulator
 from hil.fbs import registers as reg
@@ -21,7 +22,7 @@ from hil.transport.url import Target, parse_target
 EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
 
 # Writes to these mean the RTC may be left off host time: sync it after the test.
-_RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S])
+_RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
 
 
 class Bench:
@@ -65,11 +66,13 @@ class Bench:
         self.plc.settle()
 
     def cannot_reach(self, *names: str) -> str | None:
-        """Why this bench cannot read and write ``names`` (unreachable over the wire, or not writable), or None."""
+        """Why this bench cannot read and write ``names`` (elements or ranges such as ``"R4128-R4134"``):
+        unreachable over the wire, or not writable.  None when it can."""
         for name in names:
-            reason = self.raw.unreachable_reason(name)
-            if reason:
-                return reason
+            for element in parse_range(name):
+                reason = self.raw.unreachable_reason(element)
+                if reason:
+                    return reason
         refused = [n for n in names if not self.profile.can_write(n)]
         if refused:
             return f"{', '.join(refused)} not in the bench's [safety] writable list"

@@ -78,7 +78,7 @@ class DriftMeasurement:
 
 
 class RtcError(HilError):
-    """The RTC did not behave as a running clock (no second transition when one was due)."""
+    """The RTC procedure could not be carried out (a set that failed part-way, a clock that never ticks)."""
 
 
 class Rtc:
@@ -150,9 +150,18 @@ class Rtc:
         return self._finish_set(value)
 
     def _begin_set(self, value: RtcTime) -> None:
+        """M1952 := 1 and R4128–R4134 := ``value`` in one mixed write (one FATEK 49 frame; in this order)."""
         io = self.plc.io
-        io.write(reg.RTC_HOLD, 1)
-        io.write_words(reg.RTC_SECOND, value.to_registers())
+        items = [(reg.RTC_HOLD, 1)] + list(zip(reg.RTC_FIELDS, value.to_registers()))
+        for name, _ in items:  # refuse before anything is written rather than strand M1952 at 1
+            reason = io.unreachable_reason(name)
+            if reason:
+                raise RtcError(f"cannot set the RTC: {reason}")
+        try:
+            io.write_many(items)
+        except HilError as exc:
+            raise RtcError(f"setting the RTC failed part-way ({exc}); M1952 may be left at 1 with the read-out "
+                           f"frozen — run `hil rtc sync <target>` once the PLC answers") from exc
 
     def _finish_set(self, value: RtcTime) -> SetResult:
         self.plc.io.write(reg.RTC_HOLD, 0)

@@ -83,6 +83,10 @@ class Emulator:
 
     def advance_to(self, target: float) -> None:
         with self.lock:
+            # The scan right after a request is never skipped: a PLC sees a written value on its next scan, so
+            # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
+            if self.now + self.scan_time <= target + 1e-9:
+                self.scan()
             while self.now + self.scan_time <= target + 1e-9:
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)

@@ -1,0 +1,46 @@
+"""The ±30 s correction: on the rising edge of M1953, seconds 0–29 → :00, seconds 30–59 → :00 of the next
+minute (FBs manual ch. 15).  The carry into hour, day, month and year is how a clock counts."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import pytest
+
+OUR_CHOICE_WRAP = pytest.mark.emulator_only(
+    reason="the 2099 → 2000 wrap of a ±30 s carry is the spec's [our choice], not a manual statement")
+
+
+@pytest.mark.parametrize("start, after", [
+    ("2024-03-05 10:20:00", "2024-03-05 10:20:00"),
+    ("2024-03-05 10:20:10", "2024-03-05 10:20:00"),
+    ("2024-03-05 10:20:29", "2024-03-05 10:20:00"),  # last second of the "drop" window
+    ("2024-03-05 10:20:30", "2024-03-05 10:21:00"),  # first second of the "round up" window
+    ("2024-03-05 10:20:45", "2024-03-05 10:21:00"),
+    ("2024-03-05 10:59:45", "2024-03-05 11:00:00"),  # minute → hour
+    ("2024-03-05 23:59:45", "2024-03-06 00:00:00"),  # hour → day
+    ("2024-04-30 23:59:40", "2024-05-01 00:00:00"),  # 30-day month → next month
+    ("2024-02-29 23:59:30", "2024-03-01 00:00:00"),  # leap day → March
+    ("2023-02-28 23:59:30", "2023-03-01 00:00:00"),  # non-leap February → March
+    ("2024-12-31 23:59:50", "2025-01-01 00:00:00"),  # month → year
+    pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=OUR_CHOICE_WRAP),
+])
+def test_adjust_30s(rtc, io, start, after):
+    assert rtc.set(dt.datetime.fromisoformat(start)).accepted
+    rtc.adjust_30s()
+    expected = dt.datetime.fromisoformat(after)
+    second, minute, hour, day, month, year = io.read_words("R4128", 6)
+    assert (minute, hour, day, month, year) == (expected.minute, expected.hour, expected.day, expected.month,
+                                                expected.year - 2000)
+    assert second in (0, 1)
+
+
+def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
+    assert rtc.set(dt.datetime(2024, 3, 5, 10, 20, 40)).accepted
+    io.write("M1953", 1)  # rising edge: 10:20:40 → 10:21:00
+    bench.settle()
+    bench.wait(40)  # M1953 held at 1 through the next 30–59 window: no further correction
+    io.write("M1953", 0)
+    second, minute, hour = io.read_words("R4128", 3)
+    assert (hour, minute) == (10, 21)
+    assert second in (40, 41)
