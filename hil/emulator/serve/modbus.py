@@ -228,7 +228,7 @@ def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1) -> ServerHandle:
     runtime = LoopThread.shared()
 
     async def start() -> tuple[PtyPair, ModbusSerialServer]:
-        pair = PtyPair(asyncio.get_running_loop())
+        pair = PtyPair(asyncio.get_running_loop(), gate_b_to_a=True)
         try:
             server = ModbusSerialServer(build_device(emulator, unit), port=pair.path_a, baudrate=9600, parity="N",
                                         ignore_missing_devices=True, broadcast_enable=True, reconnect_delay=0.1,

@@ -15,14 +15,18 @@ import errno
 import os
 import tty
 
+from hil.emulator.serve.rtu_gate import RtuGate
+
 _CHUNK = 4096
 
 
 class PtyPair:
     """Bytes written to :attr:`path_a` come out of :attr:`path_b` and vice versa (create and use on the loop)."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, *, gate_b_to_a: bool = False) -> None:
+        """``gate_b_to_a``: pass what the client (side b) sends through an :class:`RtuGate` on its way to a."""
         self.loop = loop
+        self._gate = RtuGate(loop, self._write_to_a) if gate_b_to_a else None
         self.stats: collections.Counter[str] = collections.Counter()  # bytes moved / dropped, for tests
         self._fds: list[int] = []
         try:
@@ -55,6 +59,17 @@ class PtyPair:
                 self.loop.remove_reader(src)
             return
         self.stats[direction] += len(data)
+        if self._gate is not None and direction == "b_to_a":
+            self._gate.feed(data)
+            self.stats.update(self._gate.stats)
+            self._gate.stats.clear()
+            return
+        self._write(dst, data, direction)
+
+    def _write_to_a(self, data: bytes) -> None:
+        self._write(self._a_master, data, "b_to_a")
+
+    def _write(self, dst: int, data: bytes, direction: str) -> None:
         view = memoryview(data)
         while view:
             try:
@@ -72,6 +87,8 @@ class PtyPair:
         if self.closed:
             return
         self.closed = True
+        if self._gate is not None:
+            self._gate.close()
         for master in (self._a_master, self._b_master):
             self.loop.remove_reader(master)
         self._close_fds()
