@@ -44,6 +44,11 @@ class ReplyTimeout(TransportError):
     """No complete reply within the timeout; the message says what was sent, to whom and how long we waited."""
 
 
+class OutcomeUnknown(ReplyTimeout):
+    """A write whose reply never came (or the line dropped after it was sent): it may or may not have been
+    applied.  Writes are never repeated automatically — repeating one can be wrong (a counter preset)."""
+
+
 class WriteRefused(HilError):
     """The safety guard refused a write before any byte was sent."""
 

@@ -19,7 +19,8 @@ from hil.errors import AddressError, ProfileError, TargetError
 from hil.transport.url import parse_target
 
 RTC_CHIPS = {"none": 0, "HT1381": 1, "ISL1208": 2, "S-35390A": 3}
-AREA_SECTIONS = ("temperature", "pid", "plant")  # validated by their own modules
+AREA_SECTIONS = ("temperature", "pid", "plant", "s7", "s7rtc")  # validated by their own modules
+FAMILIES = ("fbs", "s7-200smart")  # [bench] family: which controller the profile describes
 DEFAULT_VOLATILE = ["R4128-R4135"]  # the RTC read-out: the PLC rewrites it every scan
 
 
@@ -58,6 +59,8 @@ class Profile:
     areas: dict[str, dict[str, Any]] = field(default_factory=dict)  # [temperature], [pid], [plant]
     faults: dict[str, dict[str, Any]] = field(default_factory=dict)  # [faults.<name>]
     digest: str = ""  # sha256 of the file, for reports
+    wire_faults: dict[str, Any] = field(default_factory=dict)  # [wire_faults]: emulator wires only, see below
+    family: str = "fbs"  # "fbs" or "s7-200smart": picks the device layer, emulator and suites
 
     def can_write(self, name: str) -> bool:
         from hil.transport.guard import expand
@@ -85,7 +88,7 @@ def load_profile(path: str | Path) -> Profile:
 
 def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "") -> Profile:
     where = str(path) if path else "<profile>"
-    known = {"bench", "safety", "emulator", "rtc", "faults", *AREA_SECTIONS}
+    known = {"bench", "safety", "emulator", "rtc", "faults", "wire_faults", *AREA_SECTIONS}
     for section in data:
         if section not in known:
             raise ProfileError(f"{where}: unknown section [{section}] (known: {', '.join(sorted(known))})")
@@ -99,13 +102,19 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     time_scale = reader.take(bench, "bench", "time_scale", float, 1.0, check=lambda v: v > 0 or "must be > 0")
     settle = reader.take(bench, "bench", "settle_scans", int, 2, check=lambda v: v >= 1 or "must be ≥ 1")
     timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
+    family = reader.take(bench, "bench", "family", str, "fbs",
+                         check=lambda v: v in FAMILIES or f"must be one of {', '.join(FAMILIES)}")
     reader.done(bench, "bench")
 
     safety_t = reader.table(data, "safety")
+    ranges = _check_ranges
+    volatile_default = list(DEFAULT_VOLATILE)
+    if family == "s7-200smart":  # S7 operand names (VB100-VB139), and no FBs read-out to skip
+        from hil.s7smart.layout import check_s7_ranges
+        ranges, volatile_default = check_s7_ranges, []
     safety = Safety(
-        writable=tuple(reader.take(safety_t, "safety", "writable", list, [], check=_check_ranges)),
-        volatile=tuple(reader.take(safety_t, "safety", "volatile", list, list(DEFAULT_VOLATILE),
-                                   check=_check_ranges)),
+        writable=tuple(reader.take(safety_t, "safety", "writable", list, [], check=ranges)),
+        volatile=tuple(reader.take(safety_t, "safety", "volatile", list, volatile_default, check=ranges)),
         allow_destructive=reader.take(safety_t, "safety", "allow_destructive", bool, False))
     reader.done(safety_t, "safety")
 
@@ -130,6 +139,13 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     if "temperature" in areas:  # refuse a bad [temperature] when the profile is read, not when a test runs
         from hil.fbs.temperature import parse_temperature
         parse_temperature(areas["temperature"], where)
+    if family == "s7-200smart":
+        from hil.s7smart.layout import parse_s7_settings, parse_s7rtc
+        parse_s7_settings(areas.get("s7", {}), where)
+        if "s7rtc" in areas:
+            parse_s7rtc(areas["s7rtc"], where)
+    elif "s7" in areas or "s7rtc" in areas:
+        raise ProfileError(f"{where}: [s7]/[s7rtc] describe an S7-200 SMART: set [bench] family = \"s7-200smart\"")
     faults_t = reader.table(data, "faults")
     faults = {}
     for fault, table in faults_t.items():
@@ -140,7 +156,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         from hil.faults import check_fault_configs
         check_fault_configs(faults, where)
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, rtc, areas,
-                   faults, digest)
+                   faults, digest, family=family)
 
 
 class _Reader:

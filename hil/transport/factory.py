@@ -2,27 +2,32 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from hil.emulator.core import Emulator
 from hil.emulator.serve.runtime import ServerHandle
 from hil.transport.base import Transport
 from hil.transport.url import Target, parse_target
 
+if TYPE_CHECKING:
+    from hil.emulator.serve.wire_faults import WireFaults
+
 EmulatorFactory = Callable[[], Emulator]
 
 
 def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
-                   timeout: float | None = None) -> Transport:
+                   timeout: float | None = None, wire_faults: "WireFaults | None" = None) -> Transport:
     """Open the target named by ``url``.
 
     For ``emulator…`` targets a fresh in-process emulator is built by ``emulator_factory`` (default: a plain
     FBs main unit) and, for the wire variants, served on loopback or a pty; the returned transport's
-    ``.emulator`` is that emulator and closing the transport stops its server.
+    ``.emulator`` is that emulator, ``.server`` its server handle (``.server.faults`` the wire-fault plan given as
+    ``wire_faults``, used by the emulator wires only) and closing the transport stops its server;
+    ``transport.reopen()`` reconnects the client to the same, still running, server.
     """
     target = url if isinstance(url, Target) else parse_target(url)
     if target.in_process:
-        return _open_emulator(target, (emulator_factory or Emulator)(), timeout)
+        return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
     params = dict(target.params)
     if timeout is not None:
         params.setdefault("timeout", timeout)
@@ -36,38 +41,45 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     return ModbusTransport.rtu(target.device, **params)
 
 
-def _open_emulator(target: Target, emulator: Emulator, timeout: float | None) -> Transport:
+def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
+                   wire_faults: "WireFaults | None" = None) -> Transport:
     wire = target.scheme.partition("+")[2]
     if not wire:
         from hil.transport.local import LocalTransport
         return LocalTransport(emulator)
-    server = serve(emulator, wire)
+    server = serve(emulator, wire, faults=wire_faults)
     try:
         transport = _client_for(wire, server, emulator.station, timeout or 2.0)
     except BaseException:
         server.stop()
         raise
     transport.emulator = emulator
+    transport.server = server  # type: ignore[attr-defined]
     transport.description = f"{target.scheme} ({transport.description})"
     transport.on_close(server.stop)
     return transport
 
 
-def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0) -> ServerHandle:
-    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")."""
+def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
+          faults: "WireFaults | None" = None) -> ServerHandle:
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
+    wire-fault plan every reply goes through (the handle keeps it as ``.faults``)."""
     if wire == "fatek-tcp":
         from hil.emulator.serve.fatek import start_fatek_tcp
-        return start_fatek_tcp(emulator, host, port)
-    if wire == "fatek-serial":
+        handle = start_fatek_tcp(emulator, host, port, faults=faults)
+    elif wire == "fatek-serial":
         from hil.emulator.serve.fatek import start_fatek_pty
-        return start_fatek_pty(emulator)
-    if wire == "modbus-tcp":
+        handle = start_fatek_pty(emulator, faults=faults)
+    elif wire == "modbus-tcp":
         from hil.emulator.serve.modbus import start_modbus_tcp
-        return start_modbus_tcp(emulator, host, port, unit=emulator.station)
-    if wire == "modbus-rtu":
+        handle = start_modbus_tcp(emulator, host, port, unit=emulator.station, faults=faults)
+    elif wire == "modbus-rtu":
         from hil.emulator.serve.modbus import start_modbus_rtu_pty
-        return start_modbus_rtu_pty(emulator, unit=emulator.station)
-    raise ValueError(f"unknown emulator wire {wire!r}")
+        handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults)
+    else:
+        raise ValueError(f"unknown emulator wire {wire!r}")
+    handle.faults = faults  # type: ignore[attr-defined]
+    return handle
 
 
 def _client_for(wire: str, server: ServerHandle, station: int, timeout: float) -> Transport:

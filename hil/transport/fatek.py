@@ -20,7 +20,7 @@ from typing import Callable
 import serial
 
 from hil.address import Address
-from hil.errors import PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
+from hil.errors import OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
 from hil.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
@@ -44,7 +44,7 @@ class FatekTransport(Transport):
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
-                 description: str | None = None) -> None:
+                 backoff: float = 0.05, description: str | None = None) -> None:
         if not 0 <= station <= 0xFE:
             raise ValueError(f"station {station} outside 1–254 (0 = broadcast)")
         if timeout <= 0:
@@ -68,8 +68,15 @@ class FatekTransport(Transport):
             # A pty has no line coding to set, and recent Linux kernels refuse (EINVAL) to change CS7/PARENB on
             # a pty whose settings a previous client already applied; the 7-bit ASCII frames pass 8N1 unchanged.
             bytesize, parity, stopbits = 8, "N", 1
-        self._serial = _open(port_url, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
-                             write_timeout=self.timeout + 1.0)
+        self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
+                              write_timeout=self.timeout + 1.0)
+        self.backoff = float(backoff)
+        self.dirty = False  # True: the line may hold a late reply; resynchronise before the next request
+        self._broken = False  # True: the connection is gone; reopen before the next request
+        self._nonce = 0
+        self.resyncs = 0  # loop-back resynchronisations done
+        self.reconnects = 0
+        self._serial = _open(port_url, **self._settings)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -160,62 +167,156 @@ class FatekTransport(Transport):
             if isinstance(command, READ_COMMANDS):
                 raise TransportError(f"{command.describe()} to station 00 (broadcast): a broadcast is never "
                                      f"answered, so nothing can be read")
+            self._prepare(command, write=True)
             self._send(frame)
             return None
-        attempts = 1 + (self.retries if isinstance(command, READ_COMMANDS) else 0)
+        is_read = isinstance(command, READ_COMMANDS)
+        if not is_read:
+            self._prepare(command, write=True)  # nothing sent yet: a failure here leaves the PLC unchanged
+            try:
+                return self._once(command, frame, 1, 1)
+            except ReplyTimeout as exc:
+                raise OutcomeUnknown(str(exc)) from None
+            except _Lost as exc:
+                raise OutcomeUnknown(f"{exc}; outcome unknown: the write was sent and may or may not have been "
+                                     f"applied (writes are not retried)") from None
+        attempts = 1 + self.retries
         started = time.monotonic()
+        errors: list[str] = []
         for attempt in range(1, attempts + 1):
             try:
+                self._prepare(command, write=False)
                 return self._once(command, frame, attempt, attempts)
-            except ReplyTimeout as exc:
+            except (ReplyTimeout, _Lost) as exc:
+                errors.append(str(exc))
                 if attempt == attempts:
-                    if attempts > 1:
-                        raise ReplyTimeout(f"{exc}; {attempts} attempts, {time.monotonic() - started:.2f} s in "
-                                           f"all") from None
-                    raise
+                    lost = isinstance(exc, _Lost)
+                    text = errors[-1] if attempts == 1 else (
+                        f"{errors[-1]}; {attempts} attempts, {time.monotonic() - started:.2f} s in all")
+                    raise (TransportError if lost else ReplyTimeout)(text) from None
+                time.sleep(self._backoff(attempt))
         raise AssertionError("unreachable")
+
+    def _backoff(self, attempt: int) -> float:
+        """Pause before retry ``attempt + 1``: doubling from ``backoff``, at most 8× it."""
+        return self.backoff * min(2 ** (attempt - 1), 8)
+
+    def budget(self, write: bool = False) -> float:
+        """The longest one request (one protocol frame) can take, retries, backoff and resynchronising
+        included — a call that runs longer is a harness bug."""
+        wait = self.timeout + self._wire_time(len(encode_request(1, Loopback("X" * 12))))
+        tries = 1 + self.retries
+        if write:
+            return tries * wait + sum(self._backoff(a) for a in range(1, tries)) + wait + self.timeout
+        return tries * (2 * wait + self.timeout) + sum(self._backoff(a) for a in range(1, tries))
+
+    def _prepare(self, command: Command, *, write: bool) -> None:
+        """Before a request: reconnect a lost connection, and after anything odd on the line resynchronise.
+
+        FATEK replies carry no transaction id, so a reply that comes late (after we gave up on it) looks
+        exactly like the answer to our next request of the same shape.  A slave answers in order, so after a
+        timeout or a stray frame we send a loop-back with a fresh nonce and discard everything until its echo:
+        from then on the next reply is the answer to the next request.
+        """
+        if self._broken:
+            self.reopen()
+        if not self.dirty:
+            return
+        tries = (1 + self.retries) if write else 1
+        last = ""
+        for attempt in range(1, tries + 1):
+            self._nonce += 1
+            probe = Loopback(f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}")
+            try:
+                self._once(probe, encode_request(self.station, probe), attempt, tries)
+                self.resyncs += 1
+                return
+            except ReplyTimeout as exc:
+                last = str(exc)
+            except _Lost as exc:
+                last = str(exc)
+                self.reopen()
+            if attempt < tries:
+                time.sleep(self._backoff(attempt))
+        raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the line could not be "
+                           f"resynchronised after an earlier fault ({last})")
+
+    def reopen(self) -> None:
+        """Close and reopen the port (a new TCP connection, the serial device opened again)."""
+        with self._lock:
+            try:
+                self._close()
+            except (serial.SerialException, OSError):
+                pass
+            self._serial = _open(self.port_url, **self._settings)
+            self._broken = False
+            self.dirty = True  # a late reply may still come on a serial line
+            self.reconnects += 1
 
     def _once(self, command: Command, frame: bytes, attempt: int, attempts: int):  # noqa: ANN202
         self.discarded = []
         try:
             self._serial.reset_input_buffer()  # a late reply to an earlier request must not answer this one
         except (serial.SerialException, OSError) as exc:
-            raise TransportError(f"{self._where()}: cannot flush input: {exc}") from exc
+            self._broken = True
+            raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
         started = time.monotonic()
         self._send(frame)
         wait = self.timeout + self._wire_time(len(frame))
         deadline = started + wait
         assembler = FrameAssembler()
         while (remaining := deadline - time.monotonic()) > 0:
-            for reply in assembler.feed(self._receive(remaining)):
+            replies = assembler.feed(self._receive(remaining))
+            for n, reply in enumerate(replies):
                 self._notify("rx", reply)
                 try:
                     data = check_reply(reply, self.station, command.code)
-                    return command.decode(data)
+                    result = command.decode(data)
                 except PlcErrorReply as exc:
+                    self._settle(replies[n + 1:], assembler)
                     raise PlcErrorReply(exc.code, exc.meaning, f"{command.describe()} sent to station "
                                         f"{self.station:02X} on {self.port_url}") from None
                 except (FrameError, ProtocolError) as exc:
                     self.discarded.append((reply, f"{type(exc).__name__}: {exc}"))
+                    continue
+                self.dirty = False
+                self._settle(replies[n + 1:], assembler)
+                return result
+        self.dirty = True  # whatever we asked may still be answered, late
         raise ReplyTimeout(self._timeout_message(command, frame, wait, attempt, attempts, assembler))
+
+    def _settle(self, after: list[bytes], assembler: FrameAssembler) -> None:
+        """After the accepted reply: anything more on the line (a duplicate, a stray frame) makes it suspect."""
+        if after or assembler.pending or self.discarded:
+            self.dirty = True
+            return
+        try:
+            ready, _, _ = select.select([self._serial.fileno()], [], [], 0)
+        except (OSError, ValueError, serial.SerialException):
+            ready = []
+        if ready:
+            self.dirty = True
 
     def _send(self, frame: bytes) -> None:
         self._notify("tx", frame)
         try:
             self._serial.write(frame)
         except serial.SerialTimeoutException as exc:
+            self.dirty = True
             raise ReplyTimeout(f"could not send {_show(frame)} to {self._where()} within "
                                f"{self._serial.write_timeout:.2f} s (output blocked)") from exc
         except (serial.SerialException, OSError) as exc:
-            raise TransportError(f"{self._where()}: sending failed: {exc}") from exc
+            self._broken = True
+            raise _Lost(f"{self._where()}: sending {_show(frame)} failed: {exc}") from exc
 
     def _receive(self, remaining: float) -> bytes:
         """Whatever has arrived, waiting at most ``remaining`` seconds for the first byte."""
         try:
             ready, _, _ = select.select([self._serial.fileno()], [], [], remaining)
             return self._serial.read(4096) if ready else b""  # timeout is 0: read returns what is there
-        except (serial.SerialException, OSError) as exc:
-            raise TransportError(f"{self._where()}: connection lost while waiting for a reply: {exc}") from exc
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self._broken = True
+            raise _Lost(f"{self._where()}: connection lost while waiting for a reply: {exc}") from exc
 
     def _wire_time(self, request_len: int) -> float:
         """Time a real serial line needs to carry the request and a longest reply (nothing over a socket)."""
@@ -244,6 +345,10 @@ class FatekTransport(Transport):
 
     def _where(self) -> str:
         return f"station {self.station:02X} on {self.port_url}"
+
+
+class _Lost(TransportError):
+    """The connection failed mid-exchange (reopened before the next request)."""
 
 
 def _show(frame: bytes) -> str:

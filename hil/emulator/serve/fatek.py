@@ -34,6 +34,7 @@ from hil.address import BIT_BANKS, WORD_BANKS
 from hil.emulator.core import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.emulator.memory import Memory
 from hil.emulator.serve.runtime import LoopThread, ServerHandle
+from hil.emulator.serve.wire_faults import FaultySender, WireFaults, corrupt_fatek
 from hil.protocol.fatek import (BROADCAST, BitAction, ChecksumError, Command, DetailedStatus, DetailedStatusReply,
                                 FrameAssembler, FrameError, Loopback, MixedRead, MixedWrite, ReadBits,
                                 ReadEnableState, ReadRegisters, RequestError, RunStop, ShortStatus, StatusReply,
@@ -154,8 +155,11 @@ class FatekServerCore:
 
 
 # --- TCP --------------------------------------------------------------------------------------------------------
-def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0) -> ServerHandle:
-    """Serve ``emulator`` over FATEK-on-TCP (a real Ethernet module listens on 500); ``port=0`` lets the OS pick."""
+def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, *,
+                    faults: WireFaults | None = None) -> ServerHandle:
+    """Serve ``emulator`` over FATEK-on-TCP (a real Ethernet module listens on 500); ``port=0`` lets the OS pick.
+
+    ``faults``: a wire-fault plan consulted for every reply (see :mod:`hil.emulator.serve.wire_faults`)."""
     runtime = LoopThread.shared()
     core = FatekServerCore(emulator)
     writers: set[asyncio.StreamWriter] = set()
@@ -163,14 +167,15 @@ def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0) 
     async def client(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         writers.add(writer)
         assembler = core.session()
+        sender = FaultySender(faults, writer.write, corrupt_fatek, close=writer.close)
         try:
-            while data := await reader.read(_READ_CHUNK):
-                for reply in core.feed(assembler, data):
-                    writer.write(reply)
+            while not sender.closed and (data := await reader.read(_READ_CHUNK)):
+                sender.send_all(core.feed(assembler, data))
                 await writer.drain()
         except (ConnectionError, OSError):
             pass  # the client went away, possibly mid-frame: nothing to answer
         finally:
+            sender.stop()
             writers.discard(writer)
             writer.close()
 
@@ -193,8 +198,10 @@ def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0) 
 class _PtyServer:
     """The master side of a pty; a pyserial client opens the slave path as if it were /dev/ttyUSB0."""
 
-    def __init__(self, emulator: Emulator, loop: asyncio.AbstractEventLoop) -> None:
+    def __init__(self, emulator: Emulator, loop: asyncio.AbstractEventLoop,
+                 faults: WireFaults | None = None) -> None:
         self.core = FatekServerCore(emulator)
+        self.sender = FaultySender(faults, self._send, corrupt_fatek)  # a pty cannot hang up: "close" = silence
         self.loop = loop
         self.assembler = self.core.session()
         self.master, self.slave = os.openpty()
@@ -220,8 +227,7 @@ class _PtyServer:
             if exc.errno == errno.EIO:  # cannot happen while we hold the slave, but never spin on it
                 self.loop.remove_reader(self.master)
             return
-        for reply in self.core.feed(self.assembler, data):
-            self._send(reply)
+        self.sender.send_all(self.core.feed(self.assembler, data))
 
     def _send(self, reply: bytes) -> None:
         if len(self.pending) + len(reply) > _MAX_PENDING_OUTPUT:
@@ -248,6 +254,7 @@ class _PtyServer:
         if self.closed:
             return
         self.closed = True
+        self.sender.stop()
         self.loop.remove_reader(self.master)
         self.loop.remove_writer(self.master)
         for fd in (self.master, self.slave):
@@ -257,12 +264,12 @@ class _PtyServer:
                 pass
 
 
-def start_fatek_pty(emulator: Emulator) -> ServerHandle:
+def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None) -> ServerHandle:
     """Serve ``emulator`` on a new pty; the handle's address is the slave path a serial client opens."""
     runtime = LoopThread.shared()
 
     async def start() -> _PtyServer:
-        pty = _PtyServer(emulator, asyncio.get_running_loop())
+        pty = _PtyServer(emulator, asyncio.get_running_loop(), faults)
         pty.start()
         return pty
 

@@ -37,6 +37,7 @@ from hil.emulator.core import Emulator
 from hil.emulator.memory import Memory
 from hil.emulator.serve.ptypair import PtyPair
 from hil.emulator.serve.runtime import LoopThread, ServerHandle
+from hil.emulator.serve.wire_faults import FaultySender, WireFaults, corrupt_mbap
 from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, locate, segments, unmapped_in
 
 _COIL_FCS = {1: "read", 5: "write", 15: "write"}
@@ -201,26 +202,76 @@ def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, M
 
 
 # -- servers -------------------------------------------------------------------------------------------------------
-def start_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, unit: int = 1) -> ServerHandle:
-    """Serve ``emulator`` as Modbus/TCP unit ``unit``; port 0 picks a free port (the handle's address has it)."""
+def start_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, unit: int = 1, *,
+                     faults: WireFaults | None = None) -> ServerHandle:
+    """Serve ``emulator`` as Modbus/TCP unit ``unit``; port 0 picks a free port (the handle's address has it).
+
+    ``faults``: pymodbus's server cannot be told to misbehave, so a small proxy in front of it passes requests
+    through and sends every reply (one MBAP frame) through the wire-fault plan."""
     runtime = LoopThread.shared()
 
-    async def start() -> ModbusTcpServer:
-        server = ModbusTcpServer(build_device(emulator, unit), address=(host, port),
+    async def start() -> tuple[ModbusTcpServer, asyncio.AbstractServer | None]:
+        server = ModbusTcpServer(build_device(emulator, unit), address=(host, 0 if faults else port),
                                  trace_pdu=_make_gate(emulator, unit, serial=False))
         await server.serve_forever(background=True)
-        return server
+        proxy = None
+        if faults is not None:
+            inner = server.transport.sockets[0].getsockname()[1]
+            proxy = await asyncio.start_server(_fault_proxy(host, inner, faults), host, port)
+        return server, proxy
 
-    server = runtime.run(start())
-    actual = server.transport.sockets[0].getsockname()[1]
+    server, proxy = runtime.run(start())
+    actual = (proxy.sockets if proxy else server.transport.sockets)[0].getsockname()[1]
 
     async def stop() -> None:
+        if proxy is not None:
+            proxy.close()
         await server.shutdown()
 
     return ServerHandle("modbus-tcp", f"{host}:{actual}", _stopper(runtime, stop))
 
 
-def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1) -> ServerHandle:
+def _fault_proxy(host: str, port: int, faults: WireFaults):  # noqa: ANN202 - an asyncio client callback
+    async def client(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            up_reader, up_writer = await asyncio.open_connection(host, port)
+        except OSError:
+            writer.close()
+            return
+
+        def hangup() -> None:
+            writer.close()
+            up_writer.close()
+        sender = FaultySender(faults, writer.write, corrupt_mbap, close=hangup)
+
+        async def requests() -> None:
+            while data := await reader.read(4096):
+                up_writer.write(data)
+            up_writer.close()
+
+        async def replies() -> None:
+            buffer = b""
+            while data := await up_reader.read(4096):
+                buffer += data
+                while len(buffer) >= 6 and len(buffer) >= 6 + int.from_bytes(buffer[4:6], "big"):
+                    size = 6 + int.from_bytes(buffer[4:6], "big")
+                    sender.send(buffer[:size])  # one MBAP frame = one reply
+                    buffer = buffer[size:]
+        tasks = [asyncio.ensure_future(requests()), asyncio.ensure_future(replies())]
+        try:
+            await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        except (ConnectionError, OSError):
+            pass
+        finally:
+            for task in tasks:
+                task.cancel()
+            sender.stop()
+            writer.close()
+            up_writer.close()
+    return client
+
+
+def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1, *, faults: WireFaults | None = None) -> ServerHandle:
     """Serve ``emulator`` as Modbus RTU unit ``unit`` on a pty; the handle's address is the path a client opens.
 
     Settings (baud rate, parity) mean nothing on a pty; any client settings work.
@@ -228,7 +279,7 @@ def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1) -> ServerHandle:
     runtime = LoopThread.shared()
 
     async def start() -> tuple[PtyPair, ModbusSerialServer]:
-        pair = PtyPair(asyncio.get_running_loop(), gate_b_to_a=True)
+        pair = PtyPair(asyncio.get_running_loop(), gate_b_to_a=True, faults=faults)
         try:
             server = ModbusSerialServer(build_device(emulator, unit), port=pair.path_a, baudrate=9600, parity="N",
                                         ignore_missing_devices=True, broadcast_enable=True, reconnect_delay=0.1,

@@ -16,6 +16,7 @@ import os
 import tty
 
 from hil.emulator.serve.rtu_gate import RtuGate
+from hil.emulator.serve.wire_faults import FaultySender, WireFaults, corrupt_crc
 
 _CHUNK = 4096
 
@@ -23,10 +24,13 @@ _CHUNK = 4096
 class PtyPair:
     """Bytes written to :attr:`path_a` come out of :attr:`path_b` and vice versa (create and use on the loop)."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, *, gate_b_to_a: bool = False) -> None:
-        """``gate_b_to_a``: pass what the client (side b) sends through an :class:`RtuGate` on its way to a."""
+    def __init__(self, loop: asyncio.AbstractEventLoop, *, gate_b_to_a: bool = False,
+                 faults: WireFaults | None = None) -> None:
+        """``gate_b_to_a``: pass what the client (side b) sends through an :class:`RtuGate` on its way to a.
+        ``faults``: a wire-fault plan applied to what side a (the server) sends back — its replies."""
         self.loop = loop
         self._gate = RtuGate(loop, self._write_to_a) if gate_b_to_a else None
+        self._replies = FaultySender(faults, self._write_to_b, corrupt_crc) if faults is not None else None
         self.stats: collections.Counter[str] = collections.Counter()  # bytes moved / dropped, for tests
         self._fds: list[int] = []
         try:
@@ -64,10 +68,17 @@ class PtyPair:
             self.stats.update(self._gate.stats)
             self._gate.stats.clear()
             return
+        if self._replies is not None and direction == "a_to_b":
+            self._replies.send(data)
+            return
         self._write(dst, data, direction)
 
     def _write_to_a(self, data: bytes) -> None:
         self._write(self._a_master, data, "b_to_a")
+
+    def _write_to_b(self, data: bytes) -> None:
+        if not self.closed:
+            self._write(self._b_master, data, "a_to_b")
 
     def _write(self, dst: int, data: bytes, direction: str) -> None:
         view = memoryview(data)
@@ -89,6 +100,8 @@ class PtyPair:
         self.closed = True
         if self._gate is not None:
             self._gate.close()
+        if self._replies is not None:
+            self._replies.stop()
         for master in (self._a_master, self._b_master):
             self.loop.remove_reader(master)
         self._close_fds()
