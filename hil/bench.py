@@ -101,3 +101,11 @@ class Bench:
     def close(self) -> None:
         self.faults.close()
         self.io.close()
+
+
+def open_bench(profile: Profile, **kwargs) -> "Bench":  # noqa: ANN003 - Bench's keyword arguments
+    """The bench for the profile's controller family: :class:`Bench` (FBs) or an S7-200 SMART bench."""
+    if profile.family == "s7-200smart":
+        from hil.s7smart.bench import S7Bench
+        return S7Bench(profile, **kwargs)  # type: ignore[return-value]  # same surface as Bench
+    return Bench(profile, **kwargs)

@@ -11,7 +11,7 @@ from typing import Iterator
 
 import pytest
 
-from hil.bench import Bench
+from hil.bench import Bench, open_bench
 from hil.errors import HilError
 from hil.profile import Profile, load_profile
 from hil.transport.url import parse_target
@@ -24,6 +24,8 @@ MARKERS = {
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
                    "profile's [safety] allow_destructive",
+    "family": "family(name): the controller family a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
+              "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
 }
 
 
@@ -75,7 +77,7 @@ class _State:
                 raise pytest.fail.Exception(self.error, pytrace=False)
             hook = self.config.hook.pytest_hil_make_emulator
             try:
-                self.bench = Bench(self.profile, target=self.config.getoption("--target"),
+                self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
                                    emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e))
             except HilError as exc:
@@ -124,6 +126,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
     for item in items:
+        if "bench" in getattr(item, "fixturenames", ()):
+            family = item.get_closest_marker("family")
+            wanted = (family.args[0] if family and family.args else "fbs")
+            if wanted != profile.family:
+                item.add_marker(pytest.mark.skip(
+                    reason=f"for {wanted} PLCs; bench {profile.name!r} is family {profile.family!r}"))
         marker = item.get_closest_marker("emulator_only")
         if marker and not target.in_process:
             why = marker.kwargs.get("reason") or (marker.args[0] if marker.args else "needs the emulator")

@@ -10,6 +10,9 @@ from hil.profile import Profile
 
 def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
     """An emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
+    if profile.family == "s7-200smart":  # the profile picks the controller; the engine is shared
+        from hil.s7smart.emulator import build_s7_emulator  # noqa: PLC0415
+        return build_s7_emulator(profile, epoch)
     emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
                         seed=profile.emulator.seed)
     from hil.emulator.models.rtc import RtcModel  # noqa: PLC0415 - models import the engine
