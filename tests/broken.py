@@ -1,0 +1,46 @@
+"""Run the suites against deliberately broken emulators: a suite is worth something only if it fails on them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import pytest
+
+from hil.emulator.build import build_emulator
+from hil.emulator.core import Emulator
+from tests.conftest import EMULATOR_BENCH, REPO
+
+SUITES = REPO / "suites"
+
+
+class BrokenEmulator:
+    """Plugin object for an inner pytest run: builds the profile's emulator, then lets ``breakage`` damage it."""
+
+    def __init__(self, breakage: Callable[[Emulator, object, object], None]) -> None:
+        self.breakage = breakage
+
+    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        emulator = build_emulator(profile, epoch)
+        self.breakage(emulator, profile, epoch)
+        return emulator
+
+
+def run_suites(pytester: pytest.Pytester, files: list[str], plugin: object | None = None,
+               *extra: str) -> tuple[list[str], list[str]]:
+    """Run suite ``files`` in-process on the emulator bench; return (passed, failed) test ids."""
+    paths = [str(SUITES / f) for f in files]
+    recorder = pytester.inline_run(*paths, "--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider", *extra,
+                                   plugins=[plugin] if plugin else [])
+    passed, _skipped, failed = recorder.listoutcomes()
+    return [r.nodeid for r in passed], [r.nodeid for r in failed]
+
+
+def replace_model(emulator: Emulator, cls: type, replacement: object) -> None:
+    """Swap the model of type ``cls`` for ``replacement`` (powered on in its place)."""
+    index = next(i for i, m in enumerate(emulator.models) if type(m) is cls)
+    replacement.power_on(emulator)
+    emulator.models[index] = replacement
+
+
+__all__ = ["BrokenEmulator", "run_suites", "replace_model", "Path"]
