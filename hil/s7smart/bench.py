@@ -105,7 +105,7 @@ class S7Bench:
                 reason = self.raw.unreachable_reason(a)
                 if reason:
                     return reason
-                refused = [u for u in units(a) if u not in self.io.writable]
+                refused = [u for u in units(a) if not self.io.allowed(u)]
                 if refused:
                     return f"{name} not in the bench's [safety] writable list"
         return None

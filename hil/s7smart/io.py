@@ -324,12 +324,13 @@ class GuardedS7Io(S7Io):
         self.journal: dict[Unit, int] = {}
         self.touched: set[Unit] = set()
 
-    def _allowed(self, unit: Unit) -> bool:
+    def allowed(self, unit: Unit) -> bool:
+        """A byte is writable when listed; a bit when listed or its whole byte is."""
         area, byte, bit = unit
         return unit in self.writable or (bit is not None and (area, byte, None) in self.writable)
 
     def _check(self, wanted: list[Unit], what: str) -> None:
-        refused = [u for u in wanted if not self._allowed(u)]
+        refused = [u for u in wanted if not self.allowed(u)]
         if refused:
             shown = ", ".join(_unit_name(u) for u in refused[:4]) + ("…" if len(refused) > 4 else "")
             raise WriteRefused(f"write to {what} refused: {shown} not in the bench's [safety] writable list — add "
