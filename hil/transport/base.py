@@ -152,6 +152,15 @@ class Transport(ABC):
         parse(address)
         return None
 
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure (same target; an emulator's server keeps running)."""
+        from hil.errors import TransportError
+        raise TransportError(f"{self.description} cannot be reopened")
+
+    def budget(self, write: bool = False) -> float | None:
+        """The longest one protocol request may take (retries, backoff, resynchronising included), or None."""
+        return None
+
     def close(self) -> None:
         if self.closed:
             return

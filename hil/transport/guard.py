@@ -141,5 +141,11 @@ class GuardedTransport(Transport):
     def unreachable_reason(self, address: NameLike) -> str | None:
         return self.inner.unreachable_reason(address)
 
+    def reopen(self) -> None:
+        self.inner.reopen()
+
+    def budget(self, write: bool = False) -> float | None:
+        return self.inner.budget(write)
+
     def _close(self) -> None:
         self.inner.close()
