@@ -155,8 +155,38 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     if faults:
         from hil.faults import check_fault_configs
         check_fault_configs(faults, where)
+    wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, rtc, areas,
-                   faults, digest, family=family)
+                   faults, digest, wire_faults=wire_faults, family=family)
+
+
+def _wire_faults(reader: "_Reader", data: dict[str, Any]) -> dict[str, Any]:
+    """``[wire_faults]``: faults the emulator's servers put on the wire (emulator+… targets only).
+
+    ``seed`` (int), ``delay`` and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
+    probability (0–1) per kind (drop = 0.01, corrupt = 0.02 …) — see :mod:`hil.emulator.serve.wire_faults`."""
+    from hil.emulator.serve.wire_faults import KINDS, check_rates
+    table = reader.table(data, "wire_faults")
+    out: dict[str, Any] = {
+        "seed": reader.take(table, "wire_faults", "seed", int, 0),
+        "delay": reader.take(table, "wire_faults", "delay", float, 1.0,
+                             check=lambda v: 0 <= v <= 60 or "must be 0–60 s"),
+        "split_gap": reader.take(table, "wire_faults", "split_gap", float, 0.005,
+                                 check=lambda v: 0 <= v <= 5 or "must be 0–5 s"),
+        "script": reader.take(table, "wire_faults", "script", list, [],
+                              check=lambda v: all(k in KINDS or k == "none" for k in v)
+                              or f"must name kinds among {', '.join(KINDS)} (or 'none')"),
+    }
+    out["script"] = [None if k == "none" else k for k in out["script"]]
+    for kind in KINDS:
+        out[kind] = reader.take(table, "wire_faults", kind, float, 0.0,
+                                check=lambda v: 0 <= v <= 1 or "must be a probability 0–1")
+    reader.done(table, "wire_faults")
+    try:
+        check_rates({k: out[k] for k in KINDS})
+    except ValueError as exc:
+        raise ProfileError(f"{reader.where}: [wire_faults] {exc}") from None
+    return out
 
 
 class _Reader:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 from hil.address import Address, parse, parse_range
-from hil.errors import RestoreError, WriteRefused
+from hil.errors import HilError, RestoreError, TransportError, WriteRefused
 from hil.transport.base import NameLike, PlcStatus, Transport
 
 
@@ -40,6 +40,7 @@ class GuardedTransport(Transport):
         self.volatile = expand(volatile)
         self.journal: dict[Address, int] = {}  # base element → value before the test's first write
         self.touched: set[Address] = set()  # every base element written since the journal was started
+        self.reopened = 0  # reconnections made to restore
 
     # -- the allow-list and the journal --------------------------------------------------------------------
     def check(self, names: Iterable[NameLike]) -> list[Address]:
@@ -72,28 +73,39 @@ class GuardedTransport(Transport):
     def restore(self) -> list[tuple[Address, int]]:
         """Write every journaled original back, then read them all to verify.  Returns what was restored.
 
-        Raises RestoreError listing each element that could not be written or read back equal.
+        If the wire failed (the transport raised a TransportError), reconnect once (:meth:`Transport.reopen`;
+        an emulator's server keeps running, only the client reconnects) and try again.  Raises RestoreError
+        listing each element that could not be written or read back equal, with its original value.
         """
         items = list(self.journal.items())
         if not items:
             return []
-        failures: list[tuple[str, int, str]] = []
-        try:
-            self.inner.write_many(items)
-        except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
-            failures += [(str(a), v, f"write failed: {exc}") for a, v in items]
-        else:
+        failures, wire_failed = self._restore_once(items)
+        if failures and wire_failed:
             try:
-                now = self.inner.read_many([a for a, _ in items])
-            except Exception as exc:  # noqa: BLE001
-                failures += [(str(a), v, f"read-back failed: {exc}") for a, v in items]
+                self.inner.reopen()
+            except HilError as exc:
+                failures = [(a, v, f"{why}; reconnecting failed: {exc}") for a, v, why in failures]
             else:
-                failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now)
-                             if got != v]
+                self.reopened += 1
+                failures, _ = self._restore_once(items)
         if failures:
             raise RestoreError(failures)
         self.journal.clear()
         return items
+
+    def _restore_once(self, items: list[tuple[Address, int]]) -> tuple[list[tuple[str, int, str]], bool]:
+        failures: list[tuple[str, int, str]] = []
+        try:
+            self.inner.write_many(items)
+        except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
+            return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        try:
+            now = self.inner.read_many([a for a, _ in items])
+        except Exception as exc:  # noqa: BLE001
+            return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v]
+        return failures, False
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
