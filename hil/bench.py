@@ -35,7 +35,11 @@ class Bench:
         if emulator_builder is None:
             from hil.emulator.build import build_emulator
             emulator_builder = build_emulator
-        self.raw: Transport = open_transport(self.target, timeout=profile.timeout,
+        wire_faults = None
+        if profile.wire_faults and self.target.in_process:
+            from hil.emulator.serve.wire_faults import WireFaults
+            wire_faults = WireFaults.from_config(profile.wire_faults)  # the emulator wires' servers apply it
+        self.raw: Transport = open_transport(self.target, timeout=profile.timeout, wire_faults=wire_faults,
                                              emulator_factory=lambda: emulator_builder(profile, epoch))
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
@@ -97,6 +101,23 @@ class Bench:
                 self.plc.rtc.sync_to_host()
                 self.io.restore()  # the sync's own writes (M1952) are journaled: verify they are back
             self.io.start_journal()
+
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure (an emulator's server keeps running; only the client reconnects)."""
+        self.raw.reopen()
+
+    def alive(self) -> str | None:
+        """None when the PLC answers (reconnecting once if needed), else why not."""
+        try:
+            self.io.status()
+            return None
+        except Exception as first:  # noqa: BLE001 - any failure here means "not answering"
+            try:
+                self.raw.reopen()
+                self.io.status()
+                return None
+            except Exception as exc:  # noqa: BLE001
+                return f"{first}; reconnecting: {exc}"
 
     def close(self) -> None:
         self.faults.close()

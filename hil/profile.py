@@ -163,14 +163,14 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
 def _wire_faults(reader: "_Reader", data: dict[str, Any]) -> dict[str, Any]:
     """``[wire_faults]``: faults the emulator's servers put on the wire (emulator+… targets only).
 
-    ``seed`` (int), ``delay`` and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
+    ``seed`` (int), ``delay_seconds`` (how long a "delay" holds a reply) and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
     probability (0–1) per kind (drop = 0.01, corrupt = 0.02 …) — see :mod:`hil.emulator.serve.wire_faults`."""
     from hil.emulator.serve.wire_faults import KINDS, check_rates
     table = reader.table(data, "wire_faults")
     out: dict[str, Any] = {
         "seed": reader.take(table, "wire_faults", "seed", int, 0),
-        "delay": reader.take(table, "wire_faults", "delay", float, 1.0,
-                             check=lambda v: 0 <= v <= 60 or "must be 0–60 s"),
+        "delay_seconds": reader.take(table, "wire_faults", "delay_seconds", float, 1.0,
+                                     check=lambda v: 0 <= v <= 60 or "must be 0–60 s"),
         "split_gap": reader.take(table, "wire_faults", "split_gap", float, 0.005,
                                  check=lambda v: 0 <= v <= 5 or "must be 0–5 s"),
         "script": reader.take(table, "wire_faults", "script", list, [],

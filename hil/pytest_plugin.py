@@ -12,7 +12,7 @@ from typing import Iterator
 import pytest
 
 from hil.bench import Bench, open_bench
-from hil.errors import HilError
+from hil.errors import HilError, TransportError
 from hil.profile import Profile, load_profile
 from hil.transport.url import parse_target
 
@@ -44,6 +44,9 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="allow tests marked destructive (RUN/STOP, outputs)")
     group.addoption("--hil-run-slow", action="store_true", default=False,
                     help="run tests marked slow on a real bench (they take real minutes)")
+    group.addoption("--hil-lock-wait", metavar="SECONDS", type=float, default=0.0,
+                    help="wait up to SECONDS for another run to release the bench (default: refuse at once, "
+                         "naming who holds it)")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -59,6 +62,8 @@ class _State:
         self.config = config
         self.bench: Bench | None = None
         self.error: str | None = None
+        self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
+        self.lock = None  # hil.lock.BenchLock on a real bench, held until unconfigure
         self._profile: Profile | None = None
 
     @property
@@ -72,11 +77,14 @@ class _State:
         return self.config.getoption("--target") or self.profile.target
 
     def open(self) -> Bench:
+        if self.dead:
+            raise pytest.fail.Exception(f"bench not usable: {self.dead}", pytrace=False)
         if self.bench is None:
             if self.error:
                 raise pytest.fail.Exception(self.error, pytrace=False)
             hook = self.config.hook.pytest_hil_make_emulator
             try:
+                self._lock_bench()
                 self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
                                    emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e))
@@ -85,8 +93,51 @@ class _State:
                 raise pytest.fail.Exception(self.error, pytrace=False) from None
         return self.bench
 
+    def _lock_bench(self) -> None:
+        """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
+        if self.lock is not None or parse_target(self.target).in_process:
+            return
+        from hil.lock import BenchLock
+        self.lock = BenchLock(self.target).acquire(wait=self.config.getoption("--hil-lock-wait") or 0.0)
+
+    def release(self) -> None:
+        try:
+            if self.bench is not None:
+                self.bench.close()
+        finally:
+            self.bench = None
+            if self.lock is not None:
+                self.lock.release()
+                self.lock = None
+
+    def finish(self, request: pytest.FixtureRequest, bench: Bench) -> None:
+        """The bench fixture's teardown: restore; a restore that fails goes into the report (JUnit properties);
+        a dead wire marks the bench dead so the remaining tests error at once with the reason."""
+        try:
+            bench.end_test()
+        except HilError as exc:
+            failures = getattr(exc, "failures", None)
+            if failures is not None:
+                request.node.user_properties.append(
+                    ("hil_restore_failed", "; ".join(f"{a} (original {v}): {why}" for a, v, why in failures)))
+            why = _alive(bench)
+            if why is not None:
+                self.dead = f"restore after {request.node.nodeid} failed and the PLC does not answer: {exc}"
+            raise
+        failure = request.node.stash.get(_WIRE_FAILURE, None)
+        if failure is not None:
+            why = _alive(bench)
+            if why is not None:
+                self.dead = f"the PLC stopped answering during {request.node.nodeid}: {failure}"
+
+
+def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench of the same surface
+    alive = getattr(bench, "alive", None)
+    return alive() if alive is not None else None
+
 
 _STATE = pytest.StashKey[_State]()
+_WIRE_FAILURE = pytest.StashKey[str]()
 
 
 def _default_build(profile: Profile, epoch):  # noqa: ANN001, ANN202
@@ -150,6 +201,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     try:
         bench = state.open()
         line = f"hil PLC: {bench.plc.status().summary()} via {bench.raw.description}"
+        if state.lock is not None and state.lock.stale:
+            from hil.lock import describe_holder
+            line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
     except (HilError, pytest.fail.Exception) as exc:
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
@@ -159,17 +213,27 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     state = config.stash.get(_STATE, None)
-    if state and state.bench is not None:
-        state.bench.close()
-        state.bench = None
+    if state is not None:
+        state.release()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
+    """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
+    report = yield
+    if (call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(TransportError)
+            and "bench" in getattr(item, "fixturenames", ())):
+        item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"
+    return report
 
 
 @pytest.fixture
 def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
     """The PLC under test, its time, and the guard that restores every write when the test ends."""
-    bench = request.config.stash[_STATE].open()
+    state = request.config.stash[_STATE]
+    bench = state.open()  # raises at once, with the reason, once the bench is known dead
     bench.begin_test()
     try:
-        yield bench
+        yield bench  # a test stopped by pytest-timeout (signal method) unwinds through here too
     finally:
-        bench.end_test()
+        state.finish(request, bench)

@@ -261,6 +261,9 @@ class FatekTransport(Transport):
             self._broken = True
             raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
         started = time.monotonic()
+        # Suspect until our reply is in: an exchange cut short (a timeout, pytest-timeout's signal, Ctrl-C)
+        # leaves its reply on the way, and the next request must resynchronise first.
+        self.dirty = True
         self._send(frame)
         wait = self.timeout + self._wire_time(len(frame))
         deadline = started + wait
@@ -273,6 +276,7 @@ class FatekTransport(Transport):
                     data = check_reply(reply, self.station, command.code)
                     result = command.decode(data)
                 except PlcErrorReply as exc:
+                    self.dirty = False  # an error reply is still our reply: the line is in step
                     self._settle(replies[n + 1:], assembler)
                     raise PlcErrorReply(exc.code, exc.meaning, f"{command.describe()} sent to station "
                                         f"{self.station:02X} on {self.port_url}") from None

@@ -61,6 +61,7 @@ class ModbusTransport(Transport):
         self.dirty = False  # True: a late reply may be on the line; recover before the next request
         self._abandoned: set[tuple[int, int]] = set()  # (fc, quantity) of requests given up since the last sync
         self._sync_count = 0
+        self._inflight: tuple[int, int] | None = None
         self.resyncs = 0
         self.reconnects = 0
         if not client.connect():
@@ -236,7 +237,8 @@ class ModbusTransport(Transport):
         tries = 1 + self.retries
         last = ""
         for attempt in range(1, tries + 1):
-            used = {count for fc, count in self._abandoned if fc == 3}
+            used = {count for fc, count in self._abandoned | ({self._inflight} if self._inflight else set())
+                    if fc == 3}
             choices = [c for c in range(1, PROBE_SPAN + 1) if c not in used] or [1]
             self._sync_count += 1
             count = choices[self._sync_count % len(choices)]
@@ -282,8 +284,14 @@ class ModbusTransport(Transport):
                     self._recover(what)  # raises before anything is sent
                 self._flush()
                 self.requests += 1
-                return self._check(fc, run, send())
+                # Suspect until the reply is in: an exchange cut short (pytest-timeout's signal, Ctrl-C)
+                # leaves its reply on the way.
+                self.dirty, self._inflight = True, (fc, run.count)
+                rr = self._check(fc, run, send())
+                self.dirty, self._inflight = False, None
+                return rr
             except PlcErrorReply:
+                self.dirty, self._inflight = False, None  # an exception reply is still our reply
                 raise
             except ReplyTimeout as exc:  # the recovery failed: nothing was sent
                 if write:

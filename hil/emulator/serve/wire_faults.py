@@ -61,7 +61,8 @@ class WireFaults:
     def from_config(cls, table: dict[str, Any]) -> "WireFaults":
         """From a profile's ``[wire_faults]`` table (already validated by :func:`hil.profile`)."""
         rates = {k: float(v) for k, v in table.items() if k in KINDS}
-        return cls(rates=rates, seed=int(table.get("seed", 0)), delay=float(table.get("delay", 1.0)),
+        return cls(rates=rates, seed=int(table.get("seed", 0)),
+                   delay=float(table.get("delay_seconds", 1.0)),
                    split_gap=float(table.get("split_gap", 0.005)), script=list(table.get("script", [])))
 
     def push(self, *kinds: str | None) -> None:

@@ -1,0 +1,40 @@
+"""When the PLC stops answering, the rest of the session errors at once with the reason."""
+
+from __future__ import annotations
+
+import time
+
+from tests.conftest import EMULATOR_BENCH
+
+
+def test_remaining_tests_error_at_once_when_the_plc_stops_answering(pytester):
+    text = EMULATOR_BENCH.read_text().replace('target = "emulator"', 'target = "emulator+fatek-tcp"')
+    bench = pytester.makefile(".toml", bench=text.replace("time_scale = 1.0", "time_scale = 1.0\ntimeout = 1.0"))
+    pytester.makepyfile(test_session="""
+        import time
+
+        def test_works(bench):
+            assert bench.io.read("R1000") == 0
+
+        def test_plc_goes_away(bench):
+            bench.raw.server.stop()
+            bench.io.read("R1000")
+
+        def test_after_1(bench):
+            pass
+
+        def test_after_2(bench):
+            pass
+
+        def test_without_bench():
+            pass
+    """)
+    started = time.monotonic()
+    result = pytester.runpytest_inprocess("--bench", str(bench), "-rE", "-p", "no:cacheprovider")
+    elapsed = time.monotonic() - started
+    result.assert_outcomes(passed=2, failed=1, errors=2)
+    result.stdout.fnmatch_lines(["*bench not usable: the PLC stopped answering during *test_plc_goes_away*"
+                                 "TransportError*"])
+    result.stdout.fnmatch_lines(["ERROR*test_after_1*", "ERROR*test_after_2*"])
+    # One failing test pays its retries; the two after it cost nothing.
+    assert elapsed < 8, elapsed
