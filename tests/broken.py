@@ -30,7 +30,9 @@ def run_suites(pytester: pytest.Pytester, files: list[str], plugin: object | Non
                *extra: str) -> tuple[list[str], list[str]]:
     """Run suite ``files`` in-process on the emulator bench; return (passed, failed) test ids."""
     paths = [str(SUITES / f) for f in files]
-    recorder = pytester.inline_run(*paths, "--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider", *extra,
+    # no:hypothesispytest: pytester restores sys.modules after each run, so every inner run would re-import it
+    recorder = pytester.inline_run(*paths, "--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider",
+                                   "-p", "no:hypothesispytest", *extra,
                                    plugins=[plugin] if plugin else [])
     passed, _skipped, failed = recorder.listoutcomes()
     return [r.nodeid for r in passed], [r.nodeid for r in failed]

@@ -78,11 +78,9 @@ class RtcModel(Model):
         self._rate = self.chip_rate(self._code)
         self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
         self._adjust = 0
-        self._emu: Emulator | None = None
 
     # -- the engine's hooks ---------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
-        self._emu = emu
         mem = emu.memory
         self._hold = mem.bits["M"][_HOLD]
         self._adjust = mem.bits["M"][_ADJUST]
@@ -108,15 +106,9 @@ class RtcModel(Model):
         self._hold, self._adjust = hold, adjust
 
     def next_event(self, now: float) -> float:
-        """``now`` while an edge or a new D4054 code waits to be seen, so a time jump cannot skip past it."""
-        emu = self._emu
-        if emu is None:
-            return math.inf
-        mem = emu.memory
-        pending = (mem.bits["M"][_HOLD] != self._hold or mem.bits["M"][_ADJUST] != self._adjust
-                   or mem.words["D"][_RATE_CODE] != self._code or mem.words["D"][_CHIP] != self.chip
-                   or mem.bits["M"][_INSTALLED] != (1 if self.chip else 0))
-        return now if pending else math.inf
+        """Never: the chip's time is a formula of virtual time, and the engine always runs the scan after a
+        request before it jumps, so edges and new D4054 codes are seen on time."""
+        return math.inf
 
     # -- the chip -------------------------------------------------------------------------------------------
     def chip_seconds(self, now: float) -> float:

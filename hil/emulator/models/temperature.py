@@ -90,7 +90,6 @@ class TemperatureModel(Model):
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         self._mux: list[int] = [0] * len(self.fitted)  # the point (within the module) measured next
         self._breaks = 0  # 32 break bits as the model last wrote them
-        self._due = math.inf
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
@@ -146,7 +145,9 @@ class TemperatureModel(Model):
             self._next[k] = emu.now + self._step(module)
 
     def next_event(self, now: float) -> float:
-        return self._due
+        # Measurements are caught up at the next scan, each at its scheduled time (see _measure_module), so a
+        # time jump loses nothing and the model never needs a scan of its own between requests.
+        return math.inf
 
     def _step(self, module: ModuleType) -> float:
         return module.update_s[self.config.rate] / module.points
@@ -155,7 +156,6 @@ class TemperatureModel(Model):
         mem = emu.memory
         words = mem.words[self.config.table.kind]
         sr = self.config.table.index
-        self._due = math.inf
         if words[sr] != TABLE_MARKER:
             self.state = "idle"
             return
@@ -207,20 +207,25 @@ class TemperatureModel(Model):
     def _measure_module(self, emu: "Emulator", k: int, first: int, sensor_code: int, readings) -> None:  # noqa: ANN001
         module = self.fitted[k]
         step = self._step(module)
-        if emu.now - self._next[k] > module.update_s[self.config.rate]:
-            self._next[k] = emu.now  # long idle (no valid table): do not replay the missed cycles
+        cycle = module.update_s[self.config.rate]
+        # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
+        # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
+        keep = (self.config.averaging + 1) * cycle
+        if emu.now - self._next[k] > keep:
+            self._next[k] += math.floor((emu.now - self._next[k] - keep) / cycle) * cycle
         while self._next[k] <= emu.now + 1e-9:
             point = first + self._mux[k]
-            self._measure_point(emu, point, sensor_code, readings)
+            self._measure_point(emu, point, sensor_code, readings, self._next[k])
             self._mux[k] = (self._mux[k] + 1) % module.points
             self._next[k] += step
-        self._due = min(self._due, self._next[k])
 
-    def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings) -> None:  # noqa: ANN001
+    def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings,  # noqa: ANN001
+                       at: float) -> None:
+        """One measurement of ``point`` as scheduled at virtual time ``at`` (≤ now when caught up)."""
         mem = emu.memory
         installed = self.installed(mem, point)
         broken = point in self.broken
-        live = self._live(emu.now, point, sensor_code) if installed and not broken else 0
+        live = self._live(at, point, sensor_code) if installed and not broken else 0
         if broken or not installed:
             self._samples.pop(point, None)  # [our choice] a repaired sensor reads its live value at once
         reading, flagged = self.point_result(point, installed, broken, live)

@@ -1,0 +1,48 @@
+"""Fast-forward must not change results: jumping virtual time equals stepping it scan by scan."""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+
+import pytest
+
+from hil.emulator.build import build_emulator
+from hil.profile import load_profile, profile_from_dict
+from tests.conftest import EMULATOR_BENCH
+
+EPOCH = dt.datetime(2024, 2, 28, 23, 0, 0)
+
+
+def ramped_profile(averaging: int):
+    base = load_profile(EMULATOR_BENCH)
+    temperature = dict(base.areas["temperature"], averaging=averaging, sources={
+        "0": {"kind": "ramp", "start": 20.0, "per_s": 0.37},
+        "17": {"kind": "ramp", "start": 300.0, "per_s": -0.11, "low": 100.0},
+        "31": {"kind": "fixed", "celsius": 55.5},
+    })
+    return profile_from_dict({"bench": {"name": "ff"}, "rtc": {"chip": 3, "crystal_ppm": 12.5},
+                              "temperature": temperature})
+
+
+@pytest.mark.parametrize("averaging", [1, 4])
+@pytest.mark.parametrize("seconds", [7.3, 95.0, 600.0])
+def test_jump_equals_stepping(averaging, seconds):
+    profile = ramped_profile(averaging)
+    stepped, jumped = build_emulator(profile, EPOCH), build_emulator(profile, EPOCH)
+    for _ in range(round(seconds / stepped.scan_time)):
+        stepped.scan()
+    jumped.advance_to(stepped.now)  # the same instant, whatever float rounding did to the stepped clock
+    assert jumped.now == stepped.now
+    for first, count in (("R3020", 32), ("R3060", 12), ("R4128", 8)):
+        assert jumped.memory.read(first, count) == stepped.memory.read(first, count), first
+
+
+def test_a_simulated_day_of_the_default_bench_is_fast():
+    emulator = build_emulator(load_profile(EMULATOR_BENCH), EPOCH)
+    start = time.perf_counter()
+    emulator.advance(86400)
+    emulator.scan()
+    elapsed = time.perf_counter() - start
+    print(f"24 virtual hours of the default bench: {elapsed * 1000:.1f} ms wall")
+    assert emulator.memory.read("R4131", 3) == [29, 2, 24]  # the RTC crossed into the leap day
