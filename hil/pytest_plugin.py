@@ -207,7 +207,8 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     except (HilError, pytest.fail.Exception) as exc:
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
-    if reporter is not None and session.config.get_verbosity() >= 0:
+    state.plc_line = line  # hil.reporting shows it in its header panel (which replaces this line)
+    if reporter is not None and session.config.get_verbosity() >= 0 and not getattr(state, "header_panel", False):
         reporter.write_line(line)
 
 

@@ -1,0 +1,141 @@
+"""Records a report is made of: measurements with limits, plot-ready series, one record per test."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import PurePath
+from typing import Mapping, Sequence
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One measured value with its unit and limits (inclusive); either limit may be absent."""
+
+    name: str
+    value: float
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+
+    @property
+    def passed(self) -> bool:
+        if isinstance(self.value, float) and math.isnan(self.value):
+            return False
+        return (self.low is None or self.value >= self.low) and (self.high is None or self.value <= self.high)
+
+    @property
+    def outcome(self) -> str:
+        return "PASS" if self.passed else "FAIL"
+
+    def limits_text(self) -> str:
+        if self.low is None and self.high is None:
+            return "no limits"
+        if self.low is not None and self.high is not None:
+            return f"[{self.low:g}, {self.high:g}]"
+        return f">= {self.low:g}" if self.low is not None else f"<= {self.high:g}"
+
+    def describe(self) -> str:
+        unit = f" {self.unit}" if self.unit else ""
+        return f"{self.name} = {self.value:g}{unit} {self.limits_text()} {self.outcome}"
+
+    def properties(self) -> list[tuple[str, str]]:
+        """JUnit testcase properties: ``hil.measure.<name>`` = value, and .unit/.low/.high/.outcome."""
+        key = f"hil.measure.{self.name}"
+        out = [(key, f"{self.value:g}")]
+        if self.unit:
+            out.append((f"{key}.unit", self.unit))
+        if self.low is not None:
+            out.append((f"{key}.low", f"{self.low:g}"))
+        if self.high is not None:
+            out.append((f"{key}.high", f"{self.high:g}"))
+        out.append((f"{key}.outcome", self.outcome))
+        return out
+
+
+@dataclass
+class Series:
+    """Plot-ready columns: ``x`` names the horizontal axis, every other column is one line."""
+
+    name: str
+    columns: dict[str, list[float]]
+    x: str
+    title: str = ""
+    xlabel: str = ""
+    ylabel: str = ""
+    #: columns drawn against a second vertical axis (e.g. a PID output in % beside PV/SV in °C)
+    secondary: tuple[str, ...] = ()
+    secondary_label: str = ""
+
+    @classmethod
+    def build(cls, name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]], *,
+              columns: Sequence[str] | None = None, x: str | None = None, title: str = "", xlabel: str = "",
+              ylabel: str = "", secondary: Sequence[str] = (), secondary_label: str = "") -> "Series":
+        if isinstance(data, Mapping):
+            cols = {str(k): [float(v) for v in vs] for k, vs in data.items()}
+        else:
+            if not columns:
+                raise ValueError(f"series {name!r}: rows need columns=(…) naming each position")
+            rows = [tuple(r) for r in data]
+            if any(len(r) != len(columns) for r in rows):
+                raise ValueError(f"series {name!r}: every row must have {len(columns)} values ({', '.join(columns)})")
+            cols = {c: [float(r[i]) for r in rows] for i, c in enumerate(columns)}
+        if not cols:
+            raise ValueError(f"series {name!r} has no columns")
+        lengths = {len(v) for v in cols.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"series {name!r}: columns differ in length ({sorted(lengths)})")
+        x = x or next(iter(cols))
+        if x not in cols:
+            raise ValueError(f"series {name!r}: x column {x!r} not among {list(cols)}")
+        if len(cols) < 2:
+            raise ValueError(f"series {name!r}: needs a y column besides {x!r}")
+        unknown = [c for c in secondary if c not in cols]
+        if unknown:
+            raise ValueError(f"series {name!r}: secondary columns {unknown} not among {list(cols)}")
+        return cls(name, cols, x, title or name, xlabel or x, ylabel, tuple(secondary), secondary_label)
+
+    @property
+    def points(self) -> int:
+        return len(self.columns[self.x])
+
+
+@dataclass
+class TestRecord:
+    """What the report keeps of one test."""
+
+    nodeid: str
+    area: str
+    outcome: str = "passed"  # passed, failed, skipped, error
+    duration: float = 0.0
+    message: str = ""  # failure text or skip reason
+    longrepr: str = ""
+    measurements: list[Measurement] = field(default_factory=list)
+    series: list[Series] = field(default_factory=list)
+    trace: str = ""  # formatted wire trace, when kept
+    trace_file: str = ""
+
+
+#: Suite file (stem, or a folder on its path) → report area.  The first match wins.
+AREAS: list[tuple[str, str]] = [
+    ("s7smart", "S7"), ("test_s7", "S7"),
+    ("test_rtc_drift", "drift"), ("drift", "drift"),
+    ("test_rtc", "RTC"),
+    ("test_temperature", "temperature"),
+    ("test_pid", "PID"),
+    ("test_smoke", "smoke"),
+]
+
+
+def area_of(path: str) -> str:
+    """The report area of a test file (``suites/test_rtc_drift.py`` → "drift")."""
+    p = PurePath(path.split("::", 1)[0])
+    for part in p.parts[:-1]:
+        for key, area in AREAS:
+            if part == key:
+                return area
+    for key, area in AREAS:
+        if p.stem.startswith(key):
+            return area
+    stem = p.stem.removeprefix("test_")
+    return stem or "other"
