@@ -124,12 +124,12 @@ def _vs_host(plc: dt.datetime, host: dt.datetime) -> str:
 def rtc_read(url: str, console: Console, bench: str | None = None) -> int:
     with open_plc(url, bench) as plc:
         rtc = plc.rtc
-        now = rtc.read()
+        snapshot = rtc.read_all()  # time, R4135 and M1952–M1955: one round trip
+        now, flags, hour_minute = snapshot.time, snapshot.flags, snapshot.hour_minute
         host = plc.time.calendar()
-        flags = _reachable(rtc.read_flags)
-        hour_minute = _reachable(rtc.read_hour_minute)
-        chip = _reachable(lambda: rtc.chip)
-        code = _reachable(lambda: rtc.rate_code)
+        chip_and_code = _reachable(rtc.read_chip_and_rate_code)  # D4053–D4054: one round trip
+        chip, code = ((chip_and_code, chip_and_code) if isinstance(chip_and_code, UnreachableAddress)
+                      else chip_and_code)
 
         table = Table(title=f"RTC of {plc.io.description}", show_header=False)
         table.add_column("item")

@@ -33,3 +33,10 @@ class FbsPlc:
         """
         for _ in range(self.settle_scans if scans is None else scans):
             self.io.status()
+
+    def settle_before_request(self) -> None:
+        """Settle when the procedure's next step is itself a request (a read of the effect, the next write).
+
+        That request is serviced at the end of a scan after the write too, so it counts as one of the
+        ``settle_scans``: one status round trip fewer, the same scans before the effect is looked at."""
+        self.settle(max(0, self.settle_scans - 1))

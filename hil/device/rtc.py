@@ -77,8 +77,21 @@ class DriftMeasurement:
         return self.s_per_day / 86400 * 1e6
 
 
+@dataclass(frozen=True)
+class RtcSnapshot:
+    """R4128–R4135 and M1952–M1955 as one scan left them (:meth:`Rtc.read_all`)."""
+
+    time: RtcTime
+    hour_minute: int  # R4135
+    flags: RtcFlags
+
+
 class RtcError(HilError):
     """The RTC procedure could not be carried out (a set that failed part-way, a clock that never ticks)."""
+
+
+#: R4128–R4135 then M1952–M1967 packed (bit 0 = M1952), for :meth:`Rtc.read_all`.
+_SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 
 
 class Rtc:
@@ -93,8 +106,19 @@ class Rtc:
 
     # -- reading --------------------------------------------------------------------------------------------
     def read(self) -> RtcTime:
-        """R4128–R4134 in one mixed read (one request, so the fields come from one scan)."""
-        return RtcTime.from_registers(self.plc.io.read_many(reg.RTC_FIELDS))
+        """R4128–R4134 in one register read (one request, so the fields come from one scan).
+
+        A plain 46 read, not a 48 mixed read: the same one round trip, with 6 characters per name saved
+        (16 request bytes instead of 52 on FATEK; one FC03 either way on Modbus)."""
+        return RtcTime.from_registers(self.plc.io.read_words(reg.RTC_SECOND, len(reg.RTC_FIELDS)))
+
+    def read_all(self) -> RtcSnapshot:
+        """Time, R4135 and the flags M1952–M1955 in one round trip (one FATEK 48 frame), so they come from one
+        scan: R4128–R4135 and WM1952 (M1952–M1967 packed in one word, 6 characters in the request instead of
+        20 for four bit names).  Over Modbus the map coalesces it into one FC03 and one FC01."""
+        *fields, hour_minute, packed = self.plc.io.read_many(_SNAPSHOT_NAMES)
+        flags = RtcFlags(*(bool(packed >> b & 1) for b in range(4)))
+        return RtcSnapshot(RtcTime.from_registers(fields), hour_minute, flags)
 
     def read_hour_minute(self) -> int:
         """R4135 (hour << 8 | minute)."""
@@ -114,6 +138,11 @@ class Rtc:
         """D4053."""
         code = self.plc.io.read(reg.RTC_CHIP)
         return RtcChip(code, CHIP_NAMES.get(code, f"unknown ({code})"))
+
+    def read_chip_and_rate_code(self) -> tuple[RtcChip, int]:
+        """D4053 and D4054 in one register read."""
+        code, rate = self.plc.io.read_words(reg.RTC_CHIP, 2)
+        return RtcChip(code, CHIP_NAMES.get(code, f"unknown ({code})")), rate
 
     @property
     def rate_code(self) -> int:
@@ -165,7 +194,7 @@ class Rtc:
 
     def _finish_set(self, value: RtcTime) -> SetResult:
         self.plc.io.write(reg.RTC_HOLD, 0)
-        self.plc.settle()
+        self.plc.settle_before_request()  # the read of M1955 below ends a scan too
         refused = bool(self.plc.io.read(reg.RTC_SET_ERROR))
         return SetResult(value, not refused, tuple(value.validate()))
 
@@ -174,7 +203,7 @@ class Rtc:
         io = self.plc.io
         io.write(reg.RTC_ADJUST_30S, 0)  # make sure the PLC sees a 0 before the 1
         io.write(reg.RTC_ADJUST_30S, 1)
-        self.plc.settle()
+        self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
         io.write(reg.RTC_ADJUST_30S, 0)
 
 
@@ -264,4 +293,4 @@ def _seconds(t: RtcTime) -> int:
     return int((t.to_datetime() - EPOCH).total_seconds())
 
 
-__all__ = ["Rtc", "Drift", "RtcFlags", "RtcChip", "SetResult", "DriftMeasurement", "RtcError"]
+__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError"]
