@@ -31,19 +31,39 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run the suites against a bench (default: the emulator)",
                          formatter_class=argparse.RawDescriptionHelpFormatter,
+                         description="Run the suites with pytest and leave the evidence in reports/: junit.xml "
+                                     "(bench, PLC identity, measurements with limits, wire traces of failures), "
+                                     "report.html (one offline file with plots) and traces/.",
                          epilog="examples:\n  hil run\n  hil run --target emulator+modbus-tcp\n"
-                                "  hil run --bench fixtures/benches/example-bench.toml -- -k smoke -x\n")
+                                "  hil run --bench fixtures/benches/example-bench.toml --operator \"J. Doe\" "
+                                "--station rig-2\n"
+                                "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
+                                "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n")
     run.add_argument("--bench", metavar="FILE", help="bench profile (default fixtures/benches/emulator.toml)")
     run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
     run.add_argument("--junitxml", metavar="PATH", default="reports/junit.xml",
                      help="where the JUnit XML goes (default reports/junit.xml)")
+    run.add_argument("--html", metavar="PATH", default="reports/report.html",
+                     help="where the HTML report goes (default reports/report.html)")
+    run.add_argument("--operator", metavar="NAME", help="who runs the tests (default $HIL_OPERATOR or login name)")
+    run.add_argument("--station", metavar="NAME", help="test station (default $HIL_STATION or host name)")
+    run.add_argument("--trace", choices=("failures", "all", "off"), default=None,
+                     help="wire traces to keep: failing tests (default), all, or off")
+    run.add_argument("-q", "--quiet", action="count", default=0, help="less output (repeat for even less)")
+    run.add_argument("-v", "--verbose", action="count", default=0, help="one line per test")
+    run.add_argument("--color", choices=("auto", "yes", "no"), default=None,
+                     help="colour the console (default auto: only on a terminal, never with NO_COLOR)")
     run.add_argument("pytest_args", nargs=argparse.REMAINDER, help="after --: extra pytest arguments")
 
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
                              epilog="examples:\n  hil emulate --fatek-tcp 127.0.0.1:5000 --modbus-tcp 127.0.0.1:5020\n"
                                     "  hil emulate --fatek-pty --time-scale 60\n"
-                                    "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens.")
+                                    "  hil emulate --bench fixtures/benches/emulator.toml --fatek-tcp 0.0.0.0:500\n"
+                                    "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens; "
+                                    "on a terminal a live panel (clock, temperatures, requests) follows. Ctrl-C "
+                                    "stops.")
+    emulate.add_argument("--no-live", action="store_true", help="no live panel, even on a terminal")
     emulate.add_argument("--bench", metavar="FILE", help="bench profile that configures the emulator")
     emulate.add_argument("--fatek-tcp", metavar="HOST:PORT", help="FATEK protocol on TCP (port 0: OS chooses)")
     emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
@@ -58,7 +78,14 @@ def build_parser() -> argparse.ArgumentParser:
                          help="virtual seconds per wall second (default 1)")
 
     probe = sub.add_parser("probe", help="show a PLC's status and key registers",
-                           epilog="example: hil probe fatek+tcp://192.168.1.5:500")
+                           formatter_class=argparse.RawDescriptionHelpFormatter,
+                           description="Connect, ask the PLC what it is (FATEK command 53 where the wire has it) "
+                                       "and show its state and key registers. Reads only.",
+                           epilog="examples:\n  hil probe fatek+tcp://192.168.1.5:500\n"
+                                  "  hil probe fatek+serial:///dev/ttyUSB0?baudrate=19200\n"
+                                  "  hil probe modbus+tcp://192.168.1.5:502?unit=1\n"
+                                  "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
+                                  "with its temperature points)\n")
     probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
                                               "(default: the --bench profile's target)")
     probe.add_argument("--bench", metavar="FILE",
@@ -142,16 +169,38 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         # soft_wrap: one line whatever the width; escape: messages quote "[sections]" that are not markup
-        Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(str(exc))}",
+        Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(one_line(exc))}",
                                                    highlight=False)
         return 2
+    except Exception as exc:  # noqa: BLE001 - a bug: still one line, the traceback behind --debug
+        if args.debug:
+            raise
+        Console(stderr=True, soft_wrap=True).print(
+            f"[bold red]hil {args.command}: internal error:[/] {escape(type(exc).__name__)}: "
+            f"{escape(one_line(exc))} — run again with --debug for the traceback and report it", highlight=False)
+        return 3
+
+
+def one_line(exc: BaseException) -> str:
+    """The error as one line: what failed and what to do (hil's messages say both)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, PermissionError) and exc.filename:
+        return f"cannot open {exc.filename}: permission denied — check its owner and mode (serial ports: add " \
+               f"your user to the dialout group)"
+    if isinstance(exc, FileNotFoundError) and exc.filename:
+        return f"{exc.filename}: no such file — check the path"
+    return text
 
 
 def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "run":
         from hil.commands.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
-        return run(args.bench, args.target, args.junitxml, extra)
+        if args.bench:
+            from hil.profile import load_profile
+            load_profile(args.bench)  # a bad profile: one line here, before pytest starts
+        return run(args.bench, args.target, args.junitxml, extra, html=args.html, operator=args.operator,
+                   station=args.station, trace=args.trace, verbosity=args.verbose - args.quiet, color=args.color)
     if args.command == "emulate":
         from hil.commands.emulate import emulate
         from hil.paths import default_bench
@@ -162,7 +211,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             raise ValueError("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
                              "or --modbus-pty")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
-                       args.rig_first_coil)
+                       args.rig_first_coil, live=not args.no_live and console.is_terminal)
     if args.command == "probe":
         from hil.commands.probe import probe
         if not args.url and not args.bench:

@@ -36,15 +36,21 @@ def test_table_codes_of_the_manuals_worked_examples():
 
 
 @pytest.mark.slow
-def test_drift_measured_compensated_and_remeasured(bench, s35390a, io):
+def test_drift_measured_compensated_and_remeasured(bench, s35390a, io, measure, report):
     io.write("D4054", 0x0000)
     duration = 86400.0 if bench.time.virtual else 6 * 3600.0
     before = s35390a.drift.measure(duration)
+    report.attach_drift(before, "drift_uncompensated", title=f"uncompensated: {before.s_per_day:+.3f} s/day")
+    measure("drift_uncompensated", before.s_per_day, unit="s/day")  # evidence only: the chip's own error
     code = s35390a.drift.compensate(before.s_per_day)
     assert io.read("D4054") == code == code_for_rate(before.s_per_day)
     after = s35390a.drift.measure(duration)
+    report.attach_drift(after, "drift_residual", title=f"D4054 = {code:04X}H: residual {after.s_per_day:+.3f} s/day")
     # On a bench the polling resolution of a few hours' measurement adds to the manual's one fine step.
     limit = FINE_STEP + (0.0 if bench.time.virtual else after.resolution)
+    measure("drift_residual", after.s_per_day, unit="s/day", low=-limit, high=limit,
+            note=f"drift {before.s_per_day:+.3f} s/day, D4054 = {code:04X}H; a residual near twice the drift "
+                 f"means the correction's sign is inverted")
     assert abs(after.s_per_day) <= limit, (
         f"drift {before.s_per_day:+.3f} s/day, D4054 = {code:04X}H, residual {after.s_per_day:+.3f} s/day "
         f"(limit ±{limit:.3f}); a residual near twice the drift means the correction's sign is inverted")

@@ -80,7 +80,7 @@ def test_table_is_recognised_and_measuring(bench, temp):
     assert work.total_points == sum(POINTS[m.type.name] for m in modules)
 
 
-def test_readings_are_in_range_and_units(bench, temp):
+def test_readings_are_in_range_and_units(bench, temp, measure):
     config = temp.config
     readings = temp.readings()
     mask = bench.plc.io.read_words("R4010", 2)
@@ -95,6 +95,8 @@ def test_readings_are_in_range_and_units(bench, temp):
             low, high = RANGE_C[module.sensor.name]
             if config.unit == "F":
                 low, high = low * 9 / 5 + 32, high * 9 / 5 + 32
+            measure(f"point{point}", value / 10, unit=f"°{config.unit}", low=low, high=high,
+                    note=f"{module.sensor.name} sensor range (readings are in 0.1°)")
             assert low * 10 <= value <= high * 10, (
                 f"point {point} ({module.sensor.name}) reads {value / 10} °{config.unit}, outside "
                 f"{low}…{high} °{config.unit} (readings are in 0.1°)")
@@ -140,7 +142,7 @@ def test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back(bench, 
 
 
 @pytest.mark.parametrize("point", BREAK_POINTS)
-def test_repair_brings_the_live_value_back(bench, temp, breaker, point):
+def test_repair_brings_the_live_value_back(bench, temp, breaker, point, measure):
     _point(temp, point)
     _ensure_installed(bench, point)
     temp.wait_for_update()
@@ -155,5 +157,7 @@ def test_repair_brings_the_live_value_back(bench, temp, breaker, point):
     assert after != 28767, f"point {point} repaired but still reads 28767"
     # The same sensor a few seconds later: within the module accuracy ±(1 % + 1 °C), doubled for drift.
     tolerance = 2 * (abs(before) / 100 + 10) + 10
+    measure(f"point{point}_repair_change", abs(after - before) / 10, unit=f"°{temp.config.unit}", low=0,
+            high=tolerance / 10, note=f"read {before / 10} before the break, {after / 10} after repair")
     assert abs(after - before) <= tolerance, f"point {point} read {before} before the break, {after} after repair"
     assert temp.read_work().break_words == (0, 0), f"point {point} repaired but its break bit is still set"

@@ -21,7 +21,7 @@ def split_host_port(text: str) -> tuple[str, int]:
 
 
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
-            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0) -> int:
+            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False) -> int:
     """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
 
     ``rig_modbus_tcp``: also serve a sensor-break fault rig (Modbus/TCP coils, see hil.emulator.serve.rig).
@@ -44,7 +44,12 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
-        emulator.run_realtime(stop, time_scale)
+        if live:  # after the endpoint lines: clients parse those, the panel is for people
+            from hil.commands.emulate_live import LivePanel
+            with LivePanel(emulator, profile, servers, time_scale, stop):
+                emulator.run_realtime(stop, time_scale)
+        else:
+            emulator.run_realtime(stop, time_scale)
     finally:
         for handle in servers:
             handle.stop()

@@ -137,7 +137,16 @@ def write_html(path: Path, records: Iterable[TestRecord], properties: list[tuple
     verdict = "FAILED" if counts.get("failed") or counts.get("error") else "PASSED"
     props = "".join(f"<tr><th>{_e(k.removeprefix('hil.'))}</th><td>{_e(v)}</td></tr>" for k, v in properties)
     order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2}
-    tests = "\n".join(_test(r) for r in sorted(records, key=lambda r: (order.get(r.outcome, 3), r.nodeid)))
+    ranked = sorted(records, key=lambda r: (order.get(r.outcome, 3), not r.series, r.nodeid))
+    detailed = [r for r in ranked if r.outcome in ("failed", "error") or r.measurements or r.series or r.trace]
+    plain = [r for r in ranked if r not in detailed]
+    tests = "\n".join(_test(r) for r in detailed)
+    if plain:
+        rows = "".join(f'<tr><td><span class="badge {r.outcome}">{r.outcome}</span></td><td>{_e(r.area)}</td>'
+                       f'<td><code>{_e(r.nodeid)}</code></td><td class="n">{r.duration:.3f}</td>'
+                       f'<td>{_e(r.message if r.outcome == "skipped" else "")}</td></tr>' for r in plain)
+        tests += ("\n<h2>Other tests</h2>\n<table><tr><th>outcome</th><th>area</th><th>test</th><th>s</th>"
+                  f"<th>skip reason</th></tr>{rows}</table>")
     now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
