@@ -16,6 +16,7 @@ from hil.errors import HilError, TransportError
 from hil.profile import Profile, load_profile
 from hil.transport.url import parse_target
 
+pytest_plugins = ["hil.perf"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "emulator_only": "emulator_only(reason): needs what only the in-process emulator gives (virtual time jumps, "
