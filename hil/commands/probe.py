@@ -5,6 +5,8 @@ from __future__ import annotations
 import datetime as dt
 
 from rich.console import Console
+from rich.markup import escape
+from rich.panel import Panel
 from rich.table import Table
 
 from hil.device.plc import FbsPlc
@@ -36,12 +38,19 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
     with open_transport(url or profile.target, emulator_factory=factory,
                         timeout=profile.timeout if profile else None) as transport:
         status = transport.status()
-        table = Table(title=f"PLC at {transport.description}", show_header=True)
+        running = {True: "green", False: "yellow", None: "dim"}[status.running]
+        grid = Table.grid(padding=(0, 2))
+        grid.add_column(style="bold cyan", no_wrap=True)
+        grid.add_column()
+        grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
+        grid.add_row("via", escape(status.via or transport.description))
+        for key, value in status.identity.items():
+            grid.add_row(escape(key), escape(str(value)))
+        console.print(Panel(grid, title=f"PLC at {escape(transport.description)}", title_align="left",
+                            expand=False, border_style=running))
+        table = Table(title="key registers", show_header=True)
         table.add_column("item")
         table.add_column("value")
-        table.add_row("state", status.summary())
-        for key, value in status.identity.items():
-            table.add_row(key, str(value))
         for label, element in PROBE_REGISTERS:
             reason = transport.unreachable_reason(element)
             if reason:
