@@ -49,6 +49,9 @@ class Bench:
             from hil.fbs.temperature import parse_temperature
             self.plc.temperature.config = parse_temperature(profile.areas["temperature"],
                                                             str(profile.path or "<profile>"))
+        if "pid" in profile.areas:
+            from hil.fbs.pid import parse_pid
+            self.plc.pid.config = parse_pid(profile.areas["pid"], str(profile.path or "<profile>"))
         from hil.faults import Faults
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
 

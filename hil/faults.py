@@ -15,7 +15,9 @@ A profile names one injector per fault, e.g. ``[faults.sensor_break]``:
 =================  ==============================================================================================
 
 Suites reach injectors as ``bench.faults.sensor_break`` (``.open(point)``, ``.repair(point)``); every fault a
-test injected is undone by the bench when the test ends, pass or fail.
+test injected is undone by the bench when the test ends, pass or fail.  ``[faults.heater_open]`` and
+``[faults.ssr_short]`` take the same kinds and act on a point's heater circuit (``bench.faults.heater_open
+.inject(point)`` / ``.clear(point)``; with kind = "emulator" the emulator's thermal plant, ``[plant]``).
 
 The relay module is reached with pymodbus's client directly, not through :class:`~hil.transport.modbus.
 ModbusTransport`: that transport speaks *FBs names* mapped onto Modbus tables, whereas a relay module has plain
@@ -36,7 +38,13 @@ if TYPE_CHECKING:
     from hil.bench import Bench
 
 KINDS = ("emulator", "modbus-coil", "plc-bit", "manual")
-KNOWN_FAULTS = ("sensor_break",)
+KNOWN_FAULTS = ("sensor_break", "heater_open", "ssr_short")
+# What each fault does to point p, for the operator's prompt and the docs.  heater_open / ssr_short act on the
+# heater circuit of a FUN86-controlled point (the emulator's thermal plant, or a relay/contactor on a bench).
+FAULT_ACTIONS = {"sensor_break": ("DISCONNECT the sensor", "RECONNECT the sensor"),
+                 "heater_open": ("OPEN the heater circuit", "CLOSE the heater circuit"),
+                 "ssr_short": ("BRIDGE the SSR (heater full on)", "REMOVE the SSR bridge")}
+PLANT_FAULTS = ("heater_open", "ssr_short")
 _KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout"},
          "plc-bit": {"kind", "first"}, "manual": {"kind"}}
 
@@ -86,6 +94,14 @@ class SensorBreakInjector(ABC):
     def __init__(self) -> None:
         self.opened: set[int] = set()
 
+    def inject(self, point: int) -> None:
+        """Put the fault on ``point`` (for a sensor break: open its circuit)."""
+        self.open(point)
+
+    def clear(self, point: int) -> None:
+        """Take the fault off ``point`` again."""
+        self.repair(point)
+
     def open(self, point: int) -> None:
         """Open ``point``'s sensor circuit (the PLC sees it at the point's next measurement)."""
         self._check(point)
@@ -132,6 +148,22 @@ class EmulatorSensorBreak(SensorBreakInjector):
     def _set(self, point: int, open_circuit: bool) -> None:
         with self.emulator.lock:  # the emulator may be serving a wire from another thread
             (self.model.open if open_circuit else self.model.repair)(point)
+
+
+class EmulatorPlantFault(SensorBreakInjector):
+    """heater_open / ssr_short inside the in-process emulator's thermal plant (seen from the next scan)."""
+
+    kind = "emulator"
+
+    def __init__(self, emulator: Any, plant: Any, fault: str) -> None:  # an Emulator and its ThermalPlant
+        super().__init__()
+        self.emulator = emulator
+        self.plant = plant
+        self.fault = fault
+
+    def _set(self, point: int, on: bool) -> None:
+        with self.emulator.lock:
+            self.plant.set_fault(self.fault, point, on)
 
 
 class ModbusCoilSensorBreak(SensorBreakInjector):
@@ -206,13 +238,18 @@ class ManualSensorBreak(SensorBreakInjector):
 
     kind = "manual"
 
-    def __init__(self, ask: Callable[[str], str] | None = None) -> None:
+    def __init__(self, ask: Callable[[str], str] | None = None, fault: str = "sensor_break") -> None:
         super().__init__()
         self.ask = ask or _ask_terminal
+        self.fault = fault
 
     def _set(self, point: int, open_circuit: bool) -> None:
-        action = "DISCONNECT" if open_circuit else "RECONNECT"
-        self.ask(f"{action} the sensor of temperature point {point}, then press Enter: ")
+        if self.fault == "sensor_break":
+            action = "DISCONNECT" if open_circuit else "RECONNECT"
+            self.ask(f"{action} the sensor of temperature point {point}, then press Enter: ")
+            return
+        action = FAULT_ACTIONS[self.fault][0 if open_circuit else 1]
+        self.ask(f"{action} of temperature point {point}, then press Enter: ")
 
 
 def _ask_terminal(prompt: str) -> str:
@@ -243,7 +280,10 @@ class Faults:
             if not self.bench.is_emulator:
                 return (f"[faults.{name}] kind = \"emulator\" needs the in-process emulator, not target "
                         f"{self.bench.target}; use a relay (modbus-coil / plc-bit) or manual injector")
-            if self._temperature_model() is None:
+            if name in PLANT_FAULTS:
+                if self._plant() is None:
+                    return "the emulator has no thermal plant (no [plant] section in the profile)"
+            elif self._temperature_model() is None:
                 return "the emulator has no temperature modules (no [temperature] section in the profile)"
         if kind == "manual" and not sys.stdin.isatty():
             return f"[faults.{name}] kind = \"manual\" needs an operator, and stdin is not a terminal"
@@ -264,16 +304,33 @@ class Faults:
         spec = self.bench.profile.faults[name]
         kind = spec["kind"]
         if kind == "emulator":
-            injector: SensorBreakInjector = EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model())
+            injector: SensorBreakInjector = (
+                EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
+                else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
         elif kind == "modbus-coil":
             injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
                                              float(spec.get("timeout", self.bench.profile.timeout)))
         elif kind == "plc-bit":
             injector = PlcBitSensorBreak(self.bench.io, spec["first"])
         else:
-            injector = ManualSensorBreak()
+            injector = ManualSensorBreak(fault=name)
         self._made[name] = injector
         return injector
+
+    @property
+    def heater_open(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` opens the point's heater circuit (no heating); ``.clear(point)`` closes it."""
+        return self.get("heater_open")
+
+    @property
+    def ssr_short(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` shorts the point's SSR (full heating); ``.clear(point)`` removes the short."""
+        return self.get("ssr_short")
+
+    def _plant(self) -> Any:
+        from hil.emulator.models.plant import ThermalPlant
+        emulator = self.bench.raw.emulator
+        return emulator.model(ThermalPlant) if emulator is not None else None
 
     def _temperature_model(self) -> Any:
         from hil.emulator.models.temperature import TemperatureModel

@@ -139,6 +139,12 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     if "temperature" in areas:  # refuse a bad [temperature] when the profile is read, not when a test runs
         from hil.fbs.temperature import parse_temperature
         parse_temperature(areas["temperature"], where)
+    if "pid" in areas:  # FUN86 instances: addresses, ranges and overlaps refused with the reason
+        from hil.fbs.pid import parse_pid
+        parse_pid(areas["pid"], where)
+    if "plant" in areas:
+        from hil.emulator.models.plant import parse_plant
+        parse_plant(areas["plant"], where)
     if family == "s7-200smart":
         from hil.s7smart.layout import parse_s7_settings, parse_s7rtc
         parse_s7_settings(areas.get("s7", {}), where)

@@ -21,6 +21,8 @@ class FbsPlc:
         self.rtc = Rtc(self)
         from hil.device.temperature import Temperature  # noqa: PLC0415
         self.temperature = Temperature(self)  # configured by the bench from the profile's [temperature]
+        from hil.device.pid import Pid  # noqa: PLC0415
+        self.pid = Pid(self)  # configured by the bench from the profile's [pid]
 
     def status(self) -> PlcStatus:
         return self.io.status()

@@ -24,4 +24,25 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
         from hil.fbs.temperature import parse_temperature  # noqa: PLC0415
         emulator.add_model(TemperatureModel(parse_temperature(profile.areas["temperature"],
                                                               str(profile.path or "<profile>"))))
+    if "pid" in profile.areas or "plant" in profile.areas:
+        add_pid_models(emulator, profile)
     return emulator
+
+
+def add_pid_models(emulator: Emulator, profile: Profile) -> None:
+    """FUN86 (the ladder's PID instances, [pid]) and the thermal plant ([plant]) after the temperature modules."""
+    from hil.emulator.models.fun86 import Fun86Model  # noqa: PLC0415
+    from hil.emulator.models.plant import ThermalPlant, parse_plant  # noqa: PLC0415
+    from hil.emulator.models.temperature import TemperatureModel  # noqa: PLC0415
+    from hil.fbs.pid import PidConfig, parse_pid  # noqa: PLC0415
+    where = str(profile.path or "<profile>")
+    config = parse_pid(profile.areas["pid"], where) if "pid" in profile.areas else PidConfig(())
+    temperature = emulator.model(TemperatureModel)
+    fun86 = Fun86Model(config, temperature.config if temperature else None)
+    if temperature is not None:
+        fun86.next_measurement = temperature.next_measurement
+    emulator.add_model(fun86)
+    if "plant" in profile.areas:
+        heaters = {p: inst.yn.offset(p - inst.sn) for inst in config.instances if not inst.settable
+                   for p in inst.points}
+        emulator.add_model(ThermalPlant(parse_plant(profile.areas["plant"], where), heaters, seed=emulator.seed))

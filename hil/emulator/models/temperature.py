@@ -149,6 +149,10 @@ class TemperatureModel(Model):
         # time jump loses nothing and the model never needs a scan of its own between requests.
         return math.inf
 
+    def next_measurement(self) -> float:
+        """Virtual time of the next scheduled measurement of any point (a PID acting on PV may need a scan then)."""
+        return min(self._next, default=math.inf)
+
     def _step(self, module: ModuleType) -> float:
         return module.update_s[self.config.rate] / module.points
 

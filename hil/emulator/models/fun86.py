@@ -1,0 +1,307 @@
+"""FUN86 TPCTL, temperature PID, in the emulator (manual ch. 20.7; spec/fbs-pid.md).
+
+One :class:`Fun86Model` runs every FUN86 instance of the bench profile's ``[pid]``, as the ladder's FUN86 boxes
+would, after the temperature modules in each scan.  Per instance and scan:
+
+* EN = 0: the instruction is not executed; **[our choice]** its outputs Yn… go off, ERR and ALM are cleared.
+* Sn/Zn (the profile's constants, or the registers ``sn_register``/``zn_register`` when the profile names them)
+  out of range → nothing is done and ERR = 1.
+* first execution → PR/IR/DR of each point get 110/17/50.
+* EN 0 → 1 latches R4005 (PID interval, PWM period); a later change of R4005 waits for the next rising edge.
+* nothing else happens until every fitted temperature point has been measured once (execution code 56H).
+* each PID interval: the control law (spec) for every enabled point (R4012/R4013), output OR 0–16383; disabled
+  points get OR = 0 and their output off; each scan: time-proportional Yn… (ON for OR/16383 of the PWM period).
+* each scan: the normal bits (WR+0/1), the pre-alarm count (PV ≥ R4008 for 10 consecutive scans), the heater-loop
+  timer (OR ≥ R4006 % for R4007 s while not normal), the warning bits (WR+2/3) and ALM.
+
+Temperatures come from the readings, where R4003/R4004 or the temperature table say; PV is in 0.1°.
+Every decision a faulty PLC could get wrong is one small method (the "seams" below), so the harness's tests can
+build broken PLCs as tiny subclasses.
+
+Time: the model asks for a scan at each PID interval, PWM edge, temperature measurement (PV may cross R4008
+there) and heater-loop deadline, and for every scan while a pre-alarm count is running; otherwise the engine
+jumps.  With EN off it asks for nothing (the default bench's virtual day stays one jump).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable
+
+from hil.address import Address, parse
+from hil.emulator.model import Model
+from hil.fbs import registers as reg
+from hil.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
+from hil.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
+
+if TYPE_CHECKING:
+    from hil.emulator.core import Emulator
+    from hil.emulator.memory import Memory
+
+_R = {name: parse(name).index for name in (reg.PID_SOURCE_KEY, reg.PID_SOURCE, reg.PID_TIMING,
+                                           reg.HEATER_LOOP_PERCENT, reg.HEATER_LOOP_SECONDS, reg.PREALARM_LIMIT,
+                                           reg.PID_ENABLE_LOW)}
+SOURCE_KEY = 0xA55A
+DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
+PREALARM_SCANS = 10
+
+
+def _signed(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word
+
+
+@dataclass
+class PointState:
+    integral: float = 0.0
+    pv_prev: int | None = None
+    prealarm: int = 0  # consecutive scans with PV ≥ R4008
+    loop_since: float | None = None  # when "output ≥ R4006 % and not normal" began
+
+
+@dataclass
+class InstanceState:
+    en_prev: bool = False
+    executed: bool = False  # first execution done (defaults loaded)
+    interval: float = 4.0
+    pwm: float = 2.0
+    started: float = 0.0  # EN rising edge: PWM cycles and PID intervals count from here
+    next_pid: float = math.inf
+    running: bool = False  # executing with valid Sn/Zn and every point measured
+    sn: int = 0
+    zn: int = 0
+    points: dict[int, PointState] = field(default_factory=dict)
+
+
+class Fun86Model(Model):
+    name = "fun86"
+
+    def __init__(self, config: PidConfig, temperature: TemperatureConfig | None) -> None:
+        self.config = config
+        self.temperature = temperature
+        self.states = [InstanceState() for _ in config.instances]
+        self._emu: "Emulator | None" = None
+        #: the temperature model's next measurement time (set by build_emulator): PV changes only there
+        self.next_measurement: Callable[[], float] | None = None
+
+    # -- the seams broken variants override ---------------------------------------------------------------------
+    def valid(self, sn: int, zn: int) -> bool:
+        """Sn/Zn in range (else ERR)."""
+        return valid_sn_zn(sn, zn)
+
+    def timing(self, r4005: int) -> tuple[float, float]:
+        """(PID interval, PWM period) in seconds from R4005 (low byte, high byte)."""
+        return float(timing_seconds(r4005 & 0xFF)), float(timing_seconds(r4005 >> 8))
+
+    def enabled(self, mem: "Memory", point: int) -> bool:
+        """Point's bit in R4012 (points 0–15) or R4013 (16–31)."""
+        return bool(mem.words["R"][_R[reg.PID_ENABLE_LOW] + point // 16] >> (point % 16) & 1)
+
+    def drive(self, enabled: bool, on: bool) -> bool:
+        """The PWM output of a point: a disabled point's output is forced off."""
+        return enabled and on
+
+    def in_band(self, pv: int, sv: int, os: int) -> bool:
+        """The "temperature normal" rule: SV − Os ≤ PV ≤ SV + Os (edges included)."""
+        return sv - os <= pv <= sv + os
+
+    def prealarm_count(self, count: int, pv: int, limit: int) -> int:
+        """Consecutive scans with PV ≥ R4008: one more, or back to 0 on a scan below."""
+        return count + 1 if pv >= limit else 0
+
+    def prealarm(self, count: int) -> bool:
+        return count >= PREALARM_SCANS
+
+    def loop_threshold(self, mem: "Memory") -> int:
+        """R4006: the heater-loop check's high output, in %."""
+        return mem.words["R"][_R[reg.HEATER_LOOP_PERCENT]]
+
+    def loop_elapsed(self, since: float, now: float) -> float:
+        """Seconds the heater-loop condition has held."""
+        return now - since
+
+    def bit_position(self, b: int) -> tuple[int, int]:
+        """(word 0/1, bit) of the point at operand offset b (b counts from Sn): WR+0/2 for b < 16, WR+1/3 above."""
+        return b // 16, b % 16
+
+    def alarm(self, enabled_not_normal: bool, any_warning: bool) -> bool:
+        """ALM: a point out of its band, or a warning."""
+        return enabled_not_normal or any_warning
+
+    def control(self, inst: PidInstance, st: PointState, kc: int, ki: int, td: int, sv: int, pv: int,
+                heating: bool, ts: float) -> int:
+        """One PID step (spec: the manual's formula; derivative on PV; Md 0 freezes the integral outside the
+        proportional band).  Units: 0.1° in, output counts 0–16383 out."""
+        error = (sv - pv) if heating else (pv - sv)
+        proportional = kc * error
+        slope = 0.0 if st.pv_prev is None else (pv - st.pv_prev) / ts
+        derivative = -kc * (td / 100 * 60) * slope * (1 if heating else -1)
+        if ki and (inst.md == 1 or abs(proportional) < OUTPUT_FULL):
+            st.integral += kc * (ki / 100 / 60) * ts * error
+            st.integral = min(max(st.integral, -OUTPUT_FULL), OUTPUT_FULL)
+        if not ki:
+            st.integral = 0.0
+        st.pv_prev = pv
+        return int(min(max(round(proportional + st.integral + derivative), 0), OUTPUT_FULL))
+
+    # -- helpers ---------------------------------------------------------------------------------------------------
+    def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
+        if inst.settable:
+            return (_signed(mem.words[inst.sn_register.kind][inst.sn_register.index]),
+                    _signed(mem.words[inst.zn_register.kind][inst.zn_register.index]))
+        return inst.sn, inst.zn
+
+    def readings_start(self, mem: "Memory") -> Address | None:
+        """Where PVs are read: R4004 when R4003 = A55AH and R4004 names R0–R3839 / D0–D3999, else the table's."""
+        words = mem.words["R"]
+        if words[_R[reg.PID_SOURCE_KEY]] == SOURCE_KEY:
+            code = words[_R[reg.PID_SOURCE]]
+            if 10000 <= code <= 13839 or 20000 <= code <= 23999:
+                return decode_start(code)
+        if self.temperature is None:
+            return None
+        return decode_start(mem.words[self.temperature.table.kind][self.temperature.table.index + 2])
+
+    def all_measured(self, mem: "Memory") -> bool:
+        if self.temperature is None:
+            return False
+        sr = self.temperature.table
+        work = decode_start(mem.words[sr.kind][sr.index + 3])
+        return work is not None and mem.words[work.kind][work.index] >> 8 == EXEC_MEASURING
+
+    # -- the engine ---------------------------------------------------------------------------------------------
+    def power_on(self, emu: "Emulator") -> None:
+        self._emu = emu
+
+    def scan(self, emu: "Emulator") -> None:
+        mem = emu.memory
+        for inst, st in zip(self.config.instances, self.states):
+            self._scan_instance(emu, mem, inst, st)
+
+    def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+        now = emu.now
+        bits = mem.bits
+        en = bool(bits[inst.en.kind][inst.en.index])
+        rising = en and not st.en_prev
+        st.en_prev = en
+        if not en:
+            if st.running or st.zn:
+                self._outputs_off(mem, inst, st)
+            st.running = False
+            bits[inst.err.kind][inst.err.index] = 0
+            bits[inst.alm.kind][inst.alm.index] = 0
+            return
+        sn, zn = self.sn_zn(mem, inst)
+        if not self.valid(sn, zn):
+            st.running = False
+            bits[inst.err.kind][inst.err.index] = 1
+            return
+        bits[inst.err.kind][inst.err.index] = 0
+        if (sn, zn) != (st.sn, st.zn):
+            if st.zn:
+                self._outputs_off(mem, inst, st)
+            st.sn, st.zn = sn, zn
+            st.points = {p: PointState() for p in range(sn, sn + zn)}
+        words = mem.words
+        if not st.executed:
+            st.executed = True
+            for b in range(zn):
+                for a, value in zip((inst.pr, inst.ir, inst.dr), DEFAULT_GAINS):
+                    words[a.kind][a.index + b] = value
+        if rising:
+            st.interval, st.pwm = self.timing(words["R"][_R[reg.PID_TIMING]])
+            st.started = now
+            st.next_pid = now
+        start = self.readings_start(mem)
+        if start is None or not self.all_measured(mem):
+            st.running = False
+            return
+        st.running = True
+        r = words["R"]
+        limit = r[_R[reg.PREALARM_LIMIT]]
+        loop_percent = self.loop_threshold(mem)
+        loop_seconds = r[_R[reg.HEATER_LOOP_SECONDS]]
+        heating = bool(bits[inst.hc.kind][inst.hc.index])
+        pid_due = now >= st.next_pid - 1e-9
+        if pid_due:
+            while st.next_pid <= now + 1e-9:
+                st.next_pid += st.interval
+        phase = (now - st.started) % st.pwm
+        normal_words, warning_words = [0, 0], [0, 0]
+        out_of_band = warning = False
+        for b in range(zn):
+            point = sn + b
+            ps = st.points[point]
+            pv = _signed(words[start.kind][start.index + point])
+            sv = _signed(words[inst.sv.kind][inst.sv.index + b])
+            os = _signed(words[inst.os.kind][inst.os.index + b])
+            outputs = words[inst.or_.kind]
+            enabled = self.enabled(mem, point)
+            if pid_due:
+                if enabled:
+                    kc, ki, td = (words[a.kind][a.index + b] for a in (inst.pr, inst.ir, inst.dr))
+                    outputs[inst.or_.index + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
+                else:
+                    outputs[inst.or_.index + b] = 0
+                    ps.integral, ps.pv_prev = 0.0, None
+            value = outputs[inst.or_.index + b]
+            duty_on = phase < value / OUTPUT_FULL * st.pwm
+            bits[inst.yn.kind][inst.yn.index + b] = 1 if self.drive(enabled, duty_on) else 0
+            word, bit = self.bit_position(b)
+            if not enabled:
+                ps.prealarm, ps.loop_since = 0, None
+                continue
+            normal = self.in_band(pv, sv, os)
+            if normal:
+                normal_words[word] |= 1 << bit
+            else:
+                out_of_band = True
+            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
+            high_output = value * 100 >= loop_percent * OUTPUT_FULL
+            if high_output and not normal:
+                if ps.loop_since is None:
+                    ps.loop_since = now
+            else:
+                ps.loop_since = None
+            loop_open = ps.loop_since is not None and self.loop_elapsed(ps.loop_since, now) >= loop_seconds
+            if self.prealarm(ps.prealarm) or loop_open:
+                warning_words[word] |= 1 << bit
+                warning = True
+        wr = inst.wr
+        words[wr.kind][wr.index:wr.index + 4] = [normal_words[0] & 0xFFFF, normal_words[1] & 0xFFFF,
+                                                  warning_words[0] & 0xFFFF, warning_words[1] & 0xFFFF]
+        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(out_of_band, warning) else 0
+
+    def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+        ys = mem.bits[inst.yn.kind]
+        for b in range(st.zn):
+            ys[inst.yn.index + b] = 0
+        for ps in st.points.values():
+            ps.prealarm, ps.loop_since = 0, None
+
+    def next_event(self, now: float) -> float:
+        mem = self._emu.memory if self._emu is not None else None
+        if mem is None:
+            return math.inf
+        loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
+        due = math.inf
+        for inst, st in zip(self.config.instances, self.states):
+            if not st.running:
+                continue
+            for ps in st.points.values():
+                if 0 < ps.prealarm < 4 * PREALARM_SCANS:
+                    return now  # counting consecutive scans: every scan matters
+                if ps.loop_since is not None:
+                    due = min(due, ps.loop_since + loop_seconds)
+            due = min(due, st.next_pid)
+            # PWM: every cycle start, and the end of each point's ON time within the current cycle
+            cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
+            due = min(due, cycle + st.pwm)
+            outputs = mem.words[inst.or_.kind]
+            for b in range(st.zn):
+                edge = cycle + outputs[inst.or_.index + b] / OUTPUT_FULL * st.pwm
+                if edge > now + 1e-9:
+                    due = min(due, edge)
+        if due < math.inf and self.next_measurement is not None:
+            due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
+        return due

@@ -1,0 +1,197 @@
+"""A thermal plant for the emulator: per temperature point, a heater driven by a PWM output, heat loss to ambient,
+optional dead time and seeded measurement noise; faults heater open (no heating) and SSR shorted (full heating).
+
+Model (per point, first order): τ·dT/dt = ambient + gain·u(t − dead_time) − T, u ∈ {0, 1} the heater's state.
+``gain`` is how far above ambient full power would settle.  u is what the point's output (Y…) showed at the last
+scan, so the plant is exactly as good as the PWM the PLC produces.  Between scans u is constant, so T is solved
+analytically piece by piece: the plant answers T at any time in the current scan window (the temperature model
+catches measurements up at their scheduled, past times) and needs no scans of its own.
+
+``[plant]`` (emulator only; a real bench has a real oven)::
+
+    [plant]
+    ambient = 25.0     # °C
+    gain = 300.0       # °C above ambient at 100 % heater power (steady state)
+    tau = 300.0        # s, time constant
+    dead_time = 0.0    # s, transport delay between heater and sensor
+    noise = 0.05       # °C, standard deviation of the measurement noise (seeded by [emulator] seed)
+    initial = 25.0     # °C at power-on (default: ambient)
+    [plant.points.3]   # per-point overrides of any key above
+    gain = 400.0
+
+Heaters: the point controlled by a FUN86 instance (``[pid]``) is heated by that instance's output Yn + (p − Sn).
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+from hil.address import Address
+from hil.emulator.model import Model
+from hil.errors import ProfileError
+
+if TYPE_CHECKING:
+    from hil.emulator.core import Emulator
+
+FAULTS = ("heater_open", "ssr_short")
+
+
+@dataclass(frozen=True)
+class PlantPoint:
+    ambient: float = 25.0
+    gain: float = 300.0
+    tau: float = 300.0
+    dead_time: float = 0.0
+    noise: float = 0.05
+    initial: float | None = None
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    default: PlantPoint = PlantPoint()
+    points: dict[int, PlantPoint] | None = None
+
+    def point(self, p: int) -> PlantPoint:
+        return (self.points or {}).get(p, self.default)
+
+
+_LIMITS = {"ambient": (-200.0, 1000.0), "gain": (0.0, 2000.0), "tau": (0.1, 1e6), "dead_time": (0.0, 3600.0),
+           "noise": (0.0, 50.0), "initial": (-200.0, 2000.0)}
+
+
+def parse_plant(section: dict[str, Any], where: str = "<profile>") -> PlantConfig:
+    """Validate ``[plant]``; ProfileError names the key."""
+    def values(table: dict[str, Any], label: str, base: PlantPoint) -> PlantPoint:
+        out = {}
+        for key, value in table.items():
+            if key not in _LIMITS:
+                raise ProfileError(f"{where}: [{label}] unknown key {key!r} (known: {', '.join(_LIMITS)})")
+            low, high = _LIMITS[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
+                raise ProfileError(f"{where}: [{label}] {key}: must be a number {low:g}–{high:g}, not {value!r}")
+            out[key] = float(value)
+        return replace(base, **out)
+
+    if not isinstance(section, dict):
+        raise ProfileError(f"{where}: [plant] must be a table")
+    top = {k: v for k, v in section.items() if k != "points"}
+    default = values(top, "plant", PlantPoint())
+    raw = section.get("points", {})
+    if not isinstance(raw, dict):
+        raise ProfileError(f"{where}: [plant] points must be a table of point → overrides ([plant.points.3])")
+    points = {}
+    for key, table in raw.items():
+        if not str(key).isdigit() or not 0 <= int(key) <= 31:
+            raise ProfileError(f"{where}: [plant.points.{key}] is not a temperature point 0–31")
+        if not isinstance(table, dict):
+            raise ProfileError(f"{where}: [plant.points.{key}] must be a table")
+        points[int(key)] = values(table, f"plant.points.{key}", default)
+    return PlantConfig(default, points)
+
+
+class _Heated:
+    """One point: the anchor (t0, T0) at the last scan, and the heater's switch history (for the dead time)."""
+
+    __slots__ = ("p", "t0", "temp0", "history", "seed")
+
+    def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
+        self.p = p
+        self.t0 = now
+        self.temp0 = p.ambient if p.initial is None else p.initial
+        self.history: list[tuple[float, int]] = [(-math.inf, 0)]  # (time the heater switched, u)
+        self.seed = seed
+
+    def temperature(self, t: float) -> float:
+        """T at t ≥ t0, integrating over the instants at which the delayed heater state changes."""
+        p = self.p
+        temp, at = self.temp0, self.t0
+        if t <= at:
+            return temp
+        hist = self.history
+        # u in effect at time s is the heater state at s − dead_time
+        k = len(hist) - 1
+        while k > 0 and hist[k][0] + p.dead_time > at:
+            k -= 1
+        while at < t:
+            nxt = hist[k + 1][0] + p.dead_time if k + 1 < len(hist) else math.inf
+            end = min(nxt, t)
+            target = p.ambient + p.gain * hist[k][1]
+            temp = target + (temp - target) * math.exp(-(end - at) / p.tau)
+            at = end
+            k += 1
+        return temp
+
+    def advance(self, now: float, u: int) -> None:
+        if u == self.history[-1][1]:
+            return  # nothing changes: the anchor stays and T keeps being solved from it
+        if now > self.t0:
+            self.temp0 = self.temperature(now)
+            self.t0 = now
+        self.history.append((now, u))
+        # forget switches whose effect is entirely before the anchor (keep the one in effect)
+        cut = self.t0 - self.p.dead_time
+        while len(self.history) > 1 and self.history[1][0] <= cut:
+            self.history.pop(0)
+
+    def measured(self, point: int, t: float) -> float:
+        value = self.temperature(t)
+        if self.p.noise:
+            value += random.Random(hash((self.seed, point, round(t, 6)))).gauss(0.0, self.p.noise)
+        return value
+
+
+class ThermalPlant(Model):
+    name = "plant"
+
+    def __init__(self, config: PlantConfig, heaters: dict[int, Address], seed: int = 0) -> None:
+        """``heaters``: temperature point → the output (Y…) that switches its heater."""
+        self.config = config
+        self.heaters = dict(heaters)
+        self.seed = seed
+        self.points: dict[int, _Heated] = {}
+        self.faults: dict[str, set[int]] = {name: set() for name in FAULTS}
+
+    # -- faults (injectors) ------------------------------------------------------------------------------------------
+    def set_fault(self, fault: str, point: int, on: bool) -> None:
+        if fault not in self.faults:
+            raise ValueError(f"unknown plant fault {fault!r} (known: {', '.join(FAULTS)})")
+        if point not in self.heaters:
+            raise ValueError(f"temperature point {point} has no heater in the plant (heated: "
+                             f"{sorted(self.heaters)})")
+        (self.faults[fault].add if on else self.faults[fault].discard)(point)
+
+    # -- seam --------------------------------------------------------------------------------------------------
+    def power(self, point: int, output: bool) -> int:
+        """The heater's state from its output and the faults: open → off, shorted SSR → on."""
+        if point in self.faults["heater_open"]:
+            return 0
+        if point in self.faults["ssr_short"]:
+            return 1
+        return 1 if output else 0
+
+    def temperature(self, point: int, t: float) -> float:
+        """The true temperature (no noise) of a heated point at ``t`` (≥ the last scan)."""
+        return self.points[point].temperature(t)
+
+    # -- the engine ---------------------------------------------------------------------------------------------
+    def power_on(self, emu: "Emulator") -> None:
+        from hil.emulator.models.temperature import TemperatureModel
+        temperature = emu.model(TemperatureModel)
+        for point in self.heaters:
+            heated = _Heated(self.config.point(point), emu.now, self.seed)
+            self.points[point] = heated
+            if temperature is not None and point < temperature.config.points:
+                temperature.set_source(point, lambda t, h=heated, p=point: h.measured(p, t))
+
+    def scan(self, emu: "Emulator") -> None:
+        y = emu.memory.bits
+        now = emu.now
+        for point, heated in self.points.items():
+            a = self.heaters[point]
+            heated.advance(now, self.power(point, bool(y[a.kind][a.index])))
+
+    def next_event(self, now: float) -> float:
+        return math.inf  # solved analytically between scans; u changes only at scans
