@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import functools
 import threading
 from typing import Callable
 
@@ -38,7 +39,12 @@ from hil.emulator.memory import Memory
 from hil.emulator.serve.ptypair import PtyPair
 from hil.emulator.serve.runtime import LoopThread, ServerHandle
 from hil.emulator.serve.wire_faults import FaultySender, WireFaults, corrupt_mbap
-from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, locate, segments, unmapped_in
+from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, segments, unmapped_in
+from hil.protocol.modbus_map import locate as _locate_uncached
+
+#: (table, pdu) → (element, part): the map is fixed, and a walk of its segments per unit was a fifth of the cost
+#: of a request.  Addresses are immutable, so sharing them is safe.
+locate = functools.lru_cache(maxsize=1 << 16)(_locate_uncached)
 
 _COIL_FCS = {1: "read", 5: "write", 15: "write"}
 _HOLDING_FCS = {3: "read", 6: "write", 16: "write"}
@@ -61,6 +67,7 @@ def build_device(emulator: Emulator, unit: int) -> SimDevice:
 
 
 def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
+    lock = emulator.lock
     async def action(function_code: int, start_address: int, address: int, count: int,
                      registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
         if function_code in _COIL_FCS:
@@ -69,7 +76,16 @@ def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
             request = _holding_request(start_address, address, count, registers, set_values)
         else:
             return ExcCodes.ILLEGAL_FUNCTION
-        fill = await asyncio.get_running_loop().run_in_executor(_SERVICE_POOL, emulator.service, request)
+        # Fast path: the emulator is free (the usual case), so service the request right here on the loop —
+        # a hop to a worker thread and back costs more than the request.  Only when somebody holds the lock
+        # (a test advancing virtual time) does the request wait on a worker, leaving the loop free.
+        if lock.acquire(blocking=False):
+            try:
+                fill = emulator.service(request)
+            finally:
+                lock.release()
+        else:
+            fill = await asyncio.get_running_loop().run_in_executor(_SERVICE_POOL, emulator.service, request)
         # Fill the staging registers only now, after the await, so no other request can interleave before
         # pymodbus copies them into the reply.
         fill()

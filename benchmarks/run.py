@@ -1,0 +1,429 @@
+"""hil benchmarks: ``python benchmarks/run.py`` (from the project directory; about a minute).
+
+Not pass/fail tests (timings are noisy on shared machines): a rich table on the terminal and
+``reports/benchmarks.json``, every figure next to a baseline measured in the same run.
+
+1. round trips per second and registers per second on each emulator wire, and the emulator's Modbus TCP server
+   against a bare pymodbus SimDevice server serving the same registers (target ≥ 0.8× its request rate);
+2. wire efficiency: FATEK bytes per device operation against the fewest the frame format allows, the RTC suites'
+   bytes against the same requests each in its cheapest frame, and each suite's time on a 9600 bit/s 7E1 line;
+3. virtual seconds per wall second: idle, the default bench, and a full PLC (8 temperature modules, 32 points,
+   32 PID loops with the thermal plant) — 24 virtual hours of the full PLC (target < 2 s wall);
+4. wall time of ``hil run`` per emulator target.
+
+``--quick`` shortens every timing (a smoke run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from rich.console import Console  # noqa: E402
+from rich.table import Table  # noqa: E402
+
+from hil.perf import WireCounter, line_seconds  # noqa: E402
+from hil.profile import load_profile, profile_from_dict  # noqa: E402
+
+BENCH = ROOT / "fixtures" / "benches" / "emulator.toml"
+TARGETS = ["emulator", "emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]
+EPOCH = dt.datetime(2024, 2, 28, 12, 0, 0)
+console = Console()
+
+
+def rate(fn, seconds: float) -> tuple[float, int]:  # noqa: ANN001
+    """Calls of ``fn`` per second over about ``seconds`` (after a short warm-up)."""
+    for _ in range(5):
+        fn()
+    n, start = 0, time.perf_counter()
+    deadline = start + seconds
+    while True:
+        fn()
+        n += 1
+        if n % 16 == 0 and time.perf_counter() >= deadline:
+            break
+    return n / (time.perf_counter() - start), n
+
+
+# -- 1. round trips ----------------------------------------------------------------------------------------------
+def bench_wires(seconds: float) -> list[dict]:
+    from hil.bench import Bench
+    profile = load_profile(BENCH)
+    rows = []
+    for target in TARGETS:
+        bench = Bench(profile, target=target)
+        try:
+            io = bench.raw
+            small, _ = rate(lambda: io.read_words("R4128", 8), seconds)
+            big, _ = rate(lambda: io.read_words("R0", 64), seconds)
+            rows.append({"target": target, "round_trips_per_s": small, "registers_per_s_8": small * 8,
+                         "registers_per_s_64": big * 64, "round_trips_per_s_64": big})
+        finally:
+            bench.close()
+    return rows
+
+
+def bench_modbus_servers(seconds: float, rounds: int = 3, models: bool = True) -> dict:
+    """Same client, same request (FC03 R4128 ×8), alternating: the emulator's server and a bare SimDevice.
+
+    ``models``: the default bench's emulator (each request runs one scan of the RTC and temperature models first,
+    as every request does); False: an emulator with no models (the server's own overhead)."""
+    import asyncio
+
+    from pymodbus.client import ModbusTcpClient
+    from pymodbus.server import ModbusTcpServer
+    from pymodbus.simulator import DataType, SimData, SimDevice
+
+    from hil.emulator.build import build_emulator
+    from hil.emulator.serve.modbus import start_modbus_tcp
+    from hil.emulator.serve.runtime import LoopThread
+    from hil.protocol.modbus_map import COIL, HOLDING, segments
+
+    from hil.emulator.core import Emulator
+    emulator = build_emulator(load_profile(BENCH), EPOCH) if models else Emulator()
+    ours = start_modbus_tcp(emulator)
+    runtime = LoopThread.shared()
+
+    async def start_bare() -> ModbusTcpServer:
+        coils = [SimData(s.pdu, values=[False] * (s.pdu_end - s.pdu), datatype=DataType.BITS)
+                 for s in segments(COIL)]
+        holding = [SimData(s.pdu, count=s.pdu_end - s.pdu, values=0, datatype=DataType.REGISTERS)
+                   for s in segments(HOLDING)]
+        device = SimDevice(id=1, simdata=(coils, [SimData(0, values=[False] * 16, datatype=DataType.BITS)],
+                                          holding, [SimData(0, count=1, datatype=DataType.INVALID)]))
+        server = ModbusTcpServer(device, address=("127.0.0.1", 0))
+        await server.serve_forever(background=True)
+        return server
+
+    bare = runtime.run(start_bare())
+    bare_port = bare.transport.sockets[0].getsockname()[1]
+    our_port = int(ours.address.rsplit(":", 1)[1])
+    clients = {name: ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
+               for name, port in (("hil", our_port), ("bare", bare_port))}
+    best: dict[str, float] = defaultdict(float)
+    try:
+        for c in clients.values():
+            c.connect()
+        for _ in range(rounds):
+            for name, client in clients.items():
+                def once(client=client) -> None:  # noqa: ANN001
+                    rr = client.read_holding_registers(4128, count=8, device_id=1)
+                    assert not rr.isError(), rr
+                best[name] = max(best[name], rate(once, seconds / rounds)[0])
+    finally:
+        for c in clients.values():
+            c.close()
+        ours.stop()
+        runtime.run(bare.shutdown())
+    return {"hil_requests_per_s": best["hil"], "bare_requests_per_s": best["bare"],
+            "ratio": best["hil"] / best["bare"], "target_ratio": 0.8, "requests_served": emulator.stats["requests"]}
+
+
+# -- 2. wire efficiency -------------------------------------------------------------------------------------------
+def reply_len(data_chars: int) -> int:
+    return 9 + data_chars  # STX station(2) command(2) error(1) data checksum(2) ETX
+
+
+def cheapest_request(frame: bytes) -> int:
+    """The shortest request frame that asks the same thing of the PLC (same elements, same values)."""
+    from hil.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, WriteBits,
+                                    WriteRegisters, decode_request, encode_request, split_frame)
+    cmd = decode_request(split_frame(frame))
+    best = len(frame)
+    if isinstance(cmd, WriteBits) and len(cmd.values) == 1:
+        best = min(best, len(encode_request(1, BitAction(3 if cmd.values[0] else 4, cmd.address))))
+    elif isinstance(cmd, (MixedRead, MixedWrite)):
+        names = cmd.addresses if isinstance(cmd, MixedRead) else [a for a, _ in cmd.items]
+        first = names[0]
+        contiguous = all(a.kind == first.kind and a.index == first.index + i * a.words
+                         for i, a in enumerate(names))
+        if contiguous and first.words == 1:
+            if isinstance(cmd, MixedRead):
+                read = ReadBits if first.is_bit else ReadRegisters
+                best = min(best, len(encode_request(1, read(first, len(names)))))
+            else:
+                values = [v for _, v in cmd.items]
+                write = WriteBits if first.is_bit else WriteRegisters
+                best = min(best, len(encode_request(1, write(first, values))))
+    return best
+
+
+def device_operations() -> list[dict]:
+    """Bytes a device procedure puts on a FATEK wire, against the fewest its steps need."""
+    from hil.device.plc import FbsPlc
+    from hil.emulator.build import build_emulator
+    from hil.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, ShortStatus,
+                                    encode_request)
+    from hil.timebase import EmulatorTimebase
+    from hil.transport.factory import open_transport
+
+    profile = load_profile(BENCH)
+    transport = open_transport("emulator+fatek-tcp", emulator_factory=lambda: build_emulator(profile, EPOCH))
+    plc = FbsPlc(transport, EmulatorTimebase(transport.emulator, EPOCH), settle_scans=profile.settle_scans)
+    transport.status()  # the one-off detailed status (53) out of the way
+    counter = WireCounter().attach(transport)
+    settle = profile.settle_scans - 1  # status round trips before the request that reads the effect
+    status = len(encode_request(1, ShortStatus())) + reply_len(6)
+    rtc_fields = [f"R{4128 + i}" for i in range(7)]
+    set_frame = len(encode_request(1, MixedWrite([("M1952", 1)] + [(n, 0) for n in rtc_fields]))) + reply_len(0)
+    minimum = {
+        "rtc.read()": len(encode_request(1, ReadRegisters("R4128", 7))) + reply_len(28),
+        "rtc.read_all()": len(encode_request(1, MixedRead([f"R{4128 + i}" for i in range(8)] + ["WM1952"])))
+        + reply_len(36),
+        "rtc.set()": set_frame + len(encode_request(1, BitAction(4, "M1952"))) + reply_len(0) + settle * status
+        + len(encode_request(1, ReadBits("M1955", 1))) + reply_len(1),
+        "rtc.adjust_30s()": 3 * (len(encode_request(1, BitAction(3, "M1953"))) + reply_len(0)) + settle * status,
+        "temperature.readings()": len(encode_request(1, ReadRegisters(plc_readings(profile), 32)))
+        + reply_len(32 * 4),
+    }
+    round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + settle, "rtc.adjust_30s()": 3 + settle,
+                   "temperature.readings()": 1}
+    from hil.fbs.temperature import parse_temperature
+    plc.temperature.config = parse_temperature(profile.areas["temperature"], str(BENCH))
+    ops = {"rtc.read()": plc.rtc.read, "rtc.read_all()": plc.rtc.read_all,
+           "rtc.set()": lambda: plc.rtc.set(dt.datetime(2024, 2, 29, 12, 0, 0)), "rtc.adjust_30s()": plc.rtc.adjust_30s,
+           "temperature.readings()": plc.temperature.readings}
+    rows = []
+    try:
+        for name, op in ops.items():
+            before_b, before_r = counter.total, transport.requests
+            op()
+            used, trips = counter.total - before_b, transport.requests - before_r
+            rows.append({"operation": name, "bytes": used, "round_trips": trips, "min_bytes": minimum[name],
+                         "min_round_trips": round_trips[name], "ratio": used / minimum[name],
+                         "line_9600_ms": used * 10 / 9600 * 1000})
+    finally:
+        transport.close()
+    return rows
+
+
+def plc_readings(profile) -> str:  # noqa: ANN001
+    from hil.fbs.temperature import parse_temperature
+    return str(parse_temperature(profile.areas["temperature"], str(BENCH)).readings)
+
+
+class FrameRecorder:
+    """A pytest plugin: every FATEK request frame and reply of the run, per test."""
+
+    def __init__(self) -> None:
+        self.frames: dict[str, list[tuple[str, bytes]]] = defaultdict(list)
+        self._current: str | None = None
+        self._attached = None
+
+    def pytest_runtest_setup(self, item) -> None:  # noqa: ANN001
+        from hil.perf import _bench
+        bench = _bench(item.config)
+        if bench is not None and self._attached is not bench.raw and hasattr(bench.raw, "observers"):
+            bench.raw.observers.append(self._observe)
+            self._attached = bench.raw
+        self._current = item.nodeid
+
+    def pytest_runtest_logfinish(self, nodeid, location) -> None:  # noqa: ANN001
+        self._current = None
+
+    def _observe(self, direction: str, frame: bytes) -> None:
+        if self._current is not None:
+            self.frames[self._current].append((direction, frame))
+
+
+def suite_efficiency(target: str = "emulator+fatek-tcp") -> dict:
+    """Run every suite once over FATEK: bytes and requests per suite file, against each request in its cheapest
+    frame, and the time on a 9600 bit/s 7E1 line (bytes × 10 / 9600 + bench time, which holds a scan per request
+    and the suites' waits)."""
+    import pytest
+    recorder = FrameRecorder()
+    junit = Path(tempfile.mkdtemp()) / "junit.xml"
+    code = pytest.main([str(ROOT / "suites"), "--bench", str(BENCH), "--target", target, "-q", "-p",
+                        "no:cacheprovider", f"--junitxml={junit}", "-o", "junit_family=xunit1"],
+                       plugins=[recorder])
+    per_file: dict[str, dict] = defaultdict(lambda: defaultdict(float))
+    for tc in ET.parse(junit).getroot().iter("testcase"):
+        props = {p.get("name"): p.get("value") for p in tc.iter("property")}
+        if "hil_requests" not in props:
+            continue
+        f = per_file[tc.get("classname").split(".")[-1]]
+        f["tests"] += 1
+        f["requests"] += int(props["hil_requests"])
+        f["bytes"] += int(props.get("hil_wire_bytes", 0))
+        f["bench_s"] += float(props.get("hil_virtual_s", 0))
+        f["line_9600_s"] += float(props.get("hil_line_9600_s", 0))
+    for nodeid, frames in recorder.frames.items():
+        f = per_file[Path(nodeid.split("::")[0]).stem]
+        f["min_bytes"] += sum(cheapest_request(fr) if d == "tx" else len(fr) for d, fr in frames)
+        f["recorded_bytes"] += sum(len(fr) for _, fr in frames)
+    out = {}
+    for name, f in sorted(per_file.items()):
+        if not f["tests"]:
+            continue
+        row = {k: (round(v, 3) if isinstance(v, float) and not v.is_integer() else int(v)) for k, v in f.items()}
+        row.setdefault("recorded_bytes", 0)
+        row.setdefault("min_bytes", 0)
+        row["ratio_to_cheapest_frames"] = round(f["recorded_bytes"] / f["min_bytes"], 3) if f["min_bytes"] else None
+        out[name] = row
+    rtc = [v for k, v in out.items() if k.startswith("test_rtc")]
+    total = {"bytes": sum(r["recorded_bytes"] for r in rtc), "min_bytes": sum(r["min_bytes"] for r in rtc),
+             "requests": sum(r["requests"] for r in rtc), "line_9600_s": round(sum(r["line_9600_s"] for r in rtc), 1)}
+    total["ratio"] = round(total["bytes"] / total["min_bytes"], 3) if total["min_bytes"] else None
+    total["target_ratio"] = 1.5
+    return {"pytest_exit": int(code), "per_suite": out, "rtc_suites": total}
+
+
+# -- 3. virtual time ------------------------------------------------------------------------------------------------
+def full_profile() -> tuple[object, str]:
+    modules = [{"type": "6TC", "sensor": "K"}] * 4 + [{"type": "2TC", "sensor": "K"}] * 4  # 8 modules, 32 points
+    base = load_profile(BENCH)
+    temperature = dict(base.areas["temperature"], modules=modules)
+    data = {"bench": {"name": "full"}, "rtc": {"chip": 3, "crystal_ppm": 12.5}, "temperature": temperature,
+            "pid": {"en": "M0", "sn": 0, "zn": 32, "yn": "Y0"}, "plant": {}}
+    try:
+        return profile_from_dict(data), "8 modules, 32 points, 32 PID loops (one FUN86, Sn 0 Zn 32) + plant"
+    except Exception as exc:  # noqa: BLE001 - the PID model may not have landed
+        del data["pid"], data["plant"]
+        return profile_from_dict(data), f"8 modules, 32 points, no PID ({type(exc).__name__}: {exc})"
+
+
+def start_pid(emulator) -> None:  # noqa: ANN001
+    mem = emulator.memory
+    mem.set("M0", 1)  # EN
+    mem.set("R4012", 0xFFFF)
+    mem.set("R4013", 0xFFFF)
+    for p in range(32):
+        mem.set(f"R{100 + p}", 1500)  # SV 150.0 °C
+
+
+def virtual_time(quick: bool) -> list[dict]:
+    from hil.emulator.build import build_emulator
+    from hil.emulator.core import Emulator
+    full, full_note = full_profile()
+    cases = [("idle (no models)", lambda: Emulator(), ""),
+             ("default bench (RTC + temperature)", lambda: build_emulator(load_profile(BENCH), EPOCH), ""),
+             ("full PLC", lambda: build_emulator(full, EPOCH), full_note)]
+    rows = []
+    hours = 2 if quick else 24
+    for name, build, note in cases:
+        emulator = build()
+        if name == "full PLC" and "PID" in note and "no PID" not in note:
+            start_pid(emulator)
+        start = time.perf_counter()
+        emulator.advance(hours * 3600)
+        emulator.scan()
+        wall = time.perf_counter() - start
+        # A test that polls once a virtual second (one request each) over an hour.
+        emulator2 = build()
+        if name == "full PLC" and "no PID" not in note:
+            start_pid(emulator2)
+        start = time.perf_counter()
+        for _ in range(3600 if not quick else 600):
+            emulator2.service(lambda mem: mem.words["R"][4128])
+            emulator2.advance(1.0)
+        polled_wall = time.perf_counter() - start
+        polled_virtual = emulator2.now
+        rows.append({"configuration": name, "note": note, "virtual_hours": hours, "wall_s": wall,
+                     "virtual_s_per_wall_s": hours * 3600 / wall if wall else float("inf"),
+                     "scans": emulator.scans, "polled_virtual_s_per_wall_s": polled_virtual / polled_wall})
+    return rows
+
+
+# -- 4. hil run -------------------------------------------------------------------------------------------------------
+def hil_run_times() -> list[dict]:
+    rows = []
+    for target in TARGETS:
+        junit = Path(tempfile.mkdtemp()) / "junit.xml"
+        start = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "hil.cli", "run", "--target", target, "--junitxml", str(junit),
+                               "--", "-q"], cwd=ROOT, capture_output=True, text=True)
+        wall = time.perf_counter() - start
+        root = ET.parse(junit).getroot() if junit.exists() else None
+        tests = sum(int(s.get("tests", 0)) for s in root.iter("testsuite")) if root is not None else 0
+        rows.append({"target": target, "wall_s": wall, "exit": proc.returncode, "tests": tests})
+    return rows
+
+
+# -- report -----------------------------------------------------------------------------------------------------------
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short timings (a smoke run)")
+    parser.add_argument("--json", default=str(ROOT / "reports" / "benchmarks.json"), help="where the JSON goes")
+    parser.add_argument("--skip-run", action="store_true", help="leave out the `hil run` wall times")
+    args = parser.parse_args(argv)
+    seconds = 0.3 if args.quick else 1.5
+    os.chdir(ROOT)
+    results: dict = {"when": dt.datetime.now().isoformat(timespec="seconds"), "python": platform.python_version(),
+                     "machine": platform.machine(), "cpus": os.cpu_count()}
+
+    results["wires"] = wires = bench_wires(seconds)
+    base = wires[0]["round_trips_per_s"]
+    t = Table(title="Round trips per emulator wire (FATEK/Modbus read of R4128 ×8, and of R0 ×64)")
+    for col in ("target", "round trips/s", "registers/s (×8)", "registers/s (×64)", "vs in-process"):
+        t.add_column(col, justify="right" if col != "target" else "left")
+    for r in wires:
+        t.add_row(r["target"], f"{r['round_trips_per_s']:,.0f}", f"{r['registers_per_s_8']:,.0f}",
+                  f"{r['registers_per_s_64']:,.0f}", f"{r['round_trips_per_s'] / base:.3f}×")
+    console.print(t)
+
+    results["modbus_server"] = m = bench_modbus_servers(seconds * 2)
+    console.print(f"Modbus TCP server: hil emulator {m['hil_requests_per_s']:,.0f} req/s, bare pymodbus SimDevice "
+                  f"{m['bare_requests_per_s']:,.0f} req/s → [bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×)")
+
+    results["device_operations"] = ops = device_operations()
+    t = Table(title="FATEK bytes per device operation (request + reply frames)")
+    for col in ("operation", "round trips", "bytes", "fewest bytes", "ratio", "ms at 9600 7E1"):
+        t.add_column(col, justify="right" if col != "operation" else "left")
+    for r in ops:
+        t.add_row(r["operation"], f"{r['round_trips']} (min {r['min_round_trips']})", str(r["bytes"]),
+                  str(r["min_bytes"]), f"{r['ratio']:.2f}", f"{r['line_9600_ms']:.0f}")
+    console.print(t)
+
+    results["suites"] = s = suite_efficiency()
+    t = Table(title="Suites over FATEK (emulator+fatek-tcp): per suite file")
+    for col in ("suite", "tests", "round trips", "bytes", "cheapest frames", "ratio", "bench s", "9600 7E1 line s"):
+        t.add_column(col, justify="right" if col != "suite" else "left")
+    for name, r in s["per_suite"].items():
+        t.add_row(name, str(r["tests"]), str(r["requests"]), str(r["recorded_bytes"]), str(r["min_bytes"]),
+                  f"{r['ratio_to_cheapest_frames']}", f"{r['bench_s']}", f"{r['line_9600_s']}")
+    console.print(t)
+    rt = s["rtc_suites"]
+    console.print(f"RTC suites: {rt['requests']} round trips, {rt['bytes']} bytes vs {rt['min_bytes']} in the cheapest "
+                  f"frames → [bold]{rt['ratio']}×[/] (target ≤ 1.5×); {rt['line_9600_s']} s on a 9600 7E1 line")
+
+    results["virtual_time"] = vt = virtual_time(args.quick)
+    t = Table(title="Virtual time")
+    for col in ("configuration", "virtual h", "wall s", "virtual s / wall s", "polled 1/s: virtual s / wall s"):
+        t.add_column(col, justify="right" if col != "configuration" else "left")
+    for r in vt:
+        t.add_row(r["configuration"] + (f"\n[dim]{r['note']}[/]" if r["note"] else ""), str(r["virtual_hours"]),
+                  f"{r['wall_s']:.4f}", f"{r['virtual_s_per_wall_s']:,.0f}", f"{r['polled_virtual_s_per_wall_s']:,.0f}")
+    console.print(t)
+
+    if not args.skip_run:
+        results["hil_run"] = runs = hil_run_times()
+        t = Table(title="hil run (all suites) per target")
+        for col in ("target", "tests", "exit", "wall s", "vs in-process"):
+            t.add_column(col, justify="right" if col != "target" else "left")
+        for r in runs:
+            t.add_row(r["target"], str(r["tests"]), str(r["exit"]), f"{r['wall_s']:.2f}",
+                      f"{r['wall_s'] / runs[0]['wall_s']:.2f}×")
+        console.print(t)
+
+    out = Path(args.json)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=2, default=str) + "\n")
+    console.print(f"JSON: {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
