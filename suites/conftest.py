@@ -22,3 +22,11 @@ def rtc(bench):
 def io(bench):
     """Raw element access for suites that do a procedure step by step (still guarded and journaled)."""
     return bench.plc.io
+
+
+@pytest.fixture
+def pid(bench):
+    """plc.pid, when the bench profile describes the ladder's FUN86 boxes ([pid]); else skip with the reason."""
+    if not bench.plc.pid.configured:
+        pytest.skip("the bench profile has no [pid] section (where the ladder's FUN86 operands are)")
+    return bench.plc.pid

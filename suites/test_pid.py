@@ -1,0 +1,285 @@
+"""FUN86 TPCTL temperature PID (FBs manual ch. 20.7): ERR, the normal and warning bits, ALM, R4012/R4013, defaults.
+
+Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32;
+"normal" when SV − Os ≤ PV ≤ SV + Os (SV 2000, Os 50: 195.0 ° … 205.0 ° is normal); WR+0/WR+2 bit b = point Sn + b,
+WR+1/WR+3 bit b = point Sn + 16 + b; a warning after 10 consecutive scans with PV ≥ R4008; ALM on any point out
+of band or any warning; a point whose R4012/R4013 bit is 0 has its output forced off; R4005 = 0102H, R4006 = 90,
+R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution.  The bench profile's [pid] only says
+*where* the ladder's FUN86 operands are.
+"""
+
+import pytest
+
+# R4005 low byte → PID interval in seconds (20.7; ≥ 5 → 32 s)
+INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}
+PWM_S = INTERVAL_S  # high byte → PWM period, same table
+BAD_SN_ZN = [(32, 1), (0, 0), (0, 33), (31, 2), (20, 13), (-1, 5)]
+GOOD_SN_ZN = [(0, 1), (31, 1), (16, 16)]
+WIDE = 1000  # Os of 100.0 °: puts a point in band whatever its temperature drifts by
+
+
+def _instances(pid):
+    return [i for i in pid.config.instances if not i.settable]
+
+
+def _start(bench, pid, inst):
+    """Switch the instance on (EN = 1, heating) and let FUN86 see every point measured."""
+    reason = bench.cannot_reach(str(inst.en), str(inst.hc))
+    if reason:
+        pytest.skip(f"cannot switch FUN86 {inst.name} on: {reason}")
+    pid.enable(inst, True, heating=True)
+    if bench.plc.temperature.configured and bench.plc.temperature.read_work().execution_code != 0x56:
+        bench.plc.temperature.wait_for_update()
+    bench.settle()
+
+
+def _timing(io):
+    word = io.read("R4005")
+    return INTERVAL_S.get(word & 0xFF, 32), PWM_S.get(word >> 8, 32)
+
+
+def _need(bench, *names):
+    reason = bench.cannot_reach(*names)
+    if reason:
+        pytest.skip(reason)
+
+
+def _registers(inst, key, count=None):
+    start = getattr(inst, key)
+    return f"{start}-{start.offset((count or inst.zn) - 1)}"
+
+
+def _all_in_band(bench, pid, inst, os=WIDE):
+    """SV = PV, Os = 100.0 ° for every point of ``inst``: every point normal (gains kept low: no heating)."""
+    _need(bench, _registers(inst, "sv"), _registers(inst, "os"), _registers(inst, "pr"), _registers(inst, "ir"),
+          _registers(inst, "dr"))
+    pvs = pid.pvs(inst.points)
+    items = {}
+    for p in inst.points:
+        items[str(inst.operand("sv", p))] = pvs[p] & 0xFFFF
+        items[str(inst.operand("os", p))] = os
+        items[str(inst.operand("pr", p))] = 1
+        items[str(inst.operand("ir", p))] = 0
+        items[str(inst.operand("dr", p))] = 0
+    bench.plc.io.write_many(items)
+    bench.settle()
+
+
+def _enabled_points(bench, inst):
+    r4012, r4013 = bench.plc.io.read_words("R4012", 2)
+    mask = r4013 << 16 | r4012
+    return [p for p in inst.points if mask >> p & 1]
+
+
+def _expected_words(inst, points):
+    """(first word, second word) with the bits of ``points``: bit b of WR+0/2 = point Sn + b, WR+1/3 = Sn + 16 + b."""
+    words = [0, 0]
+    for p in points:
+        b = p - inst.sn
+        words[b // 16] |= 1 << (b % 16)
+    return tuple(words)
+
+
+# -- ERR ---------------------------------------------------------------------------------------------------------
+@pytest.fixture
+def settable(bench, pid):
+    inst = next((i for i in pid.config.instances if i.settable), None)
+    if inst is None:
+        pytest.skip("no FUN86 of this bench takes Sn/Zn from registers (sn_register/zn_register in [pid]); Sn/Zn "
+                    "are constants of the ladder, so the harness cannot give FUN86 a bad Sn/Zn")
+    _need(bench, str(inst.sn_register), str(inst.zn_register), str(inst.en), str(inst.hc))
+    return inst
+
+
+@pytest.mark.parametrize("sn,zn", BAD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in BAD_SN_ZN])
+def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
+    pid.set_sn_zn(settable, sn, zn)
+    pid.enable(settable, True, heating=True)
+    bench.settle()
+    assert pid.err(settable), f"Sn = {sn}, Zn = {zn} is out of range: FUN86 must not execute and set ERR"
+
+
+@pytest.mark.parametrize("sn,zn", GOOD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in GOOD_SN_ZN])
+def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
+    pid.set_sn_zn(settable, sn, zn)
+    pid.enable(settable, True, heating=True)
+    bench.settle()
+    assert not pid.err(settable), f"Sn = {sn}, Zn = {zn} is valid (0 ≤ Sn ≤ 31, 1 ≤ Zn, Sn + Zn ≤ 32): ERR must be 0"
+
+
+# -- defaults ------------------------------------------------------------------------------------------------------
+@pytest.mark.emulator_only(reason="a bench's R4005–R4008 may have been set since power-on")
+def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
+    r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
+    assert r4005 == 0x0102, f"R4005 = {r4005:04X}H; default: PID every 4 s (low byte 2), PWM period 2 s (high byte 1)"
+    assert (r4006, r4007, r4008) == (90, 600, 3500), f"R4006–R4008 = {r4006}, {r4007}, {r4008}; defaults 90, 600, 3500"
+
+
+@pytest.mark.emulator_only(reason="only a PLC whose FUN86 has just executed for the first time shows 110/17/50; a "
+                                  "bench's gains may have been tuned since")
+def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
+    for inst in _instances(pid):
+        _start(bench, pid, inst)
+        for p in inst.points:
+            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
+
+
+# -- normal bits and ALM ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("edge", ["low", "high"])
+@pytest.mark.parametrize("beyond", [0, 1], ids=["at-edge", "one-tenth-beyond"])
+def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
+    """PV = SV ∓ Os is normal; PV one 0.1 ° further is not, and then ALM = 1."""
+    inst = _instances(pid)[0]
+    _start(bench, pid, inst)
+    _all_in_band(bench, pid, inst)
+    point = _enabled_points(bench, inst)[0]
+    os = 50
+    bench.plc.io.write(str(inst.operand("os", point)), os)
+    for _attempt in range(20):  # PV moves by noise: aim SV at the PV just read, and check only a PV that held still
+        pv = pid.pv(point)
+        sv = pv + os + beyond if edge == "low" else pv - os - beyond
+        pid.set_set_point(point, sv)
+        bench.settle()
+        before = pid.pv(point)
+        words = pid.alarm_words(inst)
+        alm = pid.alm(inst)
+        after = pid.pv(point)
+        if before == after == pv:
+            break
+    else:
+        pytest.fail(f"point {point}'s PV never held still for three reads; cannot aim SV at it")
+    normal = words.normal(point)
+    if beyond == 0:
+        assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
+        assert words.normal_points() == list(_enabled_points(bench, inst)), "every other point is in its wide band"
+        assert not alm, f"every point is normal and no warning: ALM must be 0 (WR+0..3 = {words.words})"
+    else:
+        assert not normal, f"PV {pv} is 0.1 ° outside SV {sv} ± Os {os}: not normal"
+        assert alm, "a point out of its band sets ALM"
+
+
+@pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
+def test_normal_bit_positions_count_from_sn(bench, pid, which):
+    """WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b (an instance with Sn ≠ 0 or points ≥ 16)."""
+    instances = _instances(pid)
+    if which >= len(instances):
+        pytest.skip("the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks WR+1)")
+    inst = instances[which]
+    _start(bench, pid, inst)
+    _all_in_band(bench, pid, inst)
+    words = pid.alarm_words(inst).words
+    want = _expected_words(inst, _enabled_points(bench, inst))
+    assert words[:2] == want, (f"{inst.name} (Sn {inst.sn}, Zn {inst.zn}): WR+0/WR+1 = {words[0]:016b} "
+                               f"{words[1]:016b}, expected {want[0]:016b} {want[1]:016b}")
+
+
+# -- warnings ---------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
+def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
+    """Bench-safe: lower R4008 under the PVs instead of heating; every point then warns on WR+2/WR+3, ALM = 1."""
+    instances = _instances(pid)
+    if which >= len(instances):
+        pytest.skip("the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks WR+3)")
+    inst = instances[which]
+    _need(bench, "R4008")
+    _start(bench, pid, inst)
+    _all_in_band(bench, pid, inst)
+    assert not pid.alarm_words(inst).warning_points(), "no warning before R4008 is lowered"
+    limit = max(100, min(pid.pvs(inst.points).values()) - 100)
+    bench.plc.io.write("R4008", limit)
+    bench.wait(1.0)  # ≫ 10 scans
+    bench.settle()
+    pvs = pid.pvs(inst.points)
+    warned = [p for p in _enabled_points(bench, inst) if pvs[p] >= limit]
+    words = pid.alarm_words(inst).words
+    want = _expected_words(inst, warned)
+    assert words[2:] == want, (f"R4008 = {limit} ≤ PV of points {warned}: WR+2/WR+3 = {words[2]:016b} "
+                               f"{words[3]:016b}, expected {want[0]:016b} {want[1]:016b}")
+    assert words[:2] == _expected_words(inst, _enabled_points(bench, inst)), "the points are still normal"
+    assert pid.alm(inst), "a warning sets ALM even with every point normal"
+
+
+@pytest.mark.emulator_only(reason="counts PLC scans: on the emulator each request is serviced after exactly one "
+                                  "scan and bench.wait(n × scan time) is n scans; a real PLC scans freely")
+@pytest.mark.parametrize("dip_after", [None, 5], ids=["steady", "dip-after-5"])
+def test_prealarm_needs_10_consecutive_scans(bench, pid, dip_after):
+    inst = _instances(pid)[0]
+    _need(bench, "R4008")
+    _start(bench, pid, inst)
+    _all_in_band(bench, pid, inst)
+    scan = bench.profile.emulator.scan_time_ms / 1000
+    points = _enabled_points(bench, inst)
+    assert min(pid.pvs(points).values()) >= 100, "the points must read ≥ 10.0 ° for R4008 = 100 to be under PV"
+    io = bench.plc.io
+    io.write("R4008", 100)  # from the next scan on, PV ≥ R4008 on every point
+    if dip_after:
+        bench.wait((dip_after - 1) * scan)  # scans 1 … dip_after − 1
+        io.write("R4008", 65535)  # serviced after scan dip_after; the next scan sees PV < R4008
+        io.write("R4008", 100)  # serviced after that (dip) scan: counting starts again with the next scan
+    bench.wait(8 * scan)  # 8 scans with PV ≥ R4008 …
+    ninth = pid.alarm_words(inst)  # … and the 9th, before this read is answered
+    tenth = pid.alarm_words(inst)
+    assert not ninth.warning_points(), f"9 consecutive scans ≥ R4008 are not enough: warnings {ninth.warning_points()}"
+    want = _expected_words(inst, points)
+    assert tenth.words[2:] == want, f"after the 10th scan every point warns: WR+2/3 = {tenth.words[2:]}, want {want}"
+
+
+def test_alm_follows_a_warning_alone(bench, pid):
+    inst = _instances(pid)[0]
+    _need(bench, "R4008")
+    _start(bench, pid, inst)
+    _all_in_band(bench, pid, inst)
+    assert not pid.alm(inst), "every point normal and no warning: ALM = 0"
+    bench.plc.io.write("R4008", 100)
+    bench.wait(1.0)
+    bench.settle()
+    assert pid.alarm_words(inst).warning_points(), "R4008 below every PV must warn"
+    assert pid.alm(inst), "a warning sets ALM"
+
+
+# -- outputs ----------------------------------------------------------------------------------------------------------
+def _sample_output(bench, pid, point, seconds):
+    """Y of ``point`` read every 0.2 s for ``seconds``."""
+    seen = []
+    for _ in range(int(seconds / 0.2) + 1):
+        seen.append(pid.output_bit(point))
+        bench.wait(0.2)
+    return seen
+
+
+def _heated_point(bench, pid):
+    inst = _instances(pid)[0]
+    _start(bench, pid, inst)
+    points = _enabled_points(bench, inst)
+    if not points:
+        pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
+    point = points[min(3, len(points) - 1)]
+    _need(bench, str(inst.operand("sv", point)))
+    return inst, point
+
+
+def test_output_on_below_sv_and_off_far_above(bench, pid):
+    inst, point = _heated_point(bench, pid)
+    interval, pwm = _timing(bench.plc.io)
+    pid.set_set_point(point, pid.pv(point) + 500)  # 50.0 ° below SV: far outside the proportional band
+    bench.wait(interval + 0.5)
+    assert pid.output(point) > 0, "PV 50 ° below SV (heating): the output value must rise"
+    assert any(_sample_output(bench, pid, point, pwm)), f"output {pid.output(point)} but Y never on in a PWM period"
+    pid.set_set_point(point, pid.pv(point) - 500)  # PV ≫ SV
+    bench.wait(2 * interval + 0.5)
+    assert pid.output(point) == 0, f"PV 50 ° above SV (heating): output {pid.output(point)}, expected 0"
+    assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
+
+
+def test_disabled_point_output_is_forced_off(bench, pid):
+    inst, point = _heated_point(bench, pid)
+    register = "R4012" if point < 16 else "R4013"
+    _need(bench, register)
+    interval, pwm = _timing(bench.plc.io)
+    pid.set_set_point(point, pid.pv(point) + 500)
+    bench.wait(interval + 0.5)
+    assert any(_sample_output(bench, pid, point, pwm)), "precondition: the enabled point's output switches on"
+    pid.set_enabled(point, False)  # its bit in R4012 (0–15) / R4013 (16–31)
+    bench.settle()
+    seen = _sample_output(bench, pid, point, 2 * pwm)
+    assert not any(seen), f"point {point} disabled in {register}: its output must stay off, saw {seen}"

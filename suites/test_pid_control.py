@@ -1,0 +1,125 @@
+"""FUN86 on a heated plant: the heater-loop warning (manual 20.7) and closed-loop heating.
+
+Literally from the manual: a warning bit (WR+2/WR+3) and ALM when the output stays ≥ R4006 % for R4007 seconds
+while PV has not come into SV ± Os ("SSR or heater loop open, heater aged"), and not before.  R4006 is 80–100 %,
+R4007 60–65535 s: on a bench these tests set R4007 to its minimum, 60 s, and are marked slow; on the emulator they
+run in virtual time.  The open heater comes from the bench's [faults.heater_open] injector (a contactor in the
+heater line, or the emulator's thermal plant).
+"""
+
+import pytest
+
+INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}  # R4005 low byte → PID interval (≥ 5 → 32 s)
+FULL = 16383  # OR value of 100 % output
+LOOP_S = 60  # R4007's minimum
+SETTLE_S = 1800  # how long the closed loop may take to bring PV into SV ± Os (a bench oven; slow)
+HOLD_S = 300  # and then keep it there
+
+
+def _controlled_point(bench, pid):
+    inst = next(i for i in pid.config.instances if not i.settable)
+    reason = bench.cannot_reach(str(inst.en), str(inst.hc))
+    if reason:
+        pytest.skip(f"cannot switch FUN86 {inst.name} on: {reason}")
+    r4012, r4013 = bench.plc.io.read_words("R4012", 2)
+    enabled = [p for p in inst.points if (r4013 << 16 | r4012) >> p & 1]
+    if not enabled:
+        pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
+    point = enabled[min(3, len(enabled) - 1)]
+    keys = [str(inst.operand(k, point)) for k in ("sv", "os", "pr", "ir", "dr")]
+    reason = bench.cannot_reach(*keys)
+    if reason:
+        pytest.skip(reason)
+    pid.enable(inst, True, heating=True)
+    temperature = bench.plc.temperature
+    if temperature.configured and temperature.read_work().execution_code != 0x56:
+        temperature.wait_for_update()
+    bench.settle()
+    return inst, point
+
+
+@pytest.fixture
+def heater_open(bench):
+    reason = bench.faults.unavailable("heater_open")
+    if reason:
+        pytest.skip(reason)
+    return bench.faults.heater_open
+
+
+def _interval(io):
+    return INTERVAL_S.get(io.read("R4005") & 0xFF, 32)
+
+
+def _wait_for_output(bench, pid, point, at_least, timeout):
+    """Poll OR every second until it is ≥ ``at_least``; the bench time when it was first seen."""
+    start = bench.plc.time.now()
+    while bench.plc.time.now() - start <= timeout:
+        if pid.output(point) >= at_least:
+            return bench.plc.time.now()
+        bench.wait(1.0)
+    pytest.fail(f"point {point}'s output stayed below {at_least} for {timeout} s ({pid.output(point)})")
+
+
+@pytest.mark.slow
+def test_heater_loop_warning_after_r4007_seconds_and_not_before(bench, pid, heater_open):
+    inst, point = _controlled_point(bench, pid)
+    reason = bench.cannot_reach("R4006-R4007")
+    if reason:
+        pytest.skip(reason)
+    io = bench.plc.io
+    io.write_many({"R4006": 90, "R4007": LOOP_S})
+    heater_open.inject(point)
+    pid.set_deviation(point, 50)
+    pid.set_set_point(point, pid.pv(point) + 1000)  # 100.0 ° above PV: far out of band, output at maximum
+    seen = _wait_for_output(bench, pid, point, FULL * 90 // 100 + 1, timeout=3 * _interval(io))
+    # The condition began at most one poll (1 s) before `seen`.
+    bench.wait(seen + LOOP_S - 3 - bench.plc.time.now())
+    words = pid.alarm_words(inst)
+    assert not words.normal(point), "precondition: the open heater keeps PV out of band"
+    assert not words.warning(point), f"warning after < {LOOP_S} s (R4007) at ≥ R4006 %"
+    bench.wait(seen + LOOP_S + 3 - bench.plc.time.now())
+    words = pid.alarm_words(inst)
+    assert words.warning(point), f"output ≥ 90 % (R4006) for {LOOP_S} s (R4007) without reaching the band: warning"
+    assert pid.alm(inst), "the heater-loop warning sets ALM"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("r4006,warns", [(80, True), (95, False)], ids=["R4006-80-warns", "R4006-95-silent"])
+def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
+    """Output ≈ 85 %: ≥ R4006 = 80 % warns after R4007 s; < R4006 = 95 % never does."""
+    inst, point = _controlled_point(bench, pid)
+    reason = bench.cannot_reach("R4006-R4007")
+    if reason:
+        pytest.skip(reason)
+    io = bench.plc.io
+    io.write_many({"R4006": r4006, "R4007": LOOP_S})
+    heater_open.inject(point)
+    pid.set_deviation(point, 50)
+    error = 1000  # 100.0 °
+    pid.set_gains(point, 14, 0, 0)  # proportional only: output ≈ Kc × error = 14 000 ≈ 85 %
+    pid.set_set_point(point, pid.pv(point) + error)
+    bench.wait(2 * _interval(io) + 1)
+    percent = pid.output(point) * 100 / FULL
+    if not 80 <= percent < 95:
+        pytest.skip(f"this PLC's output for Kc 14 × 100 ° is {percent:.1f} %, not between 80 and 95 %")
+    bench.wait(LOOP_S + 5)
+    outputs = pid.output(point) * 100 / FULL
+    assert 80 <= outputs < 95, f"output drifted to {outputs:.1f} %"
+    assert pid.alarm_words(inst).warning(point) is warns, (
+        f"output {outputs:.1f} % for {LOOP_S + 5} s with R4006 = {r4006} %: warning expected {warns}")
+
+
+@pytest.mark.slow
+def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, record_property):
+    inst, point = _controlled_point(bench, pid)
+    os = 50
+    pid.set_deviation(point, os)
+    sv = pid.pv(point) + 500  # 50.0 ° above the present temperature
+    pid.set_set_point(point, sv)
+    trace = pid.record(point, SETTLE_S + HOLD_S, every=5.0)
+    record_property("pid_trace_csv", trace.to_csv())
+    inside = trace.settled_at(os)
+    record_property("pid_settled_s", f"{inside}")
+    assert inside is not None, f"PV never stayed within SV {sv / 10} ± {os / 10} °: last {trace.samples[-1]}"
+    assert inside <= SETTLE_S, f"PV came into SV ± Os only after {inside:.0f} s (allowed {SETTLE_S} s)"
+    assert pid.alarm_words(inst).normal(point), "PV in band: the point's normal bit is set"
