@@ -39,7 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 "--station rig-2\n"
                                 "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
                                 "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n")
-    run.add_argument("--bench", metavar="FILE", help="bench profile (default fixtures/benches/emulator.toml)")
+    run.add_argument("--bench", metavar="FILE", action="append",
+                     help="bench profile (default fixtures/benches/emulator.toml); give it more than once to run "
+                          "the benches in parallel (junit-<bench>.xml each, merged into --junitxml)")
     run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
     run.add_argument("--junitxml", metavar="PATH", default="reports/junit.xml",
                      help="where the JUnit XML goes (default reports/junit.xml)")
@@ -196,6 +198,10 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "run":
         from hil.commands.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
+        if args.bench and len(args.bench) > 1:
+            from hil.commands.many import run_many
+            return run_many(args.bench, args.target, args.junitxml, extra, console)
+        args.bench = args.bench[0] if args.bench else None
         if args.bench:
             from hil.profile import load_profile
             load_profile(args.bench)  # a bad profile: one line here, before pytest starts
