@@ -46,3 +46,33 @@ def test_a_simulated_day_of_the_default_bench_is_fast():
     elapsed = time.perf_counter() - start
     print(f"24 virtual hours of the default bench: {elapsed * 1000:.1f} ms wall")
     assert emulator.memory.read("R4131", 3) == [29, 2, 24]  # the RTC crossed into the leap day
+
+
+def pid_profile():
+    """The default bench's temperature modules with FUN86 on points 0–3 and the thermal plant (if landed)."""
+    pytest.importorskip("hil.emulator.models.fun86", reason="the FUN86 model has not landed")
+    pytest.importorskip("hil.emulator.models.plant", reason="the plant model has not landed")
+    base = load_profile(EMULATOR_BENCH)
+    return profile_from_dict({"bench": {"name": "ff-pid"}, "rtc": {"chip": 3}, "temperature": base.areas["temperature"],
+                              "pid": {"en": "M0", "sn": 0, "zn": 4, "yn": "Y0", "sv": "R1000", "os": "R1040",
+                                      "pr": "R1080", "ir": "R1120", "dr": "R1160", "or": "R1200", "wr": "R1240"},
+                              "plant": {}})
+
+
+@pytest.mark.parametrize("seconds", [3.7, 95.0, 300.0])
+def test_jump_equals_stepping_with_pid_and_plant(seconds):
+    profile = pid_profile()
+    stepped, jumped = build_emulator(profile, EPOCH), build_emulator(profile, EPOCH)
+    for emu in (stepped, jumped):
+        emu.memory.set("M0", 1)  # FUN86 EN
+        emu.memory.set("R4012", 0x000F)  # PID on points 0–3
+        for p in range(4):
+            emu.memory.set(f"R{1000 + p}", 600 + 50 * p)  # SV 60.0 … 75.0 °C
+        emu.scan()  # the request that wrote them is followed by a scan
+    for _ in range(round(seconds / stepped.scan_time)):
+        stepped.scan()
+    jumped.advance_to(stepped.now)
+    assert jumped.now == stepped.now
+    for first, count in (("R3020", 32), ("R1200", 4), ("R1240", 4), ("R4128", 8)):
+        assert jumped.memory.read(first, count) == stepped.memory.read(first, count), first
+    assert jumped.memory.read("Y0", 4) == stepped.memory.read("Y0", 4)
