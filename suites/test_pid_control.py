@@ -116,7 +116,7 @@ def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, record_prope
     pid.set_deviation(point, os)
     sv = pid.pv(point) + 500  # 50.0 ° above the present temperature
     pid.set_set_point(point, sv)
-    trace = pid.record(point, SETTLE_S + HOLD_S, every=5.0)
+    trace = pid.record(point, SETTLE_S + HOLD_S, every=15.0)
     record_property("pid_trace_csv", trace.to_csv())
     inside = trace.settled_at(os)
     record_property("pid_settled_s", f"{inside}")

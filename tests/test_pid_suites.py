@@ -1,0 +1,154 @@
+"""The PID suites end to end: every emulator wire, the heater-loop test's wall time, and broken FUN86 models that
+the suites must catch (a suite that passes on a faulty PLC is the worst bug this project can have)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+import hil.device.pid  # noqa: F401 - imported outside the inner runs (see test_temperature_suites)
+import hil.emulator.serve.fatek  # noqa: F401
+import hil.emulator.serve.modbus  # noqa: F401
+import hil.faults  # noqa: F401
+import hil.pytest_plugin  # noqa: F401
+import hil.transport.fatek  # noqa: F401
+import hil.transport.local  # noqa: F401
+import hil.transport.modbus  # noqa: F401
+from hil.emulator.build import build_emulator
+from hil.emulator.models.fun86 import Fun86Model
+from hil.emulator.models.temperature import TemperatureModel
+from tests.broken import replace_model
+from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
+
+SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
+SUITE_TESTS = 28
+INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
+
+
+@pytest.mark.parametrize("target", EMULATOR_TARGETS)
+def test_pid_suites_pass_on_every_emulator_target(pytester, target):
+    result = pytester.runpytest_inprocess(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), "--target", target)
+    result.assert_outcomes(passed=SUITE_TESTS)
+
+
+def test_the_heater_loop_test_takes_under_2_s_on_the_emulator(pytester):
+    started = time.perf_counter()
+    result = pytester.inline_run(SUITES[1], *INNER, "--bench", str(EMULATOR_BENCH), "-k", "r4007_seconds")
+    elapsed = time.perf_counter() - started
+    result.assertoutcome(passed=1)
+    call = [r for r in result.getreports("pytest_runtest_logreport") if r.when == "call"][0]
+    print(f"heater-loop test: {call.duration:.3f} s call, {elapsed:.2f} s whole inner run")
+    assert call.duration < 2.0
+
+
+# -- broken FUN86 models -------------------------------------------------------------------------------------------
+class PrealarmAfter9Scans(Fun86Model):
+    def prealarm(self, count):
+        return count >= 9
+
+
+class PrealarmAfter11Scans(Fun86Model):
+    def prealarm(self, count):
+        return count >= 11
+
+
+class DipDoesNotResetTheCount(Fun86Model):
+    def prealarm_count(self, count, pv, limit):
+        return count + 1 if pv >= limit else count
+
+
+class BandEdgesExclusive(Fun86Model):
+    def in_band(self, pv, sv, os):
+        return sv - os < pv < sv + os
+
+
+class LowPointsInSecondWord(Fun86Model):
+    """WR+1/WR+3 used for points Sn+0…15 (and WR+0/WR+2 for the rest)."""
+
+    def bit_position(self, b):
+        return 1 - b // 16, b % 16
+
+
+class AlmIgnoresWarnings(Fun86Model):
+    def alarm(self, enabled_not_normal, any_warning):
+        return enabled_not_normal
+
+
+class HeaterLoopTimerTwiceAsFast(Fun86Model):
+    def loop_elapsed(self, since, now):
+        return 2 * (now - since)
+
+
+class HeaterLoopTimerHalfSpeed(Fun86Model):
+    def loop_elapsed(self, since, now):
+        return (now - since) / 2
+
+
+class HeaterLoopIgnoresR4006(Fun86Model):
+    """Always uses the default 90 %."""
+
+    def loop_threshold(self, mem):
+        return 90
+
+
+class NoErrForSnPlusZn33(Fun86Model):
+    def valid(self, sn, zn):
+        return 0 <= sn <= 31 and 1 <= zn <= 32 and sn + zn <= 33
+
+
+class DisabledPointStillDriven(Fun86Model):
+    def drive(self, enabled, on):
+        return on
+
+
+class Variant:
+    """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
+
+    def __init__(self, model_class: type[Fun86Model]) -> None:
+        self.model_class = model_class
+
+    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        emulator = build_emulator(profile, epoch)
+        good = emulator.model(Fun86Model)
+        broken = self.model_class(good.config, good.temperature)
+        broken.next_measurement = emulator.model(TemperatureModel).next_measurement
+        replace_model(emulator, Fun86Model, broken)
+        return emulator
+
+
+CAUGHT_BY = {
+    PrealarmAfter9Scans: ["test_prealarm_needs_10_consecutive_scans[steady]"],
+    PrealarmAfter11Scans: ["test_prealarm_needs_10_consecutive_scans[steady]"],
+    DipDoesNotResetTheCount: ["test_prealarm_needs_10_consecutive_scans[dip-after-5]"],
+    BandEdgesExclusive: ["test_normal_bit_exactly_at_sv_plus_minus_os[at-edge-low]",
+                         "test_normal_bit_exactly_at_sv_plus_minus_os[at-edge-high]"],
+    LowPointsInSecondWord: ["test_normal_bit_positions_count_from_sn[first-instance]",
+                            "test_prealarm_when_r4008_is_below_pv[first-instance]"],
+    AlmIgnoresWarnings: ["test_alm_follows_a_warning_alone", "test_prealarm_when_r4008_is_below_pv"],
+    HeaterLoopTimerTwiceAsFast: ["test_heater_loop_warning_after_r4007_seconds_and_not_before"],
+    HeaterLoopTimerHalfSpeed: ["test_heater_loop_warning_after_r4007_seconds_and_not_before"],
+    HeaterLoopIgnoresR4006: ["test_heater_loop_threshold_is_r4006[R4006-80-warns]"],
+    NoErrForSnPlusZn33: ["test_err_for_invalid_sn_zn[Sn31-Zn2]", "test_err_for_invalid_sn_zn[Sn20-Zn13]"],
+    DisabledPointStillDriven: ["test_disabled_point_output_is_forced_off"],
+}
+QUICK = ("-k", "not closed_loop")  # the variants do not touch the control law: skip the 30-minute loop
+
+
+def _failed(result):
+    return {r.nodeid.split("::")[-1] for r in result.getreports("pytest_runtest_logreport")
+            if r.when == "call" and r.failed}
+
+
+@pytest.mark.parametrize("variant", list(CAUGHT_BY), ids=lambda v: v.__name__)
+def test_the_pid_suites_catch_a_broken_fun86(pytester, variant):
+    result = pytester.inline_run(*SUITES, *INNER, *QUICK, "--bench", str(EMULATOR_BENCH), plugins=[Variant(variant)])
+    failed = _failed(result)
+    for name in CAUGHT_BY[variant]:
+        assert any(f == name or f.startswith(name + "[") for f in failed), (
+            f"{variant.__name__} passed {name}; failed only: {sorted(failed)}")
+
+
+def test_the_correct_fun86_passes_through_the_same_hook(pytester):
+    result = pytester.inline_run(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), plugins=[Variant(Fun86Model)])
+    result.assertoutcome(passed=SUITE_TESTS)
