@@ -68,6 +68,7 @@ class InstanceState:
     started: float = 0.0  # EN rising edge: PWM cycles and PID intervals count from here
     next_pid: float = math.inf
     running: bool = False  # executing with valid Sn/Zn and every point measured
+    waiting: bool = False  # executing, but not every point measured yet
     sn: int = 0
     zn: int = 0
     points: dict[int, PointState] = field(default_factory=dict)
@@ -187,13 +188,13 @@ class Fun86Model(Model):
         if not en:
             if st.running or st.zn:
                 self._outputs_off(mem, inst, st)
-            st.running = False
+            st.running = st.waiting = False
             bits[inst.err.kind][inst.err.index] = 0
             bits[inst.alm.kind][inst.alm.index] = 0
             return
         sn, zn = self.sn_zn(mem, inst)
         if not self.valid(sn, zn):
-            st.running = False
+            st.running = st.waiting = False
             bits[inst.err.kind][inst.err.index] = 1
             return
         bits[inst.err.kind][inst.err.index] = 0
@@ -215,7 +216,9 @@ class Fun86Model(Model):
         start = self.readings_start(mem)
         if start is None or not self.all_measured(mem):
             st.running = False
+            st.waiting = start is not None  # acts once the temperature modules have measured every point
             return
+        st.waiting = False
         st.running = True
         r = words["R"]
         limit = r[_R[reg.PREALARM_LIMIT]]
@@ -286,6 +289,8 @@ class Fun86Model(Model):
         loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
         due = math.inf
         for inst, st in zip(self.config.instances, self.states):
+            if st.waiting and self.next_measurement is not None:
+                due = min(due, self.next_measurement())
             if not st.running:
                 continue
             for ps in st.points.values():
@@ -304,4 +309,9 @@ class Fun86Model(Model):
                     due = min(due, edge)
         if due < math.inf and self.next_measurement is not None:
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
-        return due
+        if due == math.inf:
+            return due
+        # The first scan at or after the event, on the scan grid: a jump then takes the very scan that stepping
+        # scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way).
+        st = self._emu.scan_time
+        return max(now, math.ceil(due / st - 1e-6) * st)

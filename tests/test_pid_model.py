@@ -1,0 +1,241 @@
+"""FUN86 and the thermal plant in the emulator, the [pid]/[plant] profile sections, and plc.pid's trace."""
+
+from __future__ import annotations
+
+import datetime as dt
+import tomllib
+
+import pytest
+
+from hil.bench import Bench
+from hil.emulator.build import build_emulator
+from hil.emulator.models.fun86 import Fun86Model
+from hil.emulator.models.plant import ThermalPlant
+from hil.errors import ProfileError
+from hil.fbs.pid import PidInstance, parse_pid
+from hil.profile import load_profile, profile_from_dict
+from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS
+
+EPOCH = dt.datetime(2024, 5, 1, 8, 0, 0)
+
+
+# -- [pid] --------------------------------------------------------------------------------------------------------
+def test_an_empty_pid_section_is_the_manuals_example_program():
+    (inst,) = parse_pid({}).instances
+    assert inst == PidInstance()
+    assert (str(inst.en), str(inst.hc), str(inst.err), str(inst.alm), str(inst.yn)) == ("M0", "M1", "M100", "M101",
+                                                                                         "Y30")
+    assert (inst.sn, inst.zn, str(inst.sv), str(inst.or_), str(inst.wr)) == (0, 10, "R100", "R200", "R300")
+
+
+@pytest.mark.parametrize("section,words", [
+    ({"yn": "M30"}, "not a Y output"),
+    ({"err": "R5"}, "not a bit"),
+    ({"sv": "R4100"}, "not a FUN86 register operand"),
+    ({"sv": 100}, "element name"),
+    ({"zn": 0}, "1–32"),
+    ({"sn": 30, "zn": 5}, r"Sn \+ Zn = 35"),
+    ({"md": 2}, "0–1"),
+    ({"colour": "red"}, "unknown key"),
+    ({"os": "R105"}, "overlaps"),  # Sv R100 + 10 points reaches R109
+    ({"yn": "Y250"}, "runs past Y255"),
+    ({"sn_register": "R500"}, "go together"),
+    ({"instances": [{"name": "a"}, {"name": "a", "en": "M9"}]}, "names must differ"),
+    ({"instances": [{"name": "a"}], "en": "M0"}, "both instances and instance keys"),
+    ({"instances": [{"name": "a"}, {"name": "b", "sn": 5, "zn": 3, "sv": "R1000", "os": "R1010", "pr": "R1020",
+                                    "ir": "R1030", "dr": "R1040", "or": "R1050", "wr": "R1060", "yn": "Y100",
+                                    "err": "M200", "alm": "M201"}]}, "both control points 5–7"),
+    ({"instances": [{"name": "a"}, {"name": "b", "sn": 20, "zn": 3, "wr": "R305", "sv": "R1000", "os": "R1010",
+                                    "pr": "R1020", "ir": "R1030", "dr": "R1040", "or": "R1050", "yn": "Y100",
+                                    "err": "M200", "alm": "M201"}]}, "b.wr"),
+    ({"en": "M100"}, "an output of FUN86"),
+])
+def test_bad_pid_sections_are_refused_with_the_reason(section, words):
+    with pytest.raises(ProfileError, match=words):
+        profile_from_dict({"bench": {"name": "x"}, "pid": section})
+
+
+def test_bad_plant_sections_are_refused():
+    for section, words in (({"tau": 0}, "tau"), ({"wind": 1}, "unknown key"), ({"points": {"40": {}}}, "0–31"),
+                           ({"noise": "lots"}, "noise")):
+        with pytest.raises(ProfileError, match=words):
+            profile_from_dict({"bench": {"name": "x"}, "plant": section})
+
+
+def test_the_emulator_bench_describes_three_fun86_boxes_and_a_plant():
+    profile = load_profile(EMULATOR_BENCH)
+    config = parse_pid(profile.areas["pid"])
+    assert [i.name for i in config.instances] == ["zone-a", "zone-b", "err-check"]
+    emulator = build_emulator(profile, EPOCH)
+    assert [m.name for m in emulator.models] == ["rtc", "temperature", "fun86", "plant"]
+
+
+# -- the model ------------------------------------------------------------------------------------------------------
+@pytest.fixture
+def emu():
+    return build_emulator(load_profile(EMULATOR_BENCH), EPOCH)
+
+
+def _run(emu, sv=None, gains=None):
+    m = emu.memory
+    if sv is not None:
+        m.write("R100", sv)
+    m.set("M0", 1)
+    m.set("M1", 1)
+    emu.scan()
+    if gains:
+        m.write("R120", [gains[0]] * 10)
+        m.write("R130", [gains[1]] * 10)
+        m.write("R140", [gains[2]] * 10)
+
+
+def test_nothing_happens_before_every_fitted_point_is_measured(emu):
+    _run(emu, sv=[2000])
+    assert emu.memory.read("R120", 3) == [110, 110, 110], "defaults load at the first execution"
+    emu.advance(3.0)  # a 16TC needs 6 s for all its points
+    assert emu.memory.get("R200") == 0 and emu.memory.read("R300", 4) == [0, 0, 0, 0]
+    emu.advance(4.0)
+    assert emu.memory.get("R200") > 0 and emu.memory.get("Y30") == 1
+
+
+def test_r4005_takes_effect_only_after_en_goes_0_then_1(emu):
+    _run(emu)
+    model = emu.model(Fun86Model)
+    assert (model.states[0].interval, model.states[0].pwm) == (4.0, 2.0)
+    emu.memory.set("R4005", 0x0300)  # PWM 8 s, PID every 1 s
+    emu.advance(1.0)
+    assert (model.states[0].interval, model.states[0].pwm) == (4.0, 2.0)
+    emu.memory.set("M0", 0)
+    emu.scan()
+    emu.memory.set("M0", 1)
+    emu.scan()
+    assert (model.states[0].interval, model.states[0].pwm) == (1.0, 8.0)
+    emu.memory.set("R4005", 0x0909)
+    emu.memory.set("M0", 0)
+    emu.scan()
+    emu.memory.set("M0", 1)
+    emu.scan()
+    assert (model.states[0].interval, model.states[0].pwm) == (32.0, 32.0)
+
+
+def test_pwm_is_on_for_or_over_16383_of_each_period(emu):
+    emu.model(ThermalPlant).set_fault("heater_open", 0, True)  # PV stays put: the output stays put
+    emu.advance(7.0)
+    pv = emu.memory.get("R3020")
+    _run(emu, sv=[pv + 4096], gains=(2, 0, 0))  # output 2 × 4096 = 8192 ≈ 50 %
+    emu.advance(8.0)
+    out = emu.memory.get("R200")
+    assert abs(out - 8192) <= 4
+    on = total = 0
+    for _ in range(1000):  # 10 s = 5 PWM periods, every scan
+        emu.scan()
+        on += emu.memory.get("Y30")
+        total += 1
+    assert abs(on / total - out / 16383) < 0.02
+
+
+def test_pv_comes_from_r4004_when_r4003_is_a55a(emu):
+    _run(emu, sv=[1000] * 10, gains=(1, 0, 0))
+    m = emu.memory
+    m.write("R110", [10] * 10)
+    emu.advance(7.0)
+    assert m.get("R300") == 0  # PV 25 °: none of SV 100.0 ± 1.0
+    m.write("R1000", [1000] * 10)  # a ladder's own PVs at R1000…
+    m.write("R4003", [0xA55A, 11000])
+    emu.scan()
+    assert m.get("R300") == 0x03FF
+    m.set("R4003", 0)
+    emu.scan()
+    assert m.get("R300") == 0
+
+
+def test_a_disabled_point_gets_output_0_and_no_bits(emu):
+    _run(emu, sv=[2000] * 10)
+    emu.advance(10.0)
+    m = emu.memory
+    assert m.get("R200") > 0 and m.get("M101") == 1
+    m.set("R4012", 0xFFFE)
+    emu.advance(5.0)
+    assert m.get("R200") == 0 and m.get("Y30") == 0
+    assert m.get("R300") & 1 == 0 and m.get("R302") & 1 == 0
+
+
+def test_err_and_nothing_else_for_bad_sn_zn(emu):
+    m = emu.memory
+    m.write("R850", [31, 2])
+    m.set("M4", 1)
+    emu.scan()
+    assert m.get("M104") == 1 and m.read("R680", 3) == [0, 0, 0]  # no first execution either
+    m.write("R850", [0, 1])
+    emu.scan()
+    assert m.get("M104") == 0 and m.get("R680") == 110
+
+
+def test_ssr_short_heats_whatever_the_output(emu):
+    plant = emu.model(ThermalPlant)
+    plant.set_fault("ssr_short", 5, True)
+    emu.advance(300.0)
+    assert emu.memory.get("R3025") > 1500  # ≈ 25 + 300 × (1 − e⁻¹) ≈ 215 °C
+    assert emu.memory.get("R3024") < 300
+    with pytest.raises(ValueError, match="no heater"):
+        plant.set_fault("heater_open", 10, True)
+
+
+def test_the_plant_dead_time_delays_the_heating(emu):
+    plant = emu.model(ThermalPlant)
+    plant.set_fault("ssr_short", 2, True)
+    emu.scan()
+    start = emu.now
+    assert plant.temperature(2, start + 1.9) == pytest.approx(25.0)  # dead time 2 s
+    assert plant.temperature(2, start + 12.0) > 25.0 + 300 * (1 - 2.718 ** (-9.9 / 300)) * 0.99
+
+
+@pytest.mark.parametrize("seconds", [20.0, 400.0, 1200.0])
+def test_jumping_equals_stepping_with_the_pid_running(seconds):
+    """Jumps land on the scan stepping would take (FUN86 rounds its events up to the scan grid), so PID samples,
+    PWM edges and PVs are seen at the same scans.  What is left is float rounding of the clock, which a bang-bang
+    loop with dead time amplifies chaotically — hence a plant without noise or dead time here, and 0.2 °."""
+    data = tomllib.loads(EMULATOR_BENCH.read_text())
+    data["plant"].update(noise=0.0, dead_time=0.0)
+    profile = profile_from_dict(data)
+    stepped, jumped = build_emulator(profile, EPOCH), build_emulator(profile, EPOCH)
+    for emu in (stepped, jumped):
+        _run(emu, sv=[800, 600, 0, 1200] + [0] * 6)
+        emu.memory.write("R110", [100] * 10)
+    for _ in range(round(seconds / stepped.scan_time)):
+        stepped.scan()
+    jumped.advance_to(stepped.now)
+    assert jumped.scans < stepped.scans / 5
+    a, b = stepped.memory.read("R3020", 10), jumped.memory.read("R3020", 10)
+    assert all(abs(x - y) <= 2 for x, y in zip(a, b)), (a, b)
+    assert stepped.memory.read("R300", 4) == jumped.memory.read("R300", 4)
+
+
+def test_a_virtual_day_with_every_en_off_is_still_one_jump(emu):
+    import time
+    start = time.perf_counter()
+    emu.advance(86400)
+    assert time.perf_counter() - start < 0.05
+    assert emu.scans < 10
+
+
+# -- plc.pid's closed-loop trace, from any target -----------------------------------------------------------------------
+@pytest.mark.parametrize("target", EMULATOR_TARGETS)
+def test_a_plot_ready_trace_from_every_target(target):
+    bench = Bench(load_profile(EMULATOR_BENCH), target=target)
+    try:
+        pid = bench.plc.pid
+        inst = pid.instance("zone-a")
+        bench.begin_test()
+        pid.enable(inst)
+        pid.set_set_point(3, 600)
+        trace = pid.record(3, 60, every=10)
+        columns = trace.columns()
+        assert list(columns) == ["t", "pv", "sv", "output"]
+        assert len(columns["t"]) == 7 and columns["t"] == sorted(columns["t"])
+        assert columns["sv"] == [60.0] * 7 and columns["pv"][-1] > columns["pv"][0]
+        assert max(columns["output"]) == 100.0
+        assert trace.to_csv().splitlines()[0] == "t_s,pv,sv,output_percent"
+    finally:
+        bench.end_test()
+        bench.close()
