@@ -70,11 +70,12 @@ class ReportHandle:
                                   xlabel="reference time (h)", ylabel="PLC − reference (s)")
 
     def attach_pid(self, trace: Sequence[Sequence[float]], name: str = "pid", title: str = "PID closed loop",
-                   unit: str = "") -> Series:
+                   unit: str = "", output_unit: str = "") -> Series:
         """A closed-loop trace of ``(t, PV, SV, output)`` rows; the output is drawn on its own axis."""
         return self.attach_series(name, trace, columns=("t", "PV", "SV", "output"), title=title,
                                   xlabel="time (s)", ylabel=f"PV, SV{f' ({unit})' if unit else ''}",
-                                  secondary=("output",), secondary_label="output")
+                                  secondary=("output",),
+                                  secondary_label=f"output{f' ({output_unit})' if output_unit else ''}")
 
 
 class Reporter:
