@@ -31,7 +31,7 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any, Callable
 
 from hil.address import parse
-from hil.errors import AddressError, HilError, ProfileError, TargetError, TransportError
+from hil.errors import AddressError, HilError, ProfileError, TargetError
 from hil.transport.url import parse_target
 
 if TYPE_CHECKING:

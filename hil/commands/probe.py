@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime as dt
 
 from rich.console import Console
 from rich.markup import escape
@@ -13,10 +12,10 @@ from hil.device.plc import FbsPlc
 from hil.device.temperature import Temperature
 from hil.errors import HilError
 from hil.fbs.temperature import BREAK_VALUE, parse_temperature
-from hil.profile import Profile, load_profile
+from hil.profile import Profile
 from hil.timebase import HostTimebase
 from hil.transport.base import Transport
-from hil.transport.factory import open_transport
+from hil.commands.target import open_target
 
 # (label, element) — read only where the wire can reach them.
 PROBE_REGISTERS = [
@@ -30,13 +29,8 @@ _COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
 
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:
     """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
-    profile = load_profile(bench) if bench else None
-    factory = None
-    if profile is not None:
-        from hil.emulator.build import build_emulator
-        factory = lambda: build_emulator(profile, dt.datetime.now().replace(microsecond=0))  # noqa: E731
-    with open_transport(url or profile.target, emulator_factory=factory,
-                        timeout=profile.timeout if profile else None) as transport:
+    with open_target(url, bench) as opened:
+        transport, profile = opened.transport, opened.profile if bench else None
         status = transport.status()
         running = {True: "green", False: "yellow", None: "dim"}[status.running]
         grid = Table.grid(padding=(0, 2))

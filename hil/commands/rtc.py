@@ -9,7 +9,6 @@ fixtures/benches/emulator.toml, so it has an S-35390A RTC) and runs in virtual t
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import datetime as dt
 import re
 from typing import Callable, Iterator, TypeVar
@@ -23,9 +22,8 @@ from hil.errors import HilError, UnreachableAddress
 from hil.fbs import registers as reg
 from hil.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for_rate, rate_for_code
 from hil.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
-from hil.timebase import EmulatorTimebase, HostTimebase, Timebase
-from hil.transport.factory import open_transport
-from hil.transport.url import parse_target
+from hil.commands.target import open_target
+from hil.timebase import Timebase
 
 T = TypeVar("T")
 
@@ -41,29 +39,9 @@ _CODE_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})h?$", re.IGNORECASE)
 # -- opening a PLC --------------------------------------------------------------------------------------------------
 @contextlib.contextmanager
 def open_plc(url: str, bench: str | None = None) -> Iterator[FbsPlc]:
-    """An :class:`FbsPlc` on a direct transport to ``url``, with the timebase that goes with it.
-
-    Direct, not guarded: the operator asked for this PLC and for any write explicitly on the command line.
-    """
-    target = parse_target(url)
-    profile = None
-    if target.in_process or bench:
-        from hil.paths import default_bench
-        from hil.profile import load_profile
-        profile = load_profile(bench or default_bench())
-    epoch = dt.datetime.now().replace(microsecond=0)
-    factory = None
-    if target.in_process:
-        from hil.emulator.build import build_emulator
-        # The clock commands need the RTC model only: the profile's other areas (the temperature model scans
-        # every conversion period) would make a simulated day of `drift measure` take seconds, not milliseconds.
-        clock_only = dataclasses.replace(profile, areas={})
-        factory = lambda: build_emulator(clock_only, epoch)  # noqa: E731
-    timeout = profile.timeout if profile is not None and bench else None
-    with open_transport(target, emulator_factory=factory, timeout=timeout) as transport:
-        timebase: Timebase = (EmulatorTimebase(transport.emulator, epoch) if transport.emulator is not None
-                              else HostTimebase(profile.time_scale if profile is not None and bench else 1.0))
-        yield FbsPlc(transport, timebase, settle_scans=profile.settle_scans if profile is not None else 2)
+    """An :class:`FbsPlc` on a direct transport to ``url`` (see :mod:`hil.commands.target`)."""
+    with open_target(url, bench) as opened:
+        yield opened.plc()
 
 
 def _reachable(read: Callable[[], T]) -> T | UnreachableAddress:
