@@ -12,6 +12,7 @@ from hil.address import parse_range
 from hil.device.plc import FbsPlc
 from hil.emulator.core import Emulator
 from hil.fbs import registers as reg
+from hil.bench_base import BenchBase
 from hil.profile import Profile
 from hil.timebase import EmulatorTimebase, HostTimebase, Timebase
 from hil.transport.base import Transport
@@ -25,7 +26,7 @@ EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
 _RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
 
 
-class Bench:
+class Bench(BenchBase):
     def __init__(self, profile: Profile, *, target: str | None = None,
                  emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
         self.profile = profile
@@ -56,22 +57,6 @@ class Bench:
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
 
     # -- what suites use ----------------------------------------------------------------------------------
-    @property
-    def name(self) -> str:
-        return self.profile.name
-
-    @property
-    def is_emulator(self) -> bool:
-        """True when the PLC is the in-process emulator (virtual time, direct fault injection)."""
-        return self.raw.emulator is not None
-
-    def wait(self, seconds: float) -> None:
-        """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
-        self.time.wait(seconds)
-
-    def settle(self) -> None:
-        self.plc.settle()
-
     def cannot_reach(self, *names: str) -> str | None:
         """Why this bench cannot read and write ``names`` (elements or ranges such as ``"R4128-R4134"``):
         unreachable over the wire, or not writable.  None when it can."""

@@ -10,6 +10,7 @@ import datetime as dt
 from typing import Callable
 
 from hil.errors import HilError, TargetError
+from hil.bench_base import BenchBase
 from hil.profile import Profile
 from hil.s7smart.address import parse_s7_range, units
 from hil.s7smart.device import S7Plc
@@ -55,7 +56,7 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
     return ModbusS7Io.rtu(target.device, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
 
 
-class S7Bench:
+class S7Bench(BenchBase):
     family = "s7-200smart"
 
     def __init__(self, profile: Profile, *, target: str | None = None,
@@ -83,20 +84,6 @@ class S7Bench:
             for a in (self.layout.set_trigger, self.layout.set_i_trigger):
                 if a is not None:
                     self._clock_inputs.update(units(a))
-
-    @property
-    def name(self) -> str:
-        return self.profile.name
-
-    @property
-    def is_emulator(self) -> bool:
-        return self.raw.emulator is not None
-
-    def wait(self, seconds: float) -> None:
-        self.time.wait(seconds)
-
-    def settle(self) -> None:
-        self.plc.settle()
 
     def cannot_reach(self, *names: str) -> str | None:
         """Why this bench cannot read and write ``names`` (S7 operands or ranges such as ``"VB110-VB117"``)."""

@@ -14,10 +14,10 @@ keep trigger bits in a word of their own (the shipped layouts do).
 
 from __future__ import annotations
 
-import threading
 from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Callable, Iterable, Sequence
 
+from hil.link import Link
 from hil.errors import PlcErrorReply, ReplyTimeout, RestoreError, TransportError, WriteRefused
 from hil.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
@@ -30,17 +30,10 @@ if TYPE_CHECKING:
 Unit = tuple[str, int, "int | None"]  # (area, byte, bit or None for the whole byte)
 
 
-class S7Io(ABC):
+class S7Io(Link, ABC):
     """Base: name helpers over four primitives.  One request on the wire at a time (a lock)."""
 
     emulator: "S7Emulator | None" = None
-
-    def __init__(self, description: str) -> None:
-        self.description = description
-        self._lock = threading.RLock()
-        self._closers: list[Callable[[], None]] = []
-        self.requests = 0
-        self.closed = False
 
     # -- public API ---------------------------------------------------------------------------------------------
     def read_v(self, first: int, count: int) -> bytes:
@@ -96,29 +89,6 @@ class S7Io(ABC):
         parse_s7(name)
         return None
 
-    def on_close(self, closer: Callable[[], None]) -> None:
-        self._closers.append(closer)
-
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        with self._lock:
-            try:
-                self._close()
-            finally:
-                for closer in reversed(self._closers):
-                    closer()
-
-    def __enter__(self) -> "S7Io":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.description}>"
-
     # -- primitives ---------------------------------------------------------------------------------------------
     @abstractmethod
     def _read_v(self, first: int, count: int) -> bytes: ...
@@ -134,9 +104,6 @@ class S7Io(ABC):
 
     @abstractmethod
     def _status(self) -> PlcStatus: ...
-
-    def _close(self) -> None:
-        pass
 
 
 # -- in process -----------------------------------------------------------------------------------------------------

@@ -7,11 +7,11 @@ serialises requests with a lock (one request on the wire at a time, as a serial 
 
 from __future__ import annotations
 
-import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Sequence
 
+from hil.link import Link
 from hil.address import Address, parse, span
 
 if TYPE_CHECKING:
@@ -60,19 +60,12 @@ def _chunks(count: int, size: int) -> Iterable[tuple[int, int]]:
         yield start, min(size, count - start)
 
 
-class Transport(ABC):
+class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: "Emulator | None" = None
-
-    def __init__(self, description: str) -> None:
-        self.description = description
-        self._lock = threading.RLock()
-        self._closers: list[Callable[[], None]] = []
-        self.requests = 0  # protocol requests sent (round trips)
-        self.closed = False
 
     # -- public API -------------------------------------------------------------------------------------------
     def read_words(self, address: NameLike, count: int = 1) -> list[int]:
@@ -161,30 +154,6 @@ class Transport(ABC):
         """The longest one protocol request may take (retries, backoff, resynchronising included), or None."""
         return None
 
-    def close(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        with self._lock:
-            try:
-                self._close()
-            finally:
-                for closer in reversed(self._closers):
-                    closer()
-
-    def on_close(self, closer: Callable[[], None]) -> None:
-        """Run ``closer`` after this transport closes (e.g. stop the server of an ``emulator+…`` target)."""
-        self._closers.append(closer)
-
-    def __enter__(self) -> "Transport":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.description}>"
-
     # -- what a subclass provides ---------------------------------------------------------------------------
     @abstractmethod
     def _read_words(self, first: Address, count: int) -> list[int]: ...
@@ -206,9 +175,6 @@ class Transport(ABC):
 
     @abstractmethod
     def _status(self) -> PlcStatus: ...
-
-    def _close(self) -> None:
-        pass
 
     # -- helpers ------------------------------------------------------------------------------------------------
     def _count(self, result):  # noqa: ANN001, ANN202 - passes the primitive's result through
