@@ -299,6 +299,7 @@ def full_profile() -> tuple[object, str]:
 def start_pid(emulator) -> None:  # noqa: ANN001
     mem = emulator.memory
     mem.set("M0", 1)  # EN
+    mem.set("M1", 1)  # H/C = heating (0 would be cooling: PV 25 °C is far below SV, so the output would stay 0)
     mem.set("R4012", 0xFFFF)
     mem.set("R4013", 0xFFFF)
     for p in range(32):
