@@ -244,7 +244,9 @@ def test_drift_measure_and_compensate() -> None:
     assert before.s_per_day == pytest.approx(39e-6 * 86400, abs=0.03)
     assert before.resolution < FINE_STEP / 2
     assert 86390 < before.reference_elapsed < 86401
-    assert len(before.samples) == 6 and before.samples[0] == (0.0, 0.0)
+    assert len(before.samples) == 3 + 8 + 3 and before.samples[0] == (0.0, 0.0)  # start, checkpoints, end
+    checkpoints = [y for _, y in before.samples[3:-3]]
+    assert checkpoints == sorted(checkpoints)  # a clock fast by 39 ppm gains ~0.42 s between checkpoints
     assert before.samples[-1][1] == pytest.approx(3.37, abs=0.05)  # PLC − reference after a day
     assert code == 0x56E5  # the manual's row for 3.38
     assert rig.rtc.rate_code == 0x56E5

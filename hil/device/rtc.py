@@ -214,14 +214,18 @@ class Drift:
         self.plc = plc
         self.rtc = rtc if rtc is not None else plc.rtc
 
-    def measure(self, duration: float, *, transitions: int = 3, timeout: float = 3.0) -> DriftMeasurement:
+    def measure(self, duration: float, *, transitions: int = 3, checkpoints: int = 8,
+                timeout: float = 3.0) -> DriftMeasurement:
         """Clock error in s/day over about ``duration`` bench seconds.
 
         The RTC shows whole seconds, so we time its second *transitions*: R4128 is polled every
         ``Rtc.poll_interval`` and each transition is placed midway between the last poll that showed the old
         second and the first that showed the new one.  ``transitions`` consecutive ones are timed at the start
         and again at the end, and the rate is the least-squares slope of (PLC − reference) over all of them, so
-        polling jitter averages out.  Leave D4054 as it is: this measures the clock as it runs now.
+        polling jitter averages out.  One more transition is timed at each of ``checkpoints`` evenly spaced
+        moments in between, so the samples show the error growing over time (the report plots them) and a clock
+        whose rate changes mid-measurement shows as a bend.  Leave D4054 as it is: this measures the clock as it
+        runs now.
         """
         if transitions < 1:
             raise ValueError(f"transitions must be at least 1, not {transitions}")
@@ -231,14 +235,18 @@ class Drift:
         # phases of the chip's second (on the emulator they would otherwise land identically every time).
         step = self.rtc.poll_interval / transitions
         first = [self._transition(timeout, i * step) for i in range(transitions)]
-        remaining = duration - (first[-1][0] - first[0][0]) - transitions - 1.0
+        remaining = duration - (first[-1][0] - first[0][0]) - transitions - 1.0 - checkpoints
+        middle = []
         if remaining > 0:
-            self.plc.time.wait(remaining)
+            for _ in range(checkpoints):
+                self.plc.time.wait(remaining / (checkpoints + 1))
+                middle.append(self._transition(timeout))
+            self.plc.time.wait(remaining / (checkpoints + 1))
         last = [self._transition(timeout, i * step) for i in range(transitions)]
 
         t0, s0, _ = first[0]
         samples = []
-        for t, s, _ in first + last:
+        for t, s, _ in first + middle + last:
             plc_elapsed = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
             samples.append((t - t0, plc_elapsed - (t - t0)))
         xs = [x for x, _ in samples]
@@ -248,7 +256,7 @@ class Drift:
         reference_elapsed = xs[-1]
         plc_elapsed = reference_elapsed + ys[-1]
         # Each transition is known to ± half its bracket; two ends of the measurement → at most one bracket.
-        bracket = max(width for _, _, width in first + last)
+        bracket = max(width for _, _, width in first + middle + last)
         return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
                                 resolution=bracket / reference_elapsed * 86400)
 
