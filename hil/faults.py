@@ -288,7 +288,12 @@ class Faults:
         if kind == "manual" and not sys.stdin.isatty():
             return f"[faults.{name}] kind = \"manual\" needs an operator, and stdin is not a terminal"
         if kind == "plc-bit":
-            return self.bench.cannot_reach(str(parse(spec["first"])))
+            first = parse(spec["first"])
+            if first.kind == "Y" and not self.bench.allow_destructive:
+                # DESIGN: driving outputs of somebody's machine needs an explicit opt-in.
+                return (f"[faults.{name}] drives outputs from {first}: pass --hil-allow-destructive (or set "
+                        f"[safety] allow_destructive) to let the harness switch them")
+            return self.bench.cannot_reach(str(first))
         return None
 
     @property

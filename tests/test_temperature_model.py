@@ -168,8 +168,9 @@ def test_rig_needs_temperature_modules():
 
 
 # -- injectors and the bench ------------------------------------------------------------------------------------
-def _bench(faults: dict) -> Bench:
-    data = {"bench": {"name": "t"}, "safety": {"writable": ["M1000-M1031", "R4010-R4011"]},
+def _bench(faults: dict, writable: list[str] = (), allow_destructive: bool = False) -> Bench:
+    data = {"bench": {"name": "t"}, "safety": {"writable": ["M1000-M1031", "R4010-R4011", *writable],
+                                               "allow_destructive": allow_destructive},
             "temperature": {"table": "R3000", "readings": "R3020", "work": "R3060",
                             "modules": [{"type": "6TC", "sensor": "K"}]},
             "faults": faults}
@@ -187,9 +188,19 @@ def test_plc_bit_injector_writes_through_the_guard_and_is_undone_at_end_of_test(
 
 
 def test_plc_bit_outside_the_allow_list_is_unavailable():
-    bench = _bench({"sensor_break": {"kind": "plc-bit", "first": "Y40"}})
+    bench = _bench({"sensor_break": {"kind": "plc-bit", "first": "M1040"}})
     assert "writable" in bench.faults.unavailable("sensor_break")
     assert bench.faults.sensor_break is None
+    bench.close()
+
+
+def test_plc_bit_on_outputs_needs_the_destructive_opt_in():
+    faults = {"sensor_break": {"kind": "plc-bit", "first": "Y40"}}
+    bench = _bench(faults, writable=["Y40-Y47"])
+    assert "--hil-allow-destructive" in bench.faults.unavailable("sensor_break")
+    bench.close()
+    bench = _bench(faults, writable=["Y40-Y47"], allow_destructive=True)
+    assert bench.faults.unavailable("sensor_break") is None
     bench.close()
 
 
