@@ -78,6 +78,8 @@ class RtcModel(Model):
         self._rate = self.chip_rate(self._code)
         self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
         self._adjust = 0
+        self._shown_second: int | None = None  # the chip second last copied out, and R4128–R4135 as written
+        self._shown: list[int] = []
 
     # -- the engine's hooks ---------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
@@ -102,8 +104,23 @@ class RtcModel(Model):
             if adjust and not self._adjust:
                 self.on_adjust_edge(emu)
             if not hold:
-                self.copy_out(emu, self.read_chip(emu.now))
+                self._read_out(emu)
         self._hold, self._adjust = hold, adjust
+
+    def _read_out(self, emu: "Emulator") -> None:
+        """copy_out(read_chip(now)), skipped when the chip still shows the second already in R4128–R4135 (the
+        unmodified model only: a variant overriding a step always takes the full path)."""
+        cls = type(self)
+        if (cls.read_chip is not RtcModel.read_chip or cls.copy_out is not RtcModel.copy_out
+                or cls.weekday_for is not RtcModel.weekday_for):
+            self.copy_out(emu, self.read_chip(emu.now))
+            return
+        second = math.floor(self.chip_seconds(emu.now))
+        words = emu.memory.words["R"]
+        if second == self._shown_second and words[_FIRST:_HOUR_MINUTE + 1] == self._shown:
+            return
+        self.copy_out(emu, self.read_chip(emu.now))
+        self._shown_second, self._shown = second, words[_FIRST:_HOUR_MINUTE + 1]
 
     def next_event(self, now: float) -> float:
         """Never: the chip's time is a formula of virtual time, and the engine always runs the scan after a

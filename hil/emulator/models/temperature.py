@@ -90,6 +90,10 @@ class TemperatureModel(Model):
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         self._mux: list[int] = [0] * len(self.fitted)  # the point (within the module) measured next
         self._breaks = 0  # 32 break bits as the model last wrote them
+        self._break_key: int | None = None  # _breaks for which _break_value was computed
+        self._break_value = (0, 0)
+        self._layout_cache: dict[tuple[int, ...], tuple] = {}
+        self._plan_cache: dict[tuple, tuple] = {}
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
@@ -156,31 +160,33 @@ class TemperatureModel(Model):
     def _step(self, module: ModuleType) -> float:
         return module.update_s[self.config.rate] / module.points
 
-    def scan(self, emu: "Emulator") -> None:
-        mem = emu.memory
-        words = mem.words[self.config.table.kind]
-        sr = self.config.table.index
-        if words[sr] != TABLE_MARKER:
-            self.state = "idle"
-            return
-        count = words[sr + 1]
-        readings, work = decode_start(words[sr + 2]), decode_start(words[sr + 3])
-        if work is None:  # nowhere to report anything
-            self.state = "idle"
-            return
-        codes = words[sr + 4:sr + 4 + min(count, MAX_MODULES)]
-        table_modules = [MODULE_BY_CODE.get(c & 0xFF) for c in codes]
-        total = sum(m.points for m in table_modules if m)
-        if count == 0 or count > MAX_MODULES:
-            self.state = "bad_module_count"
-        elif total > MAX_POINTS:
-            self.state = "too_many_points"
-        else:
-            self.state = "measuring"
-        mismatch = 0
-        expected: set[int] = set()
-        entries: list[int] = []
-        if self.state == "measuring" and readings is not None:
+    def _layout(self, key: tuple[int, ...]) -> tuple:
+        """The table's decoded layout (state, readings, work, codes, modules, total), cached on its raw words."""
+        cached = self._layout_cache.get(key)
+        if cached is None:
+            count = key[1]
+            readings, work = decode_start(key[2]), decode_start(key[3])
+            codes = list(key[4:])
+            table_modules = [MODULE_BY_CODE.get(c & 0xFF) for c in codes]
+            total = sum(m.points for m in table_modules if m)
+            if count == 0 or count > MAX_MODULES:
+                state = "bad_module_count"
+            elif total > MAX_POINTS:
+                state = "too_many_points"
+            else:
+                state = "measuring"
+            if len(self._layout_cache) > 64:
+                self._layout_cache.clear()
+            cached = self._layout_cache[key] = (state, readings, work, codes, table_modules, total)
+        return cached
+
+    def _plan(self, codes: list[int], table_modules: list, readings_word: int) -> tuple:
+        """(mismatch bits, points expected, TW entries with the mux words 0, [(k, first point, code)] measured),
+        cached on the table and the fitted modules."""
+        key = (tuple(codes), readings_word, tuple(id(m) for m in self.fitted))
+        plan = self._plan_cache.get(key)
+        if plan is None:
+            mismatch, expected, entries, measured = 0, set(), [], []
             first = 0
             for k, (code, tm) in enumerate(zip(codes, table_modules)):
                 points = tm.points if tm else 0
@@ -189,18 +195,60 @@ class TemperatureModel(Model):
                     mismatch |= 1 << k
                 else:
                     expected.update(range(first, first + points))
-                    self._measure_module(emu, k, first, code >> 8, readings)
-                entries += [(code & 0xFF00) | (8 * k & 0xFF), points << 8 | k,
-                            (words[sr + 2] + first) & 0xFFFF, self._mux[k] if k < len(self._mux) else 0]
+                    measured.append((k, first, code))
+                entries += [(code & 0xFF00) | (8 * k & 0xFF), points << 8 | k, (readings_word + first) & 0xFFFF, 0]
                 first += points
+            if len(self._plan_cache) > 64:
+                self._plan_cache.clear()
+            plan = self._plan_cache[key] = (mismatch, frozenset(expected), tuple(entries), tuple(measured))
+        return plan
+
+    def scan(self, emu: "Emulator") -> None:
+        mem = emu.memory
+        words = mem.words[self.config.table.kind]
+        sr = self.config.table.index
+        if words[sr] != TABLE_MARKER:
+            self.state = "idle"
+            return
+        count = words[sr + 1]
+        state, readings, work, codes, table_modules, total = self._layout(
+            tuple(words[sr:sr + 4 + min(count, MAX_MODULES)]))
+        if work is None:  # nowhere to report anything
+            self.state = "idle"
+            return
+        self.state = state
+        mismatch = 0
+        expected: frozenset[int] = frozenset()
+        entries: list[int] = []
+        if self.state == "measuring" and readings is not None:
+            plan = self._plan(codes, table_modules, words[sr + 2])
+            mismatch, expected, entries, measured = plan
+            now = emu.now
+            for k, first, code in measured:
+                if self._next[k] <= now + 1e-9:
+                    self._measure_module(emu, k, first, code >> 8, readings)
+            entries = list(entries)
+            for k in range(min(len(codes), len(self._mux))):
+                entries[4 * k + 3] = self._mux[k]
         all_measured = bool(expected) and expected <= self._measured
         head = self.execution_code(self.state, all_measured) << 8 | mismatch
         low, high = self._break_words()
         block = [head, low, high, (total if self.state != "bad_module_count" else 0) << 8 | count & 0xFF]
-        mem.write(work, block + entries)
+        block += entries
+        bank = mem.words.get(work.kind)
+        if bank is not None:
+            bank[work.index:work.index + len(block)] = [v & 0xFFFF for v in block]
+        else:
+            mem.write(work, block)
 
     def _break_words(self) -> tuple[int, int]:
         """TW+1 and TW+2 from the break bits, each placed where :meth:`break_position` says."""
+        if self._breaks == self._break_key:
+            return self._break_value
+        self._break_key, self._break_value = self._breaks, self._compute_break_words()
+        return self._break_value
+
+    def _compute_break_words(self) -> tuple[int, int]:
         words = {1: 0, 2: 0}
         for point in range(MAX_POINTS):
             if self._breaks >> point & 1:
