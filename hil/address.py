@@ -15,6 +15,8 @@ C200â€“C255 are 32-bit counters on an FBs: their values are read as ``DRC200``â€
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -111,6 +113,13 @@ def parse(name: str | Address) -> Address:
         return name
     if not isinstance(name, str):
         raise AddressError(f"an FBs element name must be a string like 'R4128', not {name!r}")
+    return _parse_text(name)
+
+
+@functools.lru_cache(maxsize=8192)
+def _parse_text(name: str) -> Address:
+    # Cached: names are parsed on every request and every model access, and the answer (a frozen Address, or an
+    # AddressError, which is not cached) depends on the text alone.
     text = name.strip().upper()
     kind = next((k for k in _KINDS if text.startswith(k) and text[len(k):].isdigit()), None)
     if kind is None:
