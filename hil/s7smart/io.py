@@ -18,7 +18,7 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Callable, Iterable, Sequence
 
 from hil.link import Link
-from hil.errors import PlcErrorReply, ReplyTimeout, RestoreError, TransportError, WriteRefused
+from hil.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, RestoreError, TransportError, WriteRefused
 from hil.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
@@ -163,7 +163,7 @@ class ModbusS7Io(S7Io):
         from pymodbus.client import ModbusTcpClient
         hint = (f"is the CPU reachable at {host}:{port}, and does its program call MBUS_SLAVE (Modbus TCP server "
                 f"instruction) with this unit id and HoldStart/MaxHold matching the profile's [s7]?")
-        return cls(ModbusTcpClient(host, port=port, timeout=timeout, retries=retries),
+        return cls(ModbusTcpClient(host, port=port, timeout=timeout, retries=0),
                    f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})",
                    unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
 
@@ -174,7 +174,7 @@ class ModbusS7Io(S7Io):
         from pymodbus import FramerType
         from pymodbus.client import ModbusSerialClient
         client = ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
-                                    parity=parity, stopbits=stopbits, timeout=timeout, retries=retries)
+                                    parity=parity, stopbits=stopbits, timeout=timeout, retries=0)
         hint = f"does {device} exist and is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
         return cls(client, f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit} (S7-200 SMART map)",
                    unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
@@ -219,7 +219,7 @@ class ModbusS7Io(S7Io):
         for i in range(0, n, MAX_WRITE_REGISTERS):
             chunk = words[i:i + MAX_WRITE_REGISTERS]
             self._exchange(f"FC16 write holding registers at {lo + i} ×{len(chunk)}",
-                           lambda: self.client.write_registers(lo + i, chunk, device_id=self.unit))
+                           lambda: self.client.write_registers(lo + i, chunk, device_id=self.unit), write=True)
 
     def _read_bits(self, area: str, first: int, count: int) -> list[int]:
         self.map.bit_number(S7Address(area, (first + count - 1) // 8, (first + count - 1) % 8))
@@ -238,7 +238,8 @@ class ModbusS7Io(S7Io):
             raise ValueError("only Q bits (coils) are writable over Modbus")
         self.map.bit_number(S7Address("Q", (first + len(values) - 1) // 8, (first + len(values) - 1) % 8))
         self._exchange(f"FC15 write coils at {first} ×{len(values)}",
-                       lambda: self.client.write_coils(first, [bool(v) for v in values], device_id=self.unit))
+                       lambda: self.client.write_coils(first, [bool(v) for v in values], device_id=self.unit),
+                       write=True)
 
     def _status(self) -> PlcStatus:
         """Modbus has no status request: a one-register read proves the CPU answers; RUN/STOP stays unknown."""
@@ -249,21 +250,31 @@ class ModbusS7Io(S7Io):
     def _close(self) -> None:
         self.client.close()
 
-    def _exchange(self, what: str, send: Callable):  # noqa: ANN202 - a pymodbus response
+    def _exchange(self, what: str, send: Callable, *, write: bool = False):  # noqa: ANN202 - a pymodbus response
+        """One request.  Reads are retried (``retries``) by us — pymodbus itself never retries, since it would
+        repeat a write too; a write whose reply never came raises OutcomeUnknown and is not sent again."""
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
         from hil.transport.modbus import EXCEPTION_NAMES
-        self.requests += 1
-        try:
-            rr = send()
-        except ModbusIOException as exc:
-            raise ReplyTimeout(f"no reply to {what} from {self.description} after {self.retries + 1} tries of "
-                               f"{self.timeout:g} s: check the unit id, the wiring and that MBUS_SLAVE runs "
-                               f"[pymodbus: {exc}]") from None
-        except ConnectionException as exc:
-            raise TransportError(f"lost the connection to {self.description} during {what}: {self._hint} "
-                                 f"[pymodbus: {exc}]") from None
-        except ModbusException as exc:
-            raise TransportError(f"{what} to {self.description} failed: {exc}") from None
+        tries = 1 if write else self.retries + 1
+        for attempt in range(1, tries + 1):
+            self.requests += 1
+            try:
+                rr = send()
+                break
+            except ModbusIOException as exc:
+                if write:
+                    raise OutcomeUnknown(f"no reply to {what} from {self.description} within {self.timeout:g} s: "
+                                         f"the write may or may not have been applied (not repeated); read it "
+                                         f"back before relying on it [pymodbus: {exc}]") from None
+                if attempt == tries:
+                    raise ReplyTimeout(f"no reply to {what} from {self.description} after {tries} tries of "
+                                       f"{self.timeout:g} s: check the unit id, the wiring and that MBUS_SLAVE "
+                                       f"runs [pymodbus: {exc}]") from None
+            except ConnectionException as exc:
+                raise TransportError(f"lost the connection to {self.description} during {what}: {self._hint} "
+                                     f"[pymodbus: {exc}]") from None
+            except ModbusException as exc:
+                raise TransportError(f"{what} to {self.description} failed: {exc}") from None
         if rr.isError():
             code = getattr(rr, "exception_code", None)
             raise PlcErrorReply(str(code), EXCEPTION_NAMES.get(code, "error reply"), f"{what} on {self.description}")
