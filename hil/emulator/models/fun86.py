@@ -84,6 +84,12 @@ class Fun86Model(Model):
         self._emu: "Emulator | None" = None
         #: the temperature model's next measurement time (set by build_emulator): PV changes only there
         self.next_measurement: Callable[[], float] | None = None
+        #: the temperature model itself (set by build_emulator): its log of readings between scans, its bounds
+        self.temperature_model = None
+        #: set by the thermal plant when it integrates the PWM waveforms below exactly: no scans at PWM edges
+        self.pwm_exact = False
+        #: (bit kind, index) of each output Yn… driven now → (started, PWM period, ON seconds, Y when on, Y when off)
+        self.waveforms: dict[tuple[str, int], tuple] = {}
 
     # -- the seams broken variants override ---------------------------------------------------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -176,8 +182,35 @@ class Fun86Model(Model):
 
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
+        tm = self.temperature_model
+        self._log = tm.log if tm is not None and tm.log else None
         for inst, st in zip(self.config.instances, self.states):
             self._scan_instance(emu, mem, inst, st)
+            if not st.running:
+                self._drop_waveforms(inst, st)
+        if tm is not None:
+            # log the readings measured until the next scan (replayed there) while any instance runs
+            tm.log = {} if any(st.running for st in self.states) else None
+
+    def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
+        if self.waveforms:
+            for b in range(max(st.zn, 0)):
+                self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None)
+
+    def _replay(self, ps: PointState, entries: list, now: float, scan_time: float, high: bool, sv: int, os: int,
+                limit: int) -> None:
+        """The scans skipped since the last one, each of which saw a new reading of this point (the readings the
+        temperature model logged): the pre-alarm count and the heater-loop start as stepping would leave them."""
+        for at, pv in entries:
+            landed = math.ceil(at / scan_time - 1e-6) * scan_time
+            if landed >= now - scan_time / 2:
+                continue  # read at this very scan
+            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
+            if high and not self.in_band(pv, sv, os):
+                if ps.loop_since is None:
+                    ps.loop_since = landed
+            else:
+                ps.loop_since = None
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -230,6 +263,11 @@ class Fun86Model(Model):
             while st.next_pid <= now + 1e-9:
                 st.next_pid += st.interval
         phase = (now - st.started) % st.pwm
+        log = self._log
+        if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
+            log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
+        waveforms = self.waveforms
+        drive = self.drive
         normal_words, warning_words = [0, 0], [0, 0]
         out_of_band = warning = False
         for b in range(zn):
@@ -240,6 +278,10 @@ class Fun86Model(Model):
             os = _signed(words[inst.os.kind][inst.os.index + b])
             outputs = words[inst.or_.kind]
             enabled = self.enabled(mem, point)
+            if log is not None and enabled and point in log:
+                before = outputs[inst.or_.index + b]
+                self._replay(ps, log[point], now, emu.scan_time, before * 100 >= loop_percent * OUTPUT_FULL, sv, os,
+                             limit)
             if pid_due:
                 if enabled:
                     kc, ki, td = (words[a.kind][a.index + b] for a in (inst.pr, inst.ir, inst.dr))
@@ -249,7 +291,9 @@ class Fun86Model(Model):
                     ps.integral, ps.pv_prev = 0.0, None
             value = outputs[inst.or_.index + b]
             duty_on = phase < value / OUTPUT_FULL * st.pwm
-            bits[inst.yn.kind][inst.yn.index + b] = 1 if self.drive(enabled, duty_on) else 0
+            bits[inst.yn.kind][inst.yn.index + b] = 1 if drive(enabled, duty_on) else 0
+            waveforms[(inst.yn.kind, inst.yn.index + b)] = (st.started, st.pwm, value / OUTPUT_FULL * st.pwm,
+                                                             drive(enabled, True), drive(enabled, False))
             word, bit = self.bit_position(b)
             if not enabled:
                 ps.prealarm, ps.loop_since = 0, None
@@ -276,11 +320,24 @@ class Fun86Model(Model):
         bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(out_of_band, warning) else 0
 
     def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+        self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
         for b in range(st.zn):
             ys[inst.yn.index + b] = 0
         for ps in st.points.values():
             ps.prealarm, ps.loop_since = 0, None
+
+    def _log_off(self) -> bool:
+        """Without the temperature model's log of readings, every measurement needs its scan."""
+        return self.temperature_model is None or self.temperature_model.log is None
+
+    def _prealarm_possible(self, mem: "Memory", st: InstanceState) -> bool:
+        """Could a reading of an enabled point reach R4008 (then every measurement needs its scan)?"""
+        if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
+            return True
+        limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
+        upper = self.temperature_model.reading_upper
+        return any(self.enabled(mem, p) and upper(mem, p) >= limit for p in st.points)
 
     def next_event(self, now: float) -> float:
         mem = self._emu.memory if self._emu is not None else None
@@ -288,6 +345,7 @@ class Fun86Model(Model):
             return math.inf
         loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
         due = math.inf
+        measurements = False  # a scan at every measurement (a PV could reach R4008)
         for inst, st in zip(self.config.instances, self.states):
             if st.waiting and self.next_measurement is not None:
                 due = min(due, self.next_measurement())
@@ -296,9 +354,13 @@ class Fun86Model(Model):
             for ps in st.points.values():
                 if 0 < ps.prealarm < 4 * PREALARM_SCANS:
                     return now  # counting consecutive scans: every scan matters
-                if ps.loop_since is not None:
-                    due = min(due, ps.loop_since + loop_seconds)
+                if ps.loop_since is not None and ps.loop_since + loop_seconds > now + 1e-9:
+                    due = min(due, ps.loop_since + loop_seconds)  # (once open, its bit is recomputed each scan)
             due = min(due, st.next_pid)
+            if not measurements:
+                measurements = self._prealarm_possible(mem, st)
+            if self.pwm_exact:
+                continue  # the plant integrates the PWM between scans; the outputs are recomputed at each scan
             # PWM: every cycle start, and the end of each point's ON time within the current cycle
             cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
             due = min(due, cycle + st.pwm)
@@ -307,7 +369,7 @@ class Fun86Model(Model):
                 edge = cycle + outputs[inst.or_.index + b] / OUTPUT_FULL * st.pwm
                 if edge > now + 1e-9:
                     due = min(due, edge)
-        if due < math.inf and self.next_measurement is not None:
+        if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
         if due == math.inf:
             return due

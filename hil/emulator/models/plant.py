@@ -139,8 +139,100 @@ class _Heated:
     def measured(self, point: int, t: float) -> float:
         value = self.temperature(t)
         if self.p.noise:
-            value += random.Random(hash((self.seed, point, round(t, 6)))).gauss(0.0, self.p.noise)
+            value += _noise(self.seed, point, t, self.p.noise)
         return value
+
+    def upper(self) -> float:
+        """No measurement of this point ever exceeds this (T stays between its start, ambient and full power)."""
+        p = self.p
+        start = p.ambient if p.initial is None else p.initial
+        return max(start, p.ambient, p.ambient + p.gain) + NOISE_CLIP * p.noise
+
+
+#: measurement noise is clipped at this many standard deviations (so a reading has a hard bound: the FUN86 model
+#: can then skip the scans at measurements that can never reach the pre-alarm limit)
+NOISE_CLIP = 6.0
+
+
+def _noise(seed: int, point: int, t: float, sigma: float) -> float:
+    value = random.Random(hash((seed, point, round(t, 6)))).gauss(0.0, sigma)
+    return min(max(value, -NOISE_CLIP * sigma), NOISE_CLIP * sigma)
+
+
+def _grid(x: float, st: float) -> float:
+    """The first scan at or after virtual time x, on the scan grid (as the engine's fast-forward lands)."""
+    return math.ceil(x / st - 1e-6) * st
+
+
+class _Waved:
+    """One point without dead time whose heater follows a known waveform between scans: the anchor (t0, T0) moves
+    only when the waveform changes (a scan with a new PID output, a fault, a new output), and T at any later time
+    is solved segment by segment through the PWM's switches, on the scan grid (where stepping would switch).
+
+    The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
+    grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
+
+    __slots__ = ("p", "t0", "temp0", "wave", "seed")
+
+    def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
+        self.p = p
+        self.t0 = now
+        self.temp0 = p.ambient if p.initial is None else p.initial
+        self.wave: tuple = (0,)
+        self.seed = seed
+
+    def temperature(self, t: float) -> float:
+        temp, a = self.temp0, self.t0
+        if t <= a:
+            return temp
+        p = self.p
+        wave = self.wave
+        tau, ambient, gain = p.tau, p.ambient, p.gain
+        if len(wave) == 1:
+            target = ambient + gain * wave[0]
+            return target + (temp - target) * math.exp(-(t - a) / tau)
+        started, period, on, u_on, u_off, st = wave
+        t_on, t_off = ambient + gain * u_on, ambient + gain * u_off
+        k = math.floor((a - started) / period) - 1
+        start = _grid(started + k * period, st)
+        while start < t:
+            off = _grid(started + k * period + on, st)
+            k += 1
+            nxt = _grid(started + k * period, st)
+            lo, hi = max(start, a), min(off, t)
+            if hi > lo:
+                temp = t_on + (temp - t_on) * math.exp(-(hi - lo) / tau)
+            lo, hi = max(off, a), min(nxt, t)
+            if hi > lo:
+                temp = t_off + (temp - t_off) * math.exp(-(hi - lo) / tau)
+            start = nxt
+        return temp
+
+    def set_wave(self, now: float, wave: tuple) -> None:
+        if wave == self.wave:
+            return
+        if now > self.t0:
+            self.temp0 = self.temperature(now)
+            self.t0 = now
+        self.wave = wave
+
+    measured = _Heated.measured
+    upper = _Heated.upper
+
+
+class _Source:
+    """A heated point as a temperature source (a callable of time, with a hard upper bound)."""
+
+    __slots__ = ("heated", "point")
+
+    def __init__(self, heated, point: int) -> None:  # noqa: ANN001
+        self.heated, self.point = heated, point
+
+    def __call__(self, t: float) -> float:
+        return self.heated.measured(self.point, t)
+
+    def upper_bound(self) -> float:
+        return self.heated.upper()
 
 
 class ThermalPlant(Model):
@@ -156,6 +248,9 @@ class ThermalPlant(Model):
         self._wiring: list | None = None  # (point, state, bit bank, index) per heater, built at the first scan
         self._spans: list = []  # (bit bank, first, end) covering every heater output
         self._last_outputs: list[bytes] | None = None  # those outputs at the last fast-path scan
+        self._fun86 = None
+        self._scan_time = 0.01
+        self.waved = False
 
     # -- faults (injectors) ------------------------------------------------------------------------------------------
     def set_fault(self, fault: str, point: int, on: bool) -> None:
@@ -183,11 +278,19 @@ class ThermalPlant(Model):
     def power_on(self, emu: "Emulator") -> None:
         from hil.emulator.models.temperature import TemperatureModel
         temperature = emu.model(TemperatureModel)
+        from hil.emulator.models.fun86 import Fun86Model
+        self._fun86 = emu.model(Fun86Model)
+        self._scan_time = emu.scan_time
+        #: without dead time the heaters' PWM is integrated exactly between scans (FUN86 then needs no scans at its
+        #: PWM edges); with dead time the plant follows the outputs scan by scan (FUN86 scans at every edge)
+        self.waved = all(self.config.point(p).dead_time == 0.0 for p in self.heaters)
+        if self._fun86 is not None:
+            self._fun86.pwm_exact = self.waved
         for point in self.heaters:
-            heated = _Heated(self.config.point(point), emu.now, self.seed)
+            heated = (_Waved if self.waved else _Heated)(self.config.point(point), emu.now, self.seed)
             self.points[point] = heated
             if temperature is not None and point < temperature.config.points:
-                temperature.set_source(point, lambda t, h=heated, p=point: h.measured(p, t))
+                temperature.set_source(point, _Source(heated, point))
 
     def scan(self, emu: "Emulator") -> None:
         y = emu.memory.bits
@@ -198,6 +301,24 @@ class ThermalPlant(Model):
             kinds = {self.heaters[p].kind for p in self.points}
             self._spans = [(y[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
                             max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
+        if self.waved:
+            waves = self._fun86.waveforms if self._fun86 is not None else {}
+            power, st = self.power, self._scan_time
+            for point, heated, bank, index in self._wiring:
+                w = waves.get((self.heaters[point].kind, index))
+                if w is None:
+                    wave = (power(point, bool(bank[index])),)
+                else:
+                    started, period, on, y_on, y_off = w
+                    u_on, u_off = power(point, bool(y_on)), power(point, bool(y_off))
+                    if u_on == u_off or on <= 0:
+                        wave = (u_off,)
+                    elif on >= period:
+                        wave = (u_on,)
+                    else:
+                        wave = (started, period, on, u_on, u_off, st)
+                heated.set_wave(now, wave)
+            return
         if type(self).power is ThermalPlant.power and not any(self.faults.values()):
             # the common case, without a call per point: u is the output itself; a point whose u is unchanged
             # keeps its anchor (what _Heated.advance would do), so outputs unchanged since the last such scan

@@ -94,6 +94,10 @@ class TemperatureModel(Model):
         self._break_value = (0, 0)
         self._layout_cache: dict[tuple[int, ...], tuple] = {}
         self._plan_cache: dict[tuple, tuple] = {}
+        #: while a FUN86 model runs: point → [(time, reading)] measured since its last scan (it replays them), and
+        #: where those readings are (kind, first index)
+        self.log: dict[int, list[tuple[float, int]]] | None = None
+        self.log_start: tuple[str, int] | None = None
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
@@ -263,7 +267,7 @@ class TemperatureModel(Model):
         # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
         # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
         keep = (self.config.averaging + 1) * cycle
-        if emu.now - self._next[k] > keep:
+        if emu.now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
             self._next[k] += math.floor((emu.now - self._next[k] - keep) / cycle) * cycle
         while self._next[k] <= emu.now + 1e-9:
             point = first + self._mux[k]
@@ -282,11 +286,37 @@ class TemperatureModel(Model):
             self._samples.pop(point, None)  # [our choice] a repaired sensor reads its live value at once
         reading, flagged = self.point_result(point, installed, broken, live)
         mem.words[readings.kind][readings.index + point] = reading & 0xFFFF
+        if self.log is not None:
+            self.log_start = (readings.kind, readings.index)
+            self.log.setdefault(point, []).append((at, _signed(reading & 0xFFFF)))
         if flagged:
             self._breaks |= 1 << point
         else:
             self._breaks &= ~(1 << point)
         self._measured.add(point)
+
+    def reading_upper(self, mem: "Memory", point: int) -> float:
+        """No reading of ``point`` from now on can exceed this (``inf`` when the model cannot tell)."""
+        if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
+                or point in self.broken or not self.installed(mem, point)):
+            return math.inf
+        source = self.sources.get(point)
+        if isinstance(source, Fixed):
+            celsius = source.celsius
+        elif isinstance(source, Ramp):  # falling: never above where it started
+            celsius = source.high if source.per_s > 0 else min(max(source.start, source.low), source.high)
+        elif hasattr(source, "upper_bound"):
+            celsius = source.upper_bound()
+        else:
+            return math.inf
+        if math.isinf(celsius):
+            return math.inf
+        value = to_unit(celsius, self.config.unit)
+        samples = self._samples.get(point)
+        if samples:
+            value = max(value, max(samples))
+        high = math.ceil(value) + 1
+        return high * 10 if self.config.rate == "fast" else math.ceil(value * 10) + 1
 
     def _live(self, now: float, point: int, sensor_code: int) -> int:
         """The reading of a working sensor: source → unit → range → averaging → resolution, in 0.1°."""
@@ -301,6 +331,10 @@ class TemperatureModel(Model):
         if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
             return int(round(mean)) * 10
         return int(round(mean * 10))
+
+
+def _signed(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word
 
 
 def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
