@@ -154,9 +154,21 @@ class _Heated:
 NOISE_CLIP = 6.0
 
 
+_NORMALS: dict[int, list[float]] = {}
+
+
+def _normals(seed: int) -> list[float]:
+    """65536 standard normal values, clipped at ±NOISE_CLIP, drawn once per seed."""
+    table = _NORMALS.get(seed)
+    if table is None:
+        rng = random.Random(seed)
+        table = _NORMALS[seed] = [min(max(rng.gauss(0.0, 1.0), -NOISE_CLIP), NOISE_CLIP) for _ in range(65536)]
+    return table
+
+
 def _noise(seed: int, point: int, t: float, sigma: float) -> float:
-    value = random.Random(hash((seed, point, round(t, 6)))).gauss(0.0, sigma)
-    return min(max(value, -NOISE_CLIP * sigma), NOISE_CLIP * sigma)
+    """The noise of one measurement: a function of (seed, point, time) only, so a jump and stepping agree."""
+    return _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * sigma
 
 
 def _grid(x: float, st: float) -> float:
@@ -172,7 +184,7 @@ class _Waved:
     The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
     grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
 
-    __slots__ = ("p", "t0", "temp0", "wave", "seed")
+    __slots__ = ("p", "t0", "temp0", "wave", "seed", "_memo")
 
     def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
         self.p = p
@@ -180,6 +192,7 @@ class _Waved:
         self.temp0 = p.ambient if p.initial is None else p.initial
         self.wave: tuple = (0,)
         self.seed = seed
+        self._memo: list = []
 
     def temperature(self, t: float) -> float:
         temp, a = self.temp0, self.t0
@@ -187,24 +200,35 @@ class _Waved:
             return temp
         p = self.p
         wave = self.wave
-        tau, ambient, gain = p.tau, p.ambient, p.gain
+        tau = p.tau
         if len(wave) == 1:
-            target = ambient + gain * wave[0]
+            target = p.ambient + p.gain * wave[0]
             return target + (temp - target) * math.exp(-(t - a) / tau)
         started, period, on, u_on, u_off, st = wave
-        t_on, t_off = ambient + gain * u_on, ambient + gain * u_off
-        k = math.floor((a - started) / period) - 1
-        start = _grid(started + k * period, st)
+        t_on, t_off = p.ambient + p.gain * u_on, p.ambient + p.gain * u_off
+        # the loop's state at each cycle start reached so far: (k, start, T) — a query resumes from the last one
+        # before t, doing exactly the operations a query from the anchor would
+        memo = self._memo
+        if not memo:
+            k = math.floor((a - started) / period) - 1
+            memo.append((k, math.ceil((started + k * period) / st - 1e-6) * st, temp))
+        i = len(memo) - 1
+        while i > 0 and memo[i][1] >= t:
+            i -= 1
+        k, start, temp = memo[i]
+        exp, ceil = math.exp, math.ceil
         while start < t:
-            off = _grid(started + k * period + on, st)
+            off = ceil((started + k * period + on) / st - 1e-6) * st
             k += 1
-            nxt = _grid(started + k * period, st)
-            lo, hi = max(start, a), min(off, t)
+            nxt = ceil((started + k * period) / st - 1e-6) * st
+            lo, hi = (start if start > a else a), (off if off < t else t)
             if hi > lo:
-                temp = t_on + (temp - t_on) * math.exp(-(hi - lo) / tau)
-            lo, hi = max(off, a), min(nxt, t)
+                temp = t_on + (temp - t_on) * exp(-(hi - lo) / tau)
+            lo, hi = (off if off > a else a), (nxt if nxt < t else t)
             if hi > lo:
-                temp = t_off + (temp - t_off) * math.exp(-(hi - lo) / tau)
+                temp = t_off + (temp - t_off) * exp(-(hi - lo) / tau)
+            if nxt <= t and memo[-1][0] == k - 1:
+                memo.append((k, nxt, temp))
             start = nxt
         return temp
 
@@ -215,6 +239,7 @@ class _Waved:
             self.temp0 = self.temperature(now)
             self.t0 = now
         self.wave = wave
+        self._memo = []
 
     measured = _Heated.measured
     upper = _Heated.upper
