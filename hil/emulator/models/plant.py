@@ -241,7 +241,14 @@ class _Waved:
         self.wave = wave
         self._memo = []
 
-    measured = _Heated.measured
+    def measured(self, point: int, t: float) -> float:
+        value = self.temperature(t)
+        noise = self.p.noise
+        if noise:
+            seed = self.seed
+            value += _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * noise
+        return value
+
     upper = _Heated.upper
 
 
