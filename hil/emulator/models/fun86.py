@@ -267,51 +267,60 @@ class Fun86Model(Model):
         if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
             log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
         waveforms = self.waveforms
-        drive = self.drive
+        driven = {e: (bool(self.drive(e, True)), bool(self.drive(e, False))) for e in (False, True)}
+        enabled_of, in_band, count_of, prealarm_of = self.enabled, self.in_band, self.prealarm_count, self.prealarm
+        loop_elapsed, bit_position = self.loop_elapsed, self.bit_position
+        pvs, pv_base = words[start.kind], start.index + sn
+        svs, sv_base = words[inst.sv.kind], inst.sv.index
+        oss, os_base = words[inst.os.kind], inst.os.index
+        outputs, or_base = words[inst.or_.kind], inst.or_.index
+        ys, y_kind, y_base = bits[inst.yn.kind], inst.yn.kind, inst.yn.index
+        points, pwm, started = st.points, st.pwm, st.started
+        high_at = loop_percent * OUTPUT_FULL
         normal_words, warning_words = [0, 0], [0, 0]
         out_of_band = warning = False
         for b in range(zn):
             point = sn + b
-            ps = st.points[point]
-            pv = _signed(words[start.kind][start.index + point])
-            sv = _signed(words[inst.sv.kind][inst.sv.index + b])
-            os = _signed(words[inst.os.kind][inst.os.index + b])
-            outputs = words[inst.or_.kind]
-            enabled = self.enabled(mem, point)
+            ps = points[point]
+            pv = pvs[pv_base + b]
+            pv = pv - 0x10000 if pv & 0x8000 else pv
+            sv = svs[sv_base + b]
+            sv = sv - 0x10000 if sv & 0x8000 else sv
+            os = oss[os_base + b]
+            os = os - 0x10000 if os & 0x8000 else os
+            enabled = enabled_of(mem, point)
             if log is not None and enabled and point in log:
-                before = outputs[inst.or_.index + b]
-                self._replay(ps, log[point], now, emu.scan_time, before * 100 >= loop_percent * OUTPUT_FULL, sv, os,
+                self._replay(ps, log[point], now, emu.scan_time, outputs[or_base + b] * 100 >= high_at, sv, os,
                              limit)
             if pid_due:
                 if enabled:
                     kc, ki, td = (words[a.kind][a.index + b] for a in (inst.pr, inst.ir, inst.dr))
-                    outputs[inst.or_.index + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
+                    outputs[or_base + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
                 else:
-                    outputs[inst.or_.index + b] = 0
+                    outputs[or_base + b] = 0
                     ps.integral, ps.pv_prev = 0.0, None
-            value = outputs[inst.or_.index + b]
-            duty_on = phase < value / OUTPUT_FULL * st.pwm
-            bits[inst.yn.kind][inst.yn.index + b] = 1 if drive(enabled, duty_on) else 0
-            waveforms[(inst.yn.kind, inst.yn.index + b)] = (st.started, st.pwm, value / OUTPUT_FULL * st.pwm,
-                                                             drive(enabled, True), drive(enabled, False))
-            word, bit = self.bit_position(b)
+            value = outputs[or_base + b]
+            on_time = value / OUTPUT_FULL * pwm
+            y_on, y_off = driven[bool(enabled)]
+            ys[y_base + b] = 1 if (y_on if phase < on_time else y_off) else 0
+            waveforms[(y_kind, y_base + b)] = (started, pwm, on_time, y_on, y_off)
+            word, bit = bit_position(b)
             if not enabled:
                 ps.prealarm, ps.loop_since = 0, None
                 continue
-            normal = self.in_band(pv, sv, os)
+            normal = in_band(pv, sv, os)
             if normal:
                 normal_words[word] |= 1 << bit
             else:
                 out_of_band = True
-            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
-            high_output = value * 100 >= loop_percent * OUTPUT_FULL
-            if high_output and not normal:
+            ps.prealarm = count_of(ps.prealarm, pv, limit)
+            if value * 100 >= high_at and not normal:
                 if ps.loop_since is None:
                     ps.loop_since = now
             else:
                 ps.loop_since = None
-            loop_open = ps.loop_since is not None and self.loop_elapsed(ps.loop_since, now) >= loop_seconds
-            if self.prealarm(ps.prealarm) or loop_open:
+            loop_open = ps.loop_since is not None and loop_elapsed(ps.loop_since, now) >= loop_seconds
+            if prealarm_of(ps.prealarm) or loop_open:
                 warning_words[word] |= 1 << bit
                 warning = True
         wr = inst.wr
@@ -336,8 +345,8 @@ class Fun86Model(Model):
         if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
             return True
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
-        upper = self.temperature_model.reading_upper
-        return any(self.enabled(mem, p) and upper(mem, p) >= limit for p in st.points)
+        points = [p for p in st.points if self.enabled(mem, p)]
+        return bool(points) and self.temperature_model.readings_upper(mem, points) >= limit
 
     def next_event(self, now: float) -> float:
         mem = self._emu.memory if self._emu is not None else None

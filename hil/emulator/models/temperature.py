@@ -98,6 +98,7 @@ class TemperatureModel(Model):
         #: where those readings are (kind, first index)
         self.log: dict[int, list[tuple[float, int]]] | None = None
         self.log_start: tuple[str, int] | None = None
+        self._upper_cache: dict[int, tuple] = {}
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
@@ -355,12 +356,29 @@ class TemperatureModel(Model):
             self._breaks &= ~(1 << point)
         self._measured.add(point)
 
-    def reading_upper(self, mem: "Memory", point: int) -> float:
-        """No reading of ``point`` from now on can exceed this (``inf`` when the model cannot tell)."""
+    def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
+        """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
+        cache = self._upper_cache
+        samples_of = self._samples
+        top = -math.inf
+        for point in points:
+            source = self.sources.get(point)
+            hit = cache.get(point)
+            if hit is None or hit[0] is not source:
+                hit = cache[point] = (source, self._source_upper(source))
+            value = hit[1]
+            samples = samples_of.get(point)
+            if samples:
+                value = max(value, max(samples))
+            if value > top:
+                top = value
         if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
-                or point in self.broken or not self.installed(mem, point)):
+                or math.isinf(top) or any(p in self.broken or not self.installed(mem, p) for p in points)):
             return math.inf
-        source = self.sources.get(point)
+        return (math.ceil(top) + 1) * 10 if self.config.rate == "fast" else math.ceil(top * 10) + 1
+
+    def _source_upper(self, source) -> float:  # noqa: ANN001
+        """A source's highest value, in the configured unit (``inf`` when unknown)."""
         if isinstance(source, Fixed):
             celsius = source.celsius
         elif isinstance(source, Ramp):  # falling: never above where it started
@@ -369,14 +387,7 @@ class TemperatureModel(Model):
             celsius = source.upper_bound()
         else:
             return math.inf
-        if math.isinf(celsius):
-            return math.inf
-        value = to_unit(celsius, self.config.unit)
-        samples = self._samples.get(point)
-        if samples:
-            value = max(value, max(samples))
-        high = math.ceil(value) + 1
-        return high * 10 if self.config.rate == "fast" else math.ceil(value * 10) + 1
+        return math.inf if math.isinf(celsius) else to_unit(celsius, self.config.unit)
 
     def _live(self, now: float, point: int, sensor_code: int) -> int:
         """The reading of a working sensor: source → unit → range → averaging → resolution, in 0.1°."""
