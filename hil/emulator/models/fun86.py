@@ -276,6 +276,9 @@ class Fun86Model(Model):
         outputs, or_base = words[inst.or_.kind], inst.or_.index
         ys, y_kind, y_base = bits[inst.yn.kind], inst.yn.kind, inst.yn.index
         points, pwm, started = st.points, st.pwm, st.started
+        prs, pr_base = words[inst.pr.kind], inst.pr.index
+        irs, ir_base = words[inst.ir.kind], inst.ir.index
+        drs, dr_base = words[inst.dr.kind], inst.dr.index
         high_at = loop_percent * OUTPUT_FULL
         normal_words, warning_words = [0, 0], [0, 0]
         out_of_band = warning = False
@@ -294,7 +297,7 @@ class Fun86Model(Model):
                              limit)
             if pid_due:
                 if enabled:
-                    kc, ki, td = (words[a.kind][a.index + b] for a in (inst.pr, inst.ir, inst.dr))
+                    kc, ki, td = prs[pr_base + b], irs[ir_base + b], drs[dr_base + b]
                     outputs[or_base + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
                 else:
                     outputs[or_base + b] = 0

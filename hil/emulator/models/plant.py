@@ -209,27 +209,32 @@ class _Waved:
         # the loop's state at each cycle start reached so far: (k, start, T) — a query resumes from the last one
         # before t, doing exactly the operations a query from the anchor would
         memo = self._memo
+        ceil = math.ceil
         if not memo:
             k = math.floor((a - started) / period) - 1
-            memo.append((k, math.ceil((started + k * period) / st - 1e-6) * st, temp))
+            memo.append((k, ceil((started + k * period) / st - 1e-6) * st, temp,
+                         ceil((started + k * period + on) / st - 1e-6) * st,
+                         ceil((started + (k + 1) * period) / st - 1e-6) * st))
         i = len(memo) - 1
         while i > 0 and memo[i][1] >= t:
             i -= 1
-        k, start, temp = memo[i]
-        exp, ceil = math.exp, math.ceil
+        k, start, temp, off, nxt = memo[i]
+        exp = math.exp
         while start < t:
-            off = ceil((started + k * period + on) / st - 1e-6) * st
-            k += 1
-            nxt = ceil((started + k * period) / st - 1e-6) * st
             lo, hi = (start if start > a else a), (off if off < t else t)
             if hi > lo:
                 temp = t_on + (temp - t_on) * exp(-(hi - lo) / tau)
             lo, hi = (off if off > a else a), (nxt if nxt < t else t)
             if hi > lo:
                 temp = t_off + (temp - t_off) * exp(-(hi - lo) / tau)
-            if nxt <= t and memo[-1][0] == k - 1:
-                memo.append((k, nxt, temp))
+            k += 1
             start = nxt
+            if start >= t:
+                break
+            off = ceil((started + k * period + on) / st - 1e-6) * st
+            nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
+            if memo[-1][0] == k - 1:
+                memo.append((k, start, temp, off, nxt))
         return temp
 
     def set_wave(self, now: float, wave: tuple) -> None:
