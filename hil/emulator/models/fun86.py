@@ -18,9 +18,17 @@ Temperatures come from the readings, where R4003/R4004 or the temperature table 
 Every decision a faulty PLC could get wrong is one small method (the "seams" below), so the harness's tests can
 build broken PLCs as tiny subclasses.
 
-Time: the model asks for a scan at each PID interval, PWM edge, temperature measurement (PV may cross R4008
-there) and heater-loop deadline, and for every scan while a pre-alarm count is running; otherwise the engine
-jumps.  With EN off it asks for nothing (the default bench's virtual day stays one jump).
+Time: the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
+pre-alarm count is running; otherwise the engine jumps.  In between:
+
+* PWM edges need no scan when the thermal plant integrates the published :attr:`Fun86Model.waveforms` exactly
+  (no dead time: ``pwm_exact``); otherwise the model asks for a scan at every edge.
+* measurements need no scan: the temperature model logs the readings taken between scans, and the next scan replays
+  them (pre-alarm count, heater-loop start, each at the scan that would have seen it), unless a reading of an
+  enabled point could reach R4008 (the temperature model's hard bound on its readings; the plant clips its noise at
+  6 σ for that), a pre-alarm seam is overridden, or there is no log: then every measurement gets its scan.
+
+With EN off it asks for nothing (the default bench's virtual day stays one jump).
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@ optional dead time and seeded measurement noise; faults heater open (no heating)
 
 Model (per point, first order): τ·dT/dt = ambient + gain·u(t − dead_time) − T, u ∈ {0, 1} the heater's state.
 ``gain`` is how far above ambient full power would settle.  u is what the point's output (Y…) showed at the last
-scan, so the plant is exactly as good as the PWM the PLC produces.  Between scans u is constant, so T is solved
+scan, so the plant is exactly as good as the PWM the PLC produces; without dead time, a FUN86 output's PWM is known
+between scans (its waveform, switching on the scan grid) and is integrated exactly, so it needs no scans at its edges.
+Measurement noise is clipped at ±6 σ.  Between scans (and PWM switches) u is constant, so T is solved
 analytically piece by piece: the plant answers T at any time in the current scan window (the temperature model
 catches measurements up at their scheduled, past times) and needs no scans of its own.
 
