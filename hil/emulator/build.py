@@ -41,6 +41,7 @@ def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     fun86 = Fun86Model(config, temperature.config if temperature else None)
     if temperature is not None:
         fun86.next_measurement = temperature.next_measurement
+        fun86.temperature_model = temperature
     emulator.add_model(fun86)
     if "plant" in profile.areas:
         heaters = {p: inst.yn.offset(p - inst.sn) for inst in config.instances if not inst.settable

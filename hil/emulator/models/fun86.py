@@ -18,9 +18,17 @@ Temperatures come from the readings, where R4003/R4004 or the temperature table 
 Every decision a faulty PLC could get wrong is one small method (the "seams" below), so the harness's tests can
 build broken PLCs as tiny subclasses.
 
-Time: the model asks for a scan at each PID interval, PWM edge, temperature measurement (PV may cross R4008
-there) and heater-loop deadline, and for every scan while a pre-alarm count is running; otherwise the engine
-jumps.  With EN off it asks for nothing (the default bench's virtual day stays one jump).
+Time: the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
+pre-alarm count is running; otherwise the engine jumps.  In between:
+
+* PWM edges need no scan when the thermal plant integrates the published :attr:`Fun86Model.waveforms` exactly
+  (no dead time: ``pwm_exact``); otherwise the model asks for a scan at every edge.
+* measurements need no scan: the temperature model logs the readings taken between scans, and the next scan replays
+  them (pre-alarm count, heater-loop start, each at the scan that would have seen it), unless a reading of an
+  enabled point could reach R4008 (the temperature model's hard bound on its readings; the plant clips its noise at
+  6 σ for that), a pre-alarm seam is overridden, or there is no log: then every measurement gets its scan.
+
+With EN off it asks for nothing (the default bench's virtual day stays one jump).
 """
 
 from __future__ import annotations
@@ -84,6 +92,12 @@ class Fun86Model(Model):
         self._emu: "Emulator | None" = None
         #: the temperature model's next measurement time (set by build_emulator): PV changes only there
         self.next_measurement: Callable[[], float] | None = None
+        #: the temperature model itself (set by build_emulator): its log of readings between scans, its bounds
+        self.temperature_model = None
+        #: set by the thermal plant when it integrates the PWM waveforms below exactly: no scans at PWM edges
+        self.pwm_exact = False
+        #: (bit kind, index) of each output Yn… driven now → (started, PWM period, ON seconds, Y when on, Y when off)
+        self.waveforms: dict[tuple[str, int], tuple] = {}
 
     # -- the seams broken variants override ---------------------------------------------------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -176,8 +190,35 @@ class Fun86Model(Model):
 
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
+        tm = self.temperature_model
+        self._log = tm.log if tm is not None and tm.log else None
         for inst, st in zip(self.config.instances, self.states):
             self._scan_instance(emu, mem, inst, st)
+            if not st.running:
+                self._drop_waveforms(inst, st)
+        if tm is not None:
+            # log the readings measured until the next scan (replayed there) while any instance runs
+            tm.log = {} if any(st.running for st in self.states) else None
+
+    def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
+        if self.waveforms:
+            for b in range(max(st.zn, 0)):
+                self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None)
+
+    def _replay(self, ps: PointState, entries: list, now: float, scan_time: float, high: bool, sv: int, os: int,
+                limit: int) -> None:
+        """The scans skipped since the last one, each of which saw a new reading of this point (the readings the
+        temperature model logged): the pre-alarm count and the heater-loop start as stepping would leave them."""
+        for at, pv in entries:
+            landed = math.ceil(at / scan_time - 1e-6) * scan_time
+            if landed >= now - scan_time / 2:
+                continue  # read at this very scan
+            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
+            if high and not self.in_band(pv, sv, os):
+                if ps.loop_since is None:
+                    ps.loop_since = landed
+            else:
+                ps.loop_since = None
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -230,44 +271,67 @@ class Fun86Model(Model):
             while st.next_pid <= now + 1e-9:
                 st.next_pid += st.interval
         phase = (now - st.started) % st.pwm
+        log = self._log
+        if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
+            log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
+        waveforms = self.waveforms
+        driven = {e: (bool(self.drive(e, True)), bool(self.drive(e, False))) for e in (False, True)}
+        enabled_of, in_band, count_of, prealarm_of = self.enabled, self.in_band, self.prealarm_count, self.prealarm
+        loop_elapsed, bit_position = self.loop_elapsed, self.bit_position
+        pvs, pv_base = words[start.kind], start.index + sn
+        svs, sv_base = words[inst.sv.kind], inst.sv.index
+        oss, os_base = words[inst.os.kind], inst.os.index
+        outputs, or_base = words[inst.or_.kind], inst.or_.index
+        ys, y_kind, y_base = bits[inst.yn.kind], inst.yn.kind, inst.yn.index
+        points, pwm, started = st.points, st.pwm, st.started
+        prs, pr_base = words[inst.pr.kind], inst.pr.index
+        irs, ir_base = words[inst.ir.kind], inst.ir.index
+        drs, dr_base = words[inst.dr.kind], inst.dr.index
+        high_at = loop_percent * OUTPUT_FULL
         normal_words, warning_words = [0, 0], [0, 0]
         out_of_band = warning = False
         for b in range(zn):
             point = sn + b
-            ps = st.points[point]
-            pv = _signed(words[start.kind][start.index + point])
-            sv = _signed(words[inst.sv.kind][inst.sv.index + b])
-            os = _signed(words[inst.os.kind][inst.os.index + b])
-            outputs = words[inst.or_.kind]
-            enabled = self.enabled(mem, point)
+            ps = points[point]
+            pv = pvs[pv_base + b]
+            pv = pv - 0x10000 if pv & 0x8000 else pv
+            sv = svs[sv_base + b]
+            sv = sv - 0x10000 if sv & 0x8000 else sv
+            os = oss[os_base + b]
+            os = os - 0x10000 if os & 0x8000 else os
+            enabled = enabled_of(mem, point)
+            if log is not None and enabled and point in log:
+                self._replay(ps, log[point], now, emu.scan_time, outputs[or_base + b] * 100 >= high_at, sv, os,
+                             limit)
             if pid_due:
                 if enabled:
-                    kc, ki, td = (words[a.kind][a.index + b] for a in (inst.pr, inst.ir, inst.dr))
-                    outputs[inst.or_.index + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
+                    kc, ki, td = prs[pr_base + b], irs[ir_base + b], drs[dr_base + b]
+                    outputs[or_base + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
                 else:
-                    outputs[inst.or_.index + b] = 0
+                    outputs[or_base + b] = 0
                     ps.integral, ps.pv_prev = 0.0, None
-            value = outputs[inst.or_.index + b]
-            duty_on = phase < value / OUTPUT_FULL * st.pwm
-            bits[inst.yn.kind][inst.yn.index + b] = 1 if self.drive(enabled, duty_on) else 0
-            word, bit = self.bit_position(b)
+            value = outputs[or_base + b]
+            on_time = value / OUTPUT_FULL * pwm
+            y_on, y_off = driven[bool(enabled)]
+            ys[y_base + b] = 1 if (y_on if phase < on_time else y_off) else 0
+            waveforms[(y_kind, y_base + b)] = (started, pwm, on_time, y_on, y_off)
+            word, bit = bit_position(b)
             if not enabled:
                 ps.prealarm, ps.loop_since = 0, None
                 continue
-            normal = self.in_band(pv, sv, os)
+            normal = in_band(pv, sv, os)
             if normal:
                 normal_words[word] |= 1 << bit
             else:
                 out_of_band = True
-            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
-            high_output = value * 100 >= loop_percent * OUTPUT_FULL
-            if high_output and not normal:
+            ps.prealarm = count_of(ps.prealarm, pv, limit)
+            if value * 100 >= high_at and not normal:
                 if ps.loop_since is None:
                     ps.loop_since = now
             else:
                 ps.loop_since = None
-            loop_open = ps.loop_since is not None and self.loop_elapsed(ps.loop_since, now) >= loop_seconds
-            if self.prealarm(ps.prealarm) or loop_open:
+            loop_open = ps.loop_since is not None and loop_elapsed(ps.loop_since, now) >= loop_seconds
+            if prealarm_of(ps.prealarm) or loop_open:
                 warning_words[word] |= 1 << bit
                 warning = True
         wr = inst.wr
@@ -276,11 +340,24 @@ class Fun86Model(Model):
         bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(out_of_band, warning) else 0
 
     def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+        self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
         for b in range(st.zn):
             ys[inst.yn.index + b] = 0
         for ps in st.points.values():
             ps.prealarm, ps.loop_since = 0, None
+
+    def _log_off(self) -> bool:
+        """Without the temperature model's log of readings, every measurement needs its scan."""
+        return self.temperature_model is None or self.temperature_model.log is None
+
+    def _prealarm_possible(self, mem: "Memory", st: InstanceState) -> bool:
+        """Could a reading of an enabled point reach R4008 (then every measurement needs its scan)?"""
+        if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
+            return True
+        limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
+        points = [p for p in st.points if self.enabled(mem, p)]
+        return bool(points) and self.temperature_model.readings_upper(mem, points) >= limit
 
     def next_event(self, now: float) -> float:
         mem = self._emu.memory if self._emu is not None else None
@@ -288,6 +365,7 @@ class Fun86Model(Model):
             return math.inf
         loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
         due = math.inf
+        measurements = False  # a scan at every measurement (a PV could reach R4008)
         for inst, st in zip(self.config.instances, self.states):
             if st.waiting and self.next_measurement is not None:
                 due = min(due, self.next_measurement())
@@ -296,9 +374,13 @@ class Fun86Model(Model):
             for ps in st.points.values():
                 if 0 < ps.prealarm < 4 * PREALARM_SCANS:
                     return now  # counting consecutive scans: every scan matters
-                if ps.loop_since is not None:
-                    due = min(due, ps.loop_since + loop_seconds)
+                if ps.loop_since is not None and ps.loop_since + loop_seconds > now + 1e-9:
+                    due = min(due, ps.loop_since + loop_seconds)  # (once open, its bit is recomputed each scan)
             due = min(due, st.next_pid)
+            if not measurements:
+                measurements = self._prealarm_possible(mem, st)
+            if self.pwm_exact:
+                continue  # the plant integrates the PWM between scans; the outputs are recomputed at each scan
             # PWM: every cycle start, and the end of each point's ON time within the current cycle
             cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
             due = min(due, cycle + st.pwm)
@@ -307,7 +389,7 @@ class Fun86Model(Model):
                 edge = cycle + outputs[inst.or_.index + b] / OUTPUT_FULL * st.pwm
                 if edge > now + 1e-9:
                     due = min(due, edge)
-        if due < math.inf and self.next_measurement is not None:
+        if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
         if due == math.inf:
             return due

@@ -3,7 +3,9 @@ optional dead time and seeded measurement noise; faults heater open (no heating)
 
 Model (per point, first order): τ·dT/dt = ambient + gain·u(t − dead_time) − T, u ∈ {0, 1} the heater's state.
 ``gain`` is how far above ambient full power would settle.  u is what the point's output (Y…) showed at the last
-scan, so the plant is exactly as good as the PWM the PLC produces.  Between scans u is constant, so T is solved
+scan, so the plant is exactly as good as the PWM the PLC produces; without dead time, a FUN86 output's PWM is known
+between scans (its waveform, switching on the scan grid) and is integrated exactly, so it needs no scans at its edges.
+Measurement noise is clipped at ±6 σ.  Between scans (and PWM switches) u is constant, so T is solved
 analytically piece by piece: the plant answers T at any time in the current scan window (the temperature model
 catches measurements up at their scheduled, past times) and needs no scans of its own.
 
@@ -139,8 +141,137 @@ class _Heated:
     def measured(self, point: int, t: float) -> float:
         value = self.temperature(t)
         if self.p.noise:
-            value += random.Random(hash((self.seed, point, round(t, 6)))).gauss(0.0, self.p.noise)
+            value += _noise(self.seed, point, t, self.p.noise)
         return value
+
+    def upper(self) -> float:
+        """No measurement of this point ever exceeds this (T stays between its start, ambient and full power)."""
+        p = self.p
+        start = p.ambient if p.initial is None else p.initial
+        return max(start, p.ambient, p.ambient + p.gain) + NOISE_CLIP * p.noise
+
+
+#: measurement noise is clipped at this many standard deviations (so a reading has a hard bound: the FUN86 model
+#: can then skip the scans at measurements that can never reach the pre-alarm limit)
+NOISE_CLIP = 6.0
+
+
+_NORMALS: dict[int, list[float]] = {}
+
+
+def _normals(seed: int) -> list[float]:
+    """65536 standard normal values, clipped at ±NOISE_CLIP, drawn once per seed."""
+    table = _NORMALS.get(seed)
+    if table is None:
+        rng = random.Random(seed)
+        table = _NORMALS[seed] = [min(max(rng.gauss(0.0, 1.0), -NOISE_CLIP), NOISE_CLIP) for _ in range(65536)]
+    return table
+
+
+def _noise(seed: int, point: int, t: float, sigma: float) -> float:
+    """The noise of one measurement: a function of (seed, point, time) only, so a jump and stepping agree."""
+    return _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * sigma
+
+
+def _grid(x: float, st: float) -> float:
+    """The first scan at or after virtual time x, on the scan grid (as the engine's fast-forward lands)."""
+    return math.ceil(x / st - 1e-6) * st
+
+
+class _Waved:
+    """One point without dead time whose heater follows a known waveform between scans: the anchor (t0, T0) moves
+    only when the waveform changes (a scan with a new PID output, a fault, a new output), and T at any later time
+    is solved segment by segment through the PWM's switches, on the scan grid (where stepping would switch).
+
+    The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
+    grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
+
+    __slots__ = ("p", "t0", "temp0", "wave", "seed", "_memo")
+
+    def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
+        self.p = p
+        self.t0 = now
+        self.temp0 = p.ambient if p.initial is None else p.initial
+        self.wave: tuple = (0,)
+        self.seed = seed
+        self._memo: list = []
+
+    def temperature(self, t: float) -> float:
+        temp, a = self.temp0, self.t0
+        if t <= a:
+            return temp
+        p = self.p
+        wave = self.wave
+        tau = p.tau
+        if len(wave) == 1:
+            target = p.ambient + p.gain * wave[0]
+            return target + (temp - target) * math.exp(-(t - a) / tau)
+        started, period, on, u_on, u_off, st = wave
+        t_on, t_off = p.ambient + p.gain * u_on, p.ambient + p.gain * u_off
+        # the loop's state at each cycle start reached so far: (k, start, T) — a query resumes from the last one
+        # before t, doing exactly the operations a query from the anchor would
+        memo = self._memo
+        ceil = math.ceil
+        if not memo:
+            k = math.floor((a - started) / period) - 1
+            memo.append((k, ceil((started + k * period) / st - 1e-6) * st, temp,
+                         ceil((started + k * period + on) / st - 1e-6) * st,
+                         ceil((started + (k + 1) * period) / st - 1e-6) * st))
+        i = len(memo) - 1
+        while i > 0 and memo[i][1] >= t:
+            i -= 1
+        k, start, temp, off, nxt = memo[i]
+        exp = math.exp
+        while start < t:
+            lo, hi = (start if start > a else a), (off if off < t else t)
+            if hi > lo:
+                temp = t_on + (temp - t_on) * exp(-(hi - lo) / tau)
+            lo, hi = (off if off > a else a), (nxt if nxt < t else t)
+            if hi > lo:
+                temp = t_off + (temp - t_off) * exp(-(hi - lo) / tau)
+            k += 1
+            start = nxt
+            if start >= t:
+                break
+            off = ceil((started + k * period + on) / st - 1e-6) * st
+            nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
+            if memo[-1][0] == k - 1:
+                memo.append((k, start, temp, off, nxt))
+        return temp
+
+    def set_wave(self, now: float, wave: tuple) -> None:
+        if wave == self.wave:
+            return
+        if now > self.t0:
+            self.temp0 = self.temperature(now)
+            self.t0 = now
+        self.wave = wave
+        self._memo = []
+
+    def measured(self, point: int, t: float) -> float:
+        value = self.temperature(t)
+        noise = self.p.noise
+        if noise:
+            seed = self.seed
+            value += _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * noise
+        return value
+
+    upper = _Heated.upper
+
+
+class _Source:
+    """A heated point as a temperature source (a callable of time, with a hard upper bound)."""
+
+    __slots__ = ("heated", "point")
+
+    def __init__(self, heated, point: int) -> None:  # noqa: ANN001
+        self.heated, self.point = heated, point
+
+    def __call__(self, t: float) -> float:
+        return self.heated.measured(self.point, t)
+
+    def upper_bound(self) -> float:
+        return self.heated.upper()
 
 
 class ThermalPlant(Model):
@@ -156,6 +287,9 @@ class ThermalPlant(Model):
         self._wiring: list | None = None  # (point, state, bit bank, index) per heater, built at the first scan
         self._spans: list = []  # (bit bank, first, end) covering every heater output
         self._last_outputs: list[bytes] | None = None  # those outputs at the last fast-path scan
+        self._fun86 = None
+        self._scan_time = 0.01
+        self.waved = False
 
     # -- faults (injectors) ------------------------------------------------------------------------------------------
     def set_fault(self, fault: str, point: int, on: bool) -> None:
@@ -183,11 +317,19 @@ class ThermalPlant(Model):
     def power_on(self, emu: "Emulator") -> None:
         from hil.emulator.models.temperature import TemperatureModel
         temperature = emu.model(TemperatureModel)
+        from hil.emulator.models.fun86 import Fun86Model
+        self._fun86 = emu.model(Fun86Model)
+        self._scan_time = emu.scan_time
+        #: without dead time the heaters' PWM is integrated exactly between scans (FUN86 then needs no scans at its
+        #: PWM edges); with dead time the plant follows the outputs scan by scan (FUN86 scans at every edge)
+        self.waved = all(self.config.point(p).dead_time == 0.0 for p in self.heaters)
+        if self._fun86 is not None:
+            self._fun86.pwm_exact = self.waved
         for point in self.heaters:
-            heated = _Heated(self.config.point(point), emu.now, self.seed)
+            heated = (_Waved if self.waved else _Heated)(self.config.point(point), emu.now, self.seed)
             self.points[point] = heated
             if temperature is not None and point < temperature.config.points:
-                temperature.set_source(point, lambda t, h=heated, p=point: h.measured(p, t))
+                temperature.set_source(point, _Source(heated, point))
 
     def scan(self, emu: "Emulator") -> None:
         y = emu.memory.bits
@@ -198,6 +340,24 @@ class ThermalPlant(Model):
             kinds = {self.heaters[p].kind for p in self.points}
             self._spans = [(y[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
                             max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
+        if self.waved:
+            waves = self._fun86.waveforms if self._fun86 is not None else {}
+            power, st = self.power, self._scan_time
+            for point, heated, bank, index in self._wiring:
+                w = waves.get((self.heaters[point].kind, index))
+                if w is None:
+                    wave = (power(point, bool(bank[index])),)
+                else:
+                    started, period, on, y_on, y_off = w
+                    u_on, u_off = power(point, bool(y_on)), power(point, bool(y_off))
+                    if u_on == u_off or on <= 0:
+                        wave = (u_off,)
+                    elif on >= period:
+                        wave = (u_on,)
+                    else:
+                        wave = (started, period, on, u_on, u_off, st)
+                heated.set_wave(now, wave)
+            return
         if type(self).power is ThermalPlant.power and not any(self.faults.values()):
             # the common case, without a call per point: u is the output itself; a point whose u is unchanged
             # keeps its anchor (what _Heated.advance would do), so outputs unchanged since the last such scan

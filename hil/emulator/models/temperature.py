@@ -94,6 +94,11 @@ class TemperatureModel(Model):
         self._break_value = (0, 0)
         self._layout_cache: dict[tuple[int, ...], tuple] = {}
         self._plan_cache: dict[tuple, tuple] = {}
+        #: while a FUN86 model runs: point → [(time, reading)] measured since its last scan (it replays them), and
+        #: where those readings are (kind, first index)
+        self.log: dict[int, list[tuple[float, int]]] | None = None
+        self.log_start: tuple[str, int] | None = None
+        self._upper_cache: dict[int, tuple] = {}
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
@@ -263,13 +268,73 @@ class TemperatureModel(Model):
         # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
         # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
         keep = (self.config.averaging + 1) * cycle
-        if emu.now - self._next[k] > keep:
+        if emu.now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
             self._next[k] += math.floor((emu.now - self._next[k] - keep) / cycle) * cycle
+        if self._plain():
+            self._measure_plain(emu, k, first, sensor_code, readings, module.points, step)
+            return
         while self._next[k] <= emu.now + 1e-9:
             point = first + self._mux[k]
             self._measure_point(emu, point, sensor_code, readings, self._next[k])
             self._mux[k] = (self._mux[k] + 1) % module.points
             self._next[k] += step
+
+    def _plain(self) -> bool:
+        """No seam of a measurement is overridden (a broken variant's are): the inlined loop below applies."""
+        cls = type(self)
+        return cls is TemperatureModel or all(getattr(cls, name) is getattr(TemperatureModel, name) for name in
+                                              ("installed", "point_result", "_live", "_measure_point"))
+
+    def _measure_plain(self, emu: "Emulator", k: int, first: int, sensor_code: int, readings,  # noqa: ANN001
+                       points: int, step: float) -> None:
+        """_measure_point for each due measurement of module k, inlined (the same arithmetic, in the same order)."""
+        mem = emu.memory
+        mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
+        out, base = mem.words[readings.kind], readings.index
+        broken, sources, samples_of = self.broken, self.sources, self._samples
+        sensor = SENSOR_BY_CODE.get(sensor_code)
+        low, high = (sensor.low_c, sensor.high_c) if sensor is not None else (None, None)
+        fahrenheit = self.config.unit != "C"
+        fast = self.config.rate == "fast"
+        averaging = self.config.averaging
+        log = self.log
+        if log is not None:
+            self.log_start = (readings.kind, readings.index)
+        limit = emu.now + 1e-9
+        at, mux = self._next[k], self._mux[k]
+        while at <= limit:
+            point = first + mux
+            if mask[point // 16] >> (point % 16) & 1 and point not in broken:
+                celsius = sources[point](at)
+                if low is not None:
+                    celsius = min(max(celsius, low), high)
+                value = celsius * 9 / 5 + 32 if fahrenheit else celsius
+                samples = samples_of.get(point)
+                if samples is None:
+                    samples = samples_of[point] = collections.deque(maxlen=averaging)
+                samples.append(value)
+                mean = sum(samples) / len(samples)
+                reading = int(round(mean)) * 10 if fast else int(round(mean * 10))
+                self._breaks &= ~(1 << point)
+            else:
+                samples_of.pop(point, None)
+                if point in broken and mask[point // 16] >> (point % 16) & 1:
+                    reading = BREAK_VALUE
+                    self._breaks |= 1 << point
+                else:
+                    reading = 0
+                    self._breaks &= ~(1 << point)
+            out[base + point] = reading & 0xFFFF
+            if log is not None:
+                entries = log.get(point)
+                if entries is None:
+                    log[point] = [(at, _signed(reading & 0xFFFF))]
+                else:
+                    entries.append((at, _signed(reading & 0xFFFF)))
+            self._measured.add(point)
+            mux = (mux + 1) % points
+            at += step
+        self._next[k], self._mux[k] = at, mux
 
     def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings,  # noqa: ANN001
                        at: float) -> None:
@@ -282,11 +347,47 @@ class TemperatureModel(Model):
             self._samples.pop(point, None)  # [our choice] a repaired sensor reads its live value at once
         reading, flagged = self.point_result(point, installed, broken, live)
         mem.words[readings.kind][readings.index + point] = reading & 0xFFFF
+        if self.log is not None:
+            self.log_start = (readings.kind, readings.index)
+            self.log.setdefault(point, []).append((at, _signed(reading & 0xFFFF)))
         if flagged:
             self._breaks |= 1 << point
         else:
             self._breaks &= ~(1 << point)
         self._measured.add(point)
+
+    def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
+        """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
+        cache = self._upper_cache
+        samples_of = self._samples
+        top = -math.inf
+        for point in points:
+            source = self.sources.get(point)
+            hit = cache.get(point)
+            if hit is None or hit[0] is not source:
+                hit = cache[point] = (source, self._source_upper(source))
+            value = hit[1]
+            samples = samples_of.get(point)
+            if samples:
+                value = max(value, max(samples))
+            if value > top:
+                top = value
+        if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
+                or math.isinf(top) or any(p in self.broken or not self.installed(mem, p) for p in points)):
+            return math.inf
+        return (math.ceil(top) + 1) * 10 if self.config.rate == "fast" else math.ceil(top * 10) + 1
+
+    def _source_upper(self, source) -> float:  # noqa: ANN001
+        """A source's highest value, in the configured unit (``inf`` when unknown)."""
+        if isinstance(source, Fixed):
+            celsius = source.celsius
+        elif isinstance(source, Ramp):  # falling: never above where it started
+            celsius = source.high if source.per_s > 0 else min(max(source.start, source.low), source.high)
+        elif hasattr(source, "upper_bound"):
+            celsius = source.upper_bound()
+        else:
+            return math.inf
+        return math.inf if math.isinf(celsius) else to_unit(celsius, self.config.unit)
 
     def _live(self, now: float, point: int, sensor_code: int) -> int:
         """The reading of a working sensor: source → unit → range → averaging → resolution, in 0.1°."""
@@ -301,6 +402,10 @@ class TemperatureModel(Model):
         if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
             return int(round(mean)) * 10
         return int(round(mean * 10))
+
+
+def _signed(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word
 
 
 def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
