@@ -76,7 +76,7 @@ def bench_wires(seconds: float) -> list[dict]:
     return rows
 
 
-def bench_modbus_servers(seconds: float, rounds: int = 3, models: bool = True) -> dict:
+def bench_modbus_servers(seconds: float, rounds: int = 12, models: bool = True) -> dict:
     """Same client, same request (FC03 R4128 ×8), alternating: the emulator's server and a bare SimDevice.
 
     ``models``: the default bench's emulator (each request runs one scan of the RTC and temperature models first,
@@ -113,23 +113,31 @@ def bench_modbus_servers(seconds: float, rounds: int = 3, models: bool = True) -
     our_port = int(ours.address.rsplit(":", 1)[1])
     clients = {name: ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
                for name, port in (("hil", our_port), ("bare", bare_port))}
-    best: dict[str, float] = defaultdict(float)
+    # Timings on a shared machine swing by ±30 % from one second to the next, so the two servers are measured in
+    # many short interleaved rounds: "best" compares each server's fastest round (what it can do when the machine
+    # lets it), "median" the middle of the per-round ratios (each hil round against the bare round next to it).
+    per_round: dict[str, list[float]] = defaultdict(list)
     try:
         for c in clients.values():
             c.connect()
-        for _ in range(rounds):
-            for name, client in clients.items():
+        for r in range(rounds):
+            order = list(clients.items()) if r % 2 == 0 else list(reversed(clients.items()))
+            for name, client in order:
                 def once(client=client) -> None:  # noqa: ANN001
                     rr = client.read_holding_registers(4128, count=8, device_id=1)
                     assert not rr.isError(), rr
-                best[name] = max(best[name], rate(once, seconds / rounds)[0])
+                per_round[name].append(rate(once, seconds / rounds / 2)[0])
     finally:
         for c in clients.values():
             c.close()
         ours.stop()
         runtime.run(bare.shutdown())
+    ratios = sorted(h / b for h, b in zip(per_round["hil"], per_round["bare"]))
+    best = {name: max(values) for name, values in per_round.items()}
     return {"hil_requests_per_s": best["hil"], "bare_requests_per_s": best["bare"],
-            "ratio": best["hil"] / best["bare"], "target_ratio": 0.8, "requests_served": emulator.stats["requests"]}
+            "ratio": best["hil"] / best["bare"], "median_round_ratio": ratios[len(ratios) // 2],
+            "round_ratio_range": [ratios[0], ratios[-1]], "rounds": rounds, "target_ratio": 0.8,
+            "requests_served": emulator.stats["requests"]}
 
 
 # -- 2. wire efficiency -------------------------------------------------------------------------------------------
@@ -378,7 +386,9 @@ def main(argv: list[str] | None = None) -> int:
 
     results["modbus_server"] = m = bench_modbus_servers(seconds * 2)
     console.print(f"Modbus TCP server: hil emulator {m['hil_requests_per_s']:,.0f} req/s, bare pymodbus SimDevice "
-                  f"{m['bare_requests_per_s']:,.0f} req/s → [bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×)")
+                  f"{m['bare_requests_per_s']:,.0f} req/s (best of {m['rounds']} interleaved rounds each) → "
+                  f"[bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×); per-round ratios median {m['median_round_ratio']:.2f}×, "
+                  f"range {m['round_ratio_range'][0]:.2f}–{m['round_ratio_range'][1]:.2f}×")
 
     results["device_operations"] = ops = device_operations()
     t = Table(title="FATEK bytes per device operation (request + reply frames)")

@@ -72,10 +72,12 @@ def build_parser() -> argparse.ArgumentParser:
     emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
     emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
     emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
-                         help="also serve a sensor-break fault rig: Modbus/TCP coil FIRST+point = 1 opens the "
-                              "point's sensor (profile: [faults.sensor_break] kind = \"modbus-coil\")")
-    emulate.add_argument("--rig-first-coil", type=int, default=0, metavar="N",
-                         help="coil of temperature point 0 on the rig (default 0)")
+                         help="also serve a fault rig, a Modbus/TCP relay module: coil FIRST+point = 1 opens the "
+                              "point's sensor, FIRST+32+point its heater circuit, FIRST+64+point shorts its SSR "
+                              "(profile: [faults.sensor_break|heater_open|ssr_short] kind = \"modbus-coil\", "
+                              "first_coil = FIRST, FIRST+32, FIRST+64)")
+    emulate.add_argument("--rig-first-coil", type=int, default=0, metavar="FIRST",
+                         help="the rig's first coil: temperature point 0's sensor (default 0)")
     emulate.add_argument("--time-scale", type=float, default=1.0, metavar="X",
                          help="virtual seconds per wall second (default 1)")
 

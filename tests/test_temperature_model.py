@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import datetime as dt
+
 import pytest
 
 from hil.bench import Bench
@@ -156,6 +158,37 @@ def test_rig_coils_open_and_close_sensors():
         assert model.broken == {16, 17}
         assert client.read_coils(100, count=32, device_id=1).bits[16:18] == [True, True]
         assert client.write_coil(99, True, device_id=1).isError()  # below first_coil: ILLEGAL_ADDRESS
+        client.close()
+    finally:
+        handle.stop()
+
+
+def test_rig_heater_banks_open_and_short_heaters_of_the_plant():
+    from pymodbus.client import ModbusTcpClient
+
+    from hil.emulator.build import build_emulator
+    from hil.emulator.models.plant import ThermalPlant
+    from hil.emulator.serve.rig import start_rig_modbus_tcp
+    emu = build_emulator(load_profile(EMULATOR_BENCH), dt.datetime(2024, 2, 28, 12))
+    plant = emu.model(ThermalPlant)
+    heated = sorted(plant.heaters)
+    unheated = next(p for p in range(32) if p not in plant.heaters)
+    handle = start_rig_modbus_tcp(emu, first_coil=10)
+    try:
+        host, _, port = handle.address.rpartition(":")
+        client = ModbusTcpClient(host, port=int(port), timeout=2)
+        assert client.connect()
+        assert not client.write_coil(10 + 32 + heated[0], True, device_id=1).isError()
+        assert not client.write_coil(10 + 64 + heated[1], True, device_id=1).isError()
+        assert plant.faults == {"heater_open": {heated[0]}, "ssr_short": {heated[1]}}
+        assert client.read_coils(10 + 32 + heated[0], count=1, device_id=1).bits[0] is True
+        assert not client.write_coils(10 + 32 + heated[0], [False], device_id=1).isError()
+        assert plant.faults["heater_open"] == set()
+        # a point the plant does not heat: refused, nothing switched, the coil stays 0
+        reply = client.write_coil(10 + 32 + unheated, True, device_id=1)
+        assert reply.isError() and reply.exception_code == 2
+        assert client.read_coils(10 + 32 + unheated, count=1, device_id=1).bits[0] is False
+        assert client.write_coil(10 + 96, True, device_id=1).isError()  # past the last bank
         client.close()
     finally:
         handle.stop()

@@ -3,13 +3,6 @@ broken emulators that the suites must catch (a suite that passes on a faulty PLC
 
 from __future__ import annotations
 
-import os
-import queue
-import re
-import signal
-import subprocess
-import sys
-import threading
 import time
 
 import pytest
@@ -28,6 +21,7 @@ import hil.transport.modbus  # noqa: F401
 from hil.emulator.build import build_emulator
 from hil.emulator.models.temperature import TemperatureModel
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
+from tests.external import bench_over_the_wire, hil_emulate
 
 SUITE = str(REPO / "suites" / "test_temperature.py")
 SUITE_TESTS = 14  # 2 + 3 × 4 points
@@ -146,49 +140,13 @@ def test_the_correct_emulator_passes_through_the_same_hook(pytester):
 TIME_SCALE = 100
 
 
-def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> dict[str, str]:
-    lines: queue.Queue[str] = queue.Queue()
-    threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True).start()
-    found: dict[str, str] = {}
-    deadline = time.monotonic() + timeout
-    while set(found) != kinds:
-        try:
-            line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
-        except queue.Empty:
-            raise AssertionError(f"hil emulate printed only {found} within {timeout} s") from None
-        kind, _, address = line.strip().partition(" ")
-        found[kind] = address
-    return found
-
-
 def test_temperature_suite_against_hil_emulate_with_a_modbus_coil_rig(pytester, tmp_path):
-    emulator_profile = EMULATOR_BENCH.read_text()
-    (tmp_path / "emulated.toml").write_text(emulator_profile)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli", "emulate", "--bench", str(tmp_path / "emulated.toml"),
-         "--fatek-tcp", "127.0.0.1:0", "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(TIME_SCALE)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        where = _read_endpoints(proc, {"fatek-tcp", "rig-modbus-tcp"}, timeout=15)
-        client = re.sub(r'(?m)^target = "emulator"', f'target = "fatek+tcp://{where["fatek-tcp"]}"', emulator_profile)
-        client = re.sub(r"(?m)^time_scale = .*", f"time_scale = {TIME_SCALE}", client)
-        client = re.sub(r'(?m)^kind = "emulator".*',
-                        f'kind = "modbus-coil"\ntarget = "modbus+tcp://{where["rig-modbus-tcp"]}?unit=1"\n'
-                        f"first_coil = 0", client)
-        assert 'kind = "modbus-coil"' in client and "fatek+tcp://" in client
+    (tmp_path / "emulated.toml").write_text(EMULATOR_BENCH.read_text())
+    with hil_emulate(tmp_path / "emulated.toml", TIME_SCALE) as where:
         bench_file = tmp_path / "client.toml"
-        bench_file.write_text(client)
+        bench_file.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, TIME_SCALE))
         started = time.monotonic()
         result = pytester.runpytest_inprocess(SUITE, *INNER, "--bench", str(bench_file), "-rs")
         elapsed = time.monotonic() - started
         result.assert_outcomes(passed=SUITE_TESTS)
         assert elapsed < 30, f"the external-emulator run took {elapsed:.1f} s"
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 0, proc.stderr.read()

@@ -24,7 +24,8 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False) -> int:
     """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
 
-    ``rig_modbus_tcp``: also serve a sensor-break fault rig (Modbus/TCP coils, see hil.emulator.serve.rig).
+    ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
+    hil.emulator.serve.rig).
     """
     profile = load_profile(bench)
     emulator = build_emulator(profile, dt.datetime.now().replace(microsecond=0))

@@ -101,10 +101,14 @@ MAX_READ = {COIL: 2000, HOLDING: 125}  # FC01, FC03
 MAX_WRITE = {COIL: 1968, HOLDING: 123}  # FC15, FC16
 
 
-def segments(table: str) -> list[_Segment]:
+def segments(table: str) -> tuple[_Segment, ...]:
     """The mapped blocks of ``table`` in pdu order (for servers that must cover exactly the map)."""
-    table = _table(table)
-    return sorted((s for s in SEGMENTS if s.table == table), key=lambda s: s.pdu)
+    return _SORTED[_table(table)]
+
+
+#: the map is fixed: sorted once (a server's request gate walks it on every request)
+_SORTED = {table: tuple(sorted((s for s in SEGMENTS if s.table == table), key=lambda s: s.pdu))
+           for table in (COIL, HOLDING)}
 
 
 # -- FBs element → Modbus ----------------------------------------------------------------------------------------

@@ -98,6 +98,8 @@ class Fun86Model(Model):
         self.pwm_exact = False
         #: (bit kind, index) of each output Yn… driven now → (started, PWM period, ON seconds, Y when on, Y when off)
         self.waveforms: dict[tuple[str, int], tuple] = {}
+        #: bumped whenever :attr:`waveforms` changes (the plant skips its per-point work while it has not)
+        self.waveforms_version = 0
 
     # -- the seams broken variants override ---------------------------------------------------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -203,7 +205,8 @@ class Fun86Model(Model):
     def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
         if self.waveforms:
             for b in range(max(st.zn, 0)):
-                self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None)
+                if self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None) is not None:
+                    self.waveforms_version += 1
 
     def _replay(self, ps: PointState, entries: list, now: float, scan_time: float, high: bool, sv: int, os: int,
                 limit: int) -> None:
@@ -314,7 +317,10 @@ class Fun86Model(Model):
             on_time = value / OUTPUT_FULL * pwm
             y_on, y_off = driven[bool(enabled)]
             ys[y_base + b] = 1 if (y_on if phase < on_time else y_off) else 0
-            waveforms[(y_kind, y_base + b)] = (started, pwm, on_time, y_on, y_off)
+            wave = (started, pwm, on_time, y_on, y_off)
+            if waveforms.get((y_kind, y_base + b)) != wave:
+                waveforms[(y_kind, y_base + b)] = wave
+                self.waveforms_version += 1
             word, bit = bit_position(b)
             if not enabled:
                 ps.prealarm, ps.loop_since = 0, None

@@ -286,7 +286,7 @@ class ThermalPlant(Model):
         self.faults: dict[str, set[int]] = {name: set() for name in FAULTS}
         self._wiring: list | None = None  # (point, state, bit bank, index) per heater, built at the first scan
         self._spans: list = []  # (bit bank, first, end) covering every heater output
-        self._last_outputs: list[bytes] | None = None  # those outputs at the last fast-path scan
+        self._last_outputs: object = None  # those outputs (and FUN86's waveforms version) at the last fast-path scan
         self._fun86 = None
         self._scan_time = 0.01
         self.waved = False
@@ -341,6 +341,15 @@ class ThermalPlant(Model):
             self._spans = [(y[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
                             max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
         if self.waved:
+            # each point's waveform follows from its output, FUN86's published waveform and the faults: with all
+            # three as at the last scan, every set_wave below would find its waveform unchanged
+            key = None
+            if type(self).power is ThermalPlant.power and not any(self.faults.values()):
+                key = ([bytes(bank[lo:hi]) for bank, lo, hi in self._spans],
+                       self._fun86.waveforms_version if self._fun86 is not None else 0)
+                if key == self._last_outputs:
+                    return
+            self._last_outputs = key
             waves = self._fun86.waveforms if self._fun86 is not None else {}
             power, st = self.power, self._scan_time
             for point, heated, bank, index in self._wiring:

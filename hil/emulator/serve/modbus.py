@@ -34,6 +34,7 @@ from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from hil.address import Address
 from hil.emulator.core import Emulator
 from hil.emulator.memory import Memory
 from hil.emulator.serve.ptypair import PtyPair
@@ -45,6 +46,7 @@ from hil.protocol.modbus_map import locate as _locate_uncached
 #: (table, pdu) → (element, part): the map is fixed, and a walk of its segments per unit was a fifth of the cost
 #: of a request.  Addresses are immutable, so sharing them is safe.
 locate = functools.lru_cache(maxsize=1 << 16)(_locate_uncached)
+_unmapped_in = functools.lru_cache(maxsize=1 << 12)(unmapped_in)  # the gate asks on every request
 
 _COIL_FCS = {1: "read", 5: "write", 15: "write"}
 _HOLDING_FCS = {3: "read", 6: "write", 16: "write"}
@@ -93,6 +95,28 @@ def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
     return action
 
 
+@functools.lru_cache(maxsize=1 << 12)
+def _coil_slots(first_reg: int, count: int) -> tuple[tuple[int, int, str, int], ...]:
+    """(register, bit, kind, index) of every mapped coil in ``count`` packed registers from ``first_reg``."""
+    slots = ((r, b, locate(COIL, (first_reg + r) * 16 + b)) for r in range(count) for b in range(16))
+    return tuple((r, b, found[0].kind, found[0].index) for r, b, found in slots if found is not None)
+
+
+@functools.lru_cache(maxsize=1 << 12)
+def _holding_slots(address: int, n: int) -> tuple[tuple[str, int, int | None], ...]:
+    """(kind, index, part) of each of ``n`` registers from ``address``; part is None for a 16-bit element, 0/1 for
+    the low/high word of a DRC; kind "" for a hole (the gate refuses those; stay safe regardless)."""
+    slots = []
+    for i in range(n):
+        found = locate(HOLDING, address + i)
+        if found is None:
+            slots.append(("", 0, None))
+        else:
+            element, part = found
+            slots.append((element.kind, element.index, part if element.kind == "DRC" else None))
+    return tuple(slots)
+
+
 def _coil_request(start_address: int, address: int, count: int, registers: list[int],
                   set_values: list[int] | list[bool] | None) -> Callable[[Memory], Callable[[], None]]:
     """For coils pymodbus passes ``count`` packed 16-bit registers covering the request, from bit ``address``."""
@@ -104,62 +128,63 @@ def _coil_request(start_address: int, address: int, count: int, registers: list[
             for found, value in zip(targets, values):
                 if found is not None:  # the gate refused unmapped coils; stay safe regardless
                     mem.bits[found[0].kind][found[0].index] = value
-            return lambda: None
+            return _nothing
         return write
 
     first_reg = address // 16
-    slots = [(r, b, locate(COIL, (first_reg + r) * 16 + b)) for r in range(count) for b in range(16)]
-    slots = [(r, b, found[0]) for r, b, found in slots if found is not None]
+    slots = _coil_slots(first_reg, count)
     offset = first_reg - start_address
 
     def read(mem: Memory) -> Callable[[], None]:
         words = [0] * count
-        for r, b, element in slots:
-            words[r] |= mem.bits[element.kind][element.index] << b
+        bits = mem.bits
+        for r, b, kind, index in slots:
+            words[r] |= bits[kind][index] << b
 
         def fill() -> None:
             registers[offset:offset + count] = words
         return fill
     return read
+
+
+def _nothing() -> None:
+    return None
 
 
 def _holding_request(start_address: int, address: int, count: int, registers: list[int],
                      set_values: list[int] | list[bool] | None) -> Callable[[Memory], Callable[[], None]]:
     n = len(set_values) if set_values is not None else count
-    targets = [locate(HOLDING, address + i) for i in range(n)]
+    slots = _holding_slots(address, n)
     if set_values is not None:
         values = [int(v) & 0xFFFF for v in set_values]
 
         def write(mem: Memory) -> Callable[[], None]:
-            for found, value in zip(targets, values):
-                if found is not None:
-                    _set_register(mem, *found, value)
-            return lambda: None
+            for (kind, index, part), value in zip(slots, values):
+                if kind:
+                    _set_register(mem, kind, index, part, value)
+            return _nothing
         return write
 
     offset = address - start_address
 
     def read(mem: Memory) -> Callable[[], None]:
-        words = [_get_register(mem, *found) if found else 0 for found in targets]
+        words = mem.words
+        values = [(words[kind][index] if part is None else mem.get(Address(kind, index)) >> (16 * part) & 0xFFFF)
+                  if kind else 0 for kind, index, part in slots]
 
         def fill() -> None:
-            registers[offset:offset + count] = words
+            registers[offset:offset + count] = values
         return fill
     return read
 
 
-def _get_register(mem: Memory, element, part: int) -> int:  # noqa: ANN001 - an Address
-    if element.kind == "DRC":  # 32-bit counter: 2 registers, low word at the lower address
-        return mem.get(element) >> (16 * part) & 0xFFFF
-    return mem.words[element.kind][element.index]
-
-
-def _set_register(mem: Memory, element, part: int, value: int) -> None:  # noqa: ANN001 - an Address
-    if element.kind == "DRC":  # writing one half keeps the other, as two FC06 writes must compose
+def _set_register(mem: Memory, kind: str, index: int, part: int | None, value: int) -> None:
+    if part is not None:  # half of a 32-bit counter: writing one keeps the other, as two FC06 writes must compose
+        element = Address(kind, index)
         old = mem.get(element)
         mem.set(element, old & ~(0xFFFF << (16 * part)) | value << (16 * part))
     else:
-        mem.words[element.kind][element.index] = value
+        mem.words[kind][index] = value
 
 
 # -- the request gate ----------------------------------------------------------------------------------------------
@@ -211,7 +236,7 @@ def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, M
         limit = (MAX_WRITE if is_write else MAX_READ)[table]
         if not 1 <= count <= limit:
             return _Refusal(pdu, ExcCodes.ILLEGAL_VALUE)
-        if unmapped_in(table, address, count) is not None:
+        if _unmapped_in(table, address, count) is not None:
             return _Refusal(pdu, ExcCodes.ILLEGAL_ADDRESS)
         return pdu
     return gate

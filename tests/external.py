@@ -1,0 +1,72 @@
+"""A separately started ``hil emulate`` for tests of the bench path: the suites reach it only over its wires and
+its fault rig, as they would a real PLC with a relay module (no back door into the emulator)."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import queue
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Iterator
+
+from tests.conftest import REPO
+
+#: the rig's banks (hil.emulator.serve.rig): the fault → its first coil when the rig starts at coil 0
+RIG_FIRST_COIL = {"sensor_break": 0, "heater_open": 32, "ssr_short": 64}
+
+
+def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> dict[str, str]:
+    lines: queue.Queue[str] = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True).start()
+    found: dict[str, str] = {}
+    deadline = time.monotonic() + timeout
+    while set(found) != kinds:
+        try:
+            line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+        except queue.Empty:
+            raise AssertionError(f"hil emulate printed only {found} within {timeout} s") from None
+        kind, _, address = line.strip().partition(" ")
+        found[kind] = address
+    return found
+
+
+@contextlib.contextmanager
+def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
+    """``hil emulate --bench profile`` on FATEK/TCP with the fault rig; yields {"fatek-tcp": addr, "rig-modbus-tcp":
+    addr}.  Stops it with SIGINT (as an operator's Ctrl-C) and checks that it exits cleanly."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hil.cli", "emulate", "--bench", str(profile), "--fatek-tcp", "127.0.0.1:0",
+         "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(time_scale)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        yield _read_endpoints(proc, {"fatek-tcp", "rig-modbus-tcp"}, timeout=15)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, proc.stderr.read()
+
+
+def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float) -> str:
+    """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP
+    target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
+    text = re.sub(r'(?m)^target = "emulator"', f'target = "fatek+tcp://{where["fatek-tcp"]}"', profile_text)
+    text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
+
+    def rig(match: re.Match) -> str:
+        fault = match.group(1)
+        return (f'[faults.{fault}]\nkind = "modbus-coil"\ntarget = "modbus+tcp://{where["rig-modbus-tcp"]}?unit=1"\n'
+                f"first_coil = {RIG_FIRST_COIL[fault]}")
+    text = re.sub(r'(?m)^\[faults\.(\w+)\]\nkind = "emulator".*$', rig, text)
+    assert 'kind = "emulator"' not in text and "fatek+tcp://" in text, text
+    return text
