@@ -694,6 +694,12 @@ def encode_error(station: int, command_code: str, error: str) -> bytes:
     return build_frame(station, command_code, error)
 
 
+def show_frame(frame: bytes) -> str:
+    """Printable ASCII and hex of a frame, for messages: ``<STX>01400<ETX> [02 30 31 …]``."""
+    text = "".join(chr(b) if 0x20 <= b < 0x7F else {STX: "<STX>", ETX: "<ETX>"}.get(b, f"<{b:02X}>") for b in frame)
+    return f"{text} [{frame.hex(' ').upper()}]"
+
+
 def describe_frame(frame: bytes, *, reply: bool = False) -> str:
     """Human reading of a frame for traces and error messages (never raises)."""
     try:

@@ -31,6 +31,8 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     params = dict(target.params)
     if timeout is not None:
         params.setdefault("timeout", timeout)
+    if target.scheme == "replay+fatek":
+        return _open_replay(target, params)
     if target.protocol == "fatek":
         from hil.transport.fatek import FatekTransport
         port_url = f"socket://{target.host}:{target.port}" if target.host else target.device
@@ -39,6 +41,22 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     if target.scheme == "modbus+tcp":
         return ModbusTransport.tcp(target.host, target.port, **params)
     return ModbusTransport.rtu(target.device, **params)
+
+
+def _open_replay(target: Target, params: dict) -> Transport:
+    """A FATEK client talking to a :class:`~hil.replay.RecordedPlc` serving the recording on loopback; the
+    transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport stops it."""
+    from hil.replay import RecordedPlc, load_recording
+    from hil.transport.fatek import FatekTransport
+    peer = RecordedPlc(load_recording(target.device))
+    try:
+        transport = FatekTransport(f"socket://{peer.address}", description=str(target), **params)
+    except BaseException:
+        peer.close()
+        raise
+    transport.replay = peer  # type: ignore[attr-defined]
+    transport.on_close(peer.close)
+    return transport
 
 
 def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,

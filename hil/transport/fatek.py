@@ -24,7 +24,7 @@ from hil.errors import OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeou
 from hil.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
-                                check_reply, encode_request)
+                                check_reply, encode_request, show_frame)
 from hil.transport.base import Limits, PlcStatus, Transport
 
 #: Commands that only read: safe to repeat after a lost reply.
@@ -307,11 +307,11 @@ class FatekTransport(Transport):
             self._serial.write(frame)
         except serial.SerialTimeoutException as exc:
             self.dirty = True
-            raise ReplyTimeout(f"could not send {_show(frame)} to {self._where()} within "
+            raise ReplyTimeout(f"could not send {show_frame(frame)} to {self._where()} within "
                                f"{self._serial.write_timeout:.2f} s (output blocked)") from exc
         except (serial.SerialException, OSError) as exc:
             self._broken = True
-            raise _Lost(f"{self._where()}: sending {_show(frame)} failed: {exc}") from exc
+            raise _Lost(f"{self._where()}: sending {show_frame(frame)} failed: {exc}") from exc
 
     def _receive(self, remaining: float) -> bytes:
         """Whatever has arrived, waiting at most ``remaining`` seconds for the first byte."""
@@ -331,9 +331,9 @@ class FatekTransport(Transport):
     def _timeout_message(self, command: Command, frame: bytes, wait: float, attempt: int, attempts: int,
                          assembler: FrameAssembler) -> str:
         parts = [f"no reply from station {self.station:02X} on {self.port_url} to {command.describe()} "
-                 f"within {wait:.2f} s (attempt {attempt} of {attempts}); sent {_show(frame)}"]
+                 f"within {wait:.2f} s (attempt {attempt} of {attempts}); sent {show_frame(frame)}"]
         if self.discarded:
-            bad = "; ".join(f"{_show(f)} ({why})" for f, why in self.discarded[:3])
+            bad = "; ".join(f"{show_frame(f)} ({why})" for f, why in self.discarded[:3])
             more = f" and {len(self.discarded) - 3} more" if len(self.discarded) > 3 else ""
             parts.append(f"discarded {len(self.discarded)} bad frame(s): {bad}{more}")
         if assembler.dropped or assembler.pending:
@@ -353,12 +353,6 @@ class FatekTransport(Transport):
 
 class _Lost(TransportError):
     """The connection failed mid-exchange (reopened before the next request)."""
-
-
-def _show(frame: bytes) -> str:
-    """Hex and printable ASCII of a frame, for messages."""
-    text = "".join(chr(b) if 0x20 <= b < 0x7F else {2: "<STX>", 3: "<ETX>"}.get(b, f"<{b:02X}>") for b in frame)
-    return f"{text} [{frame.hex(' ').upper()}]"
 
 
 _OPEN_HINTS = {

@@ -7,6 +7,7 @@
     fatek+serial:///dev/ttyUSB0?baudrate=9600&parity=E&bytesize=7&stopbits=1&station=1
     modbus+tcp://host:502?unit=1&timeout=1&retries=2
     modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1
+    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.replay)
 """
 
 from __future__ import annotations
@@ -26,12 +27,13 @@ PARAMS: dict[str, dict[str, type]] = {
     "fatek+serial": {**_COMMON, **_SERIAL, "station": int},
     "modbus+tcp": {**_COMMON, "unit": int},
     "modbus+rtu": {**_COMMON, **_SERIAL, "unit": int},
+    "replay+fatek": {**_COMMON, "station": int},
 }
 DEFAULT_PORTS = {"fatek+tcp": 500, "modbus+tcp": 502}
 
 FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
          "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "
-         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1")
+         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, replay+fatek:///path/to/trace.txt")
 
 
 @dataclass(frozen=True)
@@ -83,7 +85,9 @@ def parse_target(url: str) -> Target:
         return Target(scheme, host=parts.hostname, port=port, params=params)
     device = (parts.netloc + parts.path) if parts.netloc else parts.path
     if not device:
-        raise TargetError(f"target {url!r} names no serial device (e.g. {scheme}:///dev/ttyUSB0)")
+        example = "/path/to/trace.txt" if scheme.startswith("replay") else "/dev/ttyUSB0"
+        raise TargetError(f"target {url!r} names no {'recording' if scheme.startswith('replay') else 'serial device'} "
+                          f"(e.g. {scheme}://{example})")
     return Target(scheme, device=device, params=params)
 
 
