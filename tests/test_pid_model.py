@@ -212,11 +212,8 @@ def test_jumping_equals_stepping_with_the_pid_running(seconds):
 
 
 def test_a_virtual_day_with_every_en_off_is_still_one_jump(emu):
-    import time
-    start = time.perf_counter()
     emu.advance(86400)
-    assert time.perf_counter() - start < 0.05
-    assert emu.scans < 10
+    assert emu.scans < 10  # (counted, not timed: wall-clock limits are flaky on shared machines)
 
 
 # -- plc.pid's closed-loop trace, from any target -----------------------------------------------------------------------
