@@ -55,16 +55,17 @@ class Mismatch:
 _LINE = re.compile(r"^\S+ (->|<-) (.*?)  \| ")
 
 
-def load_recording(source: str | Path) -> list[Exchange]:
-    """The request/reply pairs of a FATEK wire trace (a path, or the trace's text)."""
-    where = "<text>"
-    text = str(source)
-    if isinstance(source, Path) or "\n" not in text:
-        where = text
-        try:
-            text = Path(text).read_text(encoding="utf-8")
-        except OSError as exc:
-            raise ReplayError(f"cannot read recording {where}: {exc.strerror or exc}") from None
+def load_recording(path: str | Path) -> list[Exchange]:
+    """The request/reply pairs of the FATEK wire trace in file ``path``."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ReplayError(f"cannot read recording {path}: {exc.strerror or exc}") from None
+    return parse_recording(text, str(path))
+
+
+def parse_recording(text: str, where: str = "<recording>") -> list[Exchange]:
+    """The request/reply pairs of a FATEK wire trace's text (``where`` names it in errors)."""
     kinds = re.findall(r"^# wire trace \(([^)]*)\)", text, re.MULTILINE)
     if kinds != ["fatek"]:
         found = f"a {', '.join(kinds)} trace" if kinds else "no '# wire trace (fatek)' line"
@@ -185,4 +186,5 @@ class RecordedPlc:
         self._thread.join(timeout=2)
 
 
-__all__ = ["Exchange", "Mismatch", "RecordedPlc", "ReplayError", "ReplayMismatch", "load_recording"]
+__all__ = ["Exchange", "Mismatch", "RecordedPlc", "ReplayError", "ReplayMismatch", "load_recording",
+           "parse_recording"]
