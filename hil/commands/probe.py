@@ -29,6 +29,12 @@ _COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
 
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:
     """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
+    if bench is not None:
+        from hil.profile import load_profile
+        given = load_profile(bench)
+        if given.family == "s7-200smart":
+            from hil.commands.probe_s7 import probe_s7
+            return probe_s7(given, url, console)
     with open_target(url, bench) as opened:
         transport, profile = opened.transport, opened.profile if bench else None
         status = transport.status()

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Iterator
 
 from hil.device.plc import FbsPlc
+from hil.errors import HilError
 from hil.profile import Profile, load_profile
 from hil.timebase import EmulatorTimebase, HostTimebase, Timebase
 from hil.transport.base import Transport
@@ -36,6 +37,10 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
     """The PLC at ``url`` (default: the profile's target); ``bench`` supplies timeout, time scale, layout."""
     from hil.paths import default_bench
     given = load_profile(bench) if bench else None
+    if given is not None and given.family != "fbs":
+        raise HilError(f"bench {given.name!r} ({bench}) is an S7-200 SMART (family {given.family!r}); this command "
+                       f"works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows it, "
+                       f"hil run --bench {bench} runs its suites")
     if url is None and given is None:
         raise ValueError("name a target URL or a bench profile (--bench FILE)")
     target = parse_target(url or given.target)
