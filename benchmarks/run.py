@@ -77,7 +77,7 @@ def bench_wires(seconds: float) -> list[dict]:
     return rows
 
 
-def bench_modbus_servers(seconds: float, rounds: int = 12, models: bool = True) -> dict:
+def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) -> dict:
     """Same client, same request (FC03 R4128 ×8), alternating: the emulator's server and a bare SimDevice.
 
     ``models``: the default bench's emulator (each request runs one scan of the RTC and temperature models first,
