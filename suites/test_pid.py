@@ -22,6 +22,14 @@ def _instances(pid):
     return [i for i in pid.config.instances if not i.settable]
 
 
+def _nth_instance(pid, which, checks):
+    """The ``which``-th FUN86 with constant Sn/Zn; skip when the profile has fewer (``checks``: what it would show)."""
+    instances = _instances(pid)
+    if which >= len(instances):
+        pytest.skip(f"the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks {checks})")
+    return instances[which]
+
+
 def _start(bench, pid, inst):
     """Switch the instance on (EN = 1, heating) and let FUN86 see every point measured."""
     reason = bench.cannot_reach(str(inst.en), str(inst.hc))
@@ -161,10 +169,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_normal_bit_positions_count_from_sn(bench, pid, which):
     """WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b (an instance with Sn ≠ 0 or points ≥ 16)."""
-    instances = _instances(pid)
-    if which >= len(instances):
-        pytest.skip("the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks WR+1)")
-    inst = instances[which]
+    inst = _nth_instance(pid, which, "WR+1")
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
     words = pid.alarm_words(inst).words
@@ -177,10 +182,7 @@ def test_normal_bit_positions_count_from_sn(bench, pid, which):
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     """Bench-safe: lower R4008 under the PVs instead of heating; every point then warns on WR+2/WR+3, ALM = 1."""
-    instances = _instances(pid)
-    if which >= len(instances):
-        pytest.skip("the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks WR+3)")
-    inst = instances[which]
+    inst = _nth_instance(pid, which, "WR+3")
     _need(bench, "R4008")
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)

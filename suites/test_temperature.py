@@ -68,6 +68,14 @@ def _ensure_installed(bench, point):
         _set_mask_bit(bench, point, True)
 
 
+def _break(bench, temp, breaker, point):
+    """Open a fitted point's sensor and wait until the PLC has measured it since."""
+    _point(temp, point)
+    _ensure_installed(bench, point)
+    breaker.open(point)
+    temp.wait_for_update()
+
+
 def test_table_is_recognised_and_measuring(bench, temp):
     modules = temp.config.modules
     table = temp.read_table()
@@ -107,10 +115,7 @@ def test_readings_are_in_range_and_units(bench, temp, measure):
 
 @pytest.mark.parametrize("point", BREAK_POINTS)
 def test_broken_sensor_reads_28767_with_only_its_bit(bench, temp, breaker, point):
-    _point(temp, point)
-    _ensure_installed(bench, point)
-    breaker.open(point)
-    temp.wait_for_update()
+    _break(bench, temp, breaker, point)
     readings = temp.readings()
     assert readings[point] == 28767, f"broken point {point} reads {readings[point]}, expected 28767"
     others = [p for p, v in enumerate(readings) if v == 28767 and p != point]
@@ -124,10 +129,7 @@ def test_broken_sensor_reads_28767_with_only_its_bit(bench, temp, breaker, point
 
 @pytest.mark.parametrize("point", BREAK_POINTS)
 def test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back(bench, temp, breaker, point):
-    _point(temp, point)
-    _ensure_installed(bench, point)
-    breaker.open(point)
-    temp.wait_for_update()
+    _break(bench, temp, breaker, point)
     assert temp.reading(point) == 28767
 
     _set_mask_bit(bench, point, False)  # R4010 for 0–15, R4011 for 16–31

@@ -24,6 +24,7 @@ from hil.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegiste
                                 encode_error, encode_request, split_frame)
 from hil.address import parse
 from hil.transport.fatek import FatekTransport, _open_hint
+from tests.concurrency import run_clients
 
 STATUS_REQUEST = b"\x020140C7\x03"
 
@@ -262,23 +263,13 @@ def test_disconnect_mid_frame_then_serve_others(tcp, emulator):
 
 
 def test_eight_parallel_clients(tcp, emulator):
-    errors: list[BaseException] = []
-
     def work(n: int) -> None:
-        try:
-            with FatekTransport(f"socket://{tcp.address}", timeout=3.0) as client:
-                for i in range(30):
-                    client.write_words(f"R{100 * n}", [n, i, n * i])
-                    assert client.read_words(f"R{100 * n}", 3) == [n, i, n * i]
-        except BaseException as exc:  # noqa: BLE001 - reported below
-            errors.append(exc)
+        with FatekTransport(f"socket://{tcp.address}", timeout=3.0) as client:
+            for i in range(30):
+                client.write_words(f"R{100 * n}", [n, i, n * i])
+                assert client.read_words(f"R{100 * n}", 3) == [n, i, n * i]
 
-    threads = [threading.Thread(target=work, args=(n,)) for n in range(8)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(15)
-    assert not errors, errors
+    run_clients(work, 8, join_timeout=15)
     assert [emulator.memory.read(f"R{100 * n}", 3) for n in range(8)] == [[n, 29, n * 29] for n in range(8)]
 
 

@@ -20,6 +20,7 @@ from hil.emulator.serve.modbus import start_modbus_rtu_pty, start_modbus_tcp
 from hil.emulator.serve.runtime import ServerHandle
 from hil.errors import PlcErrorReply, ReplyTimeout, TransportError, UnreachableAddress
 from hil.transport.modbus import ModbusTransport
+from tests.concurrency import run_clients
 
 WIRES = ["tcp", "rtu"]
 
@@ -314,28 +315,19 @@ def _recv_exactly(s: socket.socket, n: int) -> bytes:
 
 def test_eight_parallel_tcp_clients(tcp_server: ServerHandle, emulator: Emulator) -> None:
     rounds = 40
-    errors: list[BaseException] = []
     start = threading.Barrier(8)
 
     def client(n: int) -> None:
-        try:
-            with _connect(tcp_server, timeout=5.0) as plc:
-                start.wait()
-                for i in range(rounds):
-                    words = [n * 1000 + i, i, n]
-                    plc.write_words(f"D{n * 10}", words)
-                    plc.write(f"M{n * 8 + i % 8}", 1)
-                    assert plc.read_words(f"D{n * 10}", 3) == words
-                    assert plc.read(f"M{n * 8 + i % 8}") == 1
-        except BaseException as exc:  # noqa: BLE001 - reported below
-            errors.append(exc)
+        with _connect(tcp_server, timeout=5.0) as plc:
+            start.wait(timeout=10)
+            for i in range(rounds):
+                words = [n * 1000 + i, i, n]
+                plc.write_words(f"D{n * 10}", words)
+                plc.write(f"M{n * 8 + i % 8}", 1)
+                assert plc.read_words(f"D{n * 10}", 3) == words
+                assert plc.read(f"M{n * 8 + i % 8}") == 1
 
-    threads = [threading.Thread(target=client, args=(n,)) for n in range(8)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(30)
-    assert not errors, errors
+    run_clients(client, 8, join_timeout=30)
     for n in range(8):
         assert emulator.memory.read(f"D{n * 10}", 3) == [n * 1000 + rounds - 1, rounds - 1, n]
     assert emulator.memory.read("M0", 64) == [1] * 64

@@ -14,7 +14,7 @@ from hil.errors import HilError
 from hil.fbs.temperature import BREAK_VALUE, parse_temperature
 from hil.profile import Profile
 from hil.timebase import HostTimebase
-from hil.transport.base import Transport
+from hil.transport.base import PlcStatus, Transport
 from hil.commands.target import open_target
 
 # (label, element) — read only where the wire can reach them.
@@ -37,17 +37,7 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
             return probe_s7(given, url, console)
     with open_target(url, bench) as opened:
         transport, profile = opened.transport, opened.profile if bench else None
-        status = transport.status()
-        running = {True: "green", False: "yellow", None: "dim"}[status.running]
-        grid = Table.grid(padding=(0, 2))
-        grid.add_column(style="bold cyan", no_wrap=True)
-        grid.add_column()
-        grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
-        grid.add_row("via", escape(status.via or transport.description))
-        for key, value in status.identity.items():
-            grid.add_row(escape(key), escape(str(value)))
-        console.print(Panel(grid, title=f"PLC at {escape(transport.description)}", title_align="left",
-                            expand=False, border_style=running))
+        console.print(status_panel(transport.status(), transport.description))
         table = Table(title="key registers", show_header=True)
         table.add_column("item")
         table.add_column("value")
@@ -62,6 +52,20 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
         if profile is not None and "temperature" in profile.areas:
             console.print(temperature_table(transport, profile))
     return 0
+
+
+def status_panel(status: PlcStatus, description: str, **extra: str) -> Panel:
+    """The PLC's state (coloured: green RUN, yellow STOP), the wire, ``extra`` rows and its identity."""
+    running = {True: "green", False: "yellow", None: "dim"}[status.running]
+    grid = Table.grid(padding=(0, 2))
+    grid.add_column(style="bold cyan", no_wrap=True)
+    grid.add_column()
+    grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
+    grid.add_row("via", escape(status.via or description))
+    for key, value in [*extra.items(), *status.identity.items()]:
+        grid.add_row(escape(key), escape(str(value)))
+    return Panel(grid, title=f"PLC at {escape(description)}", title_align="left", expand=False,
+                 border_style=running)
 
 
 def temperature_table(transport: Transport, profile: Profile) -> Table:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from rich.console import Console
 from rich.markup import escape
-from rich.panel import Panel
 from rich.table import Table
 
 from hil.profile import Profile
@@ -17,21 +16,11 @@ from hil.s7smart import timebuf
 
 
 def probe_s7(profile: Profile, url: str | None, console: Console) -> int:
+    from hil.commands.probe import status_panel
     from hil.s7smart.bench import S7Bench
     bench = S7Bench(profile, target=url)
     try:
-        status = bench.io.status()
-        running = {True: "green", False: "yellow", None: "dim"}[status.running]
-        grid = Table.grid(padding=(0, 2))
-        grid.add_column(style="bold cyan", no_wrap=True)
-        grid.add_column()
-        grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
-        grid.add_row("via", escape(status.via or bench.raw.description))
-        grid.add_row("family", "S7-200 SMART")
-        for key, value in status.identity.items():
-            grid.add_row(escape(key), escape(str(value)))
-        console.print(Panel(grid, title=f"PLC at {escape(bench.raw.description)}", title_align="left",
-                            expand=False, border_style=running))
+        console.print(status_panel(bench.io.status(), bench.raw.description, family="S7-200 SMART"))
         layout = bench.layout
         if layout is None:
             console.print("[dim]the profile has no [s7rtc] section: no clock buffers to show[/dim]")

@@ -26,6 +26,7 @@ from hil.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, D
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
                                 check_reply, encode_request, show_frame)
 from hil.transport.base import Limits, PlcStatus, Transport
+from hil.transport.serial_line import is_pty, line_coding
 
 #: Commands that only read: safe to repeat after a lost reply.
 READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
@@ -61,13 +62,9 @@ class FatekTransport(Transport):
         self.discarded: list[tuple[bytes, str]] = []  # bad frames of the last exchange, with the reason
         self._identity: DetailedStatusReply | None = None
         self._identity_error: str | None = None
-        self._is_pty = _is_pty(port_url)
         # Neither a socket nor a pty has a real line rate: no transmission time to add to the deadline.
-        self._virtual_line = port_url.startswith("socket://") or self._is_pty
-        if self._is_pty:
-            # A pty has no line coding to set, and recent Linux kernels refuse (EINVAL) to change CS7/PARENB on
-            # a pty whose settings a previous client already applied; the 7-bit ASCII frames pass 8N1 unchanged.
-            bytesize, parity, stopbits = 8, "N", 1
+        self._virtual_line = port_url.startswith("socket://") or is_pty(port_url)
+        bytesize, parity, stopbits = line_coding(port_url, bytesize, parity, stopbits)
         self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
                               write_timeout=self.timeout + 1.0)
         self.backoff = float(backoff)
@@ -363,16 +360,6 @@ _OPEN_HINTS = {
     errno.EBUSY: "device busy — another program (a terminal, ModemManager, another test run) holds the port",
     errno.ENXIO: "no device behind this path (a pty whose server is gone, or an unplugged adapter)",
 }
-
-
-def _is_pty(port_url: str) -> bool:
-    """True for a pseudo-terminal slave (``/dev/pts/N``): Unix98 pty slaves have majors 136–143."""
-    if "://" in port_url:
-        return False
-    try:
-        return 136 <= os.major(os.stat(port_url).st_rdev) <= 143
-    except OSError:
-        return False
 
 
 def _open(port_url: str, **settings: object) -> serial.SerialBase:

@@ -8,7 +8,6 @@ holding registers via FC03/FC16 — split at the protocol limits (2000/1968 coil
 
 from __future__ import annotations
 
-import os
 import time
 from typing import Callable, Iterable, Mapping, Sequence
 
@@ -22,6 +21,7 @@ from hil.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportErr
 from hil.protocol import modbus_map as mm
 from hil.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, Run
 from hil.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
+from hil.transport.serial_line import line_coding
 
 #: Modbus exception codes and their standard names.
 EXCEPTION_NAMES = {
@@ -83,10 +83,7 @@ class ModbusTransport(Transport):
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2) -> "ModbusTransport":
         """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL)."""
-        if _is_pty(device):
-            # A pty has no line coding, and recent Linux kernels refuse (EINVAL) PARENB on one, which pyserial
-            # sets again on every reconfigure; RTU bytes pass unchanged through 8N1.
-            bytesize, parity, stopbits = 8, "N", 1
+        bytesize, parity, stopbits = line_coding(device, bytesize, parity, stopbits)
         client = ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
                                     parity=parity, stopbits=stopbits, timeout=timeout, retries=0)
         hint = (f"does {device} exist, and is no other program holding it open? The PLC port must be in Modbus "
@@ -355,16 +352,6 @@ class ModbusTransport(Transport):
         a = str(first[0]) if first else "unmapped"
         b = str(last[0]) if last else "unmapped"
         return a if run.count == 1 or a == b else f"{a}–{b}"
-
-
-def _is_pty(device: str) -> bool:
-    """True for a pseudo-terminal slave (``/dev/pts/N``): Unix98 pty slaves have majors 136–143."""
-    if "://" in device:
-        return False
-    try:
-        return 136 <= os.major(os.stat(device).st_rdev) <= 143
-    except OSError:
-        return False
 
 
 __all__ = ["ModbusTransport", "EXCEPTION_NAMES"]
