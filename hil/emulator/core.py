@@ -13,6 +13,7 @@ import time
 from typing import Callable, Iterable, TypeVar
 
 from hil import __version__
+from hil.emulator import kernel
 from hil.emulator.memory import Memory
 from hil.emulator.model import Model
 from hil.fbs.registers import POWER_ON_DEFAULTS
@@ -44,6 +45,8 @@ class Emulator:
         self.scans = 0
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
+        #: long spans without requests run in the compiled kernel where it applies (hil/emulator/kernel.py)
+        self.use_kernel = True
         for name, value in POWER_ON_DEFAULTS.items():
             self.memory.set(name, value)
         for model in models:
@@ -87,7 +90,13 @@ class Emulator:
             # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
             if self.now + self.scan_time <= target + 1e-9:
                 self.scan()
+            steps = 0
             while self.now + self.scan_time <= target + 1e-9:
+                # the rest of this loop in C where it applies (a FUN86 starts running once every point is measured:
+                # ask again every few steps until then)
+                if self.use_kernel and steps % 8 == 0 and kernel.advance(self, target):
+                    break
+                steps += 1
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)
                 self.now = landing - self.scan_time  # the scan below lands exactly on `landing`

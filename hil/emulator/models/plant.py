@@ -168,9 +168,24 @@ def _normals(seed: int) -> list[float]:
     return table
 
 
+_MASK64 = (1 << 64) - 1
+
+
+def _noise_index(seed: int, point: int, t: float) -> int:
+    """Which of the 65536 normals a measurement at ``t`` draws: splitmix64's finaliser over (t in µs, point, seed),
+    integer arithmetic the compiled kernel repeats exactly (hil/emulator/_kernel.c ``noise_index``)."""
+    x = (round(t * 1000000.0) * 0x9E3779B97F4A7C15 + point * 0xBF58476D1CE4E5B9 + seed * 0x94D049BB133111EB) & _MASK64
+    x ^= x >> 30
+    x = x * 0xBF58476D1CE4E5B9 & _MASK64
+    x ^= x >> 27
+    x = x * 0x94D049BB133111EB & _MASK64
+    x ^= x >> 31
+    return x & 0xFFFF
+
+
 def _noise(seed: int, point: int, t: float, sigma: float) -> float:
     """The noise of one measurement: a function of (seed, point, time) only, so a jump and stepping agree."""
-    return _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * sigma
+    return _normals(seed)[_noise_index(seed, point, t)] * sigma
 
 
 def _grid(x: float, st: float) -> float:
@@ -252,8 +267,7 @@ class _Waved:
         value = self.temperature(t)
         noise = self.p.noise
         if noise:
-            seed = self.seed
-            value += _normals(seed)[hash((seed, point, round(t, 6))) & 0xFFFF] * noise
+            value += _normals(self.seed)[_noise_index(self.seed, point, t)] * noise
         return value
 
     upper = _Heated.upper
