@@ -58,7 +58,13 @@ typedef struct {
     double **log_at;
     int **log_pv;
     int *log_n, *log_cap;
+    /* optional, for tests: per scan (now, then per instance normal0, normal1, warn0, warn1, ALM, Yn… as a bit mask,
+       sum of OR) — what a request at that scan would have seen */
+    double *trace;
+    Py_ssize_t trace_cap, traced;
 } Kernel;
+
+#define TRACE_PER_INSTANCE 7
 
 static double grid(double x, double st) { return ceil(x / st - 1e-6) * st; }
 
@@ -421,6 +427,22 @@ static int run_span(Kernel *k) {
         eng[E_now] += st;
         eng[E_scans] += 1;
         if (scan(k, eng[E_now]) < 0) return -1;
+        Py_ssize_t size = 1 + TRACE_PER_INSTANCE * k->n_insts;
+        if (k->trace && (k->traced + 1) * size <= k->trace_cap) {
+            double *r = k->trace + k->traced++ * size;
+            *r++ = eng[E_now];
+            for (Py_ssize_t i = 0; i < k->n_insts; i++) {
+                const double *in = k->insts + i * I_SIZE;
+                double y = 0, or_sum = 0;
+                for (int b = 0; b < (int)in[I_zn]; b++) {
+                    const double *pp = k->pids + ((Py_ssize_t)in[I_first] + b) * P_SIZE;
+                    if (pp[P_y]) y += ldexp(1.0, b);
+                    or_sum += pp[P_out];
+                }
+                *r++ = in[I_normal0]; *r++ = in[I_normal1]; *r++ = in[I_warn0]; *r++ = in[I_warn1];
+                *r++ = in[I_alm]; *r++ = y; *r++ = or_sum;
+            }
+        }
     }
     return 0;
 }
@@ -437,9 +459,10 @@ static int get_buffer(PyObject *obj, Py_buffer *view, Py_ssize_t record, const c
 }
 
 static PyObject *run(PyObject *self, PyObject *args) {
-    PyObject *objs[7];
-    if (!PyArg_ParseTuple(args, "OOOOOOO:run", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5],
-                          &objs[6]))
+    PyObject *objs[7], *trace_obj = Py_None;
+    Py_buffer trace_view = {0};
+    if (!PyArg_ParseTuple(args, "OOOOOOO|O:run", &objs[0], &objs[1], &objs[2], &objs[3], &objs[4], &objs[5],
+                          &objs[6], &trace_obj))
         return NULL;
     static const char *names[7] = {"engine", "modules", "tpoints", "plant", "instances", "pids", "normals"};
     const Py_ssize_t sizes[7] = {E_SIZE, M_SIZE, T_SIZE, L_SIZE, I_SIZE, P_SIZE, 1};
@@ -457,6 +480,12 @@ static PyObject *run(PyObject *self, PyObject *args) {
     k.eng = views[0].buf; k.mods = views[1].buf; k.tps = views[2].buf; k.plant = views[3].buf;
     k.insts = views[4].buf; k.pids = views[5].buf; k.normals = views[6].buf;
     k.n_mods = counts[1]; k.n_tps = counts[2]; k.n_plant = counts[3]; k.n_insts = counts[4]; k.n_pids = counts[5];
+    if (trace_obj != Py_None) {
+        Py_ssize_t cap;
+        if (get_buffer(trace_obj, &trace_view, 1, "trace", &cap) < 0) goto done;
+        k.trace = trace_view.buf;
+        k.trace_cap = cap;
+    }
     k.log_at = calloc(64, sizeof(double *));
     k.log_pv = calloc(64, sizeof(int *));
     k.log_n = calloc(64, sizeof(int));
@@ -471,8 +500,9 @@ done:
     for (int i = 0; i < 64 && k.log_pv; i++) free(k.log_pv[i]);
     free(k.log_at); free(k.log_pv); free(k.log_n); free(k.log_cap);
     for (int i = 0; i < got; i++) PyBuffer_Release(&views[i]);
+    if (trace_view.obj) PyBuffer_Release(&trace_view);
     if (status < 0) return NULL;
-    Py_RETURN_NONE;
+    return PyLong_FromSsize_t(k.traced);
 }
 
 static PyObject *fields(void) {
@@ -503,7 +533,8 @@ static PyObject *fields(void) {
 
 static PyMethodDef methods[] = {
     {"run", run, METH_VARARGS,
-     "run(engine, modules, tpoints, plant, instances, pids, normals): scans until engine.target (in place)."},
+     "run(engine, modules, tpoints, plant, instances, pids, normals[, trace]): scans until engine.target, in "
+     "place; returns the number of scans recorded in trace."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -70,9 +70,22 @@ def advance(emu: "Emulator", target: float) -> bool:
     if packed is None:
         return False
     scans = emu.scans
-    _kernel.run(*(r.data if isinstance(r, _Records) else r for r in packed.buffers()))
+    buffers = [r.data if isinstance(r, _Records) else r for r in packed.buffers()]
+    trace = getattr(emu, "kernel_trace", None)
+    if trace is None:
+        _kernel.run(*buffers)
+    else:  # tests: what every scan of the span left in WR / ALM / Yn / OR of each running instance
+        size = 1 + 7 * len(packed.running)
+        scans_max = int((target - emu.now) / emu.scan_time) + 2
+        out = array.array("d", bytes(8 * size * scans_max))
+        for n in range(_kernel.run(*buffers, out)):
+            record = out[n * size:(n + 1) * size]
+            trace.append((record[0], [tuple(int(v) for v in record[1 + 7 * i:8 + 7 * i])
+                                      for i in range(len(packed.running))]))
     if packed.engine.get(0, "scans") != scans:
         packed.unpack()
+    emu.stats["kernel_spans"] += 1
+    emu.stats["kernel_scans"] += emu.scans - scans
     return True
 
 
