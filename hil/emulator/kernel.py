@@ -29,8 +29,10 @@ except ImportError:  # pragma: no cover - depends on the install
 if TYPE_CHECKING:
     from hil.emulator.core import Emulator
 
-#: virtual seconds below which packing costs more than the kernel saves (the result is the same either way)
-MIN_SPAN = 20.0
+#: virtual seconds below which packing costs more than the kernel saves (the result is the same either way).
+#: Measured on the full PLC (32 loops): a request + span costs 0.78 ms with the kernel whatever the span (packing),
+#: 0.54 / 0.88 / 1.86 ms in Python for 4 / 8 / 20 s
+MIN_SPAN = 8.0
 
 _FIELDS: dict[str, dict[str, int]] = (
     {kind: {name: i for i, name in enumerate(names)} for kind, names in _kernel.FIELDS.items()} if _kernel else {})
