@@ -15,6 +15,7 @@ FUN86 instance running on the temperature model's readings, no register written 
 from __future__ import annotations
 
 import array
+import collections
 import os
 from typing import TYPE_CHECKING
 
@@ -68,52 +69,229 @@ def advance(emu: "Emulator", target: float) -> bool:
     apply (then nothing was changed).  Call with the lock held, after the scan that follows a request."""
     if not available() or target - emu.now < MIN_SPAN:
         return False
-    packed = _pack(emu, target)
-    if packed is None:
+    try:
+        span = _Span(emu, target)
+    except _Inapplicable:
         return False
     scans = emu.scans
-    buffers = [r.data if isinstance(r, _Records) else r for r in packed.buffers()]
-    trace = getattr(emu, "kernel_trace", None)
-    if trace is None:
-        _kernel.run(*buffers)
-    else:  # tests: what every scan of the span left in WR / ALM / Yn / OR of each running instance
-        size = 1 + 7 * len(packed.running)
-        scans_max = int((target - emu.now) / emu.scan_time) + 2
-        out = array.array("d", bytes(8 * size * scans_max))
-        for n in range(_kernel.run(*buffers, out)):
-            record = out[n * size:(n + 1) * size]
-            trace.append((record[0], [tuple(int(v) for v in record[1 + 7 * i:8 + 7 * i])
-                                      for i in range(len(packed.running))]))
-    if packed.engine.get(0, "scans") != scans:
-        packed.unpack()
+    span.run(getattr(emu, "kernel_trace", None))
+    if span.engine.get(0, "scans") != scans:
+        span.unpack()
     emu.stats["kernel_spans"] += 1
     emu.stats["kernel_scans"] += emu.scans - scans
     return True
 
 
-class _Packed:
-    """The models' state as kernel records, and the way back."""
+class _Inapplicable(Exception):
+    """Here the kernel would not be exactly the Python models."""
 
-    def __init__(self, emu: "Emulator", parts: dict) -> None:
-        self.emu = emu
-        self.__dict__.update(parts)
 
-    def buffers(self) -> tuple:
-        return (self.engine, self.modules, self.tpoints, self.plant_records, self.instances, self.pids,
-                self.normals)
+def _require(condition: object) -> None:
+    if not condition:
+        raise _Inapplicable
 
+
+def _signed(word: int) -> int:
+    return word - 0x10000 if word & 0x8000 else word
+
+
+class _Span:
+    """One request-free span: the models' state packed into records, run in C, unpacked."""
+
+    def __init__(self, emu: "Emulator", target: float) -> None:
+        self.emu, self.mem = emu, emu.memory
+        self._models()
+        #: (kind, index) of every word/bit the kernel writes, and of every one it reads as constant: must not meet
+        self.written: set[tuple[str, int]] = set()
+        self.read: set[tuple[str, int]] = {("R", n) for n in range(4003, 4014)}
+        self._pack_temperature()
+        self._pack_fun86()
+        self._pack_plant()
+        _require(not self.read & self.written)
+        self.engine = _Records("engine", 1)
+        self.engine.set(0, now=emu.now, target=target, scan_time=emu.scan_time, scans=emu.scans,
+                        version=self.fun86.waveforms_version, fahrenheit=self.tm.config.unit != "C",
+                        fast=self.tm.config.rate == "fast")
+
+    # -- packing ---------------------------------------------------------------------------------------------------
+    def _models(self) -> None:
+        """Exactly the stock models (a subclass overrides a seam), a waved plant without faults."""
+        from hil.emulator.models.fun86 import Fun86Model  # noqa: PLC0415 - the models import the engine
+        from hil.emulator.models.plant import ThermalPlant  # noqa: PLC0415
+        from hil.emulator.models.rtc import RtcModel  # noqa: PLC0415
+        from hil.emulator.models.temperature import TemperatureModel  # noqa: PLC0415
+        by_type = {type(m): m for m in self.emu.models}
+        _require(len(by_type) == len(self.emu.models)
+                 and set(by_type) <= {RtcModel, TemperatureModel, Fun86Model, ThermalPlant})
+        self.tm, self.fun86 = by_type.get(TemperatureModel), by_type.get(Fun86Model)
+        self.plant, self.rtc = by_type.get(ThermalPlant), by_type.get(RtcModel)
+        tm, fun86, plant = self.tm, self.fun86, self.plant
+        _require(tm is not None and fun86 is not None and plant is not None)
+        _require(plant.waved and not any(plant.faults.values()) and plant._fun86 is fun86 and fun86.pwm_exact
+                 and fun86.temperature_model is tm and tm.config.averaging == 1 and tm.log is not None)
+
+    def _pack_temperature(self) -> None:
+        tm, mem = self.tm, self.mem
+        table = tm.config.table
+        twords = mem.words[table.kind]
+        _require(twords[table.index] == TABLE_MARKER)
+        header = tuple(twords[table.index:table.index + 4 + min(twords[table.index + 1], 8)])
+        state, readings, work, codes, table_modules, _total = tm._layout(header)
+        _require(state == "measuring" and readings is not None and work is not None and readings.kind in mem.words)
+        _require(tm.log_start == (readings.kind, readings.index)
+                 and readings.index + MAX_POINTS <= len(mem.words[readings.kind]))
+        measured = tm._plan(codes, table_modules, twords[table.index + 2])[3]
+        self.readings = readings
+        self.written |= {(readings.kind, readings.index + p) for p in range(MAX_POINTS)}
+        self.written |= {(work.kind, work.index + n) for n in range(4 + 4 * len(codes))}
+        self.read |= {(table.kind, table.index + n) for n in range(len(header))}
+
+        self.modules = _Records("modules", len(measured))
+        self.module_index = []
+        for i, (k, first, code) in enumerate(measured):
+            module, sensor = tm.fitted[k], SENSOR_BY_CODE.get(code >> 8)
+            self.modules.set(i, first=first, points=module.points, step=tm._step(module), next=tm._next[k],
+                             mux=tm._mux[k], has_sensor=sensor is not None, low=sensor.low_c if sensor else 0.0,
+                             high=sensor.high_c if sensor else 0.0)
+            self.module_index.append(k)
+        measured_points = {first + n for k, first, _code in measured for n in range(tm.fitted[k].points)}
+        self.tpoints = _Records("tpoints", MAX_POINTS)
+        bank = mem.words[readings.kind]
+        for point in range(MAX_POINTS):
+            source = tm.sources.get(point)
+            samples = tm._samples.get(point)
+            self.tpoints.set(point, installed=tm.installed(mem, point), broken=point in tm.broken,
+                             upper=tm._source_upper(source), has_sample=bool(samples),
+                             sample=samples[-1] if samples else 0.0, reading=bank[readings.index + point],
+                             breakbit=tm._breaks >> point & 1,
+                             **(self._source(point, source) if point in measured_points else {}))
+
+    def _source(self, point: int, source: object) -> dict:
+        """A measured point's source as the kernel knows them: fixed, ramp, or a point of this plant."""
+        from hil.emulator.models.plant import _Source, _Waved  # noqa: PLC0415
+        from hil.emulator.models.temperature import Fixed, Ramp  # noqa: PLC0415
+        if type(source) is Fixed:
+            return {"source": 0, "c0": float(source.celsius)}
+        if type(source) is Ramp:
+            return {"source": 1, "c0": source.start, "c1": source.per_s, "c2": source.low, "c3": source.high}
+        _require(type(source) is _Source and type(source.heated) is _Waved and source.point == point)
+        index = next((i for i, h in enumerate(self.plant.points.values()) if h is source.heated), None)
+        _require(index is not None)
+        return {"source": 2, "plant": index}
+
+    def _pack_fun86(self) -> None:
+        """Each instance is off or invalid (its scans change nothing then) or running on the temperature readings."""
+        fun86, mem = self.fun86, self.mem
+        self.running, instances, rows = [], [], []
+        self.outputs: dict[tuple[str, int], int] = {}  # Yn… of the running instances → their pid record
+        for inst, st in zip(fun86.config.instances, fun86.states):
+            self.read |= {(inst.en.kind, inst.en.index), (inst.hc.kind, inst.hc.index)}
+            if not mem.bits[inst.en.kind][inst.en.index]:
+                _require(not st.running and not st.waiting)
+                continue
+            if inst.settable:
+                self.read |= {(a.kind, a.index) for a in (inst.sn_register, inst.zn_register)}
+            sn, zn = fun86.sn_zn(mem, inst)
+            if not valid_sn_zn(sn, zn):
+                continue
+            _require(st.running and not st.waiting and st.executed and (sn, zn) == (st.sn, st.zn))
+            start = fun86.readings_start(mem)
+            _require(start is not None and (start.kind, start.index) == (self.readings.kind, self.readings.index))
+            r = mem.words["R"]
+            instances.append(dict(sn=sn, zn=zn, first=len(rows), interval=st.interval, pwm=st.pwm,
+                                  started=st.started, next_pid=st.next_pid,
+                                  heating=mem.bits[inst.hc.kind][inst.hc.index], limit=r[4008],
+                                  loop_percent=fun86.loop_threshold(mem), loop_seconds=r[4007], md=inst.md))
+            self.running.append((inst, st))
+            self._claim(inst, zn, len(rows))
+            rows += [self._pid_row(inst, st, b) for b in range(zn)]
+        _require(self.running)
+        self.instances = _Records("instances", len(instances))
+        for i, values in enumerate(instances):
+            self.instances.set(i, **values)
+        self.pids = _Records("pids", len(rows))
+        for i, values in enumerate(rows):
+            self.pids.set(i, **values)
+
+    def _claim(self, inst, zn: int, first: int) -> None:  # noqa: ANN001
+        """Record what a running instance reads and writes; two instances may not write the same element."""
+        for a in (inst.sv, inst.os, inst.pr, inst.ir, inst.dr):
+            self.read |= {(a.kind, a.index + b) for b in range(zn)}
+        writes = [(a.kind, a.index + b) for a, count in ((inst.or_, zn), (inst.wr, 4)) for b in range(count)]
+        writes += [(inst.yn.kind, inst.yn.index + b) for b in range(zn)] + [(inst.alm.kind, inst.alm.index)]
+        _require(not self.written & set(writes) and len(set(writes)) == len(writes))
+        self.written |= set(writes)
+        self.outputs.update({(inst.yn.kind, inst.yn.index + b): first + b for b in range(zn)})
+
+    def _pid_row(self, inst, st, b: int) -> dict:  # noqa: ANN001
+        words, fun86, point = self.mem.words, self.fun86, st.sn + b
+        ps = st.points[point]
+        row = dict(point=point, tpoint=point, enabled=fun86.enabled(self.mem, point),
+                   kc=words[inst.pr.kind][inst.pr.index + b], ki=words[inst.ir.kind][inst.ir.index + b],
+                   td=words[inst.dr.kind][inst.dr.index + b], sv=_signed(words[inst.sv.kind][inst.sv.index + b]),
+                   os=_signed(words[inst.os.kind][inst.os.index + b]), integral=ps.integral,
+                   has_prev=ps.pv_prev is not None, pv_prev=ps.pv_prev or 0, prealarm=ps.prealarm,
+                   has_loop=ps.loop_since is not None, loop_since=ps.loop_since or 0.0,
+                   out=words[inst.or_.kind][inst.or_.index + b], y=self.mem.bits[inst.yn.kind][inst.yn.index + b])
+        wave = fun86.waveforms.get((inst.yn.kind, inst.yn.index + b))
+        if wave is not None:
+            row.update(has_wave=1, w_started=wave[0], w_pwm=wave[1], w_on=wave[2], w_yon=wave[3], w_yoff=wave[4])
+        return row
+
+    def _pack_plant(self) -> None:
+        plant, bits = self.plant, self.mem.bits
+        self.plant_records = _Records("plant", len(plant.points))
+        self.heated = list(plant.points.values())
+        for i, (point, heated) in enumerate(plant.points.items()):
+            p, wave, heater = heated.p, heated.wave, plant.heaters[point]
+            ref = self.outputs.get((heater.kind, heater.index))  # a running instance drives it, or it is constant
+            if ref is None:
+                self.read.add((heater.kind, heater.index))
+            values = dict(ambient=p.ambient, gain=p.gain, tau=p.tau, noise=p.noise, seed=plant.seed, point=point,
+                          t0=heated.t0, temp0=heated.temp0, drive=ref is not None, ref=ref or 0,
+                          bit=1 if bits[heater.kind][heater.index] else 0)
+            if len(wave) == 1:
+                values.update(wave=0, u=wave[0])
+            else:
+                values.update(wave=1, started=wave[0], period=wave[1], on=wave[2], u_on=wave[3], u_off=wave[4],
+                              wst=wave[5])
+            self.plant_records.set(i, **values)
+
+    # -- running -----------------------------------------------------------------------------------------------------
+    def run(self, trace: list | None) -> None:
+        buffers = [self.engine.data, self.modules.data, self.tpoints.data, self.plant_records.data,
+                   self.instances.data, self.pids.data, _normals(self.plant.seed)]
+        if trace is None:
+            _kernel.run(*buffers)
+            return
+        # tests: what every scan of the span left in WR / ALM / Yn / OR of each running instance
+        per = 1 + 7 * len(self.running)
+        scans = int((self.engine.get(0, "target") - self.emu.now) / self.emu.scan_time) + 2
+        out = array.array("d", bytes(8 * per * scans))
+        for n in range(_kernel.run(*buffers, out)):
+            record = out[n * per:(n + 1) * per]
+            trace.append((record[0], [tuple(int(v) for v in record[1 + 7 * i:8 + 7 * i])
+                                      for i in range(len(self.running))]))
+
+    # -- unpacking -----------------------------------------------------------------------------------------------
     def unpack(self) -> None:
-        emu, tm, fun86, plant = self.emu, self.tm, self.fun86, self.plant
-        mem = emu.memory
-        eng = self.engine
-        emu.now = eng.get(0, "now")
-        emu.scans = int(eng.get(0, "scans"))
-        # temperature modules: schedule, last samples, break bits, readings written
+        emu = self.emu
+        emu.now = self.engine.get(0, "now")
+        emu.scans = int(self.engine.get(0, "scans"))
+        self._unpack_temperature()
+        self._unpack_fun86()
+        self._unpack_plant()
+        # what the last scan's other parts wrote: the clock's registers (a formula of the time), the work block
+        if self.rtc is not None:
+            self.rtc.scan(emu)
+        self.tm.scan(emu)  # no measurement is due at this instant: it only rewrites the work block
+
+    def _unpack_temperature(self) -> None:
+        tm, tp = self.tm, self.tpoints
         for i, k in enumerate(self.module_index):
             tm._next[k] = self.modules.get(i, "next")
             tm._mux[k] = int(self.modules.get(i, "mux"))
-        readings = mem.words[self.readings.kind]
-        tp = self.tpoints
+        readings = self.mem.words[self.readings.kind]
         breaks = 0
         for point in range(MAX_POINTS):
             if tp.get(point, "breakbit"):
@@ -124,27 +302,24 @@ class _Packed:
             if tp.get(point, "has_sample"):
                 samples = tm._samples.get(point)
                 if samples is None:
-                    import collections  # noqa: PLC0415 - only when a point starts sampling inside a span
                     samples = tm._samples[point] = collections.deque(maxlen=tm.config.averaging)
                 samples.append(tp.get(point, "sample"))
             else:
                 tm._samples.pop(point, None)
         tm._breaks = breaks
         tm._quiet = None
-        tm.log = {}
-        # FUN86: instance and point state, OR / Yn / WR / ALM, the published waveforms
-        words, bits = mem.words, mem.bits
+        tm.log = {}  # as the last FUN86 scan left it
+
+    def _unpack_fun86(self) -> None:
+        words, bits, fun86, get = self.mem.words, self.mem.bits, self.fun86, self.pids.get
         for i, (inst, st) in enumerate(self.running):
             st.next_pid = self.instances.get(i, "next_pid")
             first = int(self.instances.get(i, "first"))
-            wr = inst.wr
-            words[wr.kind][wr.index:wr.index + 4] = [int(self.instances.get(i, f)) for f in
-                                                      ("normal0", "normal1", "warn0", "warn1")]
+            words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [
+                int(self.instances.get(i, f)) for f in ("normal0", "normal1", "warn0", "warn1")]
             bits[inst.alm.kind][inst.alm.index] = int(self.instances.get(i, "alm"))
             for b in range(st.zn):
-                r = first + b
-                ps = st.points[st.sn + b]
-                get = self.pids.get
+                r, ps = first + b, st.points[st.sn + b]
                 ps.integral = get(r, "integral")
                 ps.pv_prev = int(get(r, "pv_prev")) if get(r, "has_prev") else None
                 ps.prealarm = int(get(r, "prealarm"))
@@ -155,195 +330,25 @@ class _Packed:
                     fun86.waveforms[(inst.yn.kind, inst.yn.index + b)] = (
                         get(r, "w_started"), get(r, "w_pwm"), get(r, "w_on"), bool(get(r, "w_yon")),
                         bool(get(r, "w_yoff")))
-        fun86.waveforms_version = int(eng.get(0, "version"))
-        # the plant: each point's anchor and waveform
-        pl = self.plant_records
+        fun86.waveforms_version = int(self.engine.get(0, "version"))
+
+    def _unpack_plant(self) -> None:
+        get = self.plant_records.get
         for i, heated in enumerate(self.heated):
-            heated.t0, heated.temp0 = pl.get(i, "t0"), pl.get(i, "temp0")
-            if pl.get(i, "wave"):
-                heated.wave = (pl.get(i, "started"), pl.get(i, "period"), pl.get(i, "on"), int(pl.get(i, "u_on")),
-                               int(pl.get(i, "u_off")), pl.get(i, "wst"))
+            heated.t0, heated.temp0 = get(i, "t0"), get(i, "temp0")
+            if get(i, "wave"):
+                heated.wave = (get(i, "started"), get(i, "period"), get(i, "on"), int(get(i, "u_on")),
+                               int(get(i, "u_off")), get(i, "wst"))
             else:
-                heated.wave = (int(pl.get(i, "u")),)
-            heated._memo = []
-        plant._last_outputs = None
-        # what the last scan's other parts wrote: the clock's registers, the temperature work block
-        if self.rtc is not None:
-            self.rtc.scan(emu)
-        tm.scan(emu)  # no measurement is due at this instant: it only rewrites the work block
-
-
-def _model_types() -> tuple:
-    from hil.emulator.models.fun86 import Fun86Model  # noqa: PLC0415 - the models import the engine
-    from hil.emulator.models.plant import ThermalPlant, _Source, _Waved  # noqa: PLC0415
-    from hil.emulator.models.rtc import RtcModel  # noqa: PLC0415
-    from hil.emulator.models.temperature import Fixed, Ramp, TemperatureModel  # noqa: PLC0415
-    return RtcModel, TemperatureModel, Fun86Model, ThermalPlant, _Source, _Waved, Fixed, Ramp
-
-
-def _pack(emu: "Emulator", target: float) -> _Packed | None:  # noqa: C901, PLR0911, PLR0912, PLR0915
-    """The models' state as kernel records, or None when the kernel would not be exactly the Python models."""
-    RtcModel, TemperatureModel, Fun86Model, ThermalPlant, _Source, _Waved, Fixed, Ramp = _model_types()
-    by_type = {type(m): m for m in emu.models}
-    if len(by_type) != len(emu.models) or not set(by_type) <= {RtcModel, TemperatureModel, Fun86Model,
-                                                               ThermalPlant}:
-        return None
-    tm, fun86, plant, rtc = (by_type.get(TemperatureModel), by_type.get(Fun86Model), by_type.get(ThermalPlant),
-                             by_type.get(RtcModel))
-    if tm is None or fun86 is None or plant is None:
-        return None
-    if (not plant.waved or any(plant.faults.values()) or plant._fun86 is not fun86 or not fun86.pwm_exact
-            or fun86.temperature_model is not tm or tm.config.averaging != 1 or tm.log is None):
-        return None
-    mem = emu.memory
-    table = tm.config.table
-    twords = mem.words[table.kind]
-    if twords[table.index] != TABLE_MARKER:
-        return None
-    header = tuple(twords[table.index:table.index + 4 + min(twords[table.index + 1], 8)])
-    state, readings, work, codes, table_modules, _total = tm._layout(header)
-    if state != "measuring" or readings is None or work is None or readings.kind not in mem.words:
-        return None
-    if tm.log_start != (readings.kind, readings.index) or readings.index + MAX_POINTS > len(mem.words[readings.kind]):
-        return None
-    _mismatch, _expected, _entries, measured = tm._plan(codes, table_modules, twords[table.index + 2])
-
-    written: set[tuple[str, int]] = {(readings.kind, readings.index + p) for p in range(MAX_POINTS)}
-    written |= {(work.kind, work.index + n) for n in range(4 + 4 * len(codes))}
-    read: set[tuple[str, int]] = {(table.kind, table.index + n) for n in range(len(header))}
-    read |= {("R", n) for n in range(4003, 4014)}
-
-    # -- temperature modules and points
-    modules = _Records("modules", len(measured))
-    module_index = []
-    for i, (k, first, code) in enumerate(measured):
-        module = tm.fitted[k]
-        sensor = SENSOR_BY_CODE.get(code >> 8)
-        modules.set(i, first=first, points=module.points, step=tm._step(module), next=tm._next[k], mux=tm._mux[k],
-                    has_sensor=sensor is not None, low=sensor.low_c if sensor else 0.0,
-                    high=sensor.high_c if sensor else 0.0)
-        module_index.append(k)
-    measured_points = {first + n for _k, first, _code in measured for n in range(tm.fitted[_k].points)}
-    heated_index = {id(h): i for i, h in enumerate(plant.points.values())}
-    tpoints = _Records("tpoints", MAX_POINTS)
-    bank = mem.words[readings.kind]
-    for point in range(MAX_POINTS):
-        source = tm.sources.get(point)
-        values = {"source": 0, "c0": 0.0}
-        if point in measured_points:
-            if type(source) is Fixed:
-                values = {"source": 0, "c0": float(source.celsius)}
-            elif type(source) is Ramp:
-                values = {"source": 1, "c0": source.start, "c1": source.per_s, "c2": source.low, "c3": source.high}
-            elif type(source) is _Source and type(source.heated) is _Waved and id(source.heated) in heated_index \
-                    and source.point == point:
-                values = {"source": 2, "plant": heated_index[id(source.heated)]}
-            else:
-                return None
-        samples = tm._samples.get(point)
-        tpoints.set(point, installed=tm.installed(mem, point), broken=point in tm.broken,
-                    upper=tm._source_upper(source), has_sample=bool(samples),
-                    sample=samples[-1] if samples else 0.0, reading=bank[readings.index + point],
-                    breakbit=tm._breaks >> point & 1, **values)
-
-    # -- FUN86 instances: each is off, invalid (both unchanged from scan to scan) or running on these readings
-    instances_list, pid_rows, running = [], [], []
-    outputs: dict[tuple[str, int], int] = {}
-    for inst, st in zip(fun86.config.instances, fun86.states):
-        read |= {(inst.en.kind, inst.en.index), (inst.hc.kind, inst.hc.index)}
-        if not mem.bits[inst.en.kind][inst.en.index]:
-            if st.running or st.waiting:
-                return None
-            continue
-        if inst.settable:
-            read |= {(a.kind, a.index) for a in (inst.sn_register, inst.zn_register)}
-        sn, zn = fun86.sn_zn(mem, inst)
-        if not valid_sn_zn(sn, zn):
-            continue
-        if not st.running or st.waiting or not st.executed or (sn, zn) != (st.sn, st.zn):
-            return None
-        start = fun86.readings_start(mem)
-        if start is None or (start.kind, start.index) != (readings.kind, readings.index):
-            return None
-        r = mem.words["R"]
-        first = len(pid_rows)
-        instances_list.append(dict(sn=sn, zn=zn, first=first, interval=st.interval, pwm=st.pwm, started=st.started,
-                                   next_pid=st.next_pid, heating=mem.bits[inst.hc.kind][inst.hc.index],
-                                   limit=r[4008], loop_percent=fun86.loop_threshold(mem), loop_seconds=r[4007],
-                                   md=inst.md))
-        running.append((inst, st))
-        for a in (inst.sv, inst.os, inst.pr, inst.ir, inst.dr):
-            read |= {(a.kind, a.index + b) for b in range(zn)}
-        for a, count in ((inst.or_, zn), (inst.wr, 4)):
-            for b in range(count):
-                if (a.kind, a.index + b) in written:
-                    return None
-                written.add((a.kind, a.index + b))
-        for b in range(zn):
-            key = (inst.yn.kind, inst.yn.index + b)
-            if key in outputs:
-                return None
-            outputs[key] = first + b
-        words = mem.words
-        for b in range(zn):
-            point = sn + b
-            ps = st.points[point]
-            wave = fun86.waveforms.get((inst.yn.kind, inst.yn.index + b))
-            sv, os_ = (words[inst.sv.kind][inst.sv.index + b], words[inst.os.kind][inst.os.index + b])
-            row = dict(point=point, tpoint=point, enabled=fun86.enabled(mem, point),
-                       kc=words[inst.pr.kind][inst.pr.index + b], ki=words[inst.ir.kind][inst.ir.index + b],
-                       td=words[inst.dr.kind][inst.dr.index + b], sv=sv - 0x10000 if sv & 0x8000 else sv,
-                       os=os_ - 0x10000 if os_ & 0x8000 else os_, integral=ps.integral,
-                       has_prev=ps.pv_prev is not None, pv_prev=ps.pv_prev or 0, prealarm=ps.prealarm,
-                       has_loop=ps.loop_since is not None, loop_since=ps.loop_since or 0.0,
-                       out=words[inst.or_.kind][inst.or_.index + b], y=mem.bits[inst.yn.kind][inst.yn.index + b])
-            if wave is not None:
-                row.update(has_wave=1, w_started=wave[0], w_pwm=wave[1], w_on=wave[2], w_yon=wave[3], w_yoff=wave[4])
-            pid_rows.append(row)
-    if not running or read & written:
-        return None
-    # the alarm bits and outputs must not be what another part reads
-    bit_writes = set(outputs) | {(inst.alm.kind, inst.alm.index) for inst, _st in running}
-    if len(bit_writes) != len(outputs) + len(running) or bit_writes & {k for k in read if k[0] not in mem.words}:
-        return None
-
-    # -- the plant
-    plant_records = _Records("plant", len(plant.points))
-    heated_list = []
-    for i, (point, heated) in enumerate(plant.points.items()):
-        p, wave = heated.p, heated.wave
-        address = plant.heaters[point]
-        ref = outputs.get((address.kind, address.index))
-        values = dict(ambient=p.ambient, gain=p.gain, tau=p.tau, noise=p.noise, seed=plant.seed, point=point,
-                      t0=heated.t0, temp0=heated.temp0, drive=ref is not None, ref=ref or 0,
-                      bit=1 if mem.bits[address.kind][address.index] else 0)
-        if len(wave) == 1:
-            values.update(wave=0, u=wave[0])
-        else:
-            values.update(wave=1, started=wave[0], period=wave[1], on=wave[2], u_on=wave[3], u_off=wave[4],
-                          wst=wave[5])
-        plant_records.set(i, **values)
-        heated_list.append(heated)
-
-    engine = _Records("engine", 1)
-    engine.set(0, now=emu.now, target=target, scan_time=emu.scan_time, scans=emu.scans,
-               version=fun86.waveforms_version, fahrenheit=tm.config.unit != "C", fast=tm.config.rate == "fast")
-    instances = _Records("instances", len(instances_list))
-    for i, values in enumerate(instances_list):
-        instances.set(i, **values)
-    pids = _Records("pids", len(pid_rows))
-    for i, values in enumerate(pid_rows):
-        pids.set(i, **values)
-    return _Packed(emu, dict(tm=tm, fun86=fun86, plant=plant, rtc=rtc, engine=engine, modules=modules,
-                             module_index=module_index, tpoints=tpoints, readings=readings, plant_records=plant_records,
-                             heated=heated_list, instances=instances, pids=pids, running=running,
-                             normals=_normals(plant.seed)))
+                heated.wave = (int(get(i, "u")),)
+            heated._memo = []  # a cache of the old waveform's cycles
+        self.plant._last_outputs = None
 
 
 def _normals(seed: int) -> array.array:
+    """The plant's table of normals (hil/emulator/models/plant.py) as a float64 buffer, once per seed."""
     table = _NORMALS.get(seed)
     if table is None:
         from hil.emulator.models.plant import _normals as normals  # noqa: PLC0415
         table = _NORMALS[seed] = array.array("d", normals(seed))
     return table
-
