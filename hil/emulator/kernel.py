@@ -150,9 +150,9 @@ class _Span:
         self.module_index = []
         for i, (k, first, code) in enumerate(measured):
             module, sensor = tm.fitted[k], SENSOR_BY_CODE.get(code >> 8)
+            _require(sensor is not None)  # the range clamp keeps every reading within C's integers
             self.modules.set(i, first=first, points=module.points, step=tm._step(module), next=tm._next[k],
-                             mux=tm._mux[k], has_sensor=sensor is not None, low=sensor.low_c if sensor else 0.0,
-                             high=sensor.high_c if sensor else 0.0)
+                             mux=tm._mux[k], has_sensor=1, low=sensor.low_c, high=sensor.high_c)
             self.module_index.append(k)
         measured_points = {first + n for k, first, _code in measured for n in range(tm.fitted[k].points)}
         self.tpoints = _Records("tpoints", MAX_POINTS)
