@@ -100,6 +100,8 @@ class Fun86Model(Model):
         self.waveforms: dict[tuple[str, int], tuple] = {}
         #: bumped whenever :attr:`waveforms` changes (the plant skips its per-point work while it has not)
         self.waveforms_version = 0
+        self._wiring: list[tuple] = []  # see _scan_at_rest
+        self._wiring_for: "Memory | None" = None
 
     # -- the seams broken variants override ---------------------------------------------------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -194,6 +196,10 @@ class Fun86Model(Model):
         mem = emu.memory
         tm = self.temperature_model
         self._log = tm.log if tm is not None and tm.log else None
+        if self._scan_at_rest(mem):
+            if tm is not None:
+                tm.log = None
+            return
         for inst, st in zip(self.config.instances, self.states):
             self._scan_instance(emu, mem, inst, st)
             if not st.running:
@@ -201,6 +207,26 @@ class Fun86Model(Model):
         if tm is not None:
             # log the readings measured until the next scan (replayed there) while any instance runs
             tm.log = {} if any(st.running for st in self.states) else None
+
+    def _scan_at_rest(self, mem: "Memory") -> bool:
+        """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
+        points (the default bench's case, on every request): of _scan_instance then only ERR := 0 and ALM := 0
+        change anything, and _drop_waveforms over zn = 0 outputs does nothing.  False (nothing done) otherwise."""
+        cls = type(self)
+        if cls._scan_instance is not Fun86Model._scan_instance or cls._drop_waveforms is not Fun86Model._drop_waveforms:
+            return False
+        if self._wiring_for is not mem:  # the banks are fixed for a Memory's life
+            self._wiring = [(mem.bits[i.en.kind], i.en.index, mem.bits[i.err.kind], i.err.index,
+                             mem.bits[i.alm.kind], i.alm.index) for i in self.config.instances]
+            self._wiring_for = mem
+        wiring = self._wiring
+        for st, (en_bank, en_index, _eb, _ei, _ab, _ai) in zip(self.states, wiring):
+            if en_bank[en_index] or st.running or st.waiting or st.en_prev or st.zn:
+                return False
+        for _en_bank, _en_index, err_bank, err_index, alm_bank, alm_index in wiring:
+            err_bank[err_index] = 0
+            alm_bank[alm_index] = 0
+        return True
 
     def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
         if self.waveforms:

@@ -385,7 +385,11 @@ class ThermalPlant(Model):
             # the common case, without a call per point: u is the output itself; a point whose u is unchanged
             # keeps its anchor (what _Heated.advance would do), so outputs unchanged since the last such scan
             # mean nothing to do
-            outputs = [bytes(bank[lo:hi]) for bank, lo, hi in self._spans]
+            # (one bytes for all spans — each has a fixed length, so the concatenation tells them apart — built
+            # without a comprehension: this runs on every request)
+            outputs = b""
+            for bank, lo, hi in self._spans:
+                outputs += bank[lo:hi]
             if outputs == self._last_outputs:
                 return
             for _point, heated, bank, index in self._wiring:

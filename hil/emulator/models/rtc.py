@@ -60,6 +60,13 @@ class RtcModel(Model):
     """
 
     name = "rtc"
+    #: no step of the scan's read-out is overridden (set per subclass below): scan() may then inline them
+    _plain = True
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        cls._plain = all(getattr(cls, name) is getattr(RtcModel, name)
+                         for name in ("publish_chip", "chip_seconds", "read_chip", "copy_out", "weekday_for"))
 
     def __init__(self, chip: int = S35390A, crystal_ppm: float = 0.0,
                  start: dt.datetime | RtcTime | None = None) -> None:
@@ -93,8 +100,13 @@ class RtcModel(Model):
 
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
-        self.publish_chip(emu)
-        hold, adjust = mem.bits["M"][_HOLD], mem.bits["M"][_ADJUST]
+        m = mem.bits["M"]
+        if self._plain:  # publish_chip, inlined (it runs on every request)
+            mem.words["D"][_CHIP] = self.chip
+            m[_INSTALLED] = 1 if self.chip else 0
+        else:
+            self.publish_chip(emu)
+        hold, adjust = m[_HOLD], m[_ADJUST]
         if self.chip:
             code = mem.words["D"][_RATE_CODE]
             if code != self._code:
@@ -110,12 +122,11 @@ class RtcModel(Model):
     def _read_out(self, emu: "Emulator") -> None:
         """copy_out(read_chip(now)), skipped when the chip still shows the second already in R4128–R4135 (the
         unmodified model only: a variant overriding a step always takes the full path)."""
-        cls = type(self)
-        if (cls.read_chip is not RtcModel.read_chip or cls.copy_out is not RtcModel.copy_out
-                or cls.weekday_for is not RtcModel.weekday_for):
+        if not self._plain:
             self.copy_out(emu, self.read_chip(emu.now))
             return
-        second = math.floor(self.chip_seconds(emu.now))
+        # chip_seconds(emu.now), inlined
+        second = math.floor((self._anchor_s + (emu.now - self._anchor_t) * self._rate) % CENTURY_SECONDS)
         words = emu.memory.words["R"]
         if second == self._shown_second and words[_FIRST:_HOUR_MINUTE + 1] == self._shown:
             return

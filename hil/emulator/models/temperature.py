@@ -213,6 +213,17 @@ class TemperatureModel(Model):
         return plan
 
     def scan(self, emu: "Emulator") -> None:
+        quiet = self._quiet
+        if quiet is not None:
+            header, due, bank, first, block, words, sr = quiet
+            # (the table's words equal to the recorded header, marker and count included — equal count, equal
+            # length — is the same test as the full path's header comparison below)
+            if emu.now + 1e-9 < due and words[sr:sr + len(header)] == header:
+                # Same table, no measurement due: the model's state (mux, breaks, measured points) cannot have
+                # changed since the last scan, so neither has the block — rewrite it (the host may have scribbled
+                # over it).
+                bank[first:first + len(block)] = block
+                return
         mem = emu.memory
         words = mem.words[self.config.table.kind]
         sr = self.config.table.index
@@ -221,13 +232,6 @@ class TemperatureModel(Model):
             return
         count = words[sr + 1]
         header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
-        quiet = self._quiet
-        if quiet is not None and quiet[0] == header and emu.now + 1e-9 < quiet[1]:
-            # Same table, no measurement due: the model's state (mux, breaks, measured points) cannot have changed
-            # since the last scan, so neither has the block — rewrite it (the host may have scribbled over it).
-            _header, _due, bank, first, block = quiet
-            bank[first:first + len(block)] = block
-            return
         self._quiet = None
         state, readings, work, codes, table_modules, total = self._layout(header)
         if work is None:  # nowhere to report anything
@@ -258,7 +262,7 @@ class TemperatureModel(Model):
             bank[work.index:work.index + len(block)] = block
             if self.state == "measuring" and readings is not None:
                 due = min((self._next[k] for k, _first, _code in measured), default=math.inf)
-                self._quiet = (header, due, bank, work.index, block)
+                self._quiet = (list(header), due, bank, work.index, block, words, sr)
         else:
             mem.write(work, block)
 

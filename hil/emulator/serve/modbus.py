@@ -34,6 +34,7 @@ from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from hil.address import WORD_BANKS as _WORD_BANKS
 from hil.address import Address
 from hil.emulator.core import Emulator
 from hil.emulator.memory import Memory
@@ -70,14 +71,26 @@ def build_device(emulator: Emulator, unit: int) -> SimDevice:
 
 def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
     lock = emulator.lock
+    # A read's request function depends on nothing but these arguments (the map is fixed, the staging list is
+    # the device's own), and a client repeats the same few reads: build each once.
+    reads: dict[tuple[int, int, int, int], tuple[list[int], Callable[[Memory], Callable[[], None]]]] = {}
+
     async def action(function_code: int, start_address: int, address: int, count: int,
                      registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
-        if function_code in _COIL_FCS:
+        key = (function_code, start_address, address, count)
+        hit = reads.get(key) if set_values is None else None
+        if hit is not None and hit[0] is registers:
+            request = hit[1]
+        elif function_code in _COIL_FCS:
             request = _coil_request(start_address, address, count, registers, set_values)
         elif function_code in _HOLDING_FCS:
             request = _holding_request(start_address, address, count, registers, set_values)
         else:
             return ExcCodes.ILLEGAL_FUNCTION
+        if set_values is None and hit is None:
+            if len(reads) >= 4096:  # a client sweeping the address space: stay bounded
+                reads.clear()
+            reads[key] = (registers, request)
         # Fast path: the emulator is free (the usual case), so service the request right here on the loop —
         # a hop to a worker thread and back costs more than the request.  Only when somebody holds the lock
         # (a test advancing virtual time) does the request wait on a worker, leaving the loop free.
@@ -115,6 +128,17 @@ def _holding_slots(address: int, n: int) -> tuple[tuple[str, int, int | None], .
             element, part = found
             slots.append((element.kind, element.index, part if element.kind == "DRC" else None))
     return tuple(slots)
+
+
+@functools.lru_cache(maxsize=1 << 12)
+def _holding_run(address: int, n: int) -> tuple[str, int] | None:
+    """(kind, first index) when the ``n`` registers from ``address`` are consecutive 16-bit elements of one word
+    bank, else None."""
+    slots = _holding_slots(address, n)
+    kind, first, _part = slots[0]
+    if kind and kind in _WORD_BANKS and all(s == (kind, first + i, None) for i, s in enumerate(slots)):
+        return kind, first
+    return None
 
 
 def _coil_request(start_address: int, address: int, count: int, registers: list[int],
@@ -166,6 +190,18 @@ def _holding_request(start_address: int, address: int, count: int, registers: li
         return write
 
     offset = address - start_address
+    run = _holding_run(address, n)
+    if run is not None:  # the usual read: one slice of one word bank
+        kind, first = run
+        end = first + n
+
+        def read_run(mem: Memory) -> Callable[[], None]:
+            values = mem.words[kind][first:end]
+
+            def fill() -> None:
+                registers[offset:offset + count] = values
+            return fill
+        return read_run
 
     def read(mem: Memory) -> Callable[[], None]:
         words = mem.words
@@ -202,20 +238,37 @@ class _Refusal(ModbusPDU):
         return ExceptionResponse(self.function_code, self.code)
 
 
-def _request_extent(pdu: ModbusPDU) -> tuple[str, int, int, bool] | None:
-    """(table, address, count, is_write) of a request the FBs supports, else None."""
-    fc = pdu.function_code
+def _request_extent_of(fc: int, address: int, count: int) -> tuple[str, int, int, bool] | None:
+    """(table, address, count, is_write) of a request the FBs supports, else None.  ``count`` is the PDU's (for
+    FC15/16 decode() sets it from the frame's quantity field; FC05/06 write one unit whatever it says)."""
     if fc in (5, 6):
-        return (COIL if fc == 5 else HOLDING), pdu.address, 1, True
-    if fc in (15, 16):  # decode() sets count from the frame's quantity field
-        return (COIL if fc == 15 else HOLDING), pdu.address, pdu.count, True
+        return (COIL if fc == 5 else HOLDING), address, 1, True
+    if fc in (15, 16):
+        return (COIL if fc == 15 else HOLDING), address, count, True
     if fc in (1, 3):
-        return (COIL if fc == 1 else HOLDING), pdu.address, pdu.count, False
+        return (COIL if fc == 1 else HOLDING), address, count, False
+    return None
+
+
+def _verdict(fc: int, address: int, count: int) -> ExcCodes | None:
+    """The exception an FBs answers a request for its own unit with, or None to serve it."""
+    extent = _request_extent_of(fc, address, count)
+    if extent is None:
+        return ExcCodes.ILLEGAL_FUNCTION
+    table, address, count, is_write = extent
+    limit = (MAX_WRITE if is_write else MAX_READ)[table]
+    if not 1 <= count <= limit:
+        return ExcCodes.ILLEGAL_VALUE
+    if _unmapped_in(table, address, count) is not None:
+        return ExcCodes.ILLEGAL_ADDRESS
     return None
 
 
 def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, ModbusPDU], ModbusPDU]:
     stats = emulator.stats  # only this loop thread writes the modbus_* keys, so no lock is needed
+    # (function code, address, count) → verdict: the verdict depends on nothing else (the map is fixed; every
+    # ModbusPDU has address and count), and a client repeats the same few requests: check each once
+    verdicts: dict[tuple[int, int, int], ExcCodes | None] = {}
 
     def gate(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
         if sending:
@@ -229,16 +282,14 @@ def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, M
                 stats["modbus_ignored"] += 1
                 return _Refusal(pdu, None)
             return _Refusal(pdu, ExcCodes.GATEWAY_NO_RESPONSE)
-        extent = _request_extent(pdu)
-        if extent is None:
-            return _Refusal(pdu, ExcCodes.ILLEGAL_FUNCTION)
-        table, address, count, is_write = extent
-        limit = (MAX_WRITE if is_write else MAX_READ)[table]
-        if not 1 <= count <= limit:
-            return _Refusal(pdu, ExcCodes.ILLEGAL_VALUE)
-        if _unmapped_in(table, address, count) is not None:
-            return _Refusal(pdu, ExcCodes.ILLEGAL_ADDRESS)
-        return pdu
+        key = (pdu.function_code, pdu.address, pdu.count)
+        try:
+            code = verdicts[key]
+        except KeyError:
+            if len(verdicts) >= 4096:  # a client sweeping the address space: stay bounded
+                verdicts.clear()
+            code = verdicts[key] = _verdict(*key)
+        return pdu if code is None else _Refusal(pdu, code)
     return gate
 
 
