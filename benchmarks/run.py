@@ -117,8 +117,9 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
     clients = {name: ModbusTcpClient("127.0.0.1", port=port, timeout=2, retries=0)
                for name, port in (("hil", our_port), ("bare", bare_port))}
     # Timings on a shared machine swing by ±30 % from one second to the next, so the two servers are measured in
-    # many short interleaved rounds: "best" compares each server's fastest round (what it can do when the machine
-    # lets it), "median" the middle of the per-round ratios (each hil round against the bare round next to it).
+    # many short interleaved rounds.  The headline is the median of the per-round ratios (each hil round against
+    # the bare round next to it, so both saw the same machine); "best" compares each server's fastest round, an
+    # extreme that one lucky bare round decides (seen: 0.72× best beside a 0.90× median in one run).
     per_round: dict[str, list[float]] = defaultdict(list)
     try:
         for c in clients.values():
@@ -138,7 +139,8 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
     ratios = sorted(h / b for h, b in zip(per_round["hil"], per_round["bare"]))
     best = {name: max(values) for name, values in per_round.items()}
     return {"hil_requests_per_s": best["hil"], "bare_requests_per_s": best["bare"],
-            "ratio": best["hil"] / best["bare"], "median_round_ratio": ratios[len(ratios) // 2],
+            "ratio": ratios[len(ratios) // 2], "best_round_ratio": best["hil"] / best["bare"],
+            "median_round_ratio": ratios[len(ratios) // 2],
             "round_ratio_range": [ratios[0], ratios[-1]], "rounds": rounds, "target_ratio": 0.8,
             "requests_served": emulator.stats["requests"]}
 
@@ -435,11 +437,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"{r['registers_per_s_64']:,.0f}", f"{r['round_trips_per_s'] / base:.3f}×")
     console.print(t)
 
-    results["modbus_server"] = m = bench_modbus_servers(seconds * 2)
-    console.print(f"Modbus TCP server: hil emulator {m['hil_requests_per_s']:,.0f} req/s, bare pymodbus SimDevice "
-                  f"{m['bare_requests_per_s']:,.0f} req/s (best of {m['rounds']} interleaved rounds each) → "
-                  f"[bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×); per-round ratios median {m['median_round_ratio']:.2f}×, "
-                  f"range {m['round_ratio_range'][0]:.2f}–{m['round_ratio_range'][1]:.2f}×")
+    results["modbus_server"] = m = bench_modbus_servers(2.0 if args.quick else 10.0)
+    console.print(f"Modbus TCP server: hil emulator against a bare pymodbus SimDevice, {m['rounds']} interleaved rounds "
+                  f"each: median of the paired round ratios [bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×), range "
+                  f"{m['round_ratio_range'][0]:.2f}–{m['round_ratio_range'][1]:.2f}×; best rounds "
+                  f"{m['hil_requests_per_s']:,.0f} vs {m['bare_requests_per_s']:,.0f} req/s ({m['best_round_ratio']:.2f}×)")
 
     results["device_operations"] = ops = device_operations()
     t = Table(title="FATEK bytes per device operation (request + reply frames)")
