@@ -173,12 +173,14 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
     assert_same(python, compiled)
 
 
-@pytest.mark.parametrize("unit, rate", [("F", "normal"), ("C", "fast"), ("F", "fast")])
-def test_fahrenheit_and_the_fast_rate(unit, rate):
+@pytest.mark.parametrize("unit, rate, averaging", [("F", "normal", 1), ("C", "fast", 1), ("F", "fast", 1),
+                                                    ("C", "normal", 4), ("F", "fast", 8), ("C", "normal", 2)])
+def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
     def drive(emu) -> None:  # noqa: ANN001
-        start(emu, sv={f"R{1000 + p}": 2200 if unit == "F" else 1200 for p in range(32)})
+        start(emu, sv={f"R{1000 + p}": 2200 if unit == "F" else 1200 for p in range(32)}, R4008=1150)
         emu.advance(900)
-    build = lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, unit=unit, rate=rate), EPOCH)  # noqa: E731
+    build = lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, unit=unit, rate=rate,  # noqa: E731
+                                           averaging=averaging), EPOCH)
     python, compiled = both_ways(build, drive)
     assert_same(python, compiled)
 
@@ -215,8 +217,7 @@ def test_it_applies_to_the_full_plc():
     assert kernel_spans(full_plc()) > 0
 
 
-def test_it_steps_aside_for_averaging_a_plant_fault_dead_time_and_broken_variants():
-    assert kernel_spans(lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, averaging=4), EPOCH)) == 0
+def test_it_steps_aside_for_a_plant_fault_dead_time_and_broken_variants():
     assert kernel_spans(full_plc(), lambda emu: emu.model(ThermalPlant).set_fault("heater_open", 2, True)) == 0
     assert kernel_spans(full_plc(dead_time=2.0)) == 0
 

@@ -17,10 +17,10 @@
 #include <string.h>
 
 /* -- record layouts (exported to Python as FIELDS, so both sides index by name) ------------------------------- */
-#define ENGINE(X) X(now) X(target) X(scan_time) X(scans) X(version) X(fahrenheit) X(fast)
+#define ENGINE(X) X(now) X(target) X(scan_time) X(scans) X(version) X(fahrenheit) X(fast) X(averaging)
 #define MODULE(X) X(first) X(points) X(step) X(next) X(mux) X(has_sensor) X(low) X(high)
-#define TPOINT(X) X(installed) X(broken) X(source) X(c0) X(c1) X(c2) X(c3) X(plant) X(upper) X(has_sample) \
-    X(sample) X(reading) X(written) X(breakbit)
+#define TPOINT(X) X(installed) X(broken) X(source) X(c0) X(c1) X(c2) X(c3) X(plant) X(upper) X(samples) \
+    X(s0) X(s1) X(s2) X(s3) X(s4) X(s5) X(s6) X(s7) X(reading) X(written) X(breakbit)
 #define PLANT(X) X(ambient) X(gain) X(tau) X(noise) X(seed) X(point) X(t0) X(temp0) X(wave) X(u) X(started) \
     X(period) X(on) X(u_on) X(u_off) X(wst) X(drive) X(ref) X(bit)
 #define INST(X) X(sn) X(zn) X(first) X(interval) X(pwm) X(started) X(next_pid) X(heating) X(limit) \
@@ -175,12 +175,25 @@ static int measure_module(Kernel *k, double *m, double now) {
                 celsius = celsius < m[M_high] ? celsius : m[M_high];
             }
             double value = fahrenheit ? celsius * 9 / 5 + 32 : celsius;
-            tp[T_has_sample] = 1;  /* averaging 1: the mean is the value (kernel.py admits no other) */
-            tp[T_sample] = value;
-            reading = fast ? (long)rint(value) * 10 : (long)rint(value * 10);
+            /* the last `averaging` values, oldest first (temperature.py: a deque with maxlen; mean_of) */
+            int n = (int)tp[T_samples], averaging = (int)k->eng[E_averaging];
+            double *samples = tp + T_s0;
+            if (n == averaging) {
+                memmove(samples, samples + 1, (n - 1) * sizeof(double));
+                n--;
+            }
+            samples[n++] = value;
+            tp[T_samples] = n;
+            double mean = value;
+            if (n > 1) {
+                double total = 0.0;
+                for (int i = 0; i < n; i++) total += samples[i];
+                mean = total / n;
+            }
+            reading = fast ? (long)rint(mean) * 10 : (long)rint(mean * 10);
             tp[T_breakbit] = 0;
         } else {
-            tp[T_has_sample] = 0;
+            tp[T_samples] = 0;
             if (tp[T_broken] && tp[T_installed]) {
                 reading = BREAK_VALUE;
                 tp[T_breakbit] = 1;
@@ -324,7 +337,8 @@ static int prealarm_possible(const Kernel *k, const double *in) {
         if (pp[P_tpoint] < 0) { unknown = 1; continue; }
         const double *tp = k->tps + (Py_ssize_t)pp[P_tpoint] * T_SIZE;
         double value = tp[T_upper];
-        if (tp[T_has_sample] && tp[T_sample] > value) value = tp[T_sample];
+        for (int i = 0; i < (int)tp[T_samples]; i++)
+            if (tp[T_s0 + i] > value) value = tp[T_s0 + i];
         if (value > top) top = value;
         if (tp[T_broken] || !tp[T_installed]) unknown = 1;
     }

@@ -7,7 +7,7 @@ requests nothing but the models touches memory, so :func:`advance` packs their s
 the same virtual times, the same arithmetic in the same order — and unpacks the result.
 
 It applies only where it is exactly the Python models (:func:`_pack` says why not, otherwise): the stock model
-classes (a broken variant overrides a seam → Python), averaging 1, no plant faults, no dead time, every enabled
+classes (a broken variant overrides a seam → Python), known sensors, no plant faults, no dead time, every enabled
 FUN86 instance running on the temperature model's readings, no register written by one part and read by another.
 ``tests/test_kernel.py`` runs the same virtual hours both ways and compares every register and model state.
 """
@@ -111,7 +111,7 @@ class _Span:
         self.engine = _Records("engine", 1)
         self.engine.set(0, now=emu.now, target=target, scan_time=emu.scan_time, scans=emu.scans,
                         version=self.fun86.waveforms_version, fahrenheit=self.tm.config.unit != "C",
-                        fast=self.tm.config.rate == "fast")
+                        fast=self.tm.config.rate == "fast", averaging=self.tm.config.averaging)
 
     # -- packing ---------------------------------------------------------------------------------------------------
     def _models(self) -> None:
@@ -128,7 +128,7 @@ class _Span:
         tm, fun86, plant = self.tm, self.fun86, self.plant
         _require(tm is not None and fun86 is not None and plant is not None)
         _require(plant.waved and not any(plant.faults.values()) and plant._fun86 is fun86 and fun86.pwm_exact
-                 and fun86.temperature_model is tm and tm.config.averaging == 1 and tm.log is not None)
+                 and fun86.temperature_model is tm and tm.log is not None)
 
     def _pack_temperature(self) -> None:
         tm, mem = self.tm, self.mem
@@ -159,10 +159,11 @@ class _Span:
         bank = mem.words[readings.kind]
         for point in range(MAX_POINTS):
             source = tm.sources.get(point)
-            samples = tm._samples.get(point)
+            samples = list(tm._samples.get(point, ()))
             self.tpoints.set(point, installed=tm.installed(mem, point), broken=point in tm.broken,
-                             upper=tm._source_upper(source), has_sample=bool(samples),
-                             sample=samples[-1] if samples else 0.0, reading=bank[readings.index + point],
+                             upper=tm._source_upper(source), samples=len(samples),
+                             **{f"s{i}": value for i, value in enumerate(samples)},
+                             reading=bank[readings.index + point],
                              breakbit=tm._breaks >> point & 1,
                              **(self._source(point, source) if point in measured_points else {}))
 
@@ -299,11 +300,10 @@ class _Span:
             if not tp.get(point, "written"):
                 continue
             readings[self.readings.index + point] = int(tp.get(point, "reading"))
-            if tp.get(point, "has_sample"):
-                samples = tm._samples.get(point)
-                if samples is None:
-                    samples = tm._samples[point] = collections.deque(maxlen=tm.config.averaging)
-                samples.append(tp.get(point, "sample"))
+            count = int(tp.get(point, "samples"))
+            if count:
+                tm._samples[point] = collections.deque((tp.get(point, f"s{i}") for i in range(count)),
+                                                       maxlen=tm.config.averaging)
             else:
                 tm._samples.pop(point, None)
         tm._breaks = breaks

@@ -333,7 +333,7 @@ class TemperatureModel(Model):
                 if samples is None:
                     samples = samples_of[point] = collections.deque(maxlen=averaging)
                 samples.append(value)
-                mean = sum(samples) / len(samples)
+                mean = value if len(samples) == 1 else mean_of(samples)
                 reading = int(round(mean)) * 10 if fast else int(round(mean * 10))
                 self._breaks &= ~(1 << point)
             else:
@@ -418,10 +418,20 @@ class TemperatureModel(Model):
         value = to_unit(celsius, self.config.unit)
         samples = self._samples.setdefault(point, collections.deque(maxlen=self.config.averaging))
         samples.append(value)
-        mean = sum(samples) / len(samples)
+        mean = mean_of(samples)
         if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
             return int(round(mean)) * 10
         return int(round(mean * 10))
+
+
+def mean_of(samples) -> float:  # noqa: ANN001
+    """The average of the last readings, added oldest first: not sum(), whose float algorithm changed in Python
+    3.12 (compensated) — the same profile gives the same readings on every Python, and the compiled kernel
+    (hil/emulator/_kernel.c) adds the same way."""
+    total = 0.0
+    for value in samples:
+        total += value
+    return total / len(samples)
 
 
 def _signed(word: int) -> int:
