@@ -21,7 +21,7 @@
 #define MODULE(X) X(first) X(points) X(step) X(next) X(mux) X(has_sensor) X(low) X(high)
 #define TPOINT(X) X(installed) X(broken) X(source) X(c0) X(c1) X(c2) X(c3) X(plant) X(upper) X(samples) \
     X(s0) X(s1) X(s2) X(s3) X(s4) X(s5) X(s6) X(s7) X(reading) X(written) X(breakbit)
-#define PLANT(X) X(ambient) X(gain) X(tau) X(noise) X(seed) X(point) X(t0) X(temp0) X(wave) X(u) X(started) \
+#define PLANT(X) X(ambient) X(gain) X(tau) X(noise) X(seed_lo) X(seed_hi) X(point) X(t0) X(temp0) X(wave) X(u) X(started) \
     X(period) X(on) X(u_on) X(u_off) X(wst) X(drive) X(ref) X(bit)
 #define INST(X) X(sn) X(zn) X(first) X(interval) X(pwm) X(started) X(next_pid) X(heating) X(limit) \
     X(loop_percent) X(loop_seconds) X(md) X(normal0) X(normal1) X(warn0) X(warn1) X(alm)
@@ -110,11 +110,13 @@ static double plant_temperature(const double *p, double t) {
     return temp;
 }
 
-/* plant.py _noise_index: splitmix64 of (microseconds, point, seed) */
-static unsigned noise_index(double seed, double point, double t) {
+/* plant.py _noise_index: splitmix64 of (microseconds, point, seed); the seed (any Python int) arrives as its two
+ * 32-bit halves modulo 2^64, which is all that Python's `seed * K & MASK` keeps of it */
+static unsigned noise_index(const double *p, double t) {
     uint64_t micros = (uint64_t)(int64_t)rint(t * 1000000.0);
-    uint64_t x = micros * 0x9E3779B97F4A7C15ULL + (uint64_t)(int64_t)point * 0xBF58476D1CE4E5B9ULL
-                 + (uint64_t)(int64_t)seed * 0x94D049BB133111EBULL;
+    uint64_t seed = (uint64_t)p[L_seed_hi] << 32 | (uint64_t)p[L_seed_lo];
+    uint64_t x = micros * 0x9E3779B97F4A7C15ULL + (uint64_t)(int64_t)p[L_point] * 0xBF58476D1CE4E5B9ULL
+                 + seed * 0x94D049BB133111EBULL;
     x ^= x >> 30;
     x *= 0xBF58476D1CE4E5B9ULL;
     x ^= x >> 27;
@@ -125,7 +127,7 @@ static unsigned noise_index(double seed, double point, double t) {
 
 static double plant_measured(const Kernel *k, const double *p, double t) {
     double value = plant_temperature(p, t);
-    if (p[L_noise]) value += k->normals[noise_index(p[L_seed], p[L_point], t)] * p[L_noise];
+    if (p[L_noise]) value += k->normals[noise_index(p, t)] * p[L_noise];
     return value;
 }
 

@@ -6,10 +6,13 @@ requests nothing but the models touches memory, so :func:`advance` packs their s
 ``hil.emulator._kernel`` (C, built at install when a compiler is there) run the engine's loop — the same scans at
 the same virtual times, the same arithmetic in the same order — and unpacks the result.
 
-It applies only where it is exactly the Python models (:func:`_pack` says why not, otherwise): the stock model
-classes (a broken variant overrides a seam → Python), known sensors, no plant faults, no dead time, every enabled
-FUN86 instance running on the temperature model's readings, no register written by one part and read by another.
-``tests/test_kernel.py`` runs the same virtual hours both ways and compares every register and model state.
+It applies only where it is exactly the Python models (:class:`_Span` checks, else raises _Inapplicable): the
+stock model classes (a broken variant overrides a seam → Python), known sensors, no plant faults, no dead time,
+every enabled FUN86 instance running on the temperature model's readings, the models in scan order temperature →
+FUN86 → plant, no register written by one part and read by another, none of the clock's (it is scanned once, at
+the end of a span).
+``tests/test_kernel.py`` and ``tests/test_kernel_edges.py`` run the same virtual hours both ways and compare every
+scan's outputs, every register and every model state.
 """
 
 from __future__ import annotations
@@ -63,6 +66,10 @@ class _Records:
 
 _NORMALS: dict[int, array.array] = {}
 
+#: what the RTC model reads and writes: R4128–R4135, D4053 (chip), D4054 (rate code), M1952–M1955
+_RTC_ELEMENTS = ({("R", n) for n in range(4128, 4136)} | {("D", 4053), ("D", 4054)}
+                 | {("M", n) for n in range(1952, 1956)})
+
 
 def advance(emu: "Emulator", target: float) -> bool:
     """Scan ``emu`` up to ``target`` as :meth:`Emulator.advance_to`'s loop would; False if the kernel does not
@@ -108,6 +115,8 @@ class _Span:
         self._pack_fun86()
         self._pack_plant()
         _require(not self.read & self.written)
+        # the clock is scanned once, at the end of the span: nothing the kernel reads or writes may be its
+        _require(self.rtc is None or not _RTC_ELEMENTS & (self.read | self.written))
         self.engine = _Records("engine", 1)
         self.engine.set(0, now=emu.now, target=target, scan_time=emu.scan_time, scans=emu.scans,
                         version=self.fun86.waveforms_version, fahrenheit=self.tm.config.unit != "C",
@@ -127,6 +136,8 @@ class _Span:
         self.plant, self.rtc = by_type.get(ThermalPlant), by_type.get(RtcModel)
         tm, fun86, plant = self.tm, self.fun86, self.plant
         _require(tm is not None and fun86 is not None and plant is not None)
+        models = self.emu.models  # a scan runs them in this order; the kernel's is temperature → FUN86 → plant
+        _require(models.index(tm) < models.index(fun86) < models.index(plant))
         _require(plant.waved and not any(plant.faults.values()) and plant._fun86 is fun86 and fun86.pwm_exact
                  and fun86.temperature_model is tm and tm.log is not None)
 
@@ -248,7 +259,9 @@ class _Span:
             ref = self.outputs.get((heater.kind, heater.index))  # a running instance drives it, or it is constant
             if ref is None:
                 self.read.add((heater.kind, heater.index))
-            values = dict(ambient=p.ambient, gain=p.gain, tau=p.tau, noise=p.noise, seed=plant.seed, point=point,
+            seed = plant.seed & 0xFFFFFFFFFFFFFFFF  # all the noise index keeps of it (plant.py _noise_index)
+            values = dict(ambient=p.ambient, gain=p.gain, tau=p.tau, noise=p.noise, seed_lo=seed & 0xFFFFFFFF,
+                          seed_hi=seed >> 32, point=point,
                           t0=heated.t0, temp0=heated.temp0, drive=ref is not None, ref=ref or 0,
                           bit=1 if bits[heater.kind][heater.index] else 0)
             if len(wave) == 1:

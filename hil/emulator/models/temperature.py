@@ -88,6 +88,9 @@ class TemperatureModel(Model):
         self._samples: dict[int, collections.deque[float]] = {}
         self._measured: set[int] = set()
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
+        #: the fitted modules the table had measured at the last full scan (a mismatched or unlisted module's
+        #: schedule stands still: it must not look due)
+        self._active: tuple[int, ...] = tuple(range(len(self.fitted)))
         self._mux: list[int] = [0] * len(self.fitted)  # the point (within the module) measured next
         self._breaks = 0  # 32 break bits as the model last wrote them
         self._break_key: int | None = None  # _breaks for which _break_value was computed
@@ -164,7 +167,7 @@ class TemperatureModel(Model):
 
     def next_measurement(self) -> float:
         """Virtual time of the next scheduled measurement of any point (a PID acting on PV may need a scan then)."""
-        return min(self._next, default=math.inf)
+        return min((self._next[k] for k in self._active), default=math.inf)
 
     def _step(self, module: ModuleType) -> float:
         return module.update_s[self.config.rate] / module.points
@@ -227,6 +230,7 @@ class TemperatureModel(Model):
         mem = emu.memory
         words = mem.words[self.config.table.kind]
         sr = self.config.table.index
+        self._active = ()
         if words[sr] != TABLE_MARKER:
             self.state = "idle"
             return
@@ -244,6 +248,7 @@ class TemperatureModel(Model):
         if self.state == "measuring" and readings is not None:
             plan = self._plan(codes, table_modules, words[sr + 2])
             mismatch, expected, entries, measured = plan
+            self._active = tuple(k for k, _first, _code in measured)
             now = emu.now
             for k, first, code in measured:
                 if self._next[k] <= now + 1e-9:
