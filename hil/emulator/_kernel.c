@@ -21,8 +21,8 @@
 #define MODULE(X) X(first) X(points) X(step) X(next) X(mux) X(has_sensor) X(low) X(high)
 #define TPOINT(X) X(installed) X(broken) X(source) X(c0) X(c1) X(c2) X(c3) X(plant) X(upper) X(samples) \
     X(s0) X(s1) X(s2) X(s3) X(s4) X(s5) X(s6) X(s7) X(reading) X(written) X(breakbit)
-#define PLANT(X) X(ambient) X(gain) X(tau) X(noise) X(seed_lo) X(seed_hi) X(point) X(t0) X(temp0) X(wave) X(u) X(started) \
-    X(period) X(on) X(u_on) X(u_off) X(wst) X(drive) X(ref) X(bit)
+#define PLANT(X) X(ambient) X(gain) X(tau) X(noise) X(seed_lo) X(seed_hi) X(point) X(t0) X(temp0) X(wave) X(u) \
+    X(started) X(period) X(on) X(u_on) X(u_off) X(wst) X(drive) X(ref) X(bit)
 #define INST(X) X(sn) X(zn) X(first) X(interval) X(pwm) X(started) X(next_pid) X(heating) X(limit) \
     X(loop_percent) X(loop_seconds) X(md) X(normal0) X(normal1) X(warn0) X(warn1) X(alm)
 #define PID(X) X(point) X(tpoint) X(pv_static) X(enabled) X(kc) X(ki) X(td) X(sv) X(os) X(integral) X(has_prev) \
