@@ -90,12 +90,14 @@ class Emulator:
             # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
             if self.now + self.scan_time <= target + 1e-9:
                 self.scan()
-            steps = 0
+            steps, ask_at = 0, 0
             while self.now + self.scan_time <= target + 1e-9:
-                # the rest of this loop in C where it applies (a FUN86 starts running once every point is measured:
-                # ask again every few steps until then)
-                if self.use_kernel and steps % 8 == 0 and kernel.advance(self, target):
-                    break
+                # the rest of this loop in C where it applies (a FUN86 starts running once every point is measured):
+                # ask again after 8, 16, 32 … steps, so a configuration it never takes costs little
+                if self.use_kernel and steps == ask_at:
+                    if kernel.advance(self, target):
+                        break
+                    ask_at = max(8, 2 * ask_at)
                 steps += 1
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)

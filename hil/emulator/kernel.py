@@ -136,6 +136,7 @@ class _Span:
         self.plant, self.rtc = by_type.get(ThermalPlant), by_type.get(RtcModel)
         tm, fun86, plant = self.tm, self.fun86, self.plant
         _require(tm is not None and fun86 is not None and plant is not None)
+        self.heated_index = {id(h): i for i, h in enumerate(plant.points.values())}  # a plant point's record
         models = self.emu.models  # a scan runs them in this order; the kernel's is temperature → FUN86 → plant
         _require(models.index(tm) < models.index(fun86) < models.index(plant))
         _require(plant.waved and not any(plant.faults.values()) and plant._fun86 is fun86 and fun86.pwm_exact
@@ -187,7 +188,7 @@ class _Span:
         if type(source) is Ramp:
             return {"source": 1, "c0": source.start, "c1": source.per_s, "c2": source.low, "c3": source.high}
         _require(type(source) is _Source and type(source.heated) is _Waved and source.point == point)
-        index = next((i for i, h in enumerate(self.plant.points.values()) if h is source.heated), None)
+        index = self.heated_index.get(id(source.heated))
         _require(index is not None)
         return {"source": 2, "plant": index}
 
