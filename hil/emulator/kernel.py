@@ -22,6 +22,8 @@ import collections
 import os
 from typing import TYPE_CHECKING
 
+from hil.address import parse
+from hil.fbs import registers as reg
 from hil.fbs.pid import valid_sn_zn
 from hil.fbs.temperature import MAX_POINTS, SENSOR_BY_CODE, TABLE_MARKER
 
@@ -66,9 +68,16 @@ class _Records:
 
 _NORMALS: dict[int, array.array] = {}
 
-#: what the RTC model reads and writes: R4128–R4135, D4053 (chip), D4054 (rate code), M1952–M1955
-_RTC_ELEMENTS = ({("R", n) for n in range(4128, 4136)} | {("D", 4053), ("D", 4054)}
-                 | {("M", n) for n in range(1952, 1956)})
+
+def _elements(*names: str) -> set[tuple[str, int]]:
+    return {(a.kind, a.index) for a in map(parse, names)}
+
+
+#: what the RTC model reads and writes: R4128–R4135, M1952–M1955, D4053 (chip), D4054 (rate code)
+_RTC_ELEMENTS = (_elements(*(f"R{n}" for n in range(parse(reg.RTC_SECOND).index,
+                                                     parse(reg.RTC_HOUR_MINUTE).index + 1)))
+                 | _elements(reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_INSTALLED, reg.RTC_SET_ERROR, reg.RTC_CHIP,
+                             reg.RTC_RATE_CODE))
 
 
 def advance(emu: "Emulator", target: float) -> bool:
@@ -110,7 +119,8 @@ class _Span:
         self._models()
         #: (kind, index) of every word/bit the kernel writes, and of every one it reads as constant: must not meet
         self.written: set[tuple[str, int]] = set()
-        self.read: set[tuple[str, int]] = {("R", n) for n in range(4003, 4014)}
+        self.read = _elements(*(f"R{n}" for n in range(parse(reg.PID_SOURCE_KEY).index,  # R4003–R4013: PID and
+                                                         parse(reg.PID_ENABLE_HIGH).index + 1)))  # module settings
         self._pack_temperature()
         self._pack_fun86()
         self._pack_plant()
@@ -213,8 +223,9 @@ class _Span:
             r = mem.words["R"]
             instances.append(dict(sn=sn, zn=zn, first=len(rows), interval=st.interval, pwm=st.pwm,
                                   started=st.started, next_pid=st.next_pid,
-                                  heating=mem.bits[inst.hc.kind][inst.hc.index], limit=r[4008],
-                                  loop_percent=fun86.loop_threshold(mem), loop_seconds=r[4007], md=inst.md))
+                                  heating=mem.bits[inst.hc.kind][inst.hc.index],
+                                  limit=r[parse(reg.PREALARM_LIMIT).index], loop_percent=fun86.loop_threshold(mem),
+                                  loop_seconds=r[parse(reg.HEATER_LOOP_SECONDS).index], md=inst.md))
             self.running.append((inst, st))
             self._claim(inst, zn, len(rows))
             rows += [self._pid_row(inst, st, b) for b in range(zn)]
