@@ -76,9 +76,9 @@ def traced(emu) -> list:  # noqa: ANN001
     return trace
 
 
-def both_ways(build, drive) -> tuple[dict, dict]:  # noqa: ANN001
+def both_ways(build, drive) -> dict:  # noqa: ANN001
     """Run ``drive(emu)`` on two fresh emulators, without and with the kernel: every scan's outputs must match
-    (a difference that lasts one scan counts); returns their final states."""
+    (a difference that lasts one scan counts), and so must the final states; returns the Python models' state."""
     python, compiled = build(), build()
     python.use_kernel = False
     python_trace, compiled_trace = traced(python), traced(compiled)
@@ -89,12 +89,10 @@ def both_ways(build, drive) -> tuple[dict, dict]:  # noqa: ANN001
     assert len(compiled_trace) == len(python_trace)
     for (now, rows), (k_now, k_rows) in zip(python_trace, compiled_trace):
         assert (k_now, k_rows) == (now, rows), f"the scans at {now} s differ"
-    return state(python), state(compiled)
-
-
-def assert_same(python: dict, compiled: dict) -> None:
-    for part in python:
-        assert compiled[part] == python[part], part
+    final, compiled_final = state(python), state(compiled)
+    for part in final:
+        assert compiled_final[part] == final[part], part
+    return final
 
 
 def start(emu, en: str = "M0", hc: str = "M1", heating: bool = True, sv: dict | None = None,  # noqa: ANN001
@@ -118,8 +116,7 @@ def test_the_full_plc_for_an_hour():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)})
         emu.advance(3600)
-    python, compiled = both_ways(full_plc(), drive)
-    assert_same(python, compiled)
+    python = both_ways(full_plc(), drive)
     assert python["memory"]["words"]["R"][1240] != 0  # some points reached their band: the loops ran
 
 
@@ -128,8 +125,7 @@ def test_the_heater_loop_timer_opens_the_same_way():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4006=80, R4007=90)
         emu.advance(900)
-    python, compiled = both_ways(full_plc(gain=50.0), drive)
-    assert_same(python, compiled)
+    python = both_ways(full_plc(gain=50.0), drive)
     assert python["memory"]["words"]["R"][1242] == 0xFFFF  # WR+2: every point 0–15 warns
 
 
@@ -138,8 +134,7 @@ def test_pre_alarm_counting_scan_by_scan_is_the_same():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4008=1400)
         emu.advance(1800)
-    python, compiled = both_ways(full_plc(), drive)
-    assert_same(python, compiled)
+    python = both_ways(full_plc(), drive)
     assert python["memory"]["words"]["R"][1242] != 0  # pre-alarm warnings
 
 
@@ -151,8 +146,7 @@ def test_a_pre_alarm_limit_exactly_at_the_readings_bound():
         bound = emu.model(TemperatureModel).readings_upper(emu.memory, range(32))
         emu.service(lambda mem: mem.set("R4008", int(bound)))
         emu.advance(120)
-    python, compiled = both_ways(full_plc(), drive)
-    assert_same(python, compiled)
+    both_ways(full_plc(), drive)
 
 
 def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ramp():
@@ -169,8 +163,7 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
         start(emu, en="M2", hc="M3", heating=False, sv={f"R{400 + b}": 300 for b in range(20)},
               enable=0xFFFFFFFF & ~(1 << 6), R4011=0xFFFF & ~(1 << 4))
         emu.advance(1200)
-    python, compiled = both_ways(build, drive)
-    assert_same(python, compiled)
+    both_ways(build, drive)
 
 
 @pytest.mark.parametrize("unit, rate, averaging", [("F", "normal", 1), ("C", "fast", 1), ("F", "fast", 1),
@@ -181,8 +174,7 @@ def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
         emu.advance(900)
     build = lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, unit=unit, rate=rate,  # noqa: E731
                                            averaging=averaging), EPOCH)
-    python, compiled = both_ways(build, drive)
-    assert_same(python, compiled)
+    both_ways(build, drive)
 
 
 def test_requests_between_spans():
@@ -199,8 +191,7 @@ def test_requests_between_spans():
             if n == 7:
                 emu.service(lambda mem: (mem.set("M0", 0)))  # EN off → on: R4005 latches again
                 emu.service(lambda mem: (mem.set("R4005", 0x0102), mem.set("M0", 1)))
-    python, compiled = both_ways(full_plc(noise=0.2, tau=120.0), drive)
-    assert_same(python, compiled)
+    both_ways(full_plc(noise=0.2, tau=120.0), drive)
 
 
 # -- where it steps aside --------------------------------------------------------------------------------------------

@@ -13,14 +13,11 @@ from typing import TYPE_CHECKING, Iterable
 
 from hil.errors import HilError
 from hil.fbs import registers as reg
+from hil.fbs.registers import signed16
 from hil.fbs.pid import OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance
 
 if TYPE_CHECKING:
     from hil.device.plc import FbsPlc
-
-
-def _signed(word: int) -> int:
-    return word - 0x10000 if word & 0x8000 else word
 
 
 @dataclass(frozen=True)
@@ -154,13 +151,13 @@ class Pid:
         return str(inst.operand(key, point))
 
     def set_point(self, point: int) -> int:
-        return _signed(self.plc.io.read(self._reg("sv", point)))
+        return signed16(self.plc.io.read(self._reg("sv", point)))
 
     def set_set_point(self, point: int, tenths: int) -> None:
         self.plc.io.write(self._reg("sv", point), tenths & 0xFFFF)
 
     def deviation(self, point: int) -> int:
-        return _signed(self.plc.io.read(self._reg("os", point)))
+        return signed16(self.plc.io.read(self._reg("os", point)))
 
     def set_deviation(self, point: int, tenths: int) -> None:
         self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
@@ -189,14 +186,14 @@ class Pid:
 
     def pv(self, point: int) -> int:
         from hil.address import parse
-        return _signed(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
+        return signed16(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
 
     def pvs(self, points: Iterable[int]) -> dict[int, int]:
         from hil.address import parse
         start = parse(self.readings_start())
         points = list(points)
         words = self.plc.io.read_words(str(start), max(points) + 1)
-        return {p: _signed(words[p]) for p in points}
+        return {p: signed16(words[p]) for p in points}
 
     @staticmethod
     def enable_register(point: int) -> str:
@@ -233,7 +230,7 @@ class Pid:
         time = self.plc.time
         start = time.now()
         while True:
-            sv = _signed(self.plc.io.read(str(inst.operand("sv", point))))
+            sv = signed16(self.plc.io.read(str(inst.operand("sv", point))))
             out = self.plc.io.read(str(inst.operand("or_", point)))
             pv = self.pv(point)
             t = time.now() - start

@@ -11,15 +11,11 @@ from typing import TYPE_CHECKING
 
 from hil.errors import HilError
 from hil.fbs import registers as reg
+from hil.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
 from hil.fbs.temperature import TemperatureConfig
 
 if TYPE_CHECKING:
     from hil.device.plc import FbsPlc
-
-
-def signed(word: int) -> int:
-    """A reading word as the signed 0.1° value it holds (−200.0 °C is stored as 0xF830)."""
-    return word - 0x10000 if word & 0x8000 else word
 
 
 @dataclass(frozen=True)

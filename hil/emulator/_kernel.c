@@ -25,7 +25,7 @@
     X(started) X(period) X(on) X(u_on) X(u_off) X(wst) X(drive) X(ref) X(bit)
 #define INST(X) X(sn) X(zn) X(first) X(interval) X(pwm) X(started) X(next_pid) X(heating) X(limit) \
     X(loop_percent) X(loop_seconds) X(md) X(normal0) X(normal1) X(warn0) X(warn1) X(alm)
-#define PID(X) X(point) X(tpoint) X(pv_static) X(enabled) X(kc) X(ki) X(td) X(sv) X(os) X(integral) X(has_prev) \
+#define PID(X) X(point) X(enabled) X(kc) X(ki) X(td) X(sv) X(os) X(integral) X(has_prev) \
     X(pv_prev) X(prealarm) X(has_loop) X(loop_since) X(out) X(y) X(has_wave) X(w_started) X(w_pwm) X(w_on) \
     X(w_yon) X(w_yoff)
 
@@ -53,7 +53,7 @@ enum { PID(P_ITEM) P_SIZE };
 typedef struct {
     double *eng, *mods, *tps, *plant, *insts, *pids;
     const double *normals;
-    Py_ssize_t n_mods, n_tps, n_plant, n_insts, n_pids;
+    Py_ssize_t n_mods, n_tps, n_plant, n_insts;
     /* this scan's readings per temperature point (FUN86 replays them): times and signed readings */
     double **log_at;
     int **log_pv;
@@ -218,9 +218,9 @@ static int measure_module(Kernel *k, double *m, double now) {
 /* -- FUN86 (fun86.py) ------------------------------------------------------------------------------------------ */
 static int in_band(int pv, int sv, int os) { return sv - os <= pv && pv <= sv + os; }
 
+/* PV: FUN86 reads the temperature readings (kernel.py admits no other source), so point Sn + b's reading */
 static int pv_of(const Kernel *k, const double *pp) {
-    if (pp[P_tpoint] < 0) return signed16((long)pp[P_pv_static]);
-    return signed16((long)k->tps[(Py_ssize_t)pp[P_tpoint] * T_SIZE + T_reading]);
+    return signed16((long)k->tps[(Py_ssize_t)pp[P_point] * T_SIZE + T_reading]);
 }
 
 static long control(double *pp, const double *in, int pv, double ts) {
@@ -275,8 +275,8 @@ static void scan_instance(Kernel *k, double *in, double now, double st) {
         double *pp = k->pids + ((Py_ssize_t)in[I_first] + b) * P_SIZE;
         int pv = pv_of(k, pp), sv = (int)pp[P_sv], os = (int)pp[P_os];
         int enabled = pp[P_enabled] != 0;
-        if (enabled && pp[P_tpoint] >= 0 && k->log_n[(int)pp[P_tpoint]] > 0)
-            replay(k, pp, (int)pp[P_tpoint], now, st, (long)pp[P_out] * 100 >= high_at, sv, os, limit);
+        if (enabled && k->log_n[(int)pp[P_point]] > 0)
+            replay(k, pp, (int)pp[P_point], now, st, (long)pp[P_out] * 100 >= high_at, sv, os, limit);
         if (pid_due) {
             if (enabled) {
                 pp[P_out] = (double)control(pp, in, pv, in[I_interval]);
@@ -336,8 +336,7 @@ static int prealarm_possible(const Kernel *k, const double *in) {
         const double *pp = k->pids + ((Py_ssize_t)in[I_first] + b) * P_SIZE;
         if (!pp[P_enabled]) continue;
         any = 1;
-        if (pp[P_tpoint] < 0) { unknown = 1; continue; }
-        const double *tp = k->tps + (Py_ssize_t)pp[P_tpoint] * T_SIZE;
+        const double *tp = k->tps + (Py_ssize_t)pp[P_point] * T_SIZE;
         double value = tp[T_upper];
         for (int i = 0; i < (int)tp[T_samples]; i++)
             if (tp[T_s0 + i] > value) value = tp[T_s0 + i];
@@ -495,7 +494,7 @@ static PyObject *run(PyObject *self, PyObject *args) {
     }
     k.eng = views[0].buf; k.mods = views[1].buf; k.tps = views[2].buf; k.plant = views[3].buf;
     k.insts = views[4].buf; k.pids = views[5].buf; k.normals = views[6].buf;
-    k.n_mods = counts[1]; k.n_tps = counts[2]; k.n_plant = counts[3]; k.n_insts = counts[4]; k.n_pids = counts[5];
+    k.n_mods = counts[1]; k.n_tps = counts[2]; k.n_plant = counts[3]; k.n_insts = counts[4];
     if (trace_obj != Py_None) {
         Py_ssize_t cap;
         if (get_buffer(trace_obj, &trace_view, 1, "trace", &cap) < 0) goto done;

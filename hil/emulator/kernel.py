@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 from hil.address import parse
 from hil.fbs import registers as reg
+from hil.fbs.registers import signed16
 from hil.fbs.pid import valid_sn_zn
 from hil.fbs.temperature import MAX_POINTS, SENSOR_BY_CODE, TABLE_MARKER
 
@@ -105,10 +106,6 @@ class _Inapplicable(Exception):
 def _require(condition: object) -> None:
     if not condition:
         raise _Inapplicable
-
-
-def _signed(word: int) -> int:
-    return word - 0x10000 if word & 0x8000 else word
 
 
 class _Span:
@@ -250,10 +247,10 @@ class _Span:
     def _pid_row(self, inst, st, b: int) -> dict:  # noqa: ANN001
         words, fun86, point = self.mem.words, self.fun86, st.sn + b
         ps = st.points[point]
-        row = dict(point=point, tpoint=point, enabled=fun86.enabled(self.mem, point),
+        row = dict(point=point, enabled=fun86.enabled(self.mem, point),
                    kc=words[inst.pr.kind][inst.pr.index + b], ki=words[inst.ir.kind][inst.ir.index + b],
-                   td=words[inst.dr.kind][inst.dr.index + b], sv=_signed(words[inst.sv.kind][inst.sv.index + b]),
-                   os=_signed(words[inst.os.kind][inst.os.index + b]), integral=ps.integral,
+                   td=words[inst.dr.kind][inst.dr.index + b], sv=signed16(words[inst.sv.kind][inst.sv.index + b]),
+                   os=signed16(words[inst.os.kind][inst.os.index + b]), integral=ps.integral,
                    has_prev=ps.pv_prev is not None, pv_prev=ps.pv_prev or 0, prealarm=ps.prealarm,
                    has_loop=ps.loop_since is not None, loop_since=ps.loop_since or 0.0,
                    out=words[inst.or_.kind][inst.or_.index + b], y=self.mem.bits[inst.yn.kind][inst.yn.index + b])

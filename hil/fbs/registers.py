@@ -45,3 +45,8 @@ POWER_ON_DEFAULTS: dict[str, int] = {
     PID_ENABLE_LOW: 0xFFFF,
     PID_ENABLE_HIGH: 0xFFFF,
 }
+
+
+def signed16(word: int) -> int:
+    """A 16-bit register word as the signed value it holds (0.1° readings, SV, Os, Sn/Zn: −200.0 °C is 0xF830)."""
+    return word - 0x10000 if word & 0x8000 else word

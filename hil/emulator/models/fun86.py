@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING, Callable
 from hil.address import Address, parse
 from hil.emulator.model import Model
 from hil.fbs import registers as reg
+from hil.fbs.registers import signed16
 from hil.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
 
@@ -53,10 +54,6 @@ _R = {name: parse(name).index for name in (reg.PID_SOURCE_KEY, reg.PID_SOURCE, r
 SOURCE_KEY = 0xA55A
 DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
-
-
-def _signed(word: int) -> int:
-    return word - 0x10000 if word & 0x8000 else word
 
 
 @dataclass
@@ -166,8 +163,8 @@ class Fun86Model(Model):
     # -- helpers ---------------------------------------------------------------------------------------------------
     def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
         if inst.settable:
-            return (_signed(mem.words[inst.sn_register.kind][inst.sn_register.index]),
-                    _signed(mem.words[inst.zn_register.kind][inst.zn_register.index]))
+            return (signed16(mem.words[inst.sn_register.kind][inst.sn_register.index]),
+                    signed16(mem.words[inst.zn_register.kind][inst.zn_register.index]))
         return inst.sn, inst.zn
 
     def readings_start(self, mem: "Memory") -> Address | None:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 from hil.emulator.model import Model
 from hil.fbs import registers as reg
+from hil.fbs.registers import signed16
 from hil.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
@@ -353,9 +354,9 @@ class TemperatureModel(Model):
             if log is not None:
                 entries = log.get(point)
                 if entries is None:
-                    log[point] = [(at, _signed(reading & 0xFFFF))]
+                    log[point] = [(at, signed16(reading & 0xFFFF))]
                 else:
-                    entries.append((at, _signed(reading & 0xFFFF)))
+                    entries.append((at, signed16(reading & 0xFFFF)))
             self._measured.add(point)
             mux = (mux + 1) % points
             at += step
@@ -374,7 +375,7 @@ class TemperatureModel(Model):
         mem.words[readings.kind][readings.index + point] = reading & 0xFFFF
         if self.log is not None:
             self.log_start = (readings.kind, readings.index)
-            self.log.setdefault(point, []).append((at, _signed(reading & 0xFFFF)))
+            self.log.setdefault(point, []).append((at, signed16(reading & 0xFFFF)))
         if flagged:
             self._breaks |= 1 << point
         else:
@@ -437,10 +438,6 @@ def mean_of(samples) -> float:  # noqa: ANN001
     for value in samples:
         total += value
     return total / len(samples)
-
-
-def _signed(word: int) -> int:
-    return word - 0x10000 if word & 0x8000 else word
 
 
 def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
