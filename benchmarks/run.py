@@ -38,8 +38,8 @@ sys.path.insert(0, str(ROOT))
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from hil.perf import WireCounter, line_seconds  # noqa: E402
-from hil.profile import load_profile, profile_from_dict  # noqa: E402
+from hil.plugin.perf import WireCounter, line_seconds  # noqa: E402
+from hil.bench.profile import load_profile, profile_from_dict  # noqa: E402
 
 BENCH = ROOT / "fixtures" / "benches" / "emulator.toml"
 TARGETS = ["emulator", "emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]
@@ -63,7 +63,7 @@ def rate(fn, seconds: float) -> tuple[float, int]:  # noqa: ANN001
 
 # -- 1. round trips ----------------------------------------------------------------------------------------------
 def bench_wires(seconds: float) -> list[dict]:
-    from hil.bench import Bench
+    from hil.families.fbs.bench import Bench
     profile = load_profile(BENCH)
     rows = []
     for target in TARGETS:
@@ -90,12 +90,12 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
     from pymodbus.server import ModbusTcpServer
     from pymodbus.simulator import DataType, SimData, SimDevice
 
-    from hil.emulator.build import build_emulator
-    from hil.emulator.serve.modbus import start_modbus_tcp
-    from hil.emulator.serve.runtime import LoopThread
-    from hil.protocol.modbus_map import COIL, HOLDING, segments
+    from hil.families.fbs.sim.build import build_emulator
+    from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
+    from hil.sim.runtime import LoopThread
+    from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, segments
 
-    from hil.emulator.core import Emulator
+    from hil.families.fbs.sim.plc import Emulator
     emulator = build_emulator(load_profile(BENCH), EPOCH) if models else Emulator()
     ours = start_modbus_tcp(emulator)
     runtime = LoopThread.shared()
@@ -151,7 +151,7 @@ def reply_len(data_chars: int) -> int:
 
 def cheapest_request(frame: bytes) -> int:
     """The shortest request frame that asks the same thing of the PLC (same elements, same values)."""
-    from hil.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, WriteBits,
+    from hil.families.fbs.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, WriteBits,
                                     WriteRegisters, decode_request, encode_request, split_frame)
     cmd = decode_request(split_frame(frame))
     best = len(frame)
@@ -175,12 +175,12 @@ def cheapest_request(frame: bytes) -> int:
 
 def device_operations() -> list[dict]:
     """Bytes a device procedure puts on a FATEK wire, against the fewest its steps need."""
-    from hil.device.plc import FbsPlc
-    from hil.emulator.build import build_emulator
-    from hil.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, ShortStatus,
+    from hil.families.fbs.device.plc import FbsPlc
+    from hil.families.fbs.sim.build import build_emulator
+    from hil.families.fbs.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, ShortStatus,
                                     encode_request)
-    from hil.timebase import EmulatorTimebase
-    from hil.transport.factory import open_transport
+    from hil.core.timebase import EmulatorTimebase
+    from hil.families.fbs.transport.factory import open_transport
 
     profile = load_profile(BENCH)
     transport = open_transport("emulator+fatek-tcp", emulator_factory=lambda: build_emulator(profile, EPOCH))
@@ -203,7 +203,7 @@ def device_operations() -> list[dict]:
     }
     round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + settle, "rtc.adjust_30s()": 3 + settle,
                    "temperature.readings()": 1}
-    from hil.fbs.temperature import parse_temperature
+    from hil.families.fbs.temperature import parse_temperature
     plc.temperature.config = parse_temperature(profile.areas["temperature"], str(BENCH))
     ops = {"rtc.read()": plc.rtc.read, "rtc.read_all()": plc.rtc.read_all,
            "rtc.set()": lambda: plc.rtc.set(dt.datetime(2024, 2, 29, 12, 0, 0)), "rtc.adjust_30s()": plc.rtc.adjust_30s,
@@ -223,7 +223,7 @@ def device_operations() -> list[dict]:
 
 
 def plc_readings(profile) -> str:  # noqa: ANN001
-    from hil.fbs.temperature import parse_temperature
+    from hil.families.fbs.temperature import parse_temperature
     return str(parse_temperature(profile.areas["temperature"], str(BENCH)).readings)
 
 
@@ -236,7 +236,7 @@ class FrameRecorder:
         self._attached = None
 
     def pytest_runtest_setup(self, item) -> None:  # noqa: ANN001
-        from hil.perf import _bench
+        from hil.plugin.perf import _bench
         bench = _bench(item.config)
         if bench is not None and self._attached is not bench.raw and hasattr(bench.raw, "observers"):
             bench.raw.observers.append(self._observe)
@@ -319,9 +319,9 @@ def start_pid(emulator) -> None:  # noqa: ANN001
 
 
 def virtual_time(quick: bool) -> list[dict]:
-    from hil.emulator import kernel
-    from hil.emulator.build import build_emulator
-    from hil.emulator.core import Emulator
+    from hil.families.fbs.sim import kernel
+    from hil.families.fbs.sim.build import build_emulator
+    from hil.families.fbs.sim.plc import Emulator
     full, full_note = full_profile()
     pid = "no PID" not in full_note
 
@@ -405,7 +405,7 @@ def hil_run_times() -> list[dict]:
     for target in TARGETS:
         junit = Path(tempfile.mkdtemp()) / "junit.xml"
         start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "hil.cli", "run", "--target", target, "--junitxml", str(junit),
+        proc = subprocess.run([sys.executable, "-m", "hil.cli.main", "run", "--target", target, "--junitxml", str(junit),
                                "--", "-q"], cwd=ROOT, capture_output=True, text=True)
         wall = time.perf_counter() - start
         root = ET.parse(junit).getroot() if junit.exists() else None

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.fbs.d4054 import code_for_rate
+from hil.families.fbs.d4054 import code_for_rate
 
 FINE_STEP = 0.088  # s/day, the manual's fine-mode resolution
 

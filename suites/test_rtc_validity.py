@@ -10,7 +10,7 @@ import datetime as dt
 
 import pytest
 
-from hil.fbs.rtc_time import RtcTime
+from hil.families.fbs.rtc_time import RtcTime
 
 START = dt.datetime(2024, 6, 15, 8, 0, 0)
 

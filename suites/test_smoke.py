@@ -25,6 +25,6 @@ def test_mixed_read_and_write(bench):
 
 
 def test_write_outside_allow_list_is_refused(bench):
-    from hil.errors import WriteRefused
+    from hil.core.errors import WriteRefused
     with pytest.raises(WriteRefused, match="R2000"):
         bench.plc.io.write_words("R2000", [1])

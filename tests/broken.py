@@ -7,8 +7,8 @@ from typing import Callable
 
 import pytest
 
-from hil.emulator.build import build_emulator
-from hil.emulator.core import Emulator
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.sim.plc import Emulator
 from tests.conftest import EMULATOR_BENCH, REPO
 
 SUITES = REPO / "suites"

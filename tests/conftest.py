@@ -16,5 +16,5 @@ pytest_plugins = ["pytester"]
 
 @pytest.fixture
 def emulator():
-    from hil.emulator import Emulator
+    from hil.families.fbs.sim import Emulator
     return Emulator()

@@ -17,7 +17,7 @@ from typing import Iterator
 
 from tests.conftest import REPO
 
-#: the rig's banks (hil.emulator.serve.rig): the fault → its first coil when the rig starts at coil 0
+#: the rig's banks (hil.families.fbs.sim.rig): the fault → its first coil when the rig starts at coil 0
 RIG_FIRST_COIL = {"sensor_break": 0, "heater_open": 32, "ssr_short": 64}
 
 
@@ -41,7 +41,7 @@ def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` on FATEK/TCP with the fault rig; yields {"fatek-tcp": addr, "rig-modbus-tcp":
     addr}.  Stops it with SIGINT (as an operator's Ctrl-C) and checks that it exits cleanly."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli", "emulate", "--bench", str(profile), "--fatek-tcp", "127.0.0.1:0",
+        [sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(profile), "--fatek-tcp", "127.0.0.1:0",
          "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})

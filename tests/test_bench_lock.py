@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from hil.lock import BenchBusy, BenchLock
+from hil.core.lock import BenchBusy, BenchLock
 
 TARGET = "fatek+tcp://127.0.0.1:1"
 
@@ -20,7 +20,7 @@ def _holder(tmp_path, seconds: float) -> subprocess.Popen:
     """Another process that takes the bench lock and keeps it for ``seconds``."""
     code = textwrap.dedent(f"""
         import sys, time
-        from hil.lock import BenchLock
+        from hil.core.lock import BenchLock
         lock = BenchLock({TARGET!r}).acquire()
         print("locked", flush=True)
         time.sleep({seconds})
@@ -44,7 +44,7 @@ def test_second_run_refuses_naming_the_holder(tmp_path):
             BenchLock(TARGET).acquire()
         holder = info.value.holder
         assert holder["pid"] == proc.pid and holder["host"] and holder["user"] and holder["started"]
-        assert "hil.lock" in holder["command"] or "-c" in holder["command"]
+        assert "hil.core.lock" in holder["command"] or "-c" in holder["command"]
         assert f"pid {proc.pid}" in str(info.value) and "--hil-lock-wait" in str(info.value)
     finally:
         proc.kill()

@@ -1,4 +1,4 @@
-"""``hil rtc`` and ``hil drift``: in-process through hil.cli.main, plus one run of the installed console script."""
+"""``hil rtc`` and ``hil drift``: in-process through hil.cli.main.main, plus one run of the installed console script."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.cli import main
+from hil.cli.main import main
 
 
 HIL = Path(sys.executable).parent / "hil"

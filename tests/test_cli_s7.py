@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.cli import main
+from hil.cli.main import main
 from tests.conftest import REPO
 
 S7_BENCH = REPO / "fixtures" / "benches" / "s7-200smart.toml"

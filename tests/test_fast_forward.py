@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from hil.emulator.build import build_emulator
-from hil.profile import load_profile, profile_from_dict
+from hil.families.fbs.sim.build import build_emulator
+from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 
 EPOCH = dt.datetime(2024, 2, 28, 23, 0, 0)
@@ -50,8 +50,8 @@ def test_a_simulated_day_of_the_default_bench_is_fast():
 
 def pid_profile():
     """The default bench's temperature modules with FUN86 on points 0–3 and the thermal plant (if landed)."""
-    pytest.importorskip("hil.emulator.models.fun86", reason="the FUN86 model has not landed")
-    pytest.importorskip("hil.emulator.models.plant", reason="the plant model has not landed")
+    pytest.importorskip("hil.families.fbs.sim.models.fun86", reason="the FUN86 model has not landed")
+    pytest.importorskip("hil.families.fbs.sim.models.plant", reason="the plant model has not landed")
     base = load_profile(EMULATOR_BENCH)
     return profile_from_dict({"bench": {"name": "ff-pid"}, "rtc": {"chip": 3}, "temperature": base.areas["temperature"],
                               "pid": {"en": "M0", "sn": 0, "zn": 4, "yn": "Y0", "sv": "R1000", "os": "R1040",

@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.address import parse
-from hil.errors import PlcErrorReply
-from hil.protocol.fatek import (ERROR_CODES, MAX_FRAME, BitAction, ChecksumError, CommandMismatch, DetailedStatus,
+from hil.families.fbs.address import parse
+from hil.core.errors import PlcErrorReply
+from hil.families.fbs.protocol.fatek import (ERROR_CODES, MAX_FRAME, BitAction, ChecksumError, CommandMismatch, DetailedStatus,
                                 DetailedStatusReply, Frame, FrameAssembler, Loopback, MalformedFrame, MixedRead,
                                 MixedWrite, OverlongFrame, ReadBits, ReadEnableState, ReadRegisters, RequestError,
                                 RunStop, ShortStatus, StationMismatch, StatusReply, TruncatedFrame, WriteBits,

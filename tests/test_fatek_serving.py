@@ -17,13 +17,13 @@ from typing import ClassVar
 import pytest
 import serial
 
-from hil.emulator.core import OS_VERSION, UNIT_TYPE_MC, Emulator
-from hil.emulator.serve.fatek import start_fatek_pty, start_fatek_tcp
-from hil.errors import PlcErrorReply, ReplyTimeout, TransportError
-from hil.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegisters, WriteRegisters, build_frame,
+from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
+from hil.families.fbs.sim.serve_fatek import start_fatek_pty, start_fatek_tcp
+from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError
+from hil.families.fbs.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegisters, WriteRegisters, build_frame,
                                 encode_error, encode_request, split_frame)
-from hil.address import parse
-from hil.transport.fatek import FatekTransport, _open_hint
+from hil.families.fbs.address import parse
+from hil.families.fbs.transport.fatek import FatekTransport, _open_hint
 from tests.concurrency import run_clients
 
 STATUS_REQUEST = b"\x020140C7\x03"

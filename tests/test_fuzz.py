@@ -8,12 +8,12 @@ import time
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from hil.address import parse, parse_range
-from hil.emulator import Emulator
-from hil.emulator.serve.fatek import FatekServerCore, start_fatek_pty, start_fatek_tcp
-from hil.errors import AddressError, HilError, ProfileError
-from hil.profile import load_profile, profile_from_dict
-from hil.protocol.fatek import (STX, ChecksumError, FrameAssembler, FrameError, ReadRegisters, RequestError,
+from hil.families.fbs.address import parse, parse_range
+from hil.families.fbs.sim import Emulator
+from hil.families.fbs.sim.serve_fatek import FatekServerCore, start_fatek_pty, start_fatek_tcp
+from hil.core.errors import AddressError, HilError, ProfileError
+from hil.bench.profile import load_profile, profile_from_dict
+from hil.families.fbs.protocol.fatek import (STX, ChecksumError, FrameAssembler, FrameError, ReadRegisters, RequestError,
                                 WriteRegisters, build_frame, check_reply, checksum, decode_request,
                                 encode_request, split_frame)
 
@@ -161,7 +161,7 @@ def test_live_servers_survive_fuzz(live):
     time.sleep(0.1)
     assert emulator.stats["fatek_internal_error"] == 0
     # Still serving a well-behaved client after all that.
-    from hil.transport.fatek import FatekTransport
+    from hil.families.fbs.transport.fatek import FatekTransport
     url = f"socket://{server.address}" if kind == "tcp" else server.address
     with FatekTransport(url, timeout=1.0) as client:
         client.write("R1000", 1234)

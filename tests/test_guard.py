@@ -2,9 +2,9 @@
 
 import pytest
 
-from hil.errors import RestoreError, WriteRefused
-from hil.transport.guard import GuardedTransport
-from hil.transport.local import LocalTransport
+from hil.core.errors import RestoreError, WriteRefused
+from hil.families.fbs.transport.guard import GuardedTransport
+from hil.families.fbs.transport.local import LocalTransport
 
 
 @pytest.fixture
@@ -59,5 +59,5 @@ def test_restore_reports_what_it_could_not_put_back(guarded, emulator):
 
 
 def _names(*names):
-    from hil.address import parse
+    from hil.families.fbs.address import parse
     return [parse(n) for n in names]

@@ -9,12 +9,12 @@ import datetime as dt
 
 import pytest
 
-from hil.emulator import kernel
-from hil.emulator.build import build_emulator
-from hil.emulator.models.fun86 import Fun86Model
-from hil.emulator.models.plant import ThermalPlant
-from hil.emulator.models.temperature import Ramp, TemperatureModel
-from hil.profile import load_profile, profile_from_dict
+from hil.families.fbs.sim import kernel
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.sim.models.fun86 import Fun86Model
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import Ramp, TemperatureModel
+from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 
 pytestmark = pytest.mark.skipif(not kernel.available(), reason="the compiled kernel is not built (no C compiler at "
@@ -233,7 +233,7 @@ def test_switched_off_by_the_environment(monkeypatch):
 
 def test_the_field_layouts_are_the_extensions():
     """kernel.py addresses records by the names the C module exports: every name it packs must exist there."""
-    from hil.emulator import _kernel
+    from hil.families.fbs.sim import _kernel
     assert set(_kernel.FIELDS) == {"engine", "modules", "tpoints", "plant", "instances", "pids"}
     assert {"now", "target", "scans", "version"} <= set(_kernel.FIELDS["engine"])
     with pytest.raises(ValueError, match="float64"):

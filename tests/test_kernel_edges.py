@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import pytest
 
-from hil.emulator import kernel
-from hil.emulator.build import add_pid_models, build_emulator
-from hil.emulator.core import Emulator
-from hil.emulator.models.fun86 import Fun86Model
-from hil.emulator.models.plant import ThermalPlant
-from hil.emulator.models.rtc import RtcModel
-from hil.emulator.models.temperature import Fixed, Ramp, TemperatureModel
-from hil.fbs.temperature import MODULE_BY_CODE, parse_temperature
-from hil.profile import load_profile, profile_from_dict
+from hil.families.fbs.sim import kernel
+from hil.families.fbs.sim.build import add_pid_models, build_emulator
+from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.sim.models.fun86 import Fun86Model
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureModel
+from hil.families.fbs.temperature import MODULE_BY_CODE, parse_temperature
+from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 from tests.test_kernel import EPOCH, FULL_MODULES, PID_32, both_ways, full_plc, profile, start
 

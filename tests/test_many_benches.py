@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from hil.cli import main
-from hil.commands.many import merge, plan
-from hil.errors import HilError
+from hil.cli.main import main
+from hil.cli.many import merge, plan
+from hil.core.errors import HilError
 from tests.conftest import EMULATOR_BENCH
 
 

@@ -15,11 +15,11 @@ import pytest
 import serial
 from pymodbus.client import ModbusTcpClient
 
-from hil.emulator.core import Emulator
-from hil.emulator.serve.modbus import start_modbus_rtu_pty, start_modbus_tcp
-from hil.emulator.serve.runtime import ServerHandle
-from hil.errors import PlcErrorReply, ReplyTimeout, TransportError, UnreachableAddress
-from hil.transport.modbus import ModbusTransport
+from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty, start_modbus_tcp
+from hil.sim.runtime import ServerHandle
+from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError, UnreachableAddress
+from hil.families.fbs.transport.modbus import ModbusTransport
 from tests.concurrency import run_clients
 
 WIRES = ["tcp", "rtu"]

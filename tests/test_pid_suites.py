@@ -7,17 +7,17 @@ import time
 
 import pytest
 
-import hil.device.pid  # noqa: F401 - imported outside the inner runs (see test_temperature_suites)
-import hil.emulator.serve.fatek  # noqa: F401
-import hil.emulator.serve.modbus  # noqa: F401
-import hil.faults  # noqa: F401
-import hil.pytest_plugin  # noqa: F401
-import hil.transport.fatek  # noqa: F401
-import hil.transport.local  # noqa: F401
-import hil.transport.modbus  # noqa: F401
-from hil.emulator.build import build_emulator
-from hil.emulator.models.fun86 import Fun86Model
-from hil.emulator.models.temperature import TemperatureModel
+import hil.families.fbs.device.pid  # noqa: F401 - imported outside the inner runs (see test_temperature_suites)
+import hil.families.fbs.sim.serve_fatek  # noqa: F401
+import hil.families.fbs.sim.serve_modbus  # noqa: F401
+import hil.families.fbs.faults  # noqa: F401
+import hil.plugin.pytest_plugin  # noqa: F401
+import hil.families.fbs.transport.fatek  # noqa: F401
+import hil.families.fbs.transport.local  # noqa: F401
+import hil.families.fbs.transport.modbus  # noqa: F401
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.sim.models.fun86 import Fun86Model
+from hil.families.fbs.sim.models.temperature import TemperatureModel
 from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate

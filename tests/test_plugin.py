@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.emulator import Emulator
+from hil.families.fbs.sim import Emulator
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 
 
@@ -15,7 +15,7 @@ class KeepEmulator:
         self.emulator: Emulator | None = None
 
     def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
-        from hil.emulator.build import build_emulator
+        from hil.families.fbs.sim.build import build_emulator
         self.emulator = build_emulator(profile, epoch)
         return self.emulator
 

@@ -1,7 +1,7 @@
 import pytest
 
-from hil.errors import ProfileError
-from hil.profile import load_profile, profile_from_dict
+from hil.core.errors import ProfileError
+from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import REPO
 
 

@@ -1,4 +1,4 @@
-"""Replaying recorded FATEK frames (hil.replay, ``replay+fatek://`` targets): the device procedures send exactly the
+"""Replaying recorded FATEK frames (hil.families.fbs.transport.replay, ``replay+fatek://`` targets): the device procedures send exactly the
 recorded frames and decode the recorded replies; anything else is a clear mismatch, never a hang."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ import socket
 
 import pytest
 
-from hil.errors import HilError, TargetError
-from hil.replay import RecordedPlc, ReplayError, ReplayMismatch, load_recording
-from hil.transport.factory import open_transport
-from hil.transport.url import parse_target
+from hil.core.errors import HilError, TargetError
+from hil.families.fbs.transport.replay import RecordedPlc, ReplayError, ReplayMismatch, load_recording
+from hil.families.fbs.transport.factory import open_transport
+from hil.io.url import parse_target
 from tests.frames import FRAMES, SCENARIOS, plc_on
 
 

@@ -12,9 +12,9 @@ import xml.etree.ElementTree as ET
 import pytest
 from junitparser import JUnitXml
 
-from hil.reporting.identity import public_url
-from hil.reporting.model import Measurement, Series, area_of
-from hil.transport.trace import describe_modbus
+from hil.plugin.reporting.identity import public_url
+from hil.plugin.reporting.model import Measurement, Series, area_of
+from hil.io.trace import describe_modbus
 from tests.conftest import EMULATOR_BENCH, REPO
 
 ANSI = re.compile(r"\x1b\[|\x1b\]|\x1b[()]")
@@ -27,7 +27,7 @@ def hil_run(tmp_path_factory):
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
     env.update(HIL_OPERATOR="Test Operator", HIL_STATION="rig-7")
     proc = subprocess.run(
-        [sys.executable, "-m", "hil.cli", "run", "-q", "--junitxml", str(out / "junit.xml"),
+        [sys.executable, "-m", "hil.cli.main", "run", "-q", "--junitxml", str(out / "junit.xml"),
          "--html", str(out / "report.html"), "--", "-k", "drift or smoke or readings_are_in_range"],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=120)
     return proc, out
@@ -39,7 +39,7 @@ def test_hil_run_writes_junit_with_suite_properties_and_measurements(hil_run):
     xml = JUnitXml.fromfile(str(out / "junit.xml"))
     suite = next(iter(xml))
     props = {p.name: p.value for p in suite.properties()}
-    assert props["hil.bench"] == "emulator"
+    assert props["hil.families.fbs.bench"] == "emulator"
     assert props["hil.target"] == "emulator"
     assert props["hil.plc.emulator_version"].startswith("hil-emulator")
     assert props["hil.plc.rtc_chip"] == "D4053 = 3 (S-35390A)"
@@ -182,7 +182,7 @@ def test_describe_modbus_frames():
                                   ["rtc", "sync"], ["drift"], ["drift", "code"], ["drift", "decode"],
                                   ["drift", "measure"]])
 def test_every_help_has_examples(argv, capsys):
-    from hil.cli import main
+    from hil.cli.main import main
     with pytest.raises(SystemExit) as exc:
         main([*argv, "--help"])
     assert exc.value.code == 0
@@ -190,7 +190,7 @@ def test_every_help_has_examples(argv, capsys):
 
 
 def test_errors_are_one_line_without_traceback(capsys):
-    from hil.cli import main
+    from hil.cli.main import main
     assert main(["probe", "fatek+serial:///dev/ttyHIL-none"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err

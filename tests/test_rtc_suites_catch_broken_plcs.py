@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from hil.emulator.models.rtc import RtcModel
-from hil.fbs.rtc_time import RtcTime
+from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.families.fbs.rtc_time import RtcTime
 from tests.broken import BrokenEmulator, replace_model, run_suites
 
 RTC_SUITES = ["test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py"]

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hil.fbs.rtc_time import RtcTime, days_in_month, is_leap, weekday_of
+from hil.families.fbs.rtc_time import RtcTime, days_in_month, is_leap, weekday_of
 
 VALID = RtcTime(second=5, minute=45, hour=13, day=29, month=2, year=24, weekday=4)  # Thu 29 Feb 2024
 

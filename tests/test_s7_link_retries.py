@@ -8,8 +8,8 @@ import threading
 
 import pytest
 
-from hil.errors import OutcomeUnknown, ReplyTimeout
-from hil.s7smart.io import ModbusS7Io
+from hil.core.errors import OutcomeUnknown, ReplyTimeout
+from hil.families.s7smart.io import ModbusS7Io
 
 
 class SilentServer:

@@ -7,8 +7,8 @@ import datetime as dt
 
 import pytest
 
-from hil.s7smart import timebuf
-from hil.s7smart.emulator import RtcTestProgram, S7Clock, build_s7_emulator
+from hil.families.s7smart import timebuf
+from hil.families.s7smart.emulator import RtcTestProgram, S7Clock, build_s7_emulator
 from tests.conftest import EMULATOR_BENCH, REPO
 
 S7_BENCH = REPO / "fixtures" / "benches" / "s7-200smart.toml"
@@ -164,7 +164,7 @@ def test_cr40_loses_the_time_at_every_power_cycle(pytester, tmp_path):
 def test_an_fbs_emulator_on_an_s7_bench_is_refused(pytester):
     class WrongFamily:
         def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
-            from hil.emulator import Emulator
+            from hil.families.fbs.sim import Emulator
             return Emulator()
     result = pytester.runpytest_inprocess(str(S7_SUITES / "test_s7_smoke.py"), "--bench", str(S7_BENCH),
                                           "-p", "no:cacheprovider", plugins=[WrongFamily()])

@@ -15,10 +15,10 @@ import time
 
 import pytest
 
-from hil.address import parse
-from hil.emulator.serve.wire_faults import KINDS, WireFaults
-from hil.errors import HilError
-from hil.transport.factory import open_transport
+from hil.families.fbs.address import parse
+from hil.sim.wire_faults import KINDS, WireFaults
+from hil.core.errors import HilError
+from hil.families.fbs.transport.factory import open_transport
 
 WIRES = ("emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu")
 RATES = {"drop": 0.006, "delay": 0.004, "corrupt": 0.006, "split": 0.02, "late": 0.006, "duplicate": 0.008,

@@ -1,7 +1,7 @@
 import pytest
 
-from hil.errors import TargetError
-from hil.transport.url import parse_target
+from hil.core.errors import TargetError
+from hil.io.url import parse_target
 
 
 @pytest.mark.parametrize("url, scheme, protocol, in_process", [

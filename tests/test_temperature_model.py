@@ -6,11 +6,11 @@ import datetime as dt
 
 import pytest
 
-from hil.bench import Bench
-from hil.emulator import Emulator
-from hil.emulator.models.temperature import Fixed, Ramp, TemperatureModel
-from hil.fbs.temperature import MODULES, parse_temperature
-from hil.profile import load_profile, profile_from_dict
+from hil.families.fbs.bench import Bench
+from hil.families.fbs.sim import Emulator
+from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureModel
+from hil.families.fbs.temperature import MODULES, parse_temperature
+from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 
 SR, RD, TW = 3000, 3020, 3060
@@ -118,7 +118,7 @@ def test_fahrenheit_fast_rate_and_averaging():
     emu.advance(1.1)
     assert _words(emu, RD, 6)[0] == 2120
     assert emu.memory.words["R"][RD + 1] == (-3280) & 0xFFFF  # −328.0 °F, a signed word
-    from hil.device.temperature import signed
+    from hil.families.fbs.device.temperature import signed
     assert all(signed(w) % 10 == 0 for w in _words(emu, RD, 6))
 
     emu, model = _model(modules=(("2TC", "K"),), averaging=4)
@@ -143,7 +143,7 @@ def test_out_of_range_point_is_refused():
 def test_rig_coils_open_and_close_sensors():
     from pymodbus.client import ModbusTcpClient
 
-    from hil.emulator.serve.rig import start_rig_modbus_tcp
+    from hil.families.fbs.sim.rig import start_rig_modbus_tcp
     emu, model = _model()
     handle = start_rig_modbus_tcp(emu, first_coil=100)
     try:
@@ -166,9 +166,9 @@ def test_rig_coils_open_and_close_sensors():
 def test_rig_heater_banks_open_and_short_heaters_of_the_plant():
     from pymodbus.client import ModbusTcpClient
 
-    from hil.emulator.build import build_emulator
-    from hil.emulator.models.plant import ThermalPlant
-    from hil.emulator.serve.rig import start_rig_modbus_tcp
+    from hil.families.fbs.sim.build import build_emulator
+    from hil.families.fbs.sim.models.plant import ThermalPlant
+    from hil.families.fbs.sim.rig import start_rig_modbus_tcp
     emu = build_emulator(load_profile(EMULATOR_BENCH), dt.datetime(2024, 2, 28, 12))
     plant = emu.model(ThermalPlant)
     heated = sorted(plant.heaters)
@@ -195,7 +195,7 @@ def test_rig_heater_banks_open_and_short_heaters_of_the_plant():
 
 
 def test_rig_needs_temperature_modules():
-    from hil.emulator.serve.rig import build_rig_device
+    from hil.families.fbs.sim.rig import build_rig_device
     with pytest.raises(ValueError, match="no temperature modules"):
         build_rig_device(Emulator())
 
@@ -259,7 +259,7 @@ def test_missing_and_manual_injectors_explain_themselves(monkeypatch):
 
 
 def test_manual_injector_asks_the_operator():
-    from hil.faults import ManualSensorBreak
+    from hil.families.fbs.faults import ManualSensorBreak
     asked = []
     injector = ManualSensorBreak(ask=asked.append)
     injector.open(4)
@@ -269,7 +269,7 @@ def test_manual_injector_asks_the_operator():
 
 
 def test_unreachable_relay_module_is_reported():
-    from hil.faults import FaultError, ModbusCoilSensorBreak
+    from hil.families.fbs.faults import FaultError, ModbusCoilSensorBreak
     injector = ModbusCoilSensorBreak("modbus+tcp://127.0.0.1:9?unit=1", timeout=0.2)
     with pytest.raises(FaultError, match="cannot reach the sensor-break relay module"):
         injector.open(0)
@@ -278,7 +278,7 @@ def test_unreachable_relay_module_is_reported():
 
 
 def test_probe_shows_the_temperature_points(capsys):
-    from hil.cli import main
+    from hil.cli.main import main
     assert main(["probe", "--bench", str(EMULATOR_BENCH)]) == 0
     out = capsys.readouterr().out
     assert "temperature points (2 modules, 32 points)" in out

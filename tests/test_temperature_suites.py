@@ -10,16 +10,16 @@ import pytest
 # Imported here, outside the inner runs: pytester restores sys.modules after each inner run, so whatever the
 # inner run imports first is imported (and assertion-rewritten, being part of the plugin's distribution) again
 # in every run — seconds per run.
-import hil.device.temperature  # noqa: F401
-import hil.emulator.serve.fatek  # noqa: F401
-import hil.emulator.serve.modbus  # noqa: F401
-import hil.faults  # noqa: F401
-import hil.pytest_plugin  # noqa: F401
-import hil.transport.fatek  # noqa: F401
-import hil.transport.local  # noqa: F401
-import hil.transport.modbus  # noqa: F401
-from hil.emulator.build import build_emulator
-from hil.emulator.models.temperature import TemperatureModel
+import hil.families.fbs.device.temperature  # noqa: F401
+import hil.families.fbs.sim.serve_fatek  # noqa: F401
+import hil.families.fbs.sim.serve_modbus  # noqa: F401
+import hil.families.fbs.faults  # noqa: F401
+import hil.plugin.pytest_plugin  # noqa: F401
+import hil.families.fbs.transport.fatek  # noqa: F401
+import hil.families.fbs.transport.local  # noqa: F401
+import hil.families.fbs.transport.modbus  # noqa: F401
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.sim.models.temperature import TemperatureModel
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from hil.errors import WriteRefused
+from hil.core.errors import WriteRefused
 
 pytestmark = pytest.mark.family("s7-200smart")
 

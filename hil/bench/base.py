@@ -1,0 +1,34 @@
+"""What every bench does the same way, whichever controller family it serves (FBs, S7-200 SMART)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from hil.bench.profile import Profile
+from hil.core.timebase import Timebase
+
+
+class BenchBase:
+    """Subclasses set ``profile``, ``raw`` (the unguarded link, with ``.emulator``), ``time`` and ``plc``."""
+
+    profile: Profile
+    raw: Any
+    time: Timebase
+    plc: Any
+
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    @property
+    def is_emulator(self) -> bool:
+        """True when the PLC is the in-process emulator (virtual time, direct fault injection)."""
+        return self.raw.emulator is not None
+
+    def wait(self, seconds: float) -> None:
+        """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
+        self.time.wait(seconds)
+
+    def settle(self) -> None:
+        """Make sure the PLC has completed whole scans since the last write."""
+        self.plc.settle()

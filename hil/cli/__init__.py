@@ -1,0 +1,1 @@
+"""One module per ``hil`` subcommand; :mod:`hil.cli.main` wires them to argparse."""

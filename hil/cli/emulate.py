@@ -1,0 +1,58 @@
+"""``hil emulate``: serve the emulator on real wires until SIGINT/SIGTERM, for external clients and benches."""
+
+from __future__ import annotations
+
+import datetime as dt
+import signal
+import sys
+import threading
+
+from hil.families.fbs.sim.build import build_emulator
+from hil.sim.runtime import ServerHandle
+from hil.bench.profile import load_profile
+from hil.families.fbs.transport.factory import serve
+
+
+def split_host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not port.isdigit():
+        raise ValueError(f"{text!r} is not HOST:PORT (e.g. 127.0.0.1:5000; port 0 lets the OS choose)")
+    return host or "127.0.0.1", int(port)
+
+
+def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
+            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False) -> int:
+    """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
+
+    ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
+    hil.families.fbs.sim.rig).
+    """
+    profile = load_profile(bench)
+    emulator = build_emulator(profile, dt.datetime.now().replace(microsecond=0))
+    servers: list[ServerHandle] = []
+    stop = threading.Event()
+    try:
+        for wire, where in endpoints:
+            host, port = split_host_port(where) if where else ("127.0.0.1", 0)
+            handle = serve(emulator, wire, host, port)
+            servers.append(handle)
+            print(f"{handle.kind} {handle.address}", flush=True)
+        if rig_modbus_tcp:
+            from hil.families.fbs.sim.rig import start_rig_modbus_tcp
+            host, port = split_host_port(rig_modbus_tcp)
+            handle = start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil)
+            servers.append(handle)
+            print(f"{handle.kind} {handle.address}", flush=True)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: stop.set())
+        if live:  # after the endpoint lines: clients parse those, the panel is for people
+            from hil.cli.emulate_live import LivePanel
+            with LivePanel(emulator, profile, servers, time_scale, stop):
+                emulator.run_realtime(stop, time_scale)
+        else:
+            emulator.run_realtime(stop, time_scale)
+    finally:
+        for handle in servers:
+            handle.stop()
+    print(f"emulator stopped after {emulator.stats['requests']} requests", file=sys.stderr)
+    return 0

@@ -1,0 +1,246 @@
+"""The ``hil`` command: run the suites, serve the emulator, probe a PLC, work its clock."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from rich.console import Console
+from rich.markup import escape
+
+from hil import __version__
+from hil.core.errors import HilError
+
+EXAMPLES = """examples:
+  hil run                                   suites on the in-process emulator, JUnit in reports/junit.xml
+  hil run --target emulator+fatek-serial    the same over the FATEK protocol on a pseudo-terminal
+  hil run --bench my-bench.toml -- -k rtc   a real bench, RTC suites only (pytest args after --)
+  hil emulate --fatek-tcp 127.0.0.1:5000    serve the emulator for external clients
+  hil probe fatek+serial:///dev/ttyUSB0     status and key registers of a PLC
+  hil rtc read fatek+tcp://192.168.1.5:500  the PLC's clock against host time
+  hil drift code 3.38                       the D4054 code for a clock 3.38 s/day fast
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hil", description="Hardware-in-the-loop tests for FATEK FBs PLCs.",
+                                     epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"hil {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    run = sub.add_parser("run", help="run the suites against a bench (default: the emulator)",
+                         formatter_class=argparse.RawDescriptionHelpFormatter,
+                         description="Run the suites with pytest and leave the evidence in reports/: junit.xml "
+                                     "(bench, PLC identity, measurements with limits, wire traces of failures), "
+                                     "report.html (one offline file with plots) and traces/.",
+                         epilog="examples:\n  hil run\n  hil run --target emulator+modbus-tcp\n"
+                                "  hil run --bench fixtures/benches/example-bench.toml --operator \"J. Doe\" "
+                                "--station rig-2\n"
+                                "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
+                                "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n")
+    run.add_argument("--bench", metavar="FILE", action="append",
+                     help="bench profile (default fixtures/benches/emulator.toml); give it more than once to run "
+                          "the benches in parallel (junit-<bench>.xml each, merged into --junitxml)")
+    run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
+    run.add_argument("--junitxml", metavar="PATH", default="reports/junit.xml",
+                     help="where the JUnit XML goes (default reports/junit.xml)")
+    run.add_argument("--html", metavar="PATH", default="reports/report.html",
+                     help="where the HTML report goes (default reports/report.html)")
+    run.add_argument("--operator", metavar="NAME", help="who runs the tests (default $HIL_OPERATOR or login name)")
+    run.add_argument("--station", metavar="NAME", help="test station (default $HIL_STATION or host name)")
+    run.add_argument("--trace", choices=("failures", "all", "off"), default=None,
+                     help="wire traces to keep: failing tests (default), all, or off")
+    run.add_argument("-q", "--quiet", action="count", default=0, help="less output (repeat for even less)")
+    run.add_argument("-v", "--verbose", action="count", default=0, help="one line per test")
+    run.add_argument("--color", choices=("auto", "yes", "no"), default=None,
+                     help="colour the console (default auto: only on a terminal, never with NO_COLOR)")
+    run.add_argument("pytest_args", nargs=argparse.REMAINDER, help="after --: extra pytest arguments")
+
+    emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
+                             formatter_class=argparse.RawDescriptionHelpFormatter,
+                             epilog="examples:\n  hil emulate --fatek-tcp 127.0.0.1:5000 --modbus-tcp 127.0.0.1:5020\n"
+                                    "  hil emulate --fatek-pty --time-scale 60\n"
+                                    "  hil emulate --bench fixtures/benches/emulator.toml --fatek-tcp 0.0.0.0:500\n"
+                                    "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens; "
+                                    "on a terminal a live panel (clock, temperatures, requests) follows. Ctrl-C "
+                                    "stops.")
+    emulate.add_argument("--no-live", action="store_true", help="no live panel, even on a terminal")
+    emulate.add_argument("--bench", metavar="FILE", help="bench profile that configures the emulator")
+    emulate.add_argument("--fatek-tcp", metavar="HOST:PORT", help="FATEK protocol on TCP (port 0: OS chooses)")
+    emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
+    emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
+    emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
+                         help="also serve a fault rig, a Modbus/TCP relay module: coil FIRST+point = 1 opens the "
+                              "point's sensor, FIRST+32+point its heater circuit, FIRST+64+point shorts its SSR "
+                              "(profile: [faults.sensor_break|heater_open|ssr_short] kind = \"modbus-coil\", "
+                              "first_coil = FIRST, FIRST+32, FIRST+64)")
+    emulate.add_argument("--rig-first-coil", type=int, default=0, metavar="FIRST",
+                         help="the rig's first coil: temperature point 0's sensor (default 0)")
+    emulate.add_argument("--time-scale", type=float, default=1.0, metavar="X",
+                         help="virtual seconds per wall second (default 1)")
+
+    probe = sub.add_parser("probe", help="show a PLC's status and key registers",
+                           formatter_class=argparse.RawDescriptionHelpFormatter,
+                           description="Connect, ask the PLC what it is (FATEK command 53 where the wire has it) "
+                                       "and show its state and key registers. Reads only.",
+                           epilog="examples:\n  hil probe fatek+tcp://192.168.1.5:500\n"
+                                  "  hil probe fatek+serial:///dev/ttyUSB0?baudrate=19200\n"
+                                  "  hil probe modbus+tcp://192.168.1.5:502?unit=1\n"
+                                  "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
+                                  "with its temperature points)\n")
+    probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
+                                              "(default: the --bench profile's target)")
+    probe.add_argument("--bench", metavar="FILE",
+                       help="bench profile: its [temperature] section adds the temperature points to the report "
+                            "(and configures an emulator… target)")
+    _add_clock_commands(sub)
+    return parser
+
+
+def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
+    """``hil rtc read|set|sync`` and ``hil drift code|decode|measure`` (see hil/commands/rtc.py)."""
+    raw = argparse.RawDescriptionHelpFormatter
+    url_help = "target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp"
+    bench_help = "bench profile for an emulator… target (default fixtures/benches/emulator.toml: an S-35390A RTC)"
+
+    rtc = sub.add_parser("rtc", help="read, set or sync a PLC's real-time clock", formatter_class=raw,
+                         description="The PLC's real-time clock (R4128–R4135, M1952–M1955, D4053/D4054). Writes go "
+                                     "straight to the PLC: no bench profile guards them.",
+                         epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                "  hil rtc set fatek+serial:///dev/ttyUSB0 \"2024-02-29 12:00:00\"\n"
+                                "  hil rtc sync emulator+modbus-tcp\n")
+    rtc_sub = rtc.add_subparsers(dest="rtc_command", metavar="ACTION", required=True)
+    read = rtc_sub.add_parser("read", help="the time, chip, flags and rate code, and the difference from host time",
+                              formatter_class=raw,
+                              epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                     "  hil rtc read emulator+modbus-tcp    (D4053/D4054 are not on the Modbus map)\n")
+    set_ = rtc_sub.add_parser("set", help="set the clock (M1952 procedure); exit 1 if the PLC refuses (M1955 = 1)",
+                              formatter_class=raw,
+                              epilog="examples:\n  hil rtc set fatek+tcp://192.168.1.5:500 \"2024-02-29 12:00:00\"\n"
+                                     "  hil rtc set emulator 2024-02-29T12:00\n"
+                                     "An invalid date (2023-02-29) is sent as is, so you see whether the PLC takes "
+                                     "it.\n")
+    sync = rtc_sub.add_parser("sync", help="set the clock to host time, on a whole second", formatter_class=raw,
+                              epilog="example:\n  hil rtc sync fatek+serial:///dev/ttyUSB0\n")
+    for p in (read, set_, sync):
+        p.add_argument("url", metavar="URL", help=url_help)
+    set_.add_argument("time", metavar="TIME", help="YYYY-MM-DD HH:MM:SS (ISO; 'T' or space; seconds optional)")
+    for p in (read, set_, sync):
+        p.add_argument("--bench", metavar="FILE", help=bench_help)
+
+    drift = sub.add_parser("drift", help="D4054 rate codes, and measuring a PLC clock's drift", formatter_class=raw,
+                           description="S-35390A clock-rate compensation (D4054). Positive rates mean the PLC clock "
+                                       "runs fast.",
+                           epilog="examples:\n  hil drift code 3.38\n  hil drift decode 56E5H\n"
+                                  "  hil drift measure fatek+tcp://192.168.1.5:500 --duration 3600\n")
+    drift_sub = drift.add_subparsers(dest="drift_command", metavar="ACTION", required=True)
+    code = drift_sub.add_parser("code", help="the manual's D4054 code for a clock error in s/day", formatter_class=raw,
+                                epilog="examples:\n  hil drift code 3.38     -> 56E5H\n"
+                                       "  hil drift code -5.62    -> 5603H (a clock 5.62 s/day slow)\n")
+    code.add_argument("rate", metavar="RATE", help="s/day the PLC clock runs fast (negative: slow), "
+                                                  "-16.88 … +16.61")
+    decode = drift_sub.add_parser("decode", help="what a D4054 code does: mode, steps, s/day, ppm",
+                                  formatter_class=raw,
+                                  epilog="examples:\n  hil drift decode 56E5\n  hil drift decode 0x5603\n"
+                                         "  hil drift decode 56E5H\n")
+    decode.add_argument("code", metavar="CODE", help="hex: 56E5, 56E5H or 0x56E5")
+    measure = drift_sub.add_parser("measure", help="measure the clock's error in s/day against host time",
+                                   formatter_class=raw,
+                                   epilog="examples:\n  hil drift measure fatek+tcp://192.168.1.5:500 --duration 3600\n"
+                                          "  hil drift measure emulator --duration 86400   (virtual time: instant)\n"
+                                          "  hil drift measure fatek+serial:///dev/ttyUSB0 --duration 86400 --apply\n"
+                                          "Longer is finer: the resolution is one polling bracket (tens of ms) over "
+                                          "the duration, about ±0.03 s/day over a day. Without --apply D4054 is left "
+                                          "as it is.\n")
+    measure.add_argument("url", metavar="URL", help=url_help)
+    measure.add_argument("--duration", type=float, required=True, metavar="SECONDS",
+                         help="bench seconds to measure over (more than 5)")
+    measure.add_argument("--apply", action="store_true",
+                         help="then write the compensating code to D4054 (S-35390A; not over the default Modbus map)")
+    measure.add_argument("--bench", metavar="FILE", help=bench_help)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    console = Console(stderr=False)
+    try:
+        return dispatch(args, console)
+    except KeyboardInterrupt:
+        return 130
+    except (HilError, OSError, ValueError) as exc:
+        if args.debug:
+            raise
+        # soft_wrap: one line whatever the width; escape: messages quote "[sections]" that are not markup
+        Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(one_line(exc))}",
+                                                   highlight=False)
+        return 2
+    except Exception as exc:  # noqa: BLE001 - a bug: still one line, the traceback behind --debug
+        if args.debug:
+            raise
+        Console(stderr=True, soft_wrap=True).print(
+            f"[bold red]hil {args.command}: internal error:[/] {escape(type(exc).__name__)}: "
+            f"{escape(one_line(exc))} — run again with --debug for the traceback and report it", highlight=False)
+        return 3
+
+
+def one_line(exc: BaseException) -> str:
+    """The error as one line: what failed and what to do (hil's messages say both)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if isinstance(exc, PermissionError) and exc.filename:
+        return f"cannot open {exc.filename}: permission denied — check its owner and mode (serial ports: add " \
+               f"your user to the dialout group)"
+    if isinstance(exc, FileNotFoundError) and exc.filename:
+        return f"{exc.filename}: no such file — check the path"
+    return text
+
+
+def dispatch(args: argparse.Namespace, console: Console) -> int:
+    if args.command == "run":
+        from hil.cli.run import run
+        extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
+        if args.bench and len(args.bench) > 1:
+            from hil.cli.many import run_many
+            return run_many(args.bench, args.target, args.junitxml, extra, console)
+        args.bench = args.bench[0] if args.bench else None
+        if args.bench:
+            from hil.bench.profile import load_profile
+            load_profile(args.bench)  # a bad profile: one line here, before pytest starts
+        return run(args.bench, args.target, args.junitxml, extra, html=args.html, operator=args.operator,
+                   station=args.station, trace=args.trace, verbosity=args.verbose - args.quiet, color=args.color)
+    if args.command == "emulate":
+        from hil.cli.emulate import emulate
+        from hil.core.paths import default_bench
+        endpoints = [(w, a) for w, a in (("fatek-tcp", args.fatek_tcp), ("modbus-tcp", args.modbus_tcp)) if a]
+        endpoints += [(w, None) for w, on in (("fatek-serial", args.fatek_pty), ("modbus-rtu", args.modbus_pty))
+                      if on]
+        if not endpoints:
+            raise ValueError("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
+                             "or --modbus-pty")
+        return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
+                       args.rig_first_coil, live=not args.no_live and console.is_terminal)
+    if args.command == "probe":
+        from hil.cli.probe import probe
+        if not args.url and not args.bench:
+            raise ValueError("probe what? give a target URL, or --bench FILE to use the profile's target")
+        return probe(args.url, console, bench=args.bench)
+    if args.command == "rtc":
+        from hil.cli import rtc
+        if args.rtc_command == "read":
+            return rtc.rtc_read(args.url, console, bench=args.bench)
+        if args.rtc_command == "set":
+            return rtc.rtc_set(args.url, args.time, console, bench=args.bench)
+        return rtc.rtc_sync(args.url, console, bench=args.bench)
+    if args.command == "drift":
+        from hil.cli import rtc
+        if args.drift_command == "code":
+            return rtc.drift_code(args.rate, console)
+        if args.drift_command == "decode":
+            return rtc.drift_decode(args.code, console)
+        return rtc.drift_measure(args.url, args.duration, console, bench=args.bench, apply=args.apply)
+    raise AssertionError(args.command)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,138 @@
+"""``hil run --bench a.toml --bench b.toml …``: the suites against several benches at once.
+
+One subprocess per bench (``hil run --bench X``), so each run has its own pytest session, its own emulator or
+wire, and — on a real bench — holds that bench's lock (:class:`hil.core.lock.BenchLock`, taken by the plugin) for
+its whole run.  Each writes ``junit-<bench>.xml`` (and ``report-<bench>.html``) beside ``--junitxml``; the
+JUnit files are then merged into ``--junitxml``: one ``<testsuite>`` per bench, named after it.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+from rich.console import Console
+from rich.table import Table
+
+from hil.core.errors import HilError
+
+
+@dataclass
+class BenchRun:
+    name: str
+    profile: str
+    junit: Path
+    log: Path
+    process: subprocess.Popen | None = None
+    exit: int | None = None
+    wall: float = 0.0
+
+
+def slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", name).strip("-") or "bench"
+
+
+def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[BenchRun]:
+    """Load every profile first (a bad one fails before anything runs); refuse two benches that share a name
+    (their reports would collide) or a PLC (their lock would make one wait for or fail against the other)."""
+    from hil.core.lock import lock_key
+    from hil.bench.profile import load_profile
+    out_dir = Path(junitxml).parent
+    runs: list[BenchRun] = []
+    names: dict[str, str] = {}
+    plcs: dict[str, str] = {}
+    for path in benches:
+        profile = load_profile(path)
+        name = slug(profile.name)
+        if name in names:
+            raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r}: give each "
+                           f"[bench] name its own value (reports are named after it)")
+        names[name] = path
+        url = target or profile.target
+        if not url.startswith("emulator"):  # in-process emulators are each run's own; real PLCs are shared
+            key = lock_key(url)
+            if key in plcs:
+                raise HilError(f"benches {plcs[key]} and {path} both reach {key}: one PLC runs one suite at a time")
+            plcs[key] = path
+        runs.append(BenchRun(name, path, out_dir / f"junit-{name}.xml", out_dir / f"run-{name}.log"))
+    return runs
+
+
+def run_many(benches: list[str], target: str | None, junitxml: str, extra: list[str],
+             console: Console | None = None, *, html: bool = True) -> int:
+    console = console or Console()
+    runs = plan(benches, junitxml, target)
+    Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
+    for r in runs:
+        cmd = [sys.executable, "-m", "hil.cli.main", "run", "--bench", r.profile, "--junitxml", str(r.junit)]
+        if target:
+            cmd += ["--target", target]
+        if html:
+            cmd += ["--html", str(r.junit.with_name(f"report-{r.name}.html"))]
+        cmd += ["--", *extra] if extra else []
+        r.junit.unlink(missing_ok=True)  # a stale file must not pass for this run's result
+        r.wall = time.perf_counter()
+        with open(r.log, "wb") as log:
+            r.process = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    for r in runs:
+        assert r.process is not None
+        r.exit = r.process.wait()
+        r.wall = time.perf_counter() - r.wall
+    merge([(r.name, r.junit, r.exit, r.log) for r in runs], Path(junitxml))
+    _summary(console, runs, junitxml)
+    return next((r.exit for r in runs if r.exit), 0)
+
+
+def merge(parts: list[tuple[str, Path, int | None, Path]], out: Path) -> ET.Element:
+    """One ``<testsuites>`` holding each bench's ``<testsuite>`` (renamed to the bench); a bench whose run left
+    no JUnit file gets a testsuite with one error naming the bench and its log."""
+    root = ET.Element("testsuites")
+    totals = dict.fromkeys(("tests", "failures", "errors", "skipped"), 0)
+    for name, path, exit_code, log in parts:
+        suites: list[ET.Element] = []
+        if path.is_file():
+            try:
+                top = ET.parse(path).getroot()
+                suites = [top] if top.tag == "testsuite" else list(top.iter("testsuite"))
+            except ET.ParseError as exc:
+                suites = [_error_suite(name, f"{path} is not valid XML: {exc}; see {log}")]
+        else:
+            suites = [_error_suite(name, f"the run for bench {name} exited {exit_code} without a JUnit file; "
+                                         f"see {log}")]
+        for suite in suites:
+            suite.set("name", name)
+            root.append(suite)
+            for key in totals:
+                totals[key] += int(suite.get(key, 0) or 0)
+    for key, value in totals.items():
+        root.set(key, str(value))
+    ET.indent(root)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(root).write(out, encoding="utf-8", xml_declaration=True)
+    return root
+
+
+def _error_suite(name: str, message: str) -> ET.Element:
+    suite = ET.Element("testsuite", name=name, tests="1", errors="1", failures="0", skipped="0")
+    case = ET.SubElement(suite, "testcase", classname=f"hil.families.fbs.bench.{name}", name="run")
+    ET.SubElement(case, "error", message=message).text = message
+    return suite
+
+
+def _summary(console: Console, runs: list[BenchRun], junitxml: str) -> None:
+    table = Table(title="hil run: benches in parallel")
+    for col in ("bench", "exit", "wall s", "JUnit", "log"):
+        table.add_column(col)
+    for r in runs:
+        style = "green" if r.exit == 0 else "red"
+        table.add_row(r.name, f"[{style}]{r.exit}[/]", f"{r.wall:.1f}", str(r.junit), str(r.log))
+    console.print(table)
+    console.print(f"merged JUnit: {junitxml}")
+
+
+__all__ = ["run_many", "merge", "plan"]

@@ -1,0 +1,99 @@
+"""``hil probe URL``: is the PLC there, what is it, and a few registers that tell its state."""
+
+from __future__ import annotations
+
+
+from rich.console import Console
+from rich.markup import escape
+from rich.panel import Panel
+from rich.table import Table
+
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.device.temperature import Temperature
+from hil.core.errors import HilError
+from hil.families.fbs.temperature import BREAK_VALUE, parse_temperature
+from hil.bench.profile import Profile
+from hil.core.timebase import HostTimebase
+from hil.families.fbs.transport.base import PlcStatus, Transport
+from hil.cli.target import open_target
+
+# (label, element) — read only where the wire can reach them.
+PROBE_REGISTERS = [
+    ("RTC second/minute/hour", "R4128"), ("RTC day/month/year", "R4131"), ("RTC weekday", "R4134"),
+    ("RTC chip (D4053)", "D4053"), ("RTC rate code (D4054)", "D4054"),
+    ("PID timing R4005", "R4005"), ("heater-loop % R4006", "R4006"), ("heater-loop s R4007", "R4007"),
+    ("pre-alarm R4008", "R4008"), ("installed R4010/R4011", "R4010"), ("PID enable R4012/R4013", "R4012"),
+]
+_COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
+
+
+def probe(url: str | None, console: Console, bench: str | None = None) -> int:
+    """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
+    if bench is not None:
+        from hil.bench.profile import load_profile
+        given = load_profile(bench)
+        if given.family == "s7-200smart":
+            from hil.cli.probe_s7 import probe_s7
+            return probe_s7(given, url, console)
+    with open_target(url, bench) as opened:
+        transport, profile = opened.transport, opened.profile if bench else None
+        console.print(status_panel(transport.status(), transport.description))
+        table = Table(title="key registers", show_header=True)
+        table.add_column("item")
+        table.add_column("value")
+        for label, element in PROBE_REGISTERS:
+            reason = transport.unreachable_reason(element)
+            if reason:
+                table.add_row(label, f"[dim]not reachable: {reason}[/dim]")
+                continue
+            values = transport.read_words(element, _COUNTS.get(element, 1))
+            table.add_row(label, " ".join(f"{v} ({v:04X}H)" for v in values))
+        console.print(table)
+        if profile is not None and "temperature" in profile.areas:
+            console.print(temperature_table(transport, profile))
+    return 0
+
+
+def status_panel(status: PlcStatus, description: str, **extra: str) -> Panel:
+    """The PLC's state (coloured: green RUN, yellow STOP), the wire, ``extra`` rows and its identity."""
+    running = {True: "green", False: "yellow", None: "dim"}[status.running]
+    grid = Table.grid(padding=(0, 2))
+    grid.add_column(style="bold cyan", no_wrap=True)
+    grid.add_column()
+    grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
+    grid.add_row("via", escape(status.via or description))
+    for key, value in [*extra.items(), *status.identity.items()]:
+        grid.add_row(escape(key), escape(str(value)))
+    return Panel(grid, title=f"PLC at {escape(description)}", title_align="left", expand=False,
+                 border_style=running)
+
+
+def temperature_table(transport: Transport, profile: Profile) -> Table:
+    """One row per configured point: module, sensor, installed bit, reading, break bit; the caption has the
+    table marker, execution code and counts as the PLC reports them."""
+    config = parse_temperature(profile.areas["temperature"], str(profile.path))
+    if transport.emulator is not None:  # a freshly built emulator: let every point be measured once
+        transport.emulator.advance(config.update_period() * 1.5)
+    temp = Temperature(FbsPlc(transport, HostTimebase()), config)
+    unit = f"°{config.unit}"
+    table = Table(title=f"temperature points ({len(config.modules)} modules, {config.points} points)")
+    for column in ("point", "module", "sensor", "installed", f"reading {unit}", "break"):
+        table.add_column(column, justify="right" if column == "point" else "left")
+    try:
+        head, work = temp.read_table(), temp.read_work()
+        readings = temp.readings()
+        mask = transport.read_words("R4010", 2)
+    except HilError as exc:
+        table.caption = f"[red]cannot read the temperature area: {exc}[/red]"
+        return table
+    breaks = set(work.break_points)
+    for point, value in enumerate(readings):
+        k, module = config.point_module(point)
+        installed = bool(mask[point // 16] >> (point % 16) & 1)
+        shown = "[red]28767 (open)[/red]" if value == BREAK_VALUE else f"{value / 10:.1f}"
+        table.add_row(str(point), f"{k + 1}: FBs-{module.type.name}", module.sensor.name,
+                      "yes" if installed else "[dim]no[/dim]", shown, "[red]BREAK[/red]" if point in breaks else "")
+    table.caption = (f"table {config.table}: SR+0 = {head.marker:04X}H; work {config.work}: execution code "
+                     f"{work.execution_code:02X}H, mismatch bits {work.mismatch_bits:08b}, "
+                     f"{work.total_points} points / {work.module_count} modules")
+    return table

@@ -1,0 +1,57 @@
+"""Opening the PLC a command names: one place that knows an ``emulator…`` URL needs the profile's emulator.
+
+Commands use a *direct* transport, not the bench's guarded one: the operator named the PLC and asked for any
+write on the command line.  An ``emulator…`` target is built from a bench profile (default
+fixtures/benches/emulator.toml, so it has an RTC and temperature modules) and runs in virtual time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+from dataclasses import dataclass
+from typing import Iterator
+
+from hil.families.fbs.device.plc import FbsPlc
+from hil.core.errors import HilError
+from hil.bench.profile import Profile, load_profile
+from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.families.fbs.transport.base import Transport
+from hil.families.fbs.transport.factory import open_transport
+from hil.io.url import parse_target
+
+
+@dataclass
+class OpenTarget:
+    transport: Transport
+    timebase: Timebase
+    profile: Profile | None  # the bench profile given (or the default one behind an emulator target)
+
+    def plc(self) -> FbsPlc:
+        return FbsPlc(self.transport, self.timebase,
+                      settle_scans=self.profile.settle_scans if self.profile is not None else 2)
+
+
+@contextlib.contextmanager
+def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarget]:
+    """The PLC at ``url`` (default: the profile's target); ``bench`` supplies timeout, time scale, layout."""
+    from hil.core.paths import default_bench
+    given = load_profile(bench) if bench else None
+    if given is not None and given.family != "fbs":
+        raise HilError(f"bench {given.name!r} ({bench}) is an S7-200 SMART (family {given.family!r}); this command "
+                       f"works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows it, "
+                       f"hil run --bench {bench} runs its suites")
+    if url is None and given is None:
+        raise ValueError("name a target URL or a bench profile (--bench FILE)")
+    target = parse_target(url or given.target)
+    profile = given if given is not None or not target.in_process else load_profile(default_bench())
+    epoch = dt.datetime.now().replace(microsecond=0)
+    factory = None
+    if target.in_process:
+        from hil.families.fbs.sim.build import build_emulator
+        factory = lambda: build_emulator(profile, epoch)  # noqa: E731
+    timeout = given.timeout if given is not None else None
+    with open_transport(target, emulator_factory=factory, timeout=timeout) as transport:
+        timebase: Timebase = (EmulatorTimebase(transport.emulator, epoch) if transport.emulator is not None
+                              else HostTimebase(given.time_scale if given is not None else 1.0))
+        yield OpenTarget(transport, timebase, profile)

@@ -1,1 +1,0 @@
-"""One module per ``hil`` subcommand; :mod:`hil.cli` wires them to argparse."""

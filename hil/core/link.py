@@ -1,0 +1,44 @@
+"""The lifecycle every link to a PLC shares, whatever it speaks: one request at a time, closers, context manager."""
+
+from __future__ import annotations
+
+import threading
+from typing import Callable
+
+
+class Link:
+    """Base of :class:`hil.families.fbs.transport.base.Transport` and the S7-200 SMART link."""
+
+    def __init__(self, description: str) -> None:
+        self.description = description
+        self._lock = threading.RLock()  # one request on the wire at a time, as a serial line demands
+        self._closers: list[Callable[[], None]] = []
+        self.requests = 0  # protocol requests sent (round trips)
+        self.closed = False
+
+    def on_close(self, closer: Callable[[], None]) -> None:
+        """Run ``closer`` after this link closes (e.g. stop the server of an ``emulator+…`` target)."""
+        self._closers.append(closer)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        with self._lock:
+            try:
+                self._close()
+            finally:
+                for closer in reversed(self._closers):
+                    closer()
+
+    def _close(self) -> None:
+        pass
+
+    def __enter__(self):  # noqa: ANN204 - returns the subclass
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.description}>"

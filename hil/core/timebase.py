@@ -1,0 +1,68 @@
+"""Time belongs to the bench: a reference clock and a way to let time pass, for a real PLC or the emulator.
+
+* :class:`HostTimebase` — a real bench (or an external emulator): the host's clocks; ``wait`` sleeps, divided by
+  the profile's ``time_scale`` for an accelerated external emulator.
+* :class:`EmulatorTimebase` — the in-process emulator: ``wait`` advances virtual time; "host time" is a fixed
+  calendar epoch plus virtual seconds, so a simulated day takes no wall day.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from hil.families.fbs.sim.plc import Emulator
+
+
+class Timebase(Protocol):
+    def now(self) -> float:
+        """Reference seconds (monotonic); differences measure elapsed bench time."""
+
+    def calendar(self) -> dt.datetime:
+        """The reference calendar time (naive, local) that an RTC should show when in sync."""
+
+    def wait(self, seconds: float) -> None:
+        """Let ``seconds`` of bench time pass."""
+
+    @property
+    def virtual(self) -> bool:
+        """True when time is simulated (waiting costs no wall time)."""
+
+
+class HostTimebase:
+    virtual = False
+
+    def __init__(self, time_scale: float = 1.0) -> None:
+        if time_scale <= 0:
+            raise ValueError(f"time_scale must be positive, not {time_scale}")
+        self.time_scale = time_scale
+
+    def now(self) -> float:
+        return time.monotonic() * self.time_scale
+
+    def calendar(self) -> dt.datetime:
+        return dt.datetime.now()
+
+    def wait(self, seconds: float) -> None:
+        if seconds > 0:
+            time.sleep(seconds / self.time_scale)
+
+
+class EmulatorTimebase:
+    virtual = True
+
+    def __init__(self, emulator: "Emulator", epoch: dt.datetime | None = None) -> None:
+        self.emulator = emulator
+        # Calendar time at virtual t = 0; whole seconds so that "host time" has no sub-second offset.
+        self.epoch = (epoch or dt.datetime.now()).replace(microsecond=0)
+
+    def now(self) -> float:
+        return self.emulator.now
+
+    def calendar(self) -> dt.datetime:
+        return self.epoch + dt.timedelta(seconds=self.emulator.now)
+
+    def wait(self, seconds: float) -> None:
+        self.emulator.advance(seconds)

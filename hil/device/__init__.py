@@ -1,5 +1,0 @@
-"""The PLC as a test sees it: procedures (set the clock, measure drift, read temperatures), not register math."""
-
-from hil.device.plc import FbsPlc
-
-__all__ = ["FbsPlc"]

@@ -1,5 +1,0 @@
-"""Models of PLC behaviour that plug into the emulator's scan engine (RTC, and later the other areas)."""
-
-from hil.emulator.models.rtc import RtcModel
-
-__all__ = ["RtcModel"]

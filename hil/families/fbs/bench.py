@@ -1,0 +1,124 @@
+"""A bench: the profile made live — the PLC behind its guard, the bench's time, and the per-test restore.
+
+The pytest plugin builds one Bench per session; suites see it as the ``bench`` fixture.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Callable
+
+from hil.families.fbs.address import parse_range
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs import registers as reg
+from hil.bench.base import BenchBase
+from hil.bench.profile import Profile
+from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.families.fbs.transport.base import Transport
+from hil.families.fbs.transport.factory import open_transport
+from hil.families.fbs.transport.guard import GuardedTransport, expand
+from hil.io.url import Target, parse_target
+
+EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
+
+# Writes to these mean the RTC may be left off host time: sync it after the test.
+_RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
+
+
+class Bench(BenchBase):
+    def __init__(self, profile: Profile, *, target: str | None = None,
+                 emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
+        self.profile = profile
+        self.target: Target = parse_target(target or profile.target)
+        self.allow_destructive = allow_destructive or profile.safety.allow_destructive
+        epoch = dt.datetime.now().replace(microsecond=0)
+        if emulator_builder is None:
+            from hil.families.fbs.sim.build import build_emulator
+            emulator_builder = build_emulator
+        wire_faults = None
+        if profile.wire_faults and self.target.in_process:
+            from hil.sim.wire_faults import WireFaults
+            wire_faults = WireFaults.from_config(profile.wire_faults)  # the emulator wires' servers apply it
+        self.raw: Transport = open_transport(self.target, timeout=profile.timeout, wire_faults=wire_faults,
+                                             emulator_factory=lambda: emulator_builder(profile, epoch))
+        self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
+        self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
+                               else HostTimebase(profile.time_scale))
+        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+        if "temperature" in profile.areas:
+            from hil.families.fbs.temperature import parse_temperature
+            self.plc.temperature.config = parse_temperature(profile.areas["temperature"],
+                                                            str(profile.path or "<profile>"))
+        if "pid" in profile.areas:
+            from hil.families.fbs.pid import parse_pid
+            self.plc.pid.config = parse_pid(profile.areas["pid"], str(profile.path or "<profile>"))
+        from hil.families.fbs.faults import Faults
+        self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
+
+    # -- what suites use ----------------------------------------------------------------------------------
+    def cannot_reach(self, *names: str) -> str | None:
+        """Why this bench cannot read and write ``names`` (elements or ranges such as ``"R4128-R4134"``):
+        unreachable over the wire, or not writable.  None when it can."""
+        for name in names:
+            for element in parse_range(name):
+                reason = self.raw.unreachable_reason(element)
+                if reason:
+                    return reason
+        refused = [n for n in names if not self.profile.can_write(n)]
+        if refused:
+            return f"{', '.join(refused)} not in the bench's [safety] writable list"
+        return None
+
+    # -- per-test bookkeeping --------------------------------------------------------------------------------
+    def begin_test(self) -> None:
+        self.io.start_journal()
+
+    def end_test(self) -> None:
+        """Put the PLC back as it was found: injected faults, journaled values, then the RTC if a test touched it.
+
+        Idempotent: a second call finds nothing left to undo."""
+        touched_rtc = bool(self.io.touched & _RTC_TOUCHES)
+        try:
+            try:
+                self.faults.undo_all()  # first: a plc-bit injector's own writes are then restored and verified
+            finally:
+                # The sync comes before the one restore: its writes (M1952) join the same journal, so one
+                # write-back and one read-back verify the test's and the sync's writes together (6 round trips
+                # on FATEK, not 9 with a restore on each side of the sync).
+                try:
+                    if touched_rtc:
+                        self.plc.rtc.sync_to_host()
+                finally:
+                    self.io.restore()
+        finally:
+            self.io.start_journal()
+
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure (an emulator's server keeps running; only the client reconnects)."""
+        self.raw.reopen()
+
+    def alive(self) -> str | None:
+        """None when the PLC answers (reconnecting once if needed), else why not."""
+        try:
+            self.io.status()
+            return None
+        except Exception as first:  # noqa: BLE001 - any failure here means "not answering"
+            try:
+                self.raw.reopen()
+                self.io.status()
+                return None
+            except Exception as exc:  # noqa: BLE001
+                return f"{first}; reconnecting: {exc}"
+
+    def close(self) -> None:
+        self.faults.close()
+        self.io.close()
+
+
+def open_bench(profile: Profile, **kwargs) -> "Bench":  # noqa: ANN003 - Bench's keyword arguments
+    """The bench for the profile's controller family: :class:`Bench` (FBs) or an S7-200 SMART bench."""
+    if profile.family == "s7-200smart":
+        from hil.families.s7smart.bench import S7Bench
+        return S7Bench(profile, **kwargs)  # type: ignore[return-value]  # same surface as Bench
+    return Bench(profile, **kwargs)

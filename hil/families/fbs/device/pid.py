@@ -1,0 +1,240 @@
+"""``plc.pid``: FUN86 temperature PID — set points, deviations, gains, outputs, alarm words, and a closed-loop trace.
+
+Procedures and decoding only (which registers, which bits); whether a value is right is for the suite to say.
+Configured by the bench from the profile's ``[pid]`` (see :mod:`hil.families.fbs.pid`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Iterable
+
+from hil.core.errors import HilError
+from hil.families.fbs import registers as reg
+from hil.families.fbs.registers import signed16
+from hil.families.fbs.pid import OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance
+
+if TYPE_CHECKING:
+    from hil.families.fbs.device.plc import FbsPlc
+
+
+@dataclass(frozen=True)
+class AlarmWords:
+    """WR+0 … WR+3 of one instance, decoded per point (bit b counts from Sn)."""
+
+    instance: PidInstance
+    words: tuple[int, int, int, int]
+    sn: int
+
+    def _flag(self, pair: tuple[int, int], point: int) -> bool:
+        b = point - self.sn
+        if not 0 <= b < 32:
+            raise ValueError(f"point {point} is outside this FUN86's points (Sn = {self.sn})")
+        return bool(self.words[pair[b // 16]] >> (b % 16) & 1)
+
+    def normal(self, point: int) -> bool:
+        return self._flag(WR_NORMAL, point)
+
+    def warning(self, point: int) -> bool:
+        return self._flag(WR_WARNING, point)
+
+    def normal_points(self) -> list[int]:
+        return [self.sn + b for b in range(32) if self.words[WR_NORMAL[b // 16]] >> (b % 16) & 1]
+
+    def warning_points(self) -> list[int]:
+        return [self.sn + b for b in range(32) if self.words[WR_WARNING[b // 16]] >> (b % 16) & 1]
+
+
+@dataclass(frozen=True)
+class Sample:
+    t: float  # bench seconds since the recording started
+    pv: int  # 0.1°
+    sv: int  # 0.1°
+    output: int  # OR, 0–16383
+
+    @property
+    def output_percent(self) -> float:
+        return self.output * 100 / OUTPUT_FULL
+
+
+@dataclass
+class Trace:
+    """A closed-loop recording of one point, plot-ready: ``columns()`` gives t, PV, SV, output lists."""
+
+    point: int
+    samples: list[Sample] = field(default_factory=list)
+
+    def columns(self) -> dict[str, list[float]]:
+        return {"t": [s.t for s in self.samples], "pv": [s.pv / 10 for s in self.samples],
+                "sv": [s.sv / 10 for s in self.samples], "output": [s.output_percent for s in self.samples]}
+
+    def to_csv(self) -> str:
+        out = _io.StringIO()
+        writer = csv.writer(out)
+        writer.writerow(["t_s", "pv", "sv", "output_percent"])
+        for s in self.samples:
+            writer.writerow([f"{s.t:.3f}", s.pv / 10, s.sv / 10, f"{s.output_percent:.2f}"])
+        return out.getvalue()
+
+    def settled_at(self, band: int) -> float | None:
+        """The first time after which PV stayed within ±band (0.1°) of SV to the end, or None."""
+        since = None
+        for s in self.samples:
+            if abs(s.pv - s.sv) <= band:
+                since = s.t if since is None else since
+            else:
+                since = None
+        return since
+
+
+class Pid:
+    def __init__(self, plc: "FbsPlc", config: PidConfig | None = None) -> None:
+        self.plc = plc
+        self._config = config
+
+    @property
+    def configured(self) -> bool:
+        return self._config is not None and bool(self._config.instances)
+
+    @property
+    def config(self) -> PidConfig:
+        if not self.configured:
+            raise HilError("the bench profile has no [pid] section: say where the ladder's FUN86 operands are "
+                           "(see fixtures/benches/example-bench.toml)")
+        return self._config  # type: ignore[return-value]
+
+    @config.setter
+    def config(self, value: PidConfig | None) -> None:
+        self._config = value
+
+    def instance(self, name: str | None = None) -> PidInstance:
+        return self.config.instance(name)
+
+    def of(self, point: int) -> PidInstance:
+        inst = self.config.controlling(point)
+        if inst is None:
+            raise HilError(f"no FUN86 instance of the profile controls temperature point {point}")
+        return inst
+
+    # -- EN, H/C, ERR, ALM ------------------------------------------------------------------------------------------
+    def enable(self, inst: PidInstance, on: bool = True, heating: bool | None = True) -> None:
+        """Set EN (and H/C: 1 heating, 0 cooling, None leaves it)."""
+        items = {str(inst.en): int(on)}
+        if heating is not None:
+            items[str(inst.hc)] = int(heating)
+        self.plc.io.write_many(items)
+
+    def restart(self, inst: PidInstance) -> None:
+        """EN 0 → 1 (a new R4005 takes effect only then)."""
+        self.plc.io.write(str(inst.en), 0)
+        self.plc.settle()
+        self.plc.io.write(str(inst.en), 1)
+        self.plc.settle()
+
+    def err(self, inst: PidInstance) -> bool:
+        return bool(self.plc.io.read(str(inst.err)))
+
+    def alm(self, inst: PidInstance) -> bool:
+        return bool(self.plc.io.read(str(inst.alm)))
+
+    def set_sn_zn(self, inst: PidInstance, sn: int, zn: int) -> None:
+        if not inst.settable:
+            raise HilError(f"FUN86 {inst.name!r} takes Sn/Zn as constants: the profile names no sn_register/"
+                           f"zn_register")
+        self.plc.io.write_many({str(inst.sn_register): sn & 0xFFFF, str(inst.zn_register): zn & 0xFFFF})
+
+    # -- per point ------------------------------------------------------------------------------------------------
+    def _reg(self, key: str, point: int, inst: PidInstance | None = None) -> str:
+        inst = inst or self.of(point)
+        return str(inst.operand(key, point))
+
+    def set_point(self, point: int) -> int:
+        return signed16(self.plc.io.read(self._reg("sv", point)))
+
+    def set_set_point(self, point: int, tenths: int) -> None:
+        self.plc.io.write(self._reg("sv", point), tenths & 0xFFFF)
+
+    def deviation(self, point: int) -> int:
+        return signed16(self.plc.io.read(self._reg("os", point)))
+
+    def set_deviation(self, point: int, tenths: int) -> None:
+        self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
+
+    def gains(self, point: int) -> tuple[int, int, int]:
+        """(Kc, Ki, Td) from PR/IR/DR."""
+        return tuple(self.plc.io.read(self._reg(k, point)) for k in ("pr", "ir", "dr"))  # type: ignore[return-value]
+
+    def set_gains(self, point: int, kc: int, ki: int, td: int) -> None:
+        self.plc.io.write_many({self._reg("pr", point): kc, self._reg("ir", point): ki, self._reg("dr", point): td})
+
+    def output(self, point: int) -> int:
+        """OR of the point, 0–16383."""
+        return self.plc.io.read(self._reg("or_", point))
+
+    def output_bit(self, point: int) -> int:
+        """The point's PWM output Yn + (point − Sn)."""
+        return self.plc.io.read(self._reg("yn", point))
+
+    def readings_start(self) -> str:
+        """Where FUN86 takes PVs: R4004 when R4003 = A55AH and R4004 names R0–R3839/D0–D3999, else the table's."""
+        key, code = self.plc.io.read_words(reg.PID_SOURCE_KEY, 2)
+        if key == 0xA55A and (10000 <= code <= 13839 or 20000 <= code <= 23999):
+            return f"R{code - 10000}" if code < 20000 else f"D{code - 20000}"
+        return str(self.plc.temperature.config.readings)
+
+    def pv(self, point: int) -> int:
+        from hil.families.fbs.address import parse
+        return signed16(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
+
+    def pvs(self, points: Iterable[int]) -> dict[int, int]:
+        from hil.families.fbs.address import parse
+        start = parse(self.readings_start())
+        points = list(points)
+        words = self.plc.io.read_words(str(start), max(points) + 1)
+        return {p: signed16(words[p]) for p in points}
+
+    @staticmethod
+    def enable_register(point: int) -> str:
+        """R4012 holds points 0–15, R4013 points 16–31."""
+        if not 0 <= point < 32:
+            raise ValueError(f"temperature point {point} is outside 0–31")
+        return reg.PID_ENABLE_LOW if point < 16 else reg.PID_ENABLE_HIGH
+
+    def set_enabled(self, point: int, on: bool) -> None:
+        name = self.enable_register(point)
+        word = self.plc.io.read(name)
+        bit = 1 << (point % 16)
+        self.plc.io.write(name, word | bit if on else word & ~bit)
+
+    # -- alarm words ------------------------------------------------------------------------------------------------
+    def alarm_words(self, inst: PidInstance, sn: int | None = None) -> AlarmWords:
+        words = tuple(self.plc.io.read_words(str(inst.wr), 4))
+        return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
+
+    # -- timing -----------------------------------------------------------------------------------------------------
+    @staticmethod
+    def timing_word(interval_s: int, pwm_s: int) -> int:
+        """R4005 for a PID interval and PWM period in seconds (each 1, 2, 4, 8, 16 or 32)."""
+        for s in (interval_s, pwm_s):
+            if s not in TIMING_SECONDS:
+                raise ValueError(f"{s} s is not one of {TIMING_SECONDS}")
+        return TIMING_SECONDS.index(pwm_s) << 8 | TIMING_SECONDS.index(interval_s)
+
+    # -- closed loop ----------------------------------------------------------------------------------------------
+    def record(self, point: int, seconds: float, every: float = 5.0) -> Trace:
+        """Sample (t, PV, SV, output) of ``point`` every ``every`` bench seconds for ``seconds``."""
+        inst = self.of(point)
+        trace = Trace(point)
+        time = self.plc.time
+        start = time.now()
+        while True:
+            sv = signed16(self.plc.io.read(str(inst.operand("sv", point))))
+            out = self.plc.io.read(str(inst.operand("or_", point)))
+            pv = self.pv(point)
+            t = time.now() - start
+            trace.samples.append(Sample(t, pv, sv, out))
+            if t >= seconds:
+                return trace
+            time.wait(min(every, seconds - t) if seconds - t > 0 else every)

@@ -1,0 +1,304 @@
+"""The PLC's real-time clock as procedures: read, set (M1952 handshake), ±30 s, D4054, drift measurement.
+
+Everything goes through ``plc.io`` and waits through ``plc.time``, so the same code drives a bench PLC (host
+time, sleeping) and the emulator (virtual time, a simulated day in milliseconds).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from hil.core.errors import HilError
+from hil.families.fbs import registers as reg
+from hil.families.fbs.d4054 import code_for_rate
+from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
+
+if TYPE_CHECKING:
+    from hil.families.fbs.device.plc import FbsPlc
+
+
+@dataclass(frozen=True)
+class RtcFlags:
+    """M1952–M1955."""
+
+    hold: bool  # M1952: read-out frozen / set trigger
+    adjust_30s: bool  # M1953
+    installed: bool  # M1954
+    set_error: bool  # M1955: the last set was refused
+
+
+@dataclass(frozen=True)
+class RtcChip:
+    """D4053: the chip code and its name ("none", "HT1381", "ISL1208", "S-35390A", or "unknown (n)")."""
+
+    code: int
+    name: str
+
+    def __int__(self) -> int:
+        return self.code
+
+    @property
+    def has_rate_adjust(self) -> bool:
+        """Only the S-35390A takes a D4054 rate code."""
+        return self.code == 3
+
+
+@dataclass(frozen=True)
+class SetResult:
+    """The outcome of :meth:`Rtc.set`: what was sent, whether the PLC took it (M1955 = 0)."""
+
+    sent: RtcTime
+    accepted: bool
+    problems: tuple[str, ...]  # the fields *we* find invalid in ``sent`` (the PLC's verdict is ``accepted``)
+
+    @property
+    def refused(self) -> bool:
+        return not self.accepted
+
+    def __bool__(self) -> bool:
+        return self.accepted
+
+
+@dataclass(frozen=True)
+class DriftMeasurement:
+    """Clock error over a measurement; positive = the PLC clock runs fast."""
+
+    s_per_day: float
+    reference_elapsed: float  # bench seconds between the first and last timed second transitions
+    plc_elapsed: float  # PLC seconds between them (whole seconds)
+    #: (reference t since the first transition, PLC − reference in seconds) at each timed transition
+    samples: list[tuple[float, float]] = field(default_factory=list)
+    resolution: float = 0.0  # s/day: worst-case error from polling (widest transition bracket / duration)
+
+    @property
+    def ppm(self) -> float:
+        return self.s_per_day / 86400 * 1e6
+
+
+@dataclass(frozen=True)
+class RtcSnapshot:
+    """R4128–R4135 and M1952–M1955 as one scan left them (:meth:`Rtc.read_all`)."""
+
+    time: RtcTime
+    hour_minute: int  # R4135
+    flags: RtcFlags
+
+
+class RtcError(HilError):
+    """The RTC procedure could not be carried out (a set that failed part-way, a clock that never ticks)."""
+
+
+#: R4128–R4135 then M1952–M1967 packed (bit 0 = M1952), for :meth:`Rtc.read_all`.
+_SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
+
+
+class Rtc:
+    """``plc.rtc``: the RTC of one FBs PLC."""
+
+    #: Bench time between polls of R4128 when timing a second transition.
+    poll_interval = 1 / 50
+
+    def __init__(self, plc: "FbsPlc") -> None:
+        self.plc = plc
+        self.drift = Drift(plc, self)
+
+    # -- reading --------------------------------------------------------------------------------------------
+    def read(self) -> RtcTime:
+        """R4128–R4134 in one register read (one request, so the fields come from one scan).
+
+        A plain 46 read, not a 48 mixed read: the same one round trip, with 6 characters per name saved
+        (16 request bytes instead of 52 on FATEK; one FC03 either way on Modbus)."""
+        return RtcTime.from_registers(self.plc.io.read_words(reg.RTC_SECOND, len(reg.RTC_FIELDS)))
+
+    def read_all(self) -> RtcSnapshot:
+        """Time, R4135 and the flags M1952–M1955 in one round trip (one FATEK 48 frame), so they come from one
+        scan: R4128–R4135 and WM1952 (M1952–M1967 packed in one word, 6 characters in the request instead of
+        20 for four bit names).  Over Modbus the map coalesces it into one FC03 and one FC01."""
+        *fields, hour_minute, packed = self.plc.io.read_many(_SNAPSHOT_NAMES)
+        flags = RtcFlags(*(bool(packed >> b & 1) for b in range(4)))
+        return RtcSnapshot(RtcTime.from_registers(fields), hour_minute, flags)
+
+    def read_hour_minute(self) -> int:
+        """R4135 (hour << 8 | minute)."""
+        return self.plc.io.read(reg.RTC_HOUR_MINUTE)
+
+    def read_flags(self) -> RtcFlags:
+        hold, adjust, installed, error = self.plc.io.read_bits(reg.RTC_HOLD, 4)
+        return RtcFlags(bool(hold), bool(adjust), bool(installed), bool(error))
+
+    @property
+    def installed(self) -> bool:
+        """M1954."""
+        return bool(self.plc.io.read(reg.RTC_INSTALLED))
+
+    @property
+    def chip(self) -> RtcChip:
+        """D4053."""
+        code = self.plc.io.read(reg.RTC_CHIP)
+        return RtcChip(code, CHIP_NAMES.get(code, f"unknown ({code})"))
+
+    def read_chip_and_rate_code(self) -> tuple[RtcChip, int]:
+        """D4053 and D4054 in one register read."""
+        code, rate = self.plc.io.read_words(reg.RTC_CHIP, 2)
+        return RtcChip(code, CHIP_NAMES.get(code, f"unknown ({code})")), rate
+
+    @property
+    def rate_code(self) -> int:
+        """D4054 (S-35390A rate adjustment; see :mod:`hil.families.fbs.d4054`)."""
+        return self.plc.io.read(reg.RTC_RATE_CODE)
+
+    @rate_code.setter
+    def rate_code(self, code: int) -> None:
+        self.plc.io.write(reg.RTC_RATE_CODE, code)
+
+    # -- setting --------------------------------------------------------------------------------------------
+    def set(self, time: dt.datetime | RtcTime) -> SetResult:
+        """The manual's procedure: M1952 := 1, write R4128–R4134, M1952 := 0, then read M1955.
+
+        An :class:`RtcTime` is sent as is, invalid or not, so suites can check that the PLC refuses it.
+        """
+        value = RtcTime.from_datetime(time) if isinstance(time, dt.datetime) else time
+        self._begin_set(value)
+        return self._finish_set(value)
+
+    def sync_to_host(self) -> SetResult:
+        """Set the clock to the bench's calendar time at the next whole second.
+
+        The registers are loaded with M1952 = 1 first and the set fires (M1952 := 0) once that second has come,
+        because the chip restarts its second at the set: this lines up its second boundaries with the host's.
+        """
+        now = self.plc.time.calendar()
+        target = now.replace(microsecond=0) + dt.timedelta(seconds=1 if now.microsecond else 0)
+        value = RtcTime.from_datetime(target)
+        self._begin_set(value)
+        remaining = (target - self.plc.time.calendar()).total_seconds()
+        if remaining > 0:
+            self.plc.time.wait(remaining)
+        return self._finish_set(value)
+
+    def _begin_set(self, value: RtcTime) -> None:
+        """M1952 := 1 and R4128–R4134 := ``value`` in one mixed write (one FATEK 49 frame; in this order)."""
+        io = self.plc.io
+        items = [(reg.RTC_HOLD, 1)] + list(zip(reg.RTC_FIELDS, value.to_registers()))
+        for name, _ in items:  # refuse before anything is written rather than strand M1952 at 1
+            reason = io.unreachable_reason(name)
+            if reason:
+                raise RtcError(f"cannot set the RTC: {reason}")
+        try:
+            io.write_many(items)
+        except HilError as exc:
+            raise RtcError(f"setting the RTC failed part-way ({exc}); M1952 may be left at 1 with the read-out "
+                           f"frozen — run `hil rtc sync <target>` once the PLC answers") from exc
+
+    def _finish_set(self, value: RtcTime) -> SetResult:
+        self.plc.io.write(reg.RTC_HOLD, 0)
+        self.plc.settle_before_request()  # the read of M1955 below ends a scan too
+        refused = bool(self.plc.io.read(reg.RTC_SET_ERROR))
+        return SetResult(value, not refused, tuple(value.validate()))
+
+    def adjust_30s(self) -> None:
+        """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0."""
+        io = self.plc.io
+        io.write(reg.RTC_ADJUST_30S, 0)  # make sure the PLC sees a 0 before the 1
+        io.write(reg.RTC_ADJUST_30S, 1)
+        self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
+        io.write(reg.RTC_ADJUST_30S, 0)
+
+
+class Drift:
+    """``plc.rtc.drift``: measure the clock's rate error against the bench's reference time, and correct it."""
+
+    def __init__(self, plc: "FbsPlc", rtc: Rtc | None = None) -> None:
+        self.plc = plc
+        self.rtc = rtc if rtc is not None else plc.rtc
+
+    def measure(self, duration: float, *, transitions: int = 3, checkpoints: int = 8,
+                timeout: float = 3.0) -> DriftMeasurement:
+        """Clock error in s/day over about ``duration`` bench seconds.
+
+        The RTC shows whole seconds, so we time its second *transitions*: R4128 is polled every
+        ``Rtc.poll_interval`` and each transition is placed midway between the last poll that showed the old
+        second and the first that showed the new one.  ``transitions`` consecutive ones are timed at the start
+        and again at the end, and the rate is the least-squares slope of (PLC − reference) over all of them, so
+        polling jitter averages out.  One more transition is timed at each of ``checkpoints`` evenly spaced
+        moments in between, so the samples show the error growing over time (the report plots them) and a clock
+        whose rate changes mid-measurement shows as a bend.  Leave D4054 as it is: this measures the clock as it
+        runs now.
+        """
+        if transitions < 1:
+            raise ValueError(f"transitions must be at least 1, not {transitions}")
+        if duration < transitions + 2:
+            raise ValueError(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
+        # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
+        # phases of the chip's second (on the emulator they would otherwise land identically every time).
+        step = self.rtc.poll_interval / transitions
+        first = [self._transition(timeout, i * step) for i in range(transitions)]
+        remaining = duration - (first[-1][0] - first[0][0]) - transitions - 1.0 - checkpoints
+        middle = []
+        if remaining > 0:
+            for _ in range(checkpoints):
+                self.plc.time.wait(remaining / (checkpoints + 1))
+                middle.append(self._transition(timeout))
+            self.plc.time.wait(remaining / (checkpoints + 1))
+        last = [self._transition(timeout, i * step) for i in range(transitions)]
+
+        t0, s0, _ = first[0]
+        samples = []
+        for t, s, _ in first + middle + last:
+            plc_elapsed = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
+            samples.append((t - t0, plc_elapsed - (t - t0)))
+        xs = [x for x, _ in samples]
+        ys = [y for _, y in samples]
+        mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+        slope = sum((x - mx) * (y - my) for x, y in samples) / sum((x - mx) ** 2 for x in xs)
+        reference_elapsed = xs[-1]
+        plc_elapsed = reference_elapsed + ys[-1]
+        # Each transition is known to ± half its bracket; two ends of the measurement → at most one bracket.
+        bracket = max(width for _, _, width in first + middle + last)
+        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
+                                resolution=bracket / reference_elapsed * 86400)
+
+    def compensate(self, rate: float) -> int:
+        """Write the manual's D4054 code for a clock error of ``rate`` s/day and return it.
+
+        ``rate`` is the error measured with no correction in force (D4054 = 0): the code replaces, it does not
+        add to, whatever D4054 held.
+        """
+        code = code_for_rate(rate)
+        self.rtc.rate_code = code
+        return code
+
+    # -- timing one second transition -------------------------------------------------------------------------
+    def _transition(self, timeout: float, phase: float = 0.0) -> tuple[float, int, float]:
+        """The next second transition: (reference time, PLC seconds since 2000 just after it, bracket width).
+
+        The reference time is the middle of the bracket between the last poll that showed the old second and
+        the first that showed the new one.
+        """
+        clock = self.plc.time
+        if phase > 0:
+            clock.wait(phase)
+        old = self.rtc.read()
+        before = clock.now()  # the read above saw the old second at (or before) this reference time
+        deadline = before + timeout
+        while True:
+            clock.wait(self.rtc.poll_interval)
+            current = self.rtc.read()
+            after = clock.now()
+            if current.second != old.second:
+                return (before + after) / 2, _seconds(current), after - before
+            if after > deadline:
+                raise RtcError(f"R4128 stayed at {old.second} for {after - before:.2f} s of bench time: the RTC "
+                               f"is not running (chip missing, M1952 left at 1?)")
+            before = after
+
+
+def _seconds(t: RtcTime) -> int:
+    if not t.is_valid:
+        raise RtcError(f"the PLC shows an invalid time {t} ({', '.join(t.validate())}) while measuring drift")
+    return int((t.to_datetime() - EPOCH).total_seconds())
+
+
+__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError"]

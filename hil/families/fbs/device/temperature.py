@@ -1,0 +1,139 @@
+"""``plc.temperature``: read the temperature table, work block and readings, and drive the installed mask.
+
+Procedures and decoding only — which words to read and what their fields are called.  Whether a value is right
+is for the suite to say, literally from the manual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from hil.core.errors import HilError
+from hil.families.fbs import registers as reg
+from hil.families.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
+from hil.families.fbs.temperature import TemperatureConfig
+
+if TYPE_CHECKING:
+    from hil.families.fbs.device.plc import FbsPlc
+
+
+@dataclass(frozen=True)
+class TableView:
+    """SR+0 … SR+3+N as read from the PLC."""
+
+    words: list[int]
+
+    @property
+    def marker(self) -> int:
+        return self.words[0]
+
+    @property
+    def module_count(self) -> int:
+        return self.words[1]
+
+    @property
+    def modules(self) -> list[tuple[int, int]]:
+        """(sensor-kind code, module-name code) per module entry."""
+        return [(w >> 8, w & 0xFF) for w in self.words[4:]]
+
+
+@dataclass(frozen=True)
+class WorkView:
+    """TW+0 … TW+3+4N as read from the PLC."""
+
+    words: list[int]
+
+    @property
+    def execution_code(self) -> int:
+        return self.words[0] >> 8
+
+    @property
+    def mismatch_bits(self) -> int:
+        return self.words[0] & 0xFF
+
+    @property
+    def break_words(self) -> tuple[int, int]:
+        """(TW+1, TW+2): break bits of points 0–15 and 16–31."""
+        return self.words[1], self.words[2]
+
+    @property
+    def break_points(self) -> list[int]:
+        low, high = self.break_words
+        bits = high << 16 | low
+        return [p for p in range(32) if bits >> p & 1]
+
+    @property
+    def total_points(self) -> int:
+        return self.words[3] >> 8
+
+    @property
+    def module_count(self) -> int:
+        return self.words[3] & 0xFF
+
+    def entry(self, k: int) -> list[int]:
+        """The four words of module k (0-based): sensor/DO, points/AI, readings start, multiplexer index."""
+        return self.words[4 + 4 * k:8 + 4 * k]
+
+
+class Temperature:
+    def __init__(self, plc: "FbsPlc", config: TemperatureConfig | None = None) -> None:
+        self.plc = plc
+        self._config = config
+
+    @property
+    def configured(self) -> bool:
+        return self._config is not None
+
+    @property
+    def config(self) -> TemperatureConfig:
+        if self._config is None:
+            raise HilError("the bench profile has no [temperature] section: say where the table, readings and "
+                           "work block are and which modules are fitted (see fixtures/benches/example-bench.toml)")
+        return self._config
+
+    @config.setter
+    def config(self, value: TemperatureConfig | None) -> None:
+        self._config = value
+
+    # -- reading --------------------------------------------------------------------------------------------------
+    def read_table(self) -> TableView:
+        return TableView(self.plc.io.read_words(self.config.table, 4 + len(self.config.modules)))
+
+    def read_work(self) -> WorkView:
+        return WorkView(self.plc.io.read_words(self.config.work, 4 + 4 * len(self.config.modules)))
+
+    def readings(self) -> list[int]:
+        """Every configured point's reading, signed, in 0.1° of the configured unit."""
+        return [signed(w) for w in self.plc.io.read_words(self.config.readings, self.config.points)]
+
+    def reading(self, point: int) -> int:
+        return signed(self.plc.io.read_words(self.config.readings.offset(point), 1)[0])
+
+    # -- the installed mask ---------------------------------------------------------------------------------------
+    @staticmethod
+    def mask_register(point: int) -> str:
+        """R4010 holds points 0–15, R4011 points 16–31."""
+        if not 0 <= point < 32:
+            raise ValueError(f"temperature point {point} is outside 0–31")
+        return reg.INSTALLED_LOW if point < 16 else reg.INSTALLED_HIGH
+
+    def installed(self, point: int) -> bool:
+        return bool(self.plc.io.read(self.mask_register(point)) >> (point % 16) & 1)
+
+    def set_installed(self, point: int, installed: bool) -> None:
+        """Set or clear the point's bit in R4010/R4011 (read-modify-write of that one register)."""
+        name = self.mask_register(point)
+        word = self.plc.io.read(name)
+        bit = 1 << (point % 16)
+        self.plc.io.write(name, word | bit if installed else word & ~bit)
+
+    # -- time -----------------------------------------------------------------------------------------------------
+    def update_period(self) -> float:
+        """Bench seconds in which every point is measured once (the slowest module at the configured rate)."""
+        return self.config.update_period()
+
+    def wait_for_update(self, periods: float = 1.5) -> None:
+        """Let every point be measured again after a change (a margin over one period for scan and wire time)."""
+        self.plc.time.wait(self.update_period() * periods)
+        self.plc.settle()

@@ -1,0 +1,358 @@
+"""Fault injectors: how a bench breaks a sensor on purpose, and puts it right after the test.
+
+A profile names one injector per fault, e.g. ``[faults.sensor_break]``:
+
+=================  ==============================================================================================
+``kind``           what opens point *p*'s sensor circuit
+=================  ==============================================================================================
+``"emulator"``     a direct call into the in-process emulator (every ``emulator…`` target)
+``"modbus-coil"``  a relay module on a Modbus target: coil ``first_coil + p`` = 1 opens the circuit, 0 closes it
+                   (``target = "modbus+tcp://10.0.0.9:502?unit=1"``; also what ``hil emulate --rig-modbus-tcp``
+                   serves)
+``"plc-bit"``      a bit on the PLC itself, ``first = "Y40"``, one per point, written through the bench's guard
+                   (so the bits must be in ``[safety] writable``)
+``"manual"``       the operator is asked to open/close the circuit; unavailable when stdin is not a terminal
+=================  ==============================================================================================
+
+Suites reach injectors as ``bench.faults.sensor_break`` (``.open(point)``, ``.repair(point)``); every fault a
+test injected is undone by the bench when the test ends, pass or fail.  ``[faults.heater_open]`` and
+``[faults.ssr_short]`` take the same kinds and act on a point's heater circuit (``bench.faults.heater_open
+.inject(point)`` / ``.clear(point)``; with kind = "emulator" the emulator's thermal plant, ``[plant]``).
+
+The relay module is reached with pymodbus's client directly, not through :class:`~hil.families.fbs.transport.modbus.
+ModbusTransport`: that transport speaks *FBs names* mapped onto Modbus tables, whereas a relay module has plain
+coil numbers with no FBs meaning.
+"""
+
+from __future__ import annotations
+
+import sys
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, Any, Callable
+
+from hil.families.fbs.address import parse
+from hil.core.errors import AddressError, HilError, ProfileError, TargetError
+from hil.io.url import parse_target
+
+if TYPE_CHECKING:
+    from hil.families.fbs.bench import Bench
+
+KINDS = ("emulator", "modbus-coil", "plc-bit", "manual")
+KNOWN_FAULTS = ("sensor_break", "heater_open", "ssr_short")
+# What each fault does to point p, for the operator's prompt and the docs.  heater_open / ssr_short act on the
+# heater circuit of a FUN86-controlled point (the emulator's thermal plant, or a relay/contactor on a bench).
+FAULT_ACTIONS = {"sensor_break": ("DISCONNECT the sensor", "RECONNECT the sensor"),
+                 "heater_open": ("OPEN the heater circuit", "CLOSE the heater circuit"),
+                 "ssr_short": ("BRIDGE the SSR (heater full on)", "REMOVE the SSR bridge")}
+PLANT_FAULTS = ("heater_open", "ssr_short")
+_KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout"},
+         "plc-bit": {"kind", "first"}, "manual": {"kind"}}
+
+
+class FaultError(HilError):
+    """A fault could not be injected or undone."""
+
+
+def check_fault_configs(faults: dict[str, dict[str, Any]], where: str = "<profile>") -> None:
+    """Validate every ``[faults.<name>]`` table; ProfileError names the key and what is wrong."""
+    for name, table in faults.items():
+        label = f"{where}: [faults.{name}]"
+        if name not in KNOWN_FAULTS:
+            raise ProfileError(f"{label}: unknown fault (known: {', '.join(KNOWN_FAULTS)})")
+        kind = table.get("kind")
+        if kind not in KINDS:
+            raise ProfileError(f"{label} kind: must be one of {', '.join(KINDS)}, not {kind!r}")
+        unknown = set(table) - _KEYS[kind]
+        if unknown:
+            raise ProfileError(f"{label}: unknown key(s) for kind = {kind!r}: {', '.join(sorted(unknown))} "
+                               f"(known: {', '.join(sorted(_KEYS[kind]))})")
+        if kind == "modbus-coil":
+            try:
+                target = parse_target(str(table.get("target", "")))
+            except TargetError as exc:
+                raise ProfileError(f"{label} target: {exc}") from None
+            if target.protocol != "modbus" or target.in_process:
+                raise ProfileError(f"{label} target: {target} is not a Modbus URL (modbus+tcp://HOST:PORT?unit=1 "
+                                   f"or modbus+rtu:///dev/ttyUSB0?unit=1)")
+            first = table.get("first_coil", 0)
+            if not isinstance(first, int) or isinstance(first, bool) or not 0 <= first <= 65535 - 32:
+                raise ProfileError(f"{label} first_coil: must be 0–65503, not {first!r}")
+        if kind == "plc-bit":
+            try:
+                first = parse(str(table.get("first", "")))
+            except AddressError as exc:
+                raise ProfileError(f"{label} first: {exc} (e.g. first = \"Y40\")") from None
+            if not first.is_bit:
+                raise ProfileError(f"{label} first: {first} is not a bit (e.g. first = \"Y40\")")
+
+
+class SensorBreakInjector(ABC):
+    """Opens and closes sensor circuits; remembers what it opened so that :meth:`undo` can close it."""
+
+    kind = ""
+
+    def __init__(self) -> None:
+        self.opened: set[int] = set()
+
+    def inject(self, point: int) -> None:
+        """Put the fault on ``point`` (for a sensor break: open its circuit)."""
+        self.open(point)
+
+    def clear(self, point: int) -> None:
+        """Take the fault off ``point`` again."""
+        self.repair(point)
+
+    def open(self, point: int) -> None:
+        """Open ``point``'s sensor circuit (the PLC sees it at the point's next measurement)."""
+        self._check(point)
+        self.opened.add(point)  # before the attempt: a half-done open must still be undone
+        self._set(point, True)
+
+    def repair(self, point: int) -> None:
+        """Close ``point``'s sensor circuit again."""
+        self._check(point)
+        self._set(point, False)
+        self.opened.discard(point)
+
+    def undo(self) -> None:
+        """Close every circuit this injector opened (the bench calls this when a test ends)."""
+        errors = []
+        for point in sorted(self.opened):
+            try:
+                self.repair(point)
+            except Exception as exc:  # noqa: BLE001 - try every point, then report them all
+                errors.append(f"point {point}: {exc}")
+        if errors:
+            raise FaultError(f"{self.kind} sensor-break injector could not repair: {'; '.join(errors)}")
+
+    def close(self) -> None:
+        pass
+
+    @staticmethod
+    def _check(point: int) -> None:
+        if not isinstance(point, int) or not 0 <= point < 32:
+            raise ValueError(f"temperature point {point!r} is outside 0–31")
+
+    @abstractmethod
+    def _set(self, point: int, open_circuit: bool) -> None: ...
+
+
+class EmulatorSensorBreak(SensorBreakInjector):
+    kind = "emulator"
+
+    def __init__(self, emulator: Any, model: Any) -> None:  # an Emulator and its TemperatureModel
+        super().__init__()
+        self.emulator = emulator
+        self.model = model
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        with self.emulator.lock:  # the emulator may be serving a wire from another thread
+            (self.model.open if open_circuit else self.model.repair)(point)
+
+
+class EmulatorPlantFault(SensorBreakInjector):
+    """heater_open / ssr_short inside the in-process emulator's thermal plant (seen from the next scan)."""
+
+    kind = "emulator"
+
+    def __init__(self, emulator: Any, plant: Any, fault: str) -> None:  # an Emulator and its ThermalPlant
+        super().__init__()
+        self.emulator = emulator
+        self.plant = plant
+        self.fault = fault
+
+    def _set(self, point: int, on: bool) -> None:
+        with self.emulator.lock:
+            self.plant.set_fault(self.fault, point, on)
+
+
+class ModbusCoilSensorBreak(SensorBreakInjector):
+    """A relay module on Modbus: coil ``first_coil + point`` = 1 opens the point's circuit."""
+
+    kind = "modbus-coil"
+
+    def __init__(self, target: str, first_coil: int = 0, timeout: float = 2.0) -> None:
+        super().__init__()
+        self.target = parse_target(target)
+        self.first_coil = first_coil
+        self.unit = int(self.target.params.get("unit", 1))
+        self.timeout = timeout
+        self._client: Any = None
+
+    def _connect(self) -> Any:
+        if self._client is None:
+            from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+            from pymodbus.framer import FramerType
+            t = self.target
+            if t.scheme == "modbus+tcp":
+                client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=1)
+            else:
+                p = t.params
+                client = ModbusSerialClient(t.device, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
+                                            parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
+                                            stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=1)
+            if not client.connect():
+                raise FaultError(f"cannot reach the sensor-break relay module at {t}: is it powered and wired, "
+                                 f"and is the URL in [faults.sensor_break] target right?")
+            self._client = client
+        return self._client
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        from pymodbus.exceptions import ModbusException
+        coil = self.first_coil + point
+        try:
+            reply = self._connect().write_coil(coil, open_circuit, device_id=self.unit)
+        except ModbusException as exc:
+            self.close()
+            raise FaultError(f"relay module {self.target}: writing coil {coil} (point {point}) failed: {exc}") \
+                from None
+        if reply.isError():
+            raise FaultError(f"relay module {self.target} refused coil {coil} (point {point}): exception "
+                             f"{getattr(reply, 'exception_code', '?')} — check first_coil and the module's size")
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+
+class PlcBitSensorBreak(SensorBreakInjector):
+    """A bit on the PLC itself (e.g. Y40 + point drives a relay in the sensor line), through the bench's guard."""
+
+    kind = "plc-bit"
+
+    def __init__(self, io: Any, first: str) -> None:  # io: the bench's GuardedTransport
+        super().__init__()
+        self.io = io
+        self.first = parse(first)
+
+    def bit(self, point: int) -> str:
+        return str(self.first.offset(point))
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        self.io.write(self.bit(point), 1 if open_circuit else 0)
+
+
+class ManualSensorBreak(SensorBreakInjector):
+    """Asks the operator at the bench to open or close a circuit, and waits for Enter."""
+
+    kind = "manual"
+
+    def __init__(self, ask: Callable[[str], str] | None = None, fault: str = "sensor_break") -> None:
+        super().__init__()
+        self.ask = ask or _ask_terminal
+        self.fault = fault
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        if self.fault == "sensor_break":
+            action = "DISCONNECT" if open_circuit else "RECONNECT"
+            self.ask(f"{action} the sensor of temperature point {point}, then press Enter: ")
+            return
+        action = FAULT_ACTIONS[self.fault][0 if open_circuit else 1]
+        self.ask(f"{action} of temperature point {point}, then press Enter: ")
+
+
+def _ask_terminal(prompt: str) -> str:
+    # pytest captures stdin/stdout; the terminal itself still reaches the operator.
+    try:
+        with open("/dev/tty", "r+") as tty:
+            tty.write("\n" + prompt)
+            tty.flush()
+            return tty.readline()
+    except OSError:
+        return input(prompt)
+
+
+class Faults:
+    """The bench's fault injectors, built on first use from the profile's ``[faults.*]``."""
+
+    def __init__(self, bench: "Bench") -> None:
+        self.bench = bench
+        self._made: dict[str, SensorBreakInjector] = {}
+
+    def unavailable(self, name: str) -> str | None:
+        """Why this bench cannot inject fault ``name`` (a reason for a skip), or None."""
+        spec = self.bench.profile.faults.get(name)
+        if spec is None:
+            return f"the bench profile has no [faults.{name}] injector"
+        kind = spec["kind"]
+        if kind == "emulator":
+            if not self.bench.is_emulator:
+                return (f"[faults.{name}] kind = \"emulator\" needs the in-process emulator, not target "
+                        f"{self.bench.target}; use a relay (modbus-coil / plc-bit) or manual injector")
+            if name in PLANT_FAULTS:
+                if self._plant() is None:
+                    return "the emulator has no thermal plant (no [plant] section in the profile)"
+            elif self._temperature_model() is None:
+                return "the emulator has no temperature modules (no [temperature] section in the profile)"
+        if kind == "manual" and not sys.stdin.isatty():
+            return f"[faults.{name}] kind = \"manual\" needs an operator, and stdin is not a terminal"
+        if kind == "plc-bit":
+            first = parse(spec["first"])
+            if first.kind == "Y" and not self.bench.allow_destructive:
+                # DESIGN: driving outputs of somebody's machine needs an explicit opt-in.
+                return (f"[faults.{name}] drives outputs from {first}: pass --hil-allow-destructive (or set "
+                        f"[safety] allow_destructive) to let the harness switch them")
+            return self.bench.cannot_reach(str(first))
+        return None
+
+    @property
+    def sensor_break(self) -> SensorBreakInjector | None:
+        return self.get("sensor_break")
+
+    def get(self, name: str) -> SensorBreakInjector | None:
+        """The injector for ``name``, or None when the bench cannot provide it (see :meth:`unavailable`)."""
+        if name in self._made:
+            return self._made[name]
+        if self.unavailable(name):
+            return None
+        spec = self.bench.profile.faults[name]
+        kind = spec["kind"]
+        if kind == "emulator":
+            injector: SensorBreakInjector = (
+                EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
+                else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
+        elif kind == "modbus-coil":
+            injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
+                                             float(spec.get("timeout", self.bench.profile.timeout)))
+        elif kind == "plc-bit":
+            injector = PlcBitSensorBreak(self.bench.io, spec["first"])
+        else:
+            injector = ManualSensorBreak(fault=name)
+        self._made[name] = injector
+        return injector
+
+    @property
+    def heater_open(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` opens the point's heater circuit (no heating); ``.clear(point)`` closes it."""
+        return self.get("heater_open")
+
+    @property
+    def ssr_short(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` shorts the point's SSR (full heating); ``.clear(point)`` removes the short."""
+        return self.get("ssr_short")
+
+    def _plant(self) -> Any:
+        from hil.families.fbs.sim.models.plant import ThermalPlant
+        emulator = self.bench.raw.emulator
+        return emulator.model(ThermalPlant) if emulator is not None else None
+
+    def _temperature_model(self) -> Any:
+        from hil.families.fbs.sim.models.temperature import TemperatureModel
+        emulator = self.bench.raw.emulator
+        return emulator.model(TemperatureModel) if emulator is not None else None
+
+    def undo_all(self) -> None:
+        """Undo every injected fault; raises FaultError listing what could not be undone."""
+        errors = []
+        for injector in self._made.values():
+            try:
+                injector.undo()
+            except Exception as exc:  # noqa: BLE001
+                errors.append(str(exc))
+        if errors:
+            raise FaultError("; ".join(errors))
+
+    def close(self) -> None:
+        for injector in self._made.values():
+            injector.close()

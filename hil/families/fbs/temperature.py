@@ -1,0 +1,249 @@
+"""FBs temperature modules (manual ch. 20.1–20.4): module and sensor kinds, the table at SR, the work block at TW,
+and the ``[temperature]`` section of a bench profile.
+
+Names and layouts only — what the device helper reads and what the emulator writes.  Suites state their
+expectations (A556H, 56H, 28767) literally; they never take them from here.
+
+The numeric codes of sensor kinds and module names inside the table are not in the manual: they are
+**[our choice]** and defined here only (``MODULES[...].code``, ``SENSORS[...].code``).  The module codes follow
+the order in which the manual lists the modules in 20.3 (①6TC ②6RTD ③16TC ④16RTD ⑤2TC ⑥6NTC).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from hil.families.fbs.address import Address, parse
+from hil.core.errors import AddressError, ProfileError
+
+TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
+BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open
+MAX_MODULES = 8
+MAX_POINTS = 32
+
+# Execution code, high byte of TW+0
+EXEC_IDLE = 0x00
+EXEC_TOO_MANY_POINTS = 0xFF
+EXEC_BAD_MODULE_COUNT = 0xFE
+EXEC_MEASURING = 0x56
+
+UNITS = ("C", "F")
+AVERAGING = (1, 2, 4, 8)
+RATES = ("normal", "fast")
+
+
+@dataclass(frozen=True)
+class SensorKind:
+    name: str
+    code: int  # [our choice]
+    family: str  # "TC", "RTD", "NTC"
+    low_c: float  # measuring range, °C
+    high_c: float
+
+
+@dataclass(frozen=True)
+class ModuleType:
+    name: str
+    code: int  # [our choice], see the module docstring
+    points: int
+    family: str
+    update_s: dict[str, float]  # rate → seconds for every point of the module to be measured once
+
+
+# Ranges from 20.1.  NTC ranges are not in the manual: [our choice] −50…150 °C (typical NTC thermistors).
+SENSORS: dict[str, SensorKind] = {s.name: s for s in (
+    SensorKind("J", 0x01, "TC", -200, 900), SensorKind("K", 0x02, "TC", -190, 1300),
+    SensorKind("T", 0x03, "TC", -190, 380), SensorKind("E", 0x04, "TC", -190, 1000),
+    SensorKind("N", 0x05, "TC", -200, 1000), SensorKind("B", 0x06, "TC", 350, 1800),
+    SensorKind("R", 0x07, "TC", 0, 1800), SensorKind("S", 0x08, "TC", 0, 1700),
+    SensorKind("PT100", 0x10, "RTD", -200, 850), SensorKind("PT1000", 0x11, "RTD", -200, 600),
+    SensorKind("NTC2K", 0x20, "NTC", -50, 150), SensorKind("NTC5K", 0x21, "NTC", -50, 150),
+    SensorKind("NTC10K", 0x22, "NTC", -50, 150), SensorKind("NTC20K", 0x23, "NTC", -50, 150),
+)}
+_SENSOR_ALIASES = {"PT-100": "PT100", "PT-1000": "PT1000", "2K": "NTC2K", "5K": "NTC5K", "10K": "NTC10K",
+                   "20K": "NTC20K"}
+
+# Update times from 20.1; "fast" is the shorter one (the chapter's introduction: normal 4 s / 0.1°, fast 2 s / 1°).
+MODULES: dict[str, ModuleType] = {m.name: m for m in (
+    ModuleType("6TC", 1, 6, "TC", {"normal": 4.0, "fast": 2.0}),
+    ModuleType("6RTD", 2, 6, "RTD", {"normal": 2.0, "fast": 1.0}),
+    ModuleType("16TC", 3, 16, "TC", {"normal": 6.0, "fast": 3.0}),
+    ModuleType("16RTD", 4, 16, "RTD", {"normal": 4.0, "fast": 2.0}),
+    ModuleType("2TC", 5, 2, "TC", {"normal": 2.0, "fast": 1.0}),
+    ModuleType("6NTC", 6, 6, "NTC", {"normal": 2.0, "fast": 1.0}),
+)}
+MODULE_BY_CODE = {m.code: m for m in MODULES.values()}
+SENSOR_BY_CODE = {s.code: s for s in SENSORS.values()}
+
+
+def sensor_kind(name: str) -> SensorKind:
+    key = name.strip().upper()
+    key = _SENSOR_ALIASES.get(key, key)
+    if key not in SENSORS:
+        raise ValueError(f"unknown sensor {name!r} (known: {', '.join(SENSORS)})")
+    return SENSORS[key]
+
+
+def module_type(name: str) -> ModuleType:
+    key = name.strip().upper().removeprefix("FBS-")
+    if key not in MODULES:
+        raise ValueError(f"unknown module {name!r} (known: {', '.join(MODULES)})")
+    return MODULES[key]
+
+
+def to_unit(celsius: float, unit: str) -> float:
+    return celsius if unit == "C" else celsius * 9 / 5 + 32
+
+
+# -- register-number encoding in SR+2/SR+3 -------------------------------------------------------------------------
+# [our choice]: the manual does not say how "R5000" or "D0" is stored in one word.  We borrow R4004's encoding
+# (10000 + n → Rn, 20000 + n → Dn) so that one word names either bank.
+def encode_start(address: Address) -> int:
+    if address.kind == "R":
+        return 10000 + address.index
+    if address.kind == "D":
+        return 20000 + address.index
+    raise ValueError(f"{address} is neither an R nor a D register")
+
+
+def decode_start(word: int) -> Address | None:
+    """The register a table word names, or None when the word names none."""
+    try:
+        if 10000 <= word < 20000:
+            return parse(f"R{word - 10000}")
+        if 20000 <= word < 30000:
+            return parse(f"D{word - 20000}")
+    except AddressError:
+        return None
+    return None
+
+
+# -- the [temperature] profile section ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ModuleConfig:
+    type: ModuleType
+    sensor: SensorKind
+
+
+@dataclass(frozen=True)
+class TemperatureConfig:
+    """Where the table, readings and work block live, and which modules are fitted, from ``[temperature]``."""
+
+    table: Address
+    readings: Address
+    work: Address
+    modules: tuple[ModuleConfig, ...]
+    unit: str = "C"
+    averaging: int = 1
+    rate: str = "normal"
+    sources: dict[int, dict[str, Any]] = field(default_factory=dict)  # emulator only: point → source spec
+
+    @property
+    def points(self) -> int:
+        return sum(m.type.points for m in self.modules)
+
+    def point_module(self, point: int) -> tuple[int, ModuleConfig]:
+        """(module index, module) that measures ``point``."""
+        first = 0
+        for k, module in enumerate(self.modules):
+            if point < first + module.type.points:
+                return k, module
+            first += module.type.points
+        raise IndexError(f"point {point} is not configured (the modules give {self.points} points)")
+
+    def update_period(self) -> float:
+        """Seconds after which every point has been measured again (the slowest module at this rate)."""
+        return max(m.type.update_s[self.rate] for m in self.modules)
+
+    def table_words(self) -> list[int]:
+        """SR+0 … SR+3+N as WinProladder (or the ladder) writes them."""
+        return [TABLE_MARKER, len(self.modules), encode_start(self.readings), encode_start(self.work)] + [
+            m.sensor.code << 8 | m.type.code for m in self.modules]
+
+
+_KEYS = {"table", "readings", "work", "modules", "unit", "averaging", "rate", "sources"}
+
+
+def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> TemperatureConfig:
+    """Validate a ``[temperature]`` table; ProfileError names the key and the reason."""
+    def fail(key: str, why: str) -> ProfileError:
+        return ProfileError(f"{where}: [temperature] {key}: {why}")
+
+    unknown = set(section) - _KEYS
+    if unknown:
+        raise ProfileError(f"{where}: unknown key(s) in [temperature]: {', '.join(sorted(unknown))} "
+                           f"(known: {', '.join(sorted(_KEYS))})")
+    starts: dict[str, Address] = {}
+    for key in ("table", "readings", "work"):
+        if key not in section:
+            raise fail(key, "is required (an R or D register such as 'R3000')")
+        try:
+            starts[key] = parse(str(section[key]))
+            encode_start(starts[key])
+        except (AddressError, ValueError) as exc:
+            raise fail(key, f"{exc}") from None
+    raw_modules = section.get("modules")
+    if not isinstance(raw_modules, list) or not raw_modules:
+        raise fail("modules", "must be a non-empty list like [{type = \"6TC\", sensor = \"K\"}]")
+    if len(raw_modules) > MAX_MODULES:
+        raise fail("modules", f"{len(raw_modules)} modules; an FBs takes at most {MAX_MODULES}")
+    modules = []
+    for i, item in enumerate(raw_modules):
+        label = f"modules[{i}]"
+        if not isinstance(item, dict) or set(item) - {"type", "sensor"} or "type" not in item or "sensor" not in item:
+            raise fail(label, f"must be {{type = \"6TC\", sensor = \"K\"}}, not {item!r}")
+        try:
+            mtype = module_type(str(item["type"]))
+            sensor = sensor_kind(str(item["sensor"]))
+        except ValueError as exc:
+            raise fail(label, str(exc)) from None
+        if sensor.family != mtype.family:
+            raise fail(label, f"sensor {sensor.name} ({sensor.family}) is not valid for an FBs-{mtype.name} "
+                              f"(takes {mtype.family} sensors)")
+        modules.append(ModuleConfig(mtype, sensor))
+    points = sum(m.type.points for m in modules)
+    if points > MAX_POINTS:
+        raise fail("modules", f"{points} points; an FBs measures at most {MAX_POINTS}")
+    unit = str(section.get("unit", "C")).upper().removeprefix("°")
+    if unit not in UNITS:
+        raise fail("unit", f"must be \"C\" or \"F\", not {section['unit']!r}")
+    averaging = section.get("averaging", 1)
+    if averaging not in AVERAGING or isinstance(averaging, bool):
+        raise fail("averaging", f"must be 1, 2, 4 or 8, not {averaging!r}")
+    rate = section.get("rate", "normal")
+    if rate not in RATES:
+        raise fail("rate", f"must be \"normal\" or \"fast\", not {rate!r}")
+    sizes = {"table": 4 + len(modules), "readings": points, "work": 4 + 4 * len(modules)}
+    names = list(sizes)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            sa, sb = starts[a], starts[b]
+            if sa.kind == sb.kind and sa.index < sb.index + sizes[b] and sb.index < sa.index + sizes[a]:
+                raise fail(b, f"the {b} block {sb}+{sizes[b]} overlaps the {a} block {sa}+{sizes[a]}")
+    for key, start in starts.items():
+        if start.index + sizes[key] > _bank_size(start.kind):
+            raise fail(key, f"the {key} block {start}+{sizes[key]} runs past the end of the {start.kind} bank")
+    sources = _parse_sources(section.get("sources", {}), points, fail)
+    return TemperatureConfig(starts["table"], starts["readings"], starts["work"], tuple(modules), unit, averaging,
+                             rate, sources)
+
+
+def _bank_size(kind: str) -> int:
+    from hil.families.fbs.address import WORD_BANKS
+    return WORD_BANKS[kind]
+
+
+def _parse_sources(raw: Any, points: int, fail) -> dict[int, dict[str, Any]]:  # noqa: ANN001
+    """``sources = {"0" = {kind = "fixed", celsius = 25.0}, "3" = {kind = "ramp", start = 20, per_s = 0.5}}``."""
+    if not isinstance(raw, dict):
+        raise fail("sources", "must be a table of point → {kind = \"fixed\" | \"ramp\", …}")
+    out = {}
+    for key, spec in raw.items():
+        if not str(key).isdigit() or int(key) >= points:
+            raise fail(f"sources.{key}", f"is not a configured point (0–{points - 1})")
+        if not isinstance(spec, dict) or spec.get("kind") not in ("fixed", "ramp"):
+            raise fail(f"sources.{key}", "must be {kind = \"fixed\", celsius = …} or "
+                                         "{kind = \"ramp\", start = …, per_s = …}")
+        out[int(key)] = dict(spec)
+    return out

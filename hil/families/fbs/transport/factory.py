@@ -1,0 +1,116 @@
+"""open_transport(url): the only way to get a Transport, for every target form in :mod:`hil.io.url`."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Callable
+
+from hil.families.fbs.sim.plc import Emulator
+from hil.sim.runtime import ServerHandle
+from hil.families.fbs.transport.base import Transport
+from hil.io.url import Target, parse_target
+
+if TYPE_CHECKING:
+    from hil.sim.wire_faults import WireFaults
+
+EmulatorFactory = Callable[[], Emulator]
+#: A pty has no line rate, but pymodbus's RTU client paces itself by the baud rate it is given (inter-frame
+#: silences of 3.5 characters): at 9600 that is ≈ 9 ms a round trip of pure waiting (110 round trips/s; 390/s at
+#: 115200, and no faster above it).  Only the emulator's own pty client says so; a real line keeps its URL's rate.
+PTY_BAUDRATE = 115200
+
+
+def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
+                   timeout: float | None = None, wire_faults: "WireFaults | None" = None) -> Transport:
+    """Open the target named by ``url``.
+
+    For ``emulator…`` targets a fresh in-process emulator is built by ``emulator_factory`` (default: a plain
+    FBs main unit) and, for the wire variants, served on loopback or a pty; the returned transport's
+    ``.emulator`` is that emulator, ``.server`` its server handle (``.server.faults`` the wire-fault plan given as
+    ``wire_faults``, used by the emulator wires only) and closing the transport stops its server;
+    ``transport.reopen()`` reconnects the client to the same, still running, server.
+    """
+    target = url if isinstance(url, Target) else parse_target(url)
+    if target.in_process:
+        return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
+    params = dict(target.params)
+    if timeout is not None:
+        params.setdefault("timeout", timeout)
+    if target.scheme == "replay+fatek":
+        return _open_replay(target, params)
+    if target.protocol == "fatek":
+        from hil.families.fbs.transport.fatek import FatekTransport
+        port_url = f"socket://{target.host}:{target.port}" if target.host else target.device
+        return FatekTransport(port_url, description=str(target), **params)
+    from hil.families.fbs.transport.modbus import ModbusTransport
+    if target.scheme == "modbus+tcp":
+        return ModbusTransport.tcp(target.host, target.port, **params)
+    return ModbusTransport.rtu(target.device, **params)
+
+
+def _open_replay(target: Target, params: dict) -> Transport:
+    """A FATEK client talking to a :class:`~hil.families.fbs.transport.replay.RecordedPlc` serving the recording on loopback; the
+    transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport stops it."""
+    from hil.families.fbs.transport.replay import RecordedPlc, load_recording
+    from hil.families.fbs.transport.fatek import FatekTransport
+    peer = RecordedPlc(load_recording(target.device))
+    try:
+        transport = FatekTransport(f"socket://{peer.address}", description=str(target), **params)
+    except BaseException:
+        peer.close()
+        raise
+    transport.replay = peer  # type: ignore[attr-defined]
+    transport.on_close(peer.close)
+    return transport
+
+
+def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
+                   wire_faults: "WireFaults | None" = None) -> Transport:
+    wire = target.scheme.partition("+")[2]
+    if not wire:
+        from hil.families.fbs.transport.local import LocalTransport
+        return LocalTransport(emulator)
+    server = serve(emulator, wire, faults=wire_faults)
+    try:
+        transport = _client_for(wire, server, emulator.station, timeout or 2.0)
+    except BaseException:
+        server.stop()
+        raise
+    transport.emulator = emulator
+    transport.server = server  # type: ignore[attr-defined]
+    transport.description = f"{target.scheme} ({transport.description})"
+    transport.on_close(server.stop)
+    return transport
+
+
+def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
+          faults: "WireFaults | None" = None) -> ServerHandle:
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
+    wire-fault plan every reply goes through (the handle keeps it as ``.faults``)."""
+    if wire == "fatek-tcp":
+        from hil.families.fbs.sim.serve_fatek import start_fatek_tcp
+        handle = start_fatek_tcp(emulator, host, port, faults=faults)
+    elif wire == "fatek-serial":
+        from hil.families.fbs.sim.serve_fatek import start_fatek_pty
+        handle = start_fatek_pty(emulator, faults=faults)
+    elif wire == "modbus-tcp":
+        from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
+        handle = start_modbus_tcp(emulator, host, port, unit=emulator.station, faults=faults)
+    elif wire == "modbus-rtu":
+        from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
+        handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults)
+    else:
+        raise ValueError(f"unknown emulator wire {wire!r}")
+    handle.faults = faults  # type: ignore[attr-defined]
+    return handle
+
+
+def _client_for(wire: str, server: ServerHandle, station: int, timeout: float) -> Transport:
+    if wire.startswith("fatek"):
+        from hil.families.fbs.transport.fatek import FatekTransport
+        port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
+        return FatekTransport(port_url, station=station, timeout=timeout)
+    from hil.families.fbs.transport.modbus import ModbusTransport
+    if wire == "modbus-tcp":
+        host, _, port = server.address.rpartition(":")
+        return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
+    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout, baudrate=PTY_BAUDRATE)

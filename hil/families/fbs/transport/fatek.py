@@ -1,0 +1,388 @@
+"""FatekTransport: the FATEK protocol over pyserial — a serial device, a pty, or ``socket://host:port``.
+
+One exchange = flush stale input, send one request, collect bytes until a reply frame for our station and
+command arrives (or the deadline passes).  Frames that do not match are discarded but remembered, so a timeout
+can say "I did hear something, and it was wrong".  Reads are retried; writes never are: a write whose reply
+was lost may or may not have happened, and repeating it could be wrong (e.g. a counter preset), so the caller
+is told the outcome is unknown.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+import socket
+import termios
+import time
+from typing import Callable
+
+import serial
+
+from hil.families.fbs.address import Address
+from hil.core.errors import OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
+from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
+                                FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
+                                ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
+                                check_reply, encode_request, show_frame)
+from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
+from hil.io.serial_line import is_pty, line_coding
+
+#: Commands that only read: safe to repeat after a lost reply.
+READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
+                                            MixedRead, Loopback)
+
+Observer = Callable[[str, bytes], None]
+
+UNIT_TYPES = {0x01: "MC"}  # [our choice] only the code the spec names; others print as hex
+
+
+class FatekTransport(Transport):
+    """FATEK protocol client.  ``port_url``: ``/dev/ttyUSB0``, a pty path, or ``socket://host:port``."""
+
+    # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
+    limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
+
+    def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
+                 parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
+                 backoff: float = 0.05, description: str | None = None) -> None:
+        if not 0 <= station <= 0xFE:
+            raise ValueError(f"station {station} outside 1–254 (0 = broadcast)")
+        if timeout <= 0:
+            raise ValueError(f"timeout must be positive, not {timeout}")
+        if retries < 0:
+            raise ValueError(f"retries must be 0 or more, not {retries}")
+        super().__init__(description or f"FATEK station {station} on {port_url}")
+        self.port_url = port_url
+        self.station = station
+        self.timeout = float(timeout)
+        self.retries = retries
+        self.baudrate = baudrate
+        self.observers: list[Observer] = []  # called as (direction "tx"/"rx", frame) for wire traces
+        self.discarded: list[tuple[bytes, str]] = []  # bad frames of the last exchange, with the reason
+        self._identity: DetailedStatusReply | None = None
+        self._identity_error: str | None = None
+        # Neither a socket nor a pty has a real line rate: no transmission time to add to the deadline.
+        self._virtual_line = port_url.startswith("socket://") or is_pty(port_url)
+        bytesize, parity, stopbits = line_coding(port_url, bytesize, parity, stopbits)
+        self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
+                              write_timeout=self.timeout + 1.0)
+        self.backoff = float(backoff)
+        self.dirty = False  # True: the line may hold a late reply; resynchronise before the next request
+        self._broken = False  # True: the connection is gone; reopen before the next request
+        self._nonce = 0
+        self.resyncs = 0  # loop-back resynchronisations done
+        self.reconnects = 0
+        self._serial = _open(port_url, **self._settings)
+
+    # -- extra FATEK operations ---------------------------------------------------------------------------------
+    def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
+        """One command, with the retry policy of its kind; returns the decoded reply."""
+        with self._lock:
+            return self._count(self._exchange(command))
+
+    def identity(self) -> DetailedStatusReply:
+        """The decoded detailed status (command 53): unit type, OS version, sizes.  Asked once, then cached."""
+        with self._lock:
+            if self._identity is None:
+                self._identity = self._count(self._exchange(DetailedStatus()))
+            return self._identity
+
+    def set_running(self, run: bool) -> None:
+        """RUN (True) or STOP (False) the PLC — command 41."""
+        self.request(RunStop(run))
+
+    def bit_action(self, name: str | Address, action: int) -> None:
+        """Command 42: 1 disable, 2 enable, 3 set, 4 reset one bit."""
+        self.request(BitAction(action, name))
+
+    def read_disabled(self, name: str | Address, count: int = 1) -> list[int]:
+        """Command 43: 1 for each bit that is disabled (forced)."""
+        return self.request(ReadEnableState(name, count))
+
+    def loopback(self, text: str) -> str:
+        return self.request(Loopback(text))
+
+    # -- Transport primitives -----------------------------------------------------------------------------------
+    def _read_words(self, first: Address, count: int) -> list[int]:
+        return self._exchange(ReadRegisters(first, count))
+
+    def _write_words(self, first: Address, values: list[int]) -> None:
+        self._exchange(WriteRegisters(first, values))
+
+    def _read_bits(self, first: Address, count: int) -> list[int]:
+        return self._exchange(ReadBits(first, count))
+
+    def _write_bits(self, first: Address, values: list[int]) -> None:
+        self._exchange(WriteBits(first, values))
+
+    def _read_many(self, addresses: list[Address]) -> list[int]:
+        return self._exchange(MixedRead(addresses))
+
+    def _write_many(self, items: list[tuple[Address, int]]) -> None:
+        self._exchange(MixedWrite(items))
+
+    def _status(self) -> PlcStatus:
+        status: StatusReply = self._exchange(ShortStatus())
+        return PlcStatus(running=status.running, flags=status.flags, identity=self._identity_fields(),
+                         via=f"FATEK station {self.station} on {self.port_url}")
+
+    def _close(self) -> None:
+        sock = getattr(self._serial, "_socket", None)
+        if sock is not None:
+            # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a request/response client has
+            # nothing in flight at close, so close the socket directly and skip the sleep.
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            sock.close()
+            self._serial._socket = None  # noqa: SLF001
+            self._serial.is_open = False
+            return
+        self._serial.close()
+
+    # -- the exchange -------------------------------------------------------------------------------------------
+    def _identity_fields(self) -> dict[str, str]:
+        if self._identity is None and self._identity_error is None:
+            try:
+                self._identity = self._exchange(DetailedStatus())
+            except (PlcErrorReply, ReplyTimeout) as exc:
+                # A unit that refuses or ignores 53 still has a useful short status; ask only once.
+                self._identity_error = str(exc)
+        if self._identity is None:
+            return {"detailed status": f"unavailable: {self._identity_error}"}
+        ident = self._identity
+        fields = {"unit type": f"{ident.unit_type:02X} ({UNIT_TYPES.get(ident.unit_type, 'unknown')})",
+                  "os version": ident.os_text, "io code": f"{ident.io_code:02X}"}
+        fields.update({f"{name} size": str(n) for name, n in ident.sizes.items()})
+        return fields
+
+    def _exchange(self, command: Command):  # noqa: ANN202
+        frame = encode_request(self.station, command)
+        if self.station == BROADCAST:
+            if isinstance(command, READ_COMMANDS):
+                raise TransportError(f"{command.describe()} to station 00 (broadcast): a broadcast is never "
+                                     f"answered, so nothing can be read")
+            self._prepare(command, write=True)
+            self._send(frame)
+            return None
+        is_read = isinstance(command, READ_COMMANDS)
+        if not is_read:
+            self._prepare(command, write=True)  # nothing sent yet: a failure here leaves the PLC unchanged
+            try:
+                return self._once(command, frame, 1, 1)
+            except ReplyTimeout as exc:
+                raise OutcomeUnknown(str(exc)) from None
+            except _Lost as exc:
+                raise OutcomeUnknown(f"{exc}; outcome unknown: the write was sent and may or may not have been "
+                                     f"applied (writes are not retried)") from None
+        attempts = 1 + self.retries
+        started = time.monotonic()
+        errors: list[str] = []
+        for attempt in range(1, attempts + 1):
+            try:
+                self._prepare(command, write=False)
+                return self._once(command, frame, attempt, attempts)
+            except (ReplyTimeout, _Lost) as exc:
+                errors.append(str(exc))
+                if attempt == attempts:
+                    lost = isinstance(exc, _Lost)
+                    text = errors[-1] if attempts == 1 else (
+                        f"{errors[-1]}; {attempts} attempts, {time.monotonic() - started:.2f} s in all")
+                    raise (TransportError if lost else ReplyTimeout)(text) from None
+                time.sleep(self._backoff(attempt))
+        raise AssertionError("unreachable")
+
+    def _backoff(self, attempt: int) -> float:
+        """Pause before retry ``attempt + 1``: doubling from ``backoff``, at most 8× it."""
+        return self.backoff * min(2 ** (attempt - 1), 8)
+
+    def budget(self, write: bool = False) -> float:
+        """The longest one request (one protocol frame) can take, retries, backoff and resynchronising
+        included — a call that runs longer is a harness bug."""
+        wait = self.timeout + self._wire_time(len(encode_request(1, Loopback("X" * 12))))
+        tries = 1 + self.retries
+        if write:
+            return tries * wait + sum(self._backoff(a) for a in range(1, tries)) + wait + self.timeout
+        return tries * (2 * wait + self.timeout) + sum(self._backoff(a) for a in range(1, tries))
+
+    def _prepare(self, command: Command, *, write: bool) -> None:
+        """Before a request: reconnect a lost connection, and after anything odd on the line resynchronise.
+
+        FATEK replies carry no transaction id, so a reply that comes late (after we gave up on it) looks
+        exactly like the answer to our next request of the same shape.  A slave answers in order, so after a
+        timeout or a stray frame we send a loop-back with a fresh nonce and discard everything until its echo:
+        from then on the next reply is the answer to the next request.
+        """
+        if self._broken:
+            self.reopen()
+        if not self.dirty:
+            return
+        tries = (1 + self.retries) if write else 1
+        last = ""
+        for attempt in range(1, tries + 1):
+            self._nonce += 1
+            probe = Loopback(f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}")
+            try:
+                self._once(probe, encode_request(self.station, probe), attempt, tries)
+                self.resyncs += 1
+                return
+            except ReplyTimeout as exc:
+                last = str(exc)
+            except _Lost as exc:
+                last = str(exc)
+                self.reopen()
+            if attempt < tries:
+                time.sleep(self._backoff(attempt))
+        raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the line could not be "
+                           f"resynchronised after an earlier fault ({last})")
+
+    def reopen(self) -> None:
+        """Close and reopen the port (a new TCP connection, the serial device opened again)."""
+        with self._lock:
+            try:
+                self._close()
+            except (serial.SerialException, OSError):
+                pass
+            self._serial = _open(self.port_url, **self._settings)
+            self._broken = False
+            self.dirty = True  # a late reply may still come on a serial line
+            self.reconnects += 1
+
+    def _once(self, command: Command, frame: bytes, attempt: int, attempts: int):  # noqa: ANN202
+        self.discarded = []
+        try:
+            self._serial.reset_input_buffer()  # a late reply to an earlier request must not answer this one
+        except (serial.SerialException, OSError) as exc:
+            self._broken = True
+            raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
+        started = time.monotonic()
+        # Suspect until our reply is in: an exchange cut short (a timeout, pytest-timeout's signal, Ctrl-C)
+        # leaves its reply on the way, and the next request must resynchronise first.
+        self.dirty = True
+        self._send(frame)
+        wait = self.timeout + self._wire_time(len(frame))
+        deadline = started + wait
+        assembler = FrameAssembler()
+        while (remaining := deadline - time.monotonic()) > 0:
+            replies = assembler.feed(self._receive(remaining))
+            for n, reply in enumerate(replies):
+                self._notify("rx", reply)
+                try:
+                    data = check_reply(reply, self.station, command.code)
+                    result = command.decode(data)
+                except PlcErrorReply as exc:
+                    self.dirty = False  # an error reply is still our reply: the line is in step
+                    self._settle(replies[n + 1:], assembler)
+                    raise PlcErrorReply(exc.code, exc.meaning, f"{command.describe()} sent to station "
+                                        f"{self.station:02X} on {self.port_url}") from None
+                except (FrameError, ProtocolError) as exc:
+                    self.discarded.append((reply, f"{type(exc).__name__}: {exc}"))
+                    continue
+                self.dirty = False
+                self._settle(replies[n + 1:], assembler)
+                return result
+        self.dirty = True  # whatever we asked may still be answered, late
+        raise ReplyTimeout(self._timeout_message(command, frame, wait, attempt, attempts, assembler))
+
+    def _settle(self, after: list[bytes], assembler: FrameAssembler) -> None:
+        """After the accepted reply: anything more on the line (a duplicate, a stray frame) makes it suspect."""
+        if after or assembler.pending or self.discarded:
+            self.dirty = True
+            return
+        try:
+            ready, _, _ = select.select([self._serial.fileno()], [], [], 0)
+        except (OSError, ValueError, serial.SerialException):
+            ready = []
+        if ready:
+            self.dirty = True
+
+    def _send(self, frame: bytes) -> None:
+        self._notify("tx", frame)
+        try:
+            self._serial.write(frame)
+        except serial.SerialTimeoutException as exc:
+            self.dirty = True
+            raise ReplyTimeout(f"could not send {show_frame(frame)} to {self._where()} within "
+                               f"{self._serial.write_timeout:.2f} s (output blocked)") from exc
+        except (serial.SerialException, OSError) as exc:
+            self._broken = True
+            raise _Lost(f"{self._where()}: sending {show_frame(frame)} failed: {exc}") from exc
+
+    def _receive(self, remaining: float) -> bytes:
+        """Whatever has arrived, waiting at most ``remaining`` seconds for the first byte."""
+        try:
+            ready, _, _ = select.select([self._serial.fileno()], [], [], remaining)
+            return self._serial.read(4096) if ready else b""  # timeout is 0: read returns what is there
+        except (serial.SerialException, OSError, ValueError) as exc:
+            self._broken = True
+            raise _Lost(f"{self._where()}: connection lost while waiting for a reply: {exc}") from exc
+
+    def _wire_time(self, request_len: int) -> float:
+        """Time a real serial line needs to carry the request and a longest reply (nothing over a socket)."""
+        if self._virtual_line:
+            return 0.0
+        return (request_len + 508) * 10 / self.baudrate  # ≈ 10 bits per character at 7E1/8N1
+
+    def _timeout_message(self, command: Command, frame: bytes, wait: float, attempt: int, attempts: int,
+                         assembler: FrameAssembler) -> str:
+        parts = [f"no reply from station {self.station:02X} on {self.port_url} to {command.describe()} "
+                 f"within {wait:.2f} s (attempt {attempt} of {attempts}); sent {show_frame(frame)}"]
+        if self.discarded:
+            bad = "; ".join(f"{show_frame(f)} ({why})" for f, why in self.discarded[:3])
+            more = f" and {len(self.discarded) - 3} more" if len(self.discarded) > 3 else ""
+            parts.append(f"discarded {len(self.discarded)} bad frame(s): {bad}{more}")
+        if assembler.dropped or assembler.pending:
+            parts.append(f"ignored {assembler.dropped} stray byte(s), {assembler.pending} byte(s) of an "
+                         f"unfinished frame")
+        if not isinstance(command, READ_COMMANDS):
+            parts.append("outcome unknown: the write may or may not have been applied (writes are not retried)")
+        return "; ".join(parts)
+
+    def _notify(self, direction: str, frame: bytes) -> None:
+        for observer in self.observers:
+            observer(direction, frame)
+
+    def _where(self) -> str:
+        return f"station {self.station:02X} on {self.port_url}"
+
+
+class _Lost(TransportError):
+    """The connection failed mid-exchange (reopened before the next request)."""
+
+
+_OPEN_HINTS = {
+    errno.ENOENT: "no such device — is the adapter plugged in? `python -m serial.tools.list_ports` lists ports",
+    errno.EACCES: "permission denied — add your user to the dialout group (sudo usermod -aG dialout $USER, "
+                  "then log in again)",
+    errno.EPERM: "permission denied — add your user to the dialout group",
+    errno.EBUSY: "device busy — another program (a terminal, ModemManager, another test run) holds the port",
+    errno.ENXIO: "no device behind this path (a pty whose server is gone, or an unplugged adapter)",
+}
+
+
+def _open(port_url: str, **settings: object) -> serial.SerialBase:
+    try:
+        # timeout=0: reads return what has arrived; the transport waits with select() up to its own deadline.
+        return serial.serial_for_url(port_url, timeout=0, **settings)
+    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        raise TransportError(f"cannot open {port_url}: {exc} — {_open_hint(port_url, exc)}") from exc
+
+
+def _open_hint(port_url: str, exc: Exception) -> str:
+    code = getattr(exc, "errno", None)
+    if code in _OPEN_HINTS:
+        return _OPEN_HINTS[code]
+    text = str(exc).lower()
+    if "permission denied" in text:
+        return _OPEN_HINTS[errno.EACCES]
+    if "no such file" in text:
+        return _OPEN_HINTS[errno.ENOENT]
+    if port_url.startswith("socket://"):
+        return ("nothing accepted the connection — check host and port (FATEK Ethernet modules listen on 500) "
+                "and that fewer than 8 clients are connected")
+    return "check the port name and its settings"
+
+
+__all__ = ["FatekTransport", "READ_COMMANDS"]

@@ -1,0 +1,166 @@
+"""The guard every suite write goes through: an allow-list checked before a byte is sent, and a write journal.
+
+A real PLC is somebody's machine.  The guard
+
+* refuses any write touching an element outside the profile's ``[safety] writable`` ranges (WriteRefused,
+  raised before the inner transport sees the request);
+* journals the original value of each element on its first write (read from the PLC just before writing);
+* :meth:`restore` writes every original back and reads them all again to prove it, pass or fail.
+
+Elements the PLC itself rewrites every scan (``volatile``, e.g. the RTC read-out R4128–R4135) are allowed but
+not journaled: restoring their old values is meaningless, so a procedure (syncing the RTC to host time) puts
+them right instead; :attr:`touched` tells the bench which procedures are due.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+from hil.families.fbs.address import Address, parse, parse_range
+from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
+from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport
+
+
+def expand(ranges: Iterable[str]) -> frozenset[Address]:
+    """Base elements (bits and 16-bit words) named by ``["R4128-R4135", "M1952", "WM800"]``."""
+    out: set[Address] = set()
+    for text in ranges:
+        for element in parse_range(text):
+            out.update(element.elements())
+    return frozenset(out)
+
+
+class GuardedTransport(Transport):
+    def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
+        super().__init__(f"guarded {inner.description}")
+        self.inner = inner
+        self.limits = inner.limits
+        self.emulator = inner.emulator
+        self.writable = expand(writable)
+        self.volatile = expand(volatile)
+        self.journal: dict[Address, int] = {}  # base element → value before the test's first write
+        self.touched: set[Address] = set()  # every base element written since the journal was started
+        self.reopened = 0  # reconnections made to restore
+
+    # -- the allow-list and the journal --------------------------------------------------------------------
+    def check(self, names: Iterable[NameLike]) -> list[Address]:
+        """Raise WriteRefused unless every element is writable; return the base elements covered."""
+        base: list[Address] = []
+        for name in names:
+            address = parse(name)
+            parts = list(address.elements())
+            refused = [str(p) for p in parts if p not in self.writable]
+            if refused:
+                shown = ", ".join(refused[:4]) + ("…" if len(refused) > 4 else "")
+                raise WriteRefused(
+                    f"write to {address} refused: {shown} not in the bench's [safety] writable list — add the "
+                    f"range to the profile if this test may change it on this bench")
+            base += parts
+        return base
+
+    def _remember(self, base: Sequence[Address]) -> None:
+        self.touched.update(base)
+        fresh = [a for a in dict.fromkeys(base) if a not in self.journal and a not in self.volatile]
+        if fresh:
+            for address, value in zip(fresh, self.inner.read_many(fresh)):
+                self.journal[address] = value
+
+    def start_journal(self) -> None:
+        """Forget earlier writes: the next test starts a fresh journal."""
+        self.journal.clear()
+        self.touched.clear()
+
+    def restore(self) -> list[tuple[Address, int]]:
+        """Write every journaled original back, then read them all to verify.  Returns what was restored.
+
+        If the wire failed (the transport raised a TransportError), reconnect once (:meth:`Transport.reopen`;
+        an emulator's server keeps running, only the client reconnects) and try again.  Raises RestoreError
+        listing each element that could not be written or read back equal, with its original value.
+        """
+        items = list(self.journal.items())
+        if not items:
+            return []
+        failures, wire_failed = self._restore_once(items)
+        if failures and wire_failed:
+            try:
+                self.inner.reopen()
+            except HilError as exc:
+                failures = [(a, v, f"{why}; reconnecting failed: {exc}") for a, v, why in failures]
+            else:
+                self.reopened += 1
+                failures, _ = self._restore_once(items)
+        if failures:
+            raise RestoreError(failures)
+        self.journal.clear()
+        return items
+
+    def _restore_once(self, items: list[tuple[Address, int]]) -> tuple[list[tuple[str, int, str]], bool]:
+        failures: list[tuple[str, int, str]] = []
+        try:
+            self.inner.write_many(items)
+        except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
+            return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        try:
+            now = self.inner.read_many([a for a, _ in items])
+        except Exception as exc:  # noqa: BLE001
+            return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v]
+        return failures, False
+
+    # -- writes: check, journal, then pass on --------------------------------------------------------------
+    def write_words(self, address: NameLike, values: Sequence[int]) -> None:
+        first = parse(address)
+        names = [first.offset(i) for i in range(len(values))] if values else []
+        self._guarded(names, lambda: super(GuardedTransport, self).write_words(first, values))
+
+    def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
+        first = parse(address)
+        names = [first.offset(i) for i in range(len(values))] if values else []
+        self._guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values))
+
+    def write_many(self, items) -> None:  # noqa: ANN001 - same forms as Transport.write_many
+        pairs = list(items.items()) if hasattr(items, "items") else list(items)
+        self._guarded([a for a, _ in pairs], lambda: super(GuardedTransport, self).write_many(pairs))
+
+    def _guarded(self, names: list[Address], write) -> None:  # noqa: ANN001
+        with self._lock:
+            base = self.check(names)
+            self._remember(base)
+            write()
+
+    # -- primitives: straight to the inner transport ------------------------------------------------------------
+    def _count(self, result):  # noqa: ANN001, ANN202 - each request is counted once, where it is sent
+        return self.inner._count(result)
+
+    def _read_words(self, first: Address, count: int) -> list[int]:
+        return self.inner._read_words(first, count)
+
+    def _write_words(self, first: Address, values: list[int]) -> None:
+        self.inner._write_words(first, values)
+
+    def _read_bits(self, first: Address, count: int) -> list[int]:
+        return self.inner._read_bits(first, count)
+
+    def _write_bits(self, first: Address, values: list[int]) -> None:
+        self.inner._write_bits(first, values)
+
+    def _read_many(self, addresses: list[Address]) -> list[int]:
+        return self.inner._read_many(addresses)
+
+    def _write_many(self, items: list[tuple[Address, int]]) -> None:
+        self.inner._write_many(items)
+
+    def _status(self) -> PlcStatus:
+        return self.inner._status()
+
+    def unreachable_reason(self, address: NameLike) -> str | None:
+        return self.inner.unreachable_reason(address)
+
+    def reopen(self) -> None:
+        self.inner.reopen()
+
+    def budget(self, write: bool = False) -> float | None:
+        return self.inner.budget(write)
+
+    def _close(self) -> None:
+        self.inner.close()

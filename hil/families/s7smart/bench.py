@@ -1,0 +1,128 @@
+"""An S7-200 SMART bench: the profile made live — the CPU behind its guard, the bench's time, per-test restore.
+
+The same shape as :class:`hil.families.fbs.bench.Bench` (``plc``, ``wait``, ``settle``, ``begin_test``/``end_test``,
+``is_emulator``), so the pytest plugin, timebase and reports serve both families.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Callable
+
+from hil.core.errors import HilError, TargetError
+from hil.bench.base import BenchBase
+from hil.bench.profile import Profile
+from hil.families.s7smart.address import parse_s7_range, units
+from hil.families.s7smart.device import S7Plc
+from hil.families.s7smart.emulator import S7Emulator
+from hil.families.s7smart.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
+from hil.families.s7smart.layout import S7RtcLayout, S7Settings, parse_s7_settings, parse_s7rtc
+from hil.families.s7smart.modbus_map import S7ModbusMap
+from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.io.url import Target, parse_target
+
+S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
+#: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).
+S7_EMULATOR_TARGETS = ("emulator", "emulator+modbus-tcp")
+
+
+def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: float,
+               emulator_factory: Callable[[], S7Emulator]) -> S7Io:
+    modbus_map = S7ModbusMap(settings.hold_start, settings.max_hold)
+    if target.protocol == "fatek" or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
+        raise TargetError(f"target {target} cannot reach an S7-200 SMART: use one of {', '.join(S7_EMULATOR_TARGETS)}"
+                          f", modbus+tcp://HOST:502?unit=1 or modbus+rtu:///dev/ttyUSB0?unit=1")
+    if target.scheme == "emulator":
+        return LocalS7Io(emulator_factory())
+    if target.scheme == "emulator+modbus-tcp":
+        from hil.families.s7smart.serve import start_s7_modbus_tcp
+        emulator = emulator_factory()
+        server = start_s7_modbus_tcp(emulator, modbus_map, unit=station)
+        try:
+            host, _, port = server.address.rpartition(":")
+            io = ModbusS7Io.tcp(host, int(port), unit=station, timeout=timeout, modbus_map=modbus_map)
+        except BaseException:
+            server.stop()
+            raise
+        io.emulator = emulator
+        io.description = f"emulator+modbus-tcp ({io.description})"
+        io.on_close(server.stop)
+        return io
+    params = dict(target.params)
+    params.setdefault("timeout", timeout)
+    params.setdefault("unit", station)
+    if target.scheme == "modbus+tcp":
+        return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+    return ModbusS7Io.rtu(target.device, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+
+
+class S7Bench(BenchBase):
+    family = "s7-200smart"
+
+    def __init__(self, profile: Profile, *, target: str | None = None,
+                 emulator_builder: S7EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
+        self.profile = profile
+        where = str(profile.path or "<profile>")
+        self.settings: S7Settings = parse_s7_settings(profile.areas.get("s7", {}), where)
+        self.layout: S7RtcLayout | None = (parse_s7rtc(profile.areas["s7rtc"], where)
+                                           if "s7rtc" in profile.areas else None)
+        self.target: Target = parse_target(target or profile.target)
+        self.allow_destructive = allow_destructive or profile.safety.allow_destructive
+        epoch = dt.datetime.now().replace(microsecond=0)
+        if emulator_builder is None:
+            from hil.families.s7smart.emulator import build_s7_emulator
+            emulator_builder = build_s7_emulator
+        self.raw: S7Io = open_s7_io(self.target, self.settings, station=profile.station, timeout=profile.timeout,
+                                    emulator_factory=lambda: _checked(emulator_builder(profile, epoch)))
+        self.io = GuardedS7Io(self.raw, profile.safety.writable)
+        self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
+                               else HostTimebase(profile.time_scale))
+        self.plc = S7Plc(self.io, self.time, layout=self.layout, settle_scans=profile.settle_scans)
+        # Writes to these mean the clock may have been set: put it back on host time after the test.
+        self._clock_inputs = set()
+        if self.layout is not None:
+            for a in (self.layout.set_trigger, self.layout.set_i_trigger):
+                if a is not None:
+                    self._clock_inputs.update(units(a))
+
+    def cannot_reach(self, *names: str) -> str | None:
+        """Why this bench cannot read and write ``names`` (S7 operands or ranges such as ``"VB110-VB117"``)."""
+        for name in names:
+            for a in parse_s7_range(name):
+                reason = self.raw.unreachable_reason(a)
+                if reason:
+                    return reason
+                refused = [u for u in units(a) if not self.io.allowed(u)]
+                if refused:
+                    return f"{name} not in the bench's [safety] writable list"
+        return None
+
+    def power_cycle(self, *, backup_expired: bool = False) -> None:
+        """Emulator only: switch the CPU off and on (``backup_expired``: the clock's back-up ran out)."""
+        emulator = self.raw.emulator
+        if emulator is None:
+            raise HilError("power_cycle needs the in-process emulator (mark the test emulator_only)")
+        emulator.power_cycle(backup_expired=backup_expired)
+
+    def begin_test(self) -> None:
+        self.io.start_journal()
+
+    def end_test(self) -> None:
+        touched_clock = bool(self.io.touched & self._clock_inputs)
+        try:
+            self.io.restore()
+        finally:
+            if touched_clock and self.plc.rtc is not None:
+                self.plc.rtc.sync_to_host()
+                self.io.restore()
+            self.io.start_journal()
+
+    def close(self) -> None:
+        self.io.close()
+
+
+def _checked(emulator: object) -> S7Emulator:
+    if not isinstance(emulator, S7Emulator):
+        raise HilError(f"an S7-200 SMART bench needs an S7 emulator, got {type(emulator).__name__} "
+                       f"(a pytest_hil_make_emulator hook built the wrong family?)")
+    return emulator

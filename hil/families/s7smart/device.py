@@ -1,0 +1,131 @@
+"""S7Plc: the facade S7 suites use through the bench fixture (``bench.plc``) — the clock test program's
+procedures, not byte math.
+
+``plc.rtc.set(buffer)`` writes the 8-byte buffer where the bench's test program expects it, gives SET_RTC its
+rising edge, and reads back ENO and the error code; ``plc.rtc.read()`` does the same for READ_RTC and returns the
+buffer.  Outcomes are reported, never judged: suites decide what is right.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+
+from hil.families.s7smart import timebuf
+from hil.families.s7smart.address import S7Address
+from hil.families.s7smart.io import S7Io
+from hil.families.s7smart.layout import S7RtcLayout
+from hil.core.timebase import Timebase
+from hil.families.fbs.transport.base import PlcStatus
+
+
+@dataclass(frozen=True)
+class ClockResult:
+    """What the test program left after a clock instruction."""
+
+    eno: int  # 1 = the instruction completed
+    error: int  # GET_ERROR after it: 0000H, 0007H (T data error) …
+    buffer: bytes = b""  # READ_RTC's buffer (empty for SET_RTC)
+    sm4_3: int | None = None  # SM4.3 copy, when the layout has one
+
+    @property
+    def accepted(self) -> bool:
+        return self.eno == 1 and self.error == 0
+
+    def __str__(self) -> str:
+        text = f"ENO={self.eno} error={self.error:04X}H"
+        return text + (f" T=[{timebuf.hex_bytes(self.buffer)}]" if self.buffer else "")
+
+
+class S7Rtc:
+    def __init__(self, plc: "S7Plc", layout: S7RtcLayout) -> None:
+        self.plc = plc
+        self.layout = layout
+
+    @property
+    def has_set_i(self) -> bool:
+        return self.layout.set_i_trigger is not None
+
+    def set(self, buffer: bytes | list[int], *, hold: bool = False) -> ClockResult:
+        """SET_RTC on ``buffer`` (8 BCD bytes, as given: nothing is checked here).  ``hold=True`` leaves the
+        trigger at 1 afterwards (for edge tests); :meth:`release` drops it."""
+        self.plc.io.write_v(self.layout.set_buffer.byte, _eight(buffer))
+        return self._pulse(self.layout.set_trigger, hold)
+
+    def set_int(self, buffer: bytes | list[int], *, hold: bool = False) -> ClockResult:
+        """SET_RTC_I (library instruction) on ``buffer`` (8 plain integers)."""
+        if self.layout.set_i_trigger is None or self.layout.set_i_buffer is None:
+            raise ValueError("the bench's [s7rtc] has no set_i_trigger/set_i_buffer")
+        self.plc.io.write_v(self.layout.set_i_buffer.byte, _eight(buffer))
+        return self._pulse(self.layout.set_i_trigger, hold)
+
+    def write_set_buffer(self, buffer: bytes | list[int]) -> None:
+        """Change the SET_RTC buffer without touching the trigger."""
+        self.plc.io.write_v(self.layout.set_buffer.byte, _eight(buffer))
+
+    def read(self) -> ClockResult:
+        """READ_RTC: the buffer as the program left it, with ENO and the error code."""
+        result = self._pulse(self.layout.read_trigger, False)
+        data = self.plc.io.read_v(self.layout.read_buffer.byte, 8)
+        return ClockResult(result.eno, result.error, data, result.sm4_3)
+
+    def release(self) -> None:
+        for trigger in self.layout.triggers():
+            if self.plc.io.read(trigger):
+                self.plc.io.write(trigger, 0)
+        self.plc.settle()
+
+    def read_time(self) -> dt.datetime:
+        """The clock as a datetime (READ_RTC, decoded); TimeBufferError if the buffer is not a valid time."""
+        return timebuf.decode(self.read().buffer)
+
+    def sync_to_host(self) -> ClockResult:
+        """Set the clock to the bench's reference time (how the bench puts the clock back after a test)."""
+        self.release()
+        return self.set(timebuf.encode(self.plc.time.calendar().replace(microsecond=0)))
+
+    def _pulse(self, trigger: S7Address, hold: bool) -> ClockResult:
+        io = self.plc.io
+        if io.read(trigger):  # already high: an edge needs a low first
+            io.write(trigger, 0)
+            self.plc.settle()
+        io.write(trigger, 1)
+        self.plc.settle()
+        if not hold:
+            io.write(trigger, 0)
+            self.plc.settle()
+        return self.result()
+
+    def result(self) -> ClockResult:
+        io, lay = self.plc.io, self.layout
+        return ClockResult(io.read(lay.eno), io.read(lay.error),
+                           sm4_3=io.read(lay.sm4_3) if lay.sm4_3 is not None else None)
+
+
+class S7Plc:
+    """One S7-200 SMART reached through ``io`` (normally the bench's guarded io)."""
+
+    family = "s7-200smart"
+
+    def __init__(self, io: S7Io, timebase: Timebase, *, layout: S7RtcLayout | None = None,
+                 settle_scans: int = 2) -> None:
+        self.io = io
+        self.time = timebase
+        self.settle_scans = settle_scans
+        self.rtc: S7Rtc | None = S7Rtc(self, layout) if layout is not None else None
+
+    def status(self) -> PlcStatus:
+        return self.io.status()
+
+    def settle(self, scans: int | None = None) -> None:
+        """Let the program complete whole scans since our last write: each round trip spans at least one scan
+        (MBUS_SLAVE answers from the program's scan), so a few cheap reads do it on a CPU and the emulator."""
+        for _ in range(self.settle_scans if scans is None else scans):
+            self.io.status()
+
+
+def _eight(buffer: bytes | list[int]) -> bytes:
+    data = bytes(buffer)
+    if len(data) != 8:
+        raise ValueError(f"a clock buffer has 8 bytes, not {len(data)}")
+    return data

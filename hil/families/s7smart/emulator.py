@@ -1,0 +1,204 @@
+"""An S7-200 SMART in software, on the shared scan engine: byte memory (V, I, Q, SM), the CPU's clock with
+READ_RTC / SET_RTC / SET_RTC_I, and the bench's clock test program (triggers, buffers and results in V memory).
+
+The instructions' semantics live in :class:`S7Clock` (one method each, so a test can break one); the test
+program (:class:`RtcTestProgram`) only decides *when* they run — on rising edges of its trigger bits — and where
+the results land, as configured by the profile's ``[s7rtc]``.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime as dt
+import math
+from typing import TYPE_CHECKING
+
+from hil.families.fbs.sim.plc import Emulator
+from hil.sim.model import Model
+from hil.families.s7smart import timebuf
+from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
+from hil.families.s7smart.layout import S7RtcLayout, S7Settings
+
+if TYPE_CHECKING:
+    from hil.bench.profile import Profile
+
+SM4_3 = parse_s7("SM4.3")  # set when READ_RTC/SET_RTC collide (main program vs interrupt)
+
+
+class S7Memory:
+    """Byte-addressed areas; bits are ``byte.bit`` (bit 0 = least significant), words big-endian."""
+
+    def __init__(self) -> None:
+        self.areas: dict[str, bytearray] = {a: bytearray(n) for a, n in AREA_BYTES.items()}
+
+    @property
+    def v(self) -> bytearray:
+        return self.areas["V"]
+
+    def read_bytes(self, area: str, first: int, count: int) -> bytes:
+        return bytes(self.areas[area][first:first + count])
+
+    def write_bytes(self, area: str, first: int, data: bytes) -> None:
+        bank = self.areas[area]
+        if first < 0 or first + len(data) > len(bank):
+            raise IndexError(f"{area}B{first}…+{len(data)} is outside {area} memory")
+        bank[first:first + len(data)] = data
+
+    def get(self, name: "str | S7Address") -> int:
+        a = parse_s7(name)
+        bank = self.areas[a.area]
+        if a.is_bit:
+            return bank[a.byte] >> a.bit & 1  # type: ignore[operator]
+        return int.from_bytes(bank[a.byte:a.end], "big")
+
+    def set(self, name: "str | S7Address", value: int) -> None:
+        a = parse_s7(name)
+        bank = self.areas[a.area]
+        if a.is_bit:
+            mask = 1 << a.bit  # type: ignore[operator]
+            bank[a.byte] = bank[a.byte] | mask if value else bank[a.byte] & ~mask
+        else:
+            bank[a.byte:a.end] = (int(value) & ((1 << 8 * a.size) - 1)).to_bytes(a.size, "big")
+
+    def snapshot(self) -> dict[str, bytearray]:
+        return copy.deepcopy(self.areas)
+
+
+class S7Emulator(Emulator):
+    """The shared scan engine (service at a scan boundary, virtual time) with S7 memory instead of FBs memory."""
+
+    family = "s7-200smart"
+
+    def __init__(self, *, scan_time: float = 0.01, models=(), station: int = 1, seed: int = 0,  # noqa: ANN001
+                 cpu: str = "ST40") -> None:
+        super().__init__(scan_time=scan_time, station=station, seed=seed)
+        self.memory = S7Memory()  # type: ignore[assignment]  # replaces the FBs memory before any model sees it
+        self.cpu = cpu
+        self.version = f"{Emulator.version} (S7-200 SMART {cpu})"
+        for model in models:
+            self.add_model(model)
+
+    def power_cycle(self, *, backup_expired: bool = False) -> None:
+        """Power off and on: the clock keeps time only while its back-up lasts (and never on a CR40/CR60);
+        programs start again from their first scan."""
+        with self.lock:
+            for model in self.models:
+                cycle = getattr(model, "power_cycle", None)
+                if cycle is not None:
+                    cycle(self, backup_expired=backup_expired)
+                else:
+                    model.power_on(self)
+
+
+class S7Clock(Model):
+    """The CPU's time-of-day clock and the clock instructions.  Time is an anchor plus virtual seconds."""
+
+    name = "s7-clock"
+
+    def __init__(self, *, has_rtc: bool = True, start: dt.datetime | None = None) -> None:
+        self.has_rtc = has_rtc
+        self.start = timebuf.POWER_LOSS_TIME if (start is None or not has_rtc) else start.replace(microsecond=0)
+        self._anchor = self.start
+        self._anchor_now = 0.0
+
+    def power_on(self, emu: Emulator) -> None:
+        self._anchor, self._anchor_now = self.start, emu.now
+
+    def power_cycle(self, emu: Emulator, *, backup_expired: bool) -> None:
+        if backup_expired or not self.has_rtc:  # CR40/CR60: no clock to keep; others after the back-up ran out
+            self._anchor, self._anchor_now = timebuf.POWER_LOSS_TIME, emu.now
+
+    def time(self, now: float) -> dt.datetime:
+        return self._anchor + dt.timedelta(seconds=math.floor(now - self._anchor_now + 1e-9))
+
+    def load(self, now: float, when: dt.datetime) -> None:
+        self._anchor, self._anchor_now = when, now
+
+    # -- the instructions: each returns the error code (0 = ENO 1) -----------------------------------------
+    def read_rtc(self, now: float) -> tuple[bytes, int]:
+        return self.encode(self.time(now)), timebuf.ERROR_NONE
+
+    def set_rtc(self, now: float, buffer: bytes) -> int:
+        try:
+            when = self.decode(buffer)
+        except timebuf.TimeBufferError as exc:
+            return exc.code
+        self.load(now, when)
+        return timebuf.ERROR_NONE
+
+    def set_rtc_i(self, now: float, buffer: bytes) -> int:
+        try:
+            bcd = timebuf.int_to_bcd(buffer)
+        except timebuf.TimeBufferError as exc:
+            return exc.code
+        return self.set_rtc(now, bcd)
+
+    # Hooks the codec provides; broken emulators override them.
+    def decode(self, buffer: bytes) -> dt.datetime:
+        return timebuf.decode(buffer)
+
+    def encode(self, when: dt.datetime) -> bytes:
+        return timebuf.encode(when)
+
+
+class RtcTestProgram(Model):
+    """The bench's clock test program: on a rising edge of a trigger bit run the instruction on its buffer, then
+    put ENO and the error code (GET_ERROR) where the layout says, and copy SM4.3."""
+
+    name = "s7-rtc-program"
+
+    def __init__(self, layout: S7RtcLayout) -> None:
+        self.layout = layout
+        self._previous: dict[S7Address, int] = {}
+
+    def power_on(self, emu: Emulator) -> None:
+        self._previous = {t: 0 for t in self.layout.triggers()}
+
+    def power_cycle(self, emu: Emulator, *, backup_expired: bool) -> None:
+        self.power_on(emu)
+
+    def fires(self, previous: int, now: int) -> bool:
+        """EU: a rising edge.  (A level-triggered program would fire on ``now`` alone.)"""
+        return bool(now and not previous)
+
+    def scan(self, emu: Emulator) -> None:
+        mem: S7Memory = emu.memory  # type: ignore[assignment]
+        clock = emu.model(S7Clock)
+        if clock is None:
+            return
+        lay = self.layout
+        for trigger in lay.triggers():
+            level = mem.get(trigger)
+            fire = self.fires(self._previous.get(trigger, 0), level)
+            self._previous[trigger] = level
+            if not fire:
+                continue
+            if trigger == lay.read_trigger:
+                data, error = clock.read_rtc(emu.now)
+                if error == timebuf.ERROR_NONE:
+                    mem.write_bytes("V", lay.read_buffer.byte, data)
+            elif trigger == lay.set_trigger:
+                error = clock.set_rtc(emu.now, mem.read_bytes("V", lay.set_buffer.byte, 8))
+            else:
+                error = clock.set_rtc_i(emu.now, mem.read_bytes("V", lay.set_i_buffer.byte, 8))  # type: ignore[union-attr]
+            mem.set(lay.eno, 1 if error == timebuf.ERROR_NONE else 0)
+            mem.set(lay.error, error)
+            if lay.sm4_3 is not None:
+                mem.set(lay.sm4_3, mem.get(SM4_3))
+
+    def next_event(self, now: float) -> float:
+        return math.inf  # acts only on trigger changes, which arrive with requests
+
+
+def build_s7_emulator(profile: "Profile", epoch: dt.datetime) -> S7Emulator:
+    """The emulator an S7 profile describes: CPU (with or without RTC), clock start, and the [s7rtc] program."""
+    from hil.families.s7smart.layout import parse_s7_settings, parse_s7rtc
+    where = str(profile.path or "<profile>")
+    settings: S7Settings = parse_s7_settings(profile.areas.get("s7", {}), where)
+    emulator = S7Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
+                          seed=profile.emulator.seed, cpu=settings.cpu)
+    start = epoch if settings.start == "host" else None
+    emulator.add_model(S7Clock(has_rtc=settings.has_rtc, start=start))
+    if "s7rtc" in profile.areas:
+        emulator.add_model(RtcTestProgram(parse_s7rtc(profile.areas["s7rtc"], where)))
+    return emulator

@@ -1,0 +1,389 @@
+"""How the harness reaches an S7-200 SMART's memory: V bytes, and Q/I bits — in process, or over Modbus.
+
+Why not :class:`hil.families.fbs.transport.base.Transport`: that API is keyed by FBs element names all the way down (parse,
+value checks, request splitting, the guard's allow-list and the Modbus map decode FBs names), and S7 operands
+(VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small:
+byte-run primitives plus name helpers, with the same error types, the same guard/journal rules and the same
+"an address the wire cannot reach is an error naming both" rule.  Over Modbus it talks raw register/coil numbers
+through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap` with pymodbus's clients.
+
+Over Modbus, V is reached in 16-bit holding registers: writing one byte (or one V bit) reads the register and
+writes it back whole, so the other byte of that word must not be something the PLC program writes meanwhile —
+keep trigger bits in a word of their own (the shipped layouts do).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, Callable, Iterable, Sequence
+
+from hil.core.link import Link
+from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, RestoreError, TransportError, WriteRefused
+from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
+from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
+                                    from_words, to_words)
+from hil.families.fbs.transport.base import PlcStatus
+
+if TYPE_CHECKING:
+    from hil.families.s7smart.emulator import S7Emulator
+
+Unit = tuple[str, int, "int | None"]  # (area, byte, bit or None for the whole byte)
+
+
+class S7Io(Link, ABC):
+    """Base: name helpers over four primitives.  One request on the wire at a time (a lock)."""
+
+    emulator: "S7Emulator | None" = None
+
+    # -- public API ---------------------------------------------------------------------------------------------
+    def read_v(self, first: int, count: int) -> bytes:
+        with self._lock:
+            return self._read_v(first, count)
+
+    def write_v(self, first: int, data: bytes | Sequence[int]) -> None:
+        data = bytes(data)
+        with self._lock:
+            self._write_v(first, data)
+
+    def read(self, name: "str | S7Address") -> int:
+        """One operand: a bit (0/1), VB, VW (unsigned, big-endian) or VD; Q/I bits."""
+        a = parse_s7(name)
+        with self._lock:
+            if a.area in ("Q", "I") and a.is_bit:
+                return self._read_bits(a.area, a.byte * 8 + a.bit, 1)[0]  # type: ignore[operator]
+            if a.area != "V":
+                raise ValueError(f"{a}: only V memory and Q/I bits are reachable")
+            raw = self._read_v(a.byte, a.size)
+            return raw[0] >> a.bit & 1 if a.is_bit else int.from_bytes(raw, "big")  # type: ignore[operator]
+
+    def write(self, name: "str | S7Address", value: int) -> None:
+        a = parse_s7(name)
+        value = int(value)
+        top = 1 if a.is_bit else (1 << 8 * a.size) - 1
+        if not 0 <= value <= top:
+            raise ValueError(f"value {value} for {a} is outside 0–{top}")
+        with self._lock:
+            if a.area == "Q" and a.is_bit:
+                self._write_bits("Q", a.byte * 8 + a.bit, [value])  # type: ignore[operator]
+            elif a.area != "V":
+                raise ValueError(f"{a}: only V memory and Q bits are writable")
+            elif a.is_bit:  # read-modify-write of the byte: S7 memory has no single-bit write over these wires
+                old = self._read_v(a.byte, 1)[0]
+                mask = 1 << a.bit  # type: ignore[operator]
+                self._write_v(a.byte, bytes([old | mask if value else old & ~mask]))
+            else:
+                self._write_v(a.byte, value.to_bytes(a.size, "big"))
+
+    def read_bits(self, name: "str | S7Address", count: int = 1) -> list[int]:
+        a = parse_s7(name)
+        if not a.is_bit or a.area not in ("Q", "I"):
+            raise ValueError(f"{a}: read_bits reads Q or I bits")
+        with self._lock:
+            return self._read_bits(a.area, a.byte * 8 + a.bit, count)  # type: ignore[operator]
+
+    def status(self) -> PlcStatus:
+        with self._lock:
+            return self._status()
+
+    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+        parse_s7(name)
+        return None
+
+    # -- primitives ---------------------------------------------------------------------------------------------
+    @abstractmethod
+    def _read_v(self, first: int, count: int) -> bytes: ...
+
+    @abstractmethod
+    def _write_v(self, first: int, data: bytes) -> None: ...
+
+    @abstractmethod
+    def _read_bits(self, area: str, first: int, count: int) -> list[int]: ...
+
+    @abstractmethod
+    def _write_bits(self, area: str, first: int, values: list[int]) -> None: ...
+
+    @abstractmethod
+    def _status(self) -> PlcStatus: ...
+
+
+# -- in process -----------------------------------------------------------------------------------------------------
+class LocalS7Io(S7Io):
+    """Direct calls into an in-process S7 emulator, each serviced at a scan boundary."""
+
+    def __init__(self, emulator: "S7Emulator") -> None:
+        super().__init__("s7-200smart emulator (in-process)")
+        self.emulator = emulator
+
+    def _service(self, request):  # noqa: ANN001, ANN202
+        self.requests += 1
+        return self.emulator.service(request)  # type: ignore[union-attr]
+
+    def _read_v(self, first: int, count: int) -> bytes:
+        return self._service(lambda mem: mem.read_bytes("V", first, count))
+
+    def _write_v(self, first: int, data: bytes) -> None:
+        self._service(lambda mem: mem.write_bytes("V", first, data))
+
+    def _read_bits(self, area: str, first: int, count: int) -> list[int]:
+        return self._service(lambda mem: [mem.areas[area][n // 8] >> n % 8 & 1 for n in range(first, first + count)])
+
+    def _write_bits(self, area: str, first: int, values: list[int]) -> None:
+        def apply(mem) -> None:  # noqa: ANN001
+            for n, v in enumerate(values, first):
+                mem.set(S7Address(area, n // 8, n % 8), v)
+        self._service(apply)
+
+    def _status(self) -> PlcStatus:
+        emu = self.emulator
+        running = self._service(lambda mem: emu.running)  # type: ignore[union-attr]
+        return PlcStatus(running=running, flags=["RUN"] if running else [], via="in-process",
+                         identity={"unit": "emulator", "version": emu.version, "cpu": emu.cpu})  # type: ignore[union-attr]
+
+
+# -- over Modbus ----------------------------------------------------------------------------------------------------
+class ModbusS7Io(S7Io):
+    """An S7-200 SMART running the MBUS_SLAVE library, over Modbus/TCP or RTU (pymodbus clients)."""
+
+    def __init__(self, client, description: str, *, unit: int, timeout: float, retries: int,  # noqa: ANN001
+                 modbus_map: S7ModbusMap, hint: str) -> None:
+        super().__init__(description)
+        self.client = client
+        self.unit = unit
+        self.timeout = timeout
+        self.retries = retries
+        self.map = modbus_map
+        self._hint = hint
+        if not client.connect():
+            client.close()
+            raise TransportError(f"cannot connect to {description}: {hint}")
+
+    @classmethod
+    def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0, retries: int = 2,
+            modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
+        from pymodbus.client import ModbusTcpClient
+        hint = (f"is the CPU reachable at {host}:{port}, and does its program call MBUS_SLAVE (Modbus TCP server "
+                f"instruction) with this unit id and HoldStart/MaxHold matching the profile's [s7]?")
+        return cls(ModbusTcpClient(host, port=port, timeout=timeout, retries=0),
+                   f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})",
+                   unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
+
+    @classmethod
+    def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
+            unit: int = 1, timeout: float = 1.0, retries: int = 2,
+            modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
+        from pymodbus import FramerType
+        from pymodbus.client import ModbusSerialClient
+        client = ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
+                                    parity=parity, stopbits=stopbits, timeout=timeout, retries=0)
+        hint = f"does {device} exist and is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
+        return cls(client, f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit} (S7-200 SMART map)",
+                   unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
+
+    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+        a = parse_s7(name)
+        try:
+            if a.area == "V":
+                self.map.registers_for(a.byte, a.size)
+            elif a.area in ("Q", "I") and a.is_bit:
+                self.map.bit_number(a)
+            else:
+                return f"{a} is not in the S7-200 SMART Modbus map"
+        except (ValueError, TransportError) as exc:
+            return str(exc)
+        return None
+
+    def _read_v(self, first: int, count: int) -> bytes:
+        lo, n = self.map.registers_for(first, count)  # raises UnreachableAddress before any I/O
+        words: list[int] = []
+        for start in range(lo, lo + n, MAX_READ_REGISTERS):
+            k = min(MAX_READ_REGISTERS, lo + n - start)
+            rr = self._exchange(f"FC03 read holding registers at {start} ×{k}",
+                                lambda: self.client.read_holding_registers(start, count=k, device_id=self.unit))
+            if len(rr.registers) != k:
+                raise TransportError(f"{self.description}: asked for {k} registers at {start}, got {len(rr.registers)}")
+            words += rr.registers
+        data = from_words(words)
+        skip = first - self.map.v_byte(lo)
+        return data[skip:skip + count]
+
+    def _write_v(self, first: int, data: bytes) -> None:
+        if not data:
+            return
+        lo, n = self.map.registers_for(first, len(data))
+        start_byte = self.map.v_byte(lo)
+        whole = bytearray(2 * n)
+        if start_byte != first or (first + len(data)) != start_byte + 2 * n:  # partial words: keep the other byte
+            whole[:] = self._read_v(start_byte, 2 * n)
+        whole[first - start_byte:first - start_byte + len(data)] = data
+        words = to_words(bytes(whole))
+        for i in range(0, n, MAX_WRITE_REGISTERS):
+            chunk = words[i:i + MAX_WRITE_REGISTERS]
+            self._exchange(f"FC16 write holding registers at {lo + i} ×{len(chunk)}",
+                           lambda: self.client.write_registers(lo + i, chunk, device_id=self.unit), write=True)
+
+    def _read_bits(self, area: str, first: int, count: int) -> list[int]:
+        self.map.bit_number(S7Address(area, (first + count - 1) // 8, (first + count - 1) % 8))
+        if count > MAX_READ_BITS:
+            raise ValueError(f"at most {MAX_READ_BITS} bits per read")
+        if area == "Q":
+            rr = self._exchange(f"FC01 read coils at {first} ×{count}",
+                                lambda: self.client.read_coils(first, count=count, device_id=self.unit))
+        else:
+            rr = self._exchange(f"FC02 read discrete inputs at {first} ×{count}",
+                                lambda: self.client.read_discrete_inputs(first, count=count, device_id=self.unit))
+        return [1 if b else 0 for b in rr.bits[:count]]
+
+    def _write_bits(self, area: str, first: int, values: list[int]) -> None:
+        if area != "Q":
+            raise ValueError("only Q bits (coils) are writable over Modbus")
+        self.map.bit_number(S7Address("Q", (first + len(values) - 1) // 8, (first + len(values) - 1) % 8))
+        self._exchange(f"FC15 write coils at {first} ×{len(values)}",
+                       lambda: self.client.write_coils(first, [bool(v) for v in values], device_id=self.unit),
+                       write=True)
+
+    def _status(self) -> PlcStatus:
+        """Modbus has no status request: a one-register read proves the CPU answers; RUN/STOP stays unknown."""
+        (word,) = to_words(self._read_v(self.map.hold_start, 2))
+        return PlcStatus(running=None, via="modbus", identity={
+            "transport": self.description, "unit": str(self.unit), "probe": f"VW{self.map.hold_start} = {word}"})
+
+    def _close(self) -> None:
+        self.client.close()
+
+    def _exchange(self, what: str, send: Callable, *, write: bool = False):  # noqa: ANN202 - a pymodbus response
+        """One request.  Reads are retried (``retries``) by us — pymodbus itself never retries, since it would
+        repeat a write too; a write whose reply never came raises OutcomeUnknown and is not sent again."""
+        from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+        from hil.families.fbs.transport.modbus import EXCEPTION_NAMES
+        tries = 1 if write else self.retries + 1
+        for attempt in range(1, tries + 1):
+            self.requests += 1
+            try:
+                rr = send()
+                break
+            except ModbusIOException as exc:
+                if write:
+                    raise OutcomeUnknown(f"no reply to {what} from {self.description} within {self.timeout:g} s: "
+                                         f"the write may or may not have been applied (not repeated); read it "
+                                         f"back before relying on it [pymodbus: {exc}]") from None
+                if attempt == tries:
+                    raise ReplyTimeout(f"no reply to {what} from {self.description} after {tries} tries of "
+                                       f"{self.timeout:g} s: check the unit id, the wiring and that MBUS_SLAVE "
+                                       f"runs [pymodbus: {exc}]") from None
+            except ConnectionException as exc:
+                raise TransportError(f"lost the connection to {self.description} during {what}: {self._hint} "
+                                     f"[pymodbus: {exc}]") from None
+            except ModbusException as exc:
+                raise TransportError(f"{what} to {self.description} failed: {exc}") from None
+        if rr.isError():
+            code = getattr(rr, "exception_code", None)
+            raise PlcErrorReply(str(code), EXCEPTION_NAMES.get(code, "error reply"), f"{what} on {self.description}")
+        return rr
+
+
+# -- the guard ------------------------------------------------------------------------------------------------------
+def expand_s7(ranges: Iterable[str]) -> frozenset[Unit]:
+    out: set[Unit] = set()
+    for text in ranges:
+        for a in parse_s7_range(text):
+            out.update(units(a))
+    return frozenset(out)
+
+
+class GuardedS7Io(S7Io):
+    """Every write checked against the profile's ``[safety] writable`` (S7 ranges) before a byte is sent; the
+    original of each byte/bit journaled on first write and restored (and read back) by :meth:`restore`."""
+
+    def __init__(self, inner: S7Io, writable: Iterable[str]) -> None:
+        super().__init__(f"guarded {inner.description}")
+        self.inner = inner
+        self.emulator = inner.emulator
+        self.writable = expand_s7(writable)
+        self.journal: dict[Unit, int] = {}
+        self.touched: set[Unit] = set()
+
+    def allowed(self, unit: Unit) -> bool:
+        """A byte is writable when listed; a bit when listed or its whole byte is."""
+        area, byte, bit = unit
+        return unit in self.writable or (bit is not None and (area, byte, None) in self.writable)
+
+    def _check(self, wanted: list[Unit], what: str) -> None:
+        refused = [u for u in wanted if not self.allowed(u)]
+        if refused:
+            shown = ", ".join(_unit_name(u) for u in refused[:4]) + ("…" if len(refused) > 4 else "")
+            raise WriteRefused(f"write to {what} refused: {shown} not in the bench's [safety] writable list — add "
+                               f"the range to the profile if this test may change it on this bench")
+
+    def _remember(self, wanted: list[Unit]) -> None:
+        self.touched.update(wanted)
+        for u in wanted:
+            if u not in self.journal:
+                self.journal[u] = self.inner.read(_unit_name(u))
+
+    def write_v(self, first: int, data: bytes | Sequence[int]) -> None:
+        data = bytes(data)
+        wanted: list[Unit] = [("V", b, None) for b in range(first, first + len(data))]
+        with self._lock:
+            self._check(wanted, f"VB{first}" + (f"…VB{first + len(data) - 1}" if len(data) > 1 else ""))
+            self._remember(wanted)
+            self.inner.write_v(first, data)
+
+    def write(self, name: "str | S7Address", value: int) -> None:
+        a = parse_s7(name)
+        wanted = units(a)
+        with self._lock:
+            self._check(wanted, str(a))
+            self._remember(wanted)
+            self.inner.write(a, value)
+
+    def start_journal(self) -> None:
+        self.journal.clear()
+        self.touched.clear()
+
+    def restore(self) -> list[tuple[str, int]]:
+        items = [(_unit_name(u), v) for u, v in self.journal.items()]
+        failures: list[tuple[str, int, str]] = []
+        for name, value in items:
+            try:
+                self.inner.write(name, value)
+            except Exception as exc:  # noqa: BLE001 - collect every failure
+                failures.append((name, value, f"write failed: {exc}"))
+        for name, value in items:
+            try:
+                got = self.inner.read(name)
+            except Exception as exc:  # noqa: BLE001
+                failures.append((name, value, f"read-back failed: {exc}"))
+                continue
+            if got != value:
+                failures.append((name, value, f"reads {got} after restore"))
+        if failures:
+            raise RestoreError(failures)
+        self.journal.clear()
+        return items
+
+    # primitives: reads straight through (writes above are the only way in)
+    def _read_v(self, first: int, count: int) -> bytes:
+        return self.inner.read_v(first, count)
+
+    def _write_v(self, first: int, data: bytes) -> None:
+        raise AssertionError("unreachable: write_v is overridden")
+
+    def _read_bits(self, area: str, first: int, count: int) -> list[int]:
+        return self.inner._read_bits(area, first, count)
+
+    def _write_bits(self, area: str, first: int, values: list[int]) -> None:
+        raise AssertionError("unreachable: write is overridden")
+
+    def _status(self) -> PlcStatus:
+        return self.inner.status()
+
+    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+        return self.inner.unreachable_reason(name)
+
+    def _close(self) -> None:
+        self.inner.close()
+
+
+def _unit_name(unit: Unit) -> str:
+    area, byte, bit = unit
+    return f"{area}{byte}.{bit}" if bit is not None else f"{area}B{byte}"

@@ -1,0 +1,110 @@
+"""Target URLs: one string picks the PLC and the wire.
+
+    emulator                                  in-process emulator, no wire
+    emulator+fatek-tcp | emulator+fatek-serial | emulator+modbus-tcp | emulator+modbus-rtu
+                                              in-process emulator served on loopback / a pty, reached over that wire
+    fatek+tcp://host:500?station=1&timeout=1&retries=2
+    fatek+serial:///dev/ttyUSB0?baudrate=9600&parity=E&bytesize=7&stopbits=1&station=1
+    modbus+tcp://host:502?unit=1&timeout=1&retries=2
+    modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1
+    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.families.fbs.transport.replay)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl, urlsplit
+
+from hil.core.errors import TargetError
+
+EMULATOR_WIRES = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")
+EMULATOR_TARGETS = ("emulator",) + tuple(f"emulator+{w}" for w in EMULATOR_WIRES)
+
+_COMMON = {"timeout": float, "retries": int}
+_SERIAL = {"baudrate": int, "parity": str, "bytesize": int, "stopbits": int}
+PARAMS: dict[str, dict[str, type]] = {
+    "fatek+tcp": {**_COMMON, "station": int},
+    "fatek+serial": {**_COMMON, **_SERIAL, "station": int},
+    "modbus+tcp": {**_COMMON, "unit": int},
+    "modbus+rtu": {**_COMMON, **_SERIAL, "unit": int},
+    "replay+fatek": {**_COMMON, "station": int},
+}
+DEFAULT_PORTS = {"fatek+tcp": 500, "modbus+tcp": 502}
+
+FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
+         "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "
+         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, replay+fatek:///path/to/trace.txt")
+
+
+@dataclass(frozen=True)
+class Target:
+    scheme: str  # "emulator", "emulator+fatek-tcp", "fatek+tcp", …
+    host: str = ""
+    port: int = 0
+    device: str = ""
+    params: dict[str, object] = field(default_factory=dict)
+
+    @property
+    def in_process(self) -> bool:
+        """True for the ``emulator…`` targets: the emulator runs inside this process (virtual time)."""
+        return self.scheme in EMULATOR_TARGETS
+
+    @property
+    def protocol(self) -> str:
+        """"fatek", "modbus" or "local"."""
+        if self.scheme == "emulator":
+            return "local"
+        return "modbus" if "modbus" in self.scheme else "fatek"
+
+    def __str__(self) -> str:
+        if self.in_process:
+            return self.scheme
+        where = f"{self.host}:{self.port}" if self.host else self.device
+        query = "&".join(f"{k}={v}" for k, v in self.params.items())
+        return f"{self.scheme}://{where}" + (f"?{query}" if query else "")
+
+
+def parse_target(url: str) -> Target:
+    text = url.strip()
+    if text in EMULATOR_TARGETS:
+        return Target(text)
+    if text.startswith("emulator"):
+        raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(EMULATOR_TARGETS)}")
+    parts = urlsplit(text)
+    scheme = parts.scheme
+    if scheme not in PARAMS:
+        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {FORMS}")
+    params = _params(url, scheme, parts.query)
+    if scheme.endswith("tcp"):
+        if not parts.hostname:
+            raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{DEFAULT_PORTS[scheme]})")
+        try:
+            port = parts.port or DEFAULT_PORTS[scheme]
+        except ValueError:
+            raise TargetError(f"target {url!r} has an invalid port") from None
+        return Target(scheme, host=parts.hostname, port=port, params=params)
+    device = (parts.netloc + parts.path) if parts.netloc else parts.path
+    if not device:
+        example = "/path/to/trace.txt" if scheme.startswith("replay") else "/dev/ttyUSB0"
+        raise TargetError(f"target {url!r} names no {'recording' if scheme.startswith('replay') else 'serial device'} "
+                          f"(e.g. {scheme}://{example})")
+    return Target(scheme, device=device, params=params)
+
+
+def _params(url: str, scheme: str, query: str) -> dict[str, object]:
+    allowed = PARAMS[scheme]
+    out: dict[str, object] = {}
+    for key, raw in parse_qsl(query, keep_blank_values=True):
+        if key not in allowed:
+            raise TargetError(f"target {url!r}: unknown parameter {key!r} for {scheme} "
+                              f"(known: {', '.join(sorted(allowed))})")
+        try:
+            value = allowed[key](raw)
+        except ValueError:
+            raise TargetError(f"target {url!r}: {key}={raw!r} is not a valid {allowed[key].__name__}") from None
+        if key == "parity":
+            value = str(value).upper()
+            if value not in ("N", "E", "O"):
+                raise TargetError(f"target {url!r}: parity must be N, E or O, not {raw!r}")
+        out[key] = value
+    return out

@@ -1,0 +1,241 @@
+"""The hil pytest plugin: options, markers, collection-time skips, and the ``bench`` fixture.
+
+Loaded automatically through the ``pytest11`` entry point.  Nothing connects to a PLC until a test asks for
+``bench``; the bench is opened once per session and every test's writes are restored when the test ends.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from hil.families.fbs.bench import Bench, open_bench
+from hil.core.errors import HilError, TransportError
+from hil.bench.profile import Profile, load_profile
+from hil.io.url import parse_target
+
+pytest_plugins = ["hil.plugin.perf"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
+DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
+MARKERS = {
+    "emulator_only": "emulator_only(reason): needs what only the in-process emulator gives (virtual time jumps, "
+                     "fault injection without a rig); skipped on other targets",
+    "slow": "slow: takes minutes of bench time on a real PLC; skipped there unless --hil-run-slow "
+            "(runs in virtual time on the emulator)",
+    "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
+                   "profile's [safety] allow_destructive",
+    "family": "family(name): the controller family a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
+              "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
+}
+
+
+def pytest_addhooks(pluginmanager: pytest.PytestPluginManager) -> None:
+    from hil.plugin import hookspecs
+    pluginmanager.add_hookspecs(hookspecs)
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("hil", "hil hardware-in-the-loop")
+    group.addoption("--bench", metavar="FILE", default=None,
+                    help=f"bench profile (TOML); default {DEFAULT_BENCH}")
+    group.addoption("--target", metavar="URL", default=None,
+                    help="target URL overriding the profile's, e.g. emulator+fatek-tcp, fatek+tcp://10.0.0.5:500")
+    group.addoption("--hil-allow-destructive", action="store_true", default=False,
+                    help="allow tests marked destructive (RUN/STOP, outputs)")
+    group.addoption("--hil-run-slow", action="store_true", default=False,
+                    help="run tests marked slow on a real bench (they take real minutes)")
+    group.addoption("--hil-lock-wait", metavar="SECONDS", type=float, default=0.0,
+                    help="wait up to SECONDS for another run to release the bench (default: refuse at once, "
+                         "naming who holds it)")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    for text in MARKERS.values():
+        config.addinivalue_line("markers", text)
+    config.stash[_STATE] = _State(config)
+
+
+class _State:
+    """Per-session state: the profile (read at once, so a bad profile fails early) and the bench (lazily)."""
+
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
+        self.bench: Bench | None = None
+        self.error: str | None = None
+        self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
+        self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
+        self._profile: Profile | None = None
+
+    @property
+    def profile(self) -> Profile:
+        if self._profile is None:
+            self._profile = load_profile(resolve_bench_path(self.config))
+        return self._profile
+
+    @property
+    def target(self) -> str:
+        return self.config.getoption("--target") or self.profile.target
+
+    def open(self) -> Bench:
+        if self.dead:
+            raise pytest.fail.Exception(f"bench not usable: {self.dead}", pytrace=False)
+        if self.bench is None:
+            if self.error:
+                raise pytest.fail.Exception(self.error, pytrace=False)
+            hook = self.config.hook.pytest_hil_make_emulator
+            try:
+                self._lock_bench()
+                self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
+                                   allow_destructive=self.config.getoption("--hil-allow-destructive"),
+                                   emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e))
+            except HilError as exc:
+                self.error = f"cannot open the bench: {exc}"
+                raise pytest.fail.Exception(self.error, pytrace=False) from None
+        return self.bench
+
+    def _lock_bench(self) -> None:
+        """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
+        if self.lock is not None or parse_target(self.target).in_process:
+            return
+        from hil.core.lock import BenchLock
+        self.lock = BenchLock(self.target).acquire(wait=self.config.getoption("--hil-lock-wait") or 0.0)
+
+    def release(self) -> None:
+        try:
+            if self.bench is not None:
+                self.bench.close()
+        finally:
+            self.bench = None
+            if self.lock is not None:
+                self.lock.release()
+                self.lock = None
+
+    def finish(self, request: pytest.FixtureRequest, bench: Bench) -> None:
+        """The bench fixture's teardown: restore; a restore that fails goes into the report (JUnit properties);
+        a dead wire marks the bench dead so the remaining tests error at once with the reason."""
+        try:
+            bench.end_test()
+        except HilError as exc:
+            failures = getattr(exc, "failures", None)
+            if failures is not None:
+                request.node.user_properties.append(
+                    ("hil_restore_failed", "; ".join(f"{a} (original {v}): {why}" for a, v, why in failures)))
+            why = _alive(bench)
+            if why is not None:
+                self.dead = f"restore after {request.node.nodeid} failed and the PLC does not answer: {exc}"
+            raise
+        failure = request.node.stash.get(_WIRE_FAILURE, None)
+        if failure is not None:
+            why = _alive(bench)
+            if why is not None:
+                self.dead = f"the PLC stopped answering during {request.node.nodeid}: {failure}"
+
+
+def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench of the same surface
+    alive = getattr(bench, "alive", None)
+    return alive() if alive is not None else None
+
+
+_STATE = pytest.StashKey[_State]()
+_WIRE_FAILURE = pytest.StashKey[str]()
+
+
+def _default_build(profile: Profile, epoch):  # noqa: ANN001, ANN202
+    from hil.families.fbs.sim.build import build_emulator
+    return build_emulator(profile, epoch)
+
+
+def resolve_bench_path(config: pytest.Config) -> Path:
+    given = config.getoption("--bench")
+    if given:
+        return Path(given)
+    for base in (Path.cwd(), Path(str(config.rootpath)), Path(__file__).resolve().parent.parent):
+        if (base / DEFAULT_BENCH).is_file():
+            return base / DEFAULT_BENCH
+    raise pytest.UsageError(f"no bench profile given and {DEFAULT_BENCH} not found; pass --bench FILE")
+
+
+def pytest_report_header(config: pytest.Config) -> list[str] | None:
+    if not (config.getoption("--bench") or config.getoption("--target")):
+        return None
+    state = config.stash[_STATE]
+    try:
+        profile = state.profile
+    except HilError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    return [f"hil bench: {profile.name} ({profile.path})", f"hil target: {state.target}"]
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not any("bench" in getattr(item, "fixturenames", ()) for item in items):
+        return
+    state = config.stash[_STATE]
+    try:
+        target = parse_target(state.target)
+        profile = state.profile
+    except HilError as exc:
+        raise pytest.UsageError(str(exc)) from None
+    destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
+    for item in items:
+        if "bench" in getattr(item, "fixturenames", ()):
+            family = item.get_closest_marker("family")
+            wanted = (family.args[0] if family and family.args else "fbs")
+            if wanted != profile.family:
+                item.add_marker(pytest.mark.skip(
+                    reason=f"for {wanted} PLCs; bench {profile.name!r} is family {profile.family!r}"))
+        marker = item.get_closest_marker("emulator_only")
+        if marker and not target.in_process:
+            why = marker.kwargs.get("reason") or (marker.args[0] if marker.args else "needs the emulator")
+            item.add_marker(pytest.mark.skip(reason=f"emulator only: {why} (target {target})"))
+        if item.get_closest_marker("destructive") and not destructive_ok:
+            item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
+        if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
+            item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    if not any("bench" in getattr(item, "fixturenames", ()) for item in session.items):
+        return
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    state = session.config.stash[_STATE]
+    try:
+        bench = state.open()
+        line = f"hil PLC: {bench.plc.status().summary()} via {bench.raw.description}"
+        if state.lock is not None and state.lock.stale:
+            from hil.core.lock import describe_holder
+            line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
+    except (HilError, pytest.fail.Exception) as exc:
+        line = f"hil PLC: unreachable — {exc}"
+        state.error = state.error or line
+    state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)
+    if reporter is not None and session.config.get_verbosity() >= 0 and not getattr(state, "header_panel", False):
+        reporter.write_line(line)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    state = config.stash.get(_STATE, None)
+    if state is not None:
+        state.release()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
+    """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
+    report = yield
+    if (call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(TransportError)
+            and "bench" in getattr(item, "fixturenames", ())):
+        item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"
+    return report
+
+
+@pytest.fixture
+def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
+    """The PLC under test, its time, and the guard that restores every write when the test ends."""
+    state = request.config.stash[_STATE]
+    bench = state.open()  # raises at once, with the reason, once the bench is known dead
+    bench.begin_test()
+    try:
+        yield bench  # a test stopped by pytest-timeout (signal method) unwinds through here too
+    finally:
+        state.finish(request, bench)

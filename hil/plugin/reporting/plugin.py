@@ -1,0 +1,331 @@
+"""The reporting half of the hil pytest plugin (entry point ``hil-report``).
+
+* JUnit: testsuite properties (bench, target, transport, PLC identity, RTC chip, harness version, suites commit,
+  profile hash, operator, station); testcase properties for each ``measure(...)``; the wire trace of a failing
+  test (every test with ``--hil-trace=all``) as its ``system-out``, also saved under ``<reports>/traces/``.
+* Console: a header panel, a bar during long waits on a real bench (a terminal only), a summary table by area.
+* HTML: ``--hil-html PATH`` (``hil run`` always writes reports/report.html): summary, measurements, failures,
+  wire traces and plots (``report.attach_series``) in one self-contained file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import pytest
+
+from hil.plugin.reporting.model import Measurement, Series, TestRecord, area_of
+
+TRACE_MODES = ("failures", "all", "off")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("hil-report", "hil reports (JUnit properties, wire traces, HTML)")
+    group.addoption("--operator", metavar="NAME", default=None,
+                    help="who runs the tests, for the report (default $HIL_OPERATOR, else the login name)")
+    group.addoption("--station", metavar="NAME", default=None,
+                    help="test station, for the report (default $HIL_STATION, else the host name)")
+    group.addoption("--hil-trace", choices=TRACE_MODES, default="failures",
+                    help="keep wire traces for failing tests (default), all tests, or none")
+    group.addoption("--hil-trace-dir", metavar="DIR", default=None,
+                    help="where wire traces are saved (default: traces/ beside --junitxml or --hil-html)")
+    group.addoption("--hil-html", metavar="PATH", default=None,
+                    help="write a self-contained HTML report (summary, measurements, traces, plots)")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_configure(config: pytest.Config) -> None:
+    if getattr(config, "workerinput", None) is not None:
+        return  # an xdist worker: the controller reports
+    plugin = Reporter(config)
+    config.pluginmanager.register(plugin, "hil-reporter")
+
+
+class ReportHandle:
+    """What the ``report`` fixture gives a test: attach plot-ready data to its entry in the HTML report."""
+
+    def __init__(self, record: TestRecord) -> None:
+        self._record = record
+
+    def attach_series(self, name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]], *,
+                      columns: Sequence[str] | None = None, x: str | None = None, title: str = "",
+                      xlabel: str = "", ylabel: str = "", secondary: Sequence[str] = (),
+                      secondary_label: str = "") -> Series:
+        """Columns (``{"t": [...], "PV": [...]}``) or rows with ``columns=("t", "PV", "SV", "output")``; ``x``
+        names the horizontal axis (default the first column); ``secondary`` columns get a right-hand axis."""
+        series = Series.build(name, data, columns=columns, x=x, title=title, xlabel=xlabel, ylabel=ylabel,
+                              secondary=secondary, secondary_label=secondary_label)
+        self._record.series.append(series)
+        return series
+
+    def attach_drift(self, measurement: Any, name: str = "drift", title: str = "") -> Series:
+        """A :class:`hil.families.fbs.device.rtc.DriftMeasurement`'s samples: PLC − reference (s) over reference time (h)."""
+        rows = [(t / 3600.0, d) for t, d in measurement.samples]
+        return self.attach_series(name, rows, columns=("reference time", "PLC − reference"),
+                                  title=title or f"clock drift {measurement.s_per_day:+.3f} s/day",
+                                  xlabel="reference time (h)", ylabel="PLC − reference (s)")
+
+    def attach_pid(self, trace: Sequence[Sequence[float]], name: str = "pid", title: str = "PID closed loop",
+                   unit: str = "", output_unit: str = "") -> Series:
+        """A closed-loop trace of ``(t, PV, SV, output)`` rows; the output is drawn on its own axis."""
+        return self.attach_series(name, trace, columns=("t", "PV", "SV", "output"), title=title,
+                                  xlabel="time (s)", ylabel=f"PV, SV{f' ({unit})' if unit else ''}",
+                                  secondary=("output",),
+                                  secondary_label=f"output{f' ({output_unit})' if output_unit else ''}")
+
+
+class Reporter:
+    """Per-session: one record per test, the suite properties, the wire trace recorder."""
+
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
+        self.records: dict[str, TestRecord] = {}
+        self.properties: list[tuple[str, str]] = []
+        self.header: list[tuple[str, str]] = []
+        self.uses_bench = False
+        self.current = ""
+        self.trace_mode: str = config.getoption("--hil-trace")
+        self.trace = None  # hil.io.trace.WireTrace once a bench is open
+        self._traced_bench: Any = None
+        self.html_path = _path(config.getoption("--hil-html"))
+        self.trace_dir = self._trace_dir()
+        self.html_written: Path | None = None
+        state = self._state()
+        if state is not None:
+            state.header_panel = True  # the panel below replaces the plugin's "hil PLC: …" line
+
+    def _trace_dir(self) -> Path | None:
+        given = _path(self.config.getoption("--hil-trace-dir"))
+        if given is not None:
+            return given
+        xmlpath = _path(self.config.getoption("xmlpath", None))
+        for base in (xmlpath, self.html_path):
+            if base is not None:
+                return base.parent / "traces"
+        return None
+
+    def _state(self) -> Any:
+        from hil.plugin.pytest_plugin import _STATE
+        return self.config.stash.get(_STATE, None)
+
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        """Traces beside a report belong to that report: drop the previous run's (an explicit dir is left alone)."""
+        if self.trace_dir is not None and self.config.getoption("--hil-trace-dir") is None:
+            for old in self.trace_dir.glob("*.txt") if self.trace_dir.is_dir() else ():
+                with contextlib.suppress(OSError):
+                    old.unlink()
+
+    # -- collection: properties and the header ----------------------------------------------------------------
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        items = [i for i in session.items if "bench" in getattr(i, "fixturenames", ())]
+        self.uses_bench = bool(items)
+        state = self._state()
+        if not items or state is None:
+            return
+        from hil.plugin.reporting.identity import suite_properties
+        suites = Path(str(items[0].path)).parent
+        try:
+            self.properties = suite_properties(
+                profile=state.profile, target=state.target, bench=state.bench, bench_error=state.error,
+                suites=suites, operator=self.config.getoption("--operator"),
+                station=self.config.getoption("--station"))
+        except Exception as exc:  # noqa: BLE001 - the report says what it could not find; tests still run
+            self.properties = [("hil.properties", f"unavailable: {exc}")]
+        xml = _logxml(self.config)
+        if xml is not None:
+            for name, value in self.properties:
+                xml.add_global_property(name, value)
+        self._write_header(state)
+        self._attach(state)
+
+    def _write_header(self, state: Any) -> None:
+        reporter = self.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is None or self.config.get_verbosity() < 0:
+            return
+        from hil.plugin.reporting.console import header_panel, render
+        plc_line = getattr(state, "plc_line", "")
+        shown = [("bench", f"{state.profile.name} ({state.profile.path})")]
+        props = dict(self.properties)
+        shown += [("target", props.get("hil.target", "")), ("wire", props.get("hil.wire", "-")),
+                  ("PLC", plc_line.removeprefix("hil PLC: ") or "-")]
+        shown += [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties if k.startswith("hil.plc.")]
+        shown += [("operator", f"{props.get('hil.operator', '')} at {props.get('hil.station', '')}"),
+                  ("suites", props.get("hil.suites_commit", "")),
+                  ("harness", f"hil {props.get('hil.harness_version', '')}")]
+        tw = self.config.get_terminal_writer()
+        reporter.write(render(header_panel(shown, color=tw.hasmarkup), color=tw.hasmarkup, width=tw.fullwidth))
+
+    def _attach(self, state: Any) -> None:
+        """Hook the trace recorder (and, on a real bench's terminal, the wait bar) into the open bench."""
+        bench = getattr(state, "bench", None)
+        if bench is None or bench is self._traced_bench:
+            return
+        self._traced_bench = bench
+        if self.trace_mode != "off":
+            from hil.io.trace import WireTrace
+            self.trace = WireTrace().attach(bench.raw)
+        timebase = getattr(bench, "time", None)
+        if timebase is not None and not getattr(timebase, "virtual", True) and self.config.get_verbosity() >= 0:
+            from hil.plugin.reporting.console import WaitProgress
+            capman = self.config.pluginmanager.get_plugin("capturemanager")
+            suspend = capman.global_and_fixture_disabled if capman is not None else contextlib.nullcontext
+            timebase.wait = WaitProgress(timebase.wait, current=lambda: self.current, suspend=suspend)
+
+    # -- per test ------------------------------------------------------------------------------------------------
+    def pytest_runtest_logstart(self, nodeid: str, location: tuple) -> None:
+        self.current = nodeid
+        self.records[nodeid] = TestRecord(nodeid, area_of(nodeid))
+        state = self._state()
+        if state is not None:
+            self._attach(state)
+        if self.trace is not None:
+            self.trace.start()
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        record = self.records.get(report.nodeid)
+        if record is None:
+            record = self.records[report.nodeid] = TestRecord(report.nodeid, area_of(report.nodeid))
+        record.duration += getattr(report, "duration", 0.0)
+        _outcome(record, report)
+        if report.when == "teardown":
+            self._finish(record, report)
+
+    def _finish(self, record: TestRecord, report: pytest.TestReport) -> None:
+        if self.trace is None:
+            return
+        entries = self.trace.stop()
+        keep = entries and (self.trace_mode == "all" or record.outcome in ("failed", "error"))
+        if not keep:
+            return
+        from hil.io.trace import format_trace
+        record.trace = format_trace(entries, dropped=self.trace.dropped, kind=self.trace.kind)
+        if self.trace_dir is not None:
+            try:
+                self.trace_dir.mkdir(parents=True, exist_ok=True)
+                path = self.trace_dir / (_safe_name(record.nodeid) + ".txt")
+                path.write_text(f"# {record.nodeid}: {record.outcome}\n" + record.trace, encoding="utf-8")
+                record.trace_file = str(path)
+            except OSError as exc:
+                record.trace_file = f"not saved: {exc}"
+        xml = _logxml(self.config)
+        if xml is not None:
+            node = xml.node_reporter(report)
+            if record.trace_file:
+                node.add_property("hil.trace_file", record.trace_file)
+            existing = next((n for n in node.nodes if n.tag == "system-out"), None)
+            if existing is not None:
+                existing.text = (existing.text or "") + "\n" + record.trace
+            else:
+                out = ET.Element("system-out")
+                out.text = record.trace
+                node.nodes.append(out)
+
+    # -- the end ---------------------------------------------------------------------------------------------------
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        if self.html_path is None:
+            return
+        from hil.plugin.reporting.html import write_html
+        try:
+            self.html_written = write_html(self.html_path, self.records.values(), self.properties)
+        except OSError as exc:
+            reporter = self.config.pluginmanager.get_plugin("terminalreporter")
+            if reporter is not None:
+                reporter.write_line(f"hil: could not write the HTML report {self.html_path}: {exc}", red=True)
+
+    def pytest_terminal_summary(self, terminalreporter: Any) -> None:
+        if not self.uses_bench or self.config.get_verbosity() < -1 or not self.records:
+            return
+        from hil.plugin.reporting.console import render, summary_table
+        tw = self.config.get_terminal_writer()
+        terminalreporter.write(render(summary_table(self.records.values(), color=tw.hasmarkup),
+                                      color=tw.hasmarkup, width=tw.fullwidth))
+        if self.html_written is not None:
+            terminalreporter.write_line(f"hil: HTML report {self.html_written}")
+
+
+# -- fixtures ---------------------------------------------------------------------------------------------------------
+def _record(request: pytest.FixtureRequest) -> TestRecord:
+    plugin = request.config.pluginmanager.get_plugin("hil-reporter")
+    nodeid = request.node.nodeid
+    if plugin is None:  # an xdist worker or the plugin disabled: keep the data on the node
+        return TestRecord(nodeid, area_of(nodeid))
+    return plugin.records.setdefault(nodeid, TestRecord(nodeid, area_of(nodeid)))
+
+
+@pytest.fixture
+def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
+    """Record a measurement — ``measure("drift", 0.03, unit="s/day", low=-0.088, high=0.088)`` — as JUnit
+    testcase properties and in the HTML report; fail the test at once when it is outside its limits.
+
+    ``note``: context added to the failure message (what an out-of-limits value usually means)."""
+    record = _record(request)
+
+    def measure(name: str, value: float, *, unit: str = "", low: float | None = None,
+                high: float | None = None, note: str = "") -> Measurement:
+        if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
+            raise ValueError(f"measurement name {name!r}: use letters, digits, _ . - (it becomes a JUnit property)")
+        m = Measurement(name, float(value), unit, None if low is None else float(low),
+                        None if high is None else float(high))
+        record.measurements.append(m)
+        request.node.user_properties.extend(m.properties())
+        if not m.passed:
+            pytest.fail(f"measurement {m.describe()}" + (f": {note}" if note else ""), pytrace=False)
+        return m
+
+    return measure
+
+
+@pytest.fixture
+def report(request: pytest.FixtureRequest) -> ReportHandle:
+    """Attach plot-ready series to this test's entry in the HTML report (``report.attach_series(...)``)."""
+    return ReportHandle(_record(request))
+
+
+# -- helpers ---------------------------------------------------------------------------------------------------------
+def _path(value: Any) -> Path | None:
+    return Path(value) if value else None
+
+
+def _logxml(config: pytest.Config) -> Any:
+    try:
+        from _pytest.junitxml import xml_key  # the LogXML of --junitxml; as record_testsuite_property uses it
+    except ImportError:  # pragma: no cover - a pytest that moved it: no JUnit extras
+        return None
+    return config.stash.get(xml_key, None)
+
+
+def _safe_name(nodeid: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.\-]+", "_", nodeid).strip("_")[:180]
+
+
+def _outcome(record: TestRecord, report: pytest.TestReport) -> None:
+    if report.passed:
+        return
+    if report.skipped:
+        if record.outcome == "passed":
+            record.outcome = "skipped"
+            reason = getattr(report, "wasxfail", None)
+            if reason is not None:
+                record.message = f"xfail: {reason}" if reason else "xfail"
+            elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
+                record.message = str(report.longrepr[2]).removeprefix("Skipped: ")
+            else:
+                record.message = str(report.longrepr or "")
+        return
+    crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
+    text = report.longreprtext.strip()
+    message = crash.message if crash is not None else (text.splitlines()[-1] if text else "failed")
+    if report.when == "call":
+        record.outcome = "failed"
+    elif record.outcome != "failed":
+        record.outcome = "error"
+    line = f"{report.when}: {message}"
+    record.message = f"{record.message}\n{line}" if record.message else line
+    record.longrepr = f"{record.longrepr}\n\n{report.longreprtext}" if record.longrepr else report.longreprtext

@@ -1,8 +1,0 @@
-"""Transports: one abstraction over the FATEK protocol (serial, TCP), Modbus (RTU, TCP) and the in-process emulator.
-
-``open_transport(url)`` (in :mod:`hil.transport.factory`) is the only way to get one.
-"""
-
-from hil.transport.base import Limits, PlcStatus, Transport
-
-__all__ = ["Limits", "PlcStatus", "Transport"]
