@@ -116,15 +116,15 @@ def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
 
 
 # -- defaults ------------------------------------------------------------------------------------------------------
-@pytest.mark.emulator_only(reason="a bench's R4005–R4008 may have been set since power-on")
+@pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
 def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
     r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
     assert r4005 == 0x0102, f"R4005 = {r4005:04X}H; default: PID every 4 s (low byte 2), PWM period 2 s (high byte 1)"
     assert (r4006, r4007, r4008) == (90, 600, 3500), f"R4006–R4008 = {r4006}, {r4007}, {r4008}; defaults 90, 600, 3500"
 
 
-@pytest.mark.emulator_only(reason="only a PLC whose FUN86 has just executed for the first time shows 110/17/50; a "
-                                  "bench's gains may have been tuned since")
+@pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
+                                             "110/17/50; a bench's gains may have been tuned since")
 def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
     for inst in _instances(pid):
         _start(bench, pid, inst)
@@ -201,8 +201,9 @@ def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     assert pid.alm(inst), "a warning sets ALM even with every point normal"
 
 
-@pytest.mark.emulator_only(reason="counts PLC scans: on the emulator each request is serviced after exactly one "
-                                  "scan and bench.wait(n × scan time) is n scans; a real PLC scans freely")
+@pytest.mark.needs("scan_per_request", reason="counts PLC scans: on the emulator each request is serviced after "
+                                               "exactly one scan and bench.wait(n × scan time) is n scans; a real PLC "
+                                               "scans freely")
 @pytest.mark.parametrize("dip_after", [None, 5], ids=["steady", "dip-after-5"])
 def test_prealarm_needs_10_consecutive_scans(bench, pid, dip_after):
     inst = _instances(pid)[0]

@@ -7,7 +7,7 @@ import datetime as dt
 
 import pytest
 
-OUR_CHOICE_WRAP = pytest.mark.emulator_only(
+OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
     reason="the 2099 → 2000 wrap of a ±30 s carry is the spec's [our choice], not a manual statement")
 
 

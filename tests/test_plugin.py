@@ -58,7 +58,7 @@ def test_markers_skip_with_reasons_on_a_real_bench_target(pytester):
     pytester.makepyfile(test_marks="""
         import pytest
 
-        @pytest.mark.emulator_only(reason="jumps virtual time")
+        @pytest.mark.needs("virtual_time", reason="jumps virtual time")
         def test_needs_emulator(bench): pass
 
         @pytest.mark.slow
@@ -75,5 +75,5 @@ def test_markers_skip_with_reasons_on_a_real_bench_target(pytester):
     """)
     result = pytester.runpytest_inprocess("--bench", str(bench_file), "-rs")
     result.assert_outcomes(skipped=3)
-    result.stdout.fnmatch_lines(["*emulator only: jumps virtual time*", "*--hil-run-slow*",
+    result.stdout.fnmatch_lines(["*needs virtual_time: jumps virtual time*", "*--hil-run-slow*",
                                  "*--hil-allow-destructive*"])

@@ -39,7 +39,7 @@ def test_hil_run_writes_junit_with_suite_properties_and_measurements(hil_run):
     xml = JUnitXml.fromfile(str(out / "junit.xml"))
     suite = next(iter(xml))
     props = {p.name: p.value for p in suite.properties()}
-    assert props["hil.families.fbs.bench"] == "emulator"
+    assert props["hil.bench"] == "emulator"
     assert props["hil.target"] == "emulator"
     assert props["hil.plc.emulator_version"].startswith("hil-emulator")
     assert props["hil.plc.rtc_chip"] == "D4053 = 3 (S-35390A)"

@@ -25,6 +25,10 @@ class BenchBase:
         """True when the PLC is the in-process emulator (virtual time, direct fault injection)."""
         return self.raw.emulator is not None
 
+    def identity(self) -> dict[str, str]:
+        """What the family adds to the PLC's identity in reports (e.g. an FBs's RTC chip); never raises."""
+        return {}
+
     def wait(self, seconds: float) -> None:
         """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
         self.time.wait(seconds)

@@ -1,33 +1,31 @@
 """Bench profiles: a TOML file that says which PLC, over which wire, what the harness may write, and the layout.
 
 Every key is checked: an unknown key, a bad address, a bad range or a value of the wrong type is refused with an
-error that names the file and the key.  Sections of areas that validate themselves ([temperature], [pid],
-[plant], [faults.*]) are kept as tables here and checked by their own modules.
+error that names the file and the key.  The core reads [bench], [safety], [emulator], [rtc] and [wire_faults];
+the controller family named by ``[bench] family`` (a plug-in, :mod:`hil.bench.family`) reads its own sections
+([temperature], [pid], [plant] for an FBs; [s7], [s7rtc] for an S7-200 SMART) into typed records, once, and
+checks [faults.*] and the address ranges of [safety].
 """
 
 from __future__ import annotations
 
-import datetime as dt
 import hashlib
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from hil.families.fbs.address import parse_range
+from hil.bench.family import Family, families, family as family_named
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
 
-RTC_CHIPS = {"none": 0, "HT1381": 1, "ISL1208": 2, "S-35390A": 3}
-AREA_SECTIONS = ("temperature", "pid", "plant", "s7", "s7rtc")  # validated by their own modules
-FAMILIES = ("fbs", "s7-200smart")  # [bench] family: which controller the profile describes
-DEFAULT_VOLATILE = ["R4128-R4135"]  # the RTC read-out: the PLC rewrites it every scan
+CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults")
 
 
 @dataclass(frozen=True)
 class Safety:
     writable: tuple[str, ...] = ()
-    volatile: tuple[str, ...] = tuple(DEFAULT_VOLATILE)
+    volatile: tuple[str, ...] = ("R4128-R4135",)  # the FBs family's default (a profile always sets it)
     allow_destructive: bool = False
 
 
@@ -35,13 +33,6 @@ class Safety:
 class EmulatorSettings:
     scan_time_ms: float = 10.0
     seed: int = 0
-
-
-@dataclass(frozen=True)
-class RtcSettings:
-    chip: int = 3
-    crystal_ppm: float = 0.0
-    start: dt.datetime | None = None  # None: the bench's host time when the emulator is built
 
 
 @dataclass(frozen=True)
@@ -55,20 +46,30 @@ class Profile:
     timeout: float = 2.0
     safety: Safety = Safety()
     emulator: EmulatorSettings = EmulatorSettings()
-    rtc: RtcSettings | None = None
-    areas: dict[str, dict[str, Any]] = field(default_factory=dict)  # [temperature], [pid], [plant]
+    #: the family's sections as written ([temperature], [pid], …), for composing new profiles from this one
+    areas: dict[str, dict[str, Any]] = field(default_factory=dict)
     faults: dict[str, dict[str, Any]] = field(default_factory=dict)  # [faults.<name>]
     digest: str = ""  # sha256 of the file, for reports
     wire_faults: dict[str, Any] = field(default_factory=dict)  # [wire_faults]: emulator wires only, see below
-    family: str = "fbs"  # "fbs" or "s7-200smart": picks the device layer, emulator and suites
+    family: str = "fbs"  # the controller family plug-in: picks the device layer, emulator and suites
+    #: the family's sections parsed once into typed records (e.g. "temperature" → TemperatureConfig)
+    sections: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rtc(self) -> Any:
+        """The FBs family's ``[rtc]`` record (chip, crystal_ppm, start), None without that section."""
+        return self.sections.get("rtc")
+
+    @property
+    def plugin(self) -> Family:
+        return family_named(self.family)
 
     def can_write(self, name: str) -> bool:
-        from hil.families.fbs.transport.guard import expand
         try:
-            wanted = expand([name])
-        except AddressError:
+            wanted = self.plugin.elements([name])
+        except (AddressError, ValueError):
             return False
-        return wanted <= expand(self.safety.writable)
+        return wanted <= self.plugin.elements(self.safety.writable)
 
 
 # -- reading -----------------------------------------------------------------------------------------------------
@@ -88,13 +89,15 @@ def load_profile(path: str | Path) -> Profile:
 
 def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "") -> Profile:
     where = str(path) if path else "<profile>"
-    known = {"bench", "safety", "emulator", "rtc", "faults", "wire_faults", *AREA_SECTIONS}
+    installed = families()
+    owner = {section: plugin for plugin in installed.values() for section in plugin.sections}
     for section in data:
-        if section not in known:
-            raise ProfileError(f"{where}: unknown section [{section}] (known: {', '.join(sorted(known))})")
+        if section not in CORE_SECTIONS and section not in owner:
+            known = sorted({*CORE_SECTIONS, *owner})
+            raise ProfileError(f"{where}: unknown section [{section}] (known: {', '.join(known)})")
     if "bench" not in data:
         raise ProfileError(f"{where}: missing the [bench] section (name, target, station, time_scale)")
-    reader = _Reader(where)
+    reader = Reader(where)
     bench = reader.table(data, "bench")
     name = reader.take(bench, "bench", "name", str, required=True)
     target = reader.take(bench, "bench", "target", str, "emulator", check=_check_target)
@@ -103,15 +106,13 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     settle = reader.take(bench, "bench", "settle_scans", int, 2, check=lambda v: v >= 1 or "must be ≥ 1")
     timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
     family = reader.take(bench, "bench", "family", str, "fbs",
-                         check=lambda v: v in FAMILIES or f"must be one of {', '.join(FAMILIES)}")
+                         check=lambda v: v in installed or f"must be one of {', '.join(sorted(installed))}")
     reader.done(bench, "bench")
+    plugin = installed[family]
 
     safety_t = reader.table(data, "safety")
-    ranges = _check_ranges
-    volatile_default = list(DEFAULT_VOLATILE)
-    if family == "s7-200smart":  # S7 operand names (VB100-VB139), and no FBs read-out to skip
-        from hil.families.s7smart.layout import check_s7_ranges
-        ranges, volatile_default = check_s7_ranges, []
+    ranges = plugin.check_ranges
+    volatile_default = list(plugin.default_volatile)
     safety = Safety(
         writable=tuple(reader.take(safety_t, "safety", "writable", list, [], check=ranges)),
         volatile=tuple(reader.take(safety_t, "safety", "volatile", list, volatile_default, check=ranges)),
@@ -125,33 +126,15 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         seed=reader.take(emu_t, "emulator", "seed", int, 0))
     reader.done(emu_t, "emulator")
 
-    rtc = None
-    if "rtc" in data:
-        rtc_t = reader.table(data, "rtc")
-        rtc = RtcSettings(
-            chip=reader.take(rtc_t, "rtc", "chip", object, 3, convert=_chip),
-            crystal_ppm=reader.take(rtc_t, "rtc", "crystal_ppm", float, 0.0,
-                                    check=lambda v: abs(v) <= 500 or "must be within ±500 ppm"),
-            start=reader.take(rtc_t, "rtc", "start", object, None, convert=_start))
-        reader.done(rtc_t, "rtc")
 
-    areas = {s: reader.table(data, s) for s in AREA_SECTIONS if s in data}
-    if "temperature" in areas:  # refuse a bad [temperature] when the profile is read, not when a test runs
-        from hil.families.fbs.temperature import parse_temperature
-        parse_temperature(areas["temperature"], where)
-    if "pid" in areas:  # FUN86 instances: addresses, ranges and overlaps refused with the reason
-        from hil.families.fbs.pid import parse_pid
-        parse_pid(areas["pid"], where)
-    if "plant" in areas:
-        from hil.families.fbs.sim.models.plant import parse_plant
-        parse_plant(areas["plant"], where)
-    if family == "s7-200smart":
-        from hil.families.s7smart.layout import parse_s7_settings, parse_s7rtc
-        parse_s7_settings(areas.get("s7", {}), where)
-        if "s7rtc" in areas:
-            parse_s7rtc(areas["s7rtc"], where)
-    elif "s7" in areas or "s7rtc" in areas:
-        raise ProfileError(f"{where}: [s7]/[s7rtc] describe an S7-200 SMART: set [bench] family = \"s7-200smart\"")
+    for section in data:
+        if section in owner and owner[section] is not plugin:
+            other = owner[section]
+            raise ProfileError(f"{where}: [{section}] describes {other.a_title}, not {plugin.a_title}: set "
+                               f"[bench] family = \"{other.name}\" (or remove the section)")
+    areas = {s: reader.table(data, s) for s in plugin.sections if s in data}
+    # refused when the profile is read, not when a test runs; parsed once, here
+    sections = plugin.parse_sections(areas, where)
     faults_t = reader.table(data, "faults")
     faults = {}
     for fault, table in faults_t.items():
@@ -159,14 +142,13 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
             raise ProfileError(f"{where}: [faults.{fault}] must be a table")
         faults[fault] = table
     if faults:
-        from hil.families.fbs.faults import check_fault_configs
-        check_fault_configs(faults, where)
+        plugin.check_faults(faults, where)
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
-    return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, rtc, areas,
-                   faults, digest, wire_faults=wire_faults, family=family)
+    return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
+                   faults, digest, wire_faults=wire_faults, family=family, sections=sections)
 
 
-def _wire_faults(reader: "_Reader", data: dict[str, Any]) -> dict[str, Any]:
+def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:
     """``[wire_faults]``: faults the emulator's servers put on the wire (emulator+… targets only).
 
     ``seed`` (int), ``delay_seconds`` (how long a "delay" holds a reply) and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
@@ -195,7 +177,7 @@ def _wire_faults(reader: "_Reader", data: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-class _Reader:
+class Reader:
     """Takes keys out of a table one by one, so that whatever is left over is an unknown key."""
 
     def __init__(self, where: str) -> None:
@@ -238,29 +220,3 @@ class _Reader:
 def _check_target(value: str) -> bool:
     parse_target(value)
     return True
-
-
-def _check_ranges(value: list) -> bool:
-    for item in value:
-        if not isinstance(item, str):
-            raise ValueError(f"{item!r} is not an address range like 'R4128-R4135'")
-        parse_range(item)
-    return True
-
-
-def _chip(value: Any) -> int:
-    if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 3:
-        return value
-    if isinstance(value, str) and value in RTC_CHIPS:
-        return RTC_CHIPS[value]
-    raise ValueError(f"chip must be 0–3 or one of {', '.join(RTC_CHIPS)}, not {value!r}")
-
-
-def _start(value: Any) -> dt.datetime | None:
-    if isinstance(value, dt.datetime):
-        return value.replace(tzinfo=None)
-    if value == "host":
-        return None
-    if isinstance(value, str):
-        return dt.datetime.fromisoformat(value)
-    raise ValueError(f"start must be 'host' or a date-time like '2024-02-29 12:00:00', not {value!r}")

@@ -7,7 +7,7 @@ import signal
 import sys
 import threading
 
-from hil.families.fbs.sim.build import build_emulator
+from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
 from hil.bench.profile import load_profile
 from hil.families.fbs.transport.factory import serve

@@ -22,10 +22,7 @@ class LivePanel:
         self.servers = servers
         self.time_scale = time_scale
         self.stop = stop
-        self.temperature = None
-        if "temperature" in profile.areas:
-            from hil.families.fbs.temperature import parse_temperature
-            self.temperature = parse_temperature(profile.areas["temperature"], str(profile.path))
+        self.temperature = profile.sections.get("temperature")
         self._live = Live(self.render(), refresh_per_second=2, transient=False)
         self._thread = threading.Thread(target=self._loop, name="hil-emulate-live", daemon=True)
 

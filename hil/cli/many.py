@@ -119,7 +119,7 @@ def merge(parts: list[tuple[str, Path, int | None, Path]], out: Path) -> ET.Elem
 
 def _error_suite(name: str, message: str) -> ET.Element:
     suite = ET.Element("testsuite", name=name, tests="1", errors="1", failures="0", skipped="0")
-    case = ET.SubElement(suite, "testcase", classname=f"hil.families.fbs.bench.{name}", name="run")
+    case = ET.SubElement(suite, "testcase", classname=f"hil.bench.{name}", name="run")
     ET.SubElement(case, "error", message=message).text = message
     return suite
 

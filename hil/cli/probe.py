@@ -4,17 +4,16 @@ from __future__ import annotations
 
 
 from rich.console import Console
-from rich.markup import escape
-from rich.panel import Panel
 from rich.table import Table
 
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.device.temperature import Temperature
 from hil.core.errors import HilError
-from hil.families.fbs.temperature import BREAK_VALUE, parse_temperature
+from hil.families.fbs.temperature import BREAK_VALUE
 from hil.bench.profile import Profile
 from hil.core.timebase import HostTimebase
-from hil.families.fbs.transport.base import PlcStatus, Transport
+from hil.families.fbs.transport.base import Transport
+from hil.cli.status import status_panel
 from hil.cli.target import open_target
 
 # (label, element) — read only where the wire can reach them.
@@ -27,14 +26,22 @@ PROBE_REGISTERS = [
 _COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
 
 
+def _probe_s7(profile: object, url: str | None, console: Console) -> int:
+    from hil.cli.probe_s7 import probe_s7
+    return probe_s7(profile, url, console)
+
+
+#: families whose probe is not the FBs one below (by the name their plug-in is registered under)
+_OTHER_FAMILIES = {"s7-200smart": _probe_s7}
+
+
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:
     """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
     if bench is not None:
         from hil.bench.profile import load_profile
         given = load_profile(bench)
-        if given.family == "s7-200smart":
-            from hil.cli.probe_s7 import probe_s7
-            return probe_s7(given, url, console)
+        if given.family in _OTHER_FAMILIES:
+            return _OTHER_FAMILIES[given.family](given, url, console)
     with open_target(url, bench) as opened:
         transport, profile = opened.transport, opened.profile if bench else None
         console.print(status_panel(transport.status(), transport.description))
@@ -49,29 +56,15 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
             values = transport.read_words(element, _COUNTS.get(element, 1))
             table.add_row(label, " ".join(f"{v} ({v:04X}H)" for v in values))
         console.print(table)
-        if profile is not None and "temperature" in profile.areas:
+        if profile is not None and "temperature" in profile.sections:
             console.print(temperature_table(transport, profile))
     return 0
-
-
-def status_panel(status: PlcStatus, description: str, **extra: str) -> Panel:
-    """The PLC's state (coloured: green RUN, yellow STOP), the wire, ``extra`` rows and its identity."""
-    running = {True: "green", False: "yellow", None: "dim"}[status.running]
-    grid = Table.grid(padding=(0, 2))
-    grid.add_column(style="bold cyan", no_wrap=True)
-    grid.add_column()
-    grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
-    grid.add_row("via", escape(status.via or description))
-    for key, value in [*extra.items(), *status.identity.items()]:
-        grid.add_row(escape(key), escape(str(value)))
-    return Panel(grid, title=f"PLC at {escape(description)}", title_align="left", expand=False,
-                 border_style=running)
 
 
 def temperature_table(transport: Transport, profile: Profile) -> Table:
     """One row per configured point: module, sensor, installed bit, reading, break bit; the caption has the
     table marker, execution code and counts as the PLC reports them."""
-    config = parse_temperature(profile.areas["temperature"], str(profile.path))
+    config = profile.sections["temperature"]
     if transport.emulator is not None:  # a freshly built emulator: let every point be measured once
         transport.emulator.advance(config.update_period() * 1.5)
     temp = Temperature(FbsPlc(transport, HostTimebase()), config)

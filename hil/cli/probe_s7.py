@@ -16,7 +16,7 @@ from hil.families.s7smart import timebuf
 
 
 def probe_s7(profile: Profile, url: str | None, console: Console) -> int:
-    from hil.cli.probe import status_panel
+    from hil.cli.status import status_panel
     from hil.families.s7smart.bench import S7Bench
     bench = S7Bench(profile, target=url)
     try:

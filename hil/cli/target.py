@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from typing import Iterator
 
 from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.plugin import FAMILY as FBS
+from hil.families.fbs.sim.build import build_emulator
 from hil.core.errors import HilError
 from hil.bench.profile import Profile, load_profile
 from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
@@ -37,10 +39,10 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
     """The PLC at ``url`` (default: the profile's target); ``bench`` supplies timeout, time scale, layout."""
     from hil.core.paths import default_bench
     given = load_profile(bench) if bench else None
-    if given is not None and given.family != "fbs":
-        raise HilError(f"bench {given.name!r} ({bench}) is an S7-200 SMART (family {given.family!r}); this command "
-                       f"works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows it, "
-                       f"hil run --bench {bench} runs its suites")
+    if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family
+        raise HilError(f"bench {given.name!r} ({bench}) is {given.plugin.a_title} (family {given.family!r}); this "
+                       f"command works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows "
+                       f"it, hil run --bench {bench} runs its suites")
     if url is None and given is None:
         raise ValueError("name a target URL or a bench profile (--bench FILE)")
     target = parse_target(url or given.target)
@@ -48,7 +50,6 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
     epoch = dt.datetime.now().replace(microsecond=0)
     factory = None
     if target.in_process:
-        from hil.families.fbs.sim.build import build_emulator
         factory = lambda: build_emulator(profile, epoch)  # noqa: E731
     timeout = given.timeout if given is not None else None
     with open_transport(target, emulator_factory=factory, timeout=timeout) as transport:

@@ -10,10 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import time
-from typing import TYPE_CHECKING, Protocol
-
-if TYPE_CHECKING:
-    from hil.families.fbs.sim.plc import Emulator
+from typing import Protocol
 
 
 class Timebase(Protocol):
@@ -29,6 +26,14 @@ class Timebase(Protocol):
     @property
     def virtual(self) -> bool:
         """True when time is simulated (waiting costs no wall time)."""
+
+
+class VirtualClock(Protocol):
+    """What an emulator's engine offers a timebase: virtual seconds since power-on, and a way to let them pass."""
+
+    now: float
+
+    def advance(self, seconds: float) -> None: ...
 
 
 class HostTimebase:
@@ -53,7 +58,7 @@ class HostTimebase:
 class EmulatorTimebase:
     virtual = True
 
-    def __init__(self, emulator: "Emulator", epoch: dt.datetime | None = None) -> None:
+    def __init__(self, emulator: VirtualClock, epoch: dt.datetime | None = None) -> None:
         self.emulator = emulator
         # Calendar time at virtual t = 0; whole seconds so that "host time" has no sub-second offset.
         self.epoch = (epoch or dt.datetime.now()).replace(microsecond=0)

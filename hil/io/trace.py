@@ -3,7 +3,7 @@
 :class:`WireTrace` attaches to a transport once and records into whichever test is current:
 
 * FATEK (:class:`~hil.families.fbs.transport.fatek.FatekTransport`): its ``observers`` see each frame; decoded with
-  :func:`hil.families.fbs.protocol.fatek.describe_frame`;
+  the decoder the family registered in :data:`DESCRIBERS` (``hil.families.fbs.protocol.fatek.describe_frame``);
 * Modbus (anything holding a pymodbus sync client as ``.client``): the client's packet trace (``trace_packet``),
   the raw ADU bytes as they go out and come in, decoded to function, address and quantity;
 * no wire (the in-process ``emulator`` target, an S7 in-process io): the transport calls themselves.
@@ -19,6 +19,8 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Callable
 
+#: frame decoders of the families' own protocols, by trace kind (a family registers its own, e.g. "fatek")
+DESCRIBERS: dict[str, Callable[..., str]] = {}
 MAX_ENTRIES = 20_000  # per test: a virtual day of polling stays bounded; the oldest frames are dropped first
 
 
@@ -117,9 +119,8 @@ class WireTrace:
                 name, args, result = extra
                 shown = ", ".join(_short(a) for a in args)
                 return f"{name}({shown})" + ("" if result is None else f" → {_short(result)}")
-            if self.kind == "fatek":
-                from hil.families.fbs.protocol.fatek import describe_frame
-                return describe_frame(data, reply=direction == "rx")
+            if self.kind in DESCRIBERS:
+                return DESCRIBERS[self.kind](data, reply=direction == "rx")
             if self.kind.startswith("modbus"):
                 return describe_modbus(data, rtu=self.kind == "modbus-rtu", reply=direction == "rx")
         except Exception as exc:  # noqa: BLE001 - a trace never breaks a test

@@ -11,21 +11,24 @@ from typing import Iterator
 
 import pytest
 
-from hil.families.fbs.bench import Bench, open_bench
+from hil.bench.base import BenchBase as Bench
+from hil.bench.family import build_emulator, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
+from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
 from hil.io.url import parse_target
 
 pytest_plugins = ["hil.plugin.perf"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
-    "emulator_only": "emulator_only(reason): needs what only the in-process emulator gives (virtual time jumps, "
-                     "fault injection without a rig); skipped on other targets",
+    "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
+             "power_on_state, scan_per_request, power_cycle, spec_choices; hil.bench.capabilities); skipped with "
+             "the reason on a bench that does not offer it",
     "slow": "slow: takes minutes of bench time on a real PLC; skipped there unless --hil-run-slow "
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
                    "profile's [safety] allow_destructive",
-    "family": "family(name): the controller family a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
+    "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
               "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
 }
 
@@ -142,7 +145,6 @@ _WIRE_FAILURE = pytest.StashKey[str]()
 
 
 def _default_build(profile: Profile, epoch):  # noqa: ANN001, ANN202
-    from hil.families.fbs.sim.build import build_emulator
     return build_emulator(profile, epoch)
 
 
@@ -177,17 +179,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     except HilError as exc:
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
+    offered = bench_capabilities(target)
     for item in items:
         if "bench" in getattr(item, "fixturenames", ()):
             family = item.get_closest_marker("family")
-            wanted = (family.args[0] if family and family.args else "fbs")
-            if wanted != profile.family:
+            wanted = tuple(family.args) if family and family.args else ("fbs",)
+            if profile.family not in wanted:
                 item.add_marker(pytest.mark.skip(
-                    reason=f"for {wanted} PLCs; bench {profile.name!r} is family {profile.family!r}"))
-        marker = item.get_closest_marker("emulator_only")
-        if marker and not target.in_process:
-            why = marker.kwargs.get("reason") or (marker.args[0] if marker.args else "needs the emulator")
-            item.add_marker(pytest.mark.skip(reason=f"emulator only: {why} (target {target})"))
+                    reason=f"for {' or '.join(wanted)} PLCs; bench {profile.name!r} is family {profile.family!r}"))
+        for marker in item.iter_markers("needs"):
+            bad = unknown(marker.args)
+            if bad or not marker.args:
+                raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
+                                        f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
+            missing = [name for name in marker.args if name not in offered]
+            if missing:
+                why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
+                item.add_marker(pytest.mark.skip(
+                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it)"))
         if item.get_closest_marker("destructive") and not destructive_ok:
             item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):

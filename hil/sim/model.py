@@ -6,7 +6,7 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from hil.families.fbs.sim.plc import Emulator
+    from hil.sim.engine import Engine
 
 
 class Model:
@@ -21,10 +21,10 @@ class Model:
 
     name = "model"
 
-    def power_on(self, emu: "Emulator") -> None:
+    def power_on(self, emu: "Engine") -> None:
         pass
 
-    def scan(self, emu: "Emulator") -> None:
+    def scan(self, emu: "Engine") -> None:
         pass
 
     def next_event(self, now: float) -> float:

@@ -178,14 +178,14 @@ def test_held_trigger_sets_once(bench, clock):
 
 
 # -- power loss (emulator: power cycles on demand) -----------------------------------------------------------------
-@pytest.mark.emulator_only(reason="switches the CPU off and on")
+@pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
 def test_power_loss_starts_at_2000_01_01_saturday(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.power_cycle(backup_expired=True)
     assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), "after the back-up ran out: ")
 
 
-@pytest.mark.emulator_only(reason="switches the CPU off and on")
+@pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
 def test_power_cycle_keeps_the_time_only_with_an_rtc(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(2)

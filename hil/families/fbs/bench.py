@@ -46,15 +46,22 @@ class Bench(BenchBase):
         self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
                                else HostTimebase(profile.time_scale))
         self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
-        if "temperature" in profile.areas:
-            from hil.families.fbs.temperature import parse_temperature
-            self.plc.temperature.config = parse_temperature(profile.areas["temperature"],
-                                                            str(profile.path or "<profile>"))
-        if "pid" in profile.areas:
-            from hil.families.fbs.pid import parse_pid
-            self.plc.pid.config = parse_pid(profile.areas["pid"], str(profile.path or "<profile>"))
+        if "temperature" in profile.sections:
+            self.plc.temperature.config = profile.sections["temperature"]
+        if "pid" in profile.sections:
+            self.plc.pid.config = profile.sections["pid"]
         from hil.families.fbs.faults import Faults
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
+
+    def identity(self) -> dict[str, str]:
+        try:
+            reason = self.raw.unreachable_reason(reg.RTC_CHIP)
+            if reason:
+                return {"rtc chip": f"unavailable: {reason}"}
+            chip = self.plc.rtc.chip
+            return {"rtc chip": f"{reg.RTC_CHIP} = {int(chip)} ({chip.name})"}
+        except Exception as exc:  # noqa: BLE001 - a PLC that will not say what it is still gets tested
+            return {"rtc chip": f"unavailable: {exc}"}
 
     # -- what suites use ----------------------------------------------------------------------------------
     def cannot_reach(self, *names: str) -> str | None:
@@ -115,10 +122,3 @@ class Bench(BenchBase):
         self.faults.close()
         self.io.close()
 
-
-def open_bench(profile: Profile, **kwargs) -> "Bench":  # noqa: ANN003 - Bench's keyword arguments
-    """The bench for the profile's controller family: :class:`Bench` (FBs) or an S7-200 SMART bench."""
-    if profile.family == "s7-200smart":
-        from hil.families.s7smart.bench import S7Bench
-        return S7Bench(profile, **kwargs)  # type: ignore[return-value]  # same surface as Bench
-    return Bench(profile, **kwargs)

@@ -16,7 +16,7 @@ from hil.families.s7smart.address import parse_s7_range, units
 from hil.families.s7smart.device import S7Plc
 from hil.families.s7smart.emulator import S7Emulator
 from hil.families.s7smart.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
-from hil.families.s7smart.layout import S7RtcLayout, S7Settings, parse_s7_settings, parse_s7rtc
+from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.modbus_map import S7ModbusMap
 from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
 from hil.io.url import Target, parse_target
@@ -62,10 +62,8 @@ class S7Bench(BenchBase):
     def __init__(self, profile: Profile, *, target: str | None = None,
                  emulator_builder: S7EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
         self.profile = profile
-        where = str(profile.path or "<profile>")
-        self.settings: S7Settings = parse_s7_settings(profile.areas.get("s7", {}), where)
-        self.layout: S7RtcLayout | None = (parse_s7rtc(profile.areas["s7rtc"], where)
-                                           if "s7rtc" in profile.areas else None)
+        self.settings: S7Settings = profile.sections["s7"]
+        self.layout: S7RtcLayout | None = profile.sections.get("s7rtc")
         self.target: Target = parse_target(target or profile.target)
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
@@ -101,7 +99,7 @@ class S7Bench(BenchBase):
         """Emulator only: switch the CPU off and on (``backup_expired``: the clock's back-up ran out)."""
         emulator = self.raw.emulator
         if emulator is None:
-            raise HilError("power_cycle needs the in-process emulator (mark the test emulator_only)")
+            raise HilError("power_cycle needs the in-process emulator (mark the test needs('power_cycle'))")
         emulator.power_cycle(backup_expired=backup_expired)
 
     def begin_test(self) -> None:

@@ -16,7 +16,7 @@ from hil.families.s7smart.address import S7Address
 from hil.families.s7smart.io import S7Io
 from hil.families.s7smart.layout import S7RtcLayout
 from hil.core.timebase import Timebase
-from hil.families.fbs.transport.base import PlcStatus
+from hil.io.status import PlcStatus
 
 
 @dataclass(frozen=True)

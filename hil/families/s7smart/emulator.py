@@ -13,7 +13,7 @@ import datetime as dt
 import math
 from typing import TYPE_CHECKING
 
-from hil.families.fbs.sim.plc import Emulator
+from hil.sim.engine import Engine
 from hil.sim.model import Model
 from hil.families.s7smart import timebuf
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
@@ -64,17 +64,16 @@ class S7Memory:
         return copy.deepcopy(self.areas)
 
 
-class S7Emulator(Emulator):
+class S7Emulator(Engine):
     """The shared scan engine (service at a scan boundary, virtual time) with S7 memory instead of FBs memory."""
 
     family = "s7-200smart"
 
     def __init__(self, *, scan_time: float = 0.01, models=(), station: int = 1, seed: int = 0,  # noqa: ANN001
                  cpu: str = "ST40") -> None:
-        super().__init__(scan_time=scan_time, station=station, seed=seed)
-        self.memory = S7Memory()  # type: ignore[assignment]  # replaces the FBs memory before any model sees it
+        super().__init__(S7Memory(), scan_time=scan_time, station=station, seed=seed)
         self.cpu = cpu
-        self.version = f"{Emulator.version} (S7-200 SMART {cpu})"
+        self.version = f"{Engine.version} (S7-200 SMART {cpu})"
         for model in models:
             self.add_model(model)
 
@@ -101,10 +100,10 @@ class S7Clock(Model):
         self._anchor = self.start
         self._anchor_now = 0.0
 
-    def power_on(self, emu: Emulator) -> None:
+    def power_on(self, emu: S7Emulator) -> None:
         self._anchor, self._anchor_now = self.start, emu.now
 
-    def power_cycle(self, emu: Emulator, *, backup_expired: bool) -> None:
+    def power_cycle(self, emu: S7Emulator, *, backup_expired: bool) -> None:
         if backup_expired or not self.has_rtc:  # CR40/CR60: no clock to keep; others after the back-up ran out
             self._anchor, self._anchor_now = timebuf.POWER_LOSS_TIME, emu.now
 
@@ -151,17 +150,17 @@ class RtcTestProgram(Model):
         self.layout = layout
         self._previous: dict[S7Address, int] = {}
 
-    def power_on(self, emu: Emulator) -> None:
+    def power_on(self, emu: S7Emulator) -> None:
         self._previous = {t: 0 for t in self.layout.triggers()}
 
-    def power_cycle(self, emu: Emulator, *, backup_expired: bool) -> None:
+    def power_cycle(self, emu: S7Emulator, *, backup_expired: bool) -> None:
         self.power_on(emu)
 
     def fires(self, previous: int, now: int) -> bool:
         """EU: a rising edge.  (A level-triggered program would fire on ``now`` alone.)"""
         return bool(now and not previous)
 
-    def scan(self, emu: Emulator) -> None:
+    def scan(self, emu: S7Emulator) -> None:
         mem: S7Memory = emu.memory  # type: ignore[assignment]
         clock = emu.model(S7Clock)
         if clock is None:
@@ -192,13 +191,11 @@ class RtcTestProgram(Model):
 
 def build_s7_emulator(profile: "Profile", epoch: dt.datetime) -> S7Emulator:
     """The emulator an S7 profile describes: CPU (with or without RTC), clock start, and the [s7rtc] program."""
-    from hil.families.s7smart.layout import parse_s7_settings, parse_s7rtc
-    where = str(profile.path or "<profile>")
-    settings: S7Settings = parse_s7_settings(profile.areas.get("s7", {}), where)
+    settings: S7Settings = profile.sections["s7"]
     emulator = S7Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
                           seed=profile.emulator.seed, cpu=settings.cpu)
     start = epoch if settings.start == "host" else None
     emulator.add_model(S7Clock(has_rtc=settings.has_rtc, start=start))
-    if "s7rtc" in profile.areas:
-        emulator.add_model(RtcTestProgram(parse_s7rtc(profile.areas["s7rtc"], where)))
+    if "s7rtc" in profile.sections:
+        emulator.add_model(RtcTestProgram(profile.sections["s7rtc"]))
     return emulator

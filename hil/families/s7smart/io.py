@@ -22,7 +22,7 @@ from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, Restore
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
-from hil.families.fbs.transport.base import PlcStatus
+from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
     from hil.families.s7smart.emulator import S7Emulator
@@ -254,7 +254,7 @@ class ModbusS7Io(S7Io):
         """One request.  Reads are retried (``retries``) by us — pymodbus itself never retries, since it would
         repeat a write too; a write whose reply never came raises OutcomeUnknown and is not sent again."""
         from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
-        from hil.families.fbs.transport.modbus import EXCEPTION_NAMES
+        from hil.io.modbus_codes import EXCEPTION_NAMES
         tries = 1 if write else self.retries + 1
         for attempt in range(1, tries + 1):
             self.requests += 1

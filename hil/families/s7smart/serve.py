@@ -1,7 +1,7 @@
 """Serve an S7 emulator over Modbus/TCP with the S7-200 SMART map, on pymodbus's server.
 
 Same pattern as :mod:`hil.families.fbs.sim.serve_modbus` (a SimDevice whose async ``action`` forwards every request into
-:meth:`Emulator.service`, so it is handled at a scan boundary), but with the S7 tables: holding registers = V
+:meth:`hil.sim.engine.Engine.service`, so it is handled at a scan boundary), but with the S7 tables: holding registers = V
 words from HoldStart (MaxHold of them), coils = Q0.0–Q31.7, discrete inputs = I0.0–I31.7, input registers =
 AIW0–AIW110 (read as 0: the emulator has no analog inputs).  Only the function codes MBUS_SLAVE supports are
 answered (01, 02, 03, 04, 05, 06, 15, 16); pymodbus answers ILLEGAL_ADDRESS outside the tables itself.

@@ -87,19 +87,8 @@ def plc_identity(bench: Any) -> dict[str, str]:
         out.pop("version", None)
         out.pop("seed", None)
         out.pop("unit", None)
-    if getattr(bench.profile, "family", "fbs") == "fbs":
-        try:
-            reason = raw.unreachable_reason("D4053")
-            out["rtc chip"] = (f"unavailable: {reason}" if reason
-                               else _chip_name(bench.io.read("D4053")))
-        except Exception as exc:  # noqa: BLE001
-            out["rtc chip"] = f"unavailable: {exc}"
+    out.update(bench.identity())  # what the family adds (an FBs: its RTC chip)
     return out
-
-
-def _chip_name(code: int) -> str:
-    names = {0: "none", 1: "HT1381", 2: "ISL1208", 3: "S-35390A"}  # hil.families.fbs.registers.RTC_CHIP
-    return f"D4053 = {code} ({names.get(code, 'unknown')})"
 
 
 def suite_properties(*, profile: Any, target: str, bench: Any | None, bench_error: str | None, suites: Path | None,
@@ -108,7 +97,7 @@ def suite_properties(*, profile: Any, target: str, bench: Any | None, bench_erro
     operator and station."""
     url = public_url(target)
     who, where = operator_and_station(operator, station)
-    props = [("hil.families.fbs.bench", profile.name), ("hil.target", url), ("hil.families.fbs.transport", transport_name(url))]
+    props = [("hil.bench", profile.name), ("hil.target", url), ("hil.transport", transport_name(url))]
     if bench is not None:
         description = getattr(getattr(bench, "raw", None), "description", "")
         if description:
@@ -118,7 +107,7 @@ def suite_properties(*, profile: Any, target: str, bench: Any | None, bench_erro
         props.append(("hil.plc.identity", f"unavailable: {bench_error or 'no test used the bench'}"))
     props += [("hil.harness_version", __version__),
               ("hil.suites_commit", git_commit(suites) if suites else "unavailable: no suite files"),
-              ("hil.bench.profile", str(profile.path or "<profile>")),
+              ("hil.profile", str(profile.path or "<profile>")),
               ("hil.profile_sha256", profile.digest or "unavailable"),
               ("hil.operator", who), ("hil.station", where)]
     return props

@@ -9,22 +9,17 @@ from hil.bench.profile import Profile
 
 
 def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
-    """An emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
-    if profile.family == "s7-200smart":  # the profile picks the controller; the engine is shared
-        from hil.families.s7smart.emulator import build_s7_emulator  # noqa: PLC0415
-        return build_s7_emulator(profile, epoch)
+    """An FBs emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
     emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
                         seed=profile.emulator.seed)
     from hil.families.fbs.sim.models.rtc import RtcModel  # noqa: PLC0415 - models import the engine
     rtc = profile.rtc
     emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,
                                 start=(rtc.start if rtc and rtc.start else epoch)))
-    if "temperature" in profile.areas:
+    if "temperature" in profile.sections:
         from hil.families.fbs.sim.models.temperature import TemperatureModel  # noqa: PLC0415
-        from hil.families.fbs.temperature import parse_temperature  # noqa: PLC0415
-        emulator.add_model(TemperatureModel(parse_temperature(profile.areas["temperature"],
-                                                              str(profile.path or "<profile>"))))
-    if "pid" in profile.areas or "plant" in profile.areas:
+        emulator.add_model(TemperatureModel(profile.sections["temperature"]))
+    if "pid" in profile.sections or "plant" in profile.sections:
         add_pid_models(emulator, profile)
     return emulator
 
@@ -32,18 +27,17 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
 def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     """FUN86 (the ladder's PID instances, [pid]) and the thermal plant ([plant]) after the temperature modules."""
     from hil.families.fbs.sim.models.fun86 import Fun86Model  # noqa: PLC0415
-    from hil.families.fbs.sim.models.plant import ThermalPlant, parse_plant  # noqa: PLC0415
+    from hil.families.fbs.sim.models.plant import ThermalPlant  # noqa: PLC0415
     from hil.families.fbs.sim.models.temperature import TemperatureModel  # noqa: PLC0415
-    from hil.families.fbs.pid import PidConfig, parse_pid  # noqa: PLC0415
-    where = str(profile.path or "<profile>")
-    config = parse_pid(profile.areas["pid"], where) if "pid" in profile.areas else PidConfig(())
+    from hil.families.fbs.pid import PidConfig  # noqa: PLC0415
+    config = profile.sections.get("pid") or PidConfig(())
     temperature = emulator.model(TemperatureModel)
     fun86 = Fun86Model(config, temperature.config if temperature else None)
     if temperature is not None:
         fun86.next_measurement = temperature.next_measurement
         fun86.temperature_model = temperature
     emulator.add_model(fun86)
-    if "plant" in profile.areas:
+    if "plant" in profile.sections:
         heaters = {p: inst.yn.offset(p - inst.sn) for inst in config.instances if not inst.settable
                    for p in inst.points}
-        emulator.add_model(ThermalPlant(parse_plant(profile.areas["plant"], where), heaters, seed=emulator.seed))
+        emulator.add_model(ThermalPlant(profile.sections["plant"], heaters, seed=emulator.seed))

@@ -1,119 +1,35 @@
-"""The emulator's scan engine: memory, models, and a clock that is virtual (tests) or wall-driven (``hil emulate``).
-
-Requests from any wire are serviced at a scan boundary, as port 0 of a real FBs answers at the end of a scan:
-:meth:`Emulator.service` completes one scan and then runs the request against memory, under one lock.
-"""
+"""An FBs main unit in software: the shared scan engine with FBs memory and what a power-on leaves in it."""
 
 from __future__ import annotations
 
-import collections
-import math
-import threading
-import time
-from typing import Callable, Iterable, TypeVar
+from typing import Iterable
 
-from hil import __version__
+from hil.families.fbs.registers import POWER_ON_DEFAULTS
 from hil.families.fbs.sim import kernel
 from hil.families.fbs.sim.memory import Memory
+from hil.sim.engine import Engine
 from hil.sim.model import Model
-from hil.families.fbs.registers import POWER_ON_DEFAULTS
-
-T = TypeVar("T")
 
 #: Main-unit identity the emulator reports in the detailed status (command 53). [our choice] values.
 UNIT_TYPE_MC = 0x01
 OS_VERSION = 0x40  # "V4.0x"
 
 
-class Emulator:
-    """An FBs main unit in software.  Thread-safe: every entry point takes :attr:`lock`."""
+class Emulator(Engine):
+    """An FBs main unit.  Thread-safe: every entry point takes :attr:`lock`."""
 
-    version = f"hil-emulator {__version__}"
+    family = "fbs"
+    memory: Memory
 
     def __init__(self, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
-        if scan_time <= 0:
-            raise ValueError(f"scan time must be positive, not {scan_time}")
-        self.scan_time = scan_time
-        self.station = station
-        self.seed = seed
-        self.memory = Memory()
-        self.models: list[Model] = []
-        self.lock = threading.RLock()
-        self.stats: collections.Counter[str] = collections.Counter()
-        self.now = 0.0  # virtual seconds since power-on
-        self.scans = 0
-        self.running = True
-        self.realtime = False  # True while run_realtime() drives the clock
-        #: long spans without requests run in the compiled kernel where it applies (hil/emulator/kernel.py)
+        super().__init__(Memory(), scan_time=scan_time, station=station, seed=seed)
+        #: long spans without requests run in the compiled kernel where it applies (kernel.py)
         self.use_kernel = True
         for name, value in POWER_ON_DEFAULTS.items():
             self.memory.set(name, value)
         for model in models:
             self.add_model(model)
 
-    def add_model(self, model: Model) -> None:
-        with self.lock:
-            model.power_on(self)
-            self.models.append(model)
-
-    def model(self, cls: type[T]) -> T | None:
-        """The first model of type ``cls``, if fitted."""
-        return next((m for m in self.models if isinstance(m, cls)), None)
-
-    # -- scanning -------------------------------------------------------------------------------------------
-    def scan(self) -> None:
-        with self.lock:
-            self.now += self.scan_time
-            self.scans += 1
-            for model in self.models:
-                model.scan(self)
-
-    def service(self, request: Callable[[Memory], T]) -> T:
-        """Run one request at a scan boundary and return its result."""
-        with self.lock:
-            if not self.realtime:
-                self.scan()
-            self.stats["requests"] += 1
-            return request(self.memory)
-
-    def advance(self, seconds: float) -> None:
-        """Let ``seconds`` of virtual time pass, jumping over spans in which no model needs a scan."""
-        if seconds < 0:
-            raise ValueError(f"cannot advance by a negative time ({seconds} s)")
-        with self.lock:
-            self.advance_to(self.now + seconds)
-
-    def advance_to(self, target: float) -> None:
-        with self.lock:
-            # The scan right after a request is never skipped: a PLC sees a written value on its next scan, so
-            # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
-            if self.now + self.scan_time <= target + 1e-9:
-                self.scan()
-            steps, ask_at = 0, 0
-            while self.now + self.scan_time <= target + 1e-9:
-                # the rest of this loop in C where it applies (a FUN86 starts running once every point is measured):
-                # ask again after 8, 16, 32 … steps, so a configuration it never takes costs little
-                if self.use_kernel and steps == ask_at:
-                    if kernel.advance(self, target):
-                        break
-                    ask_at = max(8, 2 * ask_at)
-                steps += 1
-                due = min((m.next_event(self.now) for m in self.models), default=math.inf)
-                landing = min(max(due, self.now + self.scan_time), target)
-                self.now = landing - self.scan_time  # the scan below lands exactly on `landing`
-                self.scan()
-            self.now = max(self.now, target)
-
-    def run_realtime(self, stop: threading.Event, time_scale: float = 1.0) -> None:
-        """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``)."""
-        if time_scale <= 0:
-            raise ValueError(f"time scale must be positive, not {time_scale}")
-        self.realtime = True
-        start_wall, start_virtual = time.monotonic(), self.now
-        try:
-            while not stop.is_set():
-                self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale)
-                stop.wait(max(self.scan_time / time_scale, 0.001))
-        finally:
-            self.realtime = False
+    def fast_forward(self, target: float) -> bool:
+        return self.use_kernel and kernel.advance(self, target)

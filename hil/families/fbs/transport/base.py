@@ -8,10 +8,11 @@ serialises requests with a lock (one request on the wire at a time, as a serial 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Sequence
 
 from hil.core.link import Link
+from hil.io.status import PlcStatus
 from hil.families.fbs.address import Address, parse, span
 
 if TYPE_CHECKING:
@@ -28,21 +29,6 @@ class Limits:
     bits: int = 256
     mixed_read_words: int = 64  # bit = 1, 16-bit = 1, 32-bit = 2
     mixed_write_words: int = 32
-
-
-@dataclass
-class PlcStatus:
-    """What a status request tells: RUN/STOP, flags, and (if the wire supports it) the PLC's identity."""
-
-    running: bool | None
-    flags: list[str] = field(default_factory=list)
-    identity: dict[str, str] = field(default_factory=dict)
-    via: str = ""
-
-    def summary(self) -> str:
-        state = {True: "RUN", False: "STOP", None: "RUN/STOP unknown"}[self.running]
-        extra = [f for f in self.flags if f != "RUN"]
-        return state + (f" ({', '.join(extra)})" if extra else "")
 
 
 def check_value(address: Address, value: int) -> int:

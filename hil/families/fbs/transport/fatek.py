@@ -24,9 +24,10 @@ from hil.core.errors import OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyT
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
-                                check_reply, encode_request, show_frame)
+                                check_reply, describe_frame, encode_request, show_frame)
 from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
 from hil.io.serial_line import is_pty, line_coding
+from hil.io.trace import DESCRIBERS
 
 #: Commands that only read: safe to repeat after a lost reply.
 READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
@@ -35,6 +36,8 @@ READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEna
 Observer = Callable[[str, bytes], None]
 
 UNIT_TYPES = {0x01: "MC"}  # [our choice] only the code the spec names; others print as hex
+
+DESCRIBERS["fatek"] = describe_frame  # wire traces of this transport decode FATEK frames
 
 
 class FatekTransport(Transport):

@@ -17,18 +17,13 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.pdu import ModbusPDU
 
 from hil.families.fbs.address import Address, parse, span
+from hil.io.modbus_codes import EXCEPTION_NAMES
 from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
 from hil.families.fbs.protocol import modbus_map as mm
 from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, Run
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
 from hil.io.serial_line import line_coding
 
-#: Modbus exception codes and their standard names.
-EXCEPTION_NAMES = {
-    1: "illegal function", 2: "illegal data address", 3: "illegal data value", 4: "server device failure",
-    5: "acknowledge", 6: "server device busy", 7: "negative acknowledge", 8: "memory parity error",
-    10: "gateway path unavailable", 11: "gateway target device failed to respond",
-}
 _FC_NAMES = {1: "FC01 read coils", 3: "FC03 read holding registers", 15: "FC15 write coils",
              16: "FC16 write holding registers"}
 #: A cheap read that proves the PLC answers: R4128 (RTC seconds), always mapped.

@@ -1,0 +1,52 @@
+"""The FATEK FBs family, as registered under the ``hil.families`` entry-point group (``fbs``)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Iterable
+
+from hil.families.fbs.address import parse_range
+
+
+class FbsFamily:
+    name = "fbs"
+    title = "FATEK FBs"
+    a_title = "a FATEK FBs"
+    sections = ("rtc", "temperature", "pid", "plant")
+    default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
+
+    def check_ranges(self, ranges: list) -> bool:
+        for item in ranges:
+            if not isinstance(item, str):
+                raise ValueError(f"{item!r} is not an address range like 'R4128-R4135'")
+            parse_range(item)
+        return True
+
+    def elements(self, ranges: Iterable[str]) -> frozenset:
+        from hil.families.fbs.transport.guard import expand
+        return expand(ranges)
+
+    def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
+        from hil.families.fbs.pid import parse_pid
+        from hil.families.fbs.sim.models.plant import parse_plant
+        from hil.families.fbs.rtc_profile import parse_rtc
+        from hil.families.fbs.temperature import parse_temperature
+        parsers = {"rtc": parse_rtc, "temperature": parse_temperature, "pid": parse_pid, "plant": parse_plant}
+        return {name: parsers[name](table, where) for name, table in tables.items()}
+
+    def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:
+        from hil.families.fbs.faults import check_fault_configs
+        check_fault_configs(faults, where)
+
+    def build_emulator(self, profile: Any, epoch: dt.datetime) -> Any:
+        from hil.families.fbs.sim.build import build_emulator
+        return build_emulator(profile, epoch)
+
+    def open_bench(self, profile: Any, **kwargs: Any) -> Any:
+        from hil.families.fbs.bench import Bench
+        return Bench(profile, **kwargs)
+
+
+FAMILY = FbsFamily()
+
+__all__ = ["FAMILY", "FbsFamily"]

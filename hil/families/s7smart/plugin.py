@@ -1,0 +1,47 @@
+"""The Siemens S7-200 SMART family, as registered under the ``hil.families`` entry-point group (``s7-200smart``)."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Iterable
+
+from hil.core.errors import ProfileError
+
+
+class S7SmartFamily:
+    name = "s7-200smart"
+    title = "S7-200 SMART"
+    a_title = "an S7-200 SMART"
+    sections = ("s7", "s7rtc")
+    default_volatile = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
+
+    def check_ranges(self, ranges: list) -> bool:
+        from hil.families.s7smart.layout import check_s7_ranges
+        return check_s7_ranges(ranges)
+
+    def elements(self, ranges: Iterable[str]) -> frozenset:
+        from hil.families.s7smart.io import expand_s7
+        return expand_s7(ranges)
+
+    def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
+        from hil.families.s7smart.layout import parse_s7_settings, parse_s7rtc
+        out: dict[str, Any] = {"s7": parse_s7_settings(tables.get("s7", {}), where)}  # [s7] has defaults
+        if "s7rtc" in tables:
+            out["s7rtc"] = parse_s7rtc(tables["s7rtc"], where)
+        return out
+
+    def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:
+        if faults:
+            raise ProfileError(f"{where}: an S7-200 SMART bench has no fault injectors; remove "
+                               f"{', '.join(f'[faults.{name}]' for name in faults)}")
+
+    def build_emulator(self, profile: Any, epoch: dt.datetime) -> Any:
+        from hil.families.s7smart.emulator import build_s7_emulator
+        return build_s7_emulator(profile, epoch)
+
+    def open_bench(self, profile: Any, **kwargs: Any) -> Any:
+        from hil.families.s7smart.bench import S7Bench
+        return S7Bench(profile, **kwargs)
+
+
+FAMILY = S7SmartFamily()

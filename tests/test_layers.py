@@ -1,0 +1,37 @@
+"""The architecture holds: import-layer contracts (pyproject's [tool.importlinter]) and no family named in code."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from hil.bench.family import families
+from tests.conftest import REPO
+
+
+def test_import_contracts_are_kept() -> None:
+    """Layers point down only, families are independent, no package imports its siblings in a cycle."""
+    lint = Path(sys.executable).parent / "lint-imports"
+    proc = subprocess.run([str(lint), "--no-cache"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-2000:]
+    assert "3 kept, 0 broken" in proc.stdout
+
+
+def test_no_code_compares_a_family_name() -> None:
+    """A family is a plug-in found by name in the registry; no module decides by comparing the name."""
+    holder = r"(profile|given|bench|emulator|emu|self|plugin)\.family"
+    pattern = re.compile(rf"{holder}\s*[!=]=|[!=]=\s*{holder}\b"
+                         r"|[!=]=\s*[\"'](fbs|s7-200smart)[\"']|[\"'](fbs|s7-200smart)[\"']\s*[!=]=")
+    hits = [f"{path.relative_to(REPO)}:{n}: {line.strip()}"
+            for path in sorted((REPO / "hil").rglob("*.py"))
+            for n, line in enumerate(path.read_text().splitlines(), 1) if pattern.search(line)]
+    assert hits == []
+
+
+def test_families_are_registered_through_entry_points() -> None:
+    installed = families()
+    assert {"fbs", "s7-200smart"} <= set(installed)
+    for name, plugin in installed.items():
+        assert plugin.name == name and plugin.sections and plugin.title
