@@ -9,6 +9,7 @@ from rich.table import Table
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.device.temperature import Temperature
 from hil.core.errors import HilError
+from hil.families.fbs.registers import pair_bit
 from hil.families.fbs.temperature import BREAK_VALUE
 from hil.bench.profile import Profile
 from hil.core.timebase import HostTimebase
@@ -82,7 +83,7 @@ def temperature_table(transport: Transport, profile: Profile) -> Table:
     breaks = set(work.break_points)
     for point, value in enumerate(readings):
         k, module = config.point_module(point)
-        installed = bool(mask[point // 16] >> (point % 16) & 1)
+        installed = pair_bit(mask, point)
         shown = "[red]28767 (open)[/red]" if value == BREAK_VALUE else f"{value / 10:.1f}"
         table.add_row(str(point), f"{k + 1}: FBs-{module.type.name}", module.sensor.name,
                       "yes" if installed else "[dim]no[/dim]", shown, "[red]BREAK[/red]" if point in breaks else "")

@@ -4,8 +4,9 @@
 
 * FATEK (:class:`~hil.families.fbs.transport.fatek.FatekTransport`): its ``observers`` see each frame; decoded with
   the decoder the family registered in :data:`DESCRIBERS` (``hil.families.fbs.protocol.fatek.describe_frame``);
-* Modbus (anything holding a pymodbus sync client as ``.client``): the client's packet trace (``trace_packet``),
-  the raw ADU bytes as they go out and come in, decoded to function, address and quantity;
+* Modbus (:class:`~hil.io.modbus_client.ModbusWire`, whose client was built with pymodbus's ``trace_packet=``
+  hook): its ``observers`` see the raw ADU bytes as they go out and come in, decoded to function, address and
+  quantity;
 * no wire (the in-process ``emulator`` target, an S7 in-process io): the transport calls themselves.
 
 Recording is cheap (a tuple per frame) and bounded per test; formatting happens only for traces that are kept.
@@ -69,25 +70,11 @@ class WireTrace:
         if self._detach:
             return self
         observers = getattr(transport, "observers", None)
-        client = getattr(transport, "client", None)
         if isinstance(observers, list):
-            self.kind = "fatek"
+            self.kind = getattr(transport, "trace_kind", "fatek")
             observer = lambda direction, frame: self._record(direction, frame)  # noqa: E731
             observers.append(observer)
             self._detach.append(lambda: observers.remove(observer))
-        elif client is not None and hasattr(getattr(client, "transaction", None), "trace_packet"):
-            from pymodbus.client import ModbusSerialClient
-            self.kind = "modbus-rtu" if isinstance(client, ModbusSerialClient) else "modbus-tcp"
-            manager = client.transaction
-            previous = manager.trace_packet
-
-            def trace_packet(sending: bool, data: bytes) -> bytes:
-                data = previous(sending, data)
-                self._record("tx" if sending else "rx", data)
-                return data
-
-            manager.trace_packet = trace_packet
-            self._detach.append(lambda: setattr(manager, "trace_packet", previous))
         else:
             self.kind = "calls"
             self._wrap_calls(transport)

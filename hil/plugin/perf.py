@@ -41,27 +41,14 @@ class WireCounter:
     def attach(self, transport: Any) -> "WireCounter":
         if self._detach:
             return self
-        observers = getattr(transport, "observers", None)
-        client = getattr(transport, "client", None)
-        manager = getattr(client, "transaction", None) if client is not None else None
+        observers = getattr(transport, "observers", None)  # every frame of a FATEK or Modbus wire
         if isinstance(observers, list):
-            self.kind = "fatek"
+            self.kind = getattr(transport, "trace_kind", "fatek")
 
             def observe(direction: str, frame: bytes) -> None:
                 self._add(direction == "tx", len(frame))
             observers.append(observe)
             self._detach.append(lambda: observers.remove(observe))
-        elif manager is not None and hasattr(manager, "trace_packet"):
-            from pymodbus.client import ModbusSerialClient
-            self.kind = "modbus-rtu" if isinstance(client, ModbusSerialClient) else "modbus-tcp"
-            previous = manager.trace_packet
-
-            def trace_packet(sending: bool, data: bytes) -> bytes:
-                data = previous(sending, data) if previous is not None else data
-                self._add(sending, len(data))
-                return data
-            manager.trace_packet = trace_packet
-            self._detach.append(lambda: setattr(manager, "trace_packet", previous))
         return self
 
     def _add(self, sending: bool, size: int) -> None:

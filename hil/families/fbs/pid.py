@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.families.fbs.address import WORD_BANKS, Address, parse
+from hil.families.fbs.registers import point_bit
 from hil.core.errors import AddressError, ProfileError
 
 MAX_POINTS = 32
@@ -97,8 +98,7 @@ class PidInstance:
 
     def bit_position(self, point: int) -> tuple[int, int]:
         """(word offset 0/1 within WR+0/1 or WR+2/3, bit) of ``point``: bit b counts from Sn."""
-        b = self.index(point)
-        return b // 16, b % 16
+        return point_bit(self.index(point))
 
     def blocks(self) -> dict[str, tuple[Address, int]]:
         size = MAX_POINTS if self.settable else self.zn

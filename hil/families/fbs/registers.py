@@ -47,6 +47,29 @@ POWER_ON_DEFAULTS: dict[str, int] = {
 }
 
 
+#: An FBs measures at most 32 temperature points (8 modules), numbered 0–31; FUN86 covers at most 32 from Sn.
+MAX_POINTS = 32
+
+
+def point_bit(index: int) -> tuple[int, int]:
+    """Where point ``index`` (or a FUN86 bit counted from Sn) sits in a pair of 16-bit words: (0 for 0–15 or 1
+    for 16–31, the bit in that word) — R4010/R4011, R4012/R4013, WR+0/1, WR+2/3, the break bits alike."""
+    if not 0 <= index < MAX_POINTS:
+        raise ValueError(f"temperature point {index} is outside 0–{MAX_POINTS - 1}")
+    return divmod(index, 16)
+
+
+def pair_bit(words: "tuple[int, ...] | list[int]", index: int) -> bool:
+    """Point ``index``'s bit in a pair of 16-bit words (see :func:`point_bit`)."""
+    word, bit = point_bit(index)
+    return bool(words[word] >> bit & 1)
+
+
+def with_bit(word: int, bit: int, on: bool) -> int:
+    """``word`` with ``bit`` set or cleared."""
+    return word | 1 << bit if on else word & ~(1 << bit)
+
+
 def signed16(word: int) -> int:
     """A 16-bit register word as the signed value it holds (0.1° readings, SV, Os, Sn/Zn: −200.0 °C is 0xF830)."""
     return word - 0x10000 if word & 0x8000 else word

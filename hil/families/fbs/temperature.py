@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.families.fbs.address import Address, parse
+from hil.families.fbs.registers import MAX_POINTS
 from hil.core.errors import AddressError, ProfileError
 
 TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
 BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open
 MAX_MODULES = 8
-MAX_POINTS = 32
 
 # Execution code, high byte of TW+0
 EXEC_IDLE = 0x00

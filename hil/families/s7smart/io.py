@@ -4,8 +4,9 @@ Why not :class:`hil.families.fbs.transport.base.Transport`: that API is keyed by
 value checks, request splitting, the guard's allow-list and the Modbus map decode FBs names), and S7 operands
 (VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small:
 byte-run primitives plus name helpers, with the same error types, the same guard/journal rules and the same
-"an address the wire cannot reach is an error naming both" rule.  Over Modbus it talks raw register/coil numbers
-through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap` with pymodbus's clients.
+"an address the wire cannot reach is an error naming both" rule.  Over Modbus it maps operands to register/coil
+runs through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap` and sends them through the one Modbus client,
+:class:`~hil.io.modbus_client.ModbusWire`.
 
 Over Modbus, V is reached in 16-bit holding registers: writing one byte (or one V bit) reads the register and
 writes it back whole, so the other byte of that word must not be something the PLC program writes meanwhile —
@@ -15,13 +16,14 @@ keep trigger bits in a word of their own (the shipped layouts do).
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable, Sequence
 
 from hil.core.link import Link
-from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, RestoreError, TransportError, WriteRefused
+from hil.core.errors import RestoreError, TransportError, WriteRefused
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
+from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, Probe
 from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
@@ -142,42 +144,46 @@ class LocalS7Io(S7Io):
 
 # -- over Modbus ----------------------------------------------------------------------------------------------------
 class ModbusS7Io(S7Io):
-    """An S7-200 SMART running the MBUS_SLAVE library, over Modbus/TCP or RTU (pymodbus clients)."""
+    """An S7-200 SMART running the MBUS_SLAVE library, over Modbus/TCP or RTU.
 
-    def __init__(self, client, description: str, *, unit: int, timeout: float, retries: int,  # noqa: ANN001
-                 modbus_map: S7ModbusMap, hint: str) -> None:
-        super().__init__(description)
-        self.client = client
-        self.unit = unit
-        self.timeout = timeout
-        self.retries = retries
+    The requests, with their retry, outcome-unknown and resynchronisation rules, are the shared
+    :class:`~hil.io.modbus_client.ModbusWire`'s (the same as an FBs's); this class maps S7 operands to its runs.
+    """
+
+    def __init__(self, wire: ModbusWire, modbus_map: S7ModbusMap) -> None:
+        self.wire = wire
+        super().__init__(wire.description)
         self.map = modbus_map
-        self._hint = hint
-        if not client.connect():
-            client.close()
-            raise TransportError(f"cannot connect to {description}: {hint}")
+        self.unit = wire.unit
+        self.timeout = wire.timeout
+        self.retries = wire.retries
+        self.observers = wire.observers  # every frame, "tx"/"rx" (wire traces, statistics)
+        self.trace_kind = wire.kind
+
+    # what the wire counts, seen from here (Link.__init__ assigns 0 before the wire is known: ignored)
+    requests = property(lambda self: self.wire.requests, lambda self, value: None)
+    client = property(lambda self: self.wire.client)
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0, retries: int = 2,
             modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
-        from pymodbus.client import ModbusTcpClient
         hint = (f"is the CPU reachable at {host}:{port}, and does its program call MBUS_SLAVE (Modbus TCP server "
                 f"instruction) with this unit id and HoldStart/MaxHold matching the profile's [s7]?")
-        return cls(ModbusTcpClient(host, port=port, timeout=timeout, retries=0),
-                   f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})",
-                   unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
+        description = f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})"
+        return cls(ModbusWire.tcp(host, port, unit=unit, timeout=timeout, retries=retries, hint=hint,
+                                  probe=_probe(modbus_map), description=description, describe=_names(modbus_map)),
+                   modbus_map)
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2,
             modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
-        from pymodbus import FramerType
-        from pymodbus.client import ModbusSerialClient
-        client = ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
-                                    parity=parity, stopbits=stopbits, timeout=timeout, retries=0)
         hint = f"does {device} exist and is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
-        return cls(client, f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit} (S7-200 SMART map)",
-                   unit=unit, timeout=timeout, retries=retries, modbus_map=modbus_map, hint=hint)
+        description = f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit} (S7-200 SMART map)"
+        return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
+                                  unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
+                                  description=description, describe=_names(modbus_map)),
+                   modbus_map)
 
     def unreachable_reason(self, name: "str | S7Address") -> str | None:
         a = parse_s7(name)
@@ -196,12 +202,7 @@ class ModbusS7Io(S7Io):
         lo, n = self.map.registers_for(first, count)  # raises UnreachableAddress before any I/O
         words: list[int] = []
         for start in range(lo, lo + n, MAX_READ_REGISTERS):
-            k = min(MAX_READ_REGISTERS, lo + n - start)
-            rr = self._exchange(f"FC03 read holding registers at {start} ×{k}",
-                                lambda: self.client.read_holding_registers(start, count=k, device_id=self.unit))
-            if len(rr.registers) != k:
-                raise TransportError(f"{self.description}: asked for {k} registers at {start}, got {len(rr.registers)}")
-            words += rr.registers
+            words += self.wire.read(HOLDING, start, min(MAX_READ_REGISTERS, lo + n - start))
         data = from_words(words)
         skip = first - self.map.v_byte(lo)
         return data[skip:skip + count]
@@ -217,29 +218,19 @@ class ModbusS7Io(S7Io):
         whole[first - start_byte:first - start_byte + len(data)] = data
         words = to_words(bytes(whole))
         for i in range(0, n, MAX_WRITE_REGISTERS):
-            chunk = words[i:i + MAX_WRITE_REGISTERS]
-            self._exchange(f"FC16 write holding registers at {lo + i} ×{len(chunk)}",
-                           lambda: self.client.write_registers(lo + i, chunk, device_id=self.unit), write=True)
+            self.wire.write(HOLDING, lo + i, words[i:i + MAX_WRITE_REGISTERS])
 
     def _read_bits(self, area: str, first: int, count: int) -> list[int]:
         self.map.bit_number(S7Address(area, (first + count - 1) // 8, (first + count - 1) % 8))
         if count > MAX_READ_BITS:
             raise ValueError(f"at most {MAX_READ_BITS} bits per read")
-        if area == "Q":
-            rr = self._exchange(f"FC01 read coils at {first} ×{count}",
-                                lambda: self.client.read_coils(first, count=count, device_id=self.unit))
-        else:
-            rr = self._exchange(f"FC02 read discrete inputs at {first} ×{count}",
-                                lambda: self.client.read_discrete_inputs(first, count=count, device_id=self.unit))
-        return [1 if b else 0 for b in rr.bits[:count]]
+        return self.wire.read(COILS if area == "Q" else DISCRETE_INPUTS, first, count)
 
     def _write_bits(self, area: str, first: int, values: list[int]) -> None:
         if area != "Q":
             raise ValueError("only Q bits (coils) are writable over Modbus")
         self.map.bit_number(S7Address("Q", (first + len(values) - 1) // 8, (first + len(values) - 1) % 8))
-        self._exchange(f"FC15 write coils at {first} ×{len(values)}",
-                       lambda: self.client.write_coils(first, [bool(v) for v in values], device_id=self.unit),
-                       write=True)
+        self.wire.write(COILS, first, values)
 
     def _status(self) -> PlcStatus:
         """Modbus has no status request: a one-register read proves the CPU answers; RUN/STOP stays unknown."""
@@ -247,38 +238,31 @@ class ModbusS7Io(S7Io):
         return PlcStatus(running=None, via="modbus", identity={
             "transport": self.description, "unit": str(self.unit), "probe": f"VW{self.map.hold_start} = {word}"})
 
-    def _close(self) -> None:
-        self.client.close()
+    def reopen(self) -> None:
+        with self._lock:
+            self.wire.reopen()
 
-    def _exchange(self, what: str, send: Callable, *, write: bool = False):  # noqa: ANN202 - a pymodbus response
-        """One request.  Reads are retried (``retries``) by us — pymodbus itself never retries, since it would
-        repeat a write too; a write whose reply never came raises OutcomeUnknown and is not sent again."""
-        from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
-        from hil.io.modbus_codes import EXCEPTION_NAMES
-        tries = 1 if write else self.retries + 1
-        for attempt in range(1, tries + 1):
-            self.requests += 1
-            try:
-                rr = send()
-                break
-            except ModbusIOException as exc:
-                if write:
-                    raise OutcomeUnknown(f"no reply to {what} from {self.description} within {self.timeout:g} s: "
-                                         f"the write may or may not have been applied (not repeated); read it "
-                                         f"back before relying on it [pymodbus: {exc}]") from None
-                if attempt == tries:
-                    raise ReplyTimeout(f"no reply to {what} from {self.description} after {tries} tries of "
-                                       f"{self.timeout:g} s: check the unit id, the wiring and that MBUS_SLAVE "
-                                       f"runs [pymodbus: {exc}]") from None
-            except ConnectionException as exc:
-                raise TransportError(f"lost the connection to {self.description} during {what}: {self._hint} "
-                                     f"[pymodbus: {exc}]") from None
-            except ModbusException as exc:
-                raise TransportError(f"{what} to {self.description} failed: {exc}") from None
-        if rr.isError():
-            code = getattr(rr, "exception_code", None)
-            raise PlcErrorReply(str(code), EXCEPTION_NAMES.get(code, "error reply"), f"{what} on {self.description}")
-        return rr
+    def budget(self, write: bool = False) -> float:
+        return self.wire.budget(write)
+
+    def _close(self) -> None:
+        self.wire.close()
+
+
+def _probe(modbus_map: S7ModbusMap) -> Probe:
+    """VW(HoldStart) onwards: a resynchronising read picks its quantity in 1–8 (fewer if MaxHold is smaller)."""
+    return Probe(0, max(1, min(8, modbus_map.max_hold)))
+
+
+def _names(modbus_map: S7ModbusMap):  # noqa: ANN202 - a hil.io.modbus_client.Describe
+    def describe(table: str, address: int, count: int) -> str:
+        if table == HOLDING:
+            first, last = modbus_map.v_byte(address), modbus_map.v_byte(address + count - 1) + 1
+            return f"VB{first}–VB{last}"
+        area = "Q" if table == COILS else "I"
+        end = address + count - 1
+        return f"{area}{address // 8}.{address % 8}" + (f"–{area}{end // 8}.{end % 8}" if count > 1 else "")
+    return describe
 
 
 # -- the guard ------------------------------------------------------------------------------------------------------

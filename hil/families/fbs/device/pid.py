@@ -30,9 +30,9 @@ class AlarmWords:
 
     def _flag(self, pair: tuple[int, int], point: int) -> bool:
         b = point - self.sn
-        if not 0 <= b < 32:
+        if not 0 <= b < reg.MAX_POINTS:
             raise ValueError(f"point {point} is outside this FUN86's points (Sn = {self.sn})")
-        return bool(self.words[pair[b // 16]] >> (b % 16) & 1)
+        return reg.pair_bit([self.words[i] for i in pair], b)
 
     def normal(self, point: int) -> bool:
         return self._flag(WR_NORMAL, point)
@@ -41,10 +41,10 @@ class AlarmWords:
         return self._flag(WR_WARNING, point)
 
     def normal_points(self) -> list[int]:
-        return [self.sn + b for b in range(32) if self.words[WR_NORMAL[b // 16]] >> (b % 16) & 1]
+        return [self.sn + b for b in range(reg.MAX_POINTS) if reg.pair_bit([self.words[i] for i in WR_NORMAL], b)]
 
     def warning_points(self) -> list[int]:
-        return [self.sn + b for b in range(32) if self.words[WR_WARNING[b // 16]] >> (b % 16) & 1]
+        return [self.sn + b for b in range(reg.MAX_POINTS) if reg.pair_bit([self.words[i] for i in WR_WARNING], b)]
 
 
 @dataclass(frozen=True)
@@ -198,15 +198,11 @@ class Pid:
     @staticmethod
     def enable_register(point: int) -> str:
         """R4012 holds points 0–15, R4013 points 16–31."""
-        if not 0 <= point < 32:
-            raise ValueError(f"temperature point {point} is outside 0–31")
-        return reg.PID_ENABLE_LOW if point < 16 else reg.PID_ENABLE_HIGH
+        return (reg.PID_ENABLE_LOW, reg.PID_ENABLE_HIGH)[reg.point_bit(point)[0]]
 
     def set_enabled(self, point: int, on: bool) -> None:
         name = self.enable_register(point)
-        word = self.plc.io.read(name)
-        bit = 1 << (point % 16)
-        self.plc.io.write(name, word | bit if on else word & ~bit)
+        self.plc.io.write(name, reg.with_bit(self.plc.io.read(name), reg.point_bit(point)[1], on))
 
     # -- alarm words ------------------------------------------------------------------------------------------------
     def alarm_words(self, inst: PidInstance, sn: int | None = None) -> AlarmWords:

@@ -61,7 +61,7 @@ class WorkView:
     def break_points(self) -> list[int]:
         low, high = self.break_words
         bits = high << 16 | low
-        return [p for p in range(32) if bits >> p & 1]
+        return [p for p in range(reg.MAX_POINTS) if bits >> p & 1]
 
     @property
     def total_points(self) -> int:
@@ -114,19 +114,15 @@ class Temperature:
     @staticmethod
     def mask_register(point: int) -> str:
         """R4010 holds points 0–15, R4011 points 16–31."""
-        if not 0 <= point < 32:
-            raise ValueError(f"temperature point {point} is outside 0–31")
-        return reg.INSTALLED_LOW if point < 16 else reg.INSTALLED_HIGH
+        return (reg.INSTALLED_LOW, reg.INSTALLED_HIGH)[reg.point_bit(point)[0]]
 
     def installed(self, point: int) -> bool:
-        return bool(self.plc.io.read(self.mask_register(point)) >> (point % 16) & 1)
+        return bool(self.plc.io.read(self.mask_register(point)) >> reg.point_bit(point)[1] & 1)
 
     def set_installed(self, point: int, installed: bool) -> None:
         """Set or clear the point's bit in R4010/R4011 (read-modify-write of that one register)."""
         name = self.mask_register(point)
-        word = self.plc.io.read(name)
-        bit = 1 << (point % 16)
-        self.plc.io.write(name, word | bit if installed else word & ~bit)
+        self.plc.io.write(name, reg.with_bit(self.plc.io.read(name), reg.point_bit(point)[1], installed))
 
     # -- time -----------------------------------------------------------------------------------------------------
     def update_period(self) -> float:

@@ -19,10 +19,11 @@ from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from hil.families.fbs.registers import MAX_POINTS
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.runtime import LoopThread, ServerHandle
 
-POINTS = 32
+POINTS = MAX_POINTS  # one coil per temperature point, in each bank
 #: the rig's banks in coil order, each POINTS coils long: the fault each coil of the bank switches
 BANKS = ("sensor_break", "heater_open", "ssr_short")
 _WRITE_COILS = (5, 15)

@@ -1,0 +1,281 @@
+"""The one Modbus client: every family's Modbus wire goes through it, whatever its address map.
+
+It owns the rules a Modbus request lives by, in one place:
+
+* reads are retried (with backoff) by us — pymodbus's own retries are off, since they would repeat writes too;
+  a write whose reply never came raises OutcomeUnknown and is never sent again;
+* every reply must answer exactly the request sent (function, unit, quantity, write echo), else it is a fault;
+* after a fault the wire is resynchronised before the next request: on TCP a new connection; on RTU, which has
+  no transaction id, a probe read whose quantity no abandoned request had (every reply before it is stale);
+* every failure becomes a harness error naming the request (with the family's names for it), the target and
+  the fault seen.
+
+A family's transport maps its element names to (table, address, count) runs with its address map and calls
+:meth:`ModbusWire.read` / :meth:`ModbusWire.write`.  Frames reach ``observers`` (wire traces, statistics) through
+pymodbus's public ``trace_packet`` hook, given to the client when it is built.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+from pymodbus import FramerType
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+from pymodbus.pdu import ModbusPDU
+
+from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.io.modbus_codes import EXCEPTION_NAMES
+from hil.io.serial_line import line_coding
+
+COILS, DISCRETE_INPUTS, HOLDING = "coil", "discrete", "holding"
+READ_FC = {COILS: 1, DISCRETE_INPUTS: 2, HOLDING: 3}
+WRITE_FC = {COILS: 15, HOLDING: 16}
+FC_NAMES = {1: "FC01 read coils", 2: "FC02 read discrete inputs", 3: "FC03 read holding registers",
+            15: "FC15 write coils", 16: "FC16 write holding registers"}
+
+Observer = Callable[[str, bytes], None]  # ("tx" | "rx", the frame's bytes)
+#: the family's names for a run, for error messages: (table, first address, count) → "R100–R103"
+Describe = Callable[[str, int, int], str]
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A cheap read that proves the PLC answers and resynchronises an RTU line: holding registers from
+    ``address``, any quantity 1–``span`` of which the PLC must serve."""
+
+    address: int
+    span: int
+
+
+class _Shape(Exception):
+    """A reply that does not answer the request sent (wrong function, unit or quantity)."""
+
+
+class ModbusWire:
+    """A pymodbus sync client with the harness's request rules.  Build with :meth:`tcp` or :meth:`rtu`."""
+
+    def __init__(self, build: Callable[[Callable[[bool, bytes], bytes]], ModbusTcpClient | ModbusSerialClient],
+                 description: str, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
+                 describe: Describe | None = None, backoff: float = 0.05) -> None:
+        self.description = description
+        self.unit = unit
+        self.timeout = timeout
+        self.retries = retries
+        self.backoff = backoff
+        self.probe = probe
+        self.hint = hint
+        self.describe = describe or (lambda table, address, count: f"{table} {address}×{count}")
+        self.observers: list[Observer] = []
+        self.client = build(self._trace_packet)  # retries=0: we retry reads only
+        self.serial = isinstance(self.client, ModbusSerialClient)
+        self.kind = "modbus-rtu" if self.serial else "modbus-tcp"
+        self.requests = 0  # Modbus requests sent (round trips)
+        self.dirty = False  # True: a late reply may be on the line; recover before the next request
+        self._abandoned: set[tuple[int, int]] = set()  # (fc, quantity) of requests given up since the last sync
+        self._sync_count = 0
+        self._inflight: tuple[int, int] | None = None
+        self.resyncs = 0
+        self.reconnects = 0
+        if not self.client.connect():
+            self.client.close()
+            raise TransportError(f"cannot connect to {description}: {hint}")
+
+    # -- constructors -----------------------------------------------------------------------------------------
+    @classmethod
+    def tcp(cls, host: str, port: int, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
+            description: str, describe: Describe | None = None) -> "ModbusWire":
+        return cls(lambda trace: ModbusTcpClient(host, port=port, timeout=timeout, retries=0, trace_packet=trace),
+                   description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
+                   describe=describe)
+
+    @classmethod
+    def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
+            timeout: float, retries: int, hint: str, probe: Probe, description: str,
+            describe: Describe | None = None) -> "ModbusWire":
+        bytesize, parity, stopbits = line_coding(device, bytesize, parity, stopbits)
+        return cls(lambda trace: ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate,
+                                                    bytesize=bytesize, parity=parity, stopbits=stopbits,
+                                                    timeout=timeout, retries=0, trace_packet=trace),
+                   description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
+                   describe=describe)
+
+    # -- requests ---------------------------------------------------------------------------------------------
+    def read(self, table: str, address: int, count: int) -> list[int]:
+        """``count`` coils / discrete inputs (0/1) or holding registers from ``address``, in one request."""
+        fc = READ_FC[table]
+        if table == HOLDING:
+            rr = self._exchange(fc, address, count, lambda: self.client.read_holding_registers(
+                address, count=count, device_id=self.unit))
+            return list(rr.registers)
+        send = self.client.read_coils if table == COILS else self.client.read_discrete_inputs
+        rr = self._exchange(fc, address, count, lambda: send(address, count=count, device_id=self.unit))
+        return [1 if b else 0 for b in rr.bits[:count]]  # bits come padded to a multiple of 8
+
+    def write(self, table: str, address: int, values: Sequence[int]) -> None:
+        """Coils (0/1) or holding registers from ``address``, in one request; never repeated."""
+        fc = WRITE_FC[table]
+        if table == COILS:
+            bits = [bool(v) for v in values]
+            self._exchange(fc, address, len(bits), lambda: self.client.write_coils(address, bits,
+                                                                                   device_id=self.unit))
+        else:
+            words = list(values)
+            self._exchange(fc, address, len(words), lambda: self.client.write_registers(address, words,
+                                                                                        device_id=self.unit))
+
+    def budget(self, write: bool = False) -> float:
+        """The longest one Modbus request can take, retries, backoff and recovery included."""
+        tries = 1 + self.retries
+        recover = tries * self.timeout + sum(self._backoff(a) for a in range(1, tries)) + 0.5
+        if write:
+            return recover + self.timeout
+        return tries * (recover + self.timeout) + sum(self._backoff(a) for a in range(1, tries))
+
+    def reopen(self) -> None:
+        """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
+        self.client.close()
+        if not self.client.connect():
+            raise TransportError(f"cannot reconnect to {self.description}: {self.hint}")
+        self.reconnects += 1
+        self.dirty = self.serial  # a late reply may still come on a serial line
+
+    def close(self) -> None:
+        self.client.close()
+
+    # -- the rules --------------------------------------------------------------------------------------------
+    def _trace_packet(self, sending: bool, data: bytes) -> bytes:
+        for observer in list(self.observers):
+            observer("tx" if sending else "rx", data)
+        return data
+
+    def _backoff(self, attempt: int) -> float:
+        return self.backoff * min(2 ** (attempt - 1), 8)
+
+    def _recover(self, what: str) -> None:
+        """After a fault: on TCP a new connection (transaction ids guard the rest, but a stream with junk in
+        it never re-frames); on RTU, which has no transaction id, a read whose reply has a quantity no
+        abandoned request had — every reply before it is stale, and the line is in step again."""
+        if not self.serial:
+            try:
+                self.reopen()
+            except TransportError as exc:
+                raise TransportError(f"{what} not sent: {exc}") from None
+            self.dirty = False
+            return
+        tries = 1 + self.retries
+        last = ""
+        for attempt in range(1, tries + 1):
+            used = {count for fc, count in self._abandoned | ({self._inflight} if self._inflight else set())
+                    if fc == 3}
+            choices = [c for c in range(1, self.probe.span + 1) if c not in used] or [1]
+            self._sync_count += 1
+            count = choices[self._sync_count % len(choices)]
+            self._flush()
+            try:
+                rr = self.client.read_holding_registers(self.probe.address, count=count, device_id=self.unit)
+            except ModbusException as exc:
+                rr, last = None, f"no reply ({exc})"
+            if rr is not None:
+                if (not rr.isError() and rr.function_code == 3 and rr.dev_id == self.unit
+                        and len(rr.registers) == count):
+                    self.dirty = False
+                    self._abandoned.clear()
+                    self.resyncs += 1
+                    return
+                last = f"a stale reply (function {rr.function_code}) came first"
+            self._abandoned.add((3, count))
+            if attempt < tries:
+                time.sleep(self._backoff(attempt))
+        raise ReplyTimeout(f"{what} not sent to {self.description}: the line could not be resynchronised after "
+                           f"an earlier fault ({last})")
+
+    def _flush(self) -> None:
+        """Drop whatever is waiting on a serial line (a late reply) before a request."""
+        port = getattr(self.client, "socket", None)
+        if self.serial and port is not None:
+            try:
+                port.reset_input_buffer()
+            except (OSError, ValueError, AttributeError):
+                pass
+
+    def _exchange(self, fc: int, address: int, count: int, send: Callable[[], ModbusPDU]) -> ModbusPDU:
+        """One Modbus request; reads are retried with backoff, writes never are.  Every failure becomes a harness
+        error naming the request, the target and the fault seen."""
+        table = {1: COILS, 2: DISCRETE_INPUTS, 3: HOLDING, 15: COILS, 16: HOLDING}[fc]
+        what = f"{FC_NAMES[fc]} at {address} ×{count} ({self.describe(table, address, count)})"
+        write = fc in (15, 16)
+        attempts = 1 if write else 1 + self.retries
+        started = time.monotonic()
+        faults: list[str] = []
+        for attempt in range(1, attempts + 1):
+            try:
+                if self.dirty:
+                    self._recover(what)  # raises before anything is sent
+                self._flush()
+                self.requests += 1
+                # Suspect until the reply is in: an exchange cut short (pytest-timeout's signal, Ctrl-C)
+                # leaves its reply on the way.
+                self.dirty, self._inflight = True, (fc, count)
+                rr = self._check(fc, address, count, what, send())
+                self.dirty, self._inflight = False, None
+                return rr
+            except PlcErrorReply:
+                self.dirty, self._inflight = False, None  # an exception reply is still our reply
+                raise
+            except ReplyTimeout as exc:  # the recovery failed: nothing was sent
+                if write:
+                    raise
+                faults.append(str(exc))
+                if attempt == attempts:
+                    raise ReplyTimeout(f"{faults[0]}; then {exc}; {attempts} tries of {self.timeout:g} s "
+                                       f"({attempts * self.timeout:g} s), {time.monotonic() - started:.2f} s "
+                                       f"in all") from None
+            except (ModbusException, _Shape) as exc:
+                self.dirty = True
+                self._abandoned.add((fc, count))
+                fault = self._fault(exc, what, attempt, attempts)
+                if write:
+                    raise OutcomeUnknown(f"{fault}; outcome unknown: the write may or may not have been applied "
+                                         f"(writes are not retried)") from None
+                faults.append(fault)
+                if attempt == attempts:
+                    if attempts > 1:
+                        fault += (f"; {attempts} tries of {self.timeout:g} s ({attempts * self.timeout:g} s), "
+                                  f"{time.monotonic() - started:.2f} s in all")
+                    raise (ReplyTimeout if isinstance(exc, ModbusIOException) else TransportError)(fault) from None
+            time.sleep(self._backoff(attempt))
+        raise AssertionError("unreachable")
+
+    def _fault(self, exc: Exception, what: str, attempt: int, attempts: int) -> str:
+        where = f"{what} on {self.description} (attempt {attempt} of {attempts})"
+        if isinstance(exc, _Shape):
+            return f"a reply of the wrong shape to {where}: {exc}"
+        if isinstance(exc, ModbusIOException):
+            return (f"no valid reply to {where} within {self.timeout:g} s: check the unit id, wiring/serial "
+                    f"settings and that the PLC is powered [pymodbus: {exc}]")
+        if isinstance(exc, ConnectionException):
+            return f"lost the connection during {where}: {self.hint} [pymodbus: {exc}]"
+        return f"{where} failed: {exc}"
+
+    def _check(self, fc: int, address: int, count: int, what: str, rr: ModbusPDU) -> ModbusPDU:
+        """The reply must answer exactly this request: our unit, our function, our quantity (and address)."""
+        if rr.isError():
+            if getattr(rr, "function_code", 0) & 0x7F != fc:
+                raise _Shape(f"an exception reply to function {rr.function_code & 0x7F}")
+            code = getattr(rr, "exception_code", None)
+            meaning = EXCEPTION_NAMES.get(code, "unknown Modbus exception") if code is not None else "error reply"
+            raise PlcErrorReply(str(code), meaning, f"{what} on {self.description}")
+        if rr.function_code != fc:
+            raise _Shape(f"function {rr.function_code} answered function {fc}")
+        if rr.dev_id not in (0, self.unit):
+            raise _Shape(f"unit {rr.dev_id} answered, expected {self.unit}")
+        if fc == 3 and len(rr.registers) != count:
+            raise _Shape(f"{len(rr.registers)} registers for {count} asked")
+        if fc in (1, 2) and len(rr.bits) != (count + 7) // 8 * 8:
+            raise _Shape(f"{len(rr.bits)} bits for {count} asked")
+        if fc in (15, 16) and (rr.address != address or rr.count != count):
+            raise _Shape(f"the write echo names {rr.count} at {rr.address}, sent {count} at {address}")
+        return rr
