@@ -7,6 +7,7 @@ import signal
 import sys
 import threading
 
+from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
 from hil.bench.profile import load_profile
@@ -16,7 +17,7 @@ from hil.families.fbs.transport.factory import serve
 def split_host_port(text: str) -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not port.isdigit():
-        raise ValueError(f"{text!r} is not HOST:PORT (e.g. 127.0.0.1:5000; port 0 lets the OS choose)")
+        raise InvalidValue(f"{text!r} is not HOST:PORT (e.g. 127.0.0.1:5000; port 0 lets the OS choose)")
     return host or "127.0.0.1", int(port)
 
 

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 
 from rich.console import Console
 from rich.markup import escape
 
 from hil import __version__
-from hil.core.errors import HilError
+from hil.core.errors import HilError, InvalidValue
 
 EXAMPLES = """examples:
   hil run                                   suites on the in-process emulator, JUnit in reports/junit.xml
@@ -169,19 +170,18 @@ def main(argv: list[str] | None = None) -> int:
         return dispatch(args, console)
     except KeyboardInterrupt:
         return 130
-    except (HilError, OSError, ValueError) as exc:
+    except (HilError, OSError) as exc:  # what a user can fix: one line that says what and how
         if args.debug:
             raise
         # soft_wrap: one line whatever the width; escape: messages quote "[sections]" that are not markup
         Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(one_line(exc))}",
                                                    highlight=False)
         return 2
-    except Exception as exc:  # noqa: BLE001 - a bug: still one line, the traceback behind --debug
-        if args.debug:
-            raise
+    except Exception:  # noqa: BLE001 - anything else is a bug in hil: its traceback, then what to do
+        traceback.print_exc()
         Console(stderr=True, soft_wrap=True).print(
-            f"[bold red]hil {args.command}: internal error:[/] {escape(type(exc).__name__)}: "
-            f"{escape(one_line(exc))} — run again with --debug for the traceback and report it", highlight=False)
+            f"[bold red]hil {args.command}: internal error[/] (a bug in hil, not in your setup) — please report "
+            f"it with the traceback above", highlight=False)
         return 3
 
 
@@ -216,14 +216,14 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         endpoints += [(w, None) for w, on in (("fatek-serial", args.fatek_pty), ("modbus-rtu", args.modbus_pty))
                       if on]
         if not endpoints:
-            raise ValueError("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
+            raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
                              "or --modbus-pty")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
                        args.rig_first_coil, live=not args.no_live and console.is_terminal)
     if args.command == "probe":
         from hil.cli.probe import probe
         if not args.url and not args.bench:
-            raise ValueError("probe what? give a target URL, or --bench FILE to use the profile's target")
+            raise InvalidValue("probe what? give a target URL, or --bench FILE to use the profile's target")
         return probe(args.url, console, bench=args.bench)
     if args.command == "rtc":
         from hil.cli import rtc

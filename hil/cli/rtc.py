@@ -18,7 +18,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from hil.families.fbs.device.plc import FbsPlc
-from hil.core.errors import HilError, UnreachableAddress
+from hil.core.errors import HilError, InvalidValue, UnreachableAddress
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for_rate, rate_for_code
 from hil.families.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
@@ -54,10 +54,7 @@ def _reachable(read: Callable[[], T]) -> T | UnreachableAddress:
 
 def _require(plc: FbsPlc, addresses: list[str], action: str) -> None:
     """Refuse, before writing anything, an action whose addresses this wire cannot reach."""
-    for address in addresses:
-        reason = plc.io.unreachable_reason(address)
-        if reason:
-            raise HilError(f"cannot {action}: {reason} (nothing was written)")
+    plc.io.require(addresses, action)
 
 
 # -- formatting ---------------------------------------------------------------------------------------------------
@@ -147,10 +144,10 @@ def parse_time(text: str) -> RtcTime:
     the PLC and can be refused).  The weekday comes from the date when the date exists, else 0."""
     match = _TIME_RE.match(text.strip())
     if not match:
-        raise ValueError(f"cannot read {text!r} as a time: give {TIME_FORMATS}")
+        raise InvalidValue(f"cannot read {text!r} as a time: give {TIME_FORMATS}")
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in match.groups())
     if not YEAR_BASE <= year <= YEAR_BASE + 99:
-        raise ValueError(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year}")
+        raise InvalidValue(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year}")
     value = RtcTime(second, minute, hour, day, month, year - YEAR_BASE, 0)
     try:
         return value.with_weekday_from_date()
@@ -203,14 +200,14 @@ def parse_rate(text: str) -> float:
     try:
         return float(cleaned)
     except ValueError:
-        raise ValueError(f"cannot read {text!r} as a clock error: give s/day as a number, positive = the PLC clock "
+        raise InvalidValue(f"cannot read {text!r} as a clock error: give s/day as a number, positive = the PLC clock "
                          f"runs fast (e.g. 3.38 or -5.62; range {RATE_MIN}…+{RATE_MAX})") from None
 
 
 def parse_code(text: str) -> int:
     match = _CODE_RE.match(text.strip())
     if not match:
-        raise ValueError(f"cannot read {text!r} as a D4054 code: give {CODE_FORMATS}")
+        raise InvalidValue(f"cannot read {text!r} as a D4054 code: give {CODE_FORMATS}")
     return int(match.group(1), 16)
 
 

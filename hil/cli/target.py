@@ -15,9 +15,9 @@ from typing import Iterator
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.plugin import FAMILY as FBS
 from hil.families.fbs.sim.build import build_emulator
-from hil.core.errors import HilError
+from hil.core.errors import HilError, InvalidValue
 from hil.bench.profile import Profile, load_profile
-from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
@@ -44,7 +44,7 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
                        f"command works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows "
                        f"it, hil run --bench {bench} runs its suites")
     if url is None and given is None:
-        raise ValueError("name a target URL or a bench profile (--bench FILE)")
+        raise InvalidValue("name a target URL or a bench profile (--bench FILE)")
     target = parse_target(url or given.target)
     profile = given if given is not None or not target.in_process else load_profile(default_bench())
     epoch = dt.datetime.now().replace(microsecond=0)
@@ -53,6 +53,5 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
         factory = lambda: build_emulator(profile, epoch)  # noqa: E731
     timeout = given.timeout if given is not None else None
     with open_transport(target, emulator_factory=factory, timeout=timeout) as transport:
-        timebase: Timebase = (EmulatorTimebase(transport.emulator, epoch) if transport.emulator is not None
-                              else HostTimebase(given.time_scale if given is not None else 1.0))
+        timebase = timebase_for(transport.emulator, epoch, given.time_scale if given is not None else 1.0)
         yield OpenTarget(transport, timebase, profile)

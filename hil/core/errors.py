@@ -7,6 +7,11 @@ class HilError(Exception):
     """Base of every error the harness raises on purpose."""
 
 
+class InvalidValue(HilError, ValueError):
+    """A value refused before anything is sent: outside its range, not a valid date, not a known code or setting.
+    (Also a ValueError, so code that checks values the standard way still catches it.)"""
+
+
 class AddressError(HilError, ValueError):
     """An FBs element name that does not parse or lies outside the model's ranges."""
 

@@ -12,6 +12,8 @@ import datetime as dt
 import time
 from typing import Protocol
 
+from hil.core.errors import InvalidValue
+
 
 class Timebase(Protocol):
     def now(self) -> float:
@@ -41,7 +43,7 @@ class HostTimebase:
 
     def __init__(self, time_scale: float = 1.0) -> None:
         if time_scale <= 0:
-            raise ValueError(f"time_scale must be positive, not {time_scale}")
+            raise InvalidValue(f"time_scale must be positive, not {time_scale}")
         self.time_scale = time_scale
 
     def now(self) -> float:
@@ -53,6 +55,12 @@ class HostTimebase:
     def wait(self, seconds: float) -> None:
         if seconds > 0:
             time.sleep(seconds / self.time_scale)
+
+
+def timebase_for(emulator: VirtualClock | None, epoch: dt.datetime, time_scale: float = 1.0) -> "Timebase":
+    """The bench's time: virtual with an in-process emulator (``emulator``), else the host's (÷ ``time_scale``
+    for an accelerated external emulator).  The one place that decides it."""
+    return EmulatorTimebase(emulator, epoch) if emulator is not None else HostTimebase(time_scale)
 
 
 class EmulatorTimebase:

@@ -14,6 +14,7 @@ import threading
 import time
 from typing import Any, Callable, Iterable, TypeVar
 
+from hil.core.errors import InvalidValue
 from hil import __version__
 from hil.sim.model import Model
 
@@ -30,7 +31,7 @@ class Engine:
     def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
         if scan_time <= 0:
-            raise ValueError(f"scan time must be positive, not {scan_time}")
+            raise InvalidValue(f"scan time must be positive, not {scan_time}")
         self.scan_time = scan_time
         self.station = station
         self.seed = seed
@@ -73,7 +74,7 @@ class Engine:
     def advance(self, seconds: float) -> None:
         """Let ``seconds`` of virtual time pass, jumping over spans in which no model needs a scan."""
         if seconds < 0:
-            raise ValueError(f"cannot advance by a negative time ({seconds} s)")
+            raise InvalidValue(f"cannot advance by a negative time ({seconds} s)")
         with self.lock:
             self.advance_to(self.now + seconds)
 
@@ -104,7 +105,7 @@ class Engine:
     def run_realtime(self, stop: threading.Event, time_scale: float = 1.0) -> None:
         """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``)."""
         if time_scale <= 0:
-            raise ValueError(f"time scale must be positive, not {time_scale}")
+            raise InvalidValue(f"time scale must be positive, not {time_scale}")
         self.realtime = True
         start_wall, start_virtual = time.monotonic(), self.now
         try:

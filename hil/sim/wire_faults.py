@@ -27,6 +27,8 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
+from hil.core.errors import InvalidValue
+
 KINDS = ("drop", "delay", "corrupt", "split", "late", "duplicate", "garbage", "close")
 
 Corrupt = Callable[[bytes, random.Random], bytes]
@@ -47,9 +49,9 @@ class WireFaults:
         check_rates(self.rates)
         for kind in self.script:
             if kind is not None and kind not in KINDS:
-                raise ValueError(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
+                raise InvalidValue(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
         if self.delay < 0 or self.split_gap < 0:
-            raise ValueError("delay and split_gap must be ≥ 0")
+            raise InvalidValue("delay and split_gap must be ≥ 0")
         self.random = random.Random(self.seed)
         self.queue: collections.deque[str | None] = collections.deque(self.script)
         self.injected: collections.Counter[str] = collections.Counter()
@@ -69,7 +71,7 @@ class WireFaults:
         """Script the next replies: ``push("drop", None, "late")`` drops one, passes one, delays the third."""
         for kind in kinds:
             if kind is not None and kind not in KINDS:
-                raise ValueError(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
+                raise InvalidValue(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
         with self._lock:
             self.queue.extend(kinds)
 
@@ -99,11 +101,11 @@ class WireFaults:
 def check_rates(rates: dict[str, float]) -> None:
     for kind, p in rates.items():
         if kind not in KINDS:
-            raise ValueError(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
+            raise InvalidValue(f"unknown wire fault {kind!r} (known: {', '.join(KINDS)})")
         if not 0.0 <= p <= 1.0:
-            raise ValueError(f"probability of {kind} must be 0–1, not {p}")
+            raise InvalidValue(f"probability of {kind} must be 0–1, not {p}")
     if sum(rates.values()) > 1.0 + 1e-9:
-        raise ValueError(f"fault probabilities add up to {sum(rates.values()):g}, more than 1")
+        raise InvalidValue(f"fault probabilities add up to {sum(rates.values()):g}, more than 1")
 
 
 # -- corruption per protocol ----------------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs import registers as reg
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile
-from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
 from hil.families.fbs.transport.guard import GuardedTransport, expand
@@ -43,8 +43,7 @@ class Bench(BenchBase):
         self.raw: Transport = open_transport(self.target, timeout=profile.timeout, wire_faults=wire_faults,
                                              emulator_factory=lambda: emulator_builder(profile, epoch))
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
-        self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
-                               else HostTimebase(profile.time_scale))
+        self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
         self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
         if "temperature" in profile.sections:
             self.plc.temperature.config = profile.sections["temperature"]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from hil.core.errors import InvalidValue
 from hil.families.fbs.d4054_table import ROWS as _PRINTED_ROWS
 
 NO_CORRECTION = 0x0000
@@ -62,9 +63,9 @@ def code_for_rate(s_per_day: float) -> int:
     """
     rate = float(s_per_day)
     if not math.isfinite(rate):
-        raise ValueError(f"clock error must be a finite number of s/day, not {s_per_day!r}")
+        raise InvalidValue(f"clock error must be a finite number of s/day, not {s_per_day!r}")
     if not RATE_MIN - 1e-9 <= rate <= RATE_MAX + 1e-9:
-        raise ValueError(f"clock error {rate:+.4f} s/day is outside the S-35390A setting range "
+        raise InvalidValue(f"clock error {rate:+.4f} s/day is outside the S-35390A setting range "
                          f"{RATE_MIN}…+{RATE_MAX} s/day (manual ch. 15); D4054 cannot correct it")
     x = rate * 100
     best = min(_HUNDREDTHS, key=lambda row: (round(abs(x - row[0]), 6), abs(row[0])))
@@ -74,13 +75,13 @@ def code_for_rate(s_per_day: float) -> int:
 def rate_for_code(code: int) -> RateCode:
     """Decode a D4054 value exactly.  0000H = no correction; anything else must be 56xxH (ValueError)."""
     if isinstance(code, bool) or not isinstance(code, int):
-        raise ValueError(f"a D4054 code is an integer 0000H or 5600H–56FFH, not {code!r}")
+        raise InvalidValue(f"a D4054 code is an integer 0000H or 5600H–56FFH, not {code!r}")
     if code == NO_CORRECTION:
         return RateCode("none", 0, 0.0)
     if not 0 <= code <= 0xFFFF:
-        raise ValueError(f"D4054 code {code} does not fit a 16-bit register (0000H or 5600H–56FFH)")
+        raise InvalidValue(f"D4054 code {code} does not fit a 16-bit register (0000H or 5600H–56FFH)")
     if code >> 8 != HIGH_BYTE:
-        raise ValueError(f"D4054 code {code:04X}H is malformed: the high byte must be 56H (or the whole code "
+        raise InvalidValue(f"D4054 code {code:04X}H is malformed: the high byte must be 56H (or the whole code "
                          f"0000H for no correction); the manual does not say what the PLC does with it")
     reversed_low = _reverse_byte(code)
     fine = bool(reversed_low & 0x80)
@@ -93,9 +94,9 @@ def rate_for_code(code: int) -> RateCode:
 def code_for_steps(mode: str, steps: int) -> int:
     """The D4054 code for ``steps`` (−64…+63) in ``mode`` "fine" | "coarse" (inverse of :func:`rate_for_code`)."""
     if mode not in ("fine", "coarse"):
-        raise ValueError(f"mode must be 'fine' or 'coarse', not {mode!r}")
+        raise InvalidValue(f"mode must be 'fine' or 'coarse', not {mode!r}")
     if not -64 <= steps <= 63:
-        raise ValueError(f"steps must be −64…+63 (7-bit two's complement), not {steps}")
+        raise InvalidValue(f"steps must be −64…+63 (7-bit two's complement), not {steps}")
     reversed_low = (0x80 if mode == "fine" else 0) | (steps & 0x7F)
     return HIGH_BYTE << 8 | _reverse_byte(reversed_low)
 

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from hil.families.fbs.address import parse
 from hil.families.fbs.registers import MAX_POINTS
-from hil.core.errors import AddressError, HilError, ProfileError, TargetError
+from hil.core.errors import AddressError, HilError, InvalidValue, ProfileError, TargetError
 from hil.io.url import parse_target
 
 if TYPE_CHECKING:
@@ -132,7 +132,7 @@ class SensorBreakInjector(ABC):
     @staticmethod
     def _check(point: int) -> None:
         if not isinstance(point, int) or not 0 <= point < MAX_POINTS:
-            raise ValueError(f"temperature point {point!r} is outside 0–{MAX_POINTS - 1}")
+            raise InvalidValue(f"temperature point {point!r} is outside 0–{MAX_POINTS - 1}")
 
     @abstractmethod
     def _set(self, point: int, open_circuit: bool) -> None: ...

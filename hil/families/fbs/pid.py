@@ -28,7 +28,7 @@ from typing import Any
 
 from hil.families.fbs.address import WORD_BANKS, Address, parse
 from hil.families.fbs.registers import point_bit
-from hil.core.errors import AddressError, ProfileError
+from hil.core.errors import AddressError, InvalidValue, ProfileError
 
 MAX_POINTS = 32
 WORK_WORDS = 9  # WR … WR+8
@@ -88,7 +88,7 @@ class PidInstance:
     def index(self, point: int) -> int:
         """The operand offset of ``point`` (0 for point Sn)."""
         if point not in self.points:
-            raise ValueError(f"point {point} is not controlled by FUN86 {self.name!r} (points "
+            raise InvalidValue(f"point {point} is not controlled by FUN86 {self.name!r} (points "
                              f"{self.sn}–{self.sn + self.zn - 1})")
         return point - self.sn
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Iterable
 
+from hil.core.errors import InvalidValue
 from hil.families.fbs.address import parse_range
 
 
@@ -18,7 +19,7 @@ class FbsFamily:
     def check_ranges(self, ranges: list) -> bool:
         for item in ranges:
             if not isinstance(item, str):
-                raise ValueError(f"{item!r} is not an address range like 'R4128-R4135'")
+                raise InvalidValue(f"{item!r} is not an address range like 'R4128-R4135'")
             parse_range(item)
         return True
 

@@ -5,6 +5,8 @@ Names only — never outcomes.  Suites state expected values literally from the 
 
 from __future__ import annotations
 
+from hil.core.errors import InvalidValue
+
 # Real-time clock (manual chapter 15)
 RTC_SECOND = "R4128"
 RTC_MINUTE = "R4129"
@@ -55,7 +57,7 @@ def point_bit(index: int) -> tuple[int, int]:
     """Where point ``index`` (or a FUN86 bit counted from Sn) sits in a pair of 16-bit words: (0 for 0–15 or 1
     for 16–31, the bit in that word) — R4010/R4011, R4012/R4013, WR+0/1, WR+2/3, the break bits alike."""
     if not 0 <= index < MAX_POINTS:
-        raise ValueError(f"temperature point {index} is outside 0–{MAX_POINTS - 1}")
+        raise InvalidValue(f"temperature point {index} is outside 0–{MAX_POINTS - 1}")
     return divmod(index, 16)
 
 

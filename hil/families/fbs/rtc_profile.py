@@ -7,6 +7,7 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any
 
+from hil.core.errors import InvalidValue
 from hil.bench.profile import Reader
 from hil.families.fbs.rtc_time import CHIP_NAMES
 
@@ -37,7 +38,7 @@ def _chip(value: Any) -> int:
         return value
     if isinstance(value, str) and value in CHIP_CODES:
         return CHIP_CODES[value]
-    raise ValueError(f"chip must be 0–3 or one of {', '.join(CHIP_CODES)}, not {value!r}")
+    raise InvalidValue(f"chip must be 0–3 or one of {', '.join(CHIP_CODES)}, not {value!r}")
 
 
 def _start(value: Any) -> dt.datetime | None:
@@ -47,4 +48,4 @@ def _start(value: Any) -> dt.datetime | None:
         return None
     if isinstance(value, str):
         return dt.datetime.fromisoformat(value)
-    raise ValueError(f"start must be 'host' or a date-time like '2024-02-29 12:00:00', not {value!r}")
+    raise InvalidValue(f"start must be 'host' or a date-time like '2024-02-29 12:00:00', not {value!r}")

@@ -11,6 +11,8 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Sequence
 
+from hil.core.errors import InvalidValue
+
 #: Calendar time of two-digit year 0 (2000-01-01 00:00:00).
 YEAR_BASE = 2000
 EPOCH = dt.datetime(YEAR_BASE, 1, 1)
@@ -59,7 +61,7 @@ class RtcTime:
     def from_datetime(cls, when: dt.datetime) -> "RtcTime":
         """The RTC registers for ``when`` (sub-seconds dropped, weekday from the date); year must be 2000–2099."""
         if not YEAR_BASE <= when.year <= YEAR_BASE + 99:
-            raise ValueError(f"the FBs RTC holds years 2000–2099 only, not {when.year} ({when.isoformat()})")
+            raise InvalidValue(f"the FBs RTC holds years 2000–2099 only, not {when.year} ({when.isoformat()})")
         return cls(when.second, when.minute, when.hour, when.day, when.month, when.year - YEAR_BASE,
                    weekday_of(when.year - YEAR_BASE, when.month, when.day))
 
@@ -72,7 +74,7 @@ class RtcTime:
     def from_registers(cls, values: Sequence[int]) -> "RtcTime":
         """From the 7 values of R4128–R4134 (as read; unvalidated)."""
         if len(values) != 7:
-            raise ValueError(f"R4128–R4134 are 7 registers, got {len(values)} values: {list(values)}")
+            raise InvalidValue(f"R4128–R4134 are 7 registers, got {len(values)} values: {list(values)}")
         return cls(*(int(v) for v in values))
 
     def to_registers(self) -> list[int]:
@@ -121,7 +123,7 @@ class RtcTime:
         bad = self.validate()
         if bad:
             detail = ", ".join(f"{name}={getattr(self, name)}" for name in bad)
-            raise ValueError(f"invalid RTC time {self}: {detail}")
+            raise InvalidValue(f"invalid RTC time {self}: {detail}")
 
     def __str__(self) -> str:
         return (f"{YEAR_BASE + self.year:04d}-{self.month:02d}-{self.day:02d} "

@@ -16,7 +16,7 @@ from typing import Any
 
 from hil.families.fbs.address import Address, parse
 from hil.families.fbs.registers import MAX_POINTS
-from hil.core.errors import AddressError, ProfileError
+from hil.core.errors import AddressError, InvalidValue, ProfileError
 
 TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
 BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open
@@ -81,14 +81,14 @@ def sensor_kind(name: str) -> SensorKind:
     key = name.strip().upper()
     key = _SENSOR_ALIASES.get(key, key)
     if key not in SENSORS:
-        raise ValueError(f"unknown sensor {name!r} (known: {', '.join(SENSORS)})")
+        raise InvalidValue(f"unknown sensor {name!r} (known: {', '.join(SENSORS)})")
     return SENSORS[key]
 
 
 def module_type(name: str) -> ModuleType:
     key = name.strip().upper().removeprefix("FBS-")
     if key not in MODULES:
-        raise ValueError(f"unknown module {name!r} (known: {', '.join(MODULES)})")
+        raise InvalidValue(f"unknown module {name!r} (known: {', '.join(MODULES)})")
     return MODULES[key]
 
 
@@ -104,7 +104,7 @@ def encode_start(address: Address) -> int:
         return 10000 + address.index
     if address.kind == "D":
         return 20000 + address.index
-    raise ValueError(f"{address} is neither an R nor a D register")
+    raise InvalidValue(f"{address} is neither an R nor a D register")
 
 
 def decode_start(word: int) -> Address | None:

@@ -18,7 +18,7 @@ from hil.families.s7smart.emulator import S7Emulator
 from hil.families.s7smart.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.modbus_map import S7ModbusMap
-from hil.core.timebase import EmulatorTimebase, HostTimebase, Timebase
+from hil.core.timebase import Timebase, timebase_for
 from hil.io.url import Target, parse_target
 
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
@@ -73,8 +73,7 @@ class S7Bench(BenchBase):
         self.raw: S7Io = open_s7_io(self.target, self.settings, station=profile.station, timeout=profile.timeout,
                                     emulator_factory=lambda: _checked(emulator_builder(profile, epoch)))
         self.io = GuardedS7Io(self.raw, profile.safety.writable)
-        self.time: Timebase = (EmulatorTimebase(self.raw.emulator, epoch) if self.raw.emulator is not None
-                               else HostTimebase(profile.time_scale))
+        self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
         self.plc = S7Plc(self.io, self.time, layout=self.layout, settle_scans=profile.settle_scans)
         # Writes to these mean the clock may have been set: put it back on host time after the test.
         self._clock_inputs = set()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from dataclasses import dataclass
 
+from hil.core.errors import InvalidValue
 from hil.families.s7smart import timebuf
 from hil.families.s7smart.address import S7Address
 from hil.families.s7smart.io import S7Io
@@ -55,7 +56,7 @@ class S7Rtc:
     def set_int(self, buffer: bytes | list[int], *, hold: bool = False) -> ClockResult:
         """SET_RTC_I (library instruction) on ``buffer`` (8 plain integers)."""
         if self.layout.set_i_trigger is None or self.layout.set_i_buffer is None:
-            raise ValueError("the bench's [s7rtc] has no set_i_trigger/set_i_buffer")
+            raise InvalidValue("the bench's [s7rtc] has no set_i_trigger/set_i_buffer")
         self.plc.io.write_v(self.layout.set_i_buffer.byte, _eight(buffer))
         return self._pulse(self.layout.set_i_trigger, hold)
 
@@ -127,5 +128,5 @@ class S7Plc:
 def _eight(buffer: bytes | list[int]) -> bytes:
     data = bytes(buffer)
     if len(data) != 8:
-        raise ValueError(f"a clock buffer has 8 bytes, not {len(data)}")
+        raise InvalidValue(f"a clock buffer has 8 bytes, not {len(data)}")
     return data

@@ -19,7 +19,7 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Iterable, Sequence
 
 from hil.core.link import Link
-from hil.core.errors import RestoreError, TransportError, WriteRefused
+from hil.core.errors import InvalidValue, RestoreError, TransportError, WriteRefused
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
@@ -54,7 +54,7 @@ class S7Io(Link, ABC):
             if a.area in ("Q", "I") and a.is_bit:
                 return self._read_bits(a.area, a.byte * 8 + a.bit, 1)[0]  # type: ignore[operator]
             if a.area != "V":
-                raise ValueError(f"{a}: only V memory and Q/I bits are reachable")
+                raise InvalidValue(f"{a}: only V memory and Q/I bits are reachable")
             raw = self._read_v(a.byte, a.size)
             return raw[0] >> a.bit & 1 if a.is_bit else int.from_bytes(raw, "big")  # type: ignore[operator]
 
@@ -63,12 +63,12 @@ class S7Io(Link, ABC):
         value = int(value)
         top = 1 if a.is_bit else (1 << 8 * a.size) - 1
         if not 0 <= value <= top:
-            raise ValueError(f"value {value} for {a} is outside 0–{top}")
+            raise InvalidValue(f"value {value} for {a} is outside 0–{top}")
         with self._lock:
             if a.area == "Q" and a.is_bit:
                 self._write_bits("Q", a.byte * 8 + a.bit, [value])  # type: ignore[operator]
             elif a.area != "V":
-                raise ValueError(f"{a}: only V memory and Q bits are writable")
+                raise InvalidValue(f"{a}: only V memory and Q bits are writable")
             elif a.is_bit:  # read-modify-write of the byte: S7 memory has no single-bit write over these wires
                 old = self._read_v(a.byte, 1)[0]
                 mask = 1 << a.bit  # type: ignore[operator]
@@ -79,7 +79,7 @@ class S7Io(Link, ABC):
     def read_bits(self, name: "str | S7Address", count: int = 1) -> list[int]:
         a = parse_s7(name)
         if not a.is_bit or a.area not in ("Q", "I"):
-            raise ValueError(f"{a}: read_bits reads Q or I bits")
+            raise InvalidValue(f"{a}: read_bits reads Q or I bits")
         with self._lock:
             return self._read_bits(a.area, a.byte * 8 + a.bit, count)  # type: ignore[operator]
 
@@ -223,12 +223,12 @@ class ModbusS7Io(S7Io):
     def _read_bits(self, area: str, first: int, count: int) -> list[int]:
         self.map.bit_number(S7Address(area, (first + count - 1) // 8, (first + count - 1) % 8))
         if count > MAX_READ_BITS:
-            raise ValueError(f"at most {MAX_READ_BITS} bits per read")
+            raise InvalidValue(f"at most {MAX_READ_BITS} bits per read")
         return self.wire.read(COILS if area == "Q" else DISCRETE_INPUTS, first, count)
 
     def _write_bits(self, area: str, first: int, values: list[int]) -> None:
         if area != "Q":
-            raise ValueError("only Q bits (coils) are writable over Modbus")
+            raise InvalidValue("only Q bits (coils) are writable over Modbus")
         self.map.bit_number(S7Address("Q", (first + len(values) - 1) // 8, (first + len(values) - 1) % 8))
         self.wire.write(COILS, first, values)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from hil.core.errors import AddressError, ProfileError
+from hil.core.errors import AddressError, InvalidValue, ProfileError
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range
 
 #: CPUs without a real-time clock (no RTC, no super capacitor): the time is lost at every power cycle.
@@ -143,6 +143,6 @@ def check_s7_ranges(value: list) -> bool:
     """[safety] writable/volatile for an S7 bench: ranges such as 'VB100-VB139' or 'Q0.0-Q0.7'."""
     for item in value:
         if not isinstance(item, str):
-            raise ValueError(f"{item!r} is not an S7 range like 'VB100-VB139'")
+            raise InvalidValue(f"{item!r} is not an S7 range like 'VB100-VB139'")
         parse_s7_range(item)
     return True

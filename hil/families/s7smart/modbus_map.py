@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from hil.core.errors import UnreachableAddress
+from hil.core.errors import InvalidValue, UnreachableAddress
 from hil.families.s7smart.address import S7Address
 
 BITS = 256  # Q0.0–Q31.7 and I0.0–I31.7
@@ -34,7 +34,7 @@ class S7ModbusMap:
     def registers_for(self, first: int, count: int) -> tuple[int, int]:
         """(first PDU register, register count) covering V bytes ``first`` … ``first + count − 1``."""
         if count < 1:
-            raise ValueError("count must be ≥ 1")
+            raise InvalidValue("count must be ≥ 1")
         if first < self.hold_start or first + count > self.v_end:
             raise UnreachableAddress(
                 f"VB{first}" + (f"–VB{first + count - 1}" if count > 1 else ""), "Modbus (S7-200 SMART map)",
@@ -52,7 +52,7 @@ class S7ModbusMap:
     def bit_number(address: S7Address) -> int:
         """PDU coil (Q) or discrete input (I) number of a bit operand."""
         if not address.is_bit or address.area not in ("Q", "I"):
-            raise ValueError(f"{address} is not a Q or I bit")
+            raise InvalidValue(f"{address} is not a Q or I bit")
         n = address.byte * 8 + address.bit  # type: ignore[operator]
         if n >= BITS:
             raise UnreachableAddress(str(address), "Modbus (S7-200 SMART map)", "only Q0.0–Q31.7 and I0.0–I31.7 "

@@ -12,6 +12,8 @@ import calendar
 import datetime as dt
 from typing import Sequence
 
+from hil.core.errors import InvalidValue
+
 ERROR_NONE = 0x0000
 ERROR_INDIRECT = 0x0006  # indirect address error
 ERROR_T_DATA = 0x0007  # "T data error": an invalid time buffer (or a colliding access, with SM4.3)
@@ -35,7 +37,7 @@ class TimeBufferError(ValueError):
 
 def to_bcd(value: int) -> int:
     if not 0 <= value <= 99:
-        raise ValueError(f"{value} does not fit one BCD byte (00–99)")
+        raise InvalidValue(f"{value} does not fit one BCD byte (00–99)")
     return value // 10 << 4 | value % 10
 
 
@@ -113,7 +115,7 @@ def int_to_bcd(buffer: bytes | Sequence[int]) -> bytes:
 
 def _check_year(when: dt.datetime) -> None:
     if not 2000 <= when.year <= 2099:
-        raise ValueError(f"{when:%Y-%m-%d}: the S7-200 SMART clock holds 2000–2099 only")
+        raise InvalidValue(f"{when:%Y-%m-%d}: the S7-200 SMART clock holds 2000–2099 only")
 
 
 def hex_bytes(buffer: bytes | Sequence[int]) -> str:

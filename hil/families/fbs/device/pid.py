@@ -11,7 +11,7 @@ import io as _io
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Iterable
 
-from hil.core.errors import HilError
+from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
 from hil.families.fbs.pid import OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance
@@ -31,7 +31,7 @@ class AlarmWords:
     def _flag(self, pair: tuple[int, int], point: int) -> bool:
         b = point - self.sn
         if not 0 <= b < reg.MAX_POINTS:
-            raise ValueError(f"point {point} is outside this FUN86's points (Sn = {self.sn})")
+            raise InvalidValue(f"point {point} is outside this FUN86's points (Sn = {self.sn})")
         return reg.pair_bit([self.words[i] for i in pair], b)
 
     def normal(self, point: int) -> bool:
@@ -215,7 +215,7 @@ class Pid:
         """R4005 for a PID interval and PWM period in seconds (each 1, 2, 4, 8, 16 or 32)."""
         for s in (interval_s, pwm_s):
             if s not in TIMING_SECONDS:
-                raise ValueError(f"{s} s is not one of {TIMING_SECONDS}")
+                raise InvalidValue(f"{s} s is not one of {TIMING_SECONDS}")
         return TIMING_SECONDS.index(pwm_s) << 8 | TIMING_SECONDS.index(interval_s)
 
     # -- closed loop ----------------------------------------------------------------------------------------------

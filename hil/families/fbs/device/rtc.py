@@ -10,7 +10,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from hil.core.errors import HilError
+from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import code_for_rate
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
@@ -182,10 +182,7 @@ class Rtc:
         """M1952 := 1 and R4128–R4134 := ``value`` in one mixed write (one FATEK 49 frame; in this order)."""
         io = self.plc.io
         items = [(reg.RTC_HOLD, 1)] + list(zip(reg.RTC_FIELDS, value.to_registers()))
-        for name, _ in items:  # refuse before anything is written rather than strand M1952 at 1
-            reason = io.unreachable_reason(name)
-            if reason:
-                raise RtcError(f"cannot set the RTC: {reason}")
+        io.require([name for name, _ in items], "set the RTC", RtcError)  # rather than strand M1952 at 1
         try:
             io.write_many(items)
         except HilError as exc:
@@ -228,9 +225,9 @@ class Drift:
         runs now.
         """
         if transitions < 1:
-            raise ValueError(f"transitions must be at least 1, not {transitions}")
+            raise InvalidValue(f"transitions must be at least 1, not {transitions}")
         if duration < transitions + 2:
-            raise ValueError(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
+            raise InvalidValue(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
         # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
         # phases of the chip's second (on the emulator they would otherwise land identically every time).
         step = self.rtc.poll_interval / transitions

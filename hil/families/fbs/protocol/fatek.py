@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar, Sequence
 
 from hil.families.fbs.address import Address, DWORD, parse, take_frame_name
-from hil.core.errors import AddressError, PlcErrorReply, ProtocolError
+from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 
 STX = 0x02
 ETX = 0x03
@@ -103,9 +103,9 @@ class Frame:
 
 def build_frame(station: int, command: str, data: str = "") -> bytes:
     if not 0 <= station <= 0xFE:
-        raise ValueError(f"station {station} outside 0–254 (0 = broadcast)")
+        raise InvalidValue(f"station {station} outside 0–254 (0 = broadcast)")
     if len(data) > MAX_DATA:
-        raise ValueError(f"frame data is {len(data)} characters; the protocol allows {MAX_DATA}")
+        raise InvalidValue(f"frame data is {len(data)} characters; the protocol allows {MAX_DATA}")
     body = bytes([STX]) + f"{station:02X}{command}{data}".encode("ascii")
     return body + checksum(body) + bytes([ETX])
 
@@ -231,7 +231,7 @@ def _format_value(address: Address, value: int) -> str:
         return "1" if value else "0"
     width = _hex_width(address)
     if not 0 <= value < 16 ** width:
-        raise ValueError(f"value {value} does not fit {address} ({address.bits} bits, unsigned)")
+        raise InvalidValue(f"value {value} does not fit {address} ({address.bits} bits, unsigned)")
     return f"{value:0{width}X}"
 
 
@@ -416,9 +416,9 @@ class BitAction(Command):
     def __post_init__(self) -> None:
         self.address = parse(self.address)
         if self.action not in BIT_ACTIONS:
-            raise ValueError(f"bit action must be one of {BIT_ACTIONS}, not {self.action}")
+            raise InvalidValue(f"bit action must be one of {BIT_ACTIONS}, not {self.action}")
         if not self.address.is_bit:
-            raise ValueError(f"command 42 acts on a bit, not {self.address}")
+            raise InvalidValue(f"command 42 acts on a bit, not {self.address}")
 
     def request_data(self) -> str:
         return f"{self.action}{self.address.fatek_name}"
@@ -451,11 +451,11 @@ class _RangeCommand(Command):
 
     def _check(self) -> None:
         if self.bits_only != self.address.is_bit:
-            raise ValueError(f"command {self.code} takes {'bit' if self.bits_only else 'register'} names, "
+            raise InvalidValue(f"command {self.code} takes {'bit' if self.bits_only else 'register'} names, "
                              f"not {self.address}")
         limit = MAX_BITS if self.bits_only else MAX_WORDS // self.address.words
         if not 1 <= self.count <= limit:
-            raise ValueError(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {self.count}")
+            raise InvalidValue(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {self.count}")
         # Raises AddressError when the run leaves the bank.
         self.address.offset(self.count - 1)
 
@@ -568,7 +568,7 @@ class MixedRead(Command):
         self.addresses = [parse(a) for a in self.addresses]
         cost = sum(a.words for a in self.addresses)
         if not self.addresses or cost > MAX_WORDS:
-            raise ValueError(f"command 48 reads 1–{MAX_WORDS} words (bit = 1, 32-bit = 2), not {cost}")
+            raise InvalidValue(f"command 48 reads 1–{MAX_WORDS} words (bit = 1, 32-bit = 2), not {cost}")
 
     def request_data(self) -> str:
         return _count(len(self.addresses)) + "".join(a.fatek_name for a in self.addresses)
@@ -613,7 +613,7 @@ class MixedWrite(Command):
         self.items = [(parse(a), int(v)) for a, v in self.items]
         cost = sum(a.words for a, _ in self.items)
         if not self.items or cost > MAX_MIXED_WRITE_WORDS:
-            raise ValueError(f"command 49 writes 1–{MAX_MIXED_WRITE_WORDS} words, not {cost}")
+            raise InvalidValue(f"command 49 writes 1–{MAX_MIXED_WRITE_WORDS} words, not {cost}")
         for a, v in self.items:
             _format_value(a, v)
 
@@ -646,7 +646,7 @@ class Loopback(Command):
 
     def __post_init__(self) -> None:
         if len(self.text) > 256:
-            raise ValueError("loop-back text is limited to 256 characters")
+            raise InvalidValue("loop-back text is limited to 256 characters")
 
     def request_data(self) -> str:
         return self.text

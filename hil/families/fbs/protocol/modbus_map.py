@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Iterable, Mapping
 
 from hil.families.fbs.address import LOW_WORD_FIRST, PACKED_16, PACKED_32, PAIRED_32, Address, parse
-from hil.core.errors import AddressError, UnreachableAddress
+from hil.core.errors import AddressError, InvalidValue, UnreachableAddress
 
 COIL, HOLDING = "coil", "holding"
 TABLES = (COIL, HOLDING)
@@ -280,7 +280,7 @@ def _table(table: str) -> str:
     name = table.lower().rstrip("s")
     if name in ("coil", "holding", "holding register"):
         return COIL if name == "coil" else HOLDING
-    raise ValueError(f"unknown Modbus table {table!r}: the FBs default map uses 'coil' and 'holding'")
+    raise InvalidValue(f"unknown Modbus table {table!r}: the FBs default map uses 'coil' and 'holding'")
 
 
 __all__ = ["ModbusRef", "Run", "to_modbus", "from_modbus", "locate", "units", "encode", "decode", "coalesce",

@@ -19,6 +19,7 @@ from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from hil.core.errors import InvalidValue
 from hil.families.fbs.registers import MAX_POINTS
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.runtime import LoopThread, ServerHandle
@@ -34,7 +35,7 @@ def build_rig_device(emulator: Emulator, first_coil: int = 0) -> SimDevice:
     from hil.families.fbs.sim.models.temperature import TemperatureModel
     model = emulator.model(TemperatureModel)
     if model is None:
-        raise ValueError("the emulator has no temperature modules to break: give hil emulate a --bench profile "
+        raise InvalidValue("the emulator has no temperature modules to break: give hil emulate a --bench profile "
                          "with a [temperature] section")
     plant = emulator.model(ThermalPlant)
 

@@ -11,6 +11,7 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Sequence
 
+from hil.core.errors import InvalidValue
 from hil.core.link import Link
 from hil.io.status import PlcStatus
 from hil.families.fbs.address import Address, parse, span
@@ -37,7 +38,7 @@ def check_value(address: Address, value: int) -> int:
     top = 1 if address.is_bit else (1 << address.bits) - 1
     if not 0 <= value <= top:
         kind = "0 or 1" if address.is_bit else f"0–{top} (unsigned {address.bits}-bit)"
-        raise ValueError(f"value {value} for {address} is outside {kind}")
+        raise InvalidValue(f"value {value} for {address} is outside {kind}")
     return value
 
 
@@ -131,6 +132,15 @@ class Transport(Link, ABC):
         parse(address)
         return None
 
+    def require(self, names: Iterable[NameLike], action: str, error: type[Exception] | None = None) -> None:
+        """Refuse ``action`` before anything is sent when this wire cannot reach one of ``names`` — so that a
+        procedure never stops half-way (M1952 stranded at 1) on an address the wire could never reach."""
+        from hil.core.errors import HilError
+        for name in names:
+            reason = self.unreachable_reason(name)
+            if reason:
+                raise (error or HilError)(f"cannot {action}: {reason} (nothing was written)")
+
     def reopen(self) -> None:
         """Reconnect the wire after a failure (same target; an emulator's server keeps running)."""
         from hil.core.errors import TransportError
@@ -171,14 +181,14 @@ class Transport(Link, ABC):
     def _word_address(name: NameLike) -> Address:
         address = parse(name)
         if address.is_bit:
-            raise ValueError(f"{address} is a bit; use read_bits/write_bits (or a W… name such as WM800)")
+            raise InvalidValue(f"{address} is a bit; use read_bits/write_bits (or a W… name such as WM800)")
         return address
 
     @staticmethod
     def _bit_address(name: NameLike) -> Address:
         address = parse(name)
         if not address.is_bit:
-            raise ValueError(f"{address} is a register; use read_words/write_words")
+            raise InvalidValue(f"{address} is a register; use read_words/write_words")
         return address
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Callable
 
+from hil.core.errors import InvalidValue
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.runtime import ServerHandle
 from hil.families.fbs.transport.base import Transport
@@ -99,7 +100,7 @@ def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0,
         from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
         handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults)
     else:
-        raise ValueError(f"unknown emulator wire {wire!r}")
+        raise InvalidValue(f"unknown emulator wire {wire!r}")
     handle.faults = faults  # type: ignore[attr-defined]
     return handle
 

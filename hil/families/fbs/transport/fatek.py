@@ -20,7 +20,8 @@ from typing import Callable
 import serial
 
 from hil.families.fbs.address import Address
-from hil.core.errors import OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
+from hil.core.errors import (InvalidValue, OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeout,
+                             TransportError)
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
@@ -50,11 +51,11 @@ class FatekTransport(Transport):
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
                  backoff: float = 0.05, description: str | None = None) -> None:
         if not 0 <= station <= 0xFE:
-            raise ValueError(f"station {station} outside 1–254 (0 = broadcast)")
+            raise InvalidValue(f"station {station} outside 1–254 (0 = broadcast)")
         if timeout <= 0:
-            raise ValueError(f"timeout must be positive, not {timeout}")
+            raise InvalidValue(f"timeout must be positive, not {timeout}")
         if retries < 0:
-            raise ValueError(f"retries must be 0 or more, not {retries}")
+            raise InvalidValue(f"retries must be 0 or more, not {retries}")
         super().__init__(description or f"FATEK station {station} on {port_url}")
         self.port_url = port_url
         self.station = station

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from hil.families.fbs.address import Address
 from hil.sim.model import Model
-from hil.core.errors import ProfileError
+from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -302,9 +302,9 @@ class ThermalPlant(Model):
     # -- faults (injectors) ------------------------------------------------------------------------------------------
     def set_fault(self, fault: str, point: int, on: bool) -> None:
         if fault not in self.faults:
-            raise ValueError(f"unknown plant fault {fault!r} (known: {', '.join(FAULTS)})")
+            raise InvalidValue(f"unknown plant fault {fault!r} (known: {', '.join(FAULTS)})")
         if point not in self.heaters:
-            raise ValueError(f"temperature point {point} has no heater in the plant (heated: "
+            raise InvalidValue(f"temperature point {point} has no heater in the plant (heated: "
                              f"{sorted(self.heaters)})")
         (self.faults[fault].add if on else self.faults[fault].discard)(point)
 

@@ -15,6 +15,7 @@ import datetime as dt
 import math
 from typing import TYPE_CHECKING
 
+from hil.core.errors import InvalidValue
 from hil.families.fbs.address import parse
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
@@ -71,7 +72,7 @@ class RtcModel(Model):
     def __init__(self, chip: int = S35390A, crystal_ppm: float = 0.0,
                  start: dt.datetime | RtcTime | None = None) -> None:
         if chip not in CHIP_NAMES:
-            raise ValueError(f"RTC chip must be one of {CHIP_NAMES} (D4053 codes), not {chip!r}")
+            raise InvalidValue(f"RTC chip must be one of {CHIP_NAMES} (D4053 codes), not {chip!r}")
         self.chip = chip
         self.crystal_ppm = float(crystal_ppm)
         if start is None:

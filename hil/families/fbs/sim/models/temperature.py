@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Sequence
 
+from hil.core.errors import InvalidValue
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
@@ -125,7 +126,7 @@ class TemperatureModel(Model):
     @staticmethod
     def _check_point(point: int) -> None:
         if not 0 <= point < MAX_POINTS:
-            raise ValueError(f"temperature point {point} is outside 0–{MAX_POINTS - 1}")
+            raise InvalidValue(f"temperature point {point} is outside 0–{MAX_POINTS - 1}")
 
     # -- the seams broken variants override ----------------------------------------------------------------------
     def installed(self, mem: "Memory", point: int) -> bool:
