@@ -85,7 +85,7 @@ def test_shipped_s7_profiles_load():
     emu = load_profile(REPO / "fixtures/benches/s7-200smart.toml")
     real = load_profile(REPO / "fixtures/benches/example-s7-200smart.toml")
     assert emu.family == real.family == "s7-200smart"
-    assert real.target.startswith("modbus+tcp://")
+    assert real.target.startswith("s7+tcp://") and emu.target == "emulator+s7-tcp"  # the native wire first
     assert load_profile(REPO / "fixtures/benches/emulator.toml").family == "fbs"
 
 

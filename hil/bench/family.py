@@ -15,12 +15,13 @@ import functools
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Iterable, Protocol
 
-from hil.core.errors import ProfileError
+from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
     from hil.bench.base import BenchBase
     from hil.bench.profile import Profile
     from hil.sim.engine import Engine
+    from hil.sim.runtime import ServerHandle
 
 GROUP = "hil.families"
 
@@ -56,6 +57,12 @@ class Family(Protocol):
     def open_bench(self, profile: "Profile", **kwargs: Any) -> "BenchBase":
         """The bench for ``profile`` (its PLC behind the guard, its time, its per-test restore)."""
 
+    def serve(self, profile: "Profile", emulator: "Engine", wire: str, host: str, port: int) -> "ServerHandle":
+        """Serve ``emulator`` on ``wire`` (one of :attr:`wires`) for other programs (``hil emulate``)."""
+
+    #: the wires :meth:`serve` offers ("fatek-tcp", "modbus-tcp", "s7-tcp", …)
+    wires: tuple[str, ...]
+
 
 @functools.cache
 def families() -> dict[str, Family]:
@@ -75,6 +82,13 @@ def open_bench(profile: "Profile", **kwargs: Any) -> "BenchBase":
 def build_emulator(profile: "Profile", epoch: dt.datetime) -> "Engine":
     """The emulator of the profile's controller family, as the profile describes it."""
     return family(profile.family).build_emulator(profile, epoch)
+
+
+def check_wire(plugin: Family, wire: str) -> None:
+    """Refuse a wire the family's emulator is not served over, naming the ones it is."""
+    if wire not in plugin.wires:
+        raise InvalidValue(f"{plugin.a_title} emulator is not served over {wire} (it offers "
+                           f"{', '.join(plugin.wires)}; the profile's [bench] family picks the controller)")
 
 
 def family(name: str) -> Family:

@@ -11,7 +11,6 @@ from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
 from hil.bench.profile import load_profile
-from hil.families.fbs.transport.factory import serve
 
 
 def split_host_port(text: str) -> tuple[str, int]:
@@ -35,7 +34,7 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
-            handle = serve(emulator, wire, host, port)
+            handle = profile.plugin.serve(profile, emulator, wire, host, port)
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         if rig_modbus_tcp:

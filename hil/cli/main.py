@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
     emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
     emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    emulate.add_argument("--s7-tcp", metavar="HOST:PORT",
+                         help="the S7 protocol (ISO-on-TCP; an S7-200 SMART profile, e.g. fixtures/benches/"
+                              "s7-200smart.toml; port 0: OS chooses)")
     emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
                          help="also serve a fault rig, a Modbus/TCP relay module: coil FIRST+point = 1 opens the "
                               "point's sensor, FIRST+32+point its heater circuit, FIRST+64+point shorts its SSR "
@@ -212,12 +215,13 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "emulate":
         from hil.cli.emulate import emulate
         from hil.core.paths import default_bench
-        endpoints = [(w, a) for w, a in (("fatek-tcp", args.fatek_tcp), ("modbus-tcp", args.modbus_tcp)) if a]
+        endpoints = [(w, a) for w, a in (("fatek-tcp", args.fatek_tcp), ("modbus-tcp", args.modbus_tcp),
+                                         ("s7-tcp", args.s7_tcp)) if a]
         endpoints += [(w, None) for w, on in (("fatek-serial", args.fatek_pty), ("modbus-rtu", args.modbus_pty))
                       if on]
         if not endpoints:
-            raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty "
-                             "or --modbus-pty")
+            raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty, "
+                               "--modbus-pty or (an S7-200 SMART profile) --s7-tcp HOST:PORT")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
                        args.rig_first_coil, live=not args.no_live and console.is_terminal)
     if args.command == "probe":

@@ -7,6 +7,8 @@
     fatek+serial:///dev/ttyUSB0?baudrate=9600&parity=E&bytesize=7&stopbits=1&station=1
     modbus+tcp://host:502?unit=1&timeout=1&retries=2
     modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1
+    s7+tcp://host:102?rack=0&slot=1           an S7-200 SMART over its own protocol (ISO-on-TCP)
+    emulator+s7-tcp                           the in-process S7 emulator served over that protocol
     replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.families.fbs.transport.replay)
 """
 
@@ -17,7 +19,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 from hil.core.errors import TargetError
 
-EMULATOR_WIRES = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")
+EMULATOR_WIRES = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", "s7-tcp")
 EMULATOR_TARGETS = ("emulator",) + tuple(f"emulator+{w}" for w in EMULATOR_WIRES)
 
 _COMMON = {"timeout": float, "retries": int}
@@ -28,12 +30,14 @@ PARAMS: dict[str, dict[str, type]] = {
     "modbus+tcp": {**_COMMON, "unit": int},
     "modbus+rtu": {**_COMMON, **_SERIAL, "unit": int},
     "replay+fatek": {**_COMMON, "station": int},
+    "s7+tcp": {**_COMMON, "rack": int, "slot": int},
 }
-DEFAULT_PORTS = {"fatek+tcp": 500, "modbus+tcp": 502}
+DEFAULT_PORTS = {"fatek+tcp": 500, "modbus+tcp": 502, "s7+tcp": 102}
 
 FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
          "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "
-         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, replay+fatek:///path/to/trace.txt")
+         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, s7+tcp://HOST:102?rack=0&slot=1, "
+         "emulator+s7-tcp, replay+fatek:///path/to/trace.txt")
 
 
 @dataclass(frozen=True)
@@ -51,10 +55,13 @@ class Target:
 
     @property
     def protocol(self) -> str:
-        """"fatek", "modbus" or "local"."""
+        """"fatek", "modbus", "s7" or "local"."""
         if self.scheme == "emulator":
             return "local"
-        return "modbus" if "modbus" in self.scheme else "fatek"
+        for protocol in ("modbus", "s7"):
+            if protocol in self.scheme:
+                return protocol
+        return "fatek"
 
     def __str__(self) -> str:
         if self.in_process:

@@ -194,3 +194,25 @@ def test_power_cycle_keeps_the_time_only_with_an_rtc(bench, clock):
         assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), f"{bench.settings.cpu}: ")
     else:
         assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(2, 5), f"{bench.settings.cpu}: ")
+
+
+# -- the CPU's own clock functions (S7 protocol: read/set the time of day) -----------------------------------------
+@pytest.fixture
+def cpu_clock(clock):
+    if clock.cpu_clock() is None:
+        pytest.skip("this wire has no clock functions: the S7 protocol has them (target s7+tcp://HOST:102)")
+    return clock
+
+
+def test_cpu_clock_function_reads_the_clock_read_rtc_reads(cpu_clock):
+    assert cpu_clock.set(SATURDAY_15_JUNE_2024).accepted
+    via_protocol = cpu_clock.cpu_clock()
+    assert (via_protocol.year, via_protocol.month, via_protocol.day, via_protocol.hour, via_protocol.minute) == \
+        (2024, 6, 15, 8, 30), f"the CPU clock function reads {via_protocol} after SET_RTC of 2024-06-15 08:30:00"
+    assert via_protocol.second in range(0, 3), f"the CPU clock function reads {via_protocol}"
+    assert_reads(cpu_clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), "after reading it with the clock function: ")
+
+
+def test_cpu_clock_function_sets_what_read_rtc_reads(cpu_clock):
+    cpu_clock.set_cpu_clock(dt.datetime(2012, 3, 4, 17, 45, 10))
+    assert_reads(cpu_clock, T("12 03 04 17 45 10 00 01")[:5], 1, range(10, 13), "set with the clock function: ")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Iterable
 
+from hil.bench.family import check_wire
 from hil.core.errors import InvalidValue
 from hil.families.fbs.address import parse_range
 
@@ -46,6 +47,13 @@ class FbsFamily:
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
         from hil.families.fbs.bench import Bench
         return Bench(profile, **kwargs)
+
+    wires = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")
+
+    def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
+        from hil.families.fbs.transport.factory import serve
+        check_wire(self, wire)
+        return serve(emulator, wire, host, port)
 
 
 FAMILY = FbsFamily()

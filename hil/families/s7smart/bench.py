@@ -23,17 +23,20 @@ from hil.io.url import Target, parse_target
 
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
 #: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).
-S7_EMULATOR_TARGETS = ("emulator", "emulator+modbus-tcp")
+S7_EMULATOR_TARGETS = ("emulator", "emulator+s7-tcp", "emulator+modbus-tcp")
 
 
 def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: float,
                emulator_factory: Callable[[], S7Emulator]) -> S7Io:
     modbus_map = S7ModbusMap(settings.hold_start, settings.max_hold)
     if target.protocol == "fatek" or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
-        raise TargetError(f"target {target} cannot reach an S7-200 SMART: use one of {', '.join(S7_EMULATOR_TARGETS)}"
-                          f", modbus+tcp://HOST:502?unit=1 or modbus+rtu:///dev/ttyUSB0?unit=1")
+        raise TargetError(f"target {target} cannot reach an S7-200 SMART: use s7+tcp://HOST:102?rack=0&slot=1 (its "
+                          f"own protocol), one of {', '.join(S7_EMULATOR_TARGETS)}, modbus+tcp://HOST:502?unit=1 "
+                          f"or modbus+rtu:///dev/ttyUSB0?unit=1")
     if target.scheme == "emulator":
         return LocalS7Io(emulator_factory())
+    if target.protocol == "s7":
+        return _open_s7_wire(target, timeout, emulator_factory)
     if target.scheme == "emulator+modbus-tcp":
         from hil.families.s7smart.serve import start_s7_modbus_tcp
         emulator = emulator_factory()
@@ -54,6 +57,28 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
     if target.scheme == "modbus+tcp":
         return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
     return ModbusS7Io.rtu(target.device, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+
+
+def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[], S7Emulator]) -> S7Io:
+    """``s7+tcp://`` (python-snap7's client), or ``emulator+s7-tcp``: the emulator served over the S7 protocol on
+    loopback and reached by that same client."""
+    from hil.families.s7smart.s7wire import DEFAULT_PORT, SnapS7Io
+    params = dict(target.params)
+    params.setdefault("timeout", timeout)
+    if not target.in_process:
+        return SnapS7Io(target.host, target.port or DEFAULT_PORT, **params)  # type: ignore[arg-type]
+    from hil.families.s7smart.serve_s7 import start_s7_server
+    emulator = emulator_factory()
+    server = start_s7_server(emulator)
+    try:
+        host, _, port = server.address.rpartition(":")
+        io = SnapS7Io(host, int(port), timeout=timeout, description=f"emulator+s7-tcp (s7+tcp://{server.address})")
+    except BaseException:
+        server.stop()
+        raise
+    io.emulator = emulator
+    io.on_close(server.stop)
+    return io
 
 
 class S7Bench(BenchBase):
@@ -105,7 +130,7 @@ class S7Bench(BenchBase):
         self.io.start_journal()
 
     def end_test(self) -> None:
-        touched_clock = bool(self.io.touched & self._clock_inputs)
+        touched_clock = bool(self.io.touched & self._clock_inputs) or self.io.clock_set
         try:
             self.io.restore()
         finally:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from dataclasses import dataclass
 
-from hil.core.errors import InvalidValue
+from hil.core.errors import HilError, InvalidValue
 from hil.families.s7smart import timebuf
 from hil.families.s7smart.address import S7Address
 from hil.families.s7smart.io import S7Io
@@ -79,6 +79,18 @@ class S7Rtc:
     def read_time(self) -> dt.datetime:
         """The clock as a datetime (READ_RTC, decoded); TimeBufferError if the buffer is not a valid time."""
         return timebuf.decode(self.read().buffer)
+
+    # -- the CPU's own clock functions (over the S7 protocol; None where the wire has none) ----------------------
+    def cpu_clock(self) -> dt.datetime | None:
+        """The time-of-day clock read with the protocol's clock function, or None on a wire without one."""
+        io = self.plc.io
+        return io.cpu_clock() if getattr(io, "has_cpu_clock", False) else None
+
+    def set_cpu_clock(self, when: dt.datetime) -> None:
+        """Set the clock with the protocol's clock function (HilError on a wire without one)."""
+        if not getattr(self.plc.io, "has_cpu_clock", False):
+            raise HilError(f"{self.plc.io.description} has no clock functions (use s7+tcp://)")
+        self.plc.io.set_cpu_clock(when)
 
     def sync_to_host(self) -> ClockResult:
         """Set the clock to the bench's reference time (how the bench puts the clock back after a test)."""

@@ -285,6 +285,7 @@ class GuardedS7Io(S7Io):
         self.writable = expand_s7(writable)
         self.journal: dict[Unit, int] = {}
         self.touched: set[Unit] = set()
+        self.clock_set = False  # the CPU clock was set with the protocol's clock function since start_journal
 
     def allowed(self, unit: Unit) -> bool:
         """A byte is writable when listed; a bit when listed or its whole byte is."""
@@ -323,6 +324,21 @@ class GuardedS7Io(S7Io):
     def start_journal(self) -> None:
         self.journal.clear()
         self.touched.clear()
+        self.clock_set = False
+
+    # -- the CPU's own clock (a wire that has clock functions: the S7 protocol) ------------------------------
+    @property
+    def has_cpu_clock(self) -> bool:
+        return hasattr(self.inner, "cpu_clock")
+
+    def cpu_clock(self):  # noqa: ANN201 - a datetime
+        return self.inner.cpu_clock()  # type: ignore[attr-defined]
+
+    def set_cpu_clock(self, when) -> None:  # noqa: ANN001 - a datetime
+        """Set the clock with the protocol's function; the bench puts it back to host time after the test."""
+        with self._lock:
+            self.clock_set = True
+            self.inner.set_cpu_clock(when)  # type: ignore[attr-defined]
 
     def restore(self) -> list[tuple[str, int]]:
         items = [(_unit_name(u), v) for u, v in self.journal.items()]

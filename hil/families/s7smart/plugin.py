@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Any, Iterable
 
+from hil.bench.family import check_wire
 from hil.core.errors import ProfileError
 
 
@@ -42,6 +43,19 @@ class S7SmartFamily:
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
         from hil.families.s7smart.bench import S7Bench
         return S7Bench(profile, **kwargs)
+
+    wires = ("s7-tcp", "modbus-tcp")
+
+    def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
+        check_wire(self, wire)
+        if wire == "s7-tcp":
+            from hil.families.s7smart.serve_s7 import start_s7_server
+            return start_s7_server(emulator, host, port)
+        from hil.families.s7smart.modbus_map import S7ModbusMap
+        from hil.families.s7smart.serve import start_s7_modbus_tcp
+        settings = profile.sections["s7"]
+        return start_s7_modbus_tcp(emulator, S7ModbusMap(settings.hold_start, settings.max_hold), host, port,
+                                   unit=profile.station)
 
 
 FAMILY = S7SmartFamily()

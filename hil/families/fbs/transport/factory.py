@@ -8,6 +8,7 @@ from hil.core.errors import InvalidValue
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.runtime import ServerHandle
 from hil.families.fbs.transport.base import Transport
+from hil.core.errors import TargetError
 from hil.io.url import Target, parse_target
 
 if TYPE_CHECKING:
@@ -31,6 +32,10 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     ``transport.reopen()`` reconnects the client to the same, still running, server.
     """
     target = url if isinstance(url, Target) else parse_target(url)
+    if target.protocol == "s7":
+        raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
+                          f"with fatek+tcp://, fatek+serial://, modbus+tcp:// or modbus+rtu:// (or an emulator+fatek-"
+                          f"…/emulator+modbus-… target)")
     if target.in_process:
         return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
     params = dict(target.params)
