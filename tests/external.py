@@ -40,13 +40,23 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
 def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` on FATEK/TCP with the fault rig; yields {"fatek-tcp": addr, "rig-modbus-tcp":
     addr}.  Stops it with SIGINT (as an operator's Ctrl-C) and checks that it exits cleanly."""
+    with emulate_process(profile, time_scale, {"fatek-tcp": "--fatek-tcp", "rig-modbus-tcp": "--rig-modbus-tcp"}) \
+            as endpoints:
+        yield endpoints
+
+
+@contextlib.contextmanager
+def emulate_process(profile: Path, time_scale: float, wires: dict[str, str]) -> Iterator[dict[str, str]]:
+    """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
+    loopback port); yields kind → address.  Stopped with SIGINT; it must exit cleanly."""
+    options = [arg for option in wires.values() for arg in (option, "127.0.0.1:0")]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(profile), "--fatek-tcp", "127.0.0.1:0",
-         "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(time_scale)],
+        [sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(profile), *options,
+         "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
-        yield _read_endpoints(proc, {"fatek-tcp", "rig-modbus-tcp"}, timeout=15)
+        yield _read_endpoints(proc, set(wires), timeout=15)
     finally:
         proc.send_signal(signal.SIGINT)
         try:

@@ -4,12 +4,9 @@ io and by python-snap7's own client; the suites against ``hil emulate --s7-tcp``
 from __future__ import annotations
 
 import datetime as dt
-import os
 import re
-import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -21,7 +18,7 @@ from hil.families.s7smart.emulator import build_s7_emulator
 from hil.families.s7smart.serve_s7 import start_s7_server
 from hil.io.url import parse_target
 from tests.conftest import REPO
-from tests.external import _read_endpoints
+from tests.external import emulate_process
 
 snap7 = pytest.importorskip("snap7", reason="python-snap7 (pip install 'hil[s7]') is not installed")
 S7_BENCH = REPO / "fixtures" / "benches" / "s7-200smart.toml"
@@ -116,30 +113,16 @@ def test_nobody_listening_is_a_clear_error():
 @pytest.mark.skip(reason="TEMPORARY: hil emulate does not yet scan between requests in real time (bench-mode work)")
 def test_the_s7_suites_pass_against_hil_emulate_in_another_process(tmp_path):
     """``hil emulate --s7-tcp`` as a separate real-time process (time scale 20), the suites over s7+tcp://."""
-    proc = subprocess.Popen([sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(S7_BENCH), "--s7-tcp",
-                             "127.0.0.1:0", "--time-scale", "20", "--no-live"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        address = _read_endpoints(proc, {"s7-tcp"}, timeout=15)["s7-tcp"]
+    with emulate_process(S7_BENCH, 20, {"s7-tcp": "--s7-tcp"}) as endpoints:
         profile = tmp_path / "s7-bench.toml"
-        text = re.sub(r'(?m)^target = .*$', f'target = "s7+tcp://{address}"', S7_BENCH.read_text())
+        text = re.sub(r'(?m)^target = .*$', f'target = "s7+tcp://{endpoints["s7-tcp"]}"', S7_BENCH.read_text())
         text = re.sub(r"(?m)^time_scale = .*$", "", text).replace("[bench]", "[bench]\ntime_scale = 20", 1)
         profile.write_text(text)
-        started = time.monotonic()
         run = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites" / "s7smart"), "--bench",
                               str(profile), "-q", "-rs", "-p", "no:cacheprovider"], cwd=tmp_path,
                              capture_output=True, text=True, timeout=300)
-        assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
-        summary = run.stdout.strip().splitlines()[-1]
-        assert re.search(r"\d+ passed", summary) and "failed" not in summary, summary
-        skips = [line for line in run.stdout.splitlines() if line.startswith("SKIPPED")]
-        assert all("needs power_cycle" in line for line in skips), skips  # a bench cannot cut the power on demand
-        assert time.monotonic() - started < 240
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
+    summary = run.stdout.strip().splitlines()[-1]
+    assert re.search(r"\d+ passed", summary) and "failed" not in summary, summary
+    skips = [line for line in run.stdout.splitlines() if line.startswith("SKIPPED")]
+    assert all("needs power_cycle" in line for line in skips), skips  # a bench cannot cut the power on demand

@@ -279,3 +279,37 @@ class ModbusWire:
         if fc in (15, 16) and (rr.address != address or rr.count != count):
             raise _Shape(f"the write echo names {rr.count} at {rr.address}, sent {count} at {address}")
         return rr
+
+
+class OverModbusWire:
+    """Mixin for a family's link (a :class:`hil.core.link.Link`) whose requests go through a :class:`ModbusWire`:
+    what it counts, what observes its frames, how it reconnects and closes are the wire's."""
+
+    wire: ModbusWire
+
+    def _use_wire(self, wire: ModbusWire) -> None:
+        self.wire = wire
+        self.unit = wire.unit
+        self.timeout = wire.timeout
+        self.retries = wire.retries
+        self.serial = wire.serial
+        self.observers = wire.observers  # every frame, "tx"/"rx" (wire traces, statistics)
+        self.trace_kind = wire.kind
+
+    # the wire counts requests (Link.__init__ assigns 0 before the wire is known: ignored)
+    requests = property(lambda self: self.wire.requests, lambda self, value: None)
+    resyncs = property(lambda self: self.wire.resyncs)
+    reconnects = property(lambda self: self.wire.reconnects)
+    client = property(lambda self: self.wire.client)
+
+    def budget(self, write: bool = False) -> float:
+        """The longest one Modbus request can take, retries, backoff and recovery included."""
+        return self.wire.budget(write)
+
+    def reopen(self) -> None:
+        """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
+        with self._lock:  # type: ignore[attr-defined]  # the Link's
+            self.wire.reopen()
+
+    def _close(self) -> None:
+        self.wire.close()

@@ -23,7 +23,7 @@ from hil.core.errors import InvalidValue, RestoreError, TransportError, WriteRef
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
-from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, Probe
+from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, OverModbusWire, Probe
 from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
@@ -143,7 +143,7 @@ class LocalS7Io(S7Io):
 
 
 # -- over Modbus ----------------------------------------------------------------------------------------------------
-class ModbusS7Io(S7Io):
+class ModbusS7Io(OverModbusWire, S7Io):
     """An S7-200 SMART running the MBUS_SLAVE library, over Modbus/TCP or RTU.
 
     The requests, with their retry, outcome-unknown and resynchronisation rules, are the shared
@@ -151,18 +151,9 @@ class ModbusS7Io(S7Io):
     """
 
     def __init__(self, wire: ModbusWire, modbus_map: S7ModbusMap) -> None:
-        self.wire = wire
+        self._use_wire(wire)
         super().__init__(wire.description)
         self.map = modbus_map
-        self.unit = wire.unit
-        self.timeout = wire.timeout
-        self.retries = wire.retries
-        self.observers = wire.observers  # every frame, "tx"/"rx" (wire traces, statistics)
-        self.trace_kind = wire.kind
-
-    # what the wire counts, seen from here (Link.__init__ assigns 0 before the wire is known: ignored)
-    requests = property(lambda self: self.wire.requests, lambda self, value: None)
-    client = property(lambda self: self.wire.client)
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0, retries: int = 2,
@@ -238,15 +229,6 @@ class ModbusS7Io(S7Io):
         return PlcStatus(running=None, via="modbus", identity={
             "transport": self.description, "unit": str(self.unit), "probe": f"VW{self.map.hold_start} = {word}"})
 
-    def reopen(self) -> None:
-        with self._lock:
-            self.wire.reopen()
-
-    def budget(self, write: bool = False) -> float:
-        return self.wire.budget(write)
-
-    def _close(self) -> None:
-        self.wire.close()
 
 
 def _probe(modbus_map: S7ModbusMap) -> Probe:

@@ -14,14 +14,14 @@ from hil.families.fbs.address import Address, parse, span
 from hil.families.fbs.protocol import modbus_map as mm
 from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, Run
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
-from hil.io.modbus_client import ModbusWire, Probe
+from hil.io.modbus_client import ModbusWire, OverModbusWire, Probe
 
 #: A cheap read that proves the PLC answers: R4128 (RTC seconds), always mapped; R4128–R4135 are, so a
 #: resynchronising read picks its quantity in 1–8.
 PROBE = Probe(4128, 8)
 
 
-class ModbusTransport(Transport):
+class ModbusTransport(OverModbusWire, Transport):
     """An FBs over Modbus (default map).  Build with :meth:`tcp` or :meth:`rtu`; use as a context manager.
 
     The requests themselves, with their retry, outcome-unknown and resynchronisation rules, are the shared
@@ -34,20 +34,8 @@ class ModbusTransport(Transport):
                     mixed_write_words=MAX_WRITE[HOLDING])
 
     def __init__(self, wire: ModbusWire) -> None:
-        self.wire = wire
+        self._use_wire(wire)
         super().__init__(wire.description)
-        self.unit = wire.unit
-        self.timeout = wire.timeout
-        self.retries = wire.retries
-        self.serial = wire.serial
-        self.observers = wire.observers  # every frame, "tx"/"rx" (wire traces, statistics)
-        self.trace_kind = wire.kind
-
-    # what the wire counts, seen from here (Link.__init__ assigns 0 before the wire is known: ignored)
-    requests = property(lambda self: self.wire.requests, lambda self, value: None)
-    resyncs = property(lambda self: self.wire.resyncs)
-    reconnects = property(lambda self: self.wire.reconnects)
-    client = property(lambda self: self.wire.client)
 
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod
@@ -141,9 +129,6 @@ class ModbusTransport(Transport):
                          identity={"transport": self.description, "unit": str(self.unit),
                                    "probe": f"R4128 = {seconds}"})
 
-    def _close(self) -> None:
-        self.wire.close()
-
     def _count(self, result):  # noqa: ANN001, ANN202 - requests are counted per Modbus frame in _exchange
         return result
 
@@ -167,14 +152,6 @@ class ModbusTransport(Transport):
     def _write_run(self, run: Run, values: list[int]) -> None:
         self.wire.write(run.table, run.pdu, values)
 
-    def budget(self, write: bool = False) -> float:
-        """The longest one Modbus request can take, retries, backoff and recovery included."""
-        return self.wire.budget(write)
-
-    def reopen(self) -> None:
-        """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
-        with self._lock:
-            self.wire.reopen()
 
 
 def _names(table: str, pdu: int, count: int) -> str:
