@@ -51,3 +51,15 @@ def test_user_errors_are_one_line_and_bugs_show_their_traceback(capsys, monkeypa
     assert cli.main(["drift", "code", "1"]) == 3
     err = capsys.readouterr().err
     assert "Traceback" in err and "ZeroDivisionError: a bug" in err and "internal error" in err
+
+
+def test_a_measurement_is_unset_until_measured():
+    from hil.core.measurement import Measurement, Outcome
+    declared = Measurement("drift_residual", unit="s/day", low=-0.088, high=0.088)
+    assert declared.outcome is Outcome.UNSET and not declared.passed
+    assert ("hil.measure.drift_residual.outcome", "UNSET") in declared.properties()
+    assert "not measured" in declared.describe()
+    assert declared.measured(0.05).outcome is Outcome.PASS
+    assert declared.measured(0.2).outcome is Outcome.FAIL
+    assert declared.measured(float("nan")).outcome is Outcome.FAIL
+    assert f"{declared.measured(0.0).outcome}" == "PASS"  # as it appears in JUnit and HTML

@@ -2,55 +2,11 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import PurePath
 from typing import Mapping, Sequence
 
-
-@dataclass(frozen=True)
-class Measurement:
-    """One measured value with its unit and limits (inclusive); either limit may be absent."""
-
-    name: str
-    value: float
-    unit: str = ""
-    low: float | None = None
-    high: float | None = None
-
-    @property
-    def passed(self) -> bool:
-        if isinstance(self.value, float) and math.isnan(self.value):
-            return False
-        return (self.low is None or self.value >= self.low) and (self.high is None or self.value <= self.high)
-
-    @property
-    def outcome(self) -> str:
-        return "PASS" if self.passed else "FAIL"
-
-    def limits_text(self) -> str:
-        if self.low is None and self.high is None:
-            return "no limits"
-        if self.low is not None and self.high is not None:
-            return f"[{self.low:g}, {self.high:g}]"
-        return f">= {self.low:g}" if self.low is not None else f"<= {self.high:g}"
-
-    def describe(self) -> str:
-        unit = f" {self.unit}" if self.unit else ""
-        return f"{self.name} = {self.value:g}{unit} {self.limits_text()} {self.outcome}"
-
-    def properties(self) -> list[tuple[str, str]]:
-        """JUnit testcase properties: ``hil.measure.<name>`` = value, and .unit/.low/.high/.outcome."""
-        key = f"hil.measure.{self.name}"
-        out = [(key, f"{self.value:g}")]
-        if self.unit:
-            out.append((f"{key}.unit", self.unit))
-        if self.low is not None:
-            out.append((f"{key}.low", f"{self.low:g}"))
-        if self.high is not None:
-            out.append((f"{key}.high", f"{self.high:g}"))
-        out.append((f"{key}.outcome", self.outcome))
-        return out
+from hil.core.measurement import Measurement
 
 
 @dataclass
