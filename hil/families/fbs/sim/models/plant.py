@@ -173,7 +173,7 @@ _MASK64 = (1 << 64) - 1
 
 def _noise_index(seed: int, point: int, t: float) -> int:
     """Which of the 65536 normals a measurement at ``t`` draws: splitmix64's finaliser over (t in µs, point, seed),
-    integer arithmetic the compiled kernel repeats exactly (hil/emulator/_kernel.c ``noise_index``)."""
+    integer arithmetic (exact for any seed: Python ints, masked to 64 bits)."""
     x = (round(t * 1000000.0) * 0x9E3779B97F4A7C15 + point * 0xBF58476D1CE4E5B9 + seed * 0x94D049BB133111EB) & _MASK64
     x ^= x >> 30
     x = x * 0xBF58476D1CE4E5B9 & _MASK64
