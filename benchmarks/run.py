@@ -8,7 +8,7 @@ Not pass/fail tests (timings are noisy on shared machines): a rich table on the 
 2. wire efficiency: FATEK bytes per device operation against the fewest the frame format allows, the RTC suites'
    bytes against the same requests each in its cheapest frame, and each suite's time on a 9600 bit/s 7E1 line;
 3. virtual seconds per wall second: idle, the default bench, and a full PLC (8 temperature modules, 32 points,
-   32 PID loops with the thermal plant) — 24 virtual hours of the full PLC in Python + numpy (target: at or below
+   32 PID loops with the thermal plant) — 24 virtual hours of the full PLC in Python (+ numpy; target: at or below
    the floor), and the bare CPython arithmetic of plant + PID alone as that floor, measured in the same run;
 4. wall time of ``hil run`` per emulator target.
 
@@ -331,7 +331,7 @@ def virtual_time(quick: bool) -> list[dict]:
 
     cases = [("idle (no models)", lambda: Emulator(), ""),
              ("default bench (RTC + temperature)", lambda: build_emulator(load_profile(BENCH), EPOCH), ""),
-             ("full PLC", full_plc, f"{full_note}; Python + numpy")]
+             ("full PLC", full_plc, f"{full_note}; the Python models")]
     rows = []
     hours = 2 if quick else 24
     for name, build, note in cases:
@@ -460,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
                   "" if r["polled_virtual_s_per_wall_s"] is None else f"{r['polled_virtual_s_per_wall_s']:,.0f}")
     console.print(t)
     floor, full = vt[-1], vt[2]
-    console.print(f"{full['virtual_hours']} h of the full PLC in Python + numpy: [bold]{full['wall_s']:.2f} s[/], "
+    console.print(f"{full['virtual_hours']} h of the full PLC (the Python models): [bold]{full['wall_s']:.2f} s[/], "
                   f"[bold]{floor['full_plc_over_floor']:.2f}×[/] the bare CPython arithmetic of plant + PID alone "
                   f"({floor['wall_s']:.2f} s; target ≤ 1×)")
 
