@@ -13,6 +13,7 @@ import datetime as dt
 import functools
 import gzip
 import json
+import math
 import os
 from pathlib import Path
 
@@ -122,9 +123,26 @@ def both_ways(build, drive) -> dict:  # noqa: ANN001
     assert len(got["trace"]) == len(expected["trace"])
     for (now, rows), (g_now, g_rows) in zip(got["trace"], expected["trace"]):
         assert (now, rows) == (g_now, g_rows), f"the outputs at {g_now} s differ"
-    for part in expected["state"]:
+    for part in ("clock", "memory"):  # every register and bit, exactly
         assert got["state"][part] == expected["state"][part], part
+    for part in ("temperature", "fun86", "plant"):  # the models' own state: floats up to rounding (see _close)
+        assert _close(got["state"][part], expected["state"][part]), part
     return final
+
+
+def _close(got, expected) -> bool:  # noqa: ANN001
+    """Equal, floats up to rounding: the plant's closed form over whole PWM periods (an affine map raised to a
+    power) rounds differently from the period-by-period stepping the records were taken with, in the last digits
+    of a temperature (seen: 148.48270539996054 vs …037) and so of the samples and PID integrals that follow from
+    it.  Integers, flags and registers stay exact; a rounding that moved a register would fail above."""
+    if isinstance(got, float) or isinstance(expected, float):
+        return isinstance(got, (int, float)) and isinstance(expected, (int, float)) and \
+            math.isclose(got, expected, rel_tol=1e-9, abs_tol=1e-9)
+    if isinstance(got, list) and isinstance(expected, list):
+        return len(got) == len(expected) and all(_close(g, e) for g, e in zip(got, expected))
+    if isinstance(got, dict) and isinstance(expected, dict):
+        return got.keys() == expected.keys() and all(_close(got[k], expected[k]) for k in got)
+    return got == expected
 
 
 @functools.cache
