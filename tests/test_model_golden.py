@@ -97,7 +97,7 @@ def _golden_key() -> str:
     return os.environ["PYTEST_CURRENT_TEST"].split(" ")[0].split("::", 1)[1]
 
 
-def both_ways(build, drive) -> dict:  # noqa: ANN001
+def against_golden(build, drive) -> dict:  # noqa: ANN001
     """Run ``drive(emu)`` on a fresh emulator and compare it with the golden record of this test: the outputs of
     every scan (when each changed, to what) and the final state — memory, clock and every model's state.
 
@@ -184,7 +184,7 @@ def test_the_full_plc_for_an_hour():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)})
         emu.advance(3600)
-    python = both_ways(full_plc(), drive)
+    python = against_golden(full_plc(), drive)
     assert python["memory"]["words"]["R"][1240] != 0  # some points reached their band: the loops ran
 
 
@@ -193,7 +193,7 @@ def test_the_heater_loop_timer_opens_the_same_way():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4006=80, R4007=90)
         emu.advance(900)
-    python = both_ways(full_plc(gain=50.0), drive)
+    python = against_golden(full_plc(gain=50.0), drive)
     assert python["memory"]["words"]["R"][1242] == 0xFFFF  # WR+2: every point 0–15 warns
 
 
@@ -202,7 +202,7 @@ def test_pre_alarm_counting_scan_by_scan_is_the_same():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4008=1400)
         emu.advance(1800)
-    python = both_ways(full_plc(), drive)
+    python = against_golden(full_plc(), drive)
     assert python["memory"]["words"]["R"][1242] != 0  # pre-alarm warnings
 
 
@@ -214,7 +214,7 @@ def test_a_pre_alarm_limit_exactly_at_the_readings_bound():
         bound = emu.model(TemperatureModel).readings_upper(emu.memory, range(32))
         emu.service(lambda mem: mem.set("R4008", int(bound)))
         emu.advance(120)
-    both_ways(full_plc(), drive)
+    against_golden(full_plc(), drive)
 
 
 def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ramp():
@@ -231,7 +231,7 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
         start(emu, en="M2", hc="M3", heating=False, sv={f"R{400 + b}": 300 for b in range(20)},
               enable=0xFFFFFFFF & ~(1 << 6), R4011=0xFFFF & ~(1 << 4))
         emu.advance(1200)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 @pytest.mark.parametrize("unit, rate, averaging", [("F", "normal", 1), ("C", "fast", 1), ("F", "fast", 1),
@@ -242,7 +242,7 @@ def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
         emu.advance(900)
     build = lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, unit=unit, rate=rate,  # noqa: E731
                                            averaging=averaging), EPOCH)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 def test_requests_between_spans():
@@ -259,7 +259,7 @@ def test_requests_between_spans():
             if n == 7:
                 emu.service(lambda mem: (mem.set("M0", 0)))  # EN off → on: R4005 latches again
                 emu.service(lambda mem: (mem.set("R4005", 0x0102), mem.set("M0", 1)))
-    both_ways(full_plc(noise=0.2, tau=120.0), drive)
+    against_golden(full_plc(noise=0.2, tau=120.0), drive)
 
 
 # -- configurations the compiled kernel stepped aside for (the models' behaviour there is pinned down all the same) --
@@ -269,7 +269,7 @@ def scenario(build, action=None):  # noqa: ANN001, ANN201
         if action:
             action(emu)
         emu.advance(600)
-    return both_ways(build, drive)
+    return against_golden(build, drive)
 
 
 def test_the_full_plc_for_ten_minutes():

@@ -18,7 +18,7 @@ from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureMode
 from hil.families.fbs.temperature import MODULE_BY_CODE, parse_temperature
 from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
-from tests.test_model_golden import EPOCH, FULL_MODULES, PID_32, both_ways, full_plc, profile, start
+from tests.test_model_golden import EPOCH, FULL_MODULES, PID_32, against_golden, full_plc, profile, start
 
 MODULES = {m.name: m for m in MODULE_BY_CODE.values()}
 SV_1500 = {f"R{1000 + p}": 1500 for p in range(32)}
@@ -61,7 +61,7 @@ def test_a_fitted_module_the_table_does_not_match():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1400)
         emu.advance(60)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 def test_the_ladder_shortens_the_table():
@@ -72,7 +72,7 @@ def test_the_ladder_shortens_the_table():
         emu.advance(20)
         emu.service(lambda mem: mem.set("R3001", 6))
         emu.advance(40)
-    both_ways(full_plc(), drive)
+    against_golden(full_plc(), drive)
 
 
 def test_a_fitted_module_beyond_the_table():
@@ -82,7 +82,7 @@ def test_a_fitted_module_beyond_the_table():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1400)
         emu.advance(60)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 @pytest.mark.parametrize("readings", ["R4120", "D4030"])
@@ -92,17 +92,17 @@ def test_readings_over_the_rtc_registers(readings):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(120)
-    both_ways(plc(readings=readings), drive)
+    against_golden(plc(readings=readings), drive)
 
 
 @pytest.mark.parametrize("alm", ["M1952", "M1953", "M1954"])
-def test_alm_on_an_rtc_bit_both_ways(alm):
+def test_alm_on_an_rtc_bit(alm):
     """ALM of the running instance on M1952 (RTC hold), M1953 (±30 s) or M1954 (rewritten by every RTC scan), and
     ALM toggling inside the span: the clock sees each edge."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 250 for p in range(32)}, enable=1, **{f"R{1040 + p}": 7 for p in range(32)})
         emu.advance(305)  # (ends with ALM = 0: M1954 then shows the RTC's 1)
-    both_ways(plc(pid=dict(PID_32, alm=alm), plant={"noise": 1.0, "gain": 0.0}), drive)
+    against_golden(plc(pid=dict(PID_32, alm=alm), plant={"noise": 1.0, "gain": 0.0}), drive)
 
 
 @pytest.mark.parametrize("seed", [2**53 + 1, 1234567890123456789, -(2**62) - 3, 2**63 - 1])
@@ -112,7 +112,7 @@ def test_a_seed_beyond_2_to_the_53(seed):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(60)
-    both_ways(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
+    against_golden(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
 
 
 def test_models_in_another_order():
@@ -128,7 +128,7 @@ def test_models_in_another_order():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(120)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 # =====================================================================================================================
@@ -140,7 +140,7 @@ def test_pid_interval_and_pwm_codes(r4005):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4005=r4005, R4008=1450)
         emu.advance(240)
-    both_ways(full_plc(noise=0.2, tau=60.0), drive)
+    against_golden(full_plc(noise=0.2, tau=60.0), drive)
 
 
 @pytest.mark.parametrize("r4006, r4007, r4008", [(0, 0, 0), (100, 1, 65535), (65535, 65535, 0), (0, 65535, 1),
@@ -149,7 +149,7 @@ def test_heater_loop_and_prealarm_edge_values(r4006, r4007, r4008):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4006=r4006, R4007=r4007, R4008=r4008)
         emu.advance(150)
-    both_ways(full_plc(gain=50.0, tau=60.0), drive)
+    against_golden(full_plc(gain=50.0, tau=60.0), drive)
 
 
 @pytest.mark.parametrize("md, kc, ki, td", [(1, 110, 17, 50), (0, 110, 0, 50), (1, 110, 0, 0), (0, 65535, 65535, 65535),
@@ -162,7 +162,7 @@ def test_gains_md_ki0_td0_and_a_huge_kc(md, kc, ki, td):
               **{f"R{1080 + p}": kc for p in range(32)}, **{f"R{1120 + p}": ki for p in range(32)},
               **{f"R{1160 + p}": td for p in range(32)}, **{f"R{1040 + p}": 15 for p in range(32)})
         emu.advance(200)
-    both_ways(plc(pid=pid, plant={"noise": 0.5, "tau": 40.0}), drive)
+    against_golden(plc(pid=pid, plant={"noise": 0.5, "tau": 40.0}), drive)
 
 
 @pytest.mark.parametrize("heating", [True, False])
@@ -175,14 +175,14 @@ def test_negative_sv_os_and_pv_below_zero(heating):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=sv, heating=heating, R4008=0, R4006=0, R4007=20, **os)
         emu.advance(200)
-    both_ways(full_plc(ambient=-60.0, gain=40.0, tau=50.0, noise=0.3), drive)
+    against_golden(full_plc(ambient=-60.0, gain=40.0, tau=50.0, noise=0.3), drive)
 
 
 def test_negative_pv_with_fahrenheit_fast_averaging():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": (-400) & 0xFFFF for p in range(32)}, R4008=65000)
         emu.advance(150)
-    both_ways(plc(plant={"ambient": -80.0, "gain": 60.0, "tau": 30.0, "noise": 0.4}, unit="F", rate="fast",
+    against_golden(plc(plant={"ambient": -80.0, "gain": 60.0, "tau": 30.0, "noise": 0.4}, unit="F", rate="fast",
                        averaging=8), drive)
 
 
@@ -194,7 +194,7 @@ def test_sensor_range_clamps_with_integer_limits(sensor):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1000)
         emu.advance(120)
-    both_ways(plc(modules=modules, plant={"gain": 500.0, "tau": 40.0}, averaging=4), drive)
+    against_golden(plc(modules=modules, plant={"gain": 500.0, "tau": 40.0}, averaging=4), drive)
 
 
 def default_bench(plant=None):  # noqa: ANN001, ANN201
@@ -218,7 +218,7 @@ def test_a_settable_instance_with_sn_not_zero_next_to_the_others(sn, zn):
         start(emu, en="M4", hc="M5", sv={f"R{600 + b}": 400 + b for b in range(32)}, R850=sn, R851=zn,
               R4008=700)
         emu.advance(200)
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 @pytest.mark.parametrize("sn, zn", [(-1, 3), (30, 3), (0, 0), (0, 33)])
@@ -232,7 +232,7 @@ def test_an_err_instance_next_to_running_ones(sn, zn):
         emu.service(lambda mem: (mem.set("R850", sn & 0xFFFF), mem.set("R851", zn & 0xFFFF)))
         emu.advance(120)
         assert emu.memory.get("M104") == 1
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 def test_en_off_instances_that_ran_next_to_a_running_one():
@@ -243,7 +243,7 @@ def test_en_off_instances_that_ran_next_to_a_running_one():
         emu.advance(40)
         emu.service(lambda mem: (mem.set("M2", 0), mem.set("M4", 0)))
         emu.advance(150)
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 def test_instance_points_beyond_the_tables_measured_points():
@@ -253,7 +253,7 @@ def test_instance_points_beyond_the_tables_measured_points():
         start(emu, sv=SV_1500)
         emu.service(lambda mem: mem.write("R3026", [1000 + p for p in range(26)]))  # readings of unmeasured points
         emu.advance(60)
-    both_ways(plc(modules=[{"type": "6TC", "sensor": "K"}]), drive)
+    against_golden(plc(modules=[{"type": "6TC", "sensor": "K"}]), drive)
 
 
 def test_a_module_mismatch_without_a_possible_prealarm():
@@ -264,7 +264,7 @@ def test_a_module_mismatch_without_a_possible_prealarm():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(300)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 def test_points_not_installed_broken_and_disabled_mixed():
@@ -282,7 +282,7 @@ def test_points_not_installed_broken_and_disabled_mixed():
         emu.model(TemperatureModel).repair(7)
         emu.service(lambda mem: mem.set("R4010", 0xFFFF))
         emu.advance(120)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 def test_ramps_fixed_sources_and_no_noise():
@@ -299,7 +299,7 @@ def test_ramps_fixed_sources_and_no_noise():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1500)
         emu.advance(240)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 @pytest.mark.parametrize("scan_ms", [1, 7, 50])
@@ -307,7 +307,7 @@ def test_other_scan_times(scan_ms):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1450, R4005=0x0100)
         emu.advance(100)
-    both_ways(plc(plant={"noise": 0.3, "tau": 60.0}, emulator={"scan_time_ms": scan_ms, "seed": 7}), drive)
+    against_golden(plc(plant={"noise": 0.3, "tau": 60.0}, emulator={"scan_time_ms": scan_ms, "seed": 7}), drive)
 
 
 @pytest.mark.parametrize("seed", [0, 1, -1, 2**53, -(2**53), 987654321])
@@ -315,7 +315,7 @@ def test_seeds_within_float64_precision(seed):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(60)
-    both_ways(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
+    against_golden(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
 
 
 def test_a_virtual_day_in_one_span():
@@ -325,7 +325,7 @@ def test_a_virtual_day_in_one_span():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={"R1000": 1200, "R1001": 800}, R4005=0x0505)
         emu.advance(86400)
-    both_ways(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
+    against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
 def test_a_span_starting_days_after_power_on():
@@ -335,7 +335,7 @@ def test_a_span_starting_days_after_power_on():
         emu.advance(5 * 86400 + 0.37)
         start(emu, sv={"R1000": 1200, "R1001": 800}, R4005=0x0100, R4008=1150)
         emu.advance(600)
-    both_ways(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
+    against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
 def test_requests_that_change_things_right_before_each_span():
@@ -366,7 +366,7 @@ def test_requests_that_change_things_right_before_each_span():
             if n == 6:
                 emu.model(TemperatureModel).open(2)
             emu.advance(9.13 + n)
-    both_ways(full_plc(noise=0.3, tau=50.0), drive)
+    against_golden(full_plc(noise=0.3, tau=50.0), drive)
 
 
 def test_stepping_on_after_a_long_span():
@@ -380,7 +380,7 @@ def test_stepping_on_after_a_long_span():
             emu.service(lambda mem, n=n: mem.write("R1000", [1500 - 20 * n] * 32))
             emu.model(ThermalPlant).temperature(0, emu.now + 5.0)  # fill the memo
             emu.advance(4.1)
-    both_ways(full_plc(noise=0.2, tau=60.0), drive)
+    against_golden(full_plc(noise=0.2, tau=60.0), drive)
 
 
 def test_cooling_and_heating_instances_on_one_plant_with_averaging():
@@ -394,4 +394,4 @@ def test_cooling_and_heating_instances_on_one_plant_with_averaging():
     def build():  # noqa: ANN202
         return build_emulator(profile_from_dict({"bench": {"name": "kernel"}, "temperature": area,
                                                  "pid": base.areas["pid"], "plant": {"noise": 0.5}}), EPOCH)
-    both_ways(build, drive)
+    against_golden(build, drive)
