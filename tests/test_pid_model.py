@@ -236,3 +236,34 @@ def test_a_plot_ready_trace_from_every_target(target):
     finally:
         bench.end_test()
         bench.close()
+
+
+def test_the_plant_under_a_fixed_pwm_is_solved_in_closed_form_over_whole_periods():
+    """A day under one PWM waveform (no scan re-anchors it): the closed form over whole periods equals stepping
+    the PWM period by period through its switches on the scan grid, up to rounding (the grid's switch times carry
+    float errors of ~1e-11 s at a day, which stepping sums and the closed form does not: ~5e-10 °C apart).  It
+    costs a few exponentials whatever the span, where stepping costs two per period."""
+    import math
+
+    from hil.families.fbs.sim.models.plant import PlantPoint, _Waved
+    point = PlantPoint(ambient=20.0, gain=300.0, tau=250.0, noise=0.0, initial=40.0)
+    heated = _Waved(point, 0.37, seed=0)
+    started, period, on, st = 0.12, 2.0, 0.6543, 0.01
+    heated.set_wave(0.37, (started, period, on, 1, 0, st))
+
+    def grid(x: float) -> float:
+        return math.ceil(x / st - 1e-6) * st
+
+    def stepped(t: float) -> float:
+        temp, at, k = 40.0, 0.37, 0
+        while at < t:
+            for until, target in ((grid(started + k * period + on), 320.0), (grid(started + (k + 1) * period), 20.0)):
+                end = min(max(until, at), t)
+                temp = target + (temp - target) * math.exp(-(end - at) / point.tau)
+                at = end
+            k += 1
+        return temp
+
+    for t in (0.5, 1.0, 2.13, 7.77, 100.0, 3600.0, 86400.0):
+        assert math.isclose(heated.temperature(t), stepped(t), rel_tol=1e-10), t
+    assert 20.0 < heated.temperature(86400.0) < 320.0

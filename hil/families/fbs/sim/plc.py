@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Iterable
 
 from hil.families.fbs.registers import POWER_ON_DEFAULTS
-from hil.families.fbs.sim import kernel
 from hil.families.fbs.sim.memory import Memory
 from hil.sim.engine import Engine
 from hil.sim.model import Model
@@ -24,12 +23,7 @@ class Emulator(Engine):
     def __init__(self, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
         super().__init__(Memory(), scan_time=scan_time, station=station, seed=seed)
-        #: long spans without requests run in the compiled kernel where it applies (kernel.py)
-        self.use_kernel = True
         for name, value in POWER_ON_DEFAULTS.items():
             self.memory.set(name, value)
         for model in models:
             self.add_model(model)
-
-    def fast_forward(self, target: float) -> bool:
-        return self.use_kernel and kernel.advance(self, target)

@@ -173,7 +173,7 @@ _MASK64 = (1 << 64) - 1
 
 def _noise_index(seed: int, point: int, t: float) -> int:
     """Which of the 65536 normals a measurement at ``t`` draws: splitmix64's finaliser over (t in µs, point, seed),
-    integer arithmetic the compiled kernel repeats exactly (hil/emulator/_kernel.c ``noise_index``)."""
+    integer arithmetic (exact for any seed: Python ints, masked to 64 bits)."""
     x = (round(t * 1000000.0) * 0x9E3779B97F4A7C15 + point * 0xBF58476D1CE4E5B9 + seed * 0x94D049BB133111EB) & _MASK64
     x ^= x >> 30
     x = x * 0xBF58476D1CE4E5B9 & _MASK64
@@ -196,12 +196,13 @@ def _grid(x: float, st: float) -> float:
 class _Waved:
     """One point without dead time whose heater follows a known waveform between scans: the anchor (t0, T0) moves
     only when the waveform changes (a scan with a new PID output, a fault, a new output), and T at any later time
-    is solved segment by segment through the PWM's switches, on the scan grid (where stepping would switch).
+    is solved through the PWM's switches, on the scan grid (where stepping would switch): the partial cycles at
+    either end segment by segment, the whole cycles between them in closed form.
 
     The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
     grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
 
-    __slots__ = ("p", "t0", "temp0", "wave", "seed", "_memo")
+    __slots__ = ("p", "t0", "temp0", "wave", "seed")
 
     def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
         self.p = p
@@ -209,7 +210,6 @@ class _Waved:
         self.temp0 = p.ambient if p.initial is None else p.initial
         self.wave: tuple = (0,)
         self.seed = seed
-        self._memo: list = []
 
     def temperature(self, t: float) -> float:
         temp, a = self.temp0, self.t0
@@ -218,26 +218,33 @@ class _Waved:
         p = self.p
         wave = self.wave
         tau = p.tau
+        exp = math.exp
         if len(wave) == 1:
             target = p.ambient + p.gain * wave[0]
-            return target + (temp - target) * math.exp(-(t - a) / tau)
+            return target + (temp - target) * exp(-(t - a) / tau)
         started, period, on, u_on, u_off, st = wave
         t_on, t_off = p.ambient + p.gain * u_on, p.ambient + p.gain * u_off
-        # the loop's state at each cycle start reached so far: (k, start, T) — a query resumes from the last one
-        # before t, doing exactly the operations a query from the anchor would
-        memo = self._memo
         ceil = math.ceil
-        if not memo:
-            k = math.floor((a - started) / period) - 1
-            memo.append((k, ceil((started + k * period) / st - 1e-6) * st, temp,
-                         ceil((started + k * period + on) / st - 1e-6) * st,
-                         ceil((started + (k + 1) * period) / st - 1e-6) * st))
-        i = len(memo) - 1
-        while i > 0 and memo[i][1] >= t:
-            i -= 1
-        k, start, temp, off, nxt = memo[i]
-        exp = math.exp
+        k = math.floor((a - started) / period) - 1
+        start = ceil((started + k * period) / st - 1e-6) * st
+        off = ceil((started + k * period + on) / st - 1e-6) * st
+        nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
         while start < t:
+            whole = math.floor((t - start) / period) - 1  # whole cycles from this one on, the last one left out
+            if whole >= 1 and start >= a:
+                # A first-order plant under one PWM period is the affine map T → A·T + B (A = e^(−period/τ)): over
+                # `whole` identical periods T → T* + (T − T*)·A^whole, T* = B / (1 − A) its fixed point.
+                on_decay, off_decay = exp(-(off - start) / tau), exp(-(nxt - off) / tau)
+                gain_ = on_decay * off_decay
+                offset = (t_on - t_on * on_decay) * off_decay + t_off - t_off * off_decay
+                if gain_ < 1.0:
+                    fixed = offset / (1.0 - gain_)
+                    temp = fixed + (temp - fixed) * gain_ ** whole
+                k += whole
+                start = ceil((started + k * period) / st - 1e-6) * st
+                off = ceil((started + k * period + on) / st - 1e-6) * st
+                nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
+                continue
             lo, hi = (start if start > a else a), (off if off < t else t)
             if hi > lo:
                 temp = t_on + (temp - t_on) * exp(-(hi - lo) / tau)
@@ -250,8 +257,6 @@ class _Waved:
                 break
             off = ceil((started + k * period + on) / st - 1e-6) * st
             nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
-            if memo[-1][0] == k - 1:
-                memo.append((k, start, temp, off, nxt))
         return temp
 
     def set_wave(self, now: float, wave: tuple) -> None:
@@ -261,7 +266,6 @@ class _Waved:
             self.temp0 = self.temperature(now)
             self.t0 = now
         self.wave = wave
-        self._memo = []
 
     measured = _Heated.measured  # (its own temperature(), the same noise)
     upper = _Heated.upper

@@ -433,8 +433,7 @@ class TemperatureModel(Model):
 
 def mean_of(samples) -> float:  # noqa: ANN001
     """The average of the last readings, added oldest first: not sum(), whose float algorithm changed in Python
-    3.12 (compensated) — the same profile gives the same readings on every Python, and the compiled kernel
-    (hil/emulator/_kernel.c) adds the same way."""
+    3.12 (compensated) — the same profile gives the same readings on every Python."""
     total = 0.0
     for value in samples:
         total += value

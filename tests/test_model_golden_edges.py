@@ -1,16 +1,14 @@
-"""Edge cases of the compiled span kernel (hil/emulator/_kernel.c + kernel.py) against the Python models, from a
-review of the kernel: timing codes, R4006/R4007/R4008 edges, gains, negative SV/OS/PV, Sn ≠ 0, settable/ERR/EN-off
-instances next to running ones, points outside the measured modules, fitted modules the table does not measure,
-64-bit seeds, long spans, requests right before a span, stepping in Python after a kernel span, scan times — and
-the configurations where the kernel must step aside (the clock's elements shared with the PID's, models in
-another order).
+"""Edge cases of the temperature, FUN86 and plant models against golden records (tests/test_model_golden.py), from a
+review of the (since deleted) compiled kernel: timing codes, R4006/R4007/R4008 edges, gains, negative SV/OS/PV,
+Sn ≠ 0, settable/ERR/EN-off instances next to running ones, points outside the measured modules, fitted modules the
+table does not measure, 64-bit seeds, long spans, requests right before a span, stepping on after a long span, scan
+times, the clock's elements shared with the PID's, models in another order.
 """
 
 from __future__ import annotations
 
 import pytest
 
-from hil.families.fbs.sim import kernel
 from hil.families.fbs.sim.build import add_pid_models, build_emulator
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.models.fun86 import Fun86Model
@@ -20,9 +18,7 @@ from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureMode
 from hil.families.fbs.temperature import MODULE_BY_CODE, parse_temperature
 from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
-from tests.test_kernel import EPOCH, FULL_MODULES, PID_32, both_ways, full_plc, profile, start
-
-pytestmark = pytest.mark.skipif(not kernel.available(), reason="the compiled kernel is not built")
+from tests.test_model_golden import EPOCH, FULL_MODULES, PID_32, against_golden, full_plc, profile, start
 
 MODULES = {m.name: m for m in MODULE_BY_CODE.values()}
 SV_1500 = {f"R{1000 + p}": 1500 for p in range(32)}
@@ -52,12 +48,6 @@ def fitted_plc(fitted, pid=PID_32, plant=None):  # noqa: ANN001, ANN201
     return build
 
 
-def steps_aside(build, drive) -> None:  # noqa: ANN001
-    emu = build()
-    drive(emu)
-    assert emu.stats["kernel_spans"] == 0
-
-
 # =====================================================================================================================
 # Found by the review (each failed before its fix)
 # =====================================================================================================================
@@ -65,13 +55,13 @@ def test_a_fitted_module_the_table_does_not_match():
     """Module 7 of the table is a 2TC but a 6RTD is fitted: its points are never measured and its schedule stands
     still.  With R4008 reachable, FUN86 asks for a scan at the next measurement — of the measured modules only, in
     Python (TemperatureModel._active) as in C.  (Before: Python took every fitted module's, so a stale one kept it
-    scanning every 10 ms, while the kernel jumped.)"""
+    scanning every 10 ms.)"""
     fitted = [MODULES["6TC"]] * 4 + [MODULES["2TC"]] * 3 + [MODULES["6RTD"]]
 
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1400)
         emu.advance(60)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 def test_the_ladder_shortens_the_table():
@@ -82,7 +72,7 @@ def test_the_ladder_shortens_the_table():
         emu.advance(20)
         emu.service(lambda mem: mem.set("R3001", 6))
         emu.advance(40)
-    both_ways(full_plc(), drive)
+    against_golden(full_plc(), drive)
 
 
 def test_a_fitted_module_beyond_the_table():
@@ -92,44 +82,42 @@ def test_a_fitted_module_beyond_the_table():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1400)
         emu.advance(60)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 @pytest.mark.parametrize("readings", ["R4120", "D4030"])
-def test_readings_over_the_rtc_registers_step_aside(readings):
+def test_readings_over_the_rtc_registers(readings):
     """The readings block over R4128–R4135 (the clock's read-out) or D4053/D4054: the RTC model rewrites them every
-    scan (and re-anchors on a new D4054), but the kernel scans the clock only once, at the end of the span — so it
-    must not run when its registers meet the clock's."""
+    scan (and re-anchors on a new D4054): the clock's registers meet the PID's."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(120)
-    steps_aside(plc(readings=readings), drive)
+    against_golden(plc(readings=readings), drive)
 
 
 @pytest.mark.parametrize("alm", ["M1952", "M1953", "M1954"])
-def test_alm_on_an_rtc_bit_steps_aside(alm):
+def test_alm_on_an_rtc_bit(alm):
     """ALM of the running instance on M1952 (RTC hold), M1953 (±30 s) or M1954 (rewritten by every RTC scan), and
-    ALM toggling inside the span: the clock would see each edge in Python, at most one at the kernel's final clock
-    scan — the kernel steps aside."""
+    ALM toggling inside the span: the clock sees each edge."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 250 for p in range(32)}, enable=1, **{f"R{1040 + p}": 7 for p in range(32)})
-        emu.advance(305)  # (ends with ALM = 0: M1954 then shows the RTC's 1 in the kernel's run)
-    steps_aside(plc(pid=dict(PID_32, alm=alm), plant={"noise": 1.0, "gain": 0.0}), drive)
+        emu.advance(305)  # (ends with ALM = 0: M1954 then shows the RTC's 1)
+    against_golden(plc(pid=dict(PID_32, alm=alm), plant={"noise": 1.0, "gain": 0.0}), drive)
 
 
 @pytest.mark.parametrize("seed", [2**53 + 1, 1234567890123456789, -(2**62) - 3, 2**63 - 1])
 def test_a_seed_beyond_2_to_the_53(seed):
-    """``[emulator] seed`` is any TOML int: the kernel gets it modulo 2^64 as two 32-bit halves (a float64 field
-    would round it beyond 2^53 and draw other normals than Python's exact ``seed * K & MASK``)."""
+    """``[emulator] seed`` is any TOML int: the noise index takes it modulo 2^64 exactly (a float64 would round it
+    beyond 2^53 and draw other normals than ``seed * K & MASK``)."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(60)
-    both_ways(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
+    against_golden(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
 
 
-def test_models_in_another_order_step_aside():
-    """The kernel scans temperature → FUN86 → plant; an emulator whose plant scans before FUN86 (models added in
-    another order) integrates the previous scan's waveform — the kernel steps aside."""
+def test_models_in_another_order():
+    """An emulator whose plant scans before FUN86 (models added in another order) integrates the previous scan's
+    waveform."""
     def build():  # noqa: ANN202
         emu = full_plc()()
         fun86, plant = emu.model(Fun86Model), emu.model(ThermalPlant)
@@ -140,11 +128,11 @@ def test_models_in_another_order_step_aside():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(120)
-    steps_aside(build, drive)
+    against_golden(build, drive)
 
 
 # =====================================================================================================================
-# Edges where the kernel is exact
+# Edges of the arithmetic
 # =====================================================================================================================
 @pytest.mark.parametrize("r4005", [0x0000, 0x0101, 0x0505, 0x00FF, 0xFF00, 0x0500, 0x0005, 0x0302, 0x0203])
 def test_pid_interval_and_pwm_codes(r4005):
@@ -152,7 +140,7 @@ def test_pid_interval_and_pwm_codes(r4005):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4005=r4005, R4008=1450)
         emu.advance(240)
-    both_ways(full_plc(noise=0.2, tau=60.0), drive)
+    against_golden(full_plc(noise=0.2, tau=60.0), drive)
 
 
 @pytest.mark.parametrize("r4006, r4007, r4008", [(0, 0, 0), (100, 1, 65535), (65535, 65535, 0), (0, 65535, 1),
@@ -161,7 +149,7 @@ def test_heater_loop_and_prealarm_edge_values(r4006, r4007, r4008):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4006=r4006, R4007=r4007, R4008=r4008)
         emu.advance(150)
-    both_ways(full_plc(gain=50.0, tau=60.0), drive)
+    against_golden(full_plc(gain=50.0, tau=60.0), drive)
 
 
 @pytest.mark.parametrize("md, kc, ki, td", [(1, 110, 17, 50), (0, 110, 0, 50), (1, 110, 0, 0), (0, 65535, 65535, 65535),
@@ -174,7 +162,7 @@ def test_gains_md_ki0_td0_and_a_huge_kc(md, kc, ki, td):
               **{f"R{1080 + p}": kc for p in range(32)}, **{f"R{1120 + p}": ki for p in range(32)},
               **{f"R{1160 + p}": td for p in range(32)}, **{f"R{1040 + p}": 15 for p in range(32)})
         emu.advance(200)
-    both_ways(plc(pid=pid, plant={"noise": 0.5, "tau": 40.0}), drive)
+    against_golden(plc(pid=pid, plant={"noise": 0.5, "tau": 40.0}), drive)
 
 
 @pytest.mark.parametrize("heating", [True, False])
@@ -187,14 +175,14 @@ def test_negative_sv_os_and_pv_below_zero(heating):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=sv, heating=heating, R4008=0, R4006=0, R4007=20, **os)
         emu.advance(200)
-    both_ways(full_plc(ambient=-60.0, gain=40.0, tau=50.0, noise=0.3), drive)
+    against_golden(full_plc(ambient=-60.0, gain=40.0, tau=50.0, noise=0.3), drive)
 
 
 def test_negative_pv_with_fahrenheit_fast_averaging():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": (-400) & 0xFFFF for p in range(32)}, R4008=65000)
         emu.advance(150)
-    both_ways(plc(plant={"ambient": -80.0, "gain": 60.0, "tau": 30.0, "noise": 0.4}, unit="F", rate="fast",
+    against_golden(plc(plant={"ambient": -80.0, "gain": 60.0, "tau": 30.0, "noise": 0.4}, unit="F", rate="fast",
                        averaging=8), drive)
 
 
@@ -206,7 +194,7 @@ def test_sensor_range_clamps_with_integer_limits(sensor):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1000)
         emu.advance(120)
-    both_ways(plc(modules=modules, plant={"gain": 500.0, "tau": 40.0}, averaging=4), drive)
+    against_golden(plc(modules=modules, plant={"gain": 500.0, "tau": 40.0}, averaging=4), drive)
 
 
 def default_bench(plant=None):  # noqa: ANN001, ANN201
@@ -230,7 +218,7 @@ def test_a_settable_instance_with_sn_not_zero_next_to_the_others(sn, zn):
         start(emu, en="M4", hc="M5", sv={f"R{600 + b}": 400 + b for b in range(32)}, R850=sn, R851=zn,
               R4008=700)
         emu.advance(200)
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 @pytest.mark.parametrize("sn, zn", [(-1, 3), (30, 3), (0, 0), (0, 33)])
@@ -244,7 +232,7 @@ def test_an_err_instance_next_to_running_ones(sn, zn):
         emu.service(lambda mem: (mem.set("R850", sn & 0xFFFF), mem.set("R851", zn & 0xFFFF)))
         emu.advance(120)
         assert emu.memory.get("M104") == 1
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 def test_en_off_instances_that_ran_next_to_a_running_one():
@@ -255,7 +243,7 @@ def test_en_off_instances_that_ran_next_to_a_running_one():
         emu.advance(40)
         emu.service(lambda mem: (mem.set("M2", 0), mem.set("M4", 0)))
         emu.advance(150)
-    both_ways(default_bench(), drive)
+    against_golden(default_bench(), drive)
 
 
 def test_instance_points_beyond_the_tables_measured_points():
@@ -265,18 +253,18 @@ def test_instance_points_beyond_the_tables_measured_points():
         start(emu, sv=SV_1500)
         emu.service(lambda mem: mem.write("R3026", [1000 + p for p in range(26)]))  # readings of unmeasured points
         emu.advance(60)
-    both_ways(plc(modules=[{"type": "6TC", "sensor": "K"}]), drive)
+    against_golden(plc(modules=[{"type": "6TC", "sensor": "K"}]), drive)
 
 
 def test_a_module_mismatch_without_a_possible_prealarm():
-    """The mismatched module of test_divergence_a, but no reading can reach R4008: here the kernel is exact (the
-    stale ``_next`` only matters through ``measurements``)."""
+    """The mismatched module of test_divergence_a, but no reading can reach R4008: the stale ``_next`` only
+    matters through ``measurements``."""
     fitted = [MODULES["6TC"]] * 4 + [MODULES["2TC"]] * 3 + [MODULES["6RTD"]]
 
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(300)
-    both_ways(fitted_plc(fitted), drive)
+    against_golden(fitted_plc(fitted), drive)
 
 
 def test_points_not_installed_broken_and_disabled_mixed():
@@ -294,7 +282,7 @@ def test_points_not_installed_broken_and_disabled_mixed():
         emu.model(TemperatureModel).repair(7)
         emu.service(lambda mem: mem.set("R4010", 0xFFFF))
         emu.advance(120)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 def test_ramps_fixed_sources_and_no_noise():
@@ -311,7 +299,7 @@ def test_ramps_fixed_sources_and_no_noise():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1500)
         emu.advance(240)
-    both_ways(build, drive)
+    against_golden(build, drive)
 
 
 @pytest.mark.parametrize("scan_ms", [1, 7, 50])
@@ -319,7 +307,7 @@ def test_other_scan_times(scan_ms):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1450, R4005=0x0100)
         emu.advance(100)
-    both_ways(plc(plant={"noise": 0.3, "tau": 60.0}, emulator={"scan_time_ms": scan_ms, "seed": 7}), drive)
+    against_golden(plc(plant={"noise": 0.3, "tau": 60.0}, emulator={"scan_time_ms": scan_ms, "seed": 7}), drive)
 
 
 @pytest.mark.parametrize("seed", [0, 1, -1, 2**53, -(2**53), 987654321])
@@ -327,7 +315,7 @@ def test_seeds_within_float64_precision(seed):
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.advance(60)
-    both_ways(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
+    against_golden(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
 
 
 def test_a_virtual_day_in_one_span():
@@ -337,7 +325,7 @@ def test_a_virtual_day_in_one_span():
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={"R1000": 1200, "R1001": 800}, R4005=0x0505)
         emu.advance(86400)
-    both_ways(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
+    against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
 def test_a_span_starting_days_after_power_on():
@@ -347,7 +335,7 @@ def test_a_span_starting_days_after_power_on():
         emu.advance(5 * 86400 + 0.37)
         start(emu, sv={"R1000": 1200, "R1001": 800}, R4005=0x0100, R4008=1150)
         emu.advance(600)
-    both_ways(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
+    against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
 def test_requests_that_change_things_right_before_each_span():
@@ -378,22 +366,21 @@ def test_requests_that_change_things_right_before_each_span():
             if n == 6:
                 emu.model(TemperatureModel).open(2)
             emu.advance(9.13 + n)
-    both_ways(full_plc(noise=0.3, tau=50.0), drive)
+    against_golden(full_plc(noise=0.3, tau=50.0), drive)
 
 
-def test_python_steps_on_after_a_kernel_span():
-    """Unpack completeness: after a kernel span, the compiled emulator continues in Python (stale caches — the
-    plant's memo, the temperature model's quiet block, the waveforms — would show there)."""
+def test_stepping_on_after_a_long_span():
+    """After a long span, short steps and requests (stale caches — the plant's memo, the temperature model's quiet
+    block, the waveforms — would show there)."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1480, R4005=0x0102)
         emu.advance(120)
-        emu.use_kernel = False
         for n in range(6):
             emu.advance(3.3)
             emu.service(lambda mem, n=n: mem.write("R1000", [1500 - 20 * n] * 32))
             emu.model(ThermalPlant).temperature(0, emu.now + 5.0)  # fill the memo
             emu.advance(4.1)
-    both_ways(full_plc(noise=0.2, tau=60.0), drive)
+    against_golden(full_plc(noise=0.2, tau=60.0), drive)
 
 
 def test_cooling_and_heating_instances_on_one_plant_with_averaging():
@@ -407,4 +394,4 @@ def test_cooling_and_heating_instances_on_one_plant_with_averaging():
     def build():  # noqa: ANN202
         return build_emulator(profile_from_dict({"bench": {"name": "kernel"}, "temperature": area,
                                                  "pid": base.areas["pid"], "plant": {"noise": 0.5}}), EPOCH)
-    both_ways(build, drive)
+    against_golden(build, drive)
