@@ -65,7 +65,7 @@ def test_drift_decode_no_correction(capsys):
 ])
 def test_drift_bad_input(capsys, argv, says):
     rc, out, err = run(capsys, *argv)
-    assert rc == 2
+    assert rc == 4
     assert out == ""
     assert_one_line_error(err, "drift")
     assert says in err
@@ -74,7 +74,7 @@ def test_drift_bad_input(capsys, argv, says):
 def test_console_script_bad_code_is_one_line():
     done = subprocess.run([str(HIL), "drift", "decode", "G00D"], capture_output=True, text=True, timeout=30,
                           env={"COLUMNS": "40", "PATH": "/usr/bin:/bin"})
-    assert done.returncode == 2
+    assert done.returncode == 4
     assert done.stdout == ""
     assert_one_line_error(done.stderr, "drift")
     assert "'G00D'" in done.stderr and "0x56E5" in done.stderr
@@ -129,7 +129,7 @@ def test_rtc_set_refused(capsys, url):
 @pytest.mark.parametrize("when, says", [("tomorrow", "YYYY-MM-DD HH:MM:SS"), ("1999-12-31 23:59:59", "2000–2099")])
 def test_rtc_set_bad_time(capsys, when, says):
     rc, _, err = run(capsys, "rtc", "set", "emulator", when)
-    assert rc == 2
+    assert rc == 4
     assert_one_line_error(err, "rtc")
     assert says in err
 
@@ -177,12 +177,12 @@ def test_drift_measure_apply_writes_d4054(capsys, tmp_path):
 
 def test_drift_apply_over_modbus_names_address_and_map(capsys):
     rc, out, err = run(capsys, "drift", "measure", "emulator+modbus-tcp", "--duration", "100", "--apply")
-    assert rc == 2 and out == ""
+    assert rc == 4 and out == ""
     assert_one_line_error(err, "drift")
     assert "D4054 cannot be reached over " + MODBUS_MAP in err and "nothing was written" in err
 
 
 def test_drift_measure_too_short(capsys):
     rc, _, err = run(capsys, "drift", "measure", "emulator", "--duration", "2")
-    assert rc == 2
+    assert rc == 4
     assert_one_line_error(err, "drift")

@@ -191,7 +191,7 @@ def test_every_help_has_examples(argv, capsys):
 
 def test_errors_are_one_line_without_traceback(capsys):
     from hil.cli.main import main
-    assert main(["probe", "fatek+serial:///dev/ttyHIL-none"]) == 2
+    assert main(["probe", "fatek+serial:///dev/ttyHIL-none"]) == 4
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert "cannot open /dev/ttyHIL-none" in err and "—" in err

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import datetime as dt
+import math
 import signal
 import sys
 import threading
+import time
 
 from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
@@ -27,8 +29,11 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
     hil.families.fbs.sim.rig).
     """
+    if not (math.isfinite(time_scale) and time_scale > 0):  # before any endpoint line: scripts wait for those
+        raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
     profile = load_profile(bench)
-    emulator = build_emulator(profile, dt.datetime.now().replace(microsecond=0))
+    epoch = dt.datetime.now().replace(microsecond=0)
+    emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []
     stop = threading.Event()
     try:
@@ -45,6 +50,8 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, lambda *_: stop.set())
+        # The clock starts at host time: catch up the whole second dropped from the epoch and the start-up
+        emulator.advance_to(emulator.now + max(0.0, time.time() - epoch.timestamp()))
         if live:  # after the endpoint lines: clients parse those, the panel is for people
             from hil.cli.emulate_live import LivePanel
             with LivePanel(emulator, profile, servers, time_scale, stop):

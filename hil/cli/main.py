@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 import traceback
 
@@ -11,6 +12,9 @@ from rich.markup import escape
 
 from hil import __version__
 from hil.core.errors import HilError, InvalidValue
+
+# Exit codes: pytest's (``pytest.ExitCode``), so a script or CI job reads ``hil run`` and the other commands alike.
+EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2, 3, 4
 
 EXAMPLES = """examples:
   hil run                                   suites on the in-process emulator, JUnit in reports/junit.xml
@@ -23,12 +27,28 @@ EXAMPLES = """examples:
 """
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with pytest's exit code for a usage error (4, not argparse's 2 = pytest's "interrupted"), a hint
+    for pytest options given to ``hil run`` before ``--``, and ``--debug`` accepted after any sub-command."""
+
+    def __init__(self, *args, **kwargs) -> None:  # noqa: ANN002, ANN003
+        kwargs.setdefault("formatter_class", argparse.RawDescriptionHelpFormatter)
+        super().__init__(*args, **kwargs)
+        if self.prog != "hil":  # a sub-command's parser
+            # SUPPRESS: absent after the sub-command, the top-level value stands
+            self.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                              help="show the traceback of an error")
+
+    def error(self, message: str):  # noqa: ANN201 - NoReturn
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hil", description="Hardware-in-the-loop tests for FATEK FBs PLCs.",
-                                     epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = _Parser(prog="hil", description="Hardware-in-the-loop tests for FATEK FBs PLCs.", epilog=EXAMPLES)
     parser.add_argument("--version", action="version", version=f"hil {__version__}")
-    parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    parser.add_argument("--debug", action="store_true", default=False, help="show the traceback of an error")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, parser_class=_Parser)
 
     run = sub.add_parser("run", help="run the suites against a bench (default: the emulator)",
                          formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -56,7 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("-v", "--verbose", action="count", default=0, help="one line per test")
     run.add_argument("--color", choices=("auto", "yes", "no"), default=None,
                      help="colour the console (default auto: only on a terminal, never with NO_COLOR)")
-    run.add_argument("pytest_args", nargs=argparse.REMAINDER, help="after --: extra pytest arguments")
+    run.add_argument("pytest_args", nargs=argparse.REMAINDER,
+                     help="after --: pytest arguments; test files or ids given there are the only ones run "
+                          "(default: every suite), e.g. hil run -- suites/test_rtc.py -k leap")
 
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -167,25 +189,41 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        if args.command == "run":
+            parser.error(f"unrecognized arguments: {' '.join(unknown)} — pytest's own options go after '--', "
+                         f"e.g. hil run -- {' '.join(_after_run(argv))}")
+        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    if not args.debug:
+        # pymodbus logs its own retries and timeouts ("No response received after 0 retries…") to stderr; the
+        # command's one-line error says what failed and what to check.  --debug shows them.
+        logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     console = Console(stderr=False)
     try:
         return dispatch(args, console)
     except KeyboardInterrupt:
-        return 130
-    except (HilError, OSError) as exc:  # what a user can fix: one line that says what and how
+        return EXIT_INTERRUPTED
+    except (HilError, OSError) as exc:
+        # what the user can act on (a bad profile, an unreachable PLC, a missing port): one line
         if args.debug:
-            raise
+            traceback.print_exc()
         # soft_wrap: one line whatever the width; escape: messages quote "[sections]" that are not markup
         Console(stderr=True, soft_wrap=True).print(f"[bold red]hil {args.command}:[/] {escape(one_line(exc))}",
                                                    highlight=False)
-        return 2
-    except Exception:  # noqa: BLE001 - anything else is a bug in hil: its traceback, then what to do
+        return EXIT_USAGE
+    except Exception:  # noqa: BLE001 - anything else is a bug in hil: the traceback, to report
         traceback.print_exc()
-        Console(stderr=True, soft_wrap=True).print(
-            f"[bold red]hil {args.command}: internal error[/] (a bug in hil, not in your setup) — please report "
-            f"it with the traceback above", highlight=False)
-        return 3
+        print(f"hil {args.command}: internal error (a bug in hil {__version__}): please report it with the "
+              f"traceback above", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+def _after_run(argv: list[str]) -> list[str]:
+    rest = argv[argv.index("run") + 1:] if "run" in argv else argv
+    return [a for a in rest if a != "--"]
 
 
 def one_line(exc: BaseException) -> str:

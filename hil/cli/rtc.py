@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import math
 import re
 from typing import Callable, Iterator, TypeVar
 
@@ -18,7 +19,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
 from hil.families.fbs.device.plc import FbsPlc
-from hil.core.errors import HilError, InvalidValue, UnreachableAddress
+from hil.core.errors import HilError, UnreachableAddress, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for_rate, rate_for_code
 from hil.families.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
@@ -198,17 +199,28 @@ def rtc_sync(url: str, console: Console, bench: str | None = None) -> int:
 def parse_rate(text: str) -> float:
     cleaned = text.strip().replace("\u2212", "-").removesuffix("s/day").strip()
     try:
-        return float(cleaned)
+        rate = float(cleaned)
     except ValueError:
+        rate = math.nan
+    if not math.isfinite(rate):
         raise InvalidValue(f"cannot read {text!r} as a clock error: give s/day as a number, positive = the PLC clock "
-                         f"runs fast (e.g. 3.38 or -5.62; range {RATE_MIN}…+{RATE_MAX})") from None
+                         f"runs fast (e.g. 3.38 or -5.62; range {RATE_MIN}…+{RATE_MAX})")
+    if not RATE_MIN <= round(rate, 9) <= RATE_MAX:  # {:g}: 1e308 stays short, not 309 digits
+        raise InvalidValue(f"clock error {rate:+g} s/day is outside the S-35390A setting range {RATE_MIN}…+{RATE_MAX} "
+                         f"s/day (manual ch. 15); D4054 cannot correct it")
+    return rate
 
 
 def parse_code(text: str) -> int:
     match = _CODE_RE.match(text.strip())
     if not match:
         raise InvalidValue(f"cannot read {text!r} as a D4054 code: give {CODE_FORMATS}")
-    return int(match.group(1), 16)
+    code = int(match.group(1), 16)
+    try:
+        rate_for_code(code)
+    except ValueError as exc:
+        raise InvalidValue(str(exc)) from None
+    return code
 
 
 def _listed_rate(code: int) -> float | None:
@@ -265,8 +277,15 @@ class _ProgressTimebase:
             self.progress.update(self.task, completed=min(self.inner.now() - self.start, self.total))
 
 
+#: The longest measurement: the FBs calendar holds 2000–2099, and a year is already far finer than any use.
+MAX_DURATION = 366 * 86400.0
+
+
 def drift_measure(url: str, duration: float, console: Console, bench: str | None = None,
                   apply: bool = False) -> int:
+    if not math.isfinite(duration) or not 5 < duration <= MAX_DURATION:
+        raise InvalidValue(f"--duration {duration:g} s: give more than 5 s and at most {MAX_DURATION:.0f} s (366 days; "
+                         f"the PLC's calendar holds 2000–2099 only)")
     with open_plc(url, bench) as plc:
         if apply:  # fail before a long measurement, not after it
             _require(plc, [reg.RTC_RATE_CODE, reg.RTC_CHIP], "write the compensating code")

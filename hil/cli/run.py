@@ -8,12 +8,33 @@ import pytest
 
 from hil.core.paths import default_bench, project_dir
 
+#: pytest options whose value is the next argument (so that value is not a test path): ``-k rtc``, ``-m slow``…
+_TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
+                "--confcutdir", "--basetemp", "--bench", "--target", "--junitxml", "--junit-xml", "--hil-html",
+                "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
+                "--timeout", "--durations", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
+                "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures"}
+
+
+def selects_tests(extra: list[str]) -> bool:
+    """Whether the pytest arguments name test files, directories or ids of their own: then only those run
+    (on a real bench, running every suite instead means writes nobody asked for)."""
+    previous = ""
+    for arg in extra:
+        if not arg.startswith("-") and previous not in _TAKES_VALUE:
+            return True
+        previous = arg if "=" not in arg else ""
+    return False
+
 
 def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: list[str], *,
                 html: str | None = None, operator: str | None = None, station: str | None = None,
                 trace: str | None = None, verbosity: int = 0, color: str | None = None) -> list[str]:
-    args = [str(project_dir("suites")), "--bench", bench or str(default_bench()), f"--junitxml={junitxml}",
-            "-o", "junit_family=xunit1", "-p", "no:cacheprovider"]
+    paths = [] if selects_tests(extra) else [str(project_dir("suites"))]
+    # The cache provider stays on (--lf, --ff, --sw work), its directory here, never inside an installed package
+    cache = Path.cwd() / ".pytest_cache"
+    args = [*paths, "--bench", bench or str(default_bench()), f"--junitxml={junitxml}",
+            "-o", "junit_family=xunit1", "-o", f"cache_dir={cache}"]
     if target:
         args += ["--target", target]
     if html:

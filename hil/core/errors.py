@@ -73,3 +73,4 @@ class ProfileError(HilError):
 
 class TargetError(HilError, ValueError):
     """A target URL that cannot be understood; the message lists the forms that are."""
+

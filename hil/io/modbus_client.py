@@ -254,8 +254,10 @@ class ModbusWire:
         if isinstance(exc, _Shape):
             return f"a reply of the wrong shape to {where}: {exc}"
         if isinstance(exc, ModbusIOException):
+            # pymodbus's own "No response received after 0 retries" counts differently from our attempts: drop it
+            detail = "" if "No response received" in str(exc) else f" [pymodbus: {exc}]"
             return (f"no valid reply to {where} within {self.timeout:g} s: check the unit id, wiring/serial "
-                    f"settings and that the PLC is powered [pymodbus: {exc}]")
+                    f"settings and that the PLC is powered{detail}")
         if isinstance(exc, ConnectionException):
             return f"lost the connection during {where}: {self.hint} [pymodbus: {exc}]"
         return f"{where} failed: {exc}"

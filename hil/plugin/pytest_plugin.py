@@ -152,9 +152,12 @@ def resolve_bench_path(config: pytest.Config) -> Path:
     given = config.getoption("--bench")
     if given:
         return Path(given)
-    for base in (Path.cwd(), Path(str(config.rootpath)), Path(__file__).resolve().parent.parent):
+    for base in (Path.cwd(), Path(str(config.rootpath))):
         if (base / DEFAULT_BENCH).is_file():
             return base / DEFAULT_BENCH
+    from hil.core.paths import default_bench
+    if default_bench().is_file():  # the bundled default (a checkout or an installed wheel)
+        return default_bench()
     raise pytest.UsageError(f"no bench profile given and {DEFAULT_BENCH} not found; pass --bench FILE")
 
 
@@ -232,6 +235,12 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
     """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
     report = yield
+    if call.when == "setup" and report.failed and "bench" in getattr(item, "fixturenames", ()):
+        state = item.config.stash[_STATE]
+        if state.bench is None and state.error:
+            # The bench never opened: this test's error says why, and the session stops here — every other
+            # bench test would repeat the same line (exit status 1, as for a failed test)
+            item.session.shouldfail = state.error
     if (call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(TransportError)
             and "bench" in getattr(item, "fixturenames", ())):
         item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"

@@ -371,7 +371,10 @@ def _open(port_url: str, **settings: object) -> serial.SerialBase:
         # timeout=0: reads return what has arrived; the transport waits with select() up to its own deadline.
         return serial.serial_for_url(port_url, timeout=0, **settings)
     except (serial.SerialException, OSError, ValueError, termios.error) as exc:
-        raise TransportError(f"cannot open {port_url}: {exc} — {_open_hint(port_url, exc)}") from exc
+        hint = _open_hint(port_url, exc)
+        # a known cause is the whole message (pyserial's own text repeats the path twice more)
+        known = hint in _OPEN_HINTS.values()
+        raise TransportError(f"cannot open {port_url}: " + (hint if known else f"{exc} — {hint}")) from exc
 
 
 def _open_hint(port_url: str, exc: Exception) -> str:

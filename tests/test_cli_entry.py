@@ -1,0 +1,160 @@
+"""What a user meets first on the command line: which tests ``hil run`` runs, its options, exit codes, errors."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from hil.cli import main as cli
+from hil.cli.main import main
+from hil.cli.run import pytest_args, selects_tests
+
+REPO = Path(__file__).resolve().parent.parent
+EXIT_USAGE, EXIT_INTERNAL = 4, 3
+
+
+def hil(*argv: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
+    return subprocess.run([sys.executable, "-m", "hil", *argv], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout, env=env | {"COLUMNS": "100"})
+
+
+def test_pytest_arguments_that_name_tests_replace_the_default_suites() -> None:
+    assert selects_tests(["suites/test_rtc.py"]) and selects_tests(["-q", "suites/test_rtc.py::test_x[a]"])
+    assert not selects_tests(["-k", "rtc", "-m", "slow", "-x", "--lf", "-o", "junit_family=xunit1"])
+    assert not selects_tests(["--deselect", "suites/test_rtc.py::test_x"])
+    assert pytest_args(None, None, "j.xml", ["suites/test_rtc.py"])[0] == "--bench"
+    assert pytest_args(None, None, "j.xml", ["-k", "rtc"])[0].endswith("suites")
+
+
+def test_hil_run_with_a_file_runs_only_that_file(tmp_path: Path) -> None:
+    done = hil("run", "-q", "--junitxml", str(tmp_path / "junit.xml"), "--html", str(tmp_path / "r.html"), "--",
+               str(REPO / "suites" / "test_smoke.py"), cwd=tmp_path)
+    assert done.returncode == 0, done.stdout + done.stderr
+    files = {c.get("file") or c.get("classname") for c in ET.parse(tmp_path / "junit.xml").iter("testcase")}
+    assert files and all("test_smoke" in f for f in files), files
+
+
+def test_cache_provider_works_from_any_directory(tmp_path: Path) -> None:
+    # --lf needs pytest's cache provider; its directory is the current one, never inside the package
+    done = hil("run", "-q", "--junitxml", str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), "--",
+               "--lf", "-k", "smoke", cwd=tmp_path)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "5 passed" in done.stdout
+    assert (tmp_path / ".pytest_cache").is_dir()
+
+
+def test_pytest_options_before_the_separator_get_a_hint(capsys) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["run", "-k", "rtc"])
+    assert info.value.code == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "after '--'" in err and "hil run -- -k rtc" in err
+
+
+def test_python_dash_m_hil(tmp_path: Path) -> None:
+    done = hil("--version", cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.startswith("hil ")
+
+
+def test_debug_is_accepted_after_the_sub_command(capsys) -> None:
+    assert main(["drift", "code", "fast", "--debug"]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "InvalidValue" in err  # --debug: the traceback of a user error too
+    assert main(["drift", "code", "fast"]) == EXIT_USAGE
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_exit_codes_are_pytests(capsys, tmp_path: Path) -> None:
+    assert main(["run", "--bench", str(tmp_path / "none.toml")]) == EXIT_USAGE  # pytest: 4 = usage error
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "none.toml" in err
+
+
+def test_a_bug_shows_its_traceback(capsys, monkeypatch) -> None:
+    def broken(args, console):  # noqa: ANN001, ANN202
+        raise ZeroDivisionError("a bug")
+    monkeypatch.setattr(cli, "dispatch", broken)
+    assert main(["drift", "code", "3.38"]) == EXIT_INTERNAL
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "ZeroDivisionError: a bug" in err and "internal error" in err
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["drift", "code", "1e308"], "+1e+308 s/day is outside"),
+    (["drift", "code", "inf"], "as a number"),
+    (["drift", "measure", "emulator", "--duration", "1e12"], "at most 31622400 s"),
+    (["drift", "measure", "emulator", "--duration", "nan"], "more than 5 s"),
+])
+def test_absurd_numbers_are_one_short_line(capsys, argv: list[str], says: str) -> None:
+    assert main(argv) == EXIT_USAGE
+    out, err = capsys.readouterr()
+    assert out == "" and says in err and len(err.strip().splitlines()) == 1 and len(err) < 300, err
+
+
+def test_missing_serial_port_names_the_path_once(capsys) -> None:
+    assert main(["probe", "fatek+serial:///dev/ttyHIL-none"]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("/dev/ttyHIL-none") == 1 and "plugged in" in err, err
+
+
+@pytest.fixture
+def silent_listener():
+    """A TCP port that accepts and never answers."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    yield server.getsockname()[1]
+    server.close()
+
+
+def test_modbus_listener_that_never_replies_is_one_line(silent_listener: int, tmp_path: Path) -> None:
+    done = hil("probe", f"modbus+tcp://127.0.0.1:{silent_listener}?timeout=0.2&retries=1", cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr  # pymodbus's own log lines are silenced
+    assert "no valid reply" in lines[0] and "retries" not in lines[0]
+
+
+def test_unreachable_plc_is_one_error_then_the_run_stops(tmp_path: Path) -> None:
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    done = hil("run", "-q", "--target", f"fatek+tcp://127.0.0.1:{port}?timeout=0.2", "--junitxml",
+               str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), cwd=tmp_path)
+    assert done.returncode == 1
+    assert done.stdout.count("cannot open the bench") <= 3, done.stdout  # the error, its summary line, the stop
+    assert "1 error" in done.stdout and "passed" not in done.stdout.splitlines()[-1]
+
+
+def test_emulate_refuses_time_scale_zero_before_any_endpoint_line(tmp_path: Path) -> None:
+    done = hil("emulate", "--fatek-tcp", "127.0.0.1:0", "--time-scale", "0", "--no-live", cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE and done.stdout == ""
+    assert "--time-scale 0" in done.stderr
+
+
+def test_emulate_clock_starts_at_host_time(tmp_path: Path) -> None:
+    from hil.families.fbs.device.plc import FbsPlc
+    from hil.core.timebase import HostTimebase
+    from hil.families.fbs.transport.factory import open_transport
+    proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", "--fatek-tcp", "127.0.0.1:0", "--no-live"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        kind, address = proc.stdout.readline().split()
+        time.sleep(0.3)  # past the start-up: the clock runs on its own
+        with open_transport(f"fatek+tcp://{address}") as transport:
+            plc = FbsPlc(transport, HostTimebase())
+            shown = plc.rtc.read().to_datetime()
+            host = __import__("datetime").datetime.now()
+        behind = (host - shown).total_seconds()
+        assert -0.5 < behind < 1.2, behind  # whole seconds on the PLC; was 1.5–2 s behind
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
