@@ -104,7 +104,12 @@ def test_write_replies_carry_no_data(command):
        station=st.integers(1, 0xFE))
 def test_register_write_and_read_round_trip_property(start, values, station):
     write = WriteRegisters(parse(f"R{start}"), values)
-    assert decode_request(split_frame(encode_request(station, write))) == write
+    if start <= 4999 and start + len(values) - 1 >= 4168:  # an FBs has no R4168–R4999: a server answers A
+        with pytest.raises(RequestError) as info:
+            decode_request(split_frame(encode_request(station, write)))
+        assert info.value.code == "A"
+    else:
+        assert decode_request(split_frame(encode_request(station, write))) == write
     read = ReadRegisters(parse(f"R{start}"), len(values))
     assert read.decode(check_reply(encode_reply(station, read, values), station, "46")) == values
 
@@ -251,10 +256,26 @@ def test_unknown_error_code_still_raises():
     (Frame(1, "46", " 1R00000"), "4"),  # count not strict hex
     (Frame(1, "47", "02R0000000"), "4"),  # values cut short
     (Frame(1, "47", "01R00000 FFF"), "4"),  # value not strict hex
-    (Frame(1, "45", "01M00002"), "4"),  # bit value not 0/1
-    (Frame(1, "42", "5M0000"), "4"),  # bit action 5
+    (Frame(1, "45", "01M00002"), "2"),  # bit value not 0/1: illegal value (issue 18)
+    (Frame(1, "42", "5M0000"), "2"),  # bit action 5: illegal value
     (Frame(1, "42", "3R00000"), "4"),  # 42 on a register
-    (Frame(1, "41", "2"), "4"),
+    (Frame(1, "41", "2"), "2"),  # RUN/STOP argument not 0/1: illegal value
+    (Frame(1, "41", "11"), "4"),  # two characters: format
+    (Frame(1, "42", ""), "4"),  # nothing to act on: format
+    (Frame(1, "46", "01R04168"), "A"),  # an FBs has no R4168–R4999
+    (Frame(1, "46", "01R04999"), "A"),
+    (Frame(1, "46", "02R04167"), "A"),  # a run into them
+    (Frame(1, "46", "01DR04167"), "A"),  # a 32-bit pair into them
+    (Frame(1, "47", "01R045001234"), "A"),
+    (Frame(1, "48", "02R00000R04200"), "A"),
+    (Frame(1, "49", "01R042001234"), "A"),
+    # two faults: the first in the frame decides (README, "The emulator on the wire")
+    (Frame(1, "45", "01M99992"), "A"),  # name beyond the model, then bit value 2
+    (Frame(1, "42", "9M9999"), "2"),  # action 9 comes before the name beyond the model
+    (Frame(1, "45", "FFM00000"), "4"),  # 255 bits from M0: the second value is missing (format)
+    (Frame(1, "45", "FFM00002"), "2"),  # … but the first value, 2, comes before that
+    (Frame(1, "46", "41R04200"), "A"),  # the name (beyond the model) comes before the count is checked
+    (Frame(1, "49", "02M00002R99999"), "2"),  # the first item's bit value 2, before the second's address
     (Frame(1, "40", "X"), "4"),  # trailing data
     (Frame(1, "4E", "x" * 257), "4"),  # loop-back too long
     (Frame(1, "44", "01WM0003"), "A"),  # W name not on a multiple of 8

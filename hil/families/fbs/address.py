@@ -28,6 +28,9 @@ LOW_WORD_FIRST = True  # [our choice] word order of DR/DD/DRT values
 # (user, special R3840–R4167, R4168–R4999, ROR R5000–R8071); D0–D4095 includes the special D4000+.
 BIT_BANKS: dict[str, int] = {"X": 256, "Y": 256, "M": 2002, "S": 1000, "T": 256, "C": 256}
 WORD_BANKS: dict[str, int] = {"R": 8072, "D": 4096, "RT": 256, "RC": 200}
+#: Registers inside the R block that an FBs does not have: a request that touches them gets error A (FATEK) and
+#: they have no Modbus address.  Memory keeps the slots (one flat block is simpler); requests never reach them.
+MISSING_R = (4168, 4999)
 COUNTER32_FIRST = 200  # DRC200–DRC255: 32-bit counters
 COUNTER32_LAST = 255
 
@@ -190,7 +193,7 @@ def is_valid(name: str) -> bool:
 
 
 __all__ = ["Address", "parse", "take_frame_name", "span", "parse_range", "is_valid", "BIT", "WORD", "DWORD",
-           "BIT_BANKS", "WORD_BANKS", "PACKED_16", "PACKED_32", "PAIRED_32", "LOW_WORD_FIRST"]
+           "BIT_BANKS", "WORD_BANKS", "PACKED_16", "PACKED_32", "PAIRED_32", "LOW_WORD_FIRST", "MISSING_R"]
 
 
 def take_frame_name(text: str, pos: int = 0) -> tuple[Address, int]:

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar, Sequence
 
-from hil.families.fbs.address import Address, DWORD, parse, take_frame_name
+from hil.families.fbs.address import MISSING_R, Address, DWORD, parse, take_frame_name
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 
 STX = 0x02
@@ -248,12 +248,46 @@ def _parse_values(text: str, address: Address, count: int) -> list[int]:
     return [int(text[i:i + width], 16) for i in range(0, len(text), width)]
 
 
+# Server side: which error a request with a fault gets (README, "The emulator on the wire").  The frame is
+# read left to right and the first fault decides: the count field (format, 4), the element name (format 4, or
+# A beyond the model), the extent the count and name give (over the command's limit 4, past the model A), then
+# each value (a bit other than 0/1, a RUN/STOP or bit-action argument out of its set: 2; cut short or not hex: 4),
+# then trailing characters (4).  So "45, R4200, bit 2" is A, and a 42 with action 9 on M9999 is 2.
 def _take_name(data: str, pos: int) -> tuple[Address, int]:
     try:
-        return take_frame_name(data, pos)
+        address, end = take_frame_name(data, pos)
     except AddressError as exc:
         # A name of the right shape but outside the model is an address error; anything else is format.
         raise RequestError("A" if "outside" in str(exc) or "multiple of 8" in str(exc) else "4", str(exc)) from None
+    _check_exists(address, 1)
+    return address, end
+
+
+def _check_exists(address: Address, count: int) -> None:
+    """Error A for a run that touches registers an FBs does not have (R4168–R4999), as for any address beyond
+    the model; the address model keeps them (memory, the Modbus map's own refusal) so only requests see this."""
+    words = {"R": 1, "DR": 2}.get(address.kind)
+    if words is None:
+        return
+    first, last = address.index, address.index + count * words - 1
+    low, high = MISSING_R
+    if first <= high and last >= low:
+        raise RequestError("A", f"{count} from {address} reaches R{max(first, low)}: an FBs has no R{low}–R{high}")
+
+
+def _check_extent(cls: type, address: Address, count: int) -> None:
+    """The run a range command's count and start element give: the command's limit (4), the model (A)."""
+    if cls.bits_only != address.is_bit:
+        raise RequestError("4", f"command {cls.code} takes {'bit' if cls.bits_only else 'register'} names, "
+                                f"not {address}")
+    limit = MAX_BITS if cls.bits_only else MAX_WORDS // address.words
+    if not 1 <= count <= limit:
+        raise RequestError("4", f"command {cls.code} moves 1–{limit} {address.kind} elements, not {count}")
+    try:
+        address.offset(count - 1)
+    except AddressError as exc:
+        raise RequestError("A", str(exc)) from None
+    _check_exists(address, count)
 
 
 def _take_value(data: str, pos: int, address: Address) -> tuple[int, int]:
@@ -261,7 +295,9 @@ def _take_value(data: str, pos: int, address: Address) -> tuple[int, int]:
     chunk = data[pos:pos + width]
     if len(chunk) != width:
         raise RequestError("4", f"value for {address} is cut short")
-    if not (chunk in ("0", "1") if address.is_bit else _is_hex(chunk)):
+    if address.is_bit and chunk not in ("0", "1"):
+        raise RequestError("2", f"bit value {chunk!r} for {address} is neither 0 nor 1")
+    if not address.is_bit and not _is_hex(chunk):
         raise RequestError("4", f"value {chunk!r} for {address} is not valid")
     return int(chunk, 2 if address.is_bit else 16), pos + width
 
@@ -396,8 +432,10 @@ class RunStop(Command):
 
     @classmethod
     def from_request(cls, data: str) -> "RunStop":
+        if len(data) != 1:
+            raise RequestError("4", f"RUN/STOP wants one character, '1' or '0', got {data!r}")
         if data not in ("0", "1"):
-            raise RequestError("4", f"RUN/STOP wants '1' or '0', got {data!r}")
+            raise RequestError("2", f"RUN/STOP wants '1' or '0', got {data!r}")
         return cls(data == "1")
 
     def describe(self) -> str:
@@ -425,8 +463,10 @@ class BitAction(Command):
 
     @classmethod
     def from_request(cls, data: str) -> "BitAction":
-        if not data or data[0] not in "1234":
-            raise RequestError("4", f"bit action {data[:1]!r} is not 1–4")
+        if not data:
+            raise RequestError("4", "command 42 needs an action and a bit")
+        if data[0] not in "1234":
+            raise RequestError("2", f"bit action {data[:1]!r} is not 1–4")
         address, end = _take_name(data, 1)
         _expect_end(data, end)
         if not address.is_bit:
@@ -466,6 +506,7 @@ class _RangeCommand(Command):
     def from_request(cls, data: str) -> "_RangeCommand":
         count = _parse_count(data[:2], f"command {cls.code}")
         address, end = _take_name(data, 2)
+        _check_extent(cls, address, count)
         _expect_end(data, end)
         return cls._checked(address, count)
 
@@ -537,6 +578,7 @@ class _WriteRange(Command):
     def from_request(cls, data: str) -> "_WriteRange":
         count = _parse_count(data[:2], f"command {cls.code}")
         address, pos = _take_name(data, 2)
+        _check_extent(cls, address, count)
         values = []
         for _ in range(count):
             value, pos = _take_value(data, pos, address)

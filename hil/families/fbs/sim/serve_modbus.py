@@ -13,8 +13,13 @@ would refuse before the data store sees it:
 * any unit outside the map → exception 2 (illegal data address).  pymodbus marks holes between holding blocks
   itself, but a bit table is one block to it (gaps read as 0), so the gate checks coils exactly;
 * another unit id: RTU stays silent, as a slave on a shared line must; TCP answers exception 0x0B
-  (gateway target failed to respond) — [our choice], a clear answer instead of a timeout.
+  (gateway target failed to respond) — [our choice], a clear answer instead of a timeout.  On TCP, unit ids 0
+  and FFH are this PLC too (FFH is what Modbus/TCP clients send to a directly connected server); the reply
+  echoes the id the request carried;
 * unit 0 on RTU is broadcast: writes are executed and never answered.
+
+The TCP server is :class:`hil.sim.modbus_server.InOrderTcpServer`: every request of a segment is answered in
+order, a quantity of 0 or over the limit is exception 3 of the request's function, FC05 takes only 0000H/FF00H.
 
 ``emulator.stats`` counts ``modbus_requests`` (every decoded request), ``modbus_exceptions`` (exception replies
 sent), ``modbus_exception_<code>`` and ``modbus_ignored`` (requests for another unit on RTU).
@@ -38,6 +43,7 @@ from hil.families.fbs.address import WORD_BANKS as _WORD_BANKS
 from hil.families.fbs.address import Address
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.memory import Memory
+from hil.sim.modbus_server import STRICT_REQUESTS, InOrderTcpServer, tcp_unit_aliases
 from hil.sim.ptypair import PtyPair
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_mbap
@@ -269,6 +275,7 @@ def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, M
     # (function code, address, count) → verdict: the verdict depends on nothing else (the map is fixed; every
     # ModbusPDU has address and count), and a client repeats the same few requests: check each once
     verdicts: dict[tuple[int, int, int], ExcCodes | None] = {}
+    ours = {unit, 0} if serial else {unit, *tcp_unit_aliases(unit)}  # RTU 0 = broadcast; TCP 0/FFH = this PLC
 
     def gate(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
         if sending:
@@ -277,7 +284,7 @@ def _make_gate(emulator: Emulator, unit: int, serial: bool) -> Callable[[bool, M
                 stats[f"modbus_exception_{pdu.exception_code}"] += 1
             return pdu
         stats["modbus_requests"] += 1
-        if pdu.dev_id != unit and not (serial and pdu.dev_id == 0):
+        if pdu.dev_id not in ours:
             if serial:
                 stats["modbus_ignored"] += 1
                 return _Refusal(pdu, None)
@@ -303,8 +310,9 @@ def start_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0,
     runtime = LoopThread.shared()
 
     async def start() -> tuple[ModbusTcpServer, asyncio.AbstractServer | None]:
-        server = ModbusTcpServer(build_device(emulator, unit), address=(host, 0 if faults else port),
-                                 trace_pdu=_make_gate(emulator, unit, serial=False))
+        server = InOrderTcpServer(build_device(emulator, unit), address=(host, 0 if faults else port),
+                                  trace_pdu=_make_gate(emulator, unit, serial=False),
+                                  aliases=tcp_unit_aliases(unit))
         await server.serve_forever(background=True)
         proxy = None
         if faults is not None:
@@ -375,7 +383,8 @@ def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1, *, faults: WireFault
         try:
             server = ModbusSerialServer(build_device(emulator, unit), port=pair.path_a, baudrate=9600, parity="N",
                                         ignore_missing_devices=True, broadcast_enable=True, reconnect_delay=0.1,
-                                        trace_pdu=_make_gate(emulator, unit, serial=True))
+                                        trace_pdu=_make_gate(emulator, unit, serial=True),
+                                        custom_pdu=STRICT_REQUESTS)
             await server.serve_forever(background=True)
         except BaseException:
             pair.close()
