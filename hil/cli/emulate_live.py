@@ -11,6 +11,7 @@ from rich.console import Group
 from rich.live import Live
 from rich.panel import Panel
 from rich.table import Table
+from rich.text import Text
 
 from hil.families.fbs.rtc_time import RtcTime
 
@@ -50,25 +51,25 @@ class LivePanel:
         grid.add_column(style="bold cyan", no_wrap=True)
         grid.add_column()
         for handle in self.servers:
-            grid.add_row(handle.kind, str(handle.address))
+            grid.add_row(handle.kind, Text(str(handle.address)))
         grid.add_row("virtual time", f"{emu.now:,.1f} s (× {self.time_scale:g})")
         try:
             words = self._read("R4128", 7)
             grid.add_row("PLC clock", _clock(words))
         except Exception as exc:  # noqa: BLE001 - a panel never stops the emulator
-            grid.add_row("PLC clock", f"unreadable: {exc}")
+            grid.add_row("PLC clock", Text(f"unreadable: {exc}"))
         try:
             enable = self._read("R4012", 2)
             timing = self._read("R4005", 4)
             grid.add_row("PID", f"enable R4012/R4013 = {enable[0]:04X}H {enable[1]:04X}H; R4005–R4008 = "
                                 + " ".join(f"{w:04X}H" for w in timing))
         except Exception as exc:  # noqa: BLE001
-            grid.add_row("PID", f"unreadable: {exc}")
-        grid.add_row("requests", ", ".join(f"{k} {v}" for k, v in sorted(emu.stats.items())) or "0")
+            grid.add_row("PID", Text(f"unreadable: {exc}"))
+        grid.add_row("requests", Text(", ".join(f"{k} {v}" for k, v in sorted(emu.stats.items())) or "0"))
         parts: list[Any] = [grid]
         if self.temperature is not None:
             parts.append(self._temperatures())
-        return Panel(Group(*parts), title=f"hil emulate — {self.profile.name}", subtitle="Ctrl-C stops",
+        return Panel(Group(*parts), title=Text(f"hil emulate — {self.profile.name}"), subtitle="Ctrl-C stops",
                      title_align="left", expand=False)
 
     def _temperatures(self) -> Table:
@@ -80,7 +81,7 @@ class LivePanel:
         try:
             values = [w - 0x10000 if w & 0x8000 else w for w in self._read(str(config.readings), config.points)]
         except Exception as exc:  # noqa: BLE001
-            table.add_row(f"unreadable: {exc}")
+            table.add_row(Text(f"unreadable: {exc}"))
             return table
         cells = [("[red]OPEN[/]" if v == 28767 else f"{v / 10:.1f}") for v in values]
         for i in range(0, len(cells), per_row):

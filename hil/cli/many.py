@@ -18,6 +18,7 @@ from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from hil.core.errors import HilError
 
@@ -130,9 +131,10 @@ def _summary(console: Console, runs: list[BenchRun], junitxml: str) -> None:
         table.add_column(col)
     for r in runs:
         style = "green" if r.exit == 0 else "red"
-        table.add_row(r.name, f"[{style}]{r.exit}[/]", f"{r.wall:.1f}", str(r.junit), str(r.log))
+        table.add_row(Text(r.name), Text(str(r.exit), style=style), f"{r.wall:.1f}", Text(str(r.junit)),
+                      Text(str(r.log)))
     console.print(table)
-    console.print(f"merged JUnit: {junitxml}")
+    console.print(Text(f"merged JUnit: {junitxml}"))
 
 
 __all__ = ["run_many", "merge", "plan"]

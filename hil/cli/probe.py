@@ -52,7 +52,7 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
         for label, element in PROBE_REGISTERS:
             reason = transport.unreachable_reason(element)
             if reason:
-                table.add_row(label, f"[dim]not reachable: {reason}[/dim]")
+                table.add_row(label, f"[dim]not reachable: {escape(reason)}[/dim]")
                 continue
             values = transport.read_words(element, _COUNTS.get(element, 1))
             table.add_row(label, " ".join(f"{v} ({v:04X}H)" for v in values))

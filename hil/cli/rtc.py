@@ -15,6 +15,7 @@ import re
 from typing import Callable, Iterator, TypeVar
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
@@ -84,7 +85,7 @@ def format_rate(rate: RateCode) -> str:
 
 
 def _not_reachable(exc: UnreachableAddress) -> str:
-    return f"[dim]not reachable over {exc.via}[/dim]"
+    return f"[dim]not reachable over {escape(exc.via)}[/dim]"
 
 
 def _vs_host(plc: dt.datetime, host: dt.datetime) -> str:
@@ -107,7 +108,7 @@ def rtc_read(url: str, console: Console, bench: str | None = None) -> int:
         chip, code = ((chip_and_code, chip_and_code) if isinstance(chip_and_code, UnreachableAddress)
                       else chip_and_code)
 
-        table = Table(title=f"RTC of {plc.io.description}", show_header=False)
+        table = Table(title=f"RTC of {escape(plc.io.description)}", show_header=False)
         table.add_column("item")
         table.add_column("value")
         table.add_row("time R4128–R4134", format_time(now))
@@ -159,18 +160,19 @@ def parse_time(text: str) -> RtcTime:
 def _report_set(console: Console, plc: FbsPlc, result) -> int:
     sent = format_time(result.sent)
     if result.accepted:
-        console.print(f"[green]accepted[/green] (M1955 = 0): set to {sent}", highlight=False)
+        console.print(f"[green]accepted[/green] (M1955 = 0): set to {escape(sent)}", highlight=False)
         if result.problems:
             console.print(f"[yellow]warning:[/yellow] the PLC took a time our validation finds invalid "
-                          f"({', '.join(result.problems)})", highlight=False)
-        console.print(f"PLC now shows {format_time(plc.rtc.read())}", highlight=False)
+                          f"({escape(', '.join(result.problems))})", highlight=False)
+        console.print(f"PLC now shows {escape(format_time(plc.rtc.read()))}", highlight=False)
         return 0
     ours = (f"our validation finds invalid: "
             f"{', '.join(f'{n}={getattr(result.sent, n)}' for n in result.problems)}" if result.problems
             else "our validation finds nothing wrong with it")
-    console.print(f"[bold red]refused[/bold red] by the PLC (M1955 = 1): sent {format_time(result.sent, flag=False)}",
+    console.print(f"[bold red]refused[/bold red] by the PLC (M1955 = 1): sent "
+                  f"{escape(format_time(result.sent, flag=False))}",
                   highlight=False)
-    console.print(f"  {ours}", highlight=False)
+    console.print(f"  {escape(ours)}", highlight=False)
     return 1
 
 
@@ -308,7 +310,7 @@ def drift_measure(url: str, duration: float, console: Console, bench: str | None
                 finally:
                     plc.time = host
 
-        table = Table(title=f"RTC drift of {plc.io.description}", show_header=False)
+        table = Table(title=f"RTC drift of {escape(plc.io.description)}", show_header=False)
         table.add_column("item")
         table.add_column("value")
         side = "fast" if measurement.s_per_day >= 0 else "slow"

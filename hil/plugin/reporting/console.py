@@ -43,7 +43,7 @@ def header_panel(items: Iterable[tuple[str, str]], *, color: bool, title: str = 
     grid.add_column(style="bold cyan" if color else "", no_wrap=True)
     grid.add_column()
     for key, value in items:
-        grid.add_row(key, Text(str(value)))
+        grid.add_row(Text(str(key)), Text(str(value)))  # Text: "[pid]" in a name or message is not markup
     return Panel(grid, title=title, title_align="left", box=_box(color), expand=False)
 
 
@@ -72,7 +72,7 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
                  for o in OUTCOMES]
         ok, bad = measurements[(area, True)], measurements[(area, False)]
         shown = "" if not (ok or bad) else f"{ok} in limits" + (f", {bad} out" if bad else "")
-        table.add_row(area, *cells, shown)
+        table.add_row(Text(area), *cells, shown)
     table.add_section()
     ok, bad = sum(n for (a, p), n in measurements.items() if p), sum(n for (a, p), n in measurements.items() if not p)
     table.add_row("all", *(str(total.get(o, 0)) for o in OUTCOMES),
@@ -84,7 +84,7 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
     reasons.add_column("tests", justify="right")
     reasons.add_column("reason")
     for (area, why), n in sorted(skips.items(), key=lambda kv: (kv[0][0], -kv[1])):
-        reasons.add_row(area, str(n), why)
+        reasons.add_row(Text(area), str(n), Text(why))  # "[pid]" in a reason is the section to add, not markup
     return Group(table, reasons)
 
 
@@ -112,7 +112,8 @@ class WaitProgress:
                 self.wait(seconds)
                 return
             console.print()  # leave pytest's progress line alone
-            with Progress(TextColumn("[cyan]{task.description}"), BarColumn(), TextColumn("{task.fields[left]}"),
+            with Progress(TextColumn("{task.description}", style="cyan", markup=False), BarColumn(),
+                          TextColumn("{task.fields[left]}", markup=False),
                           TimeRemainingColumn(), console=console, transient=True) as progress:
                 task = progress.add_task(f"{self.current()} — bench.wait({seconds:g} s)", total=seconds, left="")
                 done = 0.0
