@@ -41,7 +41,7 @@ def test_user_errors_are_one_line_and_bugs_show_their_traceback(capsys, monkeypa
     """A HilError (here a value the manual does not allow) is one line; an unexpected exception is a bug."""
     from hil.cli import main as cli
 
-    assert cli.main(["drift", "code", "99"]) == 2
+    assert cli.main(["drift", "code", "99"]) == 4  # pytest's usage error (issue 18: exit codes as pytest's)
     err = capsys.readouterr().err
     assert err.startswith("hil drift:") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
