@@ -11,6 +11,7 @@ import pytest
 from rich.console import Console
 
 from hil.cli.many import BenchRun, _summary
+from hil.core.timebase import HostTimebase
 from hil.plugin.reporting.console import WaitProgress, header_panel, render, summary_table
 from hil.plugin.reporting.model import TestRecord as Record
 
@@ -35,11 +36,28 @@ def test_header_panel_keeps_a_bench_name_with_brackets() -> None:
 def test_the_wait_bar_shows_a_parametrised_test_id(monkeypatch, capsys) -> None:
     monkeypatch.setenv("FORCE_COLOR", "1")  # the bar draws on a terminal only
     monkeypatch.setenv("TTY_COMPATIBLE", "1")
-    bar = WaitProgress(time.sleep, current=lambda: "suites/test_pid.py::test_alarm[pid]",
-                       suspend=contextlib.nullcontext, minimum=0.0)
-    bar(0.6)
+    timebase = HostTimebase()
+    timebase.add_wait_listener(WaitProgress(current=lambda: "suites/test_pid.py::test_alarm[pid]",
+                                            suspend=contextlib.nullcontext, minimum=0.0))
+    timebase.wait(0.6)
     out = capsys.readouterr().out
     assert "test_alarm[pid]" in out
+
+
+def test_long_waits_print_a_line_every_so_often_when_not_on_a_terminal(monkeypatch, capsys) -> None:
+    """CI logs (no terminal) see a plain line when a long bench wait starts and every ``log_every`` seconds."""
+    monkeypatch.delenv("FORCE_COLOR", raising=False)
+    monkeypatch.delenv("TTY_COMPATIBLE", raising=False)
+    timebase = HostTimebase()
+    timebase.add_wait_listener(WaitProgress(current=lambda: "suites/test_rtc_drift.py::test_day[pid]",
+                                            suspend=contextlib.nullcontext, minimum=0.5, log_every=0.3))
+    started = time.monotonic()
+    timebase.wait(1.0)
+    assert 0.95 < time.monotonic() - started < 2.0  # the same wait, in pieces
+    timebase.wait(0.2)  # under the minimum: nothing
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("hil: ")]
+    assert lines[0] == "hil: suites/test_rtc_drift.py::test_day[pid] — bench.wait(1 s) started"
+    assert 2 <= len(lines) <= 5 and "s left" in lines[1] and "\x1b" not in "".join(lines), lines
 
 
 def test_many_benches_summary_keeps_bench_names(tmp_path: Path) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import datetime as dt
 import time
-from typing import Protocol
+from typing import Callable, Protocol
 
 from hil.core.errors import InvalidValue
 
@@ -38,6 +38,9 @@ class VirtualClock(Protocol):
     def advance(self, seconds: float) -> None: ...
 
 
+WaitListener = Callable[[float, float], None]
+
+
 class HostTimebase:
     virtual = False
 
@@ -45,6 +48,7 @@ class HostTimebase:
         if time_scale <= 0:
             raise InvalidValue(f"time_scale must be positive, not {time_scale}")
         self.time_scale = time_scale
+        self.listeners: list[WaitListener] = []
 
     def now(self) -> float:
         return time.monotonic() * self.time_scale
@@ -52,9 +56,30 @@ class HostTimebase:
     def calendar(self) -> dt.datetime:
         return dt.datetime.now()
 
+    #: A listener's chunk: long waits are slept in pieces so listeners (a progress bar, a CI log line) see them.
+    LISTENER_STEP = 0.25
+
+    def add_wait_listener(self, listener: "WaitListener") -> None:
+        """Public callback: ``listener(seconds_done, seconds_total)`` is called at the start of every wait, after
+        each piece of it and at its end (``done == total``), in bench seconds."""
+        self.listeners.append(listener)
+
     def wait(self, seconds: float) -> None:
-        if seconds > 0:
+        if seconds <= 0:
+            return
+        listeners = self.listeners
+        if not listeners:
             time.sleep(seconds / self.time_scale)
+            return
+        for listener in listeners:
+            listener(0.0, seconds)
+        done = 0.0
+        while done < seconds:
+            piece = min(self.LISTENER_STEP * self.time_scale, seconds - done)
+            time.sleep(piece / self.time_scale)
+            done = min(seconds, done + piece)
+            for listener in listeners:
+                listener(done, seconds)
 
 
 def timebase_for(emulator: VirtualClock | None, epoch: dt.datetime, time_scale: float = 1.0) -> "Timebase":

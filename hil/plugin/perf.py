@@ -81,8 +81,8 @@ _COUNTER = pytest.StashKey[WireCounter]()
 
 
 def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
-    from hil.plugin.pytest_plugin import _STATE  # noqa: PLC0415 - the plugin owns the session state
-    state = config.stash.get(_STATE, None)
+    from hil.plugin.pytest_plugin import BENCH_SESSION  # noqa: PLC0415 - the plugin owns the session state
+    state = config.stash.get(BENCH_SESSION, None)
     return None if state is None else state.bench
 
 

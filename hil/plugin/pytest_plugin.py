@@ -141,6 +141,9 @@ def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench o
 
 
 _STATE = pytest.StashKey[_State]()
+#: Public: the session's bench state (``profile``, ``target``, ``bench`` once open, ``error``) in ``config.stash``,
+#: for the plugins beside this one (reporting, wire statistics) and anyone else's.
+BENCH_SESSION = _STATE
 _WIRE_FAILURE = pytest.StashKey[str]()
 
 

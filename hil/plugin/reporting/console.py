@@ -7,6 +7,7 @@ markup (a pipe, CI, ``--color=no``) the text carries no control characters and b
 
 from __future__ import annotations
 
+import contextlib
 import io
 import time
 from collections import Counter, defaultdict
@@ -20,8 +21,18 @@ from rich.text import Text
 
 from hil.plugin.reporting.model import TestRecord
 
-OUTCOMES = ("passed", "failed", "error", "skipped")
-_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow"}
+OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed")
+_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow", "xfailed": "yellow"}
+
+
+def shown_outcomes(counts: Counter) -> tuple[str, ...]:
+    """The outcome columns of a summary: xfailed only when a test xfailed (pytest's own summary does the same)."""
+    return tuple(o for o in OUTCOMES if o != "xfailed" or counts.get(o))
+
+
+def plural(n: int, word: str) -> str:
+    """``1 error``, ``2 errors``."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
 
 
 def render(renderable: RenderableType, *, color: bool, width: int) -> str:
@@ -61,7 +72,8 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
             measurements[(r.area, m.passed)] += 1
     table = Table(title="hil results by area", box=_box(color), title_justify="left")
     table.add_column("area", no_wrap=True)
-    for outcome in OUTCOMES:
+    outcomes = shown_outcomes(Counter(o for counts in by_area.values() for o in counts.elements()))
+    for outcome in outcomes:
         table.add_column(outcome, justify="right")
     table.add_column("measurements", justify="right")
     total: Counter = Counter()
@@ -69,13 +81,13 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
         counts = by_area[area]
         total.update(counts)
         cells = [Text(str(counts.get(o, 0)), style=_STYLE[o] if (counts.get(o) and color) else "")
-                 for o in OUTCOMES]
+                 for o in outcomes]
         ok, bad = measurements[(area, True)], measurements[(area, False)]
         shown = "" if not (ok or bad) else f"{ok} in limits" + (f", {bad} out" if bad else "")
         table.add_row(Text(area), *cells, shown)
     table.add_section()
     ok, bad = sum(n for (a, p), n in measurements.items() if p), sum(n for (a, p), n in measurements.items() if not p)
-    table.add_row("all", *(str(total.get(o, 0)) for o in OUTCOMES),
+    table.add_row("all", *(str(total.get(o, 0)) for o in outcomes),
                   "" if not (ok or bad) else f"{ok} in limits" + (f", {bad} out" if bad else ""))
     if not skips:
         return table
@@ -89,39 +101,66 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
 
 
 class WaitProgress:
-    """Replaces a real bench's ``wait``: the same sleep, with a transient bar (test name, time remaining).
+    """A wait listener (:meth:`hil.core.timebase.HostTimebase.add_wait_listener`) for long waits on a real bench:
+    on a terminal a transient bar (test name, time remaining); elsewhere (CI logs) one plain line when the wait
+    starts and one every ``log_every`` seconds, so a long bench wait never looks like a hang.  Waits shorter than
+    ``minimum`` seconds show nothing; virtual time never calls it."""
 
-    Only on a terminal, only for waits of at least ``minimum`` seconds; never in virtual time."""
-
-    def __init__(self, wait: Callable[[float], None], *, current: Callable[[], str],
-                 suspend: Callable[[], Any], minimum: float = 3.0) -> None:
-        self.wait = wait
+    def __init__(self, *, current: Callable[[], str], suspend: Callable[[], Any], minimum: float = 3.0,
+                 log_every: float = 30.0) -> None:
         self.current = current
-        self.suspend = suspend  # context manager: capture off, so the bar reaches the terminal
+        self.suspend = suspend  # context manager: capture off, so the bar or line reaches the terminal
         self.minimum = minimum
+        self.log_every = log_every
+        self._stack: contextlib.ExitStack | None = None
+        self._progress: Any = None
+        self._task: Any = None
+        self._console: Console | None = None
+        self._started = self._logged = 0.0
 
-    def __call__(self, seconds: float) -> None:
-        if seconds < self.minimum:
-            self.wait(seconds)
+    def __call__(self, done: float, total: float) -> None:
+        if done == 0.0:
+            self._start(total)
+        elif self._stack is not None:
+            self._update(done, total)
+        if done >= total and self._stack is not None:
+            self._stack.close()
+            self._stack = self._progress = None
+
+    def _start(self, total: float) -> None:
+        if self._stack is not None:
+            self._stack.close()
+            self._stack = None
+        if total < self.minimum:
             return
-        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
         import sys
-        with self.suspend():
-            console = Console(file=sys.stdout)
-            if not console.is_terminal:
-                self.wait(seconds)
-                return
-            console.print()  # leave pytest's progress line alone
-            with Progress(TextColumn("{task.description}", style="cyan", markup=False), BarColumn(),
-                          TextColumn("{task.fields[left]}", markup=False),
-                          TimeRemainingColumn(), console=console, transient=True) as progress:
-                task = progress.add_task(f"{self.current()} — bench.wait({seconds:g} s)", total=seconds, left="")
-                done = 0.0
-                step = max(0.25, seconds / 400)
-                started = time.monotonic()
-                while done < seconds:
-                    chunk = min(step, seconds - done)
-                    self.wait(chunk)
-                    done += chunk
-                    progress.update(task, completed=done, left=f"{seconds - done:,.0f} s left "
-                                                               f"({time.monotonic() - started:,.0f} s so far)")
+        self._stack = contextlib.ExitStack()
+        self._stack.enter_context(self.suspend())
+        self._console = Console(file=sys.stdout, highlight=False)
+        self._started = self._logged = time.monotonic()
+        what = f"{self.current()} — bench.wait({total:g} s)"
+        if self._console.is_terminal:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+            self._console.print()  # leave pytest's progress line alone
+            self._progress = self._stack.enter_context(Progress(
+                TextColumn("{task.description}", style="cyan", markup=False), BarColumn(),
+                TextColumn("{task.fields[left]}", markup=False), TimeRemainingColumn(), console=self._console,
+                transient=True))
+            self._task = self._progress.add_task(what, total=total, left="")
+        else:
+            self._line(f"\nhil: {what} started")
+
+    def _update(self, done: float, total: float) -> None:
+        now = time.monotonic()
+        if self._progress is not None:
+            self._progress.update(self._task, completed=done, left=f"{total - done:,.0f} s left "
+                                                                   f"({now - self._started:,.0f} s so far)")
+        elif now - self._logged >= self.log_every and done < total:
+            self._logged = now
+            self._line(f"hil: {self.current()} — bench.wait({total:g} s): {done:,.0f} s done, "
+                       f"{total - done:,.0f} s left")
+
+    def _line(self, text: str) -> None:
+        assert self._console is not None
+        self._console.print(Text(text), soft_wrap=True)
+        self._console.file.flush()

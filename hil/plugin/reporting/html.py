@@ -14,7 +14,7 @@ from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Iterable
 
-from hil.plugin.reporting.console import OUTCOMES
+from hil.plugin.reporting.console import plural, shown_outcomes
 from hil.plugin.reporting.model import Series, TestRecord
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
@@ -23,21 +23,31 @@ _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#1d2330;background:#fafbfc}
 h1{margin:0 0 4px;font-size:24px} h2{margin-top:28px;border-bottom:1px solid #d8dee4;padding-bottom:4px}
 .meta{color:#57606a;margin-bottom:16px}
-table{border-collapse:collapse;margin:8px 0;background:#fff}
+table{border-collapse:collapse;margin:8px 0;background:#fff;max-width:100%}
+table.other{table-layout:fixed;width:100%} table.other col.o{width:7em} table.other col.a{width:8em}
+table.other col.s{width:5em} table.other col.t{width:45%}
+table.other td code{word-break:break-all;overflow-wrap:anywhere}
+td{overflow-wrap:anywhere}
 th,td{border:1px solid #d8dee4;padding:4px 10px;text-align:left;vertical-align:top;font-size:14px}
 th{background:#f1f3f5}
 td.n{text-align:right;font-variant-numeric:tabular-nums}
 .badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
-.passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped{background:#9a6700}
+.passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped,.xfailed{background:#9a6700}
 .FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}
 .test{background:#fff;border:1px solid #d8dee4;border-radius:6px;padding:10px 14px;margin:10px 0}
 .test.failed,.test.error{border-left:5px solid #cf222e}.test.passed{border-left:5px solid #1a7f37}
-.test.skipped{border-left:5px solid #9a6700}
+.test.skipped,.test.xfailed{border-left:5px solid #9a6700}
+details.section>summary{list-style:none} details.section>summary h2{display:inline-block}
+details.section>summary::before{content:"▸ ";color:#57606a} details.section[open]>summary::before{content:"▾ "}
+.test>summary{list-style:none}
+.filters label{margin-right:14px;font-size:14px;cursor:pointer}
+body.hide-passed .passed-row,body.hide-failed .failed-row,body.hide-error .error-row,
+body.hide-skipped .skipped-row,body.hide-xfailed .xfailed-row{display:none}
 .test h3{margin:0 0 6px;font-size:15px;font-family:ui-monospace,SFMono-Regular,Menlo,monospace;word-break:break-all}
 pre{background:#f6f8fa;border:1px solid #d8dee4;padding:8px;overflow-x:auto;font-size:12px;white-space:pre-wrap}
 img.plot{max-width:100%;border:1px solid #d8dee4;background:#fff;margin:6px 0}
 details summary{cursor:pointer;color:#0969da}
-.filters{margin:8px 0}
+.filters{margin:8px 0;position:sticky;top:0;background:#fafbfc;padding:6px 0;z-index:1}
 """
 
 
@@ -65,7 +75,9 @@ def plot_png(series: Series) -> bytes:
         right.set_ylabel(series.secondary_label)
     ax.set_title(series.title, fontsize=11)
     ax.grid(True, alpha=0.3)
-    ax.legend(lines, [ln.get_label() for ln in lines], loc="best", fontsize=8)
+    # below the axes: a legend inside covers the data (a PID trace fills the whole box)
+    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper center", bbox_to_anchor=(0.5, -0.2),
+              ncol=max(1, len(lines)), fontsize=8, frameon=False)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
@@ -77,6 +89,7 @@ def _e(text: object) -> str:
 
 
 def _summary(records: list[TestRecord]) -> str:
+    outcomes = shown_outcomes(Counter(r.outcome for r in records))
     by_area: dict[str, Counter] = defaultdict(Counter)
     skips: dict[str, Counter] = defaultdict(Counter)
     for r in records:
@@ -88,17 +101,19 @@ def _summary(records: list[TestRecord]) -> str:
     for area in sorted(by_area):
         total.update(by_area[area])
         reasons = "<br>".join(_e(f"{n}× {why}" if n > 1 else why) for why, n in skips[area].most_common())
-        cells = "".join(f'<td class="n">{by_area[area].get(o, 0)}</td>' for o in OUTCOMES)
+        cells = "".join(f'<td class="n">{by_area[area].get(o, 0)}</td>' for o in outcomes)
         rows.append(f"<tr><td>{_e(area)}</td>{cells}<td>{reasons}</td></tr>")
-    cells = "".join(f'<td class="n"><b>{total.get(o, 0)}</b></td>' for o in OUTCOMES)
+    cells = "".join(f'<td class="n"><b>{total.get(o, 0)}</b></td>' for o in outcomes)
     rows.append(f"<tr><td><b>all</b></td>{cells}<td></td></tr>")
-    head = "".join(f"<th>{o}</th>" for o in OUTCOMES)
+    head = "".join(f"<th>{o}</th>" for o in outcomes)
     return f"<table><tr><th>area</th>{head}<th>skip reasons</th></tr>{''.join(rows)}</table>"
 
 
 def _test(record: TestRecord) -> str:
-    parts = [f'<div class="test {record.outcome}" id="{_e(record.nodeid)}">',
-             f'<h3><span class="badge {record.outcome}">{record.outcome}</span> {_e(record.nodeid)}</h3>',
+    opened = " open" if record.outcome in ("failed", "error") or record.series else ""
+    parts = [f'<details class="test {record.outcome} {record.outcome}-row" id="{_e(record.nodeid)}"{opened}>',
+             f'<summary><h3 style="display:inline"><span class="badge {record.outcome}">{record.outcome}</span> '
+             f'{_e(record.nodeid)}</h3></summary>',
              f'<div class="meta">area {_e(record.area)} · {record.duration:.3f} s</div>']
     if record.measurements:
         rows = "".join(
@@ -110,8 +125,8 @@ def _test(record: TestRecord) -> str:
                      f"<th>outcome</th></tr>{rows}</table>")
     if record.outcome in ("failed", "error") and (record.longrepr or record.message):
         parts.append(f"<pre>{_e(record.longrepr or record.message)}</pre>")
-    elif record.outcome == "skipped" and record.message:
-        parts.append(f"<div>skipped: {_e(record.message)}</div>")
+    elif record.outcome in ("skipped", "xfailed") and record.message:
+        parts.append(f"<div>{record.outcome}: {_e(record.message)}</div>")
     for series in record.series:
         try:
             data = base64.b64encode(plot_png(series)).decode("ascii")
@@ -124,43 +139,85 @@ def _test(record: TestRecord) -> str:
         more = (f"\n… {len(lines) - MAX_TRACE_LINES} more lines in {record.trace_file}"
                 if len(lines) > MAX_TRACE_LINES else "")
         where = f" — {_e(record.trace_file)}" if record.trace_file else ""
+        unit = "calls" if "(calls)" in lines[0] else "frames"  # the in-process target records calls, not frames
         parts.append(f"<details{' open' if record.outcome in ('failed', 'error') else ''}><summary>wire trace "
-                     f"({len(lines) - 1} frames){where}</summary><pre>{_e(shown + more)}</pre></details>")
-    parts.append("</div>")
+                     f"({plural(len(lines) - 1, unit[:-1])}){where}</summary><pre>{_e(shown + more)}</pre></details>")
+    parts.append("</details>")
     return "\n".join(parts)
 
 
-def write_html(path: Path, records: Iterable[TestRecord], properties: list[tuple[str, str]], *,
-               title: str = "hil test report") -> Path:
-    records = list(records)
-    counts = Counter(r.outcome for r in records)
-    verdict = "FAILED" if counts.get("failed") or counts.get("error") else "PASSED"
+def _section(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:
+    """Bench properties, the summary by area, and the tests of one bench."""
     props = "".join(f"<tr><th>{_e(k.removeprefix('hil.'))}</th><td>{_e(v)}</td></tr>" for k, v in properties)
-    order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2}
+    order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2, "xfailed": 2}
     ranked = sorted(records, key=lambda r: (order.get(r.outcome, 3), not r.series, r.nodeid))
     detailed = [r for r in ranked if r.outcome in ("failed", "error") or r.measurements or r.series or r.trace]
     plain = [r for r in ranked if r not in detailed]
     tests = "\n".join(_test(r) for r in detailed)
     if plain:
-        rows = "".join(f'<tr><td><span class="badge {r.outcome}">{r.outcome}</span></td><td>{_e(r.area)}</td>'
-                       f'<td><code>{_e(r.nodeid)}</code></td><td class="n">{r.duration:.3f}</td>'
-                       f'<td>{_e(r.message if r.outcome == "skipped" else "")}</td></tr>' for r in plain)
-        tests += ("\n<h2>Other tests</h2>\n<table><tr><th>outcome</th><th>area</th><th>test</th><th>s</th>"
-                  f"<th>skip reason</th></tr>{rows}</table>")
+        rows = "".join(f'<tr class="{r.outcome}-row"><td><span class="badge {r.outcome}">{r.outcome}</span></td>'
+                       f'<td>{_e(r.area)}</td><td><code>{_e(r.nodeid)}</code></td>'
+                       f'<td class="n">{r.duration:.3f}</td>'
+                       f'<td>{_e(r.message if r.outcome in ("skipped", "xfailed") else "")}</td></tr>' for r in plain)
+        tests += _collapsible("Other tests", '<table class="other"><colgroup><col class="o"><col class="a">'
+                              '<col class="t"><col class="s"><col></colgroup><tr><th>outcome</th><th>area</th>'
+                              f'<th>test</th><th>s</th><th>reason</th></tr>{rows}</table>', level=3)
+    return (_collapsible("Bench and PLC", f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
+            + _collapsible("Summary by area", _summary(records))
+            + _collapsible("Tests", tests or "<p>no tests ran</p>"))
+
+
+def _collapsible(title: str, body: str, *, level: int = 2, opened: bool = True) -> str:
+    return (f'<details class="section"{" open" if opened else ""}><summary><h{level}>{_e(title)}</h{level}>'
+            f"</summary>\n{body}\n</details>\n")
+
+
+_FILTER_JS = """
+for (const box of document.querySelectorAll('.filters input')) {
+  box.addEventListener('change', () => document.body.classList.toggle('hide-' + box.value, !box.checked));
+}
+"""
+
+
+def _counts_line(records: list[TestRecord]) -> str:
+    counts = Counter(r.outcome for r in records)
+    parts = [f"{counts.get('passed', 0)} passed", f"{counts.get('failed', 0)} failed",
+             plural(counts.get("error", 0), "error"), f"{counts.get('skipped', 0)} skipped"]
+    if counts.get("xfailed"):
+        parts.append(f"{counts['xfailed']} xfailed")
+    return f"{plural(len(records), 'test')} · " + ", ".join(parts)
+
+
+def write_html(path: Path, records: Iterable[TestRecord], properties: list[tuple[str, str]], *,
+               title: str = "hil test report") -> Path:
+    """One bench's report."""
+    return write_html_sections(path, [("", list(records), properties)], title=title)
+
+
+def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], list[tuple[str, str]]]], *,
+                        title: str = "hil test report") -> Path:
+    """One page; with several benches (``hil run --bench a --bench b``) one collapsible section per bench."""
+    everything = [r for _, records, _ in sections for r in records]
+    counts = Counter(r.outcome for r in everything)
+    verdict = "FAILED" if counts.get("failed") or counts.get("error") else "PASSED"
+    if len(sections) == 1 and not sections[0][0]:
+        body = _section(sections[0][1], sections[0][2])
+    else:
+        body = "".join(f'<details class="section bench" open><summary><h2>bench {_e(name)} — '
+                       f"{_e(_counts_line(records))}</h2></summary>\n{_section(records, props)}</details>\n"
+                       for name, records, props in sections)
+    filters = "".join(f'<label><input type="checkbox" value="{o}" checked> {o} ({counts.get(o, 0)})</label>'
+                      for o in shown_outcomes(counts))
     now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z")
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
 <body>
 <h1>{_e(title)} — <span class="badge {'passed' if verdict == 'PASSED' else 'failed'}">{verdict}</span></h1>
-<div class="meta">generated {_e(now)} · {len(records)} tests · {counts.get('passed', 0)} passed,
-{counts.get('failed', 0)} failed, {counts.get('error', 0)} errors, {counts.get('skipped', 0)} skipped</div>
-<h2>Bench and PLC</h2>
-<table>{props or '<tr><td>no bench was used</td></tr>'}</table>
-<h2>Summary by area</h2>
-{_summary(records)}
-<h2>Tests</h2>
-{tests or '<p>no tests ran</p>'}
+<div class="meta">generated {_e(now)} · {_e(_counts_line(everything))}</div>
+<div class="filters">show: {filters}</div>
+{body}
+<script>{_FILTER_JS}</script>
 </body></html>
 """
     path.parent.mkdir(parents=True, exist_ok=True)

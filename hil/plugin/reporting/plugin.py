@@ -94,6 +94,7 @@ class Reporter:
         self.html_path = _path(config.getoption("--hil-html"))
         self.trace_dir = self._trace_dir()
         self.html_written: Path | None = None
+        self.junit_traces: dict[str, str] = {}  # hil.trace_file property → the trace for that testcase's system-out
         state = self._state()
         if state is not None:
             state.header_panel = True  # the panel below replaces the plugin's "hil PLC: …" line
@@ -109,8 +110,8 @@ class Reporter:
         return None
 
     def _state(self) -> Any:
-        from hil.plugin.pytest_plugin import _STATE
-        return self.config.stash.get(_STATE, None)
+        from hil.plugin.pytest_plugin import BENCH_SESSION
+        return self.config.stash.get(BENCH_SESSION, None)
 
     def pytest_sessionstart(self, session: pytest.Session) -> None:
         """Traces beside a report belong to that report: drop the previous run's (an explicit dir is left alone)."""
@@ -136,10 +137,6 @@ class Reporter:
                 station=self.config.getoption("--station"))
         except Exception as exc:  # noqa: BLE001 - the report says what it could not find; tests still run
             self.properties = [("hil.properties", f"unavailable: {exc}")]
-        xml = _logxml(self.config)
-        if xml is not None:
-            for name, value in self.properties:
-                xml.add_global_property(name, value)
         self._write_header(state)
         self._attach(state)
 
@@ -170,11 +167,12 @@ class Reporter:
             from hil.io.trace import WireTrace
             self.trace = WireTrace().attach(bench.raw)
         timebase = getattr(bench, "time", None)
-        if timebase is not None and not getattr(timebase, "virtual", True) and self.config.get_verbosity() >= 0:
+        add_listener = getattr(timebase, "add_wait_listener", None)  # a real bench's host time (public callback)
+        if add_listener is not None and self.config.get_verbosity() >= 0:
             from hil.plugin.reporting.console import WaitProgress
             capman = self.config.pluginmanager.get_plugin("capturemanager")
             suspend = capman.global_and_fixture_disabled if capman is not None else contextlib.nullcontext
-            timebase.wait = WaitProgress(timebase.wait, current=lambda: self.current, suspend=suspend)
+            add_listener(WaitProgress(current=lambda: self.current, suspend=suspend))
 
     # -- per test ------------------------------------------------------------------------------------------------
     def pytest_runtest_logstart(self, nodeid: str, location: tuple) -> None:
@@ -213,18 +211,11 @@ class Reporter:
                 record.trace_file = str(path)
             except OSError as exc:
                 record.trace_file = f"not saved: {exc}"
-        xml = _logxml(self.config)
-        if xml is not None:
-            node = xml.node_reporter(report)
-            if record.trace_file:
-                node.add_property("hil.trace_file", record.trace_file)
-            existing = next((n for n in node.nodes if n.tag == "system-out"), None)
-            if existing is not None:
-                existing.text = (existing.text or "") + "\n" + record.trace
-            else:
-                out = ET.Element("system-out")
-                out.text = record.trace
-                node.nodes.append(out)
+        # The testcase's property (pytest's public user_properties, read by --junitxml after this hook); the trace
+        # itself goes into its system-out when the JUnit file is finished (pytest_unconfigure)
+        key = record.trace_file or f"{record.nodeid} (not saved)"
+        report.user_properties.append(("hil.trace_file", key))
+        self.junit_traces[key] = record.trace
 
     # -- the end ---------------------------------------------------------------------------------------------------
     @pytest.hookimpl(tryfirst=True)
@@ -238,6 +229,25 @@ class Reporter:
             reporter = self.config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:
                 reporter.write_line(f"hil: could not write the HTML report {self.html_path}: {exc}", red=True)
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_unconfigure(self, config: pytest.Config) -> None:
+        """After --junitxml wrote its file (pytest_sessionfinish): the bench's name, properties and traces."""
+        xmlpath = _path(config.getoption("xmlpath", None))
+        if xmlpath is None or not xmlpath.is_file() or not self.uses_bench:
+            return
+        from hil.plugin.reporting.junit import finish_junit
+        state = self._state()
+        try:
+            name = state.profile.name if state is not None else None
+        except Exception:  # noqa: BLE001 - an unreadable profile was reported already; keep pytest's name
+            name = None
+        try:
+            finish_junit(xmlpath, suite_name=name, properties=self.properties, traces=self.junit_traces)
+        except (OSError, ET.ParseError) as exc:
+            reporter = config.pluginmanager.get_plugin("terminalreporter")
+            if reporter is not None:
+                reporter.write_line(f"hil: could not add the bench to {xmlpath}: {exc}", red=True)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if not self.uses_bench or self.config.get_verbosity() < -1 or not self.records:
@@ -293,14 +303,6 @@ def _path(value: Any) -> Path | None:
     return Path(value) if value else None
 
 
-def _logxml(config: pytest.Config) -> Any:
-    try:
-        from _pytest.junitxml import xml_key  # the LogXML of --junitxml; as record_testsuite_property uses it
-    except ImportError:  # pragma: no cover - a pytest that moved it: no JUnit extras
-        return None
-    return config.stash.get(xml_key, None)
-
-
 def _safe_name(nodeid: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.\-]+", "_", nodeid).strip("_")[:180]
 
@@ -310,8 +312,8 @@ def _outcome(record: TestRecord, report: pytest.TestReport) -> None:
         return
     if report.skipped:
         if record.outcome == "passed":
-            record.outcome = "skipped"
             reason = getattr(report, "wasxfail", None)
+            record.outcome = "skipped" if reason is None else "xfailed"  # as pytest counts them
             if reason is not None:
                 record.message = f"xfail: {reason}" if reason else "xfail"
             elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:

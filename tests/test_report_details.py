@@ -1,0 +1,125 @@
+"""Report details a user reads: outcomes counted as pytest counts them, the suite named after the bench, the HTML
+page's layout at 1280 px (in headless chromium when it is installed), its status filter and sections."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from hil.plugin.reporting.html import _CSS, write_html, write_html_sections
+from hil.plugin.reporting.model import Measurement, Series
+from hil.plugin.reporting.model import TestRecord as Record
+
+EMULATOR_BENCH = Path(__file__).resolve().parent.parent / "fixtures" / "benches" / "emulator.toml"
+
+MIXED = """
+import pytest
+
+@pytest.fixture
+def broken():
+    raise RuntimeError("setup broke")
+
+def test_passes(bench):
+    bench.plc.io.read_words("R0", 1)
+
+@pytest.mark.xfail(reason="known")
+def test_xfails(bench):
+    assert False
+
+def test_skips(bench):
+    pytest.skip("not here")
+
+def test_errors(bench, broken):
+    pass
+"""
+
+
+def test_xfail_error_grammar_and_suite_name(pytester) -> None:
+    pytester.makepyfile(test_mixed=MIXED)
+    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "--junitxml=out/junit.xml",
+                                          "-o", "junit_family=xunit1", "--hil-html=out/report.html",
+                                          "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=1, xfailed=1, skipped=1, errors=1)
+    table = next(i for i, line in enumerate(result.outlines) if "hil results by area" in line)
+    header = result.outlines[table + 2]
+    assert "xfailed" in header, result.outlines[table:table + 8]
+    all_row = next(line for line in result.outlines[table:] if line.startswith("| all"))
+    assert re.findall(r"\d+", all_row) == ["1", "0", "1", "1", "1"], all_row  # passed failed error skipped xfailed
+    page = (pytester.path / "out" / "report.html").read_text()
+    assert "1 error," in page and "1 errors" not in page and "1 skipped, 1 xfailed" in page
+    root = ET.parse(pytester.path / "out" / "junit.xml").getroot()
+    suite = root if root.tag == "testsuite" else root.find("testsuite")
+    assert suite.get("name") == "emulator"  # the bench, not "pytest"
+    names = {p.get("name") for p in suite.find("properties").iter("property")}
+    assert {"hil.bench", "hil.target"} <= names
+
+
+def _records() -> list[Record]:
+    long_id = "suites/test_temperature.py::test_sensor_break_reads_28767_with_only_its_bit[" + "p" * 120 + "]"
+    records = [Record(f"{long_id}{i}", "temperature", "passed", 0.01) for i in range(40)]
+    records += [Record(f"suites/test_pid.py::test_alarm_{i}", "PID", "skipped", 0.0,
+                       message="the bench profile has no [pid] section: " + "add it to the profile " * 12)
+                for i in range(20)]
+    trace = "# wire trace (calls): 5 entries\n" + "".join(f"10:00:00.000 == | read_words(R{i})\n" for i in range(5))
+    records.append(Record("suites/test_rtc.py::test_fails", "RTC", "failed", 0.5, message="boom",
+                          longrepr="E   " + "x" * 400, trace=trace))
+    pid = Record("suites/test_pid_control.py::test_closed_loop", "PID", "passed", 2.0,
+                 measurements=[Measurement("pid_settle_time", 120.0, "s", None, 600.0)])
+    pid.series.append(Series.build("pid", [(t, 20 + t, 50, t % 100) for t in range(300)],
+                                   columns=("t", "PV", "SV", "output"), secondary=("output",)))
+    records.append(pid)
+    return records
+
+
+def test_html_layout_rules_filter_and_sections(tmp_path: Path) -> None:
+    page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
+    assert "table-layout:fixed" in _CSS and "overflow-wrap:anywhere" in _CSS  # long ids wrap inside the page
+    assert '<div class="filters">' in page and 'value="passed"' in page and "hide-" in page
+    assert page.count('<details class="section"') >= 3
+    assert "wire trace (5 calls)" in page  # the in-process target records calls, not frames
+
+
+def test_merged_html_has_a_section_per_bench(tmp_path: Path) -> None:
+    a, b = _records()[:3], _records()[-2:]
+    page = write_html_sections(tmp_path / "m.html", [("bench-a", a, [("hil.bench", "bench-a")]),
+                                                     ("bench-b", b, [("hil.bench", "bench-b")])]).read_text()
+    assert "<h2>bench bench-a — 3 tests" in page and "<h2>bench bench-b — 2 tests" in page
+    assert "5 tests" in page
+
+
+_PROBE = """<script>
+window.addEventListener('load', () => {
+  const root = document.documentElement, view = root.clientWidth;
+  let widest = 0;
+  for (const el of document.querySelectorAll('table, pre, img, details, h3')) {
+    widest = Math.max(widest, el.getBoundingClientRect().right);
+  }
+  const passed = () => [...document.querySelectorAll('.passed-row')].filter(e => e.offsetParent !== null).length;
+  const before = passed();
+  const box = document.querySelector('.filters input[value="passed"]');
+  box.checked = false; box.dispatchEvent(new Event('change'));
+  document.body.setAttribute('data-probe', [view, root.scrollWidth, Math.ceil(widest), before, passed()].join(','));
+});
+</script></body>"""
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None and shutil.which("chromium-browser") is None,
+                    reason="no headless chromium here (apt-get install -y chromium); the CSS rules are checked above")
+def test_html_fits_1280px_in_headless_chromium(tmp_path: Path) -> None:
+    page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
+    probe = tmp_path / "probe.html"
+    probe.write_text(page.replace("</body>", _PROBE, 1), encoding="utf-8")
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    done = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
+                           "--virtual-time-budget=3000", "--dump-dom", probe.as_uri()],
+                          capture_output=True, text=True, timeout=90)
+    found = re.search(r'data-probe="([\d,]+)"', done.stdout)
+    assert found, done.stdout[-500:] + done.stderr[-500:]
+    view, scroll, widest, shown_before, shown_after = map(int, found.group(1).split(","))
+    assert scroll <= view and widest <= view, (view, scroll, widest)  # nothing runs off the right edge
+    assert shown_before > 0 and shown_after == 0  # the status filter hides the passed tests
