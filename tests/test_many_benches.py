@@ -46,6 +46,25 @@ def test_two_emulator_benches_in_parallel(tmp_path, capsys):
     assert "bench-a" in capsys.readouterr().out
 
 
+def test_each_bench_keeps_its_own_traces_and_one_html_has_a_section_per_bench(tmp_path, capsys):
+    a, b = bench_copy(tmp_path, "bench-a"), bench_copy(tmp_path, "bench-b")
+    junit = tmp_path / "reports" / "junit.xml"
+    html = tmp_path / "reports" / "report.html"
+    code = main(["run", "--bench", str(a), "--bench", str(b), "--junitxml", str(junit), "--html", str(html), "--",
+                 "-q", "-k", "smoke", "--hil-trace", "all"])
+    assert code == 0
+    traces = {name: sorted(p.name for p in (junit.parent / f"traces-{name}").glob("*.txt"))
+              for name in ("bench-a", "bench-b")}
+    assert traces["bench-a"] and traces["bench-a"] == traces["bench-b"]  # the same tests, a file each
+    files = {p.get("value") for p in ET.parse(junit).getroot().iter("property") if p.get("name") == "hil.trace_file"}
+    assert any("traces-bench-a" in f for f in files) and any("traces-bench-b" in f for f in files)
+    page = html.read_text()
+    assert "<h2>bench bench-a — " in page and "<h2>bench bench-b — " in page
+    out = capsys.readouterr().out
+    assert re.search(r"bench bench-a: exit 0 after [\d.]+ s — 5 passed, 4 skipped", out), out
+    assert "merged HTML" in out
+
+
 def test_benches_sharing_a_name_or_a_plc_are_refused(tmp_path):
     a = bench_copy(tmp_path, "same")
     other = tmp_path / "other"

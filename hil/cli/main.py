@@ -243,7 +243,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
         if args.bench and len(args.bench) > 1:
             from hil.cli.many import run_many
-            return run_many(args.bench, args.target, args.junitxml, extra, console)
+            return run_many(args.bench, args.target, args.junitxml, extra, console, html=args.html)
         args.bench = args.bench[0] if args.bench else None
         if args.bench:
             from hil.bench.profile import load_profile

@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 import xml.etree.ElementTree as ET
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +33,10 @@ class BenchRun:
     process: subprocess.Popen | None = None
     exit: int | None = None
     wall: float = 0.0
+
+    @property
+    def records(self) -> Path:
+        return self.junit.with_name(f"records-{self.name}.json")
 
 
 def slug(name: str) -> str:
@@ -65,28 +70,93 @@ def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[B
 
 
 def run_many(benches: list[str], target: str | None, junitxml: str, extra: list[str],
-             console: Console | None = None, *, html: bool = True) -> int:
+             console: Console | None = None, *, html: bool | str = True) -> int:
+    """``html``: where the merged HTML report goes (True: report.html beside ``junitxml``; False: none)."""
     console = console or Console()
     runs = plan(benches, junitxml, target)
-    Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
+    out_dir = Path(junitxml).parent
+    out_dir.mkdir(parents=True, exist_ok=True)
     for r in runs:
         cmd = [sys.executable, "-m", "hil.cli.main", "run", "--bench", r.profile, "--junitxml", str(r.junit)]
         if target:
             cmd += ["--target", target]
         if html:
             cmd += ["--html", str(r.junit.with_name(f"report-{r.name}.html"))]
-        cmd += ["--", *extra] if extra else []
+        # each bench's own traces (the same test failing on two benches must not share a file) and records
+        cmd += ["--", "--hil-trace-dir", str(out_dir / f"traces-{r.name}"), "--hil-records", str(r.records), *extra]
+        r.records.unlink(missing_ok=True)
         r.junit.unlink(missing_ok=True)  # a stale file must not pass for this run's result
         r.wall = time.perf_counter()
         with open(r.log, "wb") as log:
             r.process = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-    for r in runs:
-        assert r.process is not None
-        r.exit = r.process.wait()
-        r.wall = time.perf_counter() - r.wall
+    _wait_with_counts(console, runs)
     merge([(r.name, r.junit, r.exit, r.log) for r in runs], Path(junitxml))
+    merged = None
+    if html:
+        merged = Path(html) if isinstance(html, str) else out_dir / "report.html"
+        merge_html(runs, merged)
     _summary(console, runs, junitxml)
+    if merged is not None:
+        console.print(Text(f"merged HTML: {merged}"))
     return next((r.exit for r in runs if r.exit), 0)
+
+
+_PROGRESS_LINE = re.compile(r"^(?:\S+\.py )?([.FEsxX]+)\s*(?:\[\s*\d+%\])?$")  # "suites/x.py ..F" or -q's "..F"
+
+
+def live_counts(log: Path) -> Counter:
+    """Outcomes so far, from the progress characters pytest writes to a bench's log (``suites/x.py ..F.s``)."""
+    counts: Counter = Counter()
+    try:
+        text = log.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return counts
+    names = {".": "passed", "F": "failed", "E": "error", "s": "skipped", "x": "xfailed", "X": "xpassed"}
+    for line in text.splitlines():
+        found = _PROGRESS_LINE.match(line)
+        if found:
+            counts.update(names[c] for c in found.group(1))
+    return counts
+
+
+def _describe(counts: Counter) -> str:
+    order = ("passed", "failed", "error", "skipped", "xfailed", "xpassed")
+    return ", ".join(f"{counts[k]} {k}" for k in order if counts.get(k)) or "starting"
+
+
+def _wait_with_counts(console: Console, runs: list[BenchRun], every: float = 10.0) -> None:
+    """Wait for every bench, printing each bench's counts so far every ``every`` seconds, and a line as each ends."""
+    pending = list(runs)
+    last = time.monotonic()
+    while pending:
+        for r in list(pending):
+            assert r.process is not None
+            if r.process.poll() is not None:
+                r.exit = r.process.returncode
+                r.wall = time.perf_counter() - r.wall
+                pending.remove(r)
+                console.print(Text(f"bench {r.name}: exit {r.exit} after {r.wall:.1f} s — "
+                                   f"{_describe(live_counts(r.log))}"))
+        if pending and time.monotonic() - last >= every:
+            last = time.monotonic()
+            console.print(Text("running: " + "; ".join(f"{r.name} {_describe(live_counts(r.log))}"
+                                                       for r in pending)))
+        if pending:
+            time.sleep(0.2)
+
+
+def merge_html(runs: list[BenchRun], out: Path) -> Path:
+    """One HTML page with a section per bench, from each run's records (a run that left none: an empty section)."""
+    from hil.plugin.reporting.html import write_html_sections
+    from hil.plugin.reporting.model import records_from_json
+    sections = []
+    for r in runs:
+        try:
+            records, properties = records_from_json(r.records.read_text(encoding="utf-8"))
+        except (OSError, ValueError, KeyError, TypeError):
+            records, properties = [], [("hil.bench", f"{r.name}: no records (exit {r.exit}; see {r.log})")]
+        sections.append((r.name, records, properties))
+    return write_html_sections(out, sections, title="hil test report — several benches")
 
 
 def merge(parts: list[tuple[str, Path, int | None, Path]], out: Path) -> ET.Element:

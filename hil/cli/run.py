@@ -13,7 +13,8 @@ _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignor
                 "--confcutdir", "--basetemp", "--bench", "--target", "--junitxml", "--junit-xml", "--hil-html",
                 "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
                 "--timeout", "--durations", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
-                "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures"}
+                "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures",
+                "--hil-records", "--hil-lock-wait"}
 
 
 def selects_tests(extra: list[str]) -> bool:
@@ -21,10 +22,16 @@ def selects_tests(extra: list[str]) -> bool:
     (on a real bench, running every suite instead means writes nobody asked for)."""
     previous = ""
     for arg in extra:
-        if not arg.startswith("-") and previous not in _TAKES_VALUE:
+        if not arg.startswith("-") and previous not in _TAKES_VALUE and _names_tests(arg):
             return True
         previous = arg if "=" not in arg else ""
     return False
+
+
+def _names_tests(arg: str) -> bool:
+    """A test file, directory or id (an option's value of an unknown option is none of those)."""
+    path = arg.split("::", 1)[0]
+    return "::" in arg or path.endswith(".py") or Path(path).exists()
 
 
 def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: list[str], *,

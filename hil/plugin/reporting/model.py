@@ -72,6 +72,24 @@ class TestRecord:
     trace_file: str = ""
 
 
+def records_to_json(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:
+    """What one run's report is made of, for a report that merges several runs (``hil run --bench a --bench b``)."""
+    import dataclasses
+    import json
+    return json.dumps({"properties": properties, "records": [dataclasses.asdict(r) for r in records]})
+
+
+def records_from_json(text: str) -> tuple[list[TestRecord], list[tuple[str, str]]]:
+    import json
+    data = json.loads(text)
+    records = []
+    for raw in data["records"]:
+        raw["measurements"] = [Measurement(**m) for m in raw["measurements"]]
+        raw["series"] = [Series(**{**s, "secondary": tuple(s["secondary"])}) for s in raw["series"]]
+        records.append(TestRecord(**raw))
+    return records, [tuple(p) for p in data["properties"]]
+
+
 #: Suite file (stem, or a folder on its path) → report area.  The first match wins.
 AREAS: list[tuple[str, str]] = [
     ("s7smart", "S7"), ("test_s7", "S7"),

@@ -35,6 +35,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="where wire traces are saved (default: traces/ beside --junitxml or --hil-html)")
     group.addoption("--hil-html", metavar="PATH", default=None,
                     help="write a self-contained HTML report (summary, measurements, traces, plots)")
+    group.addoption("--hil-records", metavar="PATH", default=None,
+                    help="also save the report's records as JSON (hil run --bench a --bench b merges them)")
 
 
 @pytest.hookimpl(trylast=True)
@@ -220,6 +222,11 @@ class Reporter:
     # -- the end ---------------------------------------------------------------------------------------------------
     @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
+        records_path = _path(self.config.getoption("--hil-records"))
+        if records_path is not None:
+            from hil.plugin.reporting.model import records_to_json
+            records_path.parent.mkdir(parents=True, exist_ok=True)
+            records_path.write_text(records_to_json(list(self.records.values()), self.properties), encoding="utf-8")
         if self.html_path is None:
             return
         from hil.plugin.reporting.html import write_html
