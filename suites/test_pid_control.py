@@ -110,19 +110,18 @@ def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
 
 
 @pytest.mark.slow
-def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, record_property, measure, report):
+def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, measure, report):
     inst, point = _controlled_point(bench, pid)
     os = 50
     pid.set_deviation(point, os)
     sv = pid.pv(point) + 500  # 50.0 ° above the present temperature
     pid.set_set_point(point, sv)
     trace = pid.record(point, SETTLE_S + HOLD_S, every=15.0)
-    record_property("pid_trace_csv", trace.to_csv())
+    report.attach_file("pid_trace.csv", trace.to_csv())  # a file beside the reports, its path in the JUnit record
     cols = trace.columns()
     report.attach_pid(list(zip(cols["t"], cols["pv"], cols["sv"], cols["output"])), unit="°C", output_unit="%",
                       title=f"PID closed loop, point {point}: SV {sv / 10} ± {os / 10} °")
     inside = trace.settled_at(os)
-    record_property("pid_settled_s", f"{inside}")
     assert inside is not None, f"PV never stayed within SV {sv / 10} ± {os / 10} °: last {trace.samples[-1]}"
     measure("pid_settle_time", inside, unit="s", low=0, high=SETTLE_S,
             note=f"PV came into SV ± Os only after {inside:.0f} s")

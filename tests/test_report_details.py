@@ -123,3 +123,28 @@ def test_html_fits_1280px_in_headless_chromium(tmp_path: Path) -> None:
     view, scroll, widest, shown_before, shown_after = map(int, found.group(1).split(","))
     assert scroll <= view and widest <= view, (view, scroll, widest)  # nothing runs off the right edge
     assert shown_before > 0 and shown_after == 0  # the status filter hides the passed tests
+
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_s7_buffer_parameters_have_readable_ids(pytester) -> None:
+    result = pytester.runpytest_inprocess(str(REPO / "suites" / "s7smart" / "test_s7_rtc.py"), "--co", "-q",
+                                          "--bench", str(REPO / "fixtures" / "benches" / "s7-200smart.toml"),
+                                          "-p", "no:cacheprovider")
+    ids = [line for line in result.outlines if "::test_set_then_read_round_trip[" in line]
+    assert ids and ids[0].endswith("[24.06.15.08.30.00.00.07-7]"), ids
+    assert not any("\\x" in line for line in result.outlines)
+
+
+def test_pid_trace_is_an_attached_file_and_the_settle_time_one_measurement(pytester) -> None:
+    result = pytester.runpytest_inprocess(str(REPO / "suites" / "test_pid_control.py"), "-k", "closed_loop",
+                                          "--bench", str(EMULATOR_BENCH), "--junitxml=out/junit.xml",
+                                          "-o", "junit_family=xunit1", "-p", "no:cacheprovider")
+    result.assert_outcomes(passed=1)
+    case = next(ET.parse(pytester.path / "out" / "junit.xml").getroot().iter("testcase"))
+    props = {p.get("name"): p.get("value") for p in case.iter("property")}
+    assert "pid_trace_csv" not in props and "pid_settled_s" not in props
+    assert "hil.measure.pid_settle_time" in props
+    attached = Path(props["hil.attachment.pid_trace.csv"])
+    assert attached.is_file() and attached.read_text().count("\n") > 10

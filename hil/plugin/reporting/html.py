@@ -133,6 +133,8 @@ def _test(record: TestRecord) -> str:
             parts.append(f'<img class="plot" alt="{_e(series.title)}" src="data:image/png;base64,{data}">')
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the report
             parts.append(f"<div>plot {_e(series.name)} could not be drawn: {_e(exc)}</div>")
+    for attached in record.attachments:
+        parts.append(f'<div>attached: <a href="{_e(Path(attached).resolve().as_uri())}">{_e(Path(attached).name)}</a></div>')
     if record.trace:
         lines = record.trace.splitlines()
         shown = "\n".join(lines[:MAX_TRACE_LINES])

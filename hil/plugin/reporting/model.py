@@ -70,6 +70,7 @@ class TestRecord:
     series: list[Series] = field(default_factory=list)
     trace: str = ""  # formatted wire trace, when kept
     trace_file: str = ""
+    attachments: list[str] = field(default_factory=list)  # files saved with report.attach_file
 
 
 def records_to_json(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:

@@ -50,8 +50,29 @@ def pytest_configure(config: pytest.Config) -> None:
 class ReportHandle:
     """What the ``report`` fixture gives a test: attach plot-ready data to its entry in the HTML report."""
 
-    def __init__(self, record: TestRecord) -> None:
+    def __init__(self, record: TestRecord, node: pytest.Item | None = None, directory: Path | None = None) -> None:
         self._record = record
+        self._node = node
+        self._directory = directory
+
+    def attach_file(self, name: str, content: str | bytes) -> Path | None:
+        """Save ``content`` as a file beside the reports (``attachments/<test>-<name>``): the test's JUnit record
+        gets a ``hil.attachment.<name>`` property with its path, the HTML report a link.  A CSV of 140 rows is a
+        file, not a property.  Returns the path (None when no report is being written)."""
+        if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
+            raise ValueError(f"attachment name {name!r}: use letters, digits, _ . - (it becomes a file name)")
+        if self._directory is None:
+            return None
+        self._directory.mkdir(parents=True, exist_ok=True)
+        path = self._directory / f"{_safe_name(self._record.nodeid)}-{name}"
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content, encoding="utf-8")
+        self._record.attachments.append(str(path))
+        if self._node is not None:
+            self._node.user_properties.append((f"hil.attachment.{name}", str(path)))
+        return path
 
     def attach_series(self, name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]], *,
                       columns: Sequence[str] | None = None, x: str | None = None, title: str = "",
@@ -302,7 +323,16 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
 @pytest.fixture
 def report(request: pytest.FixtureRequest) -> ReportHandle:
     """Attach plot-ready series to this test's entry in the HTML report (``report.attach_series(...)``)."""
-    return ReportHandle(_record(request))
+    plugin = request.config.pluginmanager.get_plugin("hil-reporter")
+    directory = plugin.trace_dir.parent / "attachments" if plugin is not None and plugin.trace_dir else None
+    return ReportHandle(_record(request), request.node, directory)
+
+
+def pytest_make_parametrize_id(config: pytest.Config, val: object, argname: str) -> str | None:
+    """Bytes parameters (an S7 clock buffer) as hex, ``24.06.15.08.30.00.00.07``, not escaped raw bytes."""
+    if isinstance(val, (bytes, bytearray)):
+        return val.hex(".").upper()
+    return None
 
 
 # -- helpers ---------------------------------------------------------------------------------------------------------
