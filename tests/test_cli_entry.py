@@ -158,3 +158,12 @@ def test_emulate_clock_starts_at_host_time(tmp_path: Path) -> None:
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+def test_fatek_listener_that_never_replies_is_one_line_that_blames_nothing_earlier(silent_listener: int,
+                                                                                  tmp_path: Path) -> None:
+    done = hil("probe", f"fatek+tcp://127.0.0.1:{silent_listener}?timeout=0.2&retries=1", cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert "earlier fault" not in lines[0] and "check the station number" in lines[0]

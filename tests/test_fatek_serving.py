@@ -332,7 +332,7 @@ def test_reads_are_retried_and_writes_are_not(tcp):
             client.read("R0")
         assert 0.55 <= time.monotonic() - started < 1.4
         # The line is suspect now (a late reply may come): a write is not sent until a loop-back resynchronises.
-        with pytest.raises(ReplyTimeout, match="not sent .* could not be resynchronised"):
+        with pytest.raises(ReplyTimeout, match="not sent .* went unanswered .* and so did a loop-back"):
             client.write("R0", 1)
     with FatekTransport(f"socket://{tcp.address}", station=5, timeout=0.2, retries=2) as client:
         started = time.monotonic()

@@ -239,8 +239,10 @@ class FatekTransport(Transport):
                 self.reopen()
             if attempt < tries:
                 time.sleep(self._backoff(attempt))
-        raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the line could not be "
-                           f"resynchronised after an earlier fault ({last})")
+        raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the request before it went "
+                           f"unanswered (or was answered garbled) and so did a loop-back — check the station "
+                           f"number, the wiring or address and serial settings, and that the PLC is powered "
+                           f"({last})")
 
     def reopen(self) -> None:
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
