@@ -63,3 +63,26 @@ def test_a_measurement_is_unset_until_measured():
     assert declared.measured(0.2).outcome is Outcome.FAIL
     assert declared.measured(float("nan")).outcome is Outcome.FAIL
     assert f"{declared.measured(0.0).outcome}" == "PASS"  # as it appears in JUnit and HTML
+
+
+def test_no_private_imports_across_modules():
+    """Modules talk through public names: no pytest internals (_pytest), no other module's _private names."""
+    import ast
+    found = []
+    for path in sorted((REPO / "hil").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                if node.module.split(".")[0] == "_pytest":
+                    found.append(f"{path.relative_to(REPO)}:{node.lineno} imports {node.module}")
+                if node.module.startswith("hil"):
+                    found += [f"{path.relative_to(REPO)}:{node.lineno} imports {node.module}.{alias.name}"
+                              for alias in node.names if alias.name.startswith("_") and alias.name != "__version__"]
+            elif isinstance(node, ast.Import):
+                found += [f"{path.relative_to(REPO)}:{node.lineno} imports {alias.name}"
+                          for alias in node.names if alias.name.split(".")[0] == "_pytest"]
+    assert found == []
+
+
+def test_no_compiled_kernel_or_build_script():
+    """One implementation of each model: no C copy, no extension to build."""
+    assert not list((REPO / "hil").rglob("*.c")) and not (REPO / "setup.py").exists()

@@ -28,6 +28,9 @@ MARKERS = {
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
                    "profile's [safety] allow_destructive",
+    "measures": "measures(name, unit=…, low=…, high=…): a measurement the test declares before it runs (OpenHTF's "
+                "way); it stays UNSET until measure(name, value) records it, and a test that passes with a "
+                "declared measurement still UNSET fails: no pass without the evidence",
     "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
               "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
 }

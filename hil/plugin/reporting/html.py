@@ -33,7 +33,7 @@ th{background:#f1f3f5}
 td.n{text-align:right;font-variant-numeric:tabular-nums}
 .badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
 .passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped,.xfailed{background:#9a6700}
-.FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}
+.FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}.UNSET{color:#9a6700;font-weight:600}
 .test{background:#fff;border:1px solid #d8dee4;border-radius:6px;padding:10px 14px;margin:10px 0}
 .test.failed,.test.error{border-left:5px solid #cf222e}.test.passed{border-left:5px solid #1a7f37}
 .test.skipped,.test.xfailed{border-left:5px solid #9a6700}
@@ -117,7 +117,8 @@ def _test(record: TestRecord) -> str:
              f'<div class="meta">area {_e(record.area)} · {record.duration:.3f} s</div>']
     if record.measurements:
         rows = "".join(
-            f"<tr><td>{_e(m.name)}</td><td class='n'>{m.value:g}</td><td>{_e(m.unit)}</td>"
+            f"<tr><td>{_e(m.name)}</td><td class='n'>{'—' if m.value is None else f'{m.value:g}'}</td>"
+            f"<td>{_e(m.unit)}</td>"
             f"<td class='n'>{'' if m.low is None else f'{m.low:g}'}</td>"
             f"<td class='n'>{'' if m.high is None else f'{m.high:g}'}</td>"
             f"<td class='{m.outcome}'>{m.outcome}</td></tr>" for m in record.measurements)

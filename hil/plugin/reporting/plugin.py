@@ -289,12 +289,24 @@ class Reporter:
 
 
 # -- fixtures ---------------------------------------------------------------------------------------------------------
+_NODE_RECORD = pytest.StashKey[TestRecord]()
+
+
 def _record(request: pytest.FixtureRequest) -> TestRecord:
-    plugin = request.config.pluginmanager.get_plugin("hil-reporter")
-    nodeid = request.node.nodeid
+    return _record_of(request.node)
+
+
+def _record_of(item: pytest.Item) -> TestRecord:
+    plugin = item.config.pluginmanager.get_plugin("hil-reporter")
+    nodeid = item.nodeid
     if plugin is None:  # an xdist worker or the plugin disabled: keep the data on the node
-        return TestRecord(nodeid, area_of(nodeid))
+        return item.stash.setdefault(_NODE_RECORD, TestRecord(nodeid, area_of(nodeid)))
     return plugin.records.setdefault(nodeid, TestRecord(nodeid, area_of(nodeid)))
+
+
+def _check_name(name: str) -> None:
+    if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
+        raise ValueError(f"measurement name {name!r}: use letters, digits, _ . - (it becomes a JUnit property)")
 
 
 @pytest.fixture
@@ -307,8 +319,13 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
 
     def measure(name: str, value: float, *, unit: str = "", low: float | None = None,
                 high: float | None = None, note: str = "") -> Measurement:
-        if not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
-            raise ValueError(f"measurement name {name!r}: use letters, digits, _ . - (it becomes a JUnit property)")
+        _check_name(name)
+        declared = next((m for m in record.measurements if m.name == name and m.value is None), None)
+        if declared is not None:  # what the declaration says, unless the call says otherwise
+            unit = unit or declared.unit
+            low = declared.low if low is None else low
+            high = declared.high if high is None else high
+            record.measurements.remove(declared)
         m = Measurement(name, float(value), unit, None if low is None else float(low),
                         None if high is None else float(high))
         record.measurements.append(m)
@@ -326,6 +343,41 @@ def report(request: pytest.FixtureRequest) -> ReportHandle:
     plugin = request.config.pluginmanager.get_plugin("hil-reporter")
     directory = plugin.trace_dir.parent / "attachments" if plugin is not None and plugin.trace_dir else None
     return ReportHandle(_record(request), request.node, directory)
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Declared measurements (``@pytest.mark.measures(...)``) enter the record UNSET before the test runs."""
+    markers = list(item.iter_markers("measures"))
+    if not markers:
+        return
+    record = _record_of(item)
+    for marker in markers:
+        if len(marker.args) != 1 or not isinstance(marker.args[0], str):
+            raise pytest.UsageError(f"{item.nodeid}: measures() takes the measurement's name, then unit=, low=, "
+                                    f"high= (got {marker.args!r})")
+        name = marker.args[0]
+        _check_name(name)
+        low, high = marker.kwargs.get("low"), marker.kwargs.get("high")
+        if all(m.name != name for m in record.measurements):
+            record.measurements.append(Measurement(name, None, marker.kwargs.get("unit", ""),
+                                                   None if low is None else float(low),
+                                                   None if high is None else float(high)))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Any:
+    """A test that passes while a measurement it declared is still UNSET has not shown its evidence: it fails."""
+    outcome = yield
+    report = outcome.get_result()
+    if call.when != "call" or not report.passed or not any(True for _ in item.iter_markers("measures")):
+        return
+    unset = [m for m in _record_of(item).measurements if m.value is None]
+    if unset:
+        report.outcome = "failed"
+        report.longrepr = (f"declared measurement(s) never measured: {', '.join(m.describe() for m in unset)} — "
+                           f"a test passes only with its evidence")
+    for m in unset:
+        item.user_properties.extend(m.properties())
 
 
 def pytest_make_parametrize_id(config: pytest.Config, val: object, argname: str) -> str | None:
