@@ -14,7 +14,7 @@ them right instead; :attr:`touched` tells the bench which procedures are due.
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Sequence
 
 from hil.families.fbs.address import Address, parse, parse_range
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
@@ -41,6 +41,14 @@ class GuardedTransport(Transport):
         self.journal: dict[Address, int] = {}  # base element → value before the test's first write
         self.touched: set[Address] = set()  # every base element written since the journal was started
         self.reopened = 0  # reconnections made to restore
+        # The durable journal (hil.journal.Journal): each original is on disk before its first write.  None for
+        # an in-process emulator (each run builds its own: nothing outlives the run).
+        self.durable = None
+        # Elements the PLC itself rewrites because of a write (the device layer declares them, e.g. an EN rising
+        # edge → PR/IR/DR of that FUN86 box): journaled as originals along with the written ones, never written.
+        self.side_effects: Callable[[list[Address]], Iterable[Address]] | None = None
+        # Called with the base elements of every write before it is journaled (the bench records the clock).
+        self.before_write: Callable[[list[Address]], None] | None = None
 
     # -- the allow-list and the journal --------------------------------------------------------------------
     def check(self, names: Iterable[NameLike]) -> list[Address]:
@@ -59,16 +67,27 @@ class GuardedTransport(Transport):
         return base
 
     def _remember(self, base: Sequence[Address]) -> None:
-        self.touched.update(base)
-        fresh = [a for a in dict.fromkeys(base) if a not in self.journal and a not in self.volatile]
+        if self.before_write is not None:
+            self.before_write(list(base))
+        wanted = list(base)
+        if self.side_effects is not None:
+            wanted += list(self.side_effects(list(base)))
+        fresh = [a for a in dict.fromkeys(wanted) if a not in self.journal and a not in self.volatile]
         if fresh:
-            for address, value in zip(fresh, self.inner.read_many(fresh)):
-                self.journal[address] = value
+            originals = dict(zip(fresh, self.inner.read_many(fresh)))
+            if self.durable is not None:  # on disk (fsync'd) before the write goes out
+                self.durable.add_elements({str(a): v for a, v in originals.items()})
+            self.journal.update(originals)
+        self.touched.update(base)
 
     def start_journal(self) -> None:
-        """Forget earlier writes: the next test starts a fresh journal."""
-        self.journal.clear()
+        """The next test starts: forget which elements were touched.  Originals whose restore failed stay in the
+        journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
         self.touched.clear()
+
+    @property
+    def unrestored(self) -> list[tuple[Address, int]]:
+        return list(self.journal.items())
 
     def restore(self) -> list[tuple[Address, int]]:
         """Write every journaled original back, then read them all to verify.  Returns what was restored.
@@ -92,6 +111,8 @@ class GuardedTransport(Transport):
         if failures:
             raise RestoreError(failures)
         self.journal.clear()
+        if self.durable is not None:  # verified: only now may the originals leave the disk
+            self.durable.drop_elements(str(a) for a, _ in items)
         return items
 
     def _restore_once(self, items: list[tuple[Address, int]]) -> tuple[list[tuple[str, int, str]], bool]:
