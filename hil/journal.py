@@ -81,7 +81,17 @@ class Journal:
     @property
     def pending(self) -> bool:
         d = self.data
-        return bool(d["elements"] or d["clock"] or d["coils"])
+        return bool(d["elements"] or d["clock"] or d["coils"] or d.get("run") is not None or d.get("disabled"))
+
+    def extra(self, name: str, default: Any = None) -> Any:
+        """``run`` (RUN/STOP before a command 41) or ``disabled`` (bits a command 42 disabled)."""
+        value = self.data.get(name)
+        return default if value is None else value
+
+    def set_extra(self, name: str, value: Any) -> None:
+        if self.data.get(name) != value:
+            self.data[name] = value
+            self._save()
 
     def elements(self) -> dict[str, int]:
         return {name: entry["value"] for name, entry in self.data["elements"].items()}
@@ -103,6 +113,10 @@ class Journal:
             c = d["clock"]
             lines.append(f"RTC: was {c['plc']} at host time {c['host']:.3f} (scale {c['scale']}) — set by "
                          f"{c.get('test') or '?'} (pid {c.get('pid')})")
+        if d.get("run") is not None:
+            lines.append(f"RUN/STOP: was {'RUN' if d['run'] else 'STOP'}")
+        for name in d.get("disabled") or []:
+            lines.append(f"{name} disabled by command 42 (to be re-enabled)")
         for key, entry in d["coils"].items():
             lines.append(f"rig coil {key} = {int(entry['value'])} — injected by {entry.get('test') or '?'} "
                          f"(pid {entry.get('pid')})")

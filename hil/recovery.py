@@ -55,9 +55,32 @@ def recover(journal: Journal, transport: Any, timebase: Any) -> Recovery:
     if not journal.pending:
         return report
     _coils(journal, report)
+    _actions(journal, transport, report)
     _clock(journal, transport, timebase, report)
     _elements(journal, transport, report)
     return report
+
+
+def _actions(journal: Journal, transport: Any, report: Recovery) -> None:
+    """Bits disabled with command 42 re-enabled; RUN/STOP as it was before a command 41."""
+    disabled = journal.extra("disabled", [])
+    if disabled:
+        try:
+            for name in disabled:
+                transport.bit_action(name, 2)
+        except Exception as exc:  # noqa: BLE001
+            report.failures.append(f"re-enabling {', '.join(disabled)}: {exc}")
+        else:
+            journal.set_extra("disabled", [])
+    run = journal.extra("run")
+    if run is not None:
+        try:
+            if bool(transport.status().running) != bool(run):
+                transport.set_running(bool(run))
+        except Exception as exc:  # noqa: BLE001
+            report.failures.append(f"RUN/STOP (was {'RUN' if run else 'STOP'}): {exc}")
+        else:
+            journal.set_extra("run", None)
 
 
 def _coils(journal: Journal, report: Recovery) -> None:

@@ -248,3 +248,99 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
         assert not check.journal.path.exists()
     finally:
         check.close()
+
+
+# -- no unguarded path from a suite --------------------------------------------------------------------------------
+BYPASSES = '''
+import pytest
+from hil.core.errors import WriteRefused
+from hil.plugin.pytest_plugin import _STATE
+
+
+@pytest.fixture
+def real(request):  # the harness's own bench, to count what reached the PLC
+    return request.config.stash[_STATE].bench
+
+
+def _sent(real):
+    return real.raw.emulator.stats["requests"]
+
+
+@pytest.mark.parametrize("path", ["raw", "io", "journal", "faults.bench", "plc.io.inner", "plc.io._write_words",
+                                  "plc.io._write_many", "plc.io._exchange", "plc.rtc.plc.io.inner",
+                                  "faults.sensor_break._set"])
+def test_no_way_round_the_guard(bench, path):
+    obj = bench
+    with pytest.raises(AttributeError):
+        for part in path.split("."):
+            obj = getattr(obj, part)
+
+
+def test_run_stop_refused_without_destructive(bench, real):
+    before = _sent(real)
+    with pytest.raises(WriteRefused, match="command 41"):
+        bench.plc.io.set_running(False)
+    assert _sent(real) == before and real.raw.status().running
+
+
+def test_bit_action_on_a_bit_outside_the_allow_list_refused(bench, real):
+    before = _sent(real)
+    with pytest.raises(WriteRefused):
+        bench.plc.io.bit_action("M502", 1)
+    assert _sent(real) == before
+
+
+def test_disable_a_writable_bit(bench, real):
+    bench.plc.io.bit_action("M1000", 1)
+    assert real.raw.read_disabled("M1000") == [1]
+
+
+def test_it_was_re_enabled(bench, real):
+    assert real.raw.read_disabled("M1000") == [0]
+
+
+def test_cannot_write_outside_the_allow_list(bench, real):
+    before = _sent(real)
+    with pytest.raises(WriteRefused):
+        bench.plc.io.write_words("R2000", [1])
+    assert _sent(real) == before
+'''
+
+
+def test_every_bypass_is_refused_before_a_byte_is_sent(pytester):
+    text = EMULATOR_BENCH.read_text().replace('target = "emulator"', 'target = "emulator+fatek-tcp"')
+    text = text.replace("allow_destructive = true", "allow_destructive = false")
+    bench = pytester.makefile(".toml", bench=text)
+    pytester.makepyfile(test_bypass=BYPASSES)
+    result = pytester.runpytest_inprocess("--bench", str(bench), "-p", "no:cacheprovider", "-p", "no:hypothesispytest")
+    result.assert_outcomes(passed=15)
+
+
+def test_a_fault_rig_pointing_at_the_plc_under_test_is_refused(tmp_path, emulated):
+    text = bench_over_the_wire(EMULATOR_BENCH.read_text(), emulated, 1)
+    plc = emulated["fatek-tcp"]
+    text = text.replace(f'modbus+tcp://{emulated["rig-modbus-tcp"]}', f"modbus+tcp://localhost:{plc.rsplit(':', 1)[1]}")
+    path = tmp_path / "bench.toml"
+    path.write_text(text)
+    bench = Bench(load_profile(path))
+    try:
+        with pytest.raises(HilError, match="is the PLC under test"):
+            bench.faults.sensor_break.open(0)
+    finally:
+        bench.close()
+
+
+def test_rig_coils_have_their_own_allow_list(tmp_path, emulated):
+    text = bench_over_the_wire(EMULATOR_BENCH.read_text(), emulated, 1)
+    text = text.replace("first_coil = 0", 'first_coil = 0\ncoils = "0-3"', 1)
+    path = tmp_path / "bench.toml"
+    path.write_text(text)
+    bench = Bench(load_profile(path))
+    try:
+        bench.begin_test("t")
+        bench.faults.sensor_break.open(2)
+        with pytest.raises(HilError, match="not in \\[faults\\] coils"):
+            bench.faults.sensor_break.open(5)
+        bench.end_test()
+    finally:
+        bench.close()

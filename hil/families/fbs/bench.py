@@ -45,7 +45,10 @@ class Bench(BenchBase):
                                              emulator_factory=lambda: emulator_builder(profile, epoch))
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
-        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+        self.io.allow_destructive = self.allow_destructive
+        from hil.families.fbs.transport.guarded_io import guarded_io
+        # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
+        self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans)
         if "temperature" in profile.sections:
             self.plc.temperature.config = profile.sections["temperature"]
         if "pid" in profile.sections:
@@ -126,6 +129,10 @@ class Bench(BenchBase):
         if refused:
             return f"{', '.join(refused)} not in the bench's [safety] writable list"
         return None
+
+    def unreachable_reason(self, name: str) -> str | None:
+        """Why this wire cannot reach ``name`` (None when it can)."""
+        return self.raw.unreachable_reason(name)
 
     # -- per-test bookkeeping --------------------------------------------------------------------------------
     def begin_test(self, test_id: str = "") -> None:

@@ -407,7 +407,7 @@ class Faults:
                                              float(spec.get("timeout", self.bench.profile.timeout)),
                                              journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
         elif kind == "plc-bit":
-            injector = PlcBitSensorBreak(self.bench.io, spec["first"])
+            injector = PlcBitSensorBreak(self.bench.plc.io, spec["first"])  # the guarded I/O
         else:
             injector = ManualSensorBreak(fault=name)
         self._made[name] = injector

@@ -49,6 +49,9 @@ class GuardedTransport(Transport):
         self.side_effects: Callable[[list[Address]], Iterable[Address]] | None = None
         # Called with the base elements of every write before it is journaled (the bench records the clock).
         self.before_write: Callable[[list[Address]], None] | None = None
+        self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
+        self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
+        self.disabled: set[Address] = set()  # bits a test disabled with command 42: re-enabled on restore
 
     # -- the allow-list and the journal --------------------------------------------------------------------
     def check(self, names: Iterable[NameLike]) -> list[Address]:
@@ -96,6 +99,7 @@ class GuardedTransport(Transport):
         an emulator's server keeps running, only the client reconnects) and try again.  Raises RestoreError
         listing each element that could not be written or read back equal, with its original value.
         """
+        self.restore_actions()
         items = list(self.journal.items())
         if not items:
             return []
@@ -127,6 +131,53 @@ class GuardedTransport(Transport):
             return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v]
         return failures, False
+
+    # -- FATEK commands 41 and 42, behind the same guard -----------------------------------------------------
+    def set_running(self, run: bool) -> None:
+        """RUN (True) / STOP (False), command 41: only with destructive actions allowed; restored afterwards."""
+        if not self.allow_destructive:
+            raise WriteRefused("RUN/STOP (FATEK command 41) refused: it is destructive — pass "
+                               "--hil-allow-destructive (or [safety] allow_destructive) on a bench where it may")
+        inner_call = getattr(self.inner, "set_running", None)
+        if inner_call is None:
+            raise WriteRefused(f"RUN/STOP is not offered by {self.inner.description}")
+        with self._lock:
+            if self.run_original is None:
+                self.run_original = bool(self.inner.status().running)
+                if self.durable is not None:
+                    self.durable.set_extra("run", self.run_original)
+            inner_call(bool(run))
+
+    def bit_action(self, name: NameLike, action: int) -> None:
+        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit; a disabled bit is re-enabled and
+        its value restored when the test ends."""
+        inner_call = getattr(self.inner, "bit_action", None)
+        if inner_call is None:
+            raise WriteRefused(f"bit actions (FATEK command 42) are not offered by {self.inner.description}")
+        with self._lock:
+            base = self.check([name])
+            self._remember(base)
+            if action == 1:
+                self.disabled.update(base)
+                if self.durable is not None:
+                    self.durable.set_extra("disabled", sorted({*self.durable.extra("disabled", []),
+                                                               *(str(a) for a in base)}))
+            inner_call(base[0], action)
+
+    def restore_actions(self) -> None:
+        """Re-enable the bits a test disabled and put RUN/STOP back (before the values are restored)."""
+        if self.disabled:
+            for address in sorted(self.disabled, key=str):
+                self.inner.bit_action(address, 2)
+            self.disabled.clear()
+            if self.durable is not None:
+                self.durable.set_extra("disabled", [])
+        if self.run_original is not None:
+            if bool(self.inner.status().running) != self.run_original:
+                self.inner.set_running(self.run_original)
+            self.run_original = None
+            if self.durable is not None:
+                self.durable.set_extra("run", None)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
