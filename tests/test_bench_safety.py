@@ -19,7 +19,7 @@ from hil.core.errors import HilError, RestoreError
 from hil.core.lock import BenchBusy, BenchLock, lock_key
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.rtc_time import RtcTime
-from hil.journal import Journal
+from hil.core.journal import Journal
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
@@ -342,5 +342,97 @@ def test_rig_coils_have_their_own_allow_list(tmp_path, emulated):
         with pytest.raises(HilError, match="not in \\[faults\\] coils"):
             bench.faults.sensor_break.open(5)
         bench.end_test()
+    finally:
+        bench.close()
+
+
+# -- no wrong values from late replies -----------------------------------------------------------------------------
+def test_delayed_duplicates_never_make_a_wrong_original_or_a_false_verified_restore():
+    """Replies repeated 1–50 ms later ("echo" in the wire fault plan) land after the next request: a plain read
+    takes them for its own answer; the guard's fenced reads (4E loop-back with a nonce) never do."""
+    import dataclasses
+    profile = dataclasses.replace(load_profile(EMULATOR_BENCH), wire_faults={"echo": 0.3, "seed": 7})
+    bench = Bench(profile, target="emulator+fatek-tcp")
+    try:
+        plan = bench.raw.server.faults
+        plan.enabled = False
+        truth = {f"R{1000 + k}": 100 + k for k in range(40)}
+        bench.raw.write_many(truth)
+        plan.enabled = True
+        plain_wrong = 0
+        for _ in range(10):  # a plain read is hit when a repeat lands while it waits: timing, so try a while
+            plain_wrong += sum(bench.raw.read(n) != v for n, v in truth.items())
+            if plain_wrong:
+                break
+            time.sleep(0.02)
+        wrong = []
+        for name, value in truth.items():
+            bench.begin_test(name)
+            bench.plc.io.write(name, 9999)
+            if bench.io.journal[list(bench.io.journal)[0]] != value:
+                wrong.append(f"{name}: journaled {bench.io.journal}")
+            bench.end_test()
+        plan.enabled = False
+        time.sleep(0.1)
+        bench.raw.reopen()
+        assert [bench.raw.read(n) for n in truth] == list(truth.values())
+        assert wrong == [], wrong
+        assert plain_wrong > 0, "the fault plan must bite a plain read, or this test proves nothing"
+        assert bench.raw.fenced_out > 0
+    finally:
+        bench.close()
+
+
+# -- signals -------------------------------------------------------------------------------------------------------
+def test_a_signal_during_a_restore_waits_for_it_and_a_second_one_changes_nothing():
+    import signal as sig
+    from hil.core import signals
+    signals.install()
+    finished = []
+    try:
+        with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+            with signals.shielded():
+                os.kill(os.getpid(), sig.SIGTERM)
+                time.sleep(0.05)
+                os.kill(os.getpid(), sig.SIGHUP)  # a second signal while the restore runs
+                time.sleep(0.05)
+                finished.append("restore")
+        assert finished == ["restore"]
+        os.kill(os.getpid(), sig.SIGTERM)  # the run is unwinding: later signals do not abandon that
+        time.sleep(0.05)
+    finally:
+        signals.uninstall()
+
+
+SLEEPER = '''
+import time
+
+def test_writes_then_hangs(bench):
+    bench.plc.io.write("R1000", 4242)
+    print("written", flush=True)
+    time.sleep(60)
+'''
+
+
+@pytest.mark.parametrize("signame", ["SIGHUP", "SIGTERM"])
+def test_sighup_and_sigterm_unwind_and_restore(tmp_path, emulated, signame):
+    import signal as sig
+    profile = _profile(tmp_path, emulated)
+    (tmp_path / "test_sleeper.py").write_text(SLEEPER)
+    bench = Bench(profile)
+    try:
+        before = bench.raw.read("R1000")
+        child = subprocess.Popen([sys.executable, "-m", "pytest", str(tmp_path / "test_sleeper.py"), "-s", "-q",
+                                  "--bench", str(profile.path), "-p", "no:cacheprovider", "-p", "no:hypothesispytest"],
+                                 cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                 env=os.environ.copy())
+        for line in child.stdout:
+            if "written" in line:
+                break
+        assert bench.raw.read("R1000") == 4242
+        child.send_signal(getattr(sig, signame))
+        child.wait(timeout=30)
+        assert bench.raw.read("R1000") == before
+        assert not Journal(bench.journal.key).pending
     finally:
         bench.close()

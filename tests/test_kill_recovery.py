@@ -24,7 +24,7 @@ import pytest
 from hil.families.fbs.rtc_time import RtcTime
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
-from hil.journal import Journal
+from hil.core.journal import Journal
 from hil.core.lock import lock_key
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
@@ -121,6 +121,11 @@ def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
             if changed and "hil bench recovery" not in nxt.stdout:
                 problems.append(f"{label}: the PLC was left changed but the next session said nothing")
             diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
+            for _ in range(10):  # what the PLC derives from restored inputs (a break flag) follows at its next
+                if not diff:     # measurement: give it up to 3 host s (60 s of PLC time)
+                    break
+                time.sleep(0.3)
+                diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
             if diff:
                 problems.append(f"{label}: after the next session: {'; '.join(diff[:12])}")
     return problems, recovered, len(moving - READINGS)

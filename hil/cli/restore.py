@@ -1,4 +1,4 @@
-"""``hil restore``: replay (or ``--show``) what a run that died left in a bench's journal (:mod:`hil.journal`)."""
+"""``hil restore``: replay (or ``--show``) what a run that died left in a bench's journal (:mod:`hil.core.journal`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hil.core.errors import HilError
 
 def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False) -> int:
     from hil.core.lock import lock_key
-    from hil.journal import Journal, state_dir
+    from hil.core.journal import Journal, state_dir
     if show:
         if url is None and bench is None:
             paths = sorted(state_dir().glob("journal-*.json"))
@@ -37,7 +37,7 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
             console.print("nothing pending: no run left a PLC changed", highlight=False)
         return 0
     from hil.cli.target import open_target
-    from hil.recovery import recover
+    from hil.families.fbs.recovery import recover
     with open_target(url, bench) as opened:  # not writing=True: that would replay it before we report it
         target = url or opened.profile.target  # type: ignore[union-attr]
         from hil.core.lock import BenchLock

@@ -40,7 +40,7 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
 
     A command that writes (``writing``) holds the bench lock while it runs (keyed by the canonical endpoint:
     a test run on the same PLC, however spelt, makes it refuse) and first replays what a dead run left in the
-    bench's journal (:mod:`hil.recovery`)."""
+    bench's journal (:mod:`hil.families.fbs.recovery`)."""
     from hil.core.paths import default_bench
     given = load_profile(bench) if bench else None
     if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family
@@ -71,8 +71,8 @@ def recover_first(target: str, transport: Transport, timebase: Timebase) -> None
     """Replay a journal a dead run left for this bench, saying so on stderr; refuse to go on if that failed."""
     import sys
     from hil.core.lock import lock_key
-    from hil.journal import Journal
-    from hil.recovery import recover
+    from hil.core.journal import Journal
+    from hil.families.fbs.recovery import recover
     journal = Journal(lock_key(target))
     if not journal.pending:
         return

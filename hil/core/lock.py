@@ -63,7 +63,7 @@ def lock_key(target: str) -> str:
         return f"serial://{os.path.realpath(device)}"
     if scheme.endswith("tcp"):
         from urllib.parse import urlsplit
-        from hil.io.url import DEFAULT_PORTS
+        from hil.core.ports import DEFAULT_PORTS
         parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
         host = (parts.hostname or "").lower()
         try:

@@ -57,6 +57,8 @@ def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
     config.stash[_STATE] = _State(config)
+    from hil.plugin.safety import BENCH_STATE
+    config.stash[BENCH_STATE] = config.stash[_STATE]
 
 
 class _State:
@@ -68,7 +70,7 @@ class _State:
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
-        self.recovery = None  # hil.recovery.Recovery: what a dead run left, replayed when the bench opened
+        self.recovery = None  # hil.families.fbs.recovery.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
 
     @property
@@ -256,10 +258,10 @@ def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
     """The PLC under test, its time, and the guard that restores every write when the test ends."""
     state = request.config.stash[_STATE]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
-    from hil.signals import shielded
+    from hil.core.signals import shielded
     with shielded():
         bench.begin_test(request.node.nodeid)  # retries a restore that failed earlier, first
-    from hil.signals import shielded
+    from hil.core.signals import shielded
     try:
         from hil.bench.view import suite_view
         # only the guarded surface: no bench.raw, no .io.inner, no transport's private _write_* (issue 15)

@@ -4,7 +4,7 @@ ends non-zero naming every element it could not put back.
 * A journal a dead run left is replayed when the bench opens (``_State._recover``); :func:`announce` prints
   that on the console whatever the verbosity, records it as the JUnit testsuite property ``hil_bench_recovery``,
   and a ``bench_recovery`` testcase runs first and fails if the recovery failed.
-* SIGTERM and SIGHUP unwind like Ctrl-C; a signal during a restore waits for it (:mod:`hil.signals`).
+* SIGTERM and SIGHUP unwind like Ctrl-C; a signal during a restore waits for it (:mod:`hil.core.signals`).
 * At the end of the session every restore that failed is retried; what is still not restored is listed and the
   exit status is non-zero.
 """
@@ -15,12 +15,14 @@ import sys
 
 import pytest
 
-from hil import signals
+from hil.core import signals
 
 _ANNOUNCED = pytest.StashKey[list]()
+#: the hil plugin's per-session state (hil.plugin.pytest_plugin._State), put here by that plugin
+BENCH_STATE = pytest.StashKey[object]()
 
 
-def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.recovery.Recovery
+def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.families.fbs.recovery.Recovery
     text = recovery.summary()
     config.stash.setdefault(_ANNOUNCED, []).append(text)
     reporter = config.pluginmanager.get_plugin("terminalreporter")
@@ -67,8 +69,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_finish(session: pytest.Session) -> None:
-    from hil.plugin.pytest_plugin import _STATE
-    state = session.config.stash.get(_STATE, None)
+    state = session.config.stash.get(BENCH_STATE, None)
     recovery = getattr(state, "recovery", None)
     if recovery is not None and recovery.needed:
         session.items.insert(0, BenchRecoveryItem.from_parent(session, name="bench_recovery", recovery=recovery))
@@ -77,8 +78,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 @pytest.hookimpl(trylast=True)
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """After every fixture's teardown: retry what is still unrestored; list what stays, and fail the session."""
-    from hil.plugin.pytest_plugin import _STATE
-    state = session.config.stash.get(_STATE, None)
+    state = session.config.stash.get(BENCH_STATE, None)
     bench = getattr(state, "bench", None)
     if bench is None or not hasattr(bench, "io"):
         return

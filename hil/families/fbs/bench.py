@@ -60,18 +60,18 @@ class Bench(BenchBase):
         self.journal = None
         if not self.target.in_process:
             from hil.core.lock import lock_key
-            from hil.journal import Journal
+            from hil.core.journal import Journal
             self.journal = Journal(lock_key(str(self.target)))
             self.io.durable = self.journal
         self.io.side_effects = self.plc.pid.side_effects
         self.io.before_write = self._before_write
         self.clock_origin: tuple[dt.datetime, float] | None = None  # (PLC time, reference) before a test set it
 
-    def recover(self):  # noqa: ANN201 - hil.recovery.Recovery, or None for an in-process emulator
-        """Replay what a dead run left in this bench's journal (before anything else; see hil.recovery)."""
+    def recover(self):  # noqa: ANN201 - hil.families.fbs.recovery.Recovery, or None for an in-process emulator
+        """Replay what a dead run left in this bench's journal (before anything else; see hil.families.fbs.recovery)."""
         if self.journal is None:
             return None
-        from hil.recovery import recover
+        from hil.families.fbs.recovery import recover
         return recover(self.journal, self.raw, self.time)
 
     # -- the clock, journaled as an offset ---------------------------------------------------------------------

@@ -179,7 +179,7 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         self.first_coil = first_coil
         self.unit = int(self.target.params.get("unit", 1))
         self.timeout = timeout
-        self.journal = journal  # hil.journal.Journal: each coil's original is on disk before it is switched
+        self.journal = journal  # hil.core.journal.Journal: each coil's original is on disk before it is switched
         self.allowed = parse_coils(coils) if coils is not None else None  # the rig's own allow-list
         self.originals: dict[int, bool] = {}  # point → what its coil held before the first injection
         self._client: Any = None

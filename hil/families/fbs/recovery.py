@@ -1,4 +1,4 @@
-"""Recovery first: replay what a dead run left in a bench's journal (:mod:`hil.journal`), verify it, say so.
+"""Recovery first: replay what a dead run left in a bench's journal (:mod:`hil.core.journal`), verify it, say so.
 
 Every run on a real bench (the pytest plugin, ``hil run``, each writing CLI command) calls :func:`recover` after
 taking the bench lock and before anything else; ``hil restore --bench FILE`` calls it by hand.  What is
@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.core.errors import HilError, TransportError
-from hil.journal import Journal
+from hil.core.journal import Journal
 
 
 @dataclass
@@ -128,6 +128,12 @@ def _elements(journal: Journal, transport: Any, report: Recovery) -> None:
         try:
             transport.write_many(items)
             now = transport.read_many([name for name, _ in items])
+            for _ in range(3):  # a stale reply must not "verify" the restore (hil.families.fbs.transport.fatek)
+                if transport.fence():
+                    break
+                now = transport.read_many([name for name, _ in items])
+            else:
+                raise TransportError("stale replies kept arriving before the read-back's answer")
         except TransportError as exc:
             if attempt == 1:
                 try:
