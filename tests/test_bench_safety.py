@@ -436,3 +436,22 @@ def test_sighup_and_sigterm_unwind_and_restore(tmp_path, emulated, signame):
         assert not Journal(bench.journal.key).pending
     finally:
         bench.close()
+
+
+def test_a_session_ending_with_values_unrestored_fails_naming_each(pytester):
+    text = EMULATOR_BENCH.read_text().replace('target = "emulator"', 'target = "emulator+fatek-tcp"')
+    bench = pytester.makefile(".toml", bench=text.replace("time_scale = 1.0", "time_scale = 1.0\ntimeout = 0.5"))
+    pytester.makepyfile(test_gone='''
+import pytest
+from hil.plugin.pytest_plugin import _STATE
+
+
+def test_writes_then_the_plc_goes_for_good(bench, request):
+    bench.plc.io.write_many({"R1000": 42, "M1000": 1})
+    request.config.stash[_STATE].bench.raw.server.stop()
+''')
+    result = pytester.runpytest_inprocess("--bench", str(bench), "-q", "-p", "no:cacheprovider",
+                                          "-p", "no:hypothesispytest")
+    assert result.ret != 0
+    result.stdout.fnmatch_lines(["*the PLC is NOT as it was found — still unrestored*R1000 (original 0)*"
+                                 "M1000 (original 0)*"])
