@@ -455,3 +455,24 @@ def test_writes_then_the_plc_goes_for_good(bench, request):
     assert result.ret != 0
     result.stdout.fnmatch_lines(["*the PLC is NOT as it was found — still unrestored*R1000 (original 0)*"
                                  "M1000 (original 0)*"])
+
+
+def test_hil_restore_shows_and_replays_a_dead_runs_journal(tmp_path, emulated):
+    profile = _profile(tmp_path, emulated)
+    bench = Bench(profile)
+    original = bench.raw.read("R1001")
+    bench.begin_test("suites/test_x.py::test_died")
+    bench.plc.io.write("R1001", (original + 5) & 0xFFFF)
+    bench.close()  # died: nothing restored
+    run = lambda *args: subprocess.run([sys.executable, "-m", "hil.cli.main", "restore", *args],  # noqa: E731
+                                       capture_output=True, text=True, cwd=REPO, timeout=60, env=os.environ.copy())
+    shown = run("--show")
+    assert shown.returncode == 0 and "R1001" in shown.stdout and "test_died" in shown.stdout, shown.stdout
+    done = run("--bench", str(profile.path))
+    assert done.returncode == 0 and "restored and verified" in done.stdout, done.stdout + done.stderr
+    check = Bench(profile)
+    try:
+        assert check.raw.read("R1001") == original and not check.journal.path.exists()
+    finally:
+        check.close()
+    assert "nothing pending" in run("--show").stdout
