@@ -92,12 +92,12 @@ def test_registers_freeze_while_m1952_is_1_and_follow_again_after(bench, rtc, io
 
 def test_rtc_fitted_flag_m1954_matches_the_chip(bench, io):
     expected_chip = bench.profile.rtc.chip if bench.profile.rtc else None
-    if bench.raw.unreachable_reason("D4053") is None:
+    if bench.unreachable_reason("D4053") is None:
         chip = io.read("D4053")
         if expected_chip is not None:
             assert chip == expected_chip, f"D4053 = {chip}, the bench profile says {expected_chip}"
     elif expected_chip is not None:
         chip = expected_chip  # D4053 unreachable on this wire: check M1954 against the profile instead
     else:
-        pytest.skip(f"D4053 unreachable ({bench.raw.unreachable_reason('D4053')}) and the profile has no [rtc]")
+        pytest.skip(f"D4053 unreachable ({bench.unreachable_reason('D4053')}) and the profile has no [rtc]")
     assert io.read("M1954") == (1 if chip != 0 else 0)

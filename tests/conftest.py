@@ -18,3 +18,12 @@ pytest_plugins = ["pytester"]
 def emulator():
     from hil.families.fbs.sim import Emulator
     return Emulator()
+
+
+@pytest.fixture(autouse=True)
+def _private_hil_state(tmp_path_factory, monkeypatch):
+    """Each test's bench journals and locks in its own directories, never the user's (hil.core.journal, hil.core.lock)."""
+    base = tmp_path_factory.mktemp("hil-state")
+    monkeypatch.setenv("HIL_STATE_DIR", str(base / "state"))
+    if "HIL_LOCK_DIR" not in __import__("os").environ:
+        monkeypatch.setenv("HIL_LOCK_DIR", str(base / "locks"))

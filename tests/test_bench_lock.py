@@ -106,7 +106,7 @@ def test_plugin_refuses_a_bench_another_run_holds(tmp_path, pytester):
         result = pytester.runpytest_inprocess("--bench", str(bench), "--hil-lock-wait", "0.2", "-p",
                                               "no:cacheprovider")
         result.assert_outcomes(errors=1)
-        result.stdout.fnmatch_lines([f"*bench {TARGET} is in use by pid {proc.pid} on *waited*"])
+        result.stdout.fnmatch_lines([f"*bench {TARGET}*is in use by pid {proc.pid} on *waited*"])
     finally:
         proc.kill()
         proc.wait()

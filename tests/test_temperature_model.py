@@ -273,8 +273,10 @@ def test_unreachable_relay_module_is_reported():
     injector = ModbusCoilSensorBreak("modbus+tcp://127.0.0.1:9?unit=1", timeout=0.2)
     with pytest.raises(FaultError, match="cannot reach the sensor-break relay module"):
         injector.open(0)
-    with pytest.raises(FaultError, match="could not repair: point 0"):
-        injector.undo()  # the half-done open is still remembered, and its repair fails loudly
+    # The coil's original is read (and journaled) before it is switched: that read failed, so nothing was switched
+    # and there is nothing to undo.
+    assert injector.originals == {} and injector.opened == set()
+    injector.undo()
 
 
 def test_probe_shows_the_temperature_points(capsys):

@@ -122,6 +122,17 @@ def build_parser() -> argparse.ArgumentParser:
                        help="bench profile: its [temperature] section adds the temperature points to the report "
                             "(and configures an emulator… target)")
     _add_clock_commands(sub)
+    restore = sub.add_parser("restore", help="put back what a run that died left changed on a PLC (its journal)",
+                             formatter_class=argparse.RawDescriptionHelpFormatter,
+                             description="Every run journals each value before it first writes it (on disk, "
+                                         "fsync'd); a run that dies leaves the journal behind and the next run on "
+                                         "that PLC replays it first. This does it by hand, holding the bench lock.",
+                             epilog="examples:\n  hil restore --bench my-bench.toml\n"
+                                    "  hil restore --show                 (every bench's pending journal)\n"
+                                    "  hil restore --show fatek+tcp://192.168.1.5\n")
+    restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
+    restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
+    restore.add_argument("--show", action="store_true", help="only print what is pending; change nothing")
     return parser
 
 
@@ -274,6 +285,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         if args.rtc_command == "set":
             return rtc.rtc_set(args.url, args.time, console, bench=args.bench)
         return rtc.rtc_sync(args.url, console, bench=args.bench)
+    if args.command == "restore":
+        from hil.cli.restore import restore
+        return restore(args.url, args.bench, console, show=args.show)
     if args.command == "drift":
         from hil.cli import rtc
         if args.drift_command == "code":

@@ -40,9 +40,10 @@ _CODE_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})h?$", re.IGNORECASE)
 
 # -- opening a PLC --------------------------------------------------------------------------------------------------
 @contextlib.contextmanager
-def open_plc(url: str, bench: str | None = None) -> Iterator[FbsPlc]:
-    """An :class:`FbsPlc` on a direct transport to ``url`` (see :mod:`hil.cli.target`)."""
-    with open_target(url, bench) as opened:
+def open_plc(url: str, bench: str | None = None, *, writing: bool = False) -> Iterator[FbsPlc]:
+    """An :class:`FbsPlc` on a direct transport to ``url`` (see :mod:`hil.cli.target`; ``writing``: holds the
+    bench lock and replays a dead run's journal first)."""
+    with open_target(url, bench, writing=writing) as opened:
         yield opened.plc()
 
 
@@ -181,13 +182,13 @@ _SET_ADDRESSES = [reg.RTC_HOLD, *reg.RTC_FIELDS, reg.RTC_SET_ERROR]
 
 def rtc_set(url: str, when: str, console: Console, bench: str | None = None) -> int:
     value = parse_time(when)
-    with open_plc(url, bench) as plc:
+    with open_plc(url, bench, writing=True) as plc:
         _require(plc, _SET_ADDRESSES, "set the RTC")  # a failure after M1952 := 1 would leave the clock frozen
         return _report_set(console, plc, plc.rtc.set(value))
 
 
 def rtc_sync(url: str, console: Console, bench: str | None = None) -> int:
-    with open_plc(url, bench) as plc:
+    with open_plc(url, bench, writing=True) as plc:
         _require(plc, _SET_ADDRESSES, "set the RTC")
         result = plc.rtc.sync_to_host()
         host = plc.time.calendar()
@@ -287,8 +288,8 @@ def drift_measure(url: str, duration: float, console: Console, bench: str | None
                   apply: bool = False) -> int:
     if not math.isfinite(duration) or not 5 < duration <= MAX_DURATION:
         raise InvalidValue(f"--duration {duration:g} s: give more than 5 s and at most {MAX_DURATION:.0f} s (366 days; "
-                         f"the PLC's calendar holds 2000–2099 only)")
-    with open_plc(url, bench) as plc:
+                           f"the PLC's calendar holds 2000–2099 only)")
+    with open_plc(url, bench, writing=apply) as plc:
         if apply:  # fail before a long measurement, not after it
             _require(plc, [reg.RTC_RATE_CODE, reg.RTC_CHIP], "write the compensating code")
             chip = plc.rtc.chip

@@ -35,8 +35,12 @@ class OpenTarget:
 
 
 @contextlib.contextmanager
-def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarget]:
-    """The PLC at ``url`` (default: the profile's target); ``bench`` supplies timeout, time scale, layout."""
+def open_target(url: str | None, bench: str | None = None, *, writing: bool = False) -> Iterator[OpenTarget]:
+    """The PLC at ``url`` (default: the profile's target); ``bench`` supplies timeout, time scale, layout.
+
+    A command that writes (``writing``) holds the bench lock while it runs (keyed by the canonical endpoint:
+    a test run on the same PLC, however spelt, makes it refuse) and first replays what a dead run left in the
+    bench's journal (:mod:`hil.families.fbs.recovery`)."""
     from hil.core.paths import default_bench
     given = load_profile(bench) if bench else None
     if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family
@@ -52,6 +56,27 @@ def open_target(url: str | None, bench: str | None = None) -> Iterator[OpenTarge
     if target.in_process:
         factory = lambda: build_emulator(profile, epoch)  # noqa: E731
     timeout = given.timeout if given is not None else None
-    with open_transport(target, emulator_factory=factory, timeout=timeout) as transport:
+    with contextlib.ExitStack() as stack:
+        if writing and not target.in_process:
+            from hil.core.lock import BenchLock
+            stack.enter_context(BenchLock(str(target)).acquire())
+        transport = stack.enter_context(open_transport(target, emulator_factory=factory, timeout=timeout))
         timebase = timebase_for(transport.emulator, epoch, given.time_scale if given is not None else 1.0)
+        if writing and not target.in_process:
+            recover_first(str(target), transport, timebase)
         yield OpenTarget(transport, timebase, profile)
+
+
+def recover_first(target: str, transport: Transport, timebase: Timebase) -> None:
+    """Replay a journal a dead run left for this bench, saying so on stderr; refuse to go on if that failed."""
+    import sys
+    from hil.core.lock import lock_key
+    from hil.core.journal import Journal
+    from hil.families.fbs.recovery import recover
+    journal = Journal(lock_key(target))
+    if not journal.pending:
+        return
+    report = recover(journal, transport, timebase)
+    print(report.summary(), file=sys.stderr, flush=True)
+    if not report.ok:
+        raise HilError(f"{report.summary()} — not going on; `hil restore --show` lists them")

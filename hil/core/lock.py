@@ -1,7 +1,8 @@
 """One harness run per bench: an OS file lock (``fcntl.flock``) keyed by the target.
 
 Two runs against the same PLC would interleave writes and restores and corrupt each other's results.  The lock
-file lives in ``$HIL_LOCK_DIR`` (default ``<tmp>/hil-locks``) and holds who has it — pid, host, user, start time,
+file lives in a per-user directory (:func:`lock_dir`, mode 0700, opened with O_NOFOLLOW), is keyed by the
+bench's canonical endpoint (:func:`lock_key`), and holds who has it — pid, host, user, start time,
 command — so a run that cannot get it can say who to ask.  The kernel drops a flock when its process dies, so
 a lock left by a crashed run is taken over at once; its leftover holder record is kept as :attr:`stale`.
 In-process ``emulator…`` targets need no lock: each run builds its own emulator.
@@ -17,7 +18,6 @@ import json
 import os
 import socket
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -43,21 +43,71 @@ def describe_holder(holder: dict) -> str:
 
 
 def lock_key(target: str) -> str:
-    """What identifies a bench: the target URL, with a serial device resolved to its real path."""
-    scheme, sep, rest = target.partition("://")
-    if sep and scheme.endswith(("serial", "rtu")):
-        device, q, query = rest.partition("?")
-        return f"{scheme}://{os.path.realpath(device)}"
-    return target.partition("?")[0]
+    """What identifies a bench, whatever the URL's spelling: its canonical endpoint.
+
+    ``FATEK+TCP://LocalHost/`` and ``fatek+tcp://127.0.0.1:500`` are one PLC: the scheme is lower-cased, the host
+    resolved to its address (the first the resolver gives), the scheme's default port filled in, a trailing ``/``
+    and the query ignored.  A serial device is named by its real path (``/dev/serial/by-id/…`` → ``/dev/ttyUSB0``).
+    Different protocols to one host:port are still one endpoint: the key is ``tcp://ADDRESS:PORT``.
+    """
+    text = target.strip()
+    scheme, sep, rest = text.partition("://")
+    scheme = scheme.lower()
+    if not sep:
+        return scheme
+    rest = rest.partition("?")[0].partition("#")[0]
+    if scheme.endswith(("serial", "rtu")) or scheme.startswith("replay"):
+        device = rest.rstrip("/") or "/"
+        if not device.startswith("/"):
+            device = "/" + device
+        return f"serial://{os.path.realpath(device)}"
+    if scheme.endswith("tcp"):
+        from urllib.parse import urlsplit
+        from hil.core.ports import DEFAULT_PORTS
+        parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
+        host = (parts.hostname or "").lower()
+        try:
+            port = parts.port or DEFAULT_PORTS.get(scheme, 0)
+        except ValueError:
+            port = 0
+        try:
+            infos = socket.getaddrinfo(host, port or None, type=socket.SOCK_STREAM)
+            address = sorted(infos, key=lambda i: i[0] != socket.AF_INET)[0][4][0]
+        except (OSError, IndexError, UnicodeError):
+            address = host
+        if address in ("::1", "0.0.0.0", "::") or address.startswith("127."):
+            address = "127.0.0.1"  # every spelling of this host's loopback is one host
+        return f"tcp://{address}:{port}"
+    return f"{scheme}://{rest.rstrip('/')}"
 
 
 def lock_dir() -> Path:
-    return Path(os.environ.get("HIL_LOCK_DIR") or Path(tempfile.gettempdir()) / "hil-locks")
+    """A per-user directory nobody else can write (mode 0700): ``$HIL_LOCK_DIR``, else
+    ``$XDG_RUNTIME_DIR/hil``, else ``~/.cache/hil/locks``."""
+    given = os.environ.get("HIL_LOCK_DIR")
+    if given:
+        return Path(given)
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    if runtime and os.path.isdir(runtime):
+        return Path(runtime) / "hil"
+    cache = os.environ.get("XDG_CACHE_HOME")
+    return (Path(cache) if cache else Path.home() / ".cache") / "hil" / "locks"
+
+
+def _private_dir(directory: Path) -> None:
+    directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+    info = os.lstat(directory)
+    import stat
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
+        raise HilError(f"lock directory {directory} is not a directory owned by you — refusing to use it")
+    if info.st_mode & 0o077:
+        os.chmod(directory, 0o700)
 
 
 class BenchLock:
     def __init__(self, target: str, directory: Path | None = None) -> None:
         self.key = lock_key(target)
+        self.name = target if lock_key(target) == target else f"{target} (endpoint {self.key})"
         digest = hashlib.sha256(self.key.encode()).hexdigest()[:16]
         self.directory = Path(directory) if directory else lock_dir()
         self.path = self.directory / f"bench-{digest}.lock"
@@ -72,8 +122,14 @@ class BenchLock:
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:
             return self
-        self.directory.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
+        _private_dir(self.directory)
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+        except OSError as exc:
+            if os.path.islink(self.path):
+                raise HilError(f"bench lock {self.path} is a symbolic link — refusing to follow it (someone planted "
+                               f"it; remove it after checking where it points)") from None
+            raise HilError(f"cannot open the bench lock {self.path}: {exc}") from None
         started = time.monotonic()
         while True:
             try:
@@ -84,7 +140,7 @@ class BenchLock:
                 if waited >= wait:
                     holder = _read(fd)
                     os.close(fd)
-                    raise BenchBusy(self.key, holder, waited if wait else 0.0) from None
+                    raise BenchBusy(self.name, holder, waited if wait else 0.0) from None
                 time.sleep(min(poll, max(0.0, wait - waited)))
         previous = _read(fd)
         if previous:  # a clean release empties the file: a record means its holder died holding the lock
@@ -111,8 +167,8 @@ class BenchLock:
     def holder(self) -> dict:
         """The record in the lock file (whoever holds it now, or a dead holder's)."""
         try:
-            fd = os.open(self.path, os.O_RDONLY)
-        except FileNotFoundError:
+            fd = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW)
+        except OSError:
             return {}
         try:
             return _read(fd)

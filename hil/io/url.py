@@ -32,7 +32,7 @@ PARAMS: dict[str, dict[str, type]] = {
     "replay+fatek": {**_COMMON, "station": int},
     "s7+tcp": {**_COMMON, "rack": int, "slot": int},
 }
-DEFAULT_PORTS = {"fatek+tcp": 500, "modbus+tcp": 502, "s7+tcp": 102}
+from hil.core.ports import DEFAULT_PORTS  # noqa: E402 - one table, also used to key bench locks (hil.core.lock)
 
 FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
          "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "

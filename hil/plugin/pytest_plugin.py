@@ -18,7 +18,7 @@ from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
 from hil.io.url import parse_target
 
-pytest_plugins = ["hil.plugin.perf"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -60,6 +60,8 @@ def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
     config.stash[_STATE] = _State(config)
+    from hil.plugin.safety import BENCH_STATE
+    config.stash[BENCH_STATE] = config.stash[_STATE]
 
 
 class _State:
@@ -71,6 +73,7 @@ class _State:
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
+        self.recovery = None  # hil.families.fbs.recovery.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
 
     @property
@@ -95,10 +98,22 @@ class _State:
                 self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
                                    emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e))
+                self._recover()
             except HilError as exc:
                 self.error = f"cannot open the bench: {exc}"
                 raise pytest.fail.Exception(self.error, pytrace=False) from None
         return self.bench
+
+    def _recover(self) -> None:
+        """Recovery first (issue 15): a journal a dead run left is replayed before any test, and said loudly."""
+        recover = getattr(self.bench, "recover", None)
+        self.recovery = recover() if recover is not None else None
+        if self.recovery is None or not self.recovery.needed:
+            return
+        from hil.plugin.safety import announce
+        announce(self.config, self.recovery)
+        if not self.recovery.ok:
+            self.dead = self.recovery.summary()
 
     def _lock_bench(self) -> None:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
@@ -258,8 +273,14 @@ def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
     """The PLC under test, its time, and the guard that restores every write when the test ends."""
     state = request.config.stash[_STATE]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
-    bench.begin_test()
+    from hil.core.signals import shielded
+    with shielded():
+        bench.begin_test(request.node.nodeid)  # retries a restore that failed earlier, first
+    from hil.core.signals import shielded
     try:
-        yield bench  # a test stopped by pytest-timeout (signal method) unwinds through here too
+        from hil.bench.view import suite_view
+        # only the guarded surface: no bench.raw, no .io.inner, no transport's private _write_* (issue 15)
+        yield suite_view(bench)  # a test stopped by pytest-timeout (signal method) or SIGTERM/SIGHUP unwinds here
     finally:
-        state.finish(request, bench)
+        with shielded():  # a signal during the restore waits for it to finish
+            state.finish(request, bench)

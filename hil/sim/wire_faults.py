@@ -1,7 +1,7 @@
 """Wire faults for the emulator's servers: what a noisy serial line or a flaky gateway does to a reply.
 
 One :class:`WireFaults` plan (a seeded ``random.Random`` with per-kind probabilities, and/or a scripted queue)
-is consulted by a server each time it sends a reply.  Every kind keeps replies **in order**, as a real slave that
+is consulted by a server each time it sends a reply.  Every kind but ``echo`` keeps replies **in order**, as a real slave that
 handles one request at a time must — so a client can always resynchronise:
 
 ============ ====================================================================================================
@@ -11,6 +11,8 @@ handles one request at a time must — so a client can always resynchronise:
 ``split``     the reply goes out in 2–4 pieces with ``split_gap`` seconds between them
 ``late``      the reply is withheld, then sent just before the next reply — after the client gave up on it
 ``duplicate`` the reply is sent twice
+``echo``      the reply is sent, then sent again 1–50 ms later (a delayed duplicate: it may land after the next
+              request, where a client without transaction ids would take it for that request's answer)
 ``garbage``   1–16 random bytes go out before the reply
 ``close``     the connection is closed instead of replying (on a pty: no reply, as a line cannot hang up)
 ============ ====================================================================================================
@@ -29,7 +31,7 @@ from typing import Any, Callable, Iterable
 
 from hil.core.errors import InvalidValue
 
-KINDS = ("drop", "delay", "corrupt", "split", "late", "duplicate", "garbage", "close")
+KINDS = ("drop", "delay", "corrupt", "split", "late", "duplicate", "echo", "garbage", "close")
 
 Corrupt = Callable[[bytes, random.Random], bytes]
 
@@ -180,6 +182,13 @@ class FaultySender:
             except (OSError, RuntimeError):
                 pass  # the peer went away: nothing to answer
 
+    def _echo(self, reply: bytes) -> None:
+        if not self.closed:
+            try:
+                self.write(reply)
+            except (OSError, RuntimeError):
+                pass
+
     async def _one(self, reply: bytes) -> None:
         faults = self.faults
         assert faults is not None
@@ -206,6 +215,8 @@ class FaultySender:
             self.write(bytes(rng.randrange(256) for _ in range(rng.randint(1, 16))))
         elif kind == "duplicate":
             reply = reply + reply
+        elif kind == "echo":
+            asyncio.get_running_loop().call_later(rng.uniform(0.001, 0.050), self._echo, reply)
         elif kind == "split" and len(reply) > 1:
             cuts = sorted(rng.sample(range(1, len(reply)), min(len(reply) - 1, rng.randint(1, 3))))
             pieces = [reply[a:b] for a, b in zip([0] + cuts, cuts + [len(reply)])]

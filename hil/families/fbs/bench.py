@@ -6,6 +6,7 @@ The pytest plugin builds one Bench per session; suites see it as the ``bench`` f
 from __future__ import annotations
 
 import datetime as dt
+import time as _time
 from typing import Callable
 
 from hil.families.fbs.address import parse_range
@@ -44,13 +45,66 @@ class Bench(BenchBase):
                                              emulator_factory=lambda: emulator_builder(profile, epoch))
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
-        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+        self.io.allow_destructive = self.allow_destructive
+        from hil.families.fbs.transport.guarded_io import guarded_io
+        # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
+        self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans)
         if "temperature" in profile.sections:
             self.plc.temperature.config = profile.sections["temperature"]
         if "pid" in profile.sections:
             self.plc.pid.config = profile.sections["pid"]
         from hil.families.fbs.faults import Faults
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
+        # Safety (issue 15): originals on disk before each first write, the PLC's own side effects journaled too,
+        # the clock restored to its original offset from the host's wall clock.
+        self.journal = None
+        if not self.target.in_process:
+            from hil.core.lock import lock_key
+            from hil.core.journal import Journal
+            self.journal = Journal(lock_key(str(self.target)))
+            self.io.durable = self.journal
+        self.io.side_effects = self.plc.pid.side_effects
+        self.io.before_write = self._before_write
+        self.clock_origin: tuple[dt.datetime, float] | None = None  # (PLC time, reference) before a test set it
+
+    def recover(self):  # noqa: ANN201 - hil.families.fbs.recovery.Recovery, or None for an in-process emulator
+        """Replay what a dead run left in this bench's journal (before anything else; see hil.families.fbs.recovery)."""
+        if self.journal is None:
+            return None
+        from hil.families.fbs.recovery import recover
+        return recover(self.journal, self.raw, self.time)
+
+    # -- the clock, journaled as an offset ---------------------------------------------------------------------
+    def _reference(self) -> float:
+        """The bench's reference time in PLC seconds: virtual time on the in-process emulator, else the host's
+        wall clock (UTC seconds, whatever TZ says) times the profile's time scale."""
+        return self.time.now() if self.time.virtual else _time.time() * self.profile.time_scale
+
+    def _before_write(self, base: list) -> None:
+        if self.clock_origin is not None or not _RTC_TOUCHES.intersection(base):
+            return
+        from hil.families.fbs.rtc_time import RtcTime
+        try:
+            plc_time = RtcTime.from_registers(self.raw.read_words(reg.RTC_SECOND, len(reg.RTC_FIELDS))).to_datetime()
+        except ValueError:  # the clock held no valid time: there is no offset to keep; sync to host time then
+            return
+        self.clock_origin = (plc_time, self._reference())
+        if self.journal is not None:
+            self.journal.set_clock(plc_time, _time.time(), self.profile.time_scale)
+
+    def _original_clock(self) -> dt.datetime:
+        plc_time, ref = self.clock_origin  # type: ignore[misc]
+        return plc_time + dt.timedelta(seconds=self._reference() - ref)
+
+    def restore_clock(self) -> None:
+        """Put the clock back at its original offset (or on host time when it held no valid time)."""
+        from hil.core.errors import RestoreError
+        if self.clock_origin is not None:
+            result = self.plc.rtc.sync_to(self._original_clock)
+        else:
+            result = self.plc.rtc.sync_to_host()
+        if not result.accepted:
+            raise RestoreError([("RTC", 0, f"the PLC refused the restored time {result.sent} (M1955 = 1)")])
 
     def identity(self) -> dict[str, str]:
         try:
@@ -76,8 +130,23 @@ class Bench(BenchBase):
             return f"{', '.join(refused)} not in the bench's [safety] writable list"
         return None
 
+    def unreachable_reason(self, name: str) -> str | None:
+        """Why this wire cannot reach ``name`` (None when it can)."""
+        return self.raw.unreachable_reason(name)
+
     # -- per-test bookkeeping --------------------------------------------------------------------------------
-    def begin_test(self) -> None:
+    def begin_test(self, test_id: str = "") -> None:
+        """A test starts: first retry any restore that failed before (a RestoreError here means the PLC is
+        still not as it was found), then start its journal."""
+        if self.journal is not None:
+            self.journal.test = test_id
+        if self.clock_origin is not None:
+            self.restore_clock()
+            self.clock_origin = None
+            if self.journal is not None:
+                self.journal.drop_clock()
+        if self.io.unrestored:
+            self.io.restore()
         self.io.start_journal()
 
     def end_test(self) -> None:
@@ -93,8 +162,11 @@ class Bench(BenchBase):
                 # write-back and one read-back verify the test's and the sync's writes together (6 round trips
                 # on FATEK, not 9 with a restore on each side of the sync).
                 try:
-                    if touched_rtc:
-                        self.plc.rtc.sync_to_host()
+                    if touched_rtc or self.clock_origin is not None:
+                        self.restore_clock()
+                        self.clock_origin = None
+                        if self.journal is not None:
+                            self.journal.drop_clock()
                 finally:
                     self.io.restore()
         finally:

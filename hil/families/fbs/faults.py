@@ -46,7 +46,7 @@ FAULT_ACTIONS = {"sensor_break": ("DISCONNECT the sensor", "RECONNECT the sensor
                  "heater_open": ("OPEN the heater circuit", "CLOSE the heater circuit"),
                  "ssr_short": ("BRIDGE the SSR (heater full on)", "REMOVE the SSR bridge")}
 PLANT_FAULTS = ("heater_open", "ssr_short")
-_KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout"},
+_KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout", "coils"},
          "plc-bit": {"kind", "first"}, "manual": {"kind"}}
 
 
@@ -172,13 +172,79 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
 
     kind = "modbus-coil"
 
-    def __init__(self, target: str, first_coil: int = 0, timeout: float = 2.0) -> None:
+    def __init__(self, target: str, first_coil: int = 0, timeout: float = 2.0, *, journal: Any = None,
+                 coils: str | None = None) -> None:
         super().__init__()
         self.target = parse_target(target)
         self.first_coil = first_coil
         self.unit = int(self.target.params.get("unit", 1))
         self.timeout = timeout
+        self.journal = journal  # hil.core.journal.Journal: each coil's original is on disk before it is switched
+        self.allowed = parse_coils(coils) if coils is not None else None  # the rig's own allow-list
+        self.originals: dict[int, bool] = {}  # point → what its coil held before the first injection
         self._client: Any = None
+
+    def coil_key(self, point: int) -> str:
+        from hil.core.lock import lock_key
+        return f"{lock_key(str(self.target))}#unit{self.unit}/coil{self.first_coil + point}"
+
+    def _original(self, point: int) -> None:
+        """Read and journal the coil's state before the first switch (restore writes back *that*, not 0)."""
+        if point in self.originals:
+            return
+        coil = self.first_coil + point
+        value = self._read(coil)
+        if self.journal is not None:
+            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, value)
+        self.originals[point] = value
+
+    def _read(self, coil: int) -> bool:
+        from pymodbus.exceptions import ModbusException
+        try:
+            reply = self._connect().read_coils(coil, count=1, device_id=self.unit)
+        except ModbusException as exc:
+            self.close()
+            raise FaultError(f"relay module {self.target}: reading coil {coil} failed: {exc}") from None
+        if reply.isError():
+            raise FaultError(f"relay module {self.target} refused to read coil {coil}")
+        return bool(reply.bits[0])
+
+    def open(self, point: int) -> None:
+        self._check(point)
+        self._allowed(point)
+        self._original(point)
+        super().open(point)
+
+    def repair(self, point: int) -> None:
+        self._check(point)
+        self._allowed(point)
+        self._original(point)
+        super().repair(point)
+
+    def _allowed(self, point: int) -> None:
+        coil = self.first_coil + point
+        if self.allowed is not None and coil not in self.allowed:
+            raise FaultError(f"coil {coil} of the rig {self.target} is not in [faults] coils — refused before "
+                             f"anything was sent")
+
+    def undo(self) -> None:
+        """Put every coil this injector switched back to what it held before (read back to verify)."""
+        errors = []
+        for point, value in sorted(self.originals.items()):
+            coil = self.first_coil + point
+            try:
+                self._write(point, value)
+                if self._read(coil) != value:
+                    raise FaultError(f"coil {coil} does not read back {int(value)}")
+            except Exception as exc:  # noqa: BLE001 - try every coil, then report them all
+                errors.append(f"coil {coil} (original {int(value)}): {exc}")
+                continue
+            self.opened.discard(point)
+            del self.originals[point]
+            if self.journal is not None:
+                self.journal.drop_coil(self.coil_key(point))
+        if errors:
+            raise FaultError(f"relay module {self.target}: could not restore {'; '.join(errors)}")
 
     def _connect(self) -> Any:
         if self._client is None:
@@ -199,6 +265,9 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         return self._client
 
     def _set(self, point: int, open_circuit: bool) -> None:
+        self._write(point, open_circuit)
+
+    def _write(self, point: int, open_circuit: bool) -> None:
         from pymodbus.exceptions import ModbusException
         coil = self.first_coil + point
         try:
@@ -215,6 +284,22 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         if self._client is not None:
             self._client.close()
             self._client = None
+
+
+def parse_coils(text: str) -> frozenset[int]:
+    """``"0-15, 20"`` → the coil numbers a rig's injector may switch."""
+    out: set[int] = set()
+    for part in str(text).split(","):
+        part = part.strip()
+        if not part:
+            continue
+        low, _, high = part.partition("-")
+        try:
+            first, last = int(low), int(high or low)
+        except ValueError:
+            raise ProfileError(f"[faults] coils: {part!r} is not a coil number or range like 0-15") from None
+        out.update(range(first, last + 1))
+    return frozenset(out)
 
 
 class PlcBitSensorBreak(SensorBreakInjector):
@@ -314,10 +399,15 @@ class Faults:
                 EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
                 else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
         elif kind == "modbus-coil":
+            from hil.core.lock import lock_key
+            if lock_key(str(spec["target"])) == lock_key(str(self.bench.target)):
+                raise FaultError(f"[faults.{name}] target {spec['target']} is the PLC under test "
+                                 f"({self.bench.target}): a fault rig must be a separate device — refused")
             injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
-                                             float(spec.get("timeout", self.bench.profile.timeout)))
+                                             float(spec.get("timeout", self.bench.profile.timeout)),
+                                             journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
         elif kind == "plc-bit":
-            injector = PlcBitSensorBreak(self.bench.io, spec["first"])
+            injector = PlcBitSensorBreak(self.bench.plc.io, spec["first"])  # the guarded I/O
         else:
             injector = ManualSensorBreak(fault=name)
         self._made[name] = injector

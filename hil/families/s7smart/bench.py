@@ -126,7 +126,7 @@ class S7Bench(BenchBase):
             raise HilError("power_cycle needs the in-process emulator (mark the test needs('power_cycle'))")
         emulator.power_cycle(backup_expired=backup_expired)
 
-    def begin_test(self) -> None:
+    def begin_test(self, test_id: str = "") -> None:
         self.io.start_journal()
 
     def end_test(self) -> None:

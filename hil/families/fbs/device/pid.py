@@ -109,6 +109,22 @@ class Pid:
     def config(self, value: PidConfig | None) -> None:
         self._config = value
 
+    def side_effects(self, written: Iterable["Address"]) -> list["Address"]:
+        """What the PLC rewrites itself because of these writes: on EN's rising edge FUN86 loads its default
+        gains into PR/IR/DR of every point of the box (fbs-pid.md), so a test that only switches EN on still
+        changes the tuned gains; while EN is on it writes OR, WR and drives Yn, and a later EN = 0 leaves them.
+        The guard journals these as originals."""
+        if not self.configured:
+            return []
+        written = set(written)
+        out: list = []
+        for inst in self.config.instances:
+            if inst.en in written:
+                for key in ("pr", "ir", "dr", "or", "wr", "yn"):
+                    first, count = inst.blocks()[key]
+                    out += [first.offset(i) for i in range(count)]
+        return out
+
     def instance(self, name: str | None = None) -> PidInstance:
         return self.config.instance(name)
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 
 from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
@@ -169,11 +169,18 @@ class Rtc:
         The registers are loaded with M1952 = 1 first and the set fires (M1952 := 0) once that second has come,
         because the chip restarts its second at the set: this lines up its second boundaries with the host's.
         """
-        now = self.plc.time.calendar()
+        return self.sync_to(self.plc.time.calendar)
+
+    def sync_to(self, clock: Callable[[], dt.datetime]) -> SetResult:
+        """Set the clock to what ``clock()`` says, at its next whole second (see :meth:`sync_to_host`).
+
+        The bench restores a clock a test set with this: ``clock`` is then the PLC's original time carried
+        forward (its original offset from the host's wall clock, whatever the host's time zone)."""
+        now = clock()
         target = now.replace(microsecond=0) + dt.timedelta(seconds=1 if now.microsecond else 0)
         value = RtcTime.from_datetime(target)
         self._begin_set(value)
-        remaining = (target - self.plc.time.calendar()).total_seconds()
+        remaining = (target - clock()).total_seconds()
         if remaining > 0:
             self.plc.time.wait(remaining)
         return self._finish_set(value)

@@ -181,9 +181,10 @@ class FrameAssembler:
             if start:
                 self.dropped += start
                 del self._buf[:start]
-            # A new STX before the ETX means the earlier frame was cut short: restart from the later STX.
+            # A new STX before the ETX means the earlier frame was cut short: restart from the last STX before
+            # it (one search, not one per STX: a flood of STX bytes is dropped in linear time).
             end = self._buf.find(ETX, 1)
-            restart = self._buf.find(STX, 1, end if end >= 0 else len(self._buf))
+            restart = self._buf.rfind(STX, 1, end if end >= 0 else len(self._buf))
             if restart > 0:
                 self.dropped += restart
                 del self._buf[:restart]

@@ -49,6 +49,10 @@ DETAILED_SIZES: dict[str, int] = {
 IO_POINTS_CODE = 0x00  # [our choice] STATUS3 of command 53; no expansion I/O is modelled
 
 _READ_CHUNK = 4096
+# A connection that sends only junk is read at most JUNK_SLICE bytes per JUNK_PAUSE (64 MB/s): a flood on one
+# connection cannot starve the others, and the junk is still dropped (in linear time, FrameAssembler).
+JUNK_SLICE = 65536
+JUNK_PAUSE = 0.001
 _MAX_PENDING_OUTPUT = 64 * 1024  # pty: replies kept for a client that stopped reading, then dropped
 
 
@@ -168,10 +172,17 @@ def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, 
         writers.add(writer)
         assembler = core.session()
         sender = FaultySender(faults, writer.write, corrupt_fatek, close=writer.close)
+        junk = 0  # bytes dropped since this connection's last frame
         try:
             while not sender.closed and (data := await reader.read(_READ_CHUNK)):
-                sender.send_all(core.feed(assembler, data))
+                dropped = assembler.dropped
+                replies = core.feed(assembler, data)
+                sender.send_all(replies)
                 await writer.drain()
+                junk = 0 if replies else junk + assembler.dropped - dropped
+                if junk >= JUNK_SLICE:  # a connection sending only junk gets its share of the loop, no more:
+                    junk -= JUNK_SLICE  # the other clients are answered in between (issue 15)
+                    await asyncio.sleep(JUNK_PAUSE)
         except (ConnectionError, OSError):
             pass  # the client went away, possibly mid-frame: nothing to answer
         finally:

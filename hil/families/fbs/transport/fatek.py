@@ -76,6 +76,8 @@ class FatekTransport(Transport):
         self._broken = False  # True: the connection is gone; reopen before the next request
         self._nonce = 0
         self.resyncs = 0  # loop-back resynchronisations done
+        self.fences = 0  # loop-back fences after reads that decide a restore (fence())
+        self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
         self._serial = _open(port_url, **self._settings)
 
@@ -291,6 +293,56 @@ class FatekTransport(Transport):
                 return result
         self.dirty = True  # whatever we asked may still be answered, late
         raise ReplyTimeout(self._timeout_message(command, frame, wait, attempt, attempts, assembler))
+
+    def fence(self) -> bool:
+        """After a read whose value decides what gets restored: True when nothing stale came before its reply.
+
+        FATEK replies carry no transaction id, so a reply repeated late (a delayed duplicate) is taken for the
+        answer to the next request of the same shape.  The fence is a loop-back (command 4E) with a fresh nonce,
+        sent *without* flushing the input first: replies come in order, so if the read took a stale frame, its
+        own reply is still on the way and arrives before the echo.  Anything but our echo first → False (the
+        caller reads again); the line is then in step again after the echo."""
+        with self._lock:
+            if self._broken or self.dirty or self.station == BROADCAST:
+                return False
+            try:
+                ready, _, _ = select.select([self._serial.fileno()], [], [], 0)
+            except (OSError, ValueError, serial.SerialException):
+                ready = [True]
+            clean = not ready
+            self._nonce += 1
+            text = f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}"
+            probe = Loopback(text)
+            frame = encode_request(self.station, probe)
+            self.dirty = True
+            try:
+                self._send(frame)
+            except _Lost:
+                return False
+            deadline = time.monotonic() + self.timeout + self._wire_time(len(frame))
+            assembler = FrameAssembler()
+            while (remaining := deadline - time.monotonic()) > 0:
+                try:
+                    replies = assembler.feed(self._receive(remaining))
+                except _Lost:
+                    return False
+                for n, reply in enumerate(replies):
+                    self._notify("rx", reply)
+                    try:
+                        echoed = probe.decode(check_reply(reply, self.station, probe.code))
+                    except (FrameError, ProtocolError, PlcErrorReply):
+                        clean = False
+                        continue
+                    if echoed != text:
+                        clean = False
+                        continue
+                    self.dirty = False
+                    self._settle(replies[n + 1:], assembler)
+                    self.fences += 1
+                    if not clean:
+                        self.fenced_out += 1
+                    return clean
+            return False
 
     def _settle(self, after: list[bytes], assembler: FrameAssembler) -> None:
         """After the accepted reply: anything more on the line (a duplicate, a stray frame) makes it suspect."""

@@ -14,7 +14,7 @@ them right instead; :attr:`touched` tells the bench which procedures are due.
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Callable, Iterable, Sequence
 
 from hil.families.fbs.address import Address, parse, parse_range
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
@@ -41,6 +41,17 @@ class GuardedTransport(Transport):
         self.journal: dict[Address, int] = {}  # base element → value before the test's first write
         self.touched: set[Address] = set()  # every base element written since the journal was started
         self.reopened = 0  # reconnections made to restore
+        # The durable journal (hil.core.journal.Journal): each original is on disk before its first write.  None for
+        # an in-process emulator (each run builds its own: nothing outlives the run).
+        self.durable = None
+        # Elements the PLC itself rewrites because of a write (the device layer declares them, e.g. an EN rising
+        # edge → PR/IR/DR of that FUN86 box): journaled as originals along with the written ones, never written.
+        self.side_effects: Callable[[list[Address]], Iterable[Address]] | None = None
+        # Called with the base elements of every write before it is journaled (the bench records the clock).
+        self.before_write: Callable[[list[Address]], None] | None = None
+        self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
+        self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
+        self.disabled: set[Address] = set()  # bits a test disabled with command 42: re-enabled on restore
 
     # -- the allow-list and the journal --------------------------------------------------------------------
     def check(self, names: Iterable[NameLike]) -> list[Address]:
@@ -59,16 +70,37 @@ class GuardedTransport(Transport):
         return base
 
     def _remember(self, base: Sequence[Address]) -> None:
-        self.touched.update(base)
-        fresh = [a for a in dict.fromkeys(base) if a not in self.journal and a not in self.volatile]
+        if self.before_write is not None:
+            self.before_write(list(base))
+        wanted = list(base)
+        if self.side_effects is not None:
+            wanted += list(self.side_effects(list(base)))
+        fresh = [a for a in dict.fromkeys(wanted) if a not in self.journal and a not in self.volatile]
         if fresh:
-            for address, value in zip(fresh, self.inner.read_many(fresh)):
-                self.journal[address] = value
+            originals = dict(zip(fresh, self.fenced_read(fresh)))
+            if self.durable is not None:  # on disk (fsync'd) before the write goes out
+                self.durable.add_elements({str(a): v for a, v in originals.items()})
+            self.journal.update(originals)
+        self.touched.update(base)
+
+    def fenced_read(self, addresses: list[Address], tries: int = 8) -> list[int]:
+        """Values that decide what gets restored (an original, a restore's read-back): read, then fenced
+        (:meth:`Transport.fence`) so a late or repeated reply to an earlier request is never taken for them."""
+        for _ in range(tries):
+            values = self.inner.read_many(addresses)
+            if self.inner.fence():
+                return values
+        raise TransportError(f"reading {', '.join(map(str, addresses[:4]))}… on {self.inner.description}: stale "
+                             f"replies kept arriving before the answer ({tries} fenced attempts)")
 
     def start_journal(self) -> None:
-        """Forget earlier writes: the next test starts a fresh journal."""
-        self.journal.clear()
+        """The next test starts: forget which elements were touched.  Originals whose restore failed stay in the
+        journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
         self.touched.clear()
+
+    @property
+    def unrestored(self) -> list[tuple[Address, int]]:
+        return list(self.journal.items())
 
     def restore(self) -> list[tuple[Address, int]]:
         """Write every journaled original back, then read them all to verify.  Returns what was restored.
@@ -77,6 +109,7 @@ class GuardedTransport(Transport):
         an emulator's server keeps running, only the client reconnects) and try again.  Raises RestoreError
         listing each element that could not be written or read back equal, with its original value.
         """
+        self.restore_actions()
         items = list(self.journal.items())
         if not items:
             return []
@@ -92,6 +125,8 @@ class GuardedTransport(Transport):
         if failures:
             raise RestoreError(failures)
         self.journal.clear()
+        if self.durable is not None:  # verified: only now may the originals leave the disk
+            self.durable.drop_elements(str(a) for a, _ in items)
         return items
 
     def _restore_once(self, items: list[tuple[Address, int]]) -> tuple[list[tuple[str, int, str]], bool]:
@@ -101,11 +136,58 @@ class GuardedTransport(Transport):
         except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
             return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         try:
-            now = self.inner.read_many([a for a, _ in items])
+            now = self.fenced_read([a for a, _ in items])
         except Exception as exc:  # noqa: BLE001
             return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v]
         return failures, False
+
+    # -- FATEK commands 41 and 42, behind the same guard -----------------------------------------------------
+    def set_running(self, run: bool) -> None:
+        """RUN (True) / STOP (False), command 41: only with destructive actions allowed; restored afterwards."""
+        if not self.allow_destructive:
+            raise WriteRefused("RUN/STOP (FATEK command 41) refused: it is destructive — pass "
+                               "--hil-allow-destructive (or [safety] allow_destructive) on a bench where it may")
+        inner_call = getattr(self.inner, "set_running", None)
+        if inner_call is None:
+            raise WriteRefused(f"RUN/STOP is not offered by {self.inner.description}")
+        with self._lock:
+            if self.run_original is None:
+                self.run_original = bool(self.inner.status().running)
+                if self.durable is not None:
+                    self.durable.set_extra("run", self.run_original)
+            inner_call(bool(run))
+
+    def bit_action(self, name: NameLike, action: int) -> None:
+        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit; a disabled bit is re-enabled and
+        its value restored when the test ends."""
+        inner_call = getattr(self.inner, "bit_action", None)
+        if inner_call is None:
+            raise WriteRefused(f"bit actions (FATEK command 42) are not offered by {self.inner.description}")
+        with self._lock:
+            base = self.check([name])
+            self._remember(base)
+            if action == 1:
+                self.disabled.update(base)
+                if self.durable is not None:
+                    self.durable.set_extra("disabled", sorted({*self.durable.extra("disabled", []),
+                                                               *(str(a) for a in base)}))
+            inner_call(base[0], action)
+
+    def restore_actions(self) -> None:
+        """Re-enable the bits a test disabled and put RUN/STOP back (before the values are restored)."""
+        if self.disabled:
+            for address in sorted(self.disabled, key=str):
+                self.inner.bit_action(address, 2)
+            self.disabled.clear()
+            if self.durable is not None:
+                self.durable.set_extra("disabled", [])
+        if self.run_original is not None:
+            if bool(self.inner.status().running) != self.run_original:
+                self.inner.set_running(self.run_original)
+            self.run_original = None
+            if self.durable is not None:
+                self.durable.set_extra("run", None)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:

@@ -1,0 +1,127 @@
+"""Bench safety in a pytest session (issue 15): recovery said loudly, signals that unwind, and a session that
+ends non-zero naming every element it could not put back.
+
+* A journal a dead run left is replayed when the bench opens (``_State._recover``); :func:`announce` prints
+  that on the console whatever the verbosity, records it as the JUnit testsuite property ``hil_bench_recovery``,
+  and a ``bench_recovery`` testcase runs first and fails if the recovery failed.
+* SIGTERM and SIGHUP unwind like Ctrl-C; a signal during a restore waits for it (:mod:`hil.core.signals`).
+* At the end of the session every restore that failed is retried; what is still not restored is listed and the
+  exit status is non-zero.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from hil.core import signals
+
+_ANNOUNCED = pytest.StashKey[list]()
+#: the hil plugin's per-session state (hil.plugin.pytest_plugin._State), put here by that plugin
+BENCH_STATE = pytest.StashKey[object]()
+
+
+def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.families.fbs.recovery.Recovery
+    text = recovery.summary()
+    config.stash.setdefault(_ANNOUNCED, []).append(text)
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.ensure_newline()
+        reporter.write_line(text, bold=True, red=not recovery.ok, yellow=recovery.ok)
+    else:
+        print(text, file=sys.stderr)
+    try:
+        from _pytest.junitxml import xml_key
+        xml = config.stash.get(xml_key, None)
+    except ImportError:  # pragma: no cover
+        xml = None
+    if xml is not None:
+        xml.add_global_property("hil_bench_recovery", text)
+
+
+class BenchRecoveryFailed(Exception):
+    pass
+
+
+class BenchRecoveryItem(pytest.Item):
+    """The ``bench_recovery`` testcase: fails when a dead run's leftovers could not be restored."""
+
+    def __init__(self, *, recovery, **kwargs) -> None:  # noqa: ANN001, ANN003
+        super().__init__(**kwargs)
+        self.recovery = recovery
+        self.user_properties.append(("hil_bench_recovery", recovery.summary()))
+
+    def runtest(self) -> None:
+        if not self.recovery.ok:
+            raise BenchRecoveryFailed(self.recovery.summary())
+
+    def repr_failure(self, excinfo, style=None) -> str:  # noqa: ANN001
+        return str(excinfo.value)
+
+    def reportinfo(self):  # noqa: ANN201
+        return self.path, None, "bench_recovery"
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    signals.install()
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_finish(session: pytest.Session) -> None:
+    state = session.config.stash.get(BENCH_STATE, None)
+    recovery = getattr(state, "recovery", None)
+    if recovery is not None and recovery.needed:
+        session.items.insert(0, BenchRecoveryItem.from_parent(session, name="bench_recovery", recovery=recovery))
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """After every fixture's teardown: retry what is still unrestored; list what stays, and fail the session."""
+    state = session.config.stash.get(BENCH_STATE, None)
+    bench = getattr(state, "bench", None)
+    if bench is None or not hasattr(bench, "io"):
+        return
+    left = _unrestored(bench)
+    if not left:
+        return
+    error = None
+    with signals.shielded():
+        try:
+            bench.end_test()  # idempotent: faults, the clock, then the journaled elements, each verified
+        except Exception as exc:  # noqa: BLE001
+            error = exc
+    left = _unrestored(bench)
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+    if not left:
+        text = "hil: every value a failed restore had left changed was restored at the end of the session"
+        (reporter.write_line(text, yellow=True) if reporter else print(text, file=sys.stderr))
+        return
+    journal = getattr(bench, "journal", None)
+    where = f" (kept in {journal.path}; the next run or `hil restore` puts them back)" if journal is not None else ""
+    text = f"hil: the PLC is NOT as it was found — still unrestored{where}: {'; '.join(left)}"
+    if error is not None:
+        text += f" — last error: {error}"
+    if reporter is not None:
+        reporter.ensure_newline()
+        reporter.write_line(text, bold=True, red=True)
+    else:
+        print(text, file=sys.stderr)
+    if session.exitstatus == 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def _unrestored(bench) -> list[str]:  # noqa: ANN001
+    out = [f"{a} (original {v})" for a, v in getattr(bench.io, "unrestored", [])]
+    origin = getattr(bench, "clock_origin", None)
+    if origin is not None:
+        out.append(f"RTC (original {origin[0]}, to be kept at its offset from host time)")
+    faults = getattr(bench, "faults", None)
+    for injector in getattr(faults, "_made", {}).values():
+        for point in sorted(getattr(injector, "opened", ())):
+            out.append(f"{injector.kind} fault on point {point}")
+    return out
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    signals.uninstall()

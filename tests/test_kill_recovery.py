@@ -1,0 +1,147 @@
+"""A run that dies, however it dies, leaves the PLC as it found it (issue 15, acceptance).
+
+``hil emulate`` runs as a separate process (FATEK/TCP and the Modbus fault rig).  The suites run in a child
+process against it and are SIGKILLed at 10 moments spread over the RTC, temperature and PID suites (and
+SIGTERMed at 3); then the next session runs (a fresh process: recovery first).  After every cycle the PLC's
+whole memory, read over the wire — R, D, M, Y, the rig's coils, RUN/STOP, the disabled M/Y bits — equals the
+snapshot taken before the first run (the clock compared as its offset from host time).  The cycles run in
+three lanes at once, each with its own ``hil emulate``, at time scale 20, to stay well inside a minute.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import datetime as dt
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hil.families.fbs.rtc_time import RtcTime
+from hil.families.fbs.transport.factory import open_transport
+from hil.io.url import parse_target
+from hil.core.journal import Journal
+from hil.core.lock import lock_key
+from tests.conftest import EMULATOR_BENCH, REPO
+from tests.external import bench_over_the_wire, hil_emulate
+
+TIME_SCALE = 20
+SUITES = {"rtc": "suites/test_rtc.py", "temperature": "suites/test_temperature.py", "pid": "suites/test_pid.py"}
+# (suite, signal, seconds after the child starts): 10 SIGKILLs and 3 SIGTERMs spread over the three suites
+MOMENTS = [("rtc", "KILL", 1.6), ("rtc", "KILL", 2.2), ("rtc", "KILL", 3.0), ("rtc", "TERM", 2.5),
+           ("temperature", "KILL", 1.7), ("temperature", "KILL", 2.4), ("temperature", "KILL", 3.2),
+           ("temperature", "TERM", 2.8),
+           ("pid", "KILL", 1.8), ("pid", "KILL", 2.3), ("pid", "KILL", 2.9), ("pid", "KILL", 3.6),
+           ("pid", "TERM", 2.6)]
+LANES = 3
+RTC_NAMES = {f"R{n}" for n in range(4128, 4136)}
+READINGS = {f"R{n}" for n in range(3020, 3052)}  # the temperature readings: measurements (with noise), not state
+NEXT_SESSION = "def test_next_session(bench):\n    pass\n"
+
+
+def snapshot(target: str, rig: str) -> dict[str, object]:
+    """Everything a run could leave changed, read over the wire."""
+    from pymodbus.client import ModbusTcpClient
+    out: dict[str, object] = {}
+    with open_transport(parse_target(target), timeout=2.0) as t:
+        for bank, size in (("R", 8072), ("D", 4096)):
+            out.update({f"{bank}{i}": v for i, v in enumerate(t.read_words(f"{bank}0", size))})
+        for bank, size in (("M", 2002), ("Y", 256)):
+            out.update({f"{bank}{i}": v for i, v in enumerate(t.read_bits(f"{bank}0", size))})
+            for first in range(0, size, 256):
+                disabled = t.read_disabled(f"{bank}{first}", min(256, size - first))
+                out.update({f"disabled {bank}{first + i}": v for i, v in enumerate(disabled)})
+        out["RUN"] = t.status().running
+        plc = RtcTime.from_registers([out[f"R{n}"] for n in range(4128, 4135)]).to_datetime()
+        out["rtc offset"] = (plc - dt.datetime(1970, 1, 1)).total_seconds() - time.time() * TIME_SCALE
+    host, port = rig.rsplit(":", 1)
+    client = ModbusTcpClient(host, port=int(port))
+    assert client.connect()
+    try:
+        coils = client.read_coils(0, count=96, device_id=1).bits[:96]
+    finally:
+        client.close()
+    out.update({f"rig coil {i}": int(v) for i, v in enumerate(coils)})
+    return out
+
+
+def differences(before: dict, after: dict, moving: set[str]) -> list[str]:
+    diff = [f"{k}: {before[k]} → {after[k]}" for k in before
+            if k not in moving and k not in RTC_NAMES and k != "rtc offset" and before[k] != after[k]]
+    # the clock: its offset from host time kept (whole seconds, a request's latency: 3 host seconds of slack)
+    if abs(after["rtc offset"] - before["rtc offset"]) > 3 * TIME_SCALE:
+        diff.append(f"RTC offset from host time moved by {after['rtc offset'] - before['rtc offset']:.0f} s")
+    return diff
+
+
+def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
+    profile = tmp / f"emulated-{lane}.toml"
+    profile.write_text(EMULATOR_BENCH.read_text())
+    problems: list[str] = []
+    recovered = 0  # cycles whose next session found a journal and replayed it
+    with hil_emulate(profile, TIME_SCALE) as where:
+        target = f"fatek+tcp://{where['fatek-tcp']}"
+        bench = tmp / f"bench-{lane}.toml"
+        bench.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, TIME_SCALE))
+        (tmp / f"next-{lane}").mkdir()
+        (tmp / f"next-{lane}" / "test_next.py").write_text(NEXT_SESSION)
+        first = snapshot(target, where["rig-modbus-tcp"])
+        moving = set(READINGS)  # and whatever else the PLC changes by itself, untouched
+        for _ in range(3):
+            time.sleep(0.2)
+            moving |= {k for k, v in snapshot(target, where["rig-modbus-tcp"]).items() if first[k] != v}
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+        inner = ["-p", "no:cacheprovider", "-p", "no:hypothesispytest", "--bench", str(bench), "-q"]
+        for suite, sig, delay in moments:
+            label = f"lane {lane}: SIG{sig} {suite} at {delay} s"
+            child = subprocess.Popen([sys.executable, "-m", "pytest", SUITES[suite], *inner], cwd=REPO, env=env,
+                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            time.sleep(delay)
+            child.send_signal(getattr(signal, f"SIG{sig}"))
+            try:
+                out, _ = child.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                out, _ = child.communicate()
+                problems.append(f"{label}: did not stop within 30 s of SIGTERM")
+            if sig == "TERM" and Journal(lock_key(target)).pending:
+                problems.append(f"{label}: SIGTERM left a journal (the teardown did not restore): "
+                                f"{Journal(lock_key(target)).describe()} — {out[-1500:]}")
+            after_kill = snapshot(target, where["rig-modbus-tcp"])
+            changed = bool(differences(first, after_kill, moving))
+            nxt = subprocess.run([sys.executable, "-m", "pytest", str(tmp / f"next-{lane}"), *inner], cwd=REPO,
+                                 env=env, capture_output=True, text=True, timeout=60)
+            if nxt.returncode != 0:
+                problems.append(f"{label}: the next session failed: {nxt.stdout[-2000:]}")
+            recovered += "hil bench recovery: a previous run" in nxt.stdout
+            if changed and "hil bench recovery" not in nxt.stdout:
+                problems.append(f"{label}: the PLC was left changed but the next session said nothing")
+            diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
+            for _ in range(10):  # what the PLC derives from restored inputs (a break flag) follows at its next
+                if not diff:     # measurement: give it up to 3 host s (60 s of PLC time)
+                    break
+                time.sleep(0.3)
+                diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
+            if diff:
+                problems.append(f"{label}: after the next session: {'; '.join(diff[:12])}")
+    return problems, recovered, len(moving - READINGS)
+
+
+def test_killed_runs_leave_the_plc_as_they_found_it(tmp_path):
+    lanes = [MOMENTS[i::LANES] for i in range(LANES)]
+    started = time.monotonic()
+    with concurrent.futures.ThreadPoolExecutor(LANES) as pool:
+        results = list(pool.map(run_lane, range(LANES), lanes, [tmp_path] * LANES))
+    problems = [p for lane, _, _ in results for p in lane]
+    assert not problems, "\n".join(problems)
+    recovered = sum(r for _, r, _ in results)
+    moving = max(m for _, _, m in results)
+    print(f"{len(MOMENTS)} kills in {time.monotonic() - started:.1f} s; {recovered} next sessions recovered a journal; "
+          f"{moving} elements besides the readings changed on their own")
+    # the kills must land while the suites have the PLC changed, or this test proves nothing
+    assert recovered >= 6, f"only {recovered} of {len(MOMENTS)} kills left a journal to recover"
+    assert moving <= 16, f"{moving} elements excluded as changing on their own"
