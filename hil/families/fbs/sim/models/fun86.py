@@ -56,7 +56,7 @@ DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
 
 
-@dataclass
+@dataclass(slots=True)  # (read and written per point on every scan)
 class PointState:
     integral: float = 0.0
     pv_prev: int | None = None

@@ -26,6 +26,7 @@ Heaters: the point controlled by a FUN86 instance (``[pid]``) is heated by that 
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 from dataclasses import dataclass, replace
@@ -97,7 +98,7 @@ def parse_plant(section: dict[str, Any], where: str = "<profile>") -> PlantConfi
 class _Heated:
     """One point: the anchor (t0, T0) at the last scan, and the heater's switch history (for the dead time)."""
 
-    __slots__ = ("p", "t0", "temp0", "history", "seed")
+    __slots__ = ("p", "t0", "temp0", "history", "seed", "normals")
 
     def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
         self.p = p
@@ -105,6 +106,7 @@ class _Heated:
         self.temp0 = p.ambient if p.initial is None else p.initial
         self.history: list[tuple[float, int]] = [(-math.inf, 0)]  # (time the heater switched, u)
         self.seed = seed
+        self.normals = _normals(seed) if p.noise else None
 
     def temperature(self, t: float) -> float:
         """T at t ≥ t0, integrating over the instants at which the delayed heater state changes."""
@@ -139,10 +141,12 @@ class _Heated:
             self.history.pop(0)
 
     def measured(self, point: int, t: float) -> float:
-        value = self.temperature(t)
-        if self.p.noise:
-            value += _noise(self.seed, point, t, self.p.noise)
-        return value
+        """T at t plus the measurement's noise: a function of (seed, point, time) only, so a jump and stepping
+        agree."""
+        normals = self.normals
+        if normals is None:
+            return self.temperature(t)
+        return self.temperature(t) + normals[_noise_index(self.seed, point, t)] * self.p.noise
 
     def upper(self) -> float:
         """No measurement of this point ever exceeds this (T stays between its start, ambient and full power)."""
@@ -183,11 +187,6 @@ def _noise_index(seed: int, point: int, t: float) -> int:
     return x & 0xFFFF
 
 
-def _noise(seed: int, point: int, t: float, sigma: float) -> float:
-    """The noise of one measurement: a function of (seed, point, time) only, so a jump and stepping agree."""
-    return _normals(seed)[_noise_index(seed, point, t)] * sigma
-
-
 def _grid(x: float, st: float) -> float:
     """The first scan at or after virtual time x, on the scan grid (as the engine's fast-forward lands)."""
     return math.ceil(x / st - 1e-6) * st
@@ -202,7 +201,7 @@ class _Waved:
     The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
     grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
 
-    __slots__ = ("p", "t0", "temp0", "wave", "seed")
+    __slots__ = ("p", "t0", "temp0", "wave", "seed", "normals")
 
     def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
         self.p = p
@@ -210,6 +209,7 @@ class _Waved:
         self.temp0 = p.ambient if p.initial is None else p.initial
         self.wave: tuple = (0,)
         self.seed = seed
+        self.normals = _normals(seed) if p.noise else None
 
     def temperature(self, t: float) -> float:
         temp, a = self.temp0, self.t0
@@ -271,19 +271,12 @@ class _Waved:
     upper = _Heated.upper
 
 
-class _Source:
-    """A heated point as a temperature source (a callable of time, with a hard upper bound)."""
-
-    __slots__ = ("heated", "point")
-
-    def __init__(self, heated, point: int) -> None:  # noqa: ANN001
-        self.heated, self.point = heated, point
-
-    def __call__(self, t: float) -> float:
-        return self.heated.measured(self.point, t)
-
-    def upper_bound(self) -> float:
-        return self.heated.upper()
+def _source(heated, point: int) -> functools.partial:  # noqa: ANN001
+    """A heated point as a temperature source: a callable of time (its measurement, called without a Python frame
+    of its own — the temperature model calls it ten times a second of virtual time), with a hard upper bound."""
+    source = functools.partial(heated.measured, point)
+    source.upper_bound = heated.upper
+    return source
 
 
 class ThermalPlant(Model):
@@ -341,7 +334,7 @@ class ThermalPlant(Model):
             heated = (_Waved if self.waved else _Heated)(self.config.point(point), emu.now, self.seed)
             self.points[point] = heated
             if temperature is not None and point < temperature.config.points:
-                temperature.set_source(point, _Source(heated, point))
+                temperature.set_source(point, _source(heated, point))
 
     def scan(self, emu: "Emulator") -> None:
         y = emu.memory.bits

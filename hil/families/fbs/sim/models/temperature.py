@@ -329,6 +329,7 @@ class TemperatureModel(Model):
             self.log_start = (readings.kind, readings.index)
         limit = emu.now + 1e-9
         at, mux = self._next[k], self._mux[k]
+        breaks, measured = self._breaks, self._measured.add
         while at <= limit:
             point = first + mux
             if mask[point // 16] >> (point % 16) & 1 and point not in broken:
@@ -342,26 +343,27 @@ class TemperatureModel(Model):
                 samples.append(value)
                 mean = value if len(samples) == 1 else mean_of(samples)
                 reading = int(round(mean)) * 10 if fast else int(round(mean * 10))
-                self._breaks &= ~(1 << point)
+                breaks &= ~(1 << point)
             else:
                 samples_of.pop(point, None)
                 if point in broken and mask[point // 16] >> (point % 16) & 1:
                     reading = BREAK_VALUE
-                    self._breaks |= 1 << point
+                    breaks |= 1 << point
                 else:
                     reading = 0
-                    self._breaks &= ~(1 << point)
-            out[base + point] = reading & 0xFFFF
+                    breaks &= ~(1 << point)
+            word = reading & 0xFFFF
+            out[base + point] = word
             if log is not None:
                 entries = log.get(point)
                 if entries is None:
-                    log[point] = [(at, signed16(reading & 0xFFFF))]
+                    log[point] = [(at, signed16(word))]
                 else:
-                    entries.append((at, signed16(reading & 0xFFFF)))
-            self._measured.add(point)
+                    entries.append((at, signed16(word)))
+            measured(point)
             mux = (mux + 1) % points
             at += step
-        self._next[k], self._mux[k] = at, mux
+        self._next[k], self._mux[k], self._breaks = at, mux, breaks
 
     def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings,  # noqa: ANN001
                        at: float) -> None:
