@@ -221,7 +221,7 @@ def test_hil_rtc_set_refuses_while_a_run_holds_the_bench(tmp_path, emulated):
     with BenchLock(url).acquire():
         proc = subprocess.run([sys.executable, "-m", "hil.cli.main", "rtc", "set", other, "2099-12-31 23:59:00"],
                               capture_output=True, text=True, cwd=REPO, timeout=60, env=os.environ.copy())
-    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.returncode == 4, proc.stdout + proc.stderr
     assert "in use by pid" in proc.stderr
 
 

@@ -26,6 +26,7 @@ from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
 from hil.core.journal import Journal
 from hil.core.lock import lock_key
+from hil.families.fbs.address import MISSING_R
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
@@ -48,8 +49,10 @@ def snapshot(target: str, rig: str) -> dict[str, object]:
     from pymodbus.client import ModbusTcpClient
     out: dict[str, object] = {}
     with open_transport(parse_target(target), timeout=2.0) as t:
-        for bank, size in (("R", 8072), ("D", 4096)):
-            out.update({f"{bank}{i}": v for i, v in enumerate(t.read_words(f"{bank}0", size))})
+        # every register an FBs has (R4168–R4999 do not exist on one: error A)
+        for bank, first, last in (("R", 0, MISSING_R[0] - 1), ("R", MISSING_R[1] + 1, 8071), ("D", 0, 4095)):
+            values = t.read_words(f"{bank}{first}", last - first + 1)
+            out.update({f"{bank}{i}": v for i, v in enumerate(values, first)})
         for bank, size in (("M", 2002), ("Y", 256)):
             out.update({f"{bank}{i}": v for i, v in enumerate(t.read_bits(f"{bank}0", size))})
             for first in range(0, size, 256):
@@ -111,24 +114,32 @@ def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
             if sig == "TERM" and Journal(lock_key(target)).pending:
                 problems.append(f"{label}: SIGTERM left a journal (the teardown did not restore): "
                                 f"{Journal(lock_key(target)).describe()} — {out[-1500:]}")
-            after_kill = snapshot(target, where["rig-modbus-tcp"])
-            changed = bool(differences(first, after_kill, moving))
+            changed = settled_differences(first, target, where["rig-modbus-tcp"], moving)
             nxt = subprocess.run([sys.executable, "-m", "pytest", str(tmp / f"next-{lane}"), *inner], cwd=REPO,
                                  env=env, capture_output=True, text=True, timeout=60)
             if nxt.returncode != 0:
                 problems.append(f"{label}: the next session failed: {nxt.stdout[-2000:]}")
             recovered += "hil bench recovery: a previous run" in nxt.stdout
             if changed and "hil bench recovery" not in nxt.stdout:
-                problems.append(f"{label}: the PLC was left changed but the next session said nothing")
-            diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
-            for _ in range(10):  # what the PLC derives from restored inputs (a break flag) follows at its next
-                if not diff:     # measurement: give it up to 3 host s (60 s of PLC time)
-                    break
-                time.sleep(0.3)
-                diff = differences(first, snapshot(target, where["rig-modbus-tcp"]), moving)
+                problems.append(f"{label}: the PLC was left changed ({'; '.join(changed[:8])}) but the next "
+                                f"session said nothing")
+            diff = settled_differences(first, target, where["rig-modbus-tcp"], moving)
             if diff:
                 problems.append(f"{label}: after the next session: {'; '.join(diff[:12])}")
     return problems, recovered, len(moving - READINGS)
+
+
+def settled_differences(first: dict, target: str, rig: str, moving: set) -> list[str]:
+    """What differs from ``first`` once the PLC has settled: what it derives from restored inputs (a break flag
+    after the rig's coil is put back) follows at its next measurement, so allow up to 3 host s (60 s of PLC time).
+    A value left changed by a killed run stays changed until somebody restores it."""
+    diff = differences(first, snapshot(target, rig), moving)
+    for _ in range(10):
+        if not diff:
+            break
+        time.sleep(0.3)
+        diff = differences(first, snapshot(target, rig), moving)
+    return diff
 
 
 def test_killed_runs_leave_the_plc_as_they_found_it(tmp_path):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from hil.families.fbs.device.plc import FbsPlc

@@ -17,6 +17,7 @@ from hil.families.fbs.registers import signed16
 from hil.families.fbs.pid import OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance
 
 if TYPE_CHECKING:
+    from hil.families.fbs.address import Address
     from hil.families.fbs.device.plc import FbsPlc
 
 
