@@ -242,6 +242,10 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
     result.stdout.fnmatch_lines(["*hil bench recovery: a previous run on tcp://127.0.0.1:* died*restored and verified*"])
     xml = junit.read_text()
     assert 'name="hil_bench_recovery"' in xml and 'name="bench_recovery"' in xml
+    import xml.etree.ElementTree as ET
+    suite = ET.fromstring(xml).find("testsuite")
+    assert any(p.get("name") == "hil_bench_recovery" and "restored and verified" in p.get("value", "")
+               for p in suite.findall("properties/property")), "recovery is a testsuite property"
     check = Bench(profile)
     try:
         assert check.raw.read_many(["R100", "M0"]) == original

@@ -17,27 +17,21 @@ import pytest
 
 from hil.core import signals
 
-_ANNOUNCED = pytest.StashKey[list]()
+#: what recovery said this session, for the reports (the JUnit testsuite property hil_bench_recovery)
+RECOVERY_NOTES = pytest.StashKey[list]()
 #: the hil plugin's per-session state (hil.plugin.pytest_plugin._State), put here by that plugin
 BENCH_STATE = pytest.StashKey[object]()
 
 
 def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.families.fbs.recovery.Recovery
     text = recovery.summary()
-    config.stash.setdefault(_ANNOUNCED, []).append(text)
+    config.stash.setdefault(RECOVERY_NOTES, []).append(text)
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
         reporter.ensure_newline()
         reporter.write_line(text, bold=True, red=not recovery.ok, yellow=recovery.ok)
     else:
         print(text, file=sys.stderr)
-    try:
-        from _pytest.junitxml import xml_key
-        xml = config.stash.get(xml_key, None)
-    except ImportError:  # pragma: no cover
-        xml = None
-    if xml is not None:
-        xml.add_global_property("hil_bench_recovery", text)
 
 
 class BenchRecoveryFailed(Exception):

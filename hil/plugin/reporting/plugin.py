@@ -271,7 +271,9 @@ class Reporter:
         except Exception:  # noqa: BLE001 - an unreadable profile was reported already; keep pytest's name
             name = None
         try:
-            finish_junit(xmlpath, suite_name=name, properties=self.properties, traces=self.junit_traces)
+            from hil.plugin.safety import RECOVERY_NOTES
+            recovery = [("hil_bench_recovery", note) for note in config.stash.get(RECOVERY_NOTES, [])]
+            finish_junit(xmlpath, suite_name=name, properties=self.properties + recovery, traces=self.junit_traces)
         except (OSError, ET.ParseError) as exc:
             reporter = config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:
