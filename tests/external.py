@@ -37,16 +37,19 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
 
 
 @contextlib.contextmanager
-def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
-    """``hil emulate --bench profile`` on FATEK/TCP with the fault rig; yields {"fatek-tcp": addr, "rig-modbus-tcp":
-    addr}.  Stops it with SIGINT (as an operator's Ctrl-C) and checks that it exits cleanly."""
+def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False) -> Iterator[dict[str, str]]:
+    """``hil emulate --bench profile`` on FATEK/TCP (and Modbus/TCP with ``modbus``) with the fault rig; yields
+    {"fatek-tcp": addr, "rig-modbus-tcp": addr[, "modbus-tcp": addr]}.  Stops it with SIGINT (as an operator's
+    Ctrl-C) and checks that it exits cleanly."""
+    wires = ["--fatek-tcp", "127.0.0.1:0"] + (["--modbus-tcp", "127.0.0.1:0"] if modbus else [])
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(profile), "--fatek-tcp", "127.0.0.1:0",
+        [sys.executable, "-m", "hil.cli.main", "emulate", "--no-live", "--bench", str(profile), *wires,
          "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    kinds = {"fatek-tcp", "rig-modbus-tcp"} | ({"modbus-tcp"} if modbus else set())
     try:
-        yield _read_endpoints(proc, {"fatek-tcp", "rig-modbus-tcp"}, timeout=15)
+        yield _read_endpoints(proc, kinds, timeout=15)
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -57,10 +60,11 @@ def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
     assert proc.returncode == 0, proc.stderr.read()
 
 
-def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float) -> str:
-    """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP
-    target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
-    text = re.sub(r'(?m)^target = "emulator"', f'target = "fatek+tcp://{where["fatek-tcp"]}"', profile_text)
+def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp") -> str:
+    """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP (or
+    Modbus/TCP) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
+    url = f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp" else f"modbus+tcp://{where['modbus-tcp']}?unit=1"
+    text = re.sub(r'(?m)^target = "emulator"', f'target = "{url}"', profile_text)
     text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
 
     def rig(match: re.Match) -> str:
@@ -68,5 +72,5 @@ def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: fl
         return (f'[faults.{fault}]\nkind = "modbus-coil"\ntarget = "modbus+tcp://{where["rig-modbus-tcp"]}?unit=1"\n'
                 f"first_coil = {RIG_FIRST_COIL[fault]}")
     text = re.sub(r'(?m)^\[faults\.(\w+)\]\nkind = "emulator".*$', rig, text)
-    assert 'kind = "emulator"' not in text and "fatek+tcp://" in text, text
+    assert 'kind = "emulator"' not in text and url in text, text
     return text

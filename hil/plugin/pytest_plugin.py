@@ -179,7 +179,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     except HilError as exc:
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
-    offered = bench_capabilities(target)
+    offered = bench_capabilities(target, profile.scan_counter)
     for item in items:
         if "bench" in getattr(item, "fixturenames", ()):
             family = item.get_closest_marker("family")

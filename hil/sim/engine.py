@@ -43,6 +43,9 @@ class Engine:
         self.scans = 0
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
+        # Real time: requests wait here for the end of the current scan (run_realtime services them there).
+        self._pending: list[_Pending] = []
+        self._pending_lock = threading.Lock()
         for model in models:
             self.add_model(model)
 
@@ -64,12 +67,30 @@ class Engine:
                 model.scan(self)
 
     def service(self, request: Callable[[Any], T]) -> T:
-        """Run one request at a scan boundary and return its result."""
+        """Run one request at a scan boundary and return its result.
+
+        Virtual time: one scan, then the request.  Real time (:meth:`run_realtime`): the request waits for the
+        end of the scan in progress, as port 0 of a real PLC answers; two requests in a row therefore always have
+        at least one whole scan between them, and a client sees what it would see on a bench."""
+        with self._pending_lock:
+            queued = self.realtime
+            if queued:
+                pending = _Pending(request)
+                self._pending.append(pending)
+        if queued:
+            return pending.result()
         with self.lock:
-            if not self.realtime:
-                self.scan()
+            self.scan()
             self.stats["requests"] += 1
             return request(self.memory)
+
+    def _service_pending(self) -> None:
+        """Answer every request that waited for the scan just completed (real time; caller holds the lock)."""
+        with self._pending_lock:
+            batch, self._pending = self._pending, []
+        for pending in batch:
+            self.stats["requests"] += 1
+            pending.run(self.memory)
 
     def advance(self, seconds: float) -> None:
         """Let ``seconds`` of virtual time pass, jumping over spans in which no model needs a scan."""
@@ -103,14 +124,56 @@ class Engine:
             self.now = max(self.now, target)
 
     def run_realtime(self, stop: threading.Event, time_scale: float = 1.0) -> None:
-        """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``)."""
+        """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``).
+
+        The PLC scans on its own, one scan per ``scan_time`` of (scaled) wall time, and services the requests
+        that arrived meanwhile at the end of each scan — never with no scan between two of them.  When the host
+        falls behind, the missed scans are run (or fast-forwarded, as in virtual time) before the requests."""
         if time_scale <= 0:
             raise InvalidValue(f"time scale must be positive, not {time_scale}")
-        self.realtime = True
+        with self.lock, self._pending_lock:  # under the lock: a holder of it sees realtime stay as it found it
+            self.realtime = True
         start_wall, start_virtual = time.monotonic(), self.now
+        period = self.scan_time / time_scale
         try:
             while not stop.is_set():
-                self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale)
-                stop.wait(max(self.scan_time / time_scale, 0.001))
+                with self.lock:
+                    before = self.scans
+                    self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale)
+                    if self.scans > before:
+                        self._service_pending()
+                # sleep to the next scan boundary of the wall clock (a request waits at most one scan)
+                due = start_wall + (self.now - start_virtual + self.scan_time) / time_scale
+                stop.wait(min(max(due - time.monotonic(), 0.0002), period))
         finally:
-            self.realtime = False
+            with self._pending_lock:
+                self.realtime = False
+            with self.lock:  # whoever still waits gets the virtual-time service: one scan, then the request
+                if self._pending:
+                    self.scan()
+                    self._service_pending()
+
+
+class _Pending:
+    """A request waiting for the end of a scan (real time)."""
+
+    __slots__ = ("request", "done", "value", "error")
+
+    def __init__(self, request: Callable[[Any], Any]) -> None:
+        self.request = request
+        self.done = threading.Event()
+        self.value: Any = None
+        self.error: BaseException | None = None
+
+    def run(self, memory: Any) -> None:
+        try:
+            self.value = self.request(memory)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread, raised there
+            self.error = exc
+        self.done.set()
+
+    def result(self) -> Any:
+        self.done.wait()
+        if self.error is not None:
+            raise self.error
+        return self.value

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
+from hil.families.fbs.address import Address
 from hil.families.fbs.registers import POWER_ON_DEFAULTS
 from hil.families.fbs.sim import kernel
 from hil.families.fbs.sim.memory import Memory
@@ -30,6 +31,17 @@ class Emulator(Engine):
             self.memory.set(name, value)
         for model in models:
             self.add_model(model)
+
+    #: the bench ladder's scan counter ([bench] scan_counter, fixtures/ladder.md), when the profile declares one
+    scan_counter: Address | None = None
+
+    def scan(self) -> None:
+        with self.lock:
+            super().scan()
+            if self.scan_counter is not None:
+                # the rung "R := R + 1" every scan; counted from the clock, so spans the engine jumps over (no
+                # request could look at them) are counted as the scans a PLC would have run
+                self.memory.set(self.scan_counter, round(self.now / self.scan_time) & 0xFFFF)
 
     def fast_forward(self, target: float) -> bool:
         return self.use_kernel and kernel.advance(self, target)
