@@ -37,13 +37,16 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
 
 
 @contextlib.contextmanager
-def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False) -> Iterator[dict[str, str]]:
+def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
+                broken: str | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` on FATEK/TCP (and Modbus/TCP with ``modbus``) with the fault rig; yields
     {"fatek-tcp": addr, "rig-modbus-tcp": addr[, "modbus-tcp": addr]}.  Stops it with SIGINT (as an operator's
-    Ctrl-C) and checks that it exits cleanly."""
+    Ctrl-C) and checks that it exits cleanly.  ``broken``: "MODULE:FACTORY:DEFECT" serves a deliberately broken
+    emulator instead (tests/broken_emulate.py)."""
     wires = ["--fatek-tcp", "127.0.0.1:0"] + (["--modbus-tcp", "127.0.0.1:0"] if modbus else [])
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli.main", "emulate", "--no-live", "--bench", str(profile), *wires,
+        [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
+         "--no-live", "--bench", str(profile), *wires,
          "--rig-modbus-tcp", "127.0.0.1:0", "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})

@@ -44,7 +44,8 @@ class Bench(BenchBase):
                                              emulator_factory=lambda: emulator_builder(profile, epoch))
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
-        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans)
+        self.plc = FbsPlc(self.io, self.time, settle_scans=profile.settle_scans,
+                          scan_counter=profile.scan_counter)
         if "temperature" in profile.sections:
             self.plc.temperature.config = profile.sections["temperature"]
         if "pid" in profile.sections:

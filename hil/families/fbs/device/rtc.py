@@ -90,6 +90,10 @@ class RtcError(HilError):
     """The RTC procedure could not be carried out (a set that failed part-way, a clock that never ticks)."""
 
 
+class RtcSetLost(RtcError):
+    """The PLC reported a set as taken (M1955 = 0) but its clock does not show the time sent."""
+
+
 #: R4128–R4135 then M1952–M1967 packed (bit 0 = M1952), for :meth:`Rtc.read_all`.
 _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 
@@ -189,19 +193,39 @@ class Rtc:
             raise RtcError(f"setting the RTC failed part-way ({exc}); M1952 may be left at 1 with the read-out "
                            f"frozen — run `hil rtc sync <target>` once the PLC answers") from exc
 
+    #: how far past the time sent the read-out may be right after an accepted set (the clock runs meanwhile)
+    set_tolerance = 3.0
+
     def _finish_set(self, value: RtcTime) -> SetResult:
+        """M1952 := 0 once the PLC has held the 1 across a whole scan, then M1955 and the read-out.
+
+        An accepted set is read back: the PLC's read-out, copied from the chip by a scan after the set (proved by
+        the scan counter where the bench declares one, by port 0's rule otherwise), must show the time sent —
+        a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`."""
+        self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
+        started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
         self.plc.settle_before_request()  # the read of M1955 below ends a scan too
-        refused = bool(self.plc.io.read(reg.RTC_SET_ERROR))
-        return SetResult(value, not refused, tuple(value.validate()))
+        refused, *fields = self.plc.io.read_many((reg.RTC_SET_ERROR, *reg.RTC_FIELDS))
+        result = SetResult(value, not refused, tuple(value.validate()))
+        if result.accepted and value.is_valid:
+            shown = RtcTime.from_registers(fields)
+            ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds() if shown.is_valid else None)
+            slack = self.set_tolerance + (self.plc.time.now() - started)
+            if ahead is None or not 0 <= ahead <= slack:
+                raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows {shown} after it, not "
+                                 f"{value} (sent): the set was lost (M1952 edge not seen by a scan?)")
+        return result
 
     def adjust_30s(self) -> None:
         """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0."""
         io = self.plc.io
         io.write(reg.RTC_ADJUST_30S, 0)  # make sure the PLC sees a 0 before the 1
+        self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
         io.write(reg.RTC_ADJUST_30S, 1)
         self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
         io.write(reg.RTC_ADJUST_30S, 0)
+        self.plc.settle_before_request()  # the 0 seen before anyone looks at the effect or fires again
 
 
 class Drift:
@@ -298,4 +322,4 @@ def _seconds(t: RtcTime) -> int:
     return int((t.to_datetime() - EPOCH).total_seconds())
 
 
-__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError"]
+__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError", "RtcSetLost"]
