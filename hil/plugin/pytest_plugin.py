@@ -16,6 +16,7 @@ from hil.bench.family import build_emulator, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
+from hil.plugin import bench_time
 from hil.io.url import parse_target
 
 pytest_plugins = ["hil.plugin.perf"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
@@ -28,6 +29,7 @@ MARKERS = {
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
                    "profile's [safety] allow_destructive",
+    "bench_time": bench_time.MARKER,
     "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
               "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
 }
@@ -201,6 +203,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
             item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
+    bench_time.apply(items, profile, target.in_process)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

@@ -281,6 +281,19 @@ class Drift:
         return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
                                 resolution=bracket / reference_elapsed * 86400)
 
+    def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
+                      checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
+        """A drift measurement long enough for its resolution to come out below ``resolution`` s/day, if the
+        bench allows that within ``max_duration`` bench seconds (else the longest allowed: the caller sees the
+        resolution it got and must not decide on it).
+
+        One second transition is timed first to learn how wide this bench's brackets are (polling interval plus
+        a round trip); the duration is chosen for half the resolution asked, as brackets vary."""
+        _, _, width = self._transition(timeout)
+        needed = 2 * max(width, self.rtc.poll_interval) * 86400 / resolution
+        duration = min(max_duration, max(needed, transitions + 3.0))
+        return self.measure(duration, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
+
     def compensate(self, rate: float) -> int:
         """Write the manual's D4054 code for a clock error of ``rate`` s/day and return it.
 
