@@ -35,6 +35,7 @@ ALLOWED_SKIPS = [
     r"needs power_on_state",  # a bench PLC's settings may have changed since power-on
     r"needs spec_choices",  # the spec's [our choice], not the manual's word
     r"needs scan_per_request",  # emulator-only variant; the bench variant uses the scan counter
+    r"brackets were too wide to decide 9 vs 10",  # a busy host: the counter could not pin the scans down
 ]
 SCAN_COUNTER = "R3999"
 

@@ -28,6 +28,9 @@ class Engine:
     #: the controller family (the name its plug-in is registered under)
     family = ""
 
+    #: real time: scans run one by one up to this many per tick; a host that falls further behind jumps the rest
+    realtime_catch_up = 1000
+
     def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
         if scan_time <= 0:
@@ -41,6 +44,7 @@ class Engine:
         self.stats: collections.Counter[str] = collections.Counter()
         self.now = 0.0  # virtual seconds since power-on
         self.scans = 0
+        self.skipped_time = 0.0  # virtual seconds jumped over without scanning (no model needed a scan)
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
         # Real time: requests wait here for the end of the current scan (run_realtime services them there).
@@ -65,6 +69,12 @@ class Engine:
             self.scans += 1
             for model in self.models:
                 model.scan(self)
+
+    @property
+    def scans_represented(self) -> int:
+        """The scans a PLC would have run by now: those run plus those the engine jumped over (a ladder's scan
+        counter shows this; the partial span the real-time clock adds between scans is no scan)."""
+        return self.scans + round(self.skipped_time / self.scan_time)
 
     def service(self, request: Callable[[Any], T]) -> T:
         """Run one request at a scan boundary and return its result.
@@ -103,13 +113,19 @@ class Engine:
         """Run the rest of a request-free span up to ``target`` at once where a family can (True if it did)."""
         return False
 
-    def advance_to(self, target: float) -> None:
+    def advance_to(self, target: float, partial: bool = True) -> None:
+        """Scan up to ``target``; with ``partial`` False the clock stays at the last scan when ``target`` falls
+        between two (real time: a reading taken in that part-scan belongs to the next scan, not to a skipped one)."""
         with self.lock:
             # The scan right after a request is never skipped: a PLC sees a written value on its next scan, so
             # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
             if self.now + self.scan_time <= target + 1e-9:
                 self.scan()
             steps, ask_at = 0, 0
+            if not partial:  # real time: every scan on the scan grid, as a PLC runs them (a jump lands off it)
+                while self.now + self.scan_time <= target + 1e-9 and steps < self.realtime_catch_up:
+                    steps += 1
+                    self.scan()
             while self.now + self.scan_time <= target + 1e-9:
                 # ask fast_forward after 8, 16, 32 … steps, so a configuration it never takes costs little
                 if steps == ask_at:
@@ -119,9 +135,11 @@ class Engine:
                 steps += 1
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)
+                self.skipped_time += landing - self.scan_time - self.now  # scans a PLC would have run meanwhile
                 self.now = landing - self.scan_time  # the scan below lands exactly on `landing`
                 self.scan()
-            self.now = max(self.now, target)
+            if partial:
+                self.now = max(self.now, target)
 
     def run_realtime(self, stop: threading.Event, time_scale: float = 1.0) -> None:
         """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``).
@@ -139,7 +157,7 @@ class Engine:
             while not stop.is_set():
                 with self.lock:
                     before = self.scans
-                    self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale)
+                    self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale, partial=False)
                     if self.scans > before:
                         self._service_pending()
                 # sleep to the next scan boundary of the wall clock (a request waits at most one scan)

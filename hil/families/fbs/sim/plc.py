@@ -39,9 +39,9 @@ class Emulator(Engine):
         with self.lock:
             super().scan()
             if self.scan_counter is not None:
-                # the rung "R := R + 1" every scan; counted from the clock, so spans the engine jumps over (no
-                # request could look at them) are counted as the scans a PLC would have run
-                self.memory.set(self.scan_counter, round(self.now / self.scan_time) & 0xFFFF)
+                # the rung "R := R + 1" at the end of every scan; the spans the engine jumps over (no model
+                # needed a scan, no request could look) count as the scans a PLC would have run in them
+                self.memory.set(self.scan_counter, self.scans_represented & 0xFFFF)
 
     def fast_forward(self, target: float) -> bool:
         return self.use_kernel and kernel.advance(self, target)
