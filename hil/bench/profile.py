@@ -58,6 +58,8 @@ class Profile:
     sections: dict[str, Any] = field(default_factory=dict)
     #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
     scan_counter: str | None = None
+    #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
+    scratch: tuple[str, ...] = ()
 
     @property
     def rtc(self) -> Any:
@@ -114,6 +116,9 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     scan_counter = reader.take(bench, "bench", "scan_counter", str, None,
                                check=lambda v: bool(re.fullmatch(r"[A-Z]+[0-9]+", v))
                                or 'must name one word register, e.g. "R3999"')
+    scratch = reader.take(bench, "bench", "scratch", list, [],
+                          check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
+                                              for x in v) or 'must be a list of ranges like "R1000-R1099"')
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -153,7 +158,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter)
+                   scan_counter=scan_counter, scratch=tuple(scratch))
 
 
 def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:
