@@ -70,7 +70,7 @@ def _run(spec: str, files: list[str], extra: list[str], tmp_path) -> tuple[str, 
 def test_every_defect_fails_a_suite_test_against_hil_emulate(tmp_path):
     defects = _defects()
     started = time.monotonic()
-    with concurrent.futures.ThreadPoolExecutor(max_workers=6) as pool:
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
         results = list(pool.map(lambda d: _run(*d, tmp_path), defects))
     print(f"{len(defects)} broken PLCs against hil emulate in {time.monotonic() - started:.1f} s")
     uncaught = []

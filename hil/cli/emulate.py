@@ -45,7 +45,9 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, lambda *_: stop.set())
+            # not stop.set() in the handler: it runs in the main thread, which may hold the Event's own lock
+            # inside stop.wait() (the real-time loop waits on it every scan) — set it from another thread
+            signal.signal(sig, lambda *_: threading.Thread(target=stop.set, daemon=True).start())
         if live:  # after the endpoint lines: clients parse those, the panel is for people
             from hil.cli.emulate_live import LivePanel
             with LivePanel(emulator, profile, servers, time_scale, stop):
