@@ -10,7 +10,9 @@ Not pass/fail tests (timings are noisy on shared machines): a rich table on the 
 3. virtual seconds per wall second: idle, the default bench, and a full PLC (8 temperature modules, 32 points,
    32 PID loops with the thermal plant) — 24 virtual hours of the full PLC in Python (+ numpy; target: at or below
    the floor), and the bare CPython arithmetic of plant + PID alone as that floor, measured in the same run;
-4. wall time of ``hil run`` per emulator target.
+4. wall time of ``hil run`` per emulator target;
+5. bench time: the non-slow FBs suites at time scale 1 against ``hil emulate`` in real time, per suite file
+   (benchmarks/bench_time.py; target ≤ 3 min; ``--bench-time-only`` runs just this).
 
 ``--quick`` shortens every timing (a smoke run).
 """
@@ -407,7 +409,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="short timings (a smoke run)")
     parser.add_argument("--json", default=str(ROOT / "reports" / "benchmarks.json"), help="where the JSON goes")
     parser.add_argument("--skip-run", action="store_true", help="leave out the `hil run` wall times")
+    parser.add_argument("--bench-time-only", action="store_true",
+                        help="only the bench time of the non-slow FBs suites at time scale 1 (about 3 min)")
     args = parser.parse_args(argv)
+    if args.bench_time_only:
+        from benchmarks.bench_time import bench_times
+        bt = bench_times(1.0)
+        t = Table(title="Bench time at time scale 1 (hil emulate in real time over FATEK/TCP), per suite")
+        for col in ("suite", "tests", "skipped", "failures", "wall s"):
+            t.add_column(col, justify="right" if col != "suite" else "left")
+        for name, r in bt["per_suite"].items():
+            t.add_row(name, str(r["tests"]), str(r["skipped"]), str(r["failures"]), f"{r['wall_s']:.1f}")
+        console.print(t)
+        console.print(f"non-slow FBs suites: [bold]{bt['total_wall_s']:.0f} s[/] (target ≤ 180 s)")
+        out = Path(args.json).with_name("bench_time.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(bt, indent=1))
+        return 0
     seconds = 0.3 if args.quick else 1.5
     os.chdir(ROOT)
     results: dict = {"when": dt.datetime.now().isoformat(timespec="seconds"), "python": platform.python_version(),

@@ -1,6 +1,32 @@
-"""Smoke: the PLC answers, and a user register and relay round-trip through the bench's wire."""
+"""Smoke: the PLC answers, and a user register and relay round-trip through the bench's wire.
+
+The scratch registers and relays come from the profile (``[bench] scratch``, ranges nobody else uses); without
+them the round trips skip, saying so."""
+
+import re
 
 import pytest
+
+WORDS = ("R", "D")  # 16-bit registers a ladder leaves free
+BITS = ("M",)
+
+
+def _scratch(bench, kinds, need):
+    """The first ``need`` elements of the first scratch range of one of ``kinds`` that is long enough."""
+    for span in bench.profile.scratch:
+        first, _, last = span.partition("-")
+        kind, start = re.fullmatch(r"([A-Z]+)(\d+)", first).groups()
+        end = int(re.fullmatch(r"[A-Z]+(\d+)", last or first).group(1))
+        if kind in kinds and end - int(start) + 1 >= need:
+            names = [f"{kind}{n}" for n in range(int(start), int(start) + need)]
+            reason = bench.cannot_reach(f"{names[0]}-{names[-1]}")
+            if reason:
+                pytest.skip(f"the scratch range {span} cannot be used: {reason}")
+            return names
+    pytest.skip(f"the bench profile names no scratch {'/'.join(kinds)} range of {need} ([bench] scratch = "
+                f"[\"R1000-R1099\", \"M1000-M1015\"]: elements nobody else uses, in [safety] writable)")
+
+
 
 
 def test_plc_answers_status(bench):
@@ -10,18 +36,21 @@ def test_plc_answers_status(bench):
 
 
 def test_user_register_round_trip(bench):
-    bench.plc.io.write_words("R1000", [0x1234, 0xFFFF, 0])
-    assert bench.plc.io.read_words("R1000", 3) == [0x1234, 0xFFFF, 0]
+    first = _scratch(bench, WORDS, 3)[0]
+    bench.plc.io.write_words(first, [0x1234, 0xFFFF, 0])
+    assert bench.plc.io.read_words(first, 3) == [0x1234, 0xFFFF, 0]
 
 
 def test_user_relay_round_trip(bench):
-    bench.plc.io.write_bits("M1000", [1, 0, 1, 1])
-    assert bench.plc.io.read_bits("M1000", 4) == [1, 0, 1, 1]
+    first = _scratch(bench, BITS, 4)[0]
+    bench.plc.io.write_bits(first, [1, 0, 1, 1])
+    assert bench.plc.io.read_bits(first, 4) == [1, 0, 1, 1]
 
 
 def test_mixed_read_and_write(bench):
-    bench.plc.io.write_many({"R1010": 4321, "M1008": 1})
-    assert bench.plc.io.read_many(["R1010", "M1008"]) == [4321, 1]
+    word, bit = _scratch(bench, WORDS, 11)[10], _scratch(bench, BITS, 9)[8]
+    bench.plc.io.write_many({word: 4321, bit: 1})
+    assert bench.plc.io.read_many([word, bit]) == [4321, 1]
 
 
 def test_write_outside_allow_list_is_refused(bench):

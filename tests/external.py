@@ -37,22 +37,28 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
 
 
 @contextlib.contextmanager
-def hil_emulate(profile: Path, time_scale: float) -> Iterator[dict[str, str]]:
-    """``hil emulate --bench profile`` on FATEK/TCP with the fault rig; yields {"fatek-tcp": addr, "rig-modbus-tcp":
-    addr}.  Stops it with SIGINT (as an operator's Ctrl-C) and checks that it exits cleanly."""
-    with emulate_process(profile, time_scale, {"fatek-tcp": "--fatek-tcp", "rig-modbus-tcp": "--rig-modbus-tcp"}) \
-            as endpoints:
+def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
+                broken: str | None = None) -> Iterator[dict[str, str]]:
+    """``hil emulate --bench profile`` on FATEK/TCP (and Modbus/TCP with ``modbus``) with the fault rig; yields
+    {"fatek-tcp": addr, "rig-modbus-tcp": addr[, "modbus-tcp": addr]}.  Stops it with SIGINT (as an operator's
+    Ctrl-C) and checks that it exits cleanly.  ``broken``: "MODULE:FACTORY:DEFECT" serves a deliberately broken
+    emulator instead (tests/broken_emulate.py)."""
+    wires = {"fatek-tcp": "--fatek-tcp", "rig-modbus-tcp": "--rig-modbus-tcp"}
+    if modbus:
+        wires["modbus-tcp"] = "--modbus-tcp"
+    with emulate_process(profile, time_scale, wires, broken=broken) as endpoints:
         yield endpoints
 
 
 @contextlib.contextmanager
-def emulate_process(profile: Path, time_scale: float, wires: dict[str, str]) -> Iterator[dict[str, str]]:
+def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
+                    broken: str | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
     loopback port); yields kind → address.  Stopped with SIGINT; it must exit cleanly."""
     options = [arg for option in wires.values() for arg in (option, "127.0.0.1:0")]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hil.cli.main", "emulate", "--bench", str(profile), *options,
-         "--time-scale", str(time_scale)],
+        [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
+         "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
@@ -60,17 +66,18 @@ def emulate_process(profile: Path, time_scale: float, wires: dict[str, str]) -> 
     finally:
         proc.send_signal(signal.SIGINT)
         try:
-            proc.wait(timeout=10)
+            proc.wait(timeout=30)  # generous: CI hosts run several of these in parallel
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 0, proc.stderr.read()
+    assert proc.returncode == 0, f"hil emulate exited with {proc.returncode}: {proc.stderr.read()}"
 
 
-def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float) -> str:
-    """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP
-    target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
-    text = re.sub(r'(?m)^target = "emulator"', f'target = "fatek+tcp://{where["fatek-tcp"]}"', profile_text)
+def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp") -> str:
+    """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP (or
+    Modbus/TCP) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
+    url = f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp" else f"modbus+tcp://{where['modbus-tcp']}?unit=1"
+    text = re.sub(r'(?m)^target = "emulator"', f'target = "{url}"', profile_text)
     text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
 
     def rig(match: re.Match) -> str:
@@ -78,5 +85,5 @@ def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: fl
         return (f'[faults.{fault}]\nkind = "modbus-coil"\ntarget = "modbus+tcp://{where["rig-modbus-tcp"]}?unit=1"\n'
                 f"first_coil = {RIG_FIRST_COIL[fault]}")
     text = re.sub(r'(?m)^\[faults\.(\w+)\]\nkind = "emulator".*$', rig, text)
-    assert 'kind = "emulator"' not in text and "fatek+tcp://" in text, text
+    assert 'kind = "emulator"' not in text and url in text, text
     return text

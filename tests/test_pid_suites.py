@@ -24,13 +24,21 @@ from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
 SUITE_TESTS = 28
+BENCH_VARIANTS = 2  # the scan-counter variants of the pre-alarm tests: skipped without [bench] scan_counter
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
 @pytest.mark.parametrize("target", EMULATOR_TARGETS)
 def test_pid_suites_pass_on_every_emulator_target(pytester, target):
     result = pytester.runpytest_inprocess(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), "--target", target)
-    result.assert_outcomes(passed=SUITE_TESTS)
+    result.assert_outcomes(passed=SUITE_TESTS, skipped=BENCH_VARIANTS)
+
+
+def test_the_scan_counter_variants_pass_in_process_with_a_counter_declared(pytester, tmp_path):
+    bench = tmp_path / "bench.toml"
+    bench.write_text(EMULATOR_BENCH.read_text().replace("[bench]\n", '[bench]\nscan_counter = "R3999"\n', 1))
+    result = pytester.runpytest_inprocess(SUITES[0], *INNER, "--bench", str(bench), "-k", "on_a_bench")
+    result.assert_outcomes(passed=BENCH_VARIANTS)
 
 
 def test_the_heater_loop_test_takes_under_2_s_on_the_emulator(pytester):
@@ -168,4 +176,4 @@ def test_the_pid_suites_catch_a_broken_fun86(pytester, variant):
 
 def test_the_correct_fun86_passes_through_the_same_hook(pytester):
     result = pytester.inline_run(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), plugins=[Variant(Fun86Model)])
-    result.assertoutcome(passed=SUITE_TESTS)
+    result.assertoutcome(passed=SUITE_TESTS, skipped=BENCH_VARIANTS)

@@ -41,7 +41,7 @@ def test_a_procedure_that_sends_other_frames_is_named_with_both_frames():
 
 def test_requests_left_unsent_are_reported():
     with open_transport(f"replay+fatek://{FRAMES}/rtc-set-leap-day.txt?timeout=0.3") as transport:
-        with pytest.raises(ReplayMismatch, match=r"6 recorded request\(s\) never sent, the first .*mixed write"):
+        with pytest.raises(ReplayMismatch, match=r"7 recorded request\(s\) never sent, the first .*mixed write"):
             transport.replay.verify()
 
 

@@ -15,12 +15,18 @@ CAPABILITIES: dict[str, str] = {
     "scan_per_request": "each request serviced after exactly one scan, so bench.wait(n × scan time) is n scans",
     "power_cycle": "switching the CPU off and on on demand",
     "spec_choices": "the behaviour the spec fixes as [our choice] where the manual is silent",
+    "scan_counter": "a ladder scan counter read in the same requests as the values ([bench] scan_counter, "
+                    "fixtures/ladder.md)",
 }
 
 
-def bench_capabilities(target: Target) -> frozenset[str]:
-    """What the bench reached through ``target`` offers."""
-    return frozenset(CAPABILITIES) if target.in_process else frozenset()
+def bench_capabilities(target: Target, scan_counter: str | None = None) -> frozenset[str]:
+    """What the bench reached through ``target`` offers.  A declared ladder scan counter
+    (``[bench] scan_counter``) is offered wherever it is declared; the in-process emulator offers everything
+    (without a declared counter it has none to read, and the tests that need one skip saying so)."""
+    if target.in_process:
+        return frozenset(CAPABILITIES) if scan_counter else frozenset(CAPABILITIES) - {"scan_counter"}
+    return frozenset({"scan_counter"}) if scan_counter else frozenset()
 
 
 def unknown(names: tuple[str, ...]) -> list[str]:

@@ -9,6 +9,8 @@ checks [faults.*] and the address ranges of [safety].
 
 from __future__ import annotations
 
+import re
+
 import hashlib
 import tomllib
 from dataclasses import dataclass, field
@@ -54,6 +56,10 @@ class Profile:
     family: str = "fbs"  # the controller family plug-in: picks the device layer, emulator and suites
     #: the family's sections parsed once into typed records (e.g. "temperature" → TemperatureConfig)
     sections: dict[str, Any] = field(default_factory=dict)
+    #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
+    scan_counter: str | None = None
+    #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
+    scratch: tuple[str, ...] = ()
 
     @property
     def rtc(self) -> Any:
@@ -107,6 +113,12 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
     family = reader.take(bench, "bench", "family", str, "fbs",
                          check=lambda v: v in installed or f"must be one of {', '.join(sorted(installed))}")
+    scan_counter = reader.take(bench, "bench", "scan_counter", str, None,
+                               check=lambda v: bool(re.fullmatch(r"[A-Z]+[0-9]+", v))
+                               or 'must name one word register, e.g. "R3999"')
+    scratch = reader.take(bench, "bench", "scratch", list, [],
+                          check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
+                                              for x in v) or 'must be a list of ranges like "R1000-R1099"')
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -145,7 +157,8 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         plugin.check_faults(faults, where)
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
-                   faults, digest, wire_faults=wire_faults, family=family, sections=sections)
+                   faults, digest, wire_faults=wire_faults, family=family, sections=sections,
+                   scan_counter=scan_counter, scratch=tuple(scratch))
 
 
 def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:

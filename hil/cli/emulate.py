@@ -49,7 +49,9 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(sig, lambda *_: stop.set())
+            # not stop.set() in the handler: it runs in the main thread, which may hold the Event's own lock
+            # inside stop.wait() (the real-time loop waits on it every scan) — set it from another thread
+            signal.signal(sig, lambda *_: threading.Thread(target=stop.set, daemon=True).start())
         # The clock starts at host time: catch up the whole second dropped from the epoch and the start-up
         emulator.advance_to(emulator.now + max(0.0, time.time() - epoch.timestamp()))
         if live:  # after the endpoint lines: clients parse those, the panel is for people

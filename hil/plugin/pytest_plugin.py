@@ -16,6 +16,7 @@ from hil.bench.family import build_emulator, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
+from hil.plugin import bench_time
 from hil.io.url import parse_target
 
 pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
@@ -31,6 +32,7 @@ MARKERS = {
     "measures": "measures(name, unit=…, low=…, high=…): a measurement the test declares before it runs (OpenHTF's "
                 "way); it stays UNSET until measure(name, value) records it, and a test that passes with a "
                 "declared measurement still UNSET fails: no pass without the evidence",
+    "bench_time": bench_time.MARKER,
     "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
               "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
 }
@@ -203,7 +205,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     except HilError as exc:
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
-    offered = bench_capabilities(target)
+    offered = bench_capabilities(target, profile.scan_counter)
     for item in items:
         if "bench" in getattr(item, "fixturenames", ()):
             family = item.get_closest_marker("family")
@@ -225,6 +227,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
             item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
+    bench_time.apply(items, profile, target.in_process)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

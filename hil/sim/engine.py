@@ -28,6 +28,9 @@ class Engine:
     #: the controller family (the name its plug-in is registered under)
     family = ""
 
+    #: real time: scans run one by one up to this many per tick; a host that falls further behind jumps the rest
+    realtime_catch_up = 1000
+
     def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
         if scan_time <= 0:
@@ -41,8 +44,12 @@ class Engine:
         self.stats: collections.Counter[str] = collections.Counter()
         self.now = 0.0  # virtual seconds since power-on
         self.scans = 0
+        self.skipped_time = 0.0  # virtual seconds jumped over without scanning (no model needed a scan)
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
+        # Real time: requests wait here for the end of the current scan (run_realtime services them there).
+        self._pending: list[_Pending] = []
+        self._pending_lock = threading.Lock()
         for model in models:
             self.add_model(model)
 
@@ -63,13 +70,37 @@ class Engine:
             for model in self.models:
                 model.scan(self)
 
+    @property
+    def scans_represented(self) -> int:
+        """The scans a PLC would have run by now: those run plus those the engine jumped over (a ladder's scan
+        counter shows this; the partial span the real-time clock adds between scans is no scan)."""
+        return self.scans + round(self.skipped_time / self.scan_time)
+
     def service(self, request: Callable[[Any], T]) -> T:
-        """Run one request at a scan boundary and return its result."""
+        """Run one request at a scan boundary and return its result.
+
+        Virtual time: one scan, then the request.  Real time (:meth:`run_realtime`): the request waits for the
+        end of the scan in progress, as port 0 of a real PLC answers; two requests in a row therefore always have
+        at least one whole scan between them, and a client sees what it would see on a bench."""
+        with self._pending_lock:
+            queued = self.realtime
+            if queued:
+                pending = _Pending(request)
+                self._pending.append(pending)
+        if queued:
+            return pending.result()
         with self.lock:
-            if not self.realtime:
-                self.scan()
+            self.scan()
             self.stats["requests"] += 1
             return request(self.memory)
+
+    def _service_pending(self) -> None:
+        """Answer every request that waited for the scan just completed (real time; caller holds the lock)."""
+        with self._pending_lock:
+            batch, self._pending = self._pending, []
+        for pending in batch:
+            self.stats["requests"] += 1
+            pending.run(self.memory)
 
     def advance(self, seconds: float) -> None:
         """Let ``seconds`` of virtual time pass, jumping over spans in which no model needs a scan."""
@@ -82,13 +113,19 @@ class Engine:
         """Run the rest of a request-free span up to ``target`` at once where a family can (True if it did)."""
         return False
 
-    def advance_to(self, target: float) -> None:
+    def advance_to(self, target: float, partial: bool = True) -> None:
+        """Scan up to ``target``; with ``partial`` False the clock stays at the last scan when ``target`` falls
+        between two (real time: a reading taken in that part-scan belongs to the next scan, not to a skipped one)."""
         with self.lock:
             # The scan right after a request is never skipped: a PLC sees a written value on its next scan, so
             # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
             if self.now + self.scan_time <= target + 1e-9:
                 self.scan()
             steps, ask_at = 0, 0
+            if not partial:  # real time: every scan on the scan grid, as a PLC runs them (a jump lands off it)
+                while self.now + self.scan_time <= target + 1e-9 and steps < self.realtime_catch_up:
+                    steps += 1
+                    self.scan()
             while self.now + self.scan_time <= target + 1e-9:
                 # ask fast_forward after 8, 16, 32 … steps, so a configuration it never takes costs little
                 if steps == ask_at:
@@ -98,19 +135,63 @@ class Engine:
                 steps += 1
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)
+                self.skipped_time += landing - self.scan_time - self.now  # scans a PLC would have run meanwhile
                 self.now = landing - self.scan_time  # the scan below lands exactly on `landing`
                 self.scan()
-            self.now = max(self.now, target)
+            if partial:
+                self.now = max(self.now, target)
 
     def run_realtime(self, stop: threading.Event, time_scale: float = 1.0) -> None:
-        """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``)."""
+        """Drive the clock from the wall clock (× ``time_scale``) until ``stop`` is set (for ``hil emulate``).
+
+        The PLC scans on its own, one scan per ``scan_time`` of (scaled) wall time, and services the requests
+        that arrived meanwhile at the end of each scan — never with no scan between two of them.  When the host
+        falls behind, the missed scans are run (or fast-forwarded, as in virtual time) before the requests."""
         if time_scale <= 0:
             raise InvalidValue(f"time scale must be positive, not {time_scale}")
-        self.realtime = True
+        with self.lock, self._pending_lock:  # under the lock: a holder of it sees realtime stay as it found it
+            self.realtime = True
         start_wall, start_virtual = time.monotonic(), self.now
+        period = self.scan_time / time_scale
         try:
             while not stop.is_set():
-                self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale)
-                stop.wait(max(self.scan_time / time_scale, 0.001))
+                with self.lock:
+                    before = self.scans
+                    self.advance_to(start_virtual + (time.monotonic() - start_wall) * time_scale, partial=False)
+                    if self.scans > before:
+                        self._service_pending()
+                # sleep to the next scan boundary of the wall clock (a request waits at most one scan)
+                due = start_wall + (self.now - start_virtual + self.scan_time) / time_scale
+                stop.wait(min(max(due - time.monotonic(), 0.0002), period))
         finally:
-            self.realtime = False
+            with self._pending_lock:
+                self.realtime = False
+            with self.lock:  # whoever still waits gets the virtual-time service: one scan, then the request
+                if self._pending:
+                    self.scan()
+                    self._service_pending()
+
+
+class _Pending:
+    """A request waiting for the end of a scan (real time)."""
+
+    __slots__ = ("request", "done", "value", "error")
+
+    def __init__(self, request: Callable[[Any], Any]) -> None:
+        self.request = request
+        self.done = threading.Event()
+        self.value: Any = None
+        self.error: BaseException | None = None
+
+    def run(self, memory: Any) -> None:
+        try:
+            self.value = self.request(memory)
+        except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread, raised there
+            self.error = exc
+        self.done.set()
+
+    def result(self) -> Any:
+        self.done.wait()
+        if self.error is not None:
+            raise self.error
+        return self.value

@@ -48,7 +48,8 @@ class Bench(BenchBase):
         self.io.allow_destructive = self.allow_destructive
         from hil.families.fbs.transport.guarded_io import guarded_io
         # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
-        self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans)
+        self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans,
+                          scan_counter=profile.scan_counter)
         if "temperature" in profile.sections:
             self.plc.temperature.config = profile.sections["temperature"]
         if "pid" in profile.sections:

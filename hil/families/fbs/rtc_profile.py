@@ -19,6 +19,8 @@ class RtcSettings:
     chip: int = 3
     crystal_ppm: float = 0.0
     start: dt.datetime | None = None  # None: the bench's host time when the emulator is built
+    #: the longest one drift measurement may take on this bench (the drift test makes two); 0: none here
+    drift_max_hours: float = 12.0
 
 
 def parse_rtc(table: dict[str, Any], where: str) -> RtcSettings:
@@ -28,7 +30,9 @@ def parse_rtc(table: dict[str, Any], where: str) -> RtcSettings:
         chip=reader.take(table, "rtc", "chip", object, 3, convert=_chip),
         crystal_ppm=reader.take(table, "rtc", "crystal_ppm", float, 0.0,
                                 check=lambda v: abs(v) <= 500 or "must be within ±500 ppm"),
-        start=reader.take(table, "rtc", "start", object, None, convert=_start))
+        start=reader.take(table, "rtc", "start", object, None, convert=_start),
+        drift_max_hours=reader.take(table, "rtc", "drift_max_hours", float, 12.0,
+                                    check=lambda v: 0 <= v <= 24 * 14 or "must be 0–336 h (0: no drift test here)"))
     reader.done(table, "rtc")
     return settings
 

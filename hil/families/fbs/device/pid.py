@@ -146,7 +146,7 @@ class Pid:
     def restart(self, inst: PidInstance) -> None:
         """EN 0 → 1 (a new R4005 takes effect only then)."""
         self.plc.io.write(str(inst.en), 0)
-        self.plc.settle()
+        self.plc.settle()  # the 0 held across whole scans (proved by the scan counter where declared)
         self.plc.io.write(str(inst.en), 1)
         self.plc.settle()
 

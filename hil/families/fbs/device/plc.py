@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from hil.core.errors import HilError
 from hil.core.timebase import Timebase
 from hil.families.fbs.transport.base import PlcStatus, Transport
 
@@ -13,10 +14,13 @@ class FbsPlc:
     bench's timebase.  Areas (``plc.rtc`` …) are attached by their own modules.
     """
 
-    def __init__(self, transport: Transport, timebase: Timebase, *, settle_scans: int = 2) -> None:
+    def __init__(self, transport: Transport, timebase: Timebase, *, settle_scans: int = 2,
+                 scan_counter: str | None = None) -> None:
         self.io = transport
         self.time = timebase
         self.settle_scans = settle_scans
+        #: the bench ladder's scan counter ([bench] scan_counter): a word it adds 1 to every scan
+        self.scan_counter = scan_counter
         from hil.families.fbs.device.rtc import Rtc  # noqa: PLC0415 - areas import FbsPlc's module for typing
         self.rtc = Rtc(self)
         from hil.families.fbs.device.temperature import Temperature  # noqa: PLC0415
@@ -30,15 +34,43 @@ class FbsPlc:
     def settle(self, scans: int | None = None) -> None:
         """Make sure the PLC has completed whole scans since our last write.
 
-        Port 0 answers at the end of a scan, so each round trip spans at least one scan: a few cheap status
-        requests settle a real PLC and the emulator alike, with no guessing at scan times.
+        With a ladder scan counter the PLC proves it: the counter is read after the write and again until it has
+        gone up by ``scans`` + 1 (the scan in progress at the first read may have begun before the write landed,
+        e.g. on a port that answers at once; the one after it cannot have).  Without one, port 0's rule — each
+        round trip spans at least one scan — with a few cheap status requests.
         """
-        for _ in range(self.settle_scans if scans is None else scans):
+        n = self.settle_scans if scans is None else scans
+        if self.scan_counter is not None:
+            if n > 0:
+                self.await_scans(n)
+            return
+        for _ in range(n):
             self.io.status()
 
     def settle_before_request(self) -> None:
         """Settle when the procedure's next step is itself a request (a read of the effect, the next write).
 
-        That request is serviced at the end of a scan after the write too, so it counts as one of the
-        ``settle_scans``: one status round trip fewer, the same scans before the effect is looked at."""
+        On port 0 that request is serviced at the end of a scan after the write too, so it counts as one of the
+        ``settle_scans``: one status round trip fewer.  With a scan counter, one whole scan proved instead."""
+        if self.scan_counter is not None:
+            self.await_scans(1)
+            return
         self.settle(max(0, self.settle_scans - 1))
+
+    def read_scan_counter(self) -> int:
+        if self.scan_counter is None:
+            raise HilError("this bench declares no ladder scan counter ([bench] scan_counter)")
+        return self.io.read(self.scan_counter)
+
+    def await_scans(self, scans: int = 1, timeout: float = 5.0) -> int:
+        """Poll the ladder's scan counter until ``scans`` whole scans have begun and ended after this call began;
+        return the counter's last value.  Raises when it does not move within ``timeout`` bench seconds."""
+        first = self.read_scan_counter()
+        started = self.time.now()
+        while True:
+            value = self.read_scan_counter()
+            if (value - first) % 65536 >= scans + 1:
+                return value
+            if self.time.now() - started > timeout:
+                raise HilError(f"the scan counter {self.scan_counter} stayed at {value} (from {first}) for "
+                               f"{timeout} s: is its rung in the bench ladder (fixtures/ladder.md), the PLC in RUN?")

@@ -90,6 +90,10 @@ class RtcError(HilError):
     """The RTC procedure could not be carried out (a set that failed part-way, a clock that never ticks)."""
 
 
+class RtcSetLost(RtcError):
+    """The PLC reported a set as taken (M1955 = 0) but its clock does not show the time sent."""
+
+
 #: R4128–R4135 then M1952–M1967 packed (bit 0 = M1952), for :meth:`Rtc.read_all`.
 _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 
@@ -196,19 +200,39 @@ class Rtc:
             raise RtcError(f"setting the RTC failed part-way ({exc}); M1952 may be left at 1 with the read-out "
                            f"frozen — run `hil rtc sync <target>` once the PLC answers") from exc
 
+    #: how far past the time sent the read-out may be right after an accepted set (the clock runs meanwhile)
+    set_tolerance = 3.0
+
     def _finish_set(self, value: RtcTime) -> SetResult:
+        """M1952 := 0 once the PLC has held the 1 across a whole scan, then M1955 and the read-out.
+
+        An accepted set is read back: the PLC's read-out, copied from the chip by a scan after the set (proved by
+        the scan counter where the bench declares one, by port 0's rule otherwise), must show the time sent —
+        a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`."""
+        self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
+        started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
         self.plc.settle_before_request()  # the read of M1955 below ends a scan too
-        refused = bool(self.plc.io.read(reg.RTC_SET_ERROR))
-        return SetResult(value, not refused, tuple(value.validate()))
+        refused, *fields = self.plc.io.read_many((reg.RTC_SET_ERROR, *reg.RTC_FIELDS))
+        result = SetResult(value, not refused, tuple(value.validate()))
+        if result.accepted and value.is_valid:
+            shown = RtcTime.from_registers(fields)
+            ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds() if shown.is_valid else None)
+            slack = self.set_tolerance + (self.plc.time.now() - started)
+            if ahead is None or not 0 <= ahead <= slack:
+                raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows {shown} after it, not "
+                                 f"{value} (sent): the set was lost (M1952 edge not seen by a scan?)")
+        return result
 
     def adjust_30s(self) -> None:
         """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0."""
         io = self.plc.io
         io.write(reg.RTC_ADJUST_30S, 0)  # make sure the PLC sees a 0 before the 1
+        self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
         io.write(reg.RTC_ADJUST_30S, 1)
         self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
         io.write(reg.RTC_ADJUST_30S, 0)
+        self.plc.settle_before_request()  # the 0 seen before anyone looks at the effect or fires again
 
 
 class Drift:
@@ -264,6 +288,19 @@ class Drift:
         return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
                                 resolution=bracket / reference_elapsed * 86400)
 
+    def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
+                      checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
+        """A drift measurement long enough for its resolution to come out below ``resolution`` s/day, if the
+        bench allows that within ``max_duration`` bench seconds (else the longest allowed: the caller sees the
+        resolution it got and must not decide on it).
+
+        One second transition is timed first to learn how wide this bench's brackets are (polling interval plus
+        a round trip); the duration is chosen for half the resolution asked, as brackets vary."""
+        _, _, width = self._transition(timeout)
+        needed = 2 * max(width, self.rtc.poll_interval) * 86400 / resolution
+        duration = min(max_duration, max(needed, transitions + 3.0))
+        return self.measure(duration, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
+
     def compensate(self, rate: float) -> int:
         """Write the manual's D4054 code for a clock error of ``rate`` s/day and return it.
 
@@ -305,4 +342,4 @@ def _seconds(t: RtcTime) -> int:
     return int((t.to_datetime() - EPOCH).total_seconds())
 
 
-__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError"]
+__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError", "RtcSetLost"]

@@ -6,6 +6,8 @@ is for the suite to say, literally from the manual.
 
 from __future__ import annotations
 
+from typing import Callable
+
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -133,3 +135,20 @@ class Temperature:
         """Let every point be measured again after a change (a margin over one period for scan and wire time)."""
         self.plc.time.wait(self.update_period() * periods)
         self.plc.settle()
+
+    #: bench seconds between two looks while waiting for an event
+    poll_interval = 0.25
+
+    def wait_until(self, event: Callable[[], bool], periods: float = 1.5) -> bool:
+        """Poll ``event`` (a read of the PLC) until it holds, with the manual's worst case — every point measured
+        once more, ``periods`` × the update period — as the timeout; True if it held.  A test then asserts what
+        it expects as it would after the full wait: an event that never comes fails there, a fast PLC costs
+        only the time it takes."""
+        clock = self.plc.time
+        deadline = clock.now() + self.update_period() * periods
+        while True:
+            if event():
+                return True
+            if clock.now() >= deadline:
+                return False
+            clock.wait(min(self.poll_interval, max(deadline - clock.now(), 0.0)))

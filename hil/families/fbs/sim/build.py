@@ -12,6 +12,9 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
     """An FBs emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
     emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
                         seed=profile.emulator.seed)
+    if profile.scan_counter:
+        from hil.families.fbs.address import parse  # noqa: PLC0415
+        emulator.scan_counter = parse(profile.scan_counter)
     from hil.families.fbs.sim.models.rtc import RtcModel  # noqa: PLC0415 - models import the engine
     rtc = profile.rtc
     emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Iterable
 
+from hil.families.fbs.address import Address
 from hil.families.fbs.registers import POWER_ON_DEFAULTS
 from hil.families.fbs.sim.memory import Memory
 from hil.sim.engine import Engine
@@ -27,3 +28,14 @@ class Emulator(Engine):
             self.memory.set(name, value)
         for model in models:
             self.add_model(model)
+
+    #: the bench ladder's scan counter ([bench] scan_counter, fixtures/ladder.md), when the profile declares one
+    scan_counter: Address | None = None
+
+    def scan(self) -> None:
+        with self.lock:
+            super().scan()
+            if self.scan_counter is not None:
+                # the rung "R := R + 1" at the end of every scan; the spans the engine jumps over (no model
+                # needed a scan, no request could look) count as the scans a PLC would have run in them
+                self.memory.set(self.scan_counter, self.scans_represented & 0xFFFF)

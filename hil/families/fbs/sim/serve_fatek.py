@@ -176,7 +176,10 @@ def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, 
         try:
             while not sender.closed and (data := await reader.read(_READ_CHUNK)):
                 dropped = assembler.dropped
-                replies = core.feed(assembler, data)
+                if emulator.realtime:  # the request waits for the end of a scan: not on the shared loop
+                    replies = await asyncio.get_running_loop().run_in_executor(None, core.feed, assembler, data)
+                else:
+                    replies = core.feed(assembler, data)
                 sender.send_all(replies)
                 await writer.drain()
                 junk = 0 if replies else junk + assembler.dropped - dropped

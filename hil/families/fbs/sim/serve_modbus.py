@@ -100,8 +100,9 @@ def _make_action(emulator: Emulator):  # noqa: ANN202 - a pymodbus SimAction
         # Fast path: the emulator is free (the usual case), so service the request right here on the loop —
         # a hop to a worker thread and back costs more than the request.  Only when somebody holds the lock
         # (a test advancing virtual time) does the request wait on a worker, leaving the loop free.
-        if lock.acquire(blocking=False):
-            try:
+        # In real time (hil emulate) a request waits for the end of the scan in progress: always on a worker.
+        if not emulator.realtime and lock.acquire(blocking=False):
+            try:  # holding the lock, realtime cannot turn on (run_realtime takes it to do so)
                 fill = emulator.service(request)
             finally:
                 lock.release()

@@ -1,0 +1,92 @@
+"""The broken-PLC defects (RTC, temperature, FUN86) against ``hil emulate`` as a separate real-time process with a
+bench-like profile (scan counter declared), reached only over FATEK/TCP and the Modbus relay rig: each defect must
+fail at least one suite test there too, as it would on a bench.  Each defect gets its own ``hil emulate``
+(tests/broken_emulate.py); several run in parallel.  Only the suite tests the in-process broken-PLC tests name as
+catching a defect run (RTC: the RTC suites, stopping at the first failure), to keep CI short.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import os
+import re
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tests import test_pid_suites as pid_defects
+from tests import test_rtc_suites_catch_broken_plcs as rtc_defects
+from tests import test_temperature_suites as temperature_defects
+from tests.conftest import EMULATOR_BENCH, REPO
+from tests.external import bench_over_the_wire, hil_emulate
+from tests.test_bench_mode import bench_like
+
+SUITES = REPO / "suites"
+TIME_SCALE = 10.0
+#: FUN86 defects that show only between an edge and the next PID interval need finer bench time on a busy host
+PID_TIME_SCALE = 5.0
+#: scan-exact defects run in real time (10 ms scans): requests must be quicker than scans for the counter to pin
+#: the scans down, as on a bench PLC's port 0; so must the sampling of an output right after a disable
+REAL_TIME = {"PrealarmAfter9Scans", "PrealarmAfter11Scans", "DipDoesNotResetTheCount"}
+#: caught only by the drift test, which needs hours of bench time to decide (0.088 s/day): a CI-time bench
+#: cannot, so it is left to the in-process test and to a bench with [rtc] drift_max_hours
+NEEDS_DRIFT_HOURS = {"D4054SignInverted"}
+#: the broken model drives a disabled point's output only until FUN86's next PID interval zeroes it: whether a
+#: bench's sampling falls in that window is luck on a loaded host (caught in process; left out here, see report)
+TIMING_WINDOW = {"DisabledPointStillDriven"}
+
+
+def _k(names: list[str]) -> str:
+    return " or ".join(sorted({name.split("[")[0] for name in names}))
+
+
+def _defects() -> list[tuple[str, list[str], list[str], float]]:
+    """(MODULE:FACTORY:DEFECT, suite files, extra pytest arguments, time scale)."""
+    found = []
+    rtc_files = [str(SUITES / f) for f in rtc_defects.RTC_SUITES]
+    for cls in rtc_defects.VARIANTS:
+        if cls.__name__ not in NEEDS_DRIFT_HOURS:
+            found.append((f"{rtc_defects.__name__}:with_rtc:{cls.__name__}", rtc_files, ["-x"], TIME_SCALE))
+    for cls, names in temperature_defects.CAUGHT_BY.items():
+        found.append((f"{temperature_defects.__name__}:Variant:{cls.__name__}", [temperature_defects.SUITE],
+                      ["-k", _k(names)], TIME_SCALE))
+    for cls, names in pid_defects.CAUGHT_BY.items():
+        if cls.__name__ in TIMING_WINDOW:
+            continue
+        found.append((f"{pid_defects.__name__}:Variant:{cls.__name__}", pid_defects.SUITES, ["-k", _k(names)],
+                      1.0 if cls.__name__ in REAL_TIME else PID_TIME_SCALE))
+    return found
+
+
+def _run(spec: str, files: list[str], extra: list[str], scale: float, tmp_path) -> tuple[str, dict[str, int], str]:
+    name = spec.rsplit(":", 1)[1]
+    emulated = tmp_path / f"{name}-emulated.toml"
+    emulated.write_text(bench_like(EMULATOR_BENCH.read_text()))
+    with hil_emulate(emulated, scale, broken=spec) as where:
+        bench = tmp_path / f"{name}.toml"
+        bench.write_text(bench_over_the_wire(emulated.read_text(), where, scale))
+        done = subprocess.run([sys.executable, "-m", "pytest", *files, "--bench", str(bench), "--hil-run-slow",
+                               "-q", "-rfE", "-p", "no:cacheprovider", "-p", "no:hypothesispytest", *extra],
+                              capture_output=True, text=True, cwd=tmp_path, timeout=300,
+                              env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    out = done.stdout + done.stderr
+    lines = [line for line in out.splitlines() if re.search(r"\d+ (passed|failed|skipped|deselected)", line)]
+    counts = {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error)", lines[-1] if lines else "")}
+    return name, counts, out
+
+
+@pytest.mark.timeout(600)
+def test_every_defect_fails_a_suite_test_against_hil_emulate(tmp_path):
+    defects = _defects()
+    started = time.monotonic()
+    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+        results = list(pool.map(lambda d: _run(*d, tmp_path), defects))
+    print(f"{len(defects)} broken PLCs against hil emulate in {time.monotonic() - started:.1f} s")
+    uncaught = []
+    for name, counts, out in results:
+        print(f"{name}: {counts}")
+        if counts.get("failed", 0) == 0:
+            uncaught.append(f"{name}: {counts}\n{out[-1500:]}")
+    assert not uncaught, "defects no suite test catches on a bench:\n" + "\n".join(uncaught)
