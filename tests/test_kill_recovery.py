@@ -103,7 +103,12 @@ def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
             label = f"lane {lane}: SIG{sig} {suite} at {delay} s"
             child = subprocess.Popen([sys.executable, "-m", "pytest", SUITES[suite], *inner], cwd=REPO, env=env,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            time.sleep(delay)
+            # the kill lands a moment after the run first has the PLC changed (its journal pending), not at a
+            # fixed time from start-up, which a slower machine or a real-time PLC would spend before any write
+            deadline = time.monotonic() + 30
+            while not Journal(lock_key(target)).pending and child.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.02)
+            time.sleep(max(0.0, delay - 1.5))
             child.send_signal(getattr(signal, f"SIG{sig}"))
             try:
                 out, _ = child.communicate(timeout=30)
