@@ -105,10 +105,10 @@ def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
             # the kill lands a moment after the run first has the PLC changed (its journal pending), not at a
             # fixed time from start-up, which a slower machine or a real-time PLC would spend before any write
-            deadline = time.monotonic() + 30
-            while not Journal(lock_key(target)).pending and child.poll() is None and time.monotonic() < deadline:
-                time.sleep(0.02)
+            # (then the moment itself, spread over the suite, again while a test has the PLC changed)
+            _until_changed(target, child)
             time.sleep(max(0.0, delay - 1.5))
+            _until_changed(target, child)
             child.send_signal(getattr(signal, f"SIG{sig}"))
             try:
                 out, _ = child.communicate(timeout=30)
@@ -132,6 +132,13 @@ def run_lane(lane: int, moments: list, tmp: Path) -> tuple[list[str], int, int]:
             if diff:
                 problems.append(f"{label}: after the next session: {'; '.join(diff[:12])}")
     return problems, recovered, len(moving - READINGS)
+
+
+def _until_changed(target: str, child: subprocess.Popen, limit: float = 30.0) -> None:
+    """Wait until a test of the running suite has the PLC changed (its journal has entries pending)."""
+    deadline = time.monotonic() + limit
+    while not Journal(lock_key(target)).pending and child.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
 
 
 def settled_differences(first: dict, target: str, rig: str, moving: set) -> list[str]:
