@@ -109,10 +109,6 @@ class Engine:
         with self.lock:
             self.advance_to(self.now + seconds)
 
-    def fast_forward(self, target: float) -> bool:
-        """Run the rest of a request-free span up to ``target`` at once where a family can (True if it did)."""
-        return False
-
     def advance_to(self, target: float, partial: bool = True) -> None:
         """Scan up to ``target``; with ``partial`` False the clock stays at the last scan when ``target`` falls
         between two (real time: a reading taken in that part-scan belongs to the next scan, not to a skipped one)."""
@@ -121,18 +117,12 @@ class Engine:
             # edges (M1952 falling, M1953 rising) and new settings act before any fast-forward jump.
             if self.now + self.scan_time <= target + 1e-9:
                 self.scan()
-            steps, ask_at = 0, 0
+            steps = 0
             if not partial:  # real time: every scan on the scan grid, as a PLC runs them (a jump lands off it)
                 while self.now + self.scan_time <= target + 1e-9 and steps < self.realtime_catch_up:
                     steps += 1
                     self.scan()
             while self.now + self.scan_time <= target + 1e-9:
-                # ask fast_forward after 8, 16, 32 … steps, so a configuration it never takes costs little
-                if steps == ask_at:
-                    if self.fast_forward(target):
-                        break
-                    ask_at = max(8, 2 * ask_at)
-                steps += 1
                 due = min((m.next_event(self.now) for m in self.models), default=math.inf)
                 landing = min(max(due, self.now + self.scan_time), target)
                 self.skipped_time += landing - self.scan_time - self.now  # scans a PLC would have run meanwhile
