@@ -51,7 +51,7 @@ def state(emu) -> dict:  # noqa: ANN001
     memory["counters32"] = {i: v for i, v in enumerate(snap["counters32"]) if v}
     return {
         "clock": (emu.now, emu.scans), "memory": memory,
-        "temperature": (list(tm._next), list(tm._mux), {p: list(s) for p, s in tm._samples.items()}, tm._breaks,
+        "temperature": (list(tm._next), list(tm._mux), tm.samples(), tm._breaks,
                         sorted(tm._measured), tm.state),
         "fun86": ([(st.next_pid, st.running, st.waiting, st.sn, st.zn,
                     [(ps.integral, ps.pv_prev, ps.prealarm, ps.loop_since) for ps in st.points.values()])

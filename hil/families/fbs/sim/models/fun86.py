@@ -192,7 +192,12 @@ class Fun86Model(Model):
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
         tm = self.temperature_model
-        self._log = tm.log if tm is not None and tm.log else None
+        self._log = None
+        if tm is not None and tm.log:
+            self._log = {}
+            for times, points, pvs in tm.log:
+                for at, point, pv in zip(times.tolist(), points.tolist(), pvs.tolist()):
+                    self._log.setdefault(point, []).append((at, pv))
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -203,7 +208,7 @@ class Fun86Model(Model):
                 self._drop_waveforms(inst, st)
         if tm is not None:
             # log the readings measured until the next scan (replayed there) while any instance runs
-            tm.log = {} if any(st.running for st in self.states) else None
+            tm.log = [] if any(st.running for st in self.states) else None
 
     def _scan_at_rest(self, mem: "Memory") -> bool:
         """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
