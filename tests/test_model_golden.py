@@ -54,7 +54,7 @@ def state(emu) -> dict:  # noqa: ANN001
         "temperature": (list(tm._next), list(tm._mux), tm.samples(), tm._breaks,
                         sorted(tm._measured), tm.state),
         "fun86": ([(st.next_pid, st.running, st.waiting, st.sn, st.zn,
-                    [(ps.integral, ps.pv_prev, ps.prealarm, ps.loop_since) for ps in st.points.values()])
+                    st.point_states())
                    for st in fun86.states], sorted((*key, wave) for key, wave in fun86.waveforms.items())),
         "plant": plant.state(),
     }

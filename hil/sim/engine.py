@@ -83,10 +83,14 @@ class Engine:
     def end_scan(self) -> None:
         """What the controller does at the end of every scan after the models (a family may add to it)."""
 
+    def landing(self, due: float, target: float) -> float:
+        """Where the next scan lands for an event at ``due``: never before the next scan nor after ``target``."""
+        return min(max(due, self.now + self.scan_time), target)
+
     def land(self, due: float, target: float) -> None:
-        """Set the clock so that the next :meth:`tick` lands on ``due`` — but never before the next scan nor after
-        ``target`` — counting the scans jumped over (a PLC would have run them) in :attr:`skipped_time`."""
-        landing = min(max(due, self.now + self.scan_time), target)
+        """Set the clock so that the next :meth:`tick` lands where :meth:`landing` says, counting the scans jumped
+        over (a PLC would have run them) in :attr:`skipped_time`."""
+        landing = self.landing(due, target)
         self.skipped_time += landing - self.scan_time - self.now
         self.now = landing - self.scan_time
 

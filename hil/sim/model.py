@@ -3,10 +3,23 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
+
+import numpy as np
 
 if TYPE_CHECKING:
     from hil.sim.engine import Engine
+
+
+Time = TypeVar("Time", float, np.ndarray)
+
+
+def scan_grid(t: Time, scan_time: float) -> Time:
+    """The first scan at or after virtual time ``t`` (a float or an array of them), on the scan grid — where a
+    fast-forward jump lands, so the scan stepping would take."""
+    if isinstance(t, float):  # (the same arithmetic, without numpy's overhead on one number)
+        return math.ceil(t / scan_time - 1e-6) * scan_time
+    return np.ceil(t / scan_time - 1e-6) * scan_time
 
 
 class Model:

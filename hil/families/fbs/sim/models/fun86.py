@@ -16,7 +16,8 @@ would, after the temperature modules in each scan.  Per instance and scan:
 
 Temperatures come from the readings, where R4003/R4004 or the temperature table say; PV is in 0.1°.
 Every decision a faulty PLC could get wrong is one small method (the "seams" below), so the harness's tests can
-build broken PLCs as tiny subclasses.
+build broken PLCs as tiny subclasses.  The per-point ones take and return arrays over an instance's points: the
+points' state is kept in arrays (:class:`InstanceState`), stepped all at once.
 
 Time: the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
 pre-alarm count is running; otherwise the engine jumps.  In between:
@@ -28,7 +29,8 @@ pre-alarm count is running; otherwise the engine jumps.  In between:
   enabled point could reach R4008 (the temperature model's hard bound on its readings; the plant clips its noise at
   6 σ for that), a pre-alarm seam is overridden, or there is no log: then every measurement gets its scan.
 
-With EN off it asks for nothing (the default bench's virtual day stays one jump).
+With EN off it asks for nothing (the default bench's virtual day stays one jump).  Between requests, with the
+plant integrating the PWM, the scans at PID intervals are run in batches (:meth:`Fun86Model.span`, models/span.py).
 """
 
 from __future__ import annotations
@@ -37,14 +39,17 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
+import numpy as np
+
 from hil.families.fbs.address import Address, parse
-from hil.sim.model import Model
+from hil.sim.columns import occurrence, signed16 as signed
+from hil.sim.model import Model, scan_grid
 from hil.families.fbs import registers as reg
-from hil.families.fbs.registers import signed16
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
 
 if TYPE_CHECKING:
+    from hil.sim.engine import Engine
     from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
 
@@ -56,12 +61,8 @@ DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
 
 
-@dataclass(slots=True)  # (read and written per point on every scan)
-class PointState:
-    integral: float = 0.0
-    pv_prev: int | None = None
-    prealarm: int = 0  # consecutive scans with PV ≥ R4008
-    loop_since: float | None = None  # when "output ≥ R4006 % and not normal" began
+def _none() -> np.ndarray:
+    return np.zeros(0)
 
 
 @dataclass
@@ -76,7 +77,41 @@ class InstanceState:
     waiting: bool = False  # executing, but not every point measured yet
     sn: int = 0
     zn: int = 0
-    points: dict[int, PointState] = field(default_factory=dict)
+    # per point b (point Sn + b):
+    integral: np.ndarray = field(default_factory=_none)
+    pv_prev: np.ndarray = field(default_factory=_none)  # PV at the last PID step (where has_prev)
+    has_prev: np.ndarray = field(default_factory=_none)
+    prealarm: np.ndarray = field(default_factory=_none)  # consecutive scans with PV ≥ R4008
+    loop_since: np.ndarray = field(default_factory=_none)  # when "output ≥ R4006 % and not normal" began (NaN: no)
+    #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
+    published: tuple | None = None
+
+    def new_points(self, zn: int) -> None:
+        self.integral = np.zeros(zn)
+        self.pv_prev = np.zeros(zn, dtype=np.int64)
+        self.has_prev = np.zeros(zn, dtype=bool)
+        self.prealarm = np.zeros(zn, dtype=np.int64)
+        self.loop_since = np.full(zn, math.nan)
+
+    def point_states(self) -> list[tuple]:
+        """(integral, PV at the last PID step or None, pre-alarm count, heater-loop start or None) per point."""
+        return [(i, p if h else None, c, None if math.isnan(s) else s) for i, p, h, c, s in
+                zip(self.integral.tolist(), self.pv_prev.tolist(), self.has_prev.tolist(), self.prealarm.tolist(),
+                    self.loop_since.tolist())]
+
+
+@dataclass(frozen=True)
+class Law:
+    """The control law's coefficients for some points of an instance (constant while its registers are)."""
+
+    kc: np.ndarray  # Kc
+    ki: np.ndarray  # Ki ≠ 0
+    every_ki: bool  # Ki ≠ 0 for every point
+    integrate: np.ndarray  # Kc·(Ki/100/60)·ts: the integral's change per unit of error
+    derivative: np.ndarray  # −Kc·(Td/100·60), signed for heating (+) or cooling (−): the output per unit of slope
+    heating: bool
+    md1: bool  # Md = 1: the integral runs outside the proportional band too
+    ts: float
 
 
 class Fun86Model(Model):
@@ -99,8 +134,10 @@ class Fun86Model(Model):
         self.waveforms_version = 0
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
+        self._log: tuple | None = None
+        self._span = None  # the batch runner (models/span.py), made on first use
 
-    # -- the seams broken variants override ---------------------------------------------------------------------
+    # -- the seams broken variants override (per point: arrays over an instance's points) -------------------------
     def valid(self, sn: int, zn: int) -> bool:
         """Sn/Zn in range (else ERR)."""
         return valid_sn_zn(sn, zn)
@@ -109,62 +146,73 @@ class Fun86Model(Model):
         """(PID interval, PWM period) in seconds from R4005 (low byte, high byte)."""
         return float(timing_seconds(r4005 & 0xFF)), float(timing_seconds(r4005 >> 8))
 
-    def enabled(self, mem: "Memory", point: int) -> bool:
-        """Point's bit in R4012 (points 0–15) or R4013 (16–31)."""
-        return bool(mem.words["R"][_R[reg.PID_ENABLE_LOW] + point // 16] >> (point % 16) & 1)
+    def enabled(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
+        """Points' bits in R4012 (points 0–15) or R4013 (16–31)."""
+        first = _R[reg.PID_ENABLE_LOW]
+        return (np.array(mem.words["R"][first:first + 2])[point // 16] >> (point % 16) & 1).astype(bool)
 
-    def drive(self, enabled: bool, on: bool) -> bool:
-        """The PWM output of a point: a disabled point's output is forced off."""
-        return enabled and on
+    def drive(self, enabled: np.ndarray, on: bool) -> np.ndarray:
+        """The PWM outputs of points: a disabled point's output is forced off."""
+        return enabled & on
 
-    def in_band(self, pv: int, sv: int, os: int) -> bool:
+    def in_band(self, pv: np.ndarray, sv: np.ndarray, os: np.ndarray) -> np.ndarray:
         """The "temperature normal" rule: SV − Os ≤ PV ≤ SV + Os (edges included)."""
-        return sv - os <= pv <= sv + os
+        return (sv - os <= pv) & (pv <= sv + os)
 
-    def prealarm_count(self, count: int, pv: int, limit: int) -> int:
+    def prealarm_count(self, count: np.ndarray, pv: np.ndarray, limit: int) -> np.ndarray:
         """Consecutive scans with PV ≥ R4008: one more, or back to 0 on a scan below."""
-        return count + 1 if pv >= limit else 0
+        return np.where(pv >= limit, count + 1, 0)
 
-    def prealarm(self, count: int) -> bool:
+    def prealarm(self, count: np.ndarray) -> np.ndarray:
         return count >= PREALARM_SCANS
 
     def loop_threshold(self, mem: "Memory") -> int:
         """R4006: the heater-loop check's high output, in %."""
         return mem.words["R"][_R[reg.HEATER_LOOP_PERCENT]]
 
-    def loop_elapsed(self, since: float, now: float) -> float:
+    def loop_elapsed(self, since: np.ndarray, now: float) -> np.ndarray:
         """Seconds the heater-loop condition has held."""
         return now - since
 
-    def bit_position(self, b: int) -> tuple[int, int]:
+    def bit_position(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(word 0/1, bit) of the point at operand offset b (b counts from Sn): WR+0/2 for b < 16, WR+1/3 above."""
         return b // 16, b % 16
 
-    def alarm(self, enabled_not_normal: bool, any_warning: bool) -> bool:
+    def alarm(self, enabled_not_normal, any_warning):  # noqa: ANN001, ANN201 - bools, or arrays of them over scans
         """ALM: a point out of its band, or a warning."""
-        return enabled_not_normal or any_warning
+        return enabled_not_normal | any_warning
 
-    def control(self, inst: PidInstance, st: PointState, kc: int, ki: int, td: int, sv: int, pv: int,
-                heating: bool, ts: float) -> int:
-        """One PID step (spec: the manual's formula; derivative on PV; Md 0 freezes the integral outside the
-        proportional band).  Units: 0.1° in, output counts 0–16383 out."""
-        error = (sv - pv) if heating else (pv - sv)
-        proportional = kc * error
-        slope = 0.0 if st.pv_prev is None else (pv - st.pv_prev) / ts
-        derivative = -kc * (td / 100 * 60) * slope * (1 if heating else -1)
-        if ki and (inst.md == 1 or abs(proportional) < OUTPUT_FULL):
-            st.integral += kc * (ki / 100 / 60) * ts * error
-            st.integral = min(max(st.integral, -OUTPUT_FULL), OUTPUT_FULL)
-        if not ki:
-            st.integral = 0.0
-        st.pv_prev = pv
-        return int(min(max(round(proportional + st.integral + derivative), 0), OUTPUT_FULL))
+    def law(self, inst: PidInstance, kc: np.ndarray, ki: np.ndarray, td: np.ndarray, heating: bool,
+            ts: float) -> Law:
+        """The PID law's coefficients from the gains (spec: the manual's formula; derivative on PV)."""
+        return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts,
+                   -kc * (td / 100 * 60) * (1 if heating else -1), heating, inst.md == 1, ts)
+
+    def control(self, law: Law, integral: np.ndarray, pv_prev: np.ndarray, has_prev: np.ndarray | bool,
+                sv: np.ndarray, pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One PID step: (outputs, integrals) of points at ``pv`` whose integrals and PVs at the last step (where
+        ``has_prev``; none: no slope) were ``integral`` and ``pv_prev``.  Md 0 freezes the integral outside the
+        proportional band.  Units: 0.1° in, output counts 0–16383 out (as floats)."""
+        error = (sv - pv) if law.heating else (pv - sv)
+        proportional = law.kc * error
+        if has_prev is not True:
+            pv_prev = np.where(has_prev, pv_prev, pv)
+        derivative = law.derivative * ((pv - pv_prev) / law.ts)
+        integrate = law.ki if law.md1 else np.abs(proportional) < OUTPUT_FULL
+        if not law.md1 and not law.every_ki:
+            integrate &= law.ki
+        # (an integral not integrating gains 0.0 and stays within ±16383)
+        integral = np.minimum(np.maximum(integral + law.integrate * error * integrate, -OUTPUT_FULL), OUTPUT_FULL)
+        if not law.every_ki:
+            integral = np.where(law.ki, integral, 0.0)
+        return np.minimum(np.maximum(np.rint(proportional + integral + derivative), 0), OUTPUT_FULL), integral
 
     # -- helpers ---------------------------------------------------------------------------------------------------
     def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
         if inst.settable:
-            return (signed16(mem.words[inst.sn_register.kind][inst.sn_register.index]),
-                    signed16(mem.words[inst.zn_register.kind][inst.zn_register.index]))
+            words = mem.words
+            return (int(signed([words[inst.sn_register.kind][inst.sn_register.index]])[0]),
+                    int(signed([words[inst.zn_register.kind][inst.zn_register.index]])[0]))
         return inst.sn, inst.zn
 
     def readings_start(self, mem: "Memory") -> Address | None:
@@ -185,6 +233,15 @@ class Fun86Model(Model):
         work = decode_start(mem.words[sr.kind][sr.index + 3])
         return work is not None and mem.words[work.kind][work.index] >> 8 == EXEC_MEASURING
 
+    @staticmethod
+    def pid_due(st: InstanceState, now: float) -> bool:
+        """Is a PID step due at the scan at ``now``?  (The schedule then moves past now.)"""
+        if now < st.next_pid - 1e-9:
+            return False
+        while st.next_pid <= now + 1e-9:
+            st.next_pid += st.interval
+        return True
+
     # -- the engine ---------------------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
         self._emu = emu
@@ -194,10 +251,7 @@ class Fun86Model(Model):
         tm = self.temperature_model
         self._log = None
         if tm is not None and tm.log:
-            self._log = {}
-            for times, points, pvs in tm.log:
-                for at, point, pv in zip(times.tolist(), points.tolist(), pvs.tolist()):
-                    self._log.setdefault(point, []).append((at, pv))
+            self._log = tuple(np.concatenate(parts) for parts in zip(*tm.log))
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -231,25 +285,62 @@ class Fun86Model(Model):
         return True
 
     def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
+        st.published = None
         if self.waveforms:
             for b in range(max(st.zn, 0)):
                 if self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None) is not None:
                     self.waveforms_version += 1
 
-    def _replay(self, ps: PointState, entries: list, now: float, scan_time: float, high: bool, sv: int, os: int,
-                limit: int) -> None:
-        """The scans skipped since the last one, each of which saw a new reading of this point (the readings the
-        temperature model logged): the pre-alarm count and the heater-loop start as stepping would leave them."""
-        for at, pv in entries:
-            landed = math.ceil(at / scan_time - 1e-6) * scan_time
-            if landed >= now - scan_time / 2:
-                continue  # read at this very scan
-            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
-            if high and not self.in_band(pv, sv, os):
-                if ps.loop_since is None:
-                    ps.loop_since = landed
-            else:
-                ps.loop_since = None
+    def _replayed(self, points: np.ndarray, enabled: np.ndarray, now: float, scan_time: float) -> tuple | None:
+        """The readings of ``points`` (enabled ones) the temperature model logged for the scans skipped since the
+        last one — those read at this very scan left out: (rows of PV, rows of the scan each landed at, valid),
+        rows in time order, a column per point."""
+        times, logged, pvs = self._log
+        first, n = int(points[0]), len(points)
+        b = logged - first
+        keep = (b >= 0) & (b < n)
+        keep[keep] = enabled[b[keep]]
+        landed = scan_grid(times[keep], scan_time)
+        skipped = landed < now - scan_time / 2
+        if not skipped.any():
+            return None
+        b, landed, pvs = b[keep][skipped], landed[skipped], pvs[keep][skipped]
+        row = occurrence(b)
+        rows = int(row.max()) + 1
+        pv, at, valid = np.zeros((rows, n), dtype=np.int64), np.zeros((rows, n)), np.zeros((rows, n), dtype=bool)
+        pv[row, b], at[row, b], valid[row, b] = pvs, landed, True
+        return pv, at, valid
+
+    def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
+              valid: np.ndarray, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True) -> np.ndarray:
+        """Points ``idx`` seeing readings ``pv`` (rows in time order, a column per point; ``at``: the scan each was
+        seen at, ``valid`` False: no reading in that row): the pre-alarm counts (``count`` False: left alone) and
+        when the heater-loop condition — output ``high`` and PV out of band — began, as after each row (NaN: not
+        holding).  Returns those starts, row by row."""
+        if count:
+            counts = st.prealarm[idx]
+            for r in range(len(pv)):
+                counts = np.where(valid[r], self.prealarm_count(counts, pv[r], limit), counts)
+            st.prealarm[idx] = counts
+        holds = high & ~np.asarray(self.in_band(pv, sv, os), dtype=bool)
+        since = st.loop_since[idx]
+        held = ~np.isnan(since)
+        rows = np.arange(len(pv))[:, None]
+        if not valid.all():  # a row without a reading changes nothing: it holds as the row before
+            last = np.maximum.accumulate(np.where(valid, rows, -1), axis=0)
+            holds = np.where(last >= 0, np.take_along_axis(holds, np.maximum(last, 0), axis=0), held)
+        before = np.concatenate((held[None], holds[:-1]))
+        began = np.maximum.accumulate(np.where(holds & ~before, rows, -1), axis=0)
+        starts = np.where(holds, np.where(began >= 0, np.take_along_axis(at, np.maximum(began, 0), axis=0), since),
+                          math.nan)
+        st.loop_since[idx] = starts[-1]
+        return starts
+
+    def bit_words(self, b: np.ndarray, bits: np.ndarray) -> tuple[int, ...]:
+        """WR+0/1 (or WR+2/3) from a bit per point (``bits``: [scans ×] points): arrays over scans for 2-D bits."""
+        word, bit = self.bit_position(b)
+        weights = np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)
+        return tuple(np.bitwise_or.reduce(np.where(bits, w, 0), axis=-1) & 0xFFFF for w in weights)
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -274,7 +365,7 @@ class Fun86Model(Model):
             if st.zn:
                 self._outputs_off(mem, inst, st)
             st.sn, st.zn = sn, zn
-            st.points = {p: PointState() for p in range(sn, sn + zn)}
+            st.new_points(zn)
         words = mem.words
         if not st.executed:
             st.executed = True
@@ -294,92 +385,109 @@ class Fun86Model(Model):
         st.running = True
         r = words["R"]
         limit = r[_R[reg.PREALARM_LIMIT]]
-        loop_percent = self.loop_threshold(mem)
         loop_seconds = r[_R[reg.HEATER_LOOP_SECONDS]]
+        high_at = self.loop_threshold(mem) * OUTPUT_FULL
         heating = bool(bits[inst.hc.kind][inst.hc.index])
-        pid_due = now >= st.next_pid - 1e-9
-        if pid_due:
-            while st.next_pid <= now + 1e-9:
-                st.next_pid += st.interval
-        phase = (now - st.started) % st.pwm
-        log = self._log
-        if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
-            log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
-        waveforms = self.waveforms
-        driven = {e: (bool(self.drive(e, True)), bool(self.drive(e, False))) for e in (False, True)}
-        enabled_of, in_band, count_of, prealarm_of = self.enabled, self.in_band, self.prealarm_count, self.prealarm
-        loop_elapsed, bit_position = self.loop_elapsed, self.bit_position
-        pvs, pv_base = words[start.kind], start.index + sn
-        svs, sv_base = words[inst.sv.kind], inst.sv.index
-        oss, os_base = words[inst.os.kind], inst.os.index
+        pid_due = self.pid_due(st, now)
+        log = self._log is not None and (start.kind, start.index) == self.temperature_model.log_start
+        # (else PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests)
+        b = np.arange(zn)
+        points = sn + b
+        pv = signed(words[start.kind][start.index + sn:start.index + sn + zn])
+        sv = signed(words[inst.sv.kind][inst.sv.index:inst.sv.index + zn])
+        os = signed(words[inst.os.kind][inst.os.index:inst.os.index + zn])
+        enabled = np.asarray(self.enabled(mem, points), dtype=bool)
         outputs, or_base = words[inst.or_.kind], inst.or_.index
-        ys, y_kind, y_base = bits[inst.yn.kind], inst.yn.kind, inst.yn.index
-        points, pwm, started = st.points, st.pwm, st.started
-        prs, pr_base = words[inst.pr.kind], inst.pr.index
-        irs, ir_base = words[inst.ir.kind], inst.ir.index
-        drs, dr_base = words[inst.dr.kind], inst.dr.index
-        high_at = loop_percent * OUTPUT_FULL
-        normal_words, warning_words = [0, 0], [0, 0]
-        out_of_band = warning = False
-        for b in range(zn):
-            point = sn + b
-            ps = points[point]
-            pv = pvs[pv_base + b]
-            pv = pv - 0x10000 if pv & 0x8000 else pv
-            sv = svs[sv_base + b]
-            sv = sv - 0x10000 if sv & 0x8000 else sv
-            os = oss[os_base + b]
-            os = os - 0x10000 if os & 0x8000 else os
-            enabled = enabled_of(mem, point)
-            if log is not None and enabled and point in log:
-                self._replay(ps, log[point], now, emu.scan_time, outputs[or_base + b] * 100 >= high_at, sv, os,
-                             limit)
-            if pid_due:
-                if enabled:
-                    kc, ki, td = prs[pr_base + b], irs[ir_base + b], drs[dr_base + b]
-                    outputs[or_base + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
-                else:
-                    outputs[or_base + b] = 0
-                    ps.integral, ps.pv_prev = 0.0, None
-            value = outputs[or_base + b]
-            on_time = value / OUTPUT_FULL * pwm
-            y_on, y_off = driven[bool(enabled)]
-            ys[y_base + b] = 1 if (y_on if phase < on_time else y_off) else 0
-            wave = (started, pwm, on_time, y_on, y_off)
-            if waveforms.get((y_kind, y_base + b)) != wave:
-                waveforms[(y_kind, y_base + b)] = wave
-                self.waveforms_version += 1
-            word, bit = bit_position(b)
-            if not enabled:
-                ps.prealarm, ps.loop_since = 0, None
-                continue
-            normal = in_band(pv, sv, os)
-            if normal:
-                normal_words[word] |= 1 << bit
-            else:
-                out_of_band = True
-            ps.prealarm = count_of(ps.prealarm, pv, limit)
-            if value * 100 >= high_at and not normal:
-                if ps.loop_since is None:
-                    ps.loop_since = now
-            else:
-                ps.loop_since = None
-            loop_open = ps.loop_since is not None and loop_elapsed(ps.loop_since, now) >= loop_seconds
-            if prealarm_of(ps.prealarm) or loop_open:
-                warning_words[word] |= 1 << bit
-                warning = True
+        before = np.array(outputs[or_base:or_base + zn], dtype=np.int64)
+        replayed = self._replayed(points, enabled, now, emu.scan_time) if log else None
+        after = before
+        if pid_due:
+            after = np.zeros(zn, dtype=np.int64)
+            idx = np.flatnonzero(enabled)
+            if len(idx):
+                gains = [np.array(words[a.kind][a.index:a.index + zn], dtype=np.int64)[idx]
+                         for a in (inst.pr, inst.ir, inst.dr)]
+                law = self.law(inst, *gains, heating, st.interval)
+                after[idx], st.integral[idx] = self.control(law, st.integral[idx], st.pv_prev[idx], st.has_prev[idx],
+                                                            sv[idx], pv[idx])
+                st.pv_prev[idx], st.has_prev[idx] = pv[idx], True
+            off = ~enabled
+            st.integral[off], st.has_prev[off] = 0.0, False
+            outputs[or_base:or_base + zn] = after.tolist()
+        self._drive(mem, inst, st, now, enabled, after)
+        # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV
+        idx = np.flatnonzero(enabled)
+        if replayed is not None:
+            rpv, rat, rvalid = (x[:, idx] for x in replayed)
+            rows = (np.vstack((rpv, pv[idx])), np.vstack((rat, np.full(len(idx), now))),
+                    np.vstack((np.broadcast_to(before[idx] * 100 >= high_at, rpv.shape), after[idx] * 100 >= high_at)),
+                    np.vstack((rvalid, np.ones(len(idx), dtype=bool))))
+        else:
+            rows = (pv[idx][None], np.full((1, len(idx)), now), (after[idx] * 100 >= high_at)[None],
+                    np.ones((1, len(idx)), dtype=bool))
+        self.track(st, idx, *rows, sv[idx], os[idx], limit)
+        off = ~enabled
+        st.prealarm[off], st.loop_since[off] = 0, math.nan
+        normal = enabled & np.asarray(self.in_band(pv, sv, os), dtype=bool)
+        loop_open = np.asarray(self.loop_elapsed(st.loop_since, now) >= loop_seconds, dtype=bool)
+        warning = enabled & (np.asarray(self.prealarm(st.prealarm), dtype=bool) | loop_open)
         wr = inst.wr
-        words[wr.kind][wr.index:wr.index + 4] = [normal_words[0] & 0xFFFF, normal_words[1] & 0xFFFF,
-                                                  warning_words[0] & 0xFFFF, warning_words[1] & 0xFFFF]
-        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(out_of_band, warning) else 0
+        words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*self.bit_words(b, normal), *self.bit_words(b, warning))]
+        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(bool((enabled & ~normal).any()),
+                                                              bool(warning.any())) else 0
+
+    def _drive(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
+               output: np.ndarray) -> None:
+        """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms."""
+        on_time, y_on, y_off = self.waves(st, enabled, output)
+        ys = mem.bits[inst.yn.kind]
+        ys[inst.yn.index:inst.yn.index + st.zn] = self.outputs_at(st, now, on_time, y_on, y_off)
+        self.publish(inst, st, on_time, y_on, y_off)
+
+    def waves(self, st: InstanceState, enabled: np.ndarray, output: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(ON seconds of each PWM period, Y when on, Y when off) of the instance's outputs."""
+        y_on = np.broadcast_to(np.asarray(self.drive(enabled, True), dtype=bool), enabled.shape)
+        y_off = np.broadcast_to(np.asarray(self.drive(enabled, False), dtype=bool), enabled.shape)
+        return self.on_times(st, output), y_on, y_off
+
+    @staticmethod
+    def on_times(st: InstanceState, output: np.ndarray) -> np.ndarray:
+        """Seconds ON of each PWM period for outputs (OR): OR/16383 of the period."""
+        return output / OUTPUT_FULL * st.pwm
+
+    @staticmethod
+    def outputs_at(st: InstanceState, now: float, on_time: np.ndarray, y_on: np.ndarray, y_off: np.ndarray) -> bytes:
+        """Yn… at ``now``: as when on for the first ``on_time`` seconds of each PWM period, else as when off."""
+        return np.where((now - st.started) % st.pwm < on_time, y_on, y_off).astype(np.uint8).tobytes()
+
+    def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
+                y_off: np.ndarray) -> None:
+        """The waveforms of the instance's outputs (for the plant): (started, PWM period, ON seconds, Y when on,
+        Y when off), rewritten where they changed."""
+        last = st.published
+        if last is not None and last[0] == (st.started, st.pwm, self.waveforms_version):
+            changed = (on_time != last[1]) | (y_on != last[2]) | (y_off != last[3])
+            if not changed.any():
+                return
+            bs = np.flatnonzero(changed).tolist()
+        else:
+            bs = range(st.zn)
+        waveforms, kind, base = self.waveforms, inst.yn.kind, inst.yn.index
+        ons, lits, darks = on_time.tolist(), y_on.tolist(), y_off.tolist()
+        for b in bs:
+            wave = (st.started, st.pwm, ons[b], lits[b], darks[b])
+            if waveforms.get((kind, base + b)) != wave:
+                waveforms[(kind, base + b)] = wave
+                self.waveforms_version += 1
+        # (the version as left here: another instance writing the same outputs shows as a newer one)
+        st.published = ((st.started, st.pwm, self.waveforms_version), on_time, y_on, y_off)
 
     def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
-        for b in range(st.zn):
-            ys[inst.yn.index + b] = 0
-        for ps in st.points.values():
-            ps.prealarm, ps.loop_since = 0, None
+        ys[inst.yn.index:inst.yn.index + st.zn] = bytes(st.zn)
+        st.prealarm[:] = 0
+        st.loop_since[:] = math.nan
 
     def _log_off(self) -> bool:
         """Without the temperature model's log of readings, every measurement needs its scan."""
@@ -390,7 +498,8 @@ class Fun86Model(Model):
         if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
             return True
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
-        points = [p for p in st.points if self.enabled(mem, p)]
+        points = st.sn + np.arange(st.zn)
+        points = points[np.asarray(self.enabled(mem, points), dtype=bool)].tolist()
         return bool(points) and self.temperature_model.readings_upper(mem, points) >= limit
 
     def next_event(self, now: float) -> float:
@@ -405,11 +514,12 @@ class Fun86Model(Model):
                 due = min(due, self.next_measurement())
             if not st.running:
                 continue
-            for ps in st.points.values():
-                if 0 < ps.prealarm < 4 * PREALARM_SCANS:
-                    return now  # counting consecutive scans: every scan matters
-                if ps.loop_since is not None and ps.loop_since + loop_seconds > now + 1e-9:
-                    due = min(due, ps.loop_since + loop_seconds)  # (once open, its bit is recomputed each scan)
+            if ((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)).any():
+                return now  # counting consecutive scans: every scan matters
+            deadlines = st.loop_since + loop_seconds
+            pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
+            if pending.any():
+                due = min(due, float(deadlines[pending].min()))
             due = min(due, st.next_pid)
             if not measurements:
                 measurements = self._prealarm_possible(mem, st)
@@ -418,16 +528,26 @@ class Fun86Model(Model):
             # PWM: every cycle start, and the end of each point's ON time within the current cycle
             cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
             due = min(due, cycle + st.pwm)
-            outputs = mem.words[inst.or_.kind]
-            for b in range(st.zn):
-                edge = cycle + outputs[inst.or_.index + b] / OUTPUT_FULL * st.pwm
-                if edge > now + 1e-9:
-                    due = min(due, edge)
+            edges = cycle + np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]) \
+                / OUTPUT_FULL * st.pwm
+            later = edges > now + 1e-9
+            if later.any():
+                due = min(due, float(edges[later].min()))
         if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
         if due == math.inf:
             return due
-        # The first scan at or after the event, on the scan grid: a jump then takes the very scan that stepping
-        # scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way).
-        st = self._emu.scan_time
-        return max(now, math.ceil(due / st - 1e-6) * st)
+        return self.scan_for(due, now)
+
+    def scan_for(self, due: float, now: float) -> float:
+        """The first scan at or after an event at ``due``, on the scan grid: a jump then takes the very scan that
+        stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
+        return max(now, float(scan_grid(due, self._emu.scan_time)))
+
+    def span(self, engine: "Engine", target: float) -> bool:
+        """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
+        if self._span is None:
+            from hil.families.fbs.sim.models.span import Span  # noqa: PLC0415 - span imports this module
+            self._span = Span(self)
+        return self._span.run(engine, target)
+

@@ -38,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hil.families.fbs.address import Address
-from hil.sim.model import Model
+from hil.sim.model import Model, scan_grid as grid
 from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
@@ -181,21 +181,26 @@ def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
     return (x & _U(0xFFFF)).astype(np.intp)
 
 
-def grid(x, st: float):  # noqa: ANN001, ANN201 - float or array in, the same out
-    """The first scan at or after virtual time x, on the scan grid (as the engine's fast-forward lands)."""
-    return np.ceil(x / st - 1e-6) * st
+def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
+    """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
+    (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles (axis 0) of e^(−(t − lo)/τ), lo each cycle's
+    start clipped to [a, t])."""
+    decay = np.exp((a - t) * rate)
+    begins = np.minimum(np.exp((np.maximum(starts, a) - t) * rate), 1.0).sum(axis=0)
+    return decay, t_off - t_off * decay - lift * begins
 
 
-def cycles_temperature(a, temp_a, t, starts, offs, t_on, t_off, tau):  # noqa: ANN001, ANN201
-    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (axis 0)
-    and off otherwise — the cycles may be any that cover (a, t): one wholly outside adds exactly nothing.
+def cycles_temperature(temp_a, a, t, offs, lift, rate, terms):  # noqa: ANN001, ANN201
+    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (axis 0;
+    ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the cycles may be any that cover (a, t): one
+    wholly outside adds exactly nothing.  ``lift``: how much higher the plant settles with the heater on than off,
+    ``rate``: 1/τ.
 
-    A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + (T_on − T_off)·Σ over the on-segments [lo, hi]
-    within [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
-    decay = np.exp(-(t - a) / tau)
-    ends = np.minimum(np.exp(-(t - np.maximum(offs, a)) / tau), 1.0)
-    begins = np.minimum(np.exp(-(t - np.maximum(starts, a)) / tau), 1.0)
-    return t_off + (temp_a - t_off) * decay + (t_on - t_off) * (ends - begins).sum(axis=0)
+    A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
+    [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
+    decay, base = terms
+    ends = np.add.reduce(np.minimum(np.exp((np.maximum(offs, a) - t) * rate), 1.0), axis=0)
+    return temp_a * decay + base + lift * ends
 
 
 #: cycles solved one by one around a span's ends (the span's start falls in the first two, its end in the last
@@ -218,8 +223,8 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
     if not pulsed.any():
         return out
     a, temp, t = t0[pulsed], temp0[pulsed], t[pulsed]
-    started, period, on, t_on, t_off, tau = (np.broadcast_to(x, pulsed.shape)[pulsed]
-                                             for x in (started, period, on, t_on, t_off, tau))
+    started, period, on, t_on, t_off, tau = (np.broadcast_to(x, pulsed.shape)[pulsed] if np.ndim(x) == 0 else
+                                             x[pulsed] for x in (started, period, on, t_on, t_off, tau))
     k = np.floor((a - started) / period) - 1  # the cycle before the one a falls in (the grid rounds up)
     free = k + np.where(grid(started + (k + 1) * period, st) >= a, 1, 2)  # the first cycle starting at or after a
     free_start = grid(started + free * period, st)
@@ -228,7 +233,9 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
     head_end = np.where(jump, free_start, t)
     cyc = k + np.arange(_HEAD + _TAIL)[:, None]
     raw = started + cyc * period
-    temp = cycles_temperature(a, temp, head_end, grid(raw, st), grid(raw + on, st), t_on, t_off, tau)
+    rate, lift = 1.0 / tau, t_on - t_off
+    temp = cycles_temperature(temp, a, head_end, grid(raw + on, st), lift, rate,
+                              cycle_terms(a, head_end, grid(raw, st), t_off, lift, rate))
     if jump.any():
         j = jump
         raw0 = started[j] + free[j] * period[j]
@@ -242,8 +249,9 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
         landed = free[j] + whole[j]
         cyc = landed + np.arange(_TAIL)[:, None]
         raw = started[j] + cyc * period[j]
-        temp[j] = cycles_temperature(grid(started[j] + landed * period[j], st), jumped, t[j], grid(raw, st),
-                                     grid(raw + on[j], st), t_on[j], t_off[j], tau[j])
+        at = grid(started[j] + landed * period[j], st)
+        temp[j] = cycles_temperature(jumped, at, t[j], grid(raw + on[j], st), lift[j], rate[j],
+                                     cycle_terms(at, t[j], grid(raw, st), t_off[j], lift[j], rate[j]))
     out[pulsed] = temp
     return out
 

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from hil.core.errors import InvalidValue
+from hil.sim.columns import last_of_each, occurrence
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.sim.models.plant import PlantSource
@@ -302,30 +303,30 @@ class TemperatureModel(Model):
                 words[offset] = words.get(offset, 0) | 1 << bit
         return words[1] & 0xFFFF, words[2] & 0xFFFF
 
-    def _measure_module(self, emu: "Emulator", k: int, first: int) -> tuple[np.ndarray, np.ndarray]:
-        """(times, points) of module k's measurements due by now, its schedule moved past them."""
+    def measure_module(self, now: float, k: int, first: int) -> tuple[np.ndarray, np.ndarray]:
+        """(times, points) of module k's measurements due by ``now``, its schedule moved past them."""
         module = self.fitted[k]
         step = self._step(module)
         cycle = module.update_s[self.config.rate]
         # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
         # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
         keep = (self.config.averaging + 1) * cycle
-        if emu.now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
-            self._next[k] += math.floor((emu.now - self._next[k] - keep) / cycle) * cycle
-        times, self._next[k] = schedule(self._next[k], step, emu.now + 1e-9)
+        if now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
+            self._next[k] += math.floor((now - self._next[k] - keep) / cycle) * cycle
+        times, self._next[k] = schedule(self._next[k], step, now + 1e-9)
         points = first + (self._mux[k] + np.arange(len(times))) % module.points
         self._mux[k] = (self._mux[k] + len(times)) % module.points
         return times, points
 
     def _measure(self, emu: "Emulator", due: list[tuple[int, int, int]], readings: Address) -> None:
         """The measurements of modules ``due`` [(k, first point, sensor code)] up to now, in one batch."""
-        batches = [(*self._measure_module(emu, k, first), code) for k, first, code in due]
+        batches = [(*self.measure_module(emu.now, k, first), code) for k, first, code in due]
         times = np.concatenate([b[0] for b in batches])
         points = np.concatenate([b[1] for b in batches])
         codes = np.concatenate([np.full(len(b[0]), b[2]) for b in batches])
         words = self.take(emu.memory, times, points, codes)
         out, base = emu.memory.words[readings.kind], readings.index
-        last = _last_of_each(points)
+        last = last_of_each(points)
         for point, word in zip(points[last].tolist(), words[last].tolist()):
             out[base + point] = word
         if self.log is not None:
@@ -340,14 +341,14 @@ class TemperatureModel(Model):
         good = installed & ~broken
         live = np.zeros(len(points), dtype=np.int64)
         if good.all():
-            live = self._live(times, points, codes)
+            live = self._live(times, points, codes).astype(np.int64)
         elif good.any():
             live[good] = self._live(times[good], points[good], codes[good])
         if not good.all():
             self._forget(points[~good])  # (a point is good or not for all its measurements of one scan)
         reading, flagged = self.point_result(points, installed, broken, live)
         flagged = np.broadcast_to(np.asarray(flagged, dtype=bool), points.shape)
-        last = _last_of_each(points)
+        last = last_of_each(points)
         breaks = self._breaks
         for point, flag in zip(points[last].tolist(), flagged[last].tolist()):
             breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
@@ -407,14 +408,21 @@ class TemperatureModel(Model):
 
     def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray) -> np.ndarray:
         """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°."""
-        celsius = self.values(times, points)
-        low, high = sensor_limits(codes)
-        celsius = np.minimum(np.maximum(celsius, low), high)
-        value = celsius * 9 / 5 + 32 if self.config.unit != "C" else celsius
-        mean = self.average(points, value)
-        if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
-            return np.rint(mean).astype(np.int64) * 10
-        return np.rint(mean * 10).astype(np.int64)
+        return self.resolution(self.average(points, self.in_unit(self.values(times, points), *sensor_limits(codes))))
+
+    def in_unit(self, celsius: np.ndarray, low: np.ndarray | None, high: np.ndarray | None) -> np.ndarray:
+        """Sensor values within the sensors' range (``low``, ``high``; None: known to be within), in the configured
+        unit."""
+        if low is not None:
+            celsius = np.minimum(np.maximum(celsius, low), high)
+        return celsius * 9 / 5 + 32 if self.config.unit != "C" else celsius
+
+    def resolution(self, mean: np.ndarray) -> np.ndarray:
+        """Averaged values as readings in 0.1° (the fast rate has 1° resolution, still shown in 0.1° units): whole
+        numbers, as floats."""
+        if self.config.rate == "fast":
+            return np.rint(mean) * 10
+        return np.rint(mean * 10)
 
     def average(self, points: np.ndarray, value: np.ndarray) -> np.ndarray:
         """Each value's mean with the point's samples before it (the last ``averaging``), the samples updated.
@@ -423,12 +431,12 @@ class TemperatureModel(Model):
         profile gives the same readings on every Python)."""
         ring, count, n = self._ring, self._count, self.config.averaging
         if n == 1:
-            last = _last_of_each(points)
+            last = last_of_each(points)
             ring[points[last], 0] = value[last]
             count[points[last]] = 1
             return value
         mean = np.empty(len(points))
-        rounds = _occurrence(points)
+        rounds = occurrence(points)
         for r in range(int(rounds.max()) + 1 if len(points) else 0):
             cols = np.flatnonzero(rounds == r)
             pts = points[cols]
@@ -450,29 +458,6 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
     times = np.add.accumulate(np.concatenate(([at], np.full(int((limit - at) / step) + 2, step))))
     n = int(np.searchsorted(times, limit, side="right"))
     return times[:n], float(times[n])
-
-
-def _last_of_each(points: np.ndarray) -> np.ndarray:
-    """Indexes of the last occurrence of each distinct value of ``points``."""
-    if len(points) <= 1:
-        return np.arange(len(points))
-    _, first_from_end = np.unique(points[::-1], return_index=True)
-    return len(points) - 1 - first_from_end
-
-
-def _occurrence(points: np.ndarray) -> np.ndarray:
-    """For each element, how many equal elements come before it."""
-    order = np.argsort(points, kind="stable")
-    sorted_points = points[order]
-    starts = np.flatnonzero(np.r_[True, sorted_points[1:] != sorted_points[:-1]])
-    runs = np.diff(np.r_[starts, len(points)])
-    rank = np.arange(len(points)) - np.repeat(starts, runs)
-    out = np.empty(len(points), dtype=np.int64)
-    out[order] = rank
-    return out
-
-
-_LIMITS: dict[int, tuple[float, float]] = {}
 
 
 def sensor_limits(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,639 @@
+"""Request-free stretches of the temperature modules, FUN86 and the thermal plant, run in batches.
+
+Between two requests nothing outside the models touches memory.  When the only scans the engine would run there are
+FUN86's PID steps — the plant integrating the PWM between them (no dead time), no reading able to reach the
+pre-alarm limit, no heater-loop deadline due, no other model needing a scan — :class:`Span` runs those scans
+together, the state of every point in arrays:
+
+1. the measurements of the whole batch are scheduled at once (the temperature model's schedule), and whatever does
+   not depend on the loop's state — their noise, the decays, the PWM cycles' starts — is computed for all of them;
+2. then scan after scan only what does: the plant through the last interval's waveforms (its closed form for every
+   measurement and every point's anchor, :func:`~hil.families.fbs.sim.models.plant.cycles_temperature`), the
+   readings (the temperature model's ``in_unit``, ``average``, ``resolution``), the PID step of the instances due
+   (:meth:`Fun86Model.control`) and the new waveforms;
+3. then the rest for the whole batch at once: the readings replayed for the heater-loop timer, each scan's normal
+   and warning words and ALM (:meth:`Fun86Model.track`, ``in_band``, ``bit_words``, ``alarm``), the last scan's
+   outputs, the readings and samples, and the plant's anchors where its waveforms changed.
+
+These are the functions the models' own scans call, on more rows at once; scan observers (``Engine.observers``)
+still see every scan's outputs.  Anything else — a broken variant's overridden seam, dead time, a reading that could
+reach R4008, memory the models share with one another or with another model — leaves the scans to the engine.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hil.families.fbs import registers as reg
+from hil.families.fbs.address import Address
+from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
+from hil.families.fbs.sim.models.fun86 import _R, PREALARM_SCANS, Fun86Model, InstanceState, Law
+from hil.families.fbs.sim.models.plant import PlantSource, ThermalPlant, cycle_terms, cycles_temperature, noise_index
+from hil.families.fbs.sim.models.temperature import TemperatureModel, sensor_limits
+from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, TABLE_MARKER
+from hil.sim.columns import last_of_each, occurrence, signed16
+from hil.sim.model import scan_grid
+
+if TYPE_CHECKING:
+    from hil.sim.engine import Engine
+    from hil.families.fbs.sim.memory import Memory
+
+#: scans per batch at most (the batch's arrays are scans × columns)
+CHUNK = 2048
+
+
+@dataclass
+class _Table:
+    """The temperature table as the temperature model reads it (measuring, every point measured once)."""
+
+    readings: Address
+    work: Address
+    measured: tuple  # (module k, first point, table code) of the modules measured
+    header: tuple[int, ...]
+    count: int  # modules in the table
+    total: int  # points in the table
+
+
+@dataclass
+class _Loop:
+    """A running FUN86 instance, as constant as it is between requests."""
+
+    inst: PidInstance
+    st: InstanceState
+    enabled: np.ndarray  # per point b
+    idx: np.ndarray  # the enabled b
+    off: np.ndarray  # the disabled b
+    points: np.ndarray  # Sn + b
+    law: Law  # of the enabled points
+    sv: np.ndarray
+    os: np.ndarray
+    output: np.ndarray  # OR (per b), as now
+    before: np.ndarray  # OR as before the batch
+    driven: np.ndarray  # the b whose output heats a plant slot …
+    slots: np.ndarray  # … and those slots
+    y_on: np.ndarray  # per b
+    y_off: np.ndarray
+    lit: np.ndarray  # the heater of each slot with its output on …
+    dark: np.ndarray  # … and off (the plant's faults)
+
+
+class _Step:
+    """A running instance's PID state through a batch (its points' arrays: the enabled ones)."""
+
+    def __init__(self, loop: _Loop, n_pv: int, n_slots: int) -> None:
+        st, idx = loop.st, loop.idx
+        self.at = loop.points[idx]
+        self.every_pv = len(self.at) == n_pv and bool((self.at == np.arange(n_pv)).all())  # PVs: all, in order
+        self.every_point = len(loop.off) == 0
+        self.every_slot = (self.every_point and len(loop.slots) == n_slots
+                           and bool((loop.slots == np.arange(n_slots)).all())
+                           and bool((loop.driven == np.arange(st.zn)).all()))
+        self.integral, self.prev = st.integral[idx], st.pv_prev[idx]
+        self.has: np.ndarray | bool = True if st.has_prev[idx].all() else st.has_prev[idx]
+        self.sv = loop.sv[idx]
+        self.output = loop.output.astype(float)
+
+
+class Span:
+    """Runs FUN86's scans in batches (see the module docstring); :meth:`Fun86Model.span` asks it."""
+
+    def __init__(self, fun86: Fun86Model) -> None:
+        self.fun86 = fun86
+        self._shared_key: object = None
+        self._shared = True
+
+    def run(self, engine: "Engine", target: float) -> bool:
+        ready = self._ready(engine)
+        if ready is None:
+            return False
+        bound = math.inf
+        saved = self._save(engine, ready)
+        while True:
+            start = engine.now
+            times, due = self._plan(engine, target, ready["loops"], bound)
+            if not times:
+                return False
+            scans = np.array([start, *times])
+            batch = self._compute(engine, ready, scans, due)
+            deadline = self._deadline(ready, batch, scans, engine.scan_time)
+            if deadline is None:
+                self._commit(engine, ready, batch, scans)
+                return True
+            # a heater-loop deadline the engine would have scanned at, inside: again, up to it
+            self._restore(engine, ready, saved)
+            bound = deadline
+
+    # -- what may be batched ---------------------------------------------------------------------------------
+    def _ready(self, engine: "Engine") -> dict[str, Any] | None:
+        """Everything a batch needs, or None when the coming scans are not FUN86's PID steps alone."""
+        fun86 = self.fun86
+        tm = fun86.temperature_model
+        if (type(fun86) is not Fun86Model or not fun86.pwm_exact or type(tm) is not TemperatureModel
+                or tm.log is None):
+            return None
+        states = fun86.states
+        if any(st.waiting for st in states) or not any(st.running for st in states):
+            return None
+        models = engine.models
+        plant = next((m for m in models if type(m) is ThermalPlant), None)
+        if plant is None or not plant.waved or plant._fun86 is not fun86:
+            return None
+        at = [next((i for i, m in enumerate(models) if m is model), -1) for model in (tm, fun86, plant)]
+        if not 0 <= at[0] < at[1] < at[2]:
+            return None
+        now = engine.now
+        others = [m for m in models if m is not tm and m is not fun86 and m is not plant]
+        if any(m.next_event(now) != math.inf for m in others):
+            return None
+        mem = engine.memory
+        table = self._table(tm, mem)
+        if table is None:
+            return None
+        start = fun86.readings_start(mem)
+        if start is None or (start.kind, start.index) != (table.readings.kind, table.readings.index):
+            return None
+        if not self._unshared(engine, mem, table, others):
+            return None
+        words = mem.words
+        r = words["R"]
+        limit, loop_seconds = r[_R[reg.PREALARM_LIMIT]], r[_R[reg.HEATER_LOOP_SECONDS]]
+        loops = []
+        for inst, st in zip(fun86.config.instances, states):
+            if not st.running:
+                continue
+            if (st.interval <= 2 * engine.scan_time or fun86._prealarm_possible(mem, st)
+                    or ((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)).any()):
+                return None
+            b = np.arange(st.zn)
+            points = st.sn + b
+            enabled = np.asarray(fun86.enabled(mem, points), dtype=bool)
+            pv = signed16(words[start.kind][start.index + st.sn:start.index + st.sn + st.zn])
+            if (pv[enabled] >= limit).any():  # (readings cannot reach R4008: PVs now could)
+                return None
+            loops.append(self._loop(mem, inst, st, enabled, plant))
+        # the next scan is a PID step's (not a heater-loop deadline's: those later are checked after the batch)
+        if fun86.next_event(now) < fun86.scan_for(min(loop.st.next_pid for loop in loops), now):
+            return None
+        return {"tm": tm, "plant": plant, "table": table, "loops": loops, "limit": limit,
+                "loop_seconds": loop_seconds, "high_at": fun86.loop_threshold(mem) * OUTPUT_FULL}
+
+    @staticmethod
+    def _table(tm: TemperatureModel, mem: "Memory") -> _Table | None:
+        """The table as the temperature model's scan reads it, if it is measuring and every point was measured."""
+        words = mem.words[tm.config.table.kind]
+        sr = tm.config.table.index
+        if words[sr] != TABLE_MARKER:
+            return None
+        count = words[sr + 1]
+        header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
+        state, readings, work, codes, table_modules, total = tm._layout(header)
+        if state != "measuring" or readings is None or work is None or work.kind not in mem.words:
+            return None
+        _mismatch, expected, _entries, measured = tm._plan(codes, table_modules, words[sr + 2])
+        if not expected or not expected <= tm._measured:
+            return None
+        return _Table(readings, work, measured, header, min(count, MAX_MODULES), total)
+
+    def _loop(self, mem: "Memory", inst: PidInstance, st: InstanceState, enabled: np.ndarray,
+              plant: ThermalPlant) -> _Loop:
+        words = mem.words
+        zn = st.zn
+        idx, off = np.flatnonzero(enabled), np.flatnonzero(~enabled)
+        gains = [np.array(words[a.kind][a.index:a.index + zn], dtype=np.int64)[idx] for a in (inst.pr, inst.ir, inst.dr)]
+        heating = bool(mem.bits[inst.hc.kind][inst.hc.index])
+        heaters = {(a.kind, a.index): plant.slot[p] for p, a in plant.heaters.items()}
+        driven = [(b, heaters[(inst.yn.kind, inst.yn.index + b)]) for b in range(zn)
+                  if (inst.yn.kind, inst.yn.index + b) in heaters]
+        _on, y_on, y_off = self.fun86.waves(st, enabled, np.zeros(zn))
+        heater = plant.order
+        lit = np.array([plant.power(heater[s], bool(y_on[b])) for b, s in driven], dtype=np.int64)
+        dark = np.array([plant.power(heater[s], bool(y_off[b])) for b, s in driven], dtype=np.int64)
+        return _Loop(inst, st, enabled, idx, off, st.sn + np.arange(zn), self.fun86.law(inst, *gains, heating, st.interval),
+                     signed16(words[inst.sv.kind][inst.sv.index:inst.sv.index + zn]),
+                     signed16(words[inst.os.kind][inst.os.index:inst.os.index + zn]),
+                     np.array(words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], dtype=np.int64),
+                     np.array(words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], dtype=np.int64),
+                     np.array([d[0] for d in driven], dtype=np.intp), np.array([d[1] for d in driven], dtype=np.intp),
+                     np.array(y_on), np.array(y_off), lit, dark)
+
+    def _unshared(self, engine: "Engine", mem: "Memory", table: _Table, others: list) -> bool:
+        """No element the batch writes is read or written by anything else between its scans: not by the
+        models' reads (table, R4003–R4013, the instances' operands), not by another part of the batch, not by
+        another model nor the scan counter.  (A scan would see such an element change between two others.)"""
+        fun86 = self.fun86
+        key = (id(mem), table.header, tuple((st.running, st.sn, st.zn) for st in fun86.states),
+               tuple(id(m) for m in others), getattr(engine, "scan_counter", None))
+        if key == self._shared_key:
+            return self._shared
+        self._shared_key, self._shared = key, False
+
+        def run(a: Address, n: int) -> set[tuple[str, int]]:
+            return {(a.kind, a.index + i) for i in range(n)}
+
+        writes = [run(table.readings, table.total), run(table.work, 4 + 4 * table.count)]
+        reads = run(fun86.temperature_model.config.table, len(table.header))
+        reads |= {("R", _R[reg.PID_SOURCE_KEY] + i) for i in range(6)} | {("R", _R[reg.PID_ENABLE_LOW] - 2 + i)
+                                                                         for i in range(4)}
+        for inst, st in zip(fun86.config.instances, fun86.states):
+            reads |= run(inst.en, 1)
+            if inst.settable:
+                reads |= run(inst.sn_register, 1) | run(inst.zn_register, 1)
+            mine = run(inst.err, 1) | run(inst.alm, 1) | run(inst.yn, st.zn)
+            if st.running:
+                mine |= run(inst.or_, st.zn) | run(inst.wr, 4)
+                reads |= run(inst.hc, 1)
+                for a in (inst.sv, inst.os, inst.pr, inst.ir, inst.dr):
+                    reads |= run(a, st.zn)
+            writes.append(mine)
+        foreign: set[tuple[str, int]] = set()
+        for model in others:
+            footprint = model.footprint()
+            if footprint is None:
+                return False
+            foreign |= footprint
+        counter = getattr(engine, "scan_counter", None)
+        if counter is not None:
+            foreign |= run(counter, 1)
+        seen: set[tuple[str, int]] = set()
+        for part in writes:
+            if part & seen:
+                return False
+            seen |= part
+        self._shared = not (seen & (reads | foreign))
+        return self._shared
+
+    # -- the batch ----------------------------------------------------------------------------------------------
+    def _plan(self, engine: "Engine", target: float, loops: list[_Loop], bound: float) -> tuple[list, list]:
+        """Tick the engine's clock through the coming PID scans (each landed as the engine lands it), short of any
+        heater-loop deadline (``bound``) and leaving the last scan before ``target`` to the engine; for each
+        instance, whether its PID step is due at each."""
+        fun86 = self.fun86
+        times: list[float] = []
+        due: list[list[bool]] = [[] for _ in loops]
+        while len(times) < CHUNK:
+            event = fun86.scan_for(min(loop.st.next_pid for loop in loops), engine.now)
+            landing = engine.landing(event, target)
+            if landing >= bound or landing + engine.scan_time > target + 1e-9:
+                break
+            engine.land(event, target)
+            engine.tick()
+            times.append(engine.now)
+            for loop, flags in zip(loops, due):
+                flags.append(fun86.pid_due(loop.st, engine.now))
+        return times, due
+
+    @staticmethod
+    def _save(engine: "Engine", ready: dict[str, Any]) -> tuple:
+        """What planning and computing a batch change before it is committed (to try a shorter one instead)."""
+        tm = ready["tm"]
+        return ((engine.now, engine.scans, engine.skipped_time), [(loop.st.next_pid, loop.st.loop_since.copy())
+                                                                   for loop in ready["loops"]],
+                (list(tm._next), list(tm._mux), tm._ring.copy(), tm._count.copy()))
+
+    @staticmethod
+    def _restore(engine: "Engine", ready: dict[str, Any], saved: tuple) -> None:
+        clock, loops, temperature = saved
+        engine.now, engine.scans, engine.skipped_time = clock
+        for loop, (next_pid, loop_since) in zip(ready["loops"], loops):
+            loop.st.next_pid, loop.st.loop_since = next_pid, loop_since.copy()
+            loop.output = loop.before.copy()
+        tm = ready["tm"]
+        tm._next, tm._mux = list(temperature[0]), list(temperature[1])
+        tm._ring, tm._count = temperature[2].copy(), temperature[3].copy()
+
+    def _compute(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
+                 due: list[list[bool]]) -> dict[str, Any]:
+        """The scans at ``scans[1:]`` (``scans[0]``: the one before; the clock already at the last), computed:
+        everything but memory and the models' committed state."""
+        fun86 = self.fun86
+        tm: TemperatureModel = ready["tm"]
+        plant: ThermalPlant = ready["plant"]
+        table: _Table = ready["table"]
+        loops: list[_Loop] = ready["loops"]
+        mem = engine.memory
+        st_time = engine.scan_time
+        n_scans = len(scans) - 1
+
+        # 1. the measurements, in scan order (at each scan: module after module, each in time order)
+        parts = [(*tm.measure_module(float(scans[-1]), k, first), code >> 8) for k, first, code in table.measured]
+        times = np.concatenate([part[0] for part in parts])
+        points = np.concatenate([part[1] for part in parts])
+        codes = np.concatenate([np.full(len(part[0]), part[2]) for part in parts])
+        scan_of = np.searchsorted(scans[1:] + 1e-9, times, side="left")
+        order = np.argsort(scan_of, kind="stable")
+        times, points, codes, scan_of = times[order], points[order], codes[order], scan_of[order]
+        per_scan = np.bincount(scan_of, minlength=n_scans)
+        width = int(per_scan.max()) if len(times) else 0
+        col = np.arange(len(times)) - np.repeat(np.cumsum(per_scan) - per_scan, per_scan)
+
+        installed = np.asarray(tm.installed(mem, points), dtype=bool)
+        broken = np.isin(points, list(tm.broken))
+        good = installed & ~broken
+        bad_reading, bad_flag = tm.point_result(points, installed, broken, np.zeros(len(points), dtype=np.int64))
+        bad_reading = np.broadcast_to(np.asarray(bad_reading, dtype=np.int64), points.shape)
+        bad_flag = np.broadcast_to(np.asarray(bad_flag, dtype=bool), points.shape)
+        slot_of = np.full(MAX_POINTS, -1)
+        for point, source in tm.sources.items():
+            if isinstance(source, PlantSource) and source.plant is plant:
+                slot_of[point] = source.slot
+        slot = slot_of[points]
+        heated = slot >= 0
+        other = good & ~heated
+        pre = np.zeros(len(points))
+        if other.any():
+            pre[other] = tm.values(times[other], points[other])
+        noise = np.zeros(len(points))
+        if plant.normals is not None and heated.any():
+            noise[heated] = plant.normals[noise_index(plant.seed, points[heated], times[heated])] \
+                * plant.noise[slot[heated]]
+        low, high = sensor_limits(codes)
+
+        # the plant's columns: the measurements (padded to the widest scan), then every slot at the scan
+        n_slots = len(plant.order)
+
+        def rows(flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
+            out = np.full((n_scans, width), fill, dtype=np.asarray(flat).dtype)
+            out[scan_of, col] = flat
+            return out
+
+        c_slot = np.hstack((rows(np.where(heated, slot, 0), 0),
+                            np.broadcast_to(np.arange(n_slots), (n_scans, n_slots))))
+        c_time = np.hstack((np.where(rows(np.ones(len(times), dtype=bool), False), rows(times, 0.0),
+                                     scans[:-1, None]), np.broadcast_to(scans[1:, None], (n_scans, n_slots))))
+        # each slot's waveform: the instance driving its heater (or constant: the plant's wave as it is)
+        started, period = np.zeros(n_slots), np.full(n_slots, 1e9)
+        u_on, u_off = plant.w_uoff.copy(), plant.w_uoff.copy()
+        on = np.zeros(n_slots)
+        for loop in loops:
+            if len(loop.slots):
+                started[loop.slots], period[loop.slots] = loop.st.started, loop.st.pwm
+                u_on[loop.slots], u_off[loop.slots] = loop.lit, loop.dark
+                on[loop.slots] = np.minimum(fun86.on_times(loop.st, loop.output[loop.driven]), loop.st.pwm)
+        t_off = plant.ambient + plant.gain * u_off
+        lift = plant.ambient + plant.gain * u_on - t_off
+        rate = 1.0 / plant.tau
+        c_rate, c_lift = rate[c_slot], lift[c_slot]
+        # the PWM cycles each column's interval (a, t] may meet: from the one a falls in to the last starting before t
+        c_started, c_period = started[c_slot], period[c_slot]
+        a = scans[:-1, None]
+
+        def cycle(x: np.ndarray, after: bool) -> np.ndarray:
+            """The cycle whose start (on the grid) is the last at or before x (``after``: before x)."""
+            k = np.floor((x - c_started) / c_period)
+            start, end = (scan_grid(c_started + j * c_period, st_time) for j in (k, k + 1))
+            k = np.where(start >= x if after else start > x, k - 1, k)
+            return np.where(end < x if after else end <= x, k + 1, k)
+
+        first_cycle = cycle(a, False)
+        n_cycles = max(1, int((cycle(c_time, True) - first_cycle).max()) + 1)
+        raw = c_started[None] + (first_cycle[None] + np.arange(n_cycles)[:, None, None]) * c_period[None]
+        terms = cycle_terms(a, c_time, scan_grid(raw, st_time), t_off[c_slot], c_lift, c_rate)
+        raw = np.ascontiguousarray(raw.transpose(1, 0, 2))  # scans × cycles × columns
+
+        c_good = rows(good, True)
+        c_noise, c_low, c_high = rows(noise, 0.0), rows(low, -math.inf), rows(high, math.inf)
+        c_pre, c_heated = rows(pre, 0.0), rows(heated | ~good, True)
+        c_points = rows(points, 0)
+        mixed, some_bad = not (heated | ~good).all(), not good.all()
+        c_bad = rows(bad_reading, 0)
+        wraps = not (np.isfinite(low).all() and np.isfinite(high).all())  # (a sensor's range keeps PVs in 16 bits)
+        averaging = tm.config.averaging
+        # the readings that update each point's PV register at each scan (its last one there)
+        last = last_of_each(scan_of * 64 + points)
+        bounds = np.searchsorted(scan_of[last], np.arange(n_scans + 1)).tolist()
+        last_points, last_cols = points[last], col[last]
+        update_points = [last_points[b0:b1] for b0, b1 in zip(bounds, bounds[1:])]
+        update_cols = [last_cols[b0:b1] for b0, b1 in zip(bounds, bounds[1:])]
+        bank, base = mem.words[table.readings.kind], table.readings.index
+        pv = signed16(bank[base:base + min(MAX_POINTS, len(bank) - base)])
+
+        # 2. scan after scan: the plant, the readings, the PID steps
+        temps = plant.temperatures(np.arange(n_slots), np.full(n_slots, scans[0]))
+        readings = np.zeros((n_scans, width), dtype=np.int64)
+        values = np.zeros((n_scans, width))
+        pv_at = np.zeros((n_scans, len(pv)), dtype=np.int64)
+        temps_at = np.zeros((n_scans, n_slots))
+        outputs_at = [np.zeros((n_scans, loop.st.zn), dtype=np.int64) for loop in loops]
+        steps = [_Step(loop, len(pv), n_slots) for loop in loops]
+        alone = len(steps) == 1 and steps[0].every_slot  # (then a PID step's on-times are the slots' whole)
+        control, in_unit, resolution, on_times = fun86.control, tm.in_unit, tm.resolution, fun86.on_times
+        limits = (c_low, c_high) if not self._within(plant, c_slot[:, :width], c_low, c_high, c_heated) else None
+        for i, (a, slots, t, grid_raw, lift, rate, terms_i, noise_i) in enumerate(zip(
+                scans[:-1], c_slot, c_time, raw, c_lift, c_rate, zip(*terms), c_noise)):
+            temp = cycles_temperature(temps[slots], a, t, scan_grid(grid_raw + on[slots], st_time), lift, rate,
+                                      terms_i)
+            temps = temps_at[i] = temp[width:]
+            value = temp[:width] + noise_i
+            if mixed:
+                value = np.where(c_heated[i], value, c_pre[i])
+            value = in_unit(value, *(limits[0][i], limits[1][i]) if limits else (None, None))
+            if averaging > 1:
+                n = per_scan[i]
+                mean = value.copy()
+                mean[:n] = tm.average(c_points[i, :n], value[:n])
+            else:
+                mean = value
+            reading = resolution(mean)
+            if some_bad:
+                reading = np.where(c_good[i], reading, c_bad[i])
+            readings[i], values[i] = reading, value
+            fresh = reading[update_cols[i]]
+            pv[update_points[i]] = signed16(fresh & 0xFFFF) if wraps else fresh
+            pv_at[i] = pv
+            for loop, flags, outs, step in zip(loops, due, outputs_at, steps):
+                if flags[i]:
+                    now_pv = pv.copy() if step.every_pv else pv[step.at]  # (pv changes in place)
+                    out, step.integral = control(loop.law, step.integral, step.prev, step.has, step.sv, now_pv)
+                    step.prev, step.has = now_pv, True
+                    if step.every_point:
+                        step.output = out
+                    else:
+                        step.output = step.output.copy()
+                        step.output[loop.idx], step.output[loop.off] = out, 0
+                    if alone:
+                        on = on_times(loop.st, step.output)
+                    elif len(loop.slots):
+                        on[loop.slots] = on_times(loop.st, step.output[loop.driven])
+                outs[i] = step.output
+        for loop, step in zip(loops, steps):
+            loop.output = step.output.astype(np.int64)
+
+        # 3. each instance's alarms over the batch
+        flat_readings = readings[scan_of, col]
+        alarms = [self._alarms(ready, loop, outs, scans, pv_at, times, points, scan_of, flat_readings, st_time)
+                  for loop, outs in zip(loops, outputs_at)]
+        return {"points": points, "readings": readings, "flat_readings": flat_readings,
+                "values": values[scan_of, col], "good": good, "bad_flag": bad_flag, "outputs_at": outputs_at,
+                "alarms": alarms, "temps_at": temps_at, "update_points": update_points, "update_cols": update_cols,
+                "steps": steps}
+
+    @staticmethod
+    def _within(plant: ThermalPlant, slots: np.ndarray, low: np.ndarray, high: np.ndarray,
+                heated: np.ndarray) -> bool:
+        """No measurement can leave its sensor's range (the plant's bounds within it): no clamping to do."""
+        top = np.array([plant.upper(s) for s in range(len(plant.order))])
+        bottom = np.minimum(plant.initial, plant.ambient) - 6.0 * plant.noise
+        return bool(heated.all() and (top[slots] <= high).all() and (bottom[slots] >= low).all())
+
+    def _deadline(self, ready: dict[str, Any], batch: dict[str, Any], scans: np.ndarray,
+                  st_time: float) -> float | None:
+        """The first heater-loop deadline (started in the batch) the engine would have scanned at between two of
+        its scans — after a scan at which it was pending, before the next one — or None."""
+        first = math.inf
+        limit = None
+        for _normal, _warning, _alm, since in batch["alarms"]:
+            deadlines = since[:-1] + ready["loop_seconds"]
+            ahead = (deadlines > scans[1:-1, None] + 1e-9) & (scan_grid(deadlines, st_time) < scans[2:, None]
+                                                                - st_time / 2)
+            hit = np.flatnonzero(ahead.any(axis=1))
+            if len(hit) and hit[0] < first:
+                first = int(hit[0])
+                limit = float(deadlines[first][ahead[first]].min())
+            elif len(hit) and hit[0] == first:
+                limit = min(limit, float(deadlines[first][ahead[first]].min()))
+        return limit
+
+    def _commit(self, engine: "Engine", ready: dict[str, Any], batch: dict[str, Any], scans: np.ndarray) -> None:
+        """Memory and every model's state as after the batch's scans (observers called after each of them)."""
+        fun86, mem = self.fun86, engine.memory
+        tm, plant, table, loops = ready["tm"], ready["plant"], ready["table"], ready["loops"]
+        for loop, step in zip(loops, batch["steps"]):
+            loop.st.integral[loop.idx], loop.st.pv_prev[loop.idx], loop.st.has_prev[loop.idx] = (step.integral,
+                                                                                                step.prev, step.has)
+            loop.st.prealarm[:] = 0  # (no reading could reach R4008: every count was reset at the first scan)
+        self._plant(plant, loops, batch["outputs_at"], scans, batch["temps_at"])
+        if engine.observers:
+            self._observe(engine, loops, batch["outputs_at"], batch["alarms"], scans, batch["update_points"],
+                          batch["update_cols"], batch["readings"], table)
+        self._temperature(tm, mem, table, batch["points"], batch["flat_readings"], batch["values"], batch["good"],
+                          batch["bad_flag"])
+        for loop, outs, (normal, warning, alm, _since) in zip(loops, batch["outputs_at"], batch["alarms"]):
+            inst = loop.inst
+            mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + loop.st.zn] = outs[-1].tolist()
+            mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[-1]) for w in (*normal, *warning)]
+            mem.bits[inst.alm.kind][inst.alm.index] = 1 if alm[-1] else 0
+            fun86._drive(mem, inst, loop.st, float(scans[-1]), loop.enabled, outs[-1])
+        tm.log = []
+        fun86._log = None
+
+    @staticmethod
+    def _temperature(tm: TemperatureModel, mem: "Memory", table: _Table, points: np.ndarray, readings: np.ndarray,
+                     values: np.ndarray, good: np.ndarray, bad_flag: np.ndarray) -> None:
+        """The readings registers, samples, break bits and measured points as after the batch's measurements."""
+        last = last_of_each(points)
+        bank, base = mem.words[table.readings.kind], table.readings.index
+        for point, word in zip(points[last].tolist(), (readings[last] & 0xFFFF).tolist()):
+            bank[base + point] = word
+        if tm.config.averaging == 1:
+            kept = last[good[last]]
+            tm.average(points[kept], values[kept])
+        if not good.all():
+            tm._forget(points[~good])
+        breaks = tm._breaks
+        for point, flag in zip(points[last].tolist(), (bad_flag[last] & ~good[last]).tolist()):
+            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
+        tm._breaks = breaks
+        tm._measured.update(points[last].tolist())
+        tm._quiet = None
+
+    def _alarms(self, ready: dict[str, Any], loop: _Loop, outputs: np.ndarray, scans: np.ndarray,
+                pv_at: np.ndarray, times: np.ndarray, points: np.ndarray, scan_of: np.ndarray, readings: np.ndarray,
+                st_time: float) -> tuple:
+        """An instance's heater-loop starts over the batch, and each scan's (normal words, warning words, ALM)."""
+        fun86, st = self.fun86, loop.st
+        high_at = ready["high_at"]
+        n_scans, n = len(scans) - 1, len(loop.idx)
+        column = np.full(st.zn, -1)
+        column[loop.idx] = np.arange(n)
+        b = points - st.sn
+        mine = (b >= 0) & (b < st.zn)
+        mine[mine] = loop.enabled[b[mine]]
+        landed = scan_grid(times[mine], st_time)
+        skipped = landed < scans[1:][scan_of[mine]] - st_time / 2
+        rep_scan, rep_col = scan_of[mine][skipped], column[b[mine][skipped]]
+        rep_row = occurrence(rep_scan * 64 + rep_col)
+        per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its replays, then the scan
+        rows = n_scans * per
+        before = np.vstack((loop.before[None], outputs[:-1]))  # the outputs the readings of each scan were replayed at
+        pv = np.zeros((rows, n), dtype=np.int64)
+        at = np.zeros((rows, n))
+        high = np.zeros((rows, n), dtype=bool)
+        valid = np.zeros((rows, n), dtype=bool)
+        where = rep_scan * per + rep_row
+        pv[where, rep_col] = signed16(readings[mine][skipped] & 0xFFFF)
+        at[where, rep_col] = landed[skipped]
+        high[where, rep_col] = before[rep_scan, loop.idx[rep_col]] * 100 >= high_at
+        valid[where, rep_col] = True
+        scan_rows = slice(per - 1, rows, per)
+        pv[scan_rows] = pv_at[:, loop.points[loop.idx]]
+        at[scan_rows] = scans[1:, None]
+        high[scan_rows] = outputs[:, loop.idx] * 100 >= high_at
+        valid[scan_rows] = True
+        since = fun86.track(st, loop.idx, pv, at, high, valid, loop.sv[loop.idx], loop.os[loop.idx], ready["limit"],
+                            count=False)[scan_rows]
+        loop_open = np.asarray(fun86.loop_elapsed(since, scans[1:, None]) >= ready["loop_seconds"], dtype=bool)
+        pvs = pv_at[:, loop.points]
+        normal = loop.enabled & np.asarray(fun86.in_band(pvs, loop.sv, loop.os), dtype=bool)
+        warning = np.zeros((n_scans, st.zn), dtype=bool)
+        warning[:, loop.idx] = loop_open
+        b_all = np.arange(st.zn)
+        alm = np.asarray(fun86.alarm((loop.enabled & ~normal).any(axis=1), warning.any(axis=1)), dtype=bool)
+        return fun86.bit_words(b_all, normal), fun86.bit_words(b_all, warning), np.broadcast_to(alm, (n_scans,)), since
+
+    def _plant(self, plant: ThermalPlant, loops: list[_Loop], outputs_at: list[np.ndarray], scans: np.ndarray,
+               temps_at: np.ndarray) -> None:
+        """The plant's anchors and waveforms as its scans would have left them: each slot re-anchored at the last
+        scan that changed its waveform."""
+        fun86 = self.fun86
+        for loop, outs in zip(loops, outputs_at):
+            if not len(loop.slots):
+                continue
+            slots, st, lit, dark = loop.slots, loop.st, loop.lit, loop.dark
+            on = fun86.on_times(st, outs[:, loop.driven])
+            steady = (lit == dark) | (on <= 0) | (on >= st.pwm)
+            level = np.where((lit != dark) & (on > 0) & (on >= st.pwm), lit, dark)
+            key = np.where(steady, -1.0 - level, on)
+            same_wave = (plant.w_started[slots] == st.started) & (plant.w_period[slots] == st.pwm) & (
+                plant.w_uon[slots] == lit) & (plant.w_uoff[slots] == dark)
+            initial = np.where(plant.w_pwm[slots], np.where(same_wave, plant.w_on[slots], math.nan),
+                               -1.0 - plant.w_uoff[slots])
+            changed = key != np.vstack((initial[None], key[:-1]))
+            moved = changed.any(axis=0)
+            if not moved.any():
+                continue
+            last = len(key) - 1 - np.argmax(changed[::-1], axis=0)
+            s, at = slots[moved], last[moved]
+            plant.t0[s] = scans[1:][at]
+            plant.temp0[s] = temps_at[at, s]
+            plant.w_pwm[s] = ~steady[-1, moved]
+            plant.w_started[s], plant.w_period[s], plant.w_on[s] = st.started, st.pwm, on[-1, moved]
+            plant.w_uon[s], plant.w_uoff[s] = lit[moved], level[-1, moved]
+        plant._last_outputs = None
+
+    def _observe(self, engine: "Engine", loops: list[_Loop], outputs_at: list[np.ndarray], alarms: list,
+                 scans: np.ndarray, update_points: list, update_cols: list, readings: np.ndarray,
+                 table: _Table) -> None:
+        """Each scan's outputs and readings in memory, and the observers called, as after each of those scans."""
+        fun86, mem = self.fun86, engine.memory
+        bank, base = mem.words[table.readings.kind], table.readings.index
+        end = engine.now
+        for i in range(len(scans) - 1):
+            for point, word in zip(update_points[i].tolist(), (readings[i][update_cols[i]] & 0xFFFF).tolist()):
+                bank[base + point] = word
+            now = float(scans[i + 1])
+            for loop, outs, (normal, warning, alm, _since) in zip(loops, outputs_at, alarms):
+                inst, st = loop.inst, loop.st
+                mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = outs[i].tolist()
+                mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[i]) for w in (*normal, *warning)]
+                mem.bits[inst.alm.kind][inst.alm.index] = 1 if alm[i] else 0
+                on_time, y_on, y_off = fun86.waves(st, loop.enabled, outs[i])
+                mem.bits[inst.yn.kind][inst.yn.index:inst.yn.index + st.zn] = fun86.outputs_at(st, now, on_time,
+                                                                                             y_on, y_off)
+            engine.now = now
+            for observer in engine.observers:
+                observer(engine)
+        engine.now = end

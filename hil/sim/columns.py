@@ -1,0 +1,29 @@
+"""Small helpers for models that work on columns of measurements (arrays over (time, point) pairs)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def last_of_each(values: np.ndarray) -> np.ndarray:
+    """Indexes of the last occurrence of each distinct value (in the values' order)."""
+    if len(values) <= 1:
+        return np.arange(len(values))
+    _, first_from_end = np.unique(values[::-1], return_index=True)
+    return len(values) - 1 - first_from_end
+
+
+def occurrence(values: np.ndarray) -> np.ndarray:
+    """For each element, how many equal elements come before it (its row when each value gets a column)."""
+    order = np.argsort(values, kind="stable")
+    ordered = values[order]
+    starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1]])
+    rank = np.arange(len(values)) - np.repeat(starts, np.diff(np.r_[starts, len(values)]))
+    out = np.empty(len(values), dtype=np.int64)
+    out[order] = rank
+    return out
+
+
+def signed16(words) -> np.ndarray:  # noqa: ANN001 - a list or array of 16-bit words
+    """16-bit words as signed values."""
+    return (np.asarray(words, dtype=np.int64) ^ 0x8000) - 0x8000
