@@ -6,11 +6,12 @@ import numpy as np
 
 
 def last_of_each(values: np.ndarray) -> np.ndarray:
-    """Indexes of the last occurrence of each distinct value (in the values' order)."""
+    """Indexes of the last occurrence of each distinct value (non-negative integers), in the values' order."""
     if len(values) <= 1:
         return np.arange(len(values))
-    _, first_from_end = np.unique(values[::-1], return_index=True)
-    return len(values) - 1 - first_from_end
+    last = np.full(int(values.max()) + 1, -1, dtype=np.intp)
+    np.maximum.at(last, values, np.arange(len(values)))
+    return last[last >= 0]
 
 
 def occurrence(values: np.ndarray) -> np.ndarray:

@@ -312,27 +312,28 @@ class Fun86Model(Model):
         return pv, at, valid
 
     def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
-              valid: np.ndarray, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True) -> np.ndarray:
+              valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True) -> np.ndarray:
         """Points ``idx`` seeing readings ``pv`` (rows in time order, a column per point; ``at``: the scan each was
-        seen at, ``valid`` False: no reading in that row): the pre-alarm counts (``count`` False: left alone) and
-        when the heater-loop condition — output ``high`` and PV out of band — began, as after each row (NaN: not
-        holding).  Returns those starts, row by row."""
+        seen at, ``valid`` False: no reading in that row, None: a reading in every row): the pre-alarm counts
+        (``count`` False: left alone) and when the heater-loop condition — output ``high`` and PV out of band —
+        began, as after each row (NaN: not holding).  Returns those starts, row by row."""
         if count:
             counts = st.prealarm[idx]
             for r in range(len(pv)):
-                counts = np.where(valid[r], self.prealarm_count(counts, pv[r], limit), counts)
+                counts = self.prealarm_count(counts, pv[r], limit) if valid is None else np.where(
+                    valid[r], self.prealarm_count(counts, pv[r], limit), counts)
             st.prealarm[idx] = counts
         holds = high & ~np.asarray(self.in_band(pv, sv, os), dtype=bool)
         since = st.loop_since[idx]
         held = ~np.isnan(since)
-        rows = np.arange(len(pv))[:, None]
-        if not valid.all():  # a row without a reading changes nothing: it holds as the row before
-            last = np.maximum.accumulate(np.where(valid, rows, -1), axis=0)
-            holds = np.where(last >= 0, np.take_along_axis(holds, np.maximum(last, 0), axis=0), held)
+        n_rows, n = pv.shape
+        cells = np.arange(n_rows * n).reshape(n_rows, n)  # (flat index of each cell)
+        if valid is not None and not valid.all():  # a row without a reading changes nothing: it holds as before
+            last = np.maximum.accumulate(np.where(valid, cells, -1), axis=0)
+            holds = np.where(last >= 0, holds.ravel()[np.maximum(last, 0)], held)
         before = np.concatenate((held[None], holds[:-1]))
-        began = np.maximum.accumulate(np.where(holds & ~before, rows, -1), axis=0)
-        starts = np.where(holds, np.where(began >= 0, np.take_along_axis(at, np.maximum(began, 0), axis=0), since),
-                          math.nan)
+        began = np.maximum.accumulate(np.where(holds & ~before, cells, -1), axis=0)
+        starts = np.where(holds, np.where(began >= 0, at.ravel()[np.maximum(began, 0)], since), math.nan)
         st.loop_since[idx] = starts[-1]
         return starts
 

@@ -183,24 +183,32 @@ def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
     """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
-    (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles (axis 0) of e^(−(t − lo)/τ), lo each cycle's
-    start clipped to [a, t])."""
-    decay = np.exp((a - t) * rate)
-    begins = np.minimum(np.exp((np.maximum(starts, a) - t) * rate), 1.0).sum(axis=0)
-    return decay, t_off - t_off * decay - lift * begins
+    (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
+    clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0)."""
+    decay = np.exp((a - t[0]) * rate[0])
+    begins = np.minimum(np.exp((np.maximum(starts, a) - t) * rate), 1.0)
+    return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
 def cycles_temperature(temp_a, a, t, offs, lift, rate, terms):  # noqa: ANN001, ANN201
-    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (axis 0;
-    ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the cycles may be any that cover (a, t): one
-    wholly outside adds exactly nothing.  ``lift``: how much higher the plant settles with the heater on than off,
-    ``rate``: 1/τ.
+    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
+    each: ``t``, ``offs`` and ``rate`` (1/τ); ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
+    cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
+    plant settles with the heater on than off.
 
     A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
     [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
     decay, base = terms
-    ends = np.add.reduce(np.minimum(np.exp((np.maximum(offs, a) - t) * rate), 1.0), axis=0)
-    return temp_a * decay + base + lift * ends
+    ends = np.exp((np.maximum(offs, a) - t) * rate)
+    return temp_a * decay + base + lift * _cycles_sum(np.minimum(ends, 1.0, out=ends))
+
+
+def _cycles_sum(rows: np.ndarray) -> np.ndarray:
+    """The sum of a few rows, in order (cheaper than a reduction for two or three)."""
+    total = rows[0]
+    for row in rows[1:]:
+        total = total + row
+    return total
 
 
 #: cycles solved one by one around a span's ends (the span's start falls in the first two, its end in the last
@@ -233,9 +241,10 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
     head_end = np.where(jump, free_start, t)
     cyc = k + np.arange(_HEAD + _TAIL)[:, None]
     raw = started + cyc * period
-    rate, lift = 1.0 / tau, t_on - t_off
-    temp = cycles_temperature(temp, a, head_end, grid(raw + on, st), lift, rate,
-                              cycle_terms(a, head_end, grid(raw, st), t_off, lift, rate))
+    rate, lift = np.broadcast_to(1.0 / tau, raw.shape), t_on - t_off
+    ends = np.broadcast_to(head_end, raw.shape)
+    temp = cycles_temperature(temp, a, ends, grid(raw + on, st), lift, rate,
+                              cycle_terms(a, ends, grid(raw, st), t_off, lift, rate))
     if jump.any():
         j = jump
         raw0 = started[j] + free[j] * period[j]
@@ -250,8 +259,9 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
         cyc = landed + np.arange(_TAIL)[:, None]
         raw = started[j] + cyc * period[j]
         at = grid(started[j] + landed * period[j], st)
-        temp[j] = cycles_temperature(jumped, at, t[j], grid(raw + on[j], st), lift[j], rate[j],
-                                     cycle_terms(at, t[j], grid(raw, st), t_off[j], lift[j], rate[j]))
+        ends, rates = np.broadcast_to(t[j], raw.shape), np.broadcast_to(rate[0][j], raw.shape)
+        temp[j] = cycles_temperature(jumped, at, ends, grid(raw + on[j], st), lift[j], rates,
+                                     cycle_terms(at, ends, grid(raw, st), t_off[j], lift[j], rates))
     out[pulsed] = temp
     return out
 

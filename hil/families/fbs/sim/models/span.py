@@ -32,9 +32,10 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
 from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
 from hil.families.fbs.sim.models.fun86 import _R, PREALARM_SCANS, Fun86Model, InstanceState, Law
-from hil.families.fbs.sim.models.plant import PlantSource, ThermalPlant, cycle_terms, cycles_temperature, noise_index
-from hil.families.fbs.sim.models.temperature import TemperatureModel, sensor_limits
-from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, TABLE_MARKER
+from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
+                                                noise_index)
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, SENSOR_BY_CODE, TABLE_MARKER
 from hil.sim.columns import last_of_each, occurrence, signed16
 from hil.sim.model import scan_grid
 
@@ -44,6 +45,11 @@ if TYPE_CHECKING:
 
 #: scans per batch at most (the batch's arrays are scans × columns)
 CHUNK = 2048
+
+#: each sensor code's measuring range, °C (unbounded for a code no sensor has)
+_LOW, _HIGH = np.full(256, -math.inf), np.full(256, math.inf)
+for _code, _sensor in SENSOR_BY_CODE.items():
+    _LOW[_code], _HIGH[_code] = _sensor.low_c, _sensor.high_c
 
 
 @dataclass
@@ -306,212 +312,42 @@ class Span:
         tm._ring, tm._count = temperature[2].copy(), temperature[3].copy()
 
     def _compute(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
-                 due: list[list[bool]]) -> dict[str, Any]:
+                 due: list[list[bool]]) -> "_Batch":
         """The scans at ``scans[1:]`` (``scans[0]``: the one before; the clock already at the last), computed:
         everything but memory and the models' committed state."""
-        fun86 = self.fun86
-        tm: TemperatureModel = ready["tm"]
-        plant: ThermalPlant = ready["plant"]
-        table: _Table = ready["table"]
-        loops: list[_Loop] = ready["loops"]
-        mem = engine.memory
-        st_time = engine.scan_time
-        n_scans = len(scans) - 1
+        batch = _Batch(engine, ready, scans)
+        batch.steps(self.fun86, ready["loops"], due)
+        batch.alarms = [self._alarms(ready, loop, outs, batch) for loop, outs in zip(ready["loops"], batch.outputs_at)]
+        return batch
 
-        # 1. the measurements, in scan order (at each scan: module after module, each in time order)
-        parts = [(*tm.measure_module(float(scans[-1]), k, first), code >> 8) for k, first, code in table.measured]
-        times = np.concatenate([part[0] for part in parts])
-        points = np.concatenate([part[1] for part in parts])
-        codes = np.concatenate([np.full(len(part[0]), part[2]) for part in parts])
-        scan_of = np.searchsorted(scans[1:] + 1e-9, times, side="left")
-        order = np.argsort(scan_of, kind="stable")
-        times, points, codes, scan_of = times[order], points[order], codes[order], scan_of[order]
-        per_scan = np.bincount(scan_of, minlength=n_scans)
-        width = int(per_scan.max()) if len(times) else 0
-        col = np.arange(len(times)) - np.repeat(np.cumsum(per_scan) - per_scan, per_scan)
-
-        installed = np.asarray(tm.installed(mem, points), dtype=bool)
-        broken = np.isin(points, list(tm.broken))
-        good = installed & ~broken
-        bad_reading, bad_flag = tm.point_result(points, installed, broken, np.zeros(len(points), dtype=np.int64))
-        bad_reading = np.broadcast_to(np.asarray(bad_reading, dtype=np.int64), points.shape)
-        bad_flag = np.broadcast_to(np.asarray(bad_flag, dtype=bool), points.shape)
-        slot_of = np.full(MAX_POINTS, -1)
-        for point, source in tm.sources.items():
-            if isinstance(source, PlantSource) and source.plant is plant:
-                slot_of[point] = source.slot
-        slot = slot_of[points]
-        heated = slot >= 0
-        other = good & ~heated
-        pre = np.zeros(len(points))
-        if other.any():
-            pre[other] = tm.values(times[other], points[other])
-        noise = np.zeros(len(points))
-        if plant.normals is not None and heated.any():
-            noise[heated] = plant.normals[noise_index(plant.seed, points[heated], times[heated])] \
-                * plant.noise[slot[heated]]
-        low, high = sensor_limits(codes)
-
-        # the plant's columns: the measurements (padded to the widest scan), then every slot at the scan
-        n_slots = len(plant.order)
-
-        def rows(flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
-            out = np.full((n_scans, width), fill, dtype=np.asarray(flat).dtype)
-            out[scan_of, col] = flat
-            return out
-
-        c_slot = np.hstack((rows(np.where(heated, slot, 0), 0),
-                            np.broadcast_to(np.arange(n_slots), (n_scans, n_slots))))
-        c_time = np.hstack((np.where(rows(np.ones(len(times), dtype=bool), False), rows(times, 0.0),
-                                     scans[:-1, None]), np.broadcast_to(scans[1:, None], (n_scans, n_slots))))
-        # each slot's waveform: the instance driving its heater (or constant: the plant's wave as it is)
-        started, period = np.zeros(n_slots), np.full(n_slots, 1e9)
-        u_on, u_off = plant.w_uoff.copy(), plant.w_uoff.copy()
-        on = np.zeros(n_slots)
-        for loop in loops:
-            if len(loop.slots):
-                started[loop.slots], period[loop.slots] = loop.st.started, loop.st.pwm
-                u_on[loop.slots], u_off[loop.slots] = loop.lit, loop.dark
-                on[loop.slots] = np.minimum(fun86.on_times(loop.st, loop.output[loop.driven]), loop.st.pwm)
-        t_off = plant.ambient + plant.gain * u_off
-        lift = plant.ambient + plant.gain * u_on - t_off
-        rate = 1.0 / plant.tau
-        c_rate, c_lift = rate[c_slot], lift[c_slot]
-        # the PWM cycles each column's interval (a, t] may meet: from the one a falls in to the last starting before t
-        c_started, c_period = started[c_slot], period[c_slot]
-        a = scans[:-1, None]
-
-        def cycle(x: np.ndarray, after: bool) -> np.ndarray:
-            """The cycle whose start (on the grid) is the last at or before x (``after``: before x)."""
-            k = np.floor((x - c_started) / c_period)
-            start, end = (scan_grid(c_started + j * c_period, st_time) for j in (k, k + 1))
-            k = np.where(start >= x if after else start > x, k - 1, k)
-            return np.where(end < x if after else end <= x, k + 1, k)
-
-        first_cycle = cycle(a, False)
-        n_cycles = max(1, int((cycle(c_time, True) - first_cycle).max()) + 1)
-        raw = c_started[None] + (first_cycle[None] + np.arange(n_cycles)[:, None, None]) * c_period[None]
-        terms = cycle_terms(a, c_time, scan_grid(raw, st_time), t_off[c_slot], c_lift, c_rate)
-        raw = np.ascontiguousarray(raw.transpose(1, 0, 2))  # scans × cycles × columns
-
-        c_good = rows(good, True)
-        c_noise, c_low, c_high = rows(noise, 0.0), rows(low, -math.inf), rows(high, math.inf)
-        c_pre, c_heated = rows(pre, 0.0), rows(heated | ~good, True)
-        c_points = rows(points, 0)
-        mixed, some_bad = not (heated | ~good).all(), not good.all()
-        c_bad = rows(bad_reading, 0)
-        wraps = not (np.isfinite(low).all() and np.isfinite(high).all())  # (a sensor's range keeps PVs in 16 bits)
-        averaging = tm.config.averaging
-        # the readings that update each point's PV register at each scan (its last one there)
-        last = last_of_each(scan_of * 64 + points)
-        bounds = np.searchsorted(scan_of[last], np.arange(n_scans + 1)).tolist()
-        last_points, last_cols = points[last], col[last]
-        update_points = [last_points[b0:b1] for b0, b1 in zip(bounds, bounds[1:])]
-        update_cols = [last_cols[b0:b1] for b0, b1 in zip(bounds, bounds[1:])]
-        bank, base = mem.words[table.readings.kind], table.readings.index
-        pv = signed16(bank[base:base + min(MAX_POINTS, len(bank) - base)])
-
-        # 2. scan after scan: the plant, the readings, the PID steps
-        temps = plant.temperatures(np.arange(n_slots), np.full(n_slots, scans[0]))
-        readings = np.zeros((n_scans, width), dtype=np.int64)
-        values = np.zeros((n_scans, width))
-        pv_at = np.zeros((n_scans, len(pv)), dtype=np.int64)
-        temps_at = np.zeros((n_scans, n_slots))
-        outputs_at = [np.zeros((n_scans, loop.st.zn), dtype=np.int64) for loop in loops]
-        steps = [_Step(loop, len(pv), n_slots) for loop in loops]
-        alone = len(steps) == 1 and steps[0].every_slot  # (then a PID step's on-times are the slots' whole)
-        control, in_unit, resolution, on_times = fun86.control, tm.in_unit, tm.resolution, fun86.on_times
-        limits = (c_low, c_high) if not self._within(plant, c_slot[:, :width], c_low, c_high, c_heated) else None
-        for i, (a, slots, t, grid_raw, lift, rate, terms_i, noise_i) in enumerate(zip(
-                scans[:-1], c_slot, c_time, raw, c_lift, c_rate, zip(*terms), c_noise)):
-            temp = cycles_temperature(temps[slots], a, t, scan_grid(grid_raw + on[slots], st_time), lift, rate,
-                                      terms_i)
-            temps = temps_at[i] = temp[width:]
-            value = temp[:width] + noise_i
-            if mixed:
-                value = np.where(c_heated[i], value, c_pre[i])
-            value = in_unit(value, *(limits[0][i], limits[1][i]) if limits else (None, None))
-            if averaging > 1:
-                n = per_scan[i]
-                mean = value.copy()
-                mean[:n] = tm.average(c_points[i, :n], value[:n])
-            else:
-                mean = value
-            reading = resolution(mean)
-            if some_bad:
-                reading = np.where(c_good[i], reading, c_bad[i])
-            readings[i], values[i] = reading, value
-            fresh = reading[update_cols[i]]
-            pv[update_points[i]] = signed16(fresh & 0xFFFF) if wraps else fresh
-            pv_at[i] = pv
-            for loop, flags, outs, step in zip(loops, due, outputs_at, steps):
-                if flags[i]:
-                    now_pv = pv.copy() if step.every_pv else pv[step.at]  # (pv changes in place)
-                    out, step.integral = control(loop.law, step.integral, step.prev, step.has, step.sv, now_pv)
-                    step.prev, step.has = now_pv, True
-                    if step.every_point:
-                        step.output = out
-                    else:
-                        step.output = step.output.copy()
-                        step.output[loop.idx], step.output[loop.off] = out, 0
-                    if alone:
-                        on = on_times(loop.st, step.output)
-                    elif len(loop.slots):
-                        on[loop.slots] = on_times(loop.st, step.output[loop.driven])
-                outs[i] = step.output
-        for loop, step in zip(loops, steps):
-            loop.output = step.output.astype(np.int64)
-
-        # 3. each instance's alarms over the batch
-        flat_readings = readings[scan_of, col]
-        alarms = [self._alarms(ready, loop, outs, scans, pv_at, times, points, scan_of, flat_readings, st_time)
-                  for loop, outs in zip(loops, outputs_at)]
-        return {"points": points, "readings": readings, "flat_readings": flat_readings,
-                "values": values[scan_of, col], "good": good, "bad_flag": bad_flag, "outputs_at": outputs_at,
-                "alarms": alarms, "temps_at": temps_at, "update_points": update_points, "update_cols": update_cols,
-                "steps": steps}
-
-    @staticmethod
-    def _within(plant: ThermalPlant, slots: np.ndarray, low: np.ndarray, high: np.ndarray,
-                heated: np.ndarray) -> bool:
-        """No measurement can leave its sensor's range (the plant's bounds within it): no clamping to do."""
-        top = np.array([plant.upper(s) for s in range(len(plant.order))])
-        bottom = np.minimum(plant.initial, plant.ambient) - 6.0 * plant.noise
-        return bool(heated.all() and (top[slots] <= high).all() and (bottom[slots] >= low).all())
-
-    def _deadline(self, ready: dict[str, Any], batch: dict[str, Any], scans: np.ndarray,
-                  st_time: float) -> float | None:
-        """The first heater-loop deadline (started in the batch) the engine would have scanned at between two of
-        its scans — after a scan at which it was pending, before the next one — or None."""
-        first = math.inf
-        limit = None
-        for _normal, _warning, _alm, since in batch["alarms"]:
+    def _deadline(self, ready: dict[str, Any], batch: "_Batch", scans: np.ndarray, st_time: float) -> float | None:
+        """The first heater-loop deadline the engine would have scanned at between two of the batch's scans —
+        pending after one, due before the next — or None."""
+        first, limit = math.inf, None
+        for _normal, _warning, _alm, since in batch.alarms:
             deadlines = since[:-1] + ready["loop_seconds"]
             ahead = (deadlines > scans[1:-1, None] + 1e-9) & (scan_grid(deadlines, st_time) < scans[2:, None]
                                                                 - st_time / 2)
             hit = np.flatnonzero(ahead.any(axis=1))
-            if len(hit) and hit[0] < first:
+            if len(hit) and hit[0] <= first:
+                soonest = float(deadlines[hit[0]][ahead[hit[0]]].min())
+                limit = soonest if hit[0] < first or limit is None else min(limit, soonest)
                 first = int(hit[0])
-                limit = float(deadlines[first][ahead[first]].min())
-            elif len(hit) and hit[0] == first:
-                limit = min(limit, float(deadlines[first][ahead[first]].min()))
         return limit
 
-    def _commit(self, engine: "Engine", ready: dict[str, Any], batch: dict[str, Any], scans: np.ndarray) -> None:
+    def _commit(self, engine: "Engine", ready: dict[str, Any], batch: "_Batch", scans: np.ndarray) -> None:
         """Memory and every model's state as after the batch's scans (observers called after each of them)."""
         fun86, mem = self.fun86, engine.memory
         tm, plant, table, loops = ready["tm"], ready["plant"], ready["table"], ready["loops"]
-        for loop, step in zip(loops, batch["steps"]):
-            loop.st.integral[loop.idx], loop.st.pv_prev[loop.idx], loop.st.has_prev[loop.idx] = (step.integral,
-                                                                                                step.prev, step.has)
+        for loop, run in zip(loops, batch.runs):
+            loop.st.integral[loop.idx], loop.st.pv_prev[loop.idx], loop.st.has_prev[loop.idx] = (run.integral,
+                                                                                                run.prev, run.has)
             loop.st.prealarm[:] = 0  # (no reading could reach R4008: every count was reset at the first scan)
-        self._plant(plant, loops, batch["outputs_at"], scans, batch["temps_at"])
+        self._plant(plant, loops, batch.outputs_at, scans, batch.temps_at)
         if engine.observers:
-            self._observe(engine, loops, batch["outputs_at"], batch["alarms"], scans, batch["update_points"],
-                          batch["update_cols"], batch["readings"], table)
-        self._temperature(tm, mem, table, batch["points"], batch["flat_readings"], batch["values"], batch["good"],
-                          batch["bad_flag"])
-        for loop, outs, (normal, warning, alm, _since) in zip(loops, batch["outputs_at"], batch["alarms"]):
+            self._observe(engine, loops, batch, table)
+        self._temperature(tm, mem, table, batch)
+        for loop, outs, (normal, warning, alm, _since) in zip(loops, batch.outputs_at, batch.alarms):
             inst = loop.inst
             mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + loop.st.zn] = outs[-1].tolist()
             mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[-1]) for w in (*normal, *warning)]
@@ -521,63 +357,55 @@ class Span:
         fun86._log = None
 
     @staticmethod
-    def _temperature(tm: TemperatureModel, mem: "Memory", table: _Table, points: np.ndarray, readings: np.ndarray,
-                     values: np.ndarray, good: np.ndarray, bad_flag: np.ndarray) -> None:
+    def _temperature(tm: TemperatureModel, mem: "Memory", table: _Table, batch: "_Batch") -> None:
         """The readings registers, samples, break bits and measured points as after the batch's measurements."""
+        points, good = batch.points, batch.good
         last = last_of_each(points)
         bank, base = mem.words[table.readings.kind], table.readings.index
-        for point, word in zip(points[last].tolist(), (readings[last] & 0xFFFF).tolist()):
+        for point, word in zip(points[last].tolist(), (batch.flat_readings[last] & 0xFFFF).tolist()):
             bank[base + point] = word
         if tm.config.averaging == 1:
             kept = last[good[last]]
-            tm.average(points[kept], values[kept])
-        if not good.all():
+            tm.average(points[kept], batch.values[kept])
+        if batch.some_bad:
             tm._forget(points[~good])
         breaks = tm._breaks
-        for point, flag in zip(points[last].tolist(), (bad_flag[last] & ~good[last]).tolist()):
+        for point, flag in zip(points[last].tolist(), (batch.bad_flag[last] & ~good[last]).tolist()):
             breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
         tm._breaks = breaks
         tm._measured.update(points[last].tolist())
         tm._quiet = None
 
-    def _alarms(self, ready: dict[str, Any], loop: _Loop, outputs: np.ndarray, scans: np.ndarray,
-                pv_at: np.ndarray, times: np.ndarray, points: np.ndarray, scan_of: np.ndarray, readings: np.ndarray,
-                st_time: float) -> tuple:
-        """An instance's heater-loop starts over the batch, and each scan's (normal words, warning words, ALM)."""
+    def _alarms(self, ready: dict[str, Any], loop: _Loop, outputs: np.ndarray, batch: "_Batch") -> tuple:
+        """An instance's heater-loop starts over the batch, and each scan's (normal words, warning words, ALM,
+        heater-loop starts)."""
         fun86, st = self.fun86, loop.st
-        high_at = ready["high_at"]
-        n_scans, n = len(scans) - 1, len(loop.idx)
+        high_at, scans, st_time = ready["high_at"], batch.scans, batch.st_time
+        n_scans, n = batch.n_scans, len(loop.idx)
         column = np.full(st.zn, -1)
         column[loop.idx] = np.arange(n)
-        b = points - st.sn
+        b = batch.points - st.sn
         mine = (b >= 0) & (b < st.zn)
         mine[mine] = loop.enabled[b[mine]]
-        landed = scan_grid(times[mine], st_time)
-        skipped = landed < scans[1:][scan_of[mine]] - st_time / 2
-        rep_scan, rep_col = scan_of[mine][skipped], column[b[mine][skipped]]
-        rep_row = occurrence(rep_scan * 64 + rep_col)
-        per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its replays, then the scan
-        rows = n_scans * per
-        before = np.vstack((loop.before[None], outputs[:-1]))  # the outputs the readings of each scan were replayed at
-        pv = np.zeros((rows, n), dtype=np.int64)
-        at = np.zeros((rows, n))
-        high = np.zeros((rows, n), dtype=bool)
-        valid = np.zeros((rows, n), dtype=bool)
+        mine = np.flatnonzero(mine)
+        landed = scan_grid(batch.times[mine], st_time)
+        skipped = landed < scans[1:][batch.scan_of[mine]] - st_time / 2  # (else read at that very scan: its PV)
+        mine, landed = mine[skipped], landed[skipped]
+        rep_scan, rep_col, rep_row = batch.scan_of[mine], column[b[mine]], batch.rank[mine]
+        per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its readings replayed, then the scan
+        # every row of a scan starts as the scan itself (a reading seen twice changes nothing), then the replays
+        pv = np.repeat(batch.pv_at[:, loop.points[loop.idx]], per, axis=0)
+        at = np.repeat(np.broadcast_to(scans[1:, None], (n_scans, n)), per, axis=0)
+        high = np.repeat(outputs[:, loop.idx] * 100 >= high_at, per, axis=0)
         where = rep_scan * per + rep_row
-        pv[where, rep_col] = signed16(readings[mine][skipped] & 0xFFFF)
-        at[where, rep_col] = landed[skipped]
+        pv[where, rep_col] = signed16(batch.flat_readings[mine] & 0xFFFF)
+        at[where, rep_col] = landed
+        before = np.vstack((loop.before[None], outputs[:-1]))  # the outputs each scan's readings were replayed at
         high[where, rep_col] = before[rep_scan, loop.idx[rep_col]] * 100 >= high_at
-        valid[where, rep_col] = True
-        scan_rows = slice(per - 1, rows, per)
-        pv[scan_rows] = pv_at[:, loop.points[loop.idx]]
-        at[scan_rows] = scans[1:, None]
-        high[scan_rows] = outputs[:, loop.idx] * 100 >= high_at
-        valid[scan_rows] = True
-        since = fun86.track(st, loop.idx, pv, at, high, valid, loop.sv[loop.idx], loop.os[loop.idx], ready["limit"],
-                            count=False)[scan_rows]
+        since = fun86.track(st, loop.idx, pv, at, high, None, loop.sv[loop.idx], loop.os[loop.idx], ready["limit"],
+                            count=False)[per - 1::per]
         loop_open = np.asarray(fun86.loop_elapsed(since, scans[1:, None]) >= ready["loop_seconds"], dtype=bool)
-        pvs = pv_at[:, loop.points]
-        normal = loop.enabled & np.asarray(fun86.in_band(pvs, loop.sv, loop.os), dtype=bool)
+        normal = loop.enabled & np.asarray(fun86.in_band(batch.pv_at[:, loop.points], loop.sv, loop.os), dtype=bool)
         warning = np.zeros((n_scans, st.zn), dtype=bool)
         warning[:, loop.idx] = loop_open
         b_all = np.arange(st.zn)
@@ -614,18 +442,17 @@ class Span:
             plant.w_uon[s], plant.w_uoff[s] = lit[moved], level[-1, moved]
         plant._last_outputs = None
 
-    def _observe(self, engine: "Engine", loops: list[_Loop], outputs_at: list[np.ndarray], alarms: list,
-                 scans: np.ndarray, update_points: list, update_cols: list, readings: np.ndarray,
-                 table: _Table) -> None:
+    def _observe(self, engine: "Engine", loops: list[_Loop], batch: "_Batch", table: _Table) -> None:
         """Each scan's outputs and readings in memory, and the observers called, as after each of those scans."""
         fun86, mem = self.fun86, engine.memory
         bank, base = mem.words[table.readings.kind], table.readings.index
         end = engine.now
-        for i in range(len(scans) - 1):
-            for point, word in zip(update_points[i].tolist(), (readings[i][update_cols[i]] & 0xFFFF).tolist()):
+        for i in range(batch.n_scans):
+            fresh = np.flatnonzero(batch.updates[i] >= 0)
+            for point, word in zip(fresh.tolist(), (batch.readings[i][batch.updates[i][fresh]] & 0xFFFF).tolist()):
                 bank[base + point] = word
-            now = float(scans[i + 1])
-            for loop, outs, (normal, warning, alm, _since) in zip(loops, outputs_at, alarms):
+            now = float(batch.scans[i + 1])
+            for loop, outs, (normal, warning, alm, _since) in zip(loops, batch.outputs_at, batch.alarms):
                 inst, st = loop.inst, loop.st
                 mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = outs[i].tolist()
                 mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[i]) for w in (*normal, *warning)]
@@ -637,3 +464,216 @@ class Span:
             for observer in engine.observers:
                 observer(engine)
         engine.now = end
+
+class _Batch:
+    """A batch's scans computed (see the module docstring): the measurements as a row of columns per scan, the
+    plant's columns (those measurements, then every slot at the scan), and what each scan left."""
+
+    def __init__(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray) -> None:
+        self.tm: TemperatureModel = ready["tm"]
+        self.plant: ThermalPlant = ready["plant"]
+        self.scans = scans
+        self.st_time = engine.scan_time
+        self.n_scans = len(scans) - 1
+        self._measurements(engine.memory, ready["table"])
+        self._plant_columns(ready["loops"])
+        bank, base = engine.memory.words[ready["table"].readings.kind], ready["table"].readings.index
+        self.pv = signed16(bank[base:base + min(MAX_POINTS, len(bank) - base)])
+        # the column of each point's last reading at each scan (its PV register's new value; −1: none)
+        self.updates = np.full((self.n_scans, len(self.pv)), -1, dtype=np.intp)
+        last = last_of_each(self.scan_of * 64 + self.points)
+        self.updates[self.scan_of[last], self.points[last]] = self.col[last]
+        self.alarms: list = []
+
+    def rows(self, flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
+        """A value per measurement as a row per scan (``fill`` where a scan has fewer)."""
+        out = np.full((self.n_scans, self.width), fill, dtype=np.asarray(flat).dtype)
+        out[self.scan_of, self.col] = flat
+        return out
+
+    def _measurements(self, mem: "Memory", table: _Table) -> None:
+        """Every measurement of the batch: each module's in time order (its points in turn), module after module
+        (as each scan takes them), with its column in its scan's row; then what each needs but the plant."""
+        tm, plant, scans, n_scans = self.tm, self.plant, self.scans, self.n_scans
+        parts = []
+        filled = np.zeros(n_scans, dtype=np.int64)  # columns placed in each scan's row so far
+        ends = scans[1:] + 1e-9
+        for k, first, code in table.measured:
+            t, p = tm.measure_module(float(scans[-1]), k, first)
+            scan = np.searchsorted(ends, t, side="left")
+            within = np.arange(len(t)) - np.searchsorted(scan, np.arange(n_scans))[scan]
+            parts.append((t, p, np.full(len(t), code >> 8), scan, filled[scan] + within,
+                          within // tm.fitted[k].points))  # (the how-many-th reading of its point at that scan)
+            filled += np.bincount(scan, minlength=n_scans)
+        self.times, self.points, codes, self.scan_of, self.col, self.rank = (np.concatenate(x) for x in zip(*parts))
+        self.per_scan = filled
+        self.width = width = int(filled.max()) if len(self.times) else 0
+        times, points = self.times, self.points
+
+        installed = np.asarray(tm.installed(mem, points), dtype=bool)
+        broken = np.isin(points, list(tm.broken)) if tm.broken else np.zeros(len(points), dtype=bool)
+        self.good = good = installed & ~broken
+        self.some_bad = not good.all()
+        self.bad_flag = np.zeros(len(points), dtype=bool)
+        if self.some_bad:
+            bad_reading, bad_flag = tm.point_result(points, installed, broken, np.zeros(len(points), dtype=np.int64))
+            self.bad_flag = np.broadcast_to(np.asarray(bad_flag, dtype=bool), points.shape)
+            self.c_bad = self.rows(np.broadcast_to(np.asarray(bad_reading, dtype=np.int64), points.shape), 0)
+            self.c_good = self.rows(good, True)
+        slot_of = np.full(MAX_POINTS, -1)
+        for point, source in tm.sources.items():
+            if isinstance(source, PlantSource) and source.plant is plant:
+                slot_of[point] = source.slot
+        slot = slot_of[points]
+        heated = slot >= 0
+        self.mixed = not (heated | ~good).all()
+        if self.mixed:  # sources of their own: their values known beforehand
+            other = good & ~heated
+            pre = np.zeros(len(points))
+            pre[other] = tm.values(times[other], points[other])
+            self.c_pre, self.c_heated = self.rows(pre, 0.0), self.rows(heated | ~good, True)
+        noise = np.zeros(len(points))
+        if plant.normals is not None and heated.any():
+            noise[heated] = plant.normals[noise_index(plant.seed, points[heated], times[heated])] \
+                * plant.noise[slot[heated]]
+        self.c_noise = self.rows(noise, 0.0)
+        low, high = _LOW[codes], _HIGH[codes]
+        self.wraps = not (np.isfinite(low).all() and np.isfinite(high).all())  # (in range, PVs fit in 16 bits)
+        self.limits = None
+        if not self._within(slot, heated, low, high):
+            self.limits = self.rows(low, -math.inf), self.rows(high, math.inf)
+        self.c_points = self.rows(points, 0)
+        self.m_slot = self.rows(np.where(heated, slot, 0), 0)
+        valid = self.rows(np.ones(len(times), dtype=bool), False)
+        self.m_time = np.where(valid, self.rows(times, 0.0), scans[:-1, None])  # (padding: nothing elapsed)
+        if not width:
+            self.m_slot, self.m_time = np.zeros((n_scans, 0), dtype=np.intp), np.zeros((n_scans, 0))
+
+    def _within(self, slot: np.ndarray, heated: np.ndarray, low: np.ndarray, high: np.ndarray) -> bool:
+        """No measurement can leave its sensor's range (the plant's bounds within it): no clamping to do."""
+        plant = self.plant
+        if not heated.all():
+            return False
+        top = np.array([plant.upper(s) for s in range(len(plant.order))])
+        bottom = np.minimum(plant.initial, plant.ambient) - NOISE_CLIP * plant.noise
+        return bool((top[slot] <= high).all() and (bottom[slot] >= low).all())
+
+    def _plant_columns(self, loops: list[_Loop]) -> None:
+        """The plant's columns and what of their solution does not depend on the loop: the cycles of the PWM each
+        scan's interval meets, the decays and the heater-off part (:func:`cycle_terms`)."""
+        plant, scans, st_time, n_scans = self.plant, self.scans, self.st_time, self.n_scans
+        n_slots = len(plant.order)
+        self.c_slot = c_slot = np.hstack((self.m_slot, np.broadcast_to(np.arange(n_slots), (n_scans, n_slots))))
+        c_time = np.hstack((self.m_time, np.broadcast_to(scans[1:, None], (n_scans, n_slots))))
+        # each slot's waveform: the instance driving its heater (or constant: the plant's wave as it is)
+        started, period = np.zeros(n_slots), np.full(n_slots, 1e9)
+        u_on, u_off = plant.w_uoff.copy(), plant.w_uoff.copy()
+        self.on = np.zeros(n_slots)
+        for loop in loops:
+            if len(loop.slots):
+                started[loop.slots], period[loop.slots] = loop.st.started, loop.st.pwm
+                u_on[loop.slots], u_off[loop.slots] = loop.lit, loop.dark
+                self.on[loop.slots] = np.minimum(Fun86Model.on_times(loop.st, loop.output[loop.driven]), loop.st.pwm)
+        t_off = plant.ambient + plant.gain * u_off
+        lift = plant.ambient + plant.gain * u_on - t_off
+        rate = 1.0 / plant.tau
+        self.c_lift = lift[c_slot]
+        a = scans[:-1, None]
+
+        def cycle(x: np.ndarray, before: bool) -> np.ndarray:
+            """Per slot, the cycle whose start (on the grid) is the last at or before x (``before``: before x)."""
+            k = np.floor((x - started) / period)
+            start, end = (scan_grid(started + j * period, st_time) for j in (k, k + 1))
+            k = np.where(start >= x if before else start > x, k - 1, k)
+            return np.where(end < x if before else end <= x, k + 1, k)
+
+        # from the cycle each scan's interval starts in to the last starting before the scan: scans × cycles × slots
+        first = cycle(a, False)
+        n_cycles = max(1, int((cycle(scans[1:, None], True) - first).max()) + 1)
+        self.raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period
+        shape = (n_scans, n_cycles, c_slot.shape[1])
+        self.t3 = np.ascontiguousarray(np.broadcast_to(c_time[:, None], shape))
+        self.r3 = np.ascontiguousarray(np.broadcast_to(rate[c_slot][:, None], shape))
+        starts = np.take_along_axis(scan_grid(self.raw, st_time), np.broadcast_to(c_slot[:, None], shape), axis=2)
+        self.decay, self.base = cycle_terms(a, self.t3.transpose(1, 0, 2), starts.transpose(1, 0, 2), t_off[c_slot],
+                                            self.c_lift, self.r3.transpose(1, 0, 2))
+
+    def steps(self, fun86: Fun86Model, loops: list[_Loop], due: list[list[bool]]) -> None:
+        """Scan after scan: the plant through the last interval's waveforms, the readings, the PID steps due."""
+        tm, plant, n_scans, width, st_time = self.tm, self.plant, self.n_scans, self.width, self.st_time
+        n_slots = len(plant.order)
+        averaging = tm.config.averaging
+        limits = self.limits
+        plain = not (self.mixed or limits or tm.config.unit != "C" or averaging > 1 or self.some_bad or self.wraps)
+        readings = np.zeros((n_scans, width)) if averaging > 1 or self.some_bad else None  # (else: from values)
+        values = np.zeros((n_scans, width))
+        pv_at = np.zeros((n_scans, len(self.pv)))
+        temps_at = np.zeros((n_scans, n_slots))
+        outputs_at = [np.zeros((n_scans, loop.st.zn), dtype=np.int64) for loop in loops]
+        runs = [_Step(loop, len(self.pv), n_slots) for loop in loops]
+        alone = len(runs) == 1 and runs[0].every_slot  # (then a PID step's on-times are the slots' whole)
+        control, in_unit, resolution, on_times = fun86.control, tm.in_unit, tm.resolution, fun86.on_times
+        whole = (self.updates >= 0).all(axis=1).tolist()  # every PV read anew at the scan
+        pv = self.pv.astype(float)  # (readings are whole numbers: as floats, the PID law's arithmetic is the same)
+        temps = self.plant.temperatures(np.arange(n_slots), np.full(n_slots, self.scans[0]))
+        on, starts = self.on, self.scans[:-1].tolist()
+        c_slot, raw, t3, r3, c_lift, decay, base, c_noise = (self.c_slot, self.raw, self.t3, self.r3, self.c_lift,
+                                                             self.decay, self.base, self.c_noise)
+        updates = self.updates
+        for i in range(n_scans):
+            slots = c_slot[i]
+            offs = scan_grid(raw[i] + on, st_time)[:, slots]
+            temp = cycles_temperature(temps[slots], starts[i], t3[i], offs, c_lift[i], r3[i], (decay[i], base[i]))
+            temps = temp[width:]
+            temps_at[i] = temps
+            value = temp[:width] + c_noise[i]
+            if plain:
+                values[i] = value
+                reading = None
+            else:
+                if self.mixed:
+                    value = np.where(self.c_heated[i], value, self.c_pre[i])
+                value = values[i] = in_unit(value, *(limits[0][i], limits[1][i]) if limits else (None, None))
+                if averaging > 1:
+                    n = self.per_scan[i]
+                    mean = value.copy()
+                    mean[:n] = tm.average(self.c_points[i, :n], value[:n])
+                else:
+                    mean = value
+                reading = resolution(mean)
+                if self.some_bad:
+                    reading = np.where(self.c_good[i], reading, self.c_bad[i])
+                if readings is not None:
+                    readings[i] = reading
+            if whole[i]:
+                pv = resolution(value[updates[i]]) if reading is None else reading[updates[i]]
+            else:
+                pv = pv.copy()
+                fresh = updates[i] >= 0
+                pv[fresh] = resolution(value[updates[i][fresh]]) if reading is None else reading[updates[i][fresh]]
+            if self.wraps:
+                pv = signed16(pv.astype(np.int64) & 0xFFFF).astype(float)
+            pv_at[i] = pv
+            for loop, flags, outs, run in zip(loops, due, outputs_at, runs):
+                if flags[i]:
+                    now_pv = pv if run.every_pv else pv[run.at]
+                    out, run.integral = control(loop.law, run.integral, run.prev, run.has, run.sv, now_pv)
+                    run.prev, run.has = now_pv, True
+                    if run.every_point:
+                        run.output = out
+                    else:
+                        run.output = run.output.copy()
+                        run.output[loop.idx], run.output[loop.off] = out, 0
+                    if alone:
+                        on = on_times(loop.st, run.output)
+                    elif len(loop.slots):
+                        on = on.copy()
+                        on[loop.slots] = on_times(loop.st, run.output[loop.driven])
+                outs[i] = run.output
+        for loop, run in zip(loops, runs):
+            loop.output = run.output.astype(np.int64)
+        self.runs, self.outputs_at, self.temps_at = runs, outputs_at, temps_at
+        self.pv_at = pv_at.astype(np.int64)
+        self.values = values[self.scan_of, self.col]
+        self.readings = (resolution(values) if readings is None else readings).astype(np.int64)
+        self.flat_readings = self.readings[self.scan_of, self.col]
