@@ -186,7 +186,7 @@ def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
     (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
     clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0)."""
     decay = np.exp((a - t[0]) * rate[0])
-    begins = np.minimum(np.exp((np.maximum(starts, a) - t) * rate), 1.0)
+    begins = np.exp(np.minimum((np.maximum(starts, a) - t) * rate, 0.0))
     return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
@@ -199,8 +199,8 @@ def cycles_temperature(temp_a, a, t, offs, lift, rate, terms):  # noqa: ANN001, 
     A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
     [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
     decay, base = terms
-    ends = np.exp((np.maximum(offs, a) - t) * rate)
-    return temp_a * decay + base + lift * _cycles_sum(np.minimum(ends, 1.0, out=ends))
+    ends = np.minimum((np.maximum(offs, a) - t) * rate, 0.0)
+    return temp_a * decay + base + lift * _cycles_sum(np.exp(ends, out=ends))
 
 
 def _cycles_sum(rows: np.ndarray) -> np.ndarray:

@@ -487,6 +487,8 @@ class _Batch:
 
     def rows(self, flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
         """A value per measurement as a row per scan (``fill`` where a scan has fewer)."""
+        if self._order is not None:  # every scan as wide: the values in scan order, cut in rows
+            return flat[self._order].reshape(self.n_scans, self.width)
         out = np.full((self.n_scans, self.width), fill, dtype=np.asarray(flat).dtype)
         out[self.scan_of, self.col] = flat
         return out
@@ -509,9 +511,14 @@ class _Batch:
         self.per_scan = filled
         self.width = width = int(filled.max()) if len(self.times) else 0
         times, points = self.times, self.points
+        self._order = None
+        if width and (filled == width).all():
+            self._order = np.empty(len(times), dtype=np.intp)
+            self._order[self.scan_of * width + self.col] = np.arange(len(times))
 
-        installed = np.asarray(tm.installed(mem, points), dtype=bool)
-        broken = np.isin(points, list(tm.broken)) if tm.broken else np.zeros(len(points), dtype=bool)
+        every = np.arange(MAX_POINTS)  # (the seams per point, then for each measurement)
+        installed = np.asarray(tm.installed(mem, every), dtype=bool)[points]
+        broken = np.isin(every, list(tm.broken))[points]
         self.good = good = installed & ~broken
         self.some_bad = not good.all()
         self.bad_flag = np.zeros(len(points), dtype=bool)
@@ -542,10 +549,11 @@ class _Batch:
         self.limits = None
         if not self._within(slot, heated, low, high):
             self.limits = self.rows(low, -math.inf), self.rows(high, math.inf)
-        self.c_points = self.rows(points, 0)
+        self.c_points = self.rows(points, 0) if tm.config.averaging > 1 else None
         self.m_slot = self.rows(np.where(heated, slot, 0), 0)
-        valid = self.rows(np.ones(len(times), dtype=bool), False)
-        self.m_time = np.where(valid, self.rows(times, 0.0), scans[:-1, None])  # (padding: nothing elapsed)
+        self.m_time = self.rows(times, 0.0)
+        if self._order is None:  # (padding: nothing elapsed)
+            self.m_time = np.where(self.rows(np.ones(len(times), dtype=bool), False), self.m_time, scans[:-1, None])
         if not width:
             self.m_slot, self.m_time = np.zeros((n_scans, 0), dtype=np.intp), np.zeros((n_scans, 0))
 
@@ -590,12 +598,14 @@ class _Batch:
         # from the cycle each scan's interval starts in to the last starting before the scan: scans × cycles × slots
         first = cycle(a, False)
         n_cycles = max(1, int((cycle(scans[1:, None], True) - first).max()) + 1)
-        self.raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period
+        raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period
         shape = (n_scans, n_cycles, c_slot.shape[1])
+        self.s3 = np.ascontiguousarray(np.broadcast_to(c_slot[:, None], shape))
+        self.raw = np.take_along_axis(raw, self.s3, axis=2)  # (each column's, where a scan's step is cheapest)
         self.t3 = np.ascontiguousarray(np.broadcast_to(c_time[:, None], shape))
         self.r3 = np.ascontiguousarray(np.broadcast_to(rate[c_slot][:, None], shape))
-        starts = np.take_along_axis(scan_grid(self.raw, st_time), np.broadcast_to(c_slot[:, None], shape), axis=2)
-        self.decay, self.base = cycle_terms(a, self.t3.transpose(1, 0, 2), starts.transpose(1, 0, 2), t_off[c_slot],
+        self.decay, self.base = cycle_terms(a, self.t3.transpose(1, 0, 2),
+                                            scan_grid(self.raw, st_time).transpose(1, 0, 2), t_off[c_slot],
                                             self.c_lift, self.r3.transpose(1, 0, 2))
 
     def steps(self, fun86: Fun86Model, loops: list[_Loop], due: list[list[bool]]) -> None:
@@ -617,12 +627,12 @@ class _Batch:
         pv = self.pv.astype(float)  # (readings are whole numbers: as floats, the PID law's arithmetic is the same)
         temps = self.plant.temperatures(np.arange(n_slots), np.full(n_slots, self.scans[0]))
         on, starts = self.on, self.scans[:-1].tolist()
-        c_slot, raw, t3, r3, c_lift, decay, base, c_noise = (self.c_slot, self.raw, self.t3, self.r3, self.c_lift,
-                                                             self.decay, self.base, self.c_noise)
+        c_slot, raw, s3, t3, r3, c_lift, decay, base, c_noise = (self.c_slot, self.raw, self.s3, self.t3, self.r3,
+                                                                 self.c_lift, self.decay, self.base, self.c_noise)
         updates = self.updates
         for i in range(n_scans):
             slots = c_slot[i]
-            offs = scan_grid(raw[i] + on, st_time)[:, slots]
+            offs = scan_grid(raw[i] + on[s3[i]], st_time)
             temp = cycles_temperature(temps[slots], starts[i], t3[i], offs, c_lift[i], r3[i], (decay[i], base[i]))
             temps = temp[width:]
             temps_at[i] = temps
