@@ -85,8 +85,13 @@ class InstanceState:
     loop_since: np.ndarray = field(default_factory=_none)  # when "output ≥ R4006 % and not normal" began (NaN: no)
     #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
     published: tuple | None = None
+    #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
+    view: "_View | None" = None
+    #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
+    weights: tuple | None = None
 
     def new_points(self, zn: int) -> None:
+        self.view, self.weights = None, None
         self.integral = np.zeros(zn)
         self.pv_prev = np.zeros(zn, dtype=np.int64)
         self.has_prev = np.zeros(zn, dtype=bool)
@@ -98,6 +103,29 @@ class InstanceState:
         return [(i, p if h else None, c, None if math.isnan(s) else s) for i, p, h, c, s in
                 zip(self.integral.tolist(), self.pv_prev.tolist(), self.has_prev.tolist(), self.prealarm.tolist(),
                     self.loop_since.tolist())]
+
+
+@dataclass
+class _View:
+    """An instance's registers as a scan read them, and what follows from them alone: the next scan with the same
+    registers needs none of it again."""
+
+    key: tuple
+    pv: np.ndarray
+    sv: np.ndarray
+    os: np.ndarray
+    enabled: np.ndarray
+    idx: np.ndarray  # the enabled points
+    output: np.ndarray  # OR
+    every: bool  # every point enabled
+    sel: "slice | np.ndarray"  # the enabled points, as an index (a whole slice when every one is)
+    normal: np.ndarray | None = None  # (the alarms' part, filled by the scan that made the view)
+    normal_words: tuple = ()
+    out_of_band: bool = False
+    warning: np.ndarray | None = None  # the warning bits the last scan found, and their words
+    warning_words: tuple = ()
+    calm: bool = False  # no PV at or above R4008 and every pre-alarm count 0
+    waves: tuple | None = None  # (ON seconds, Y when on, Y when off)
 
 
 @dataclass(frozen=True)
@@ -135,6 +163,8 @@ class Fun86Model(Model):
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
         self._log: tuple | None = None
+        self._replays = False
+        self._output_keys: dict[tuple, frozenset] = {}
         self._span = None  # the batch runner (models/span.py), made on first use
 
     # -- the seams broken variants override (per point: arrays over an instance's points) -------------------------
@@ -250,8 +280,10 @@ class Fun86Model(Model):
         mem = emu.memory
         tm = self.temperature_model
         self._log = None
+        self._replays = False  # a reading logged for a scan skipped since the last (see _replayed)
         if tm is not None and tm.log:
             self._log = tuple(np.concatenate(parts) for parts in zip(*tm.log))
+            self._replays = float(scan_grid(float(self._log[0].min()), emu.scan_time)) < emu.now - emu.scan_time / 2
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -286,62 +318,75 @@ class Fun86Model(Model):
 
     def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
         st.published = None
-        if self.waveforms:
-            for b in range(max(st.zn, 0)):
-                if self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None) is not None:
-                    self.waveforms_version += 1
+        if self.waveforms and st.zn > 0:
+            keys = self._output_keys.get((inst.yn, st.zn))
+            if keys is None:
+                keys = self._output_keys[(inst.yn, st.zn)] = frozenset((inst.yn.kind, inst.yn.index + b)
+                                                                       for b in range(st.zn))
+            for key in self.waveforms.keys() & keys:
+                del self.waveforms[key]
+                self.waveforms_version += 1
 
     def _replayed(self, points: np.ndarray, enabled: np.ndarray, now: float, scan_time: float) -> tuple | None:
         """The readings of ``points`` (enabled ones) the temperature model logged for the scans skipped since the
         last one — those read at this very scan left out: (rows of PV, rows of the scan each landed at, valid),
-        rows in time order, a column per point."""
+        rows in time order, a column per point (None: no such reading).  Where a point has fewer readings than
+        others its row is not valid (to be filled with its reading at this scan)."""
         times, logged, pvs = self._log
         first, n = int(points[0]), len(points)
-        b = logged - first
-        keep = (b >= 0) & (b < n)
-        keep[keep] = enabled[b[keep]]
-        landed = scan_grid(times[keep], scan_time)
-        skipped = landed < now - scan_time / 2
-        if not skipped.any():
+        cells: list[tuple[int, float, int]] = []  # (point's column, landed, PV): a few since the last scan
+        for at, point, pv in zip(times.tolist(), logged.tolist(), pvs.tolist()):
+            b = point - first
+            if 0 <= b < n and enabled[b]:
+                landed = scan_grid(at, scan_time)
+                if landed < now - scan_time / 2:
+                    cells.append((b, landed, pv))
+        if not cells:
             return None
-        b, landed, pvs = b[keep][skipped], landed[skipped], pvs[keep][skipped]
+        b, landed, pv_cells = (np.array(x) for x in zip(*cells))
         row = occurrence(b)
         rows = int(row.max()) + 1
         pv, at, valid = np.zeros((rows, n), dtype=np.int64), np.zeros((rows, n)), np.zeros((rows, n), dtype=bool)
-        pv[row, b], at[row, b], valid[row, b] = pvs, landed, True
+        pv[row, b], at[row, b], valid[row, b] = pv_cells, landed, True
         return pv, at, valid
 
     def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
-              valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True) -> np.ndarray:
+              valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True,
+              band: np.ndarray | None = None) -> np.ndarray:
         """Points ``idx`` seeing readings ``pv`` (rows in time order, a column per point; ``at``: the scan each was
-        seen at, ``valid`` False: no reading in that row, None: a reading in every row): the pre-alarm counts
-        (``count`` False: left alone) and when the heater-loop condition — output ``high`` and PV out of band —
-        began, as after each row (NaN: not holding).  Returns those starts, row by row."""
-        if count:
+        seen at): the pre-alarm counts (``count`` False: left alone) and when the heater-loop condition — output
+        ``high`` and PV out of band — began, as after each row (NaN: not holding).  Returns those starts, row by row.
+
+        ``valid`` False marks a row that is no reading of the point but the next one again (a point with fewer
+        readings than others): not counted, and harmless to the heater-loop start (None: every row a reading).
+        ``band``: :meth:`in_band` of the rows, if known."""
+        if count and (type(self).prealarm_count is not Fun86Model.prealarm_count or np.count_nonzero(pv >= limit)):
             counts = st.prealarm[idx]
             for r in range(len(pv)):
                 counts = self.prealarm_count(counts, pv[r], limit) if valid is None else np.where(
                     valid[r], self.prealarm_count(counts, pv[r], limit), counts)
             st.prealarm[idx] = counts
-        holds = high & ~np.asarray(self.in_band(pv, sv, os), dtype=bool)
+        elif count:  # (no reading at R4008: every count back to 0, as the rule says)
+            st.prealarm[idx] = 0
+        holds = high & ~(np.asarray(self.in_band(pv, sv, os), dtype=bool) if band is None else band)
         since = st.loop_since[idx]
-        held = ~np.isnan(since)
-        n_rows, n = pv.shape
-        cells = np.arange(n_rows * n).reshape(n_rows, n)  # (flat index of each cell)
-        if valid is not None and not valid.all():  # a row without a reading changes nothing: it holds as before
-            last = np.maximum.accumulate(np.where(valid, cells, -1), axis=0)
-            holds = np.where(last >= 0, holds.ravel()[np.maximum(last, 0)], held)
-        before = np.concatenate((held[None], holds[:-1]))
-        began = np.maximum.accumulate(np.where(holds & ~before, cells, -1), axis=0)
-        starts = np.where(holds, np.where(began >= 0, at.ravel()[np.maximum(began, 0)], since), math.nan)
+        if not np.count_nonzero(holds) and not np.count_nonzero(since == since):  # (nothing holding, now or before)
+            return np.full(pv.shape, math.nan)
+        before = np.concatenate((~np.isnan(since)[None], holds[:-1]))
+        # the rows' times only grow, and a start held from before is older than them: each row's start is the
+        # latest start so far
+        began = np.maximum.accumulate(np.where(holds & ~before, at, -math.inf), axis=0)
+        starts = np.where(holds, np.maximum(began, np.where(np.isnan(since), -math.inf, since)), math.nan)
         st.loop_since[idx] = starts[-1]
         return starts
 
-    def bit_words(self, b: np.ndarray, bits: np.ndarray) -> tuple[int, ...]:
+    def bit_words(self, st: InstanceState, bits: np.ndarray) -> tuple:
         """WR+0/1 (or WR+2/3) from a bit per point (``bits``: [scans ×] points): arrays over scans for 2-D bits."""
-        word, bit = self.bit_position(b)
-        weights = np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)
-        return tuple(np.bitwise_or.reduce(np.where(bits, w, 0), axis=-1) & 0xFFFF for w in weights)
+        if st.weights is None:  # each point's weight in word 0 and in word 1
+            word, bit = self.bit_position(np.arange(st.zn))
+            st.weights = np.stack((np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)))
+        both = np.bitwise_or.reduce(np.where(bits[..., None, :], st.weights, 0), axis=-1) & 0xFFFF
+        return both[..., 0], both[..., 1]
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -390,21 +435,17 @@ class Fun86Model(Model):
         high_at = self.loop_threshold(mem) * OUTPUT_FULL
         heating = bool(bits[inst.hc.kind][inst.hc.index])
         pid_due = self.pid_due(st, now)
-        log = self._log is not None and (start.kind, start.index) == self.temperature_model.log_start
-        # (else PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests)
-        b = np.arange(zn)
-        points = sn + b
-        pv = signed(words[start.kind][start.index + sn:start.index + sn + zn])
-        sv = signed(words[inst.sv.kind][inst.sv.index:inst.sv.index + zn])
-        os = signed(words[inst.os.kind][inst.os.index:inst.os.index + zn])
-        enabled = np.asarray(self.enabled(mem, points), dtype=bool)
-        outputs, or_base = words[inst.or_.kind], inst.or_.index
-        before = np.array(outputs[or_base:or_base + zn], dtype=np.int64)
-        replayed = self._replayed(points, enabled, now, emu.scan_time) if log else None
+        view = self._view(mem, inst, st, start, limit, high_at, heating)
+        new = view.normal is None
+        # (PVs come from the table's readings, which the temperature model logs; else from registers of the ladder's
+        # choosing (R4003/R4004), which change only at requests)
+        replayed = None
+        if self._replays and (start.kind, start.index) == self.temperature_model.log_start:
+            replayed = self._replayed(st.sn + np.arange(zn), view.enabled, now, emu.scan_time)
+        pv, sv, os, enabled, idx, before = view.pv, view.sv, view.os, view.enabled, view.idx, view.output
         after = before
         if pid_due:
             after = np.zeros(zn, dtype=np.int64)
-            idx = np.flatnonzero(enabled)
             if len(idx):
                 gains = [np.array(words[a.kind][a.index:a.index + zn], dtype=np.int64)[idx]
                          for a in (inst.pr, inst.ir, inst.dr)]
@@ -414,41 +455,100 @@ class Fun86Model(Model):
                 st.pv_prev[idx], st.has_prev[idx] = pv[idx], True
             off = ~enabled
             st.integral[off], st.has_prev[off] = 0.0, False
-            outputs[or_base:or_base + zn] = after.tolist()
-        self._drive(mem, inst, st, now, enabled, after)
-        # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV
-        idx = np.flatnonzero(enabled)
-        if replayed is not None:
-            rpv, rat, rvalid = (x[:, idx] for x in replayed)
-            rows = (np.vstack((rpv, pv[idx])), np.vstack((rat, np.full(len(idx), now))),
-                    np.vstack((np.broadcast_to(before[idx] * 100 >= high_at, rpv.shape), after[idx] * 100 >= high_at)),
-                    np.vstack((rvalid, np.ones(len(idx), dtype=bool))))
-        else:
-            rows = (pv[idx][None], np.full((1, len(idx)), now), (after[idx] * 100 >= high_at)[None],
-                    np.ones((1, len(idx)), dtype=bool))
-        self.track(st, idx, *rows, sv[idx], os[idx], limit)
-        off = ~enabled
-        st.prealarm[off], st.loop_since[off] = 0, math.nan
-        normal = enabled & np.asarray(self.in_band(pv, sv, os), dtype=bool)
-        loop_open = np.asarray(self.loop_elapsed(st.loop_since, now) >= loop_seconds, dtype=bool)
-        warning = enabled & (np.asarray(self.prealarm(st.prealarm), dtype=bool) | loop_open)
+            words[inst.or_.kind][inst.or_.index:inst.or_.index + zn] = after.tolist()
+        self._drive(mem, inst, st, now, enabled, after, None if pid_due else view)
+        # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV — or,
+        # with the same registers as the last scan and nothing to replay, as that scan left them
+        sel = view.sel
+        if new:
+            view.normal = enabled & np.asarray(self.in_band(pv, sv, os), dtype=bool)
+            view.normal_words = self.bit_words(st, view.normal)
+            view.out_of_band = bool(np.count_nonzero(enabled & ~view.normal))
+        if replayed is not None or pid_due or new:
+            high = after[sel] * 100 >= high_at
+            pv_e = pv[sel]
+            if replayed is not None:  # (a row without a reading of the point: its reading at this scan again)
+                rpv, rat, rvalid = (x[:, sel] for x in replayed)
+                rows = (np.vstack((np.where(rvalid, rpv, pv_e), pv_e)),
+                        np.vstack((np.where(rvalid, rat, now), np.full(len(pv_e), now))),
+                        np.vstack((np.where(rvalid, before[sel] * 100 >= high_at, high), high)),
+                        np.vstack((rvalid, np.ones(len(pv_e), dtype=bool))))
+                self.track(st, sel, *rows, sv[sel], os[sel], limit)
+            else:
+                self.track(st, sel, pv_e[None], np.full((1, len(pv_e)), now), high[None], None, sv[sel], os[sel],
+                           limit, band=view.normal[sel][None])
+            if not view.every:
+                off = ~enabled
+                st.prealarm[off], st.loop_since[off] = 0, math.nan
+        elif not (view.calm and type(self).prealarm_count is Fun86Model.prealarm_count):
+            st.prealarm[sel] = self.prealarm_count(st.prealarm[sel], pv[sel], limit)
+        held = st.loop_since[sel]
+        timing = bool(np.count_nonzero(held == held))  # a heater-loop timer running (a start not NaN)
+        if new or timing or not view.calm or view.warning is None:
+            warning = np.asarray(self.prealarm(st.prealarm), dtype=bool)
+            if timing:
+                warning = warning.copy()
+                warning[sel] |= np.asarray(self.loop_elapsed(held, now) >= loop_seconds, dtype=bool)
+            warning = warning & enabled
+            if view.warning is None or np.count_nonzero(warning != view.warning):
+                view.warning, view.warning_words = warning, self.bit_words(st, warning)
+            # (calm: no PV at R4008 and no count running — the pre-alarm counts stay 0 while the registers do)
+            view.calm = not np.count_nonzero(pv[sel] >= limit) and not np.count_nonzero(st.prealarm)
         wr = inst.wr
-        words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*self.bit_words(b, normal), *self.bit_words(b, warning))]
-        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(bool((enabled & ~normal).any()),
-                                                              bool(warning.any())) else 0
+        words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*view.normal_words, *view.warning_words)]
+        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, bool(np.count_nonzero(view.warning))) else 0
+
+    def _view(self, mem: "Memory", inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
+              heating: bool) -> _View:
+        """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
+        arrays of those unchanged otherwise)."""
+        words, zn, sn = mem.words, st.zn, st.sn
+        first = _R[reg.PID_ENABLE_LOW]
+        key = (words[start.kind][start.index + sn:start.index + sn + zn], words[inst.sv.kind][inst.sv.index:
+               inst.sv.index + zn], words[inst.os.kind][inst.os.index:inst.os.index + zn],
+               words["R"][first:first + 2], words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], limit,
+               high_at, heating, start)
+        view = st.view
+        plain = type(self).enabled is Fun86Model.enabled  # (a seam of its own may read other registers)
+        if view is not None and view.key == key and plain:
+            return view
+        old = view.key if view is not None else (None,) * len(key)
+        if plain and old[3] == key[3]:
+            enabled, idx = view.enabled, view.idx
+        else:
+            enabled = np.asarray(self.enabled(mem, sn + np.arange(zn)), dtype=bool)
+            idx = np.flatnonzero(enabled)
+        every = len(idx) == zn
+        same_output = old[4] == key[4] and old[3] == key[3] and plain  # (then the same waveforms)
+        st.view = _View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
+                               for i, name in ((0, "pv"), (1, "sv"), (2, "os"))),
+                        enabled, idx, view.output if old[4] == key[4] else np.array(key[4], dtype=np.int64),
+                        every, slice(None) if every else idx, waves=view.waves if same_output else None)
+        return st.view
 
     def _drive(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
-               output: np.ndarray) -> None:
-        """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms."""
-        on_time, y_on, y_off = self.waves(st, enabled, output)
+               output: np.ndarray, view: _View | None = None) -> None:
+        """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
+        (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
+        if view is not None and view.waves is not None:
+            waves = view.waves
+        else:
+            waves = self.waves(st, enabled, output)
+            if view is not None:
+                view.waves = waves
         ys = mem.bits[inst.yn.kind]
-        ys[inst.yn.index:inst.yn.index + st.zn] = self.outputs_at(st, now, on_time, y_on, y_off)
-        self.publish(inst, st, on_time, y_on, y_off)
+        ys[inst.yn.index:inst.yn.index + st.zn] = self.outputs_at(st, now, *waves)
+        last = st.published
+        if last is None or last[0] != (st.started, st.pwm, self.waveforms_version) or last[1] is not waves[0]:
+            self.publish(inst, st, *waves)
 
     def waves(self, st: InstanceState, enabled: np.ndarray, output: np.ndarray) -> tuple[np.ndarray, ...]:
         """(ON seconds of each PWM period, Y when on, Y when off) of the instance's outputs."""
-        y_on = np.broadcast_to(np.asarray(self.drive(enabled, True), dtype=bool), enabled.shape)
-        y_off = np.broadcast_to(np.asarray(self.drive(enabled, False), dtype=bool), enabled.shape)
+        y_on, y_off = (np.asarray(self.drive(enabled, level), dtype=bool) for level in (True, False))
+        if y_on.shape != enabled.shape:
+            y_on = np.full(enabled.shape, bool(y_on))
+        if y_off.shape != enabled.shape:
+            y_off = np.full(enabled.shape, bool(y_off))
         return self.on_times(st, output), y_on, y_off
 
     @staticmethod
@@ -459,27 +559,25 @@ class Fun86Model(Model):
     @staticmethod
     def outputs_at(st: InstanceState, now: float, on_time: np.ndarray, y_on: np.ndarray, y_off: np.ndarray) -> bytes:
         """Yn… at ``now``: as when on for the first ``on_time`` seconds of each PWM period, else as when off."""
-        return np.where((now - st.started) % st.pwm < on_time, y_on, y_off).astype(np.uint8).tobytes()
+        return np.where((now - st.started) % st.pwm < on_time, y_on, y_off).tobytes()  # (bools: bytes 0/1)
 
     def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
                 y_off: np.ndarray) -> None:
         """The waveforms of the instance's outputs (for the plant): (started, PWM period, ON seconds, Y when on,
         Y when off), rewritten where they changed."""
         last = st.published
+        bs: range | list = range(st.zn)
         if last is not None and last[0] == (st.started, st.pwm, self.waveforms_version):
             changed = (on_time != last[1]) | (y_on != last[2]) | (y_off != last[3])
-            if not changed.any():
-                return
             bs = np.flatnonzero(changed).tolist()
-        else:
-            bs = range(st.zn)
         waveforms, kind, base = self.waveforms, inst.yn.kind, inst.yn.index
-        ons, lits, darks = on_time.tolist(), y_on.tolist(), y_off.tolist()
-        for b in bs:
-            wave = (st.started, st.pwm, ons[b], lits[b], darks[b])
-            if waveforms.get((kind, base + b)) != wave:
-                waveforms[(kind, base + b)] = wave
-                self.waveforms_version += 1
+        if bs:
+            ons, lits, darks = on_time.tolist(), y_on.tolist(), y_off.tolist()
+            for b in bs:
+                wave = (st.started, st.pwm, ons[b], lits[b], darks[b])
+                if waveforms.get((kind, base + b)) != wave:
+                    waveforms[(kind, base + b)] = wave
+                    self.waveforms_version += 1
         # (the version as left here: another instance writing the same outputs shows as a newer one)
         st.published = ((st.started, st.pwm, self.waveforms_version), on_time, y_on, y_off)
 
@@ -487,8 +585,8 @@ class Fun86Model(Model):
         self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
         ys[inst.yn.index:inst.yn.index + st.zn] = bytes(st.zn)
-        st.prealarm[:] = 0
-        st.loop_since[:] = math.nan
+        st.prealarm.fill(0)
+        st.loop_since.fill(math.nan)
 
     def _log_off(self) -> bool:
         """Without the temperature model's log of readings, every measurement needs its scan."""
@@ -499,9 +597,14 @@ class Fun86Model(Model):
         if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
             return True
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
-        points = st.sn + np.arange(st.zn)
-        points = points[np.asarray(self.enabled(mem, points), dtype=bool)].tolist()
-        return bool(points) and self.temperature_model.readings_upper(mem, points) >= limit
+        view = st.view  # (its enabled points, while R4012/R4013 are as it read them)
+        first = _R[reg.PID_ENABLE_LOW]
+        if view is not None and view.key[3] == mem.words["R"][first:first + 2] and \
+                type(self).enabled is Fun86Model.enabled:
+            points = st.sn + view.idx
+        else:
+            points = st.sn + np.flatnonzero(np.asarray(self.enabled(mem, st.sn + np.arange(st.zn)), dtype=bool))
+        return bool(len(points)) and self.temperature_model.readings_upper(mem, points) >= limit
 
     def next_event(self, now: float) -> float:
         mem = self._emu.memory if self._emu is not None else None
@@ -515,12 +618,13 @@ class Fun86Model(Model):
                 due = min(due, self.next_measurement())
             if not st.running:
                 continue
-            if ((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)).any():
+            if np.count_nonzero(st.prealarm) and np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)):
                 return now  # counting consecutive scans: every scan matters
-            deadlines = st.loop_since + loop_seconds
-            pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
-            if pending.any():
-                due = min(due, float(deadlines[pending].min()))
+            if np.count_nonzero(st.loop_since == st.loop_since):  # (a heater-loop start not NaN)
+                deadlines = st.loop_since + loop_seconds
+                pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
+                if np.count_nonzero(pending):
+                    due = min(due, float(deadlines[pending].min()))
             due = min(due, st.next_pid)
             if not measurements:
                 measurements = self._prealarm_possible(mem, st)
@@ -532,7 +636,7 @@ class Fun86Model(Model):
             edges = cycle + np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]) \
                 / OUTPUT_FULL * st.pwm
             later = edges > now + 1e-9
-            if later.any():
+            if np.count_nonzero(later):
                 due = min(due, float(edges[later].min()))
         if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
@@ -547,6 +651,8 @@ class Fun86Model(Model):
 
     def span(self, engine: "Engine", target: float) -> bool:
         """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
+        if not self.pwm_exact or self.temperature_model is None or self.temperature_model.log is None:
+            return False  # (scans at PWM edges or at every measurement: none to batch)
         if self._span is None:
             from hil.families.fbs.sim.models.span import Span  # noqa: PLC0415 - span imports this module
             self._span = Span(self)

@@ -170,15 +170,21 @@ _MIX1, _MIX2, _MIX3 = _U(0x9E3779B97F4A7C15), _U(0xBF58476D1CE4E5B9), _U(0x94D04
 def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Which of the 65536 normals a measurement of ``points`` at ``times`` draws: splitmix64's finaliser over
     (t in µs, point, seed), modulo 2^64 (exact for any seed: the seed's term is taken as a Python int)."""
-    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.int64).view(np.uint64) * _MIX1
-    x += np.asarray(points).astype(np.uint64) * _MIX2
-    x += _U(seed * 0x94D049BB133111EB & _MASK64)
+    terms = _POINT_TERMS.get(seed)
+    if terms is None:  # point × K2 + seed × K3 for each point
+        terms = _POINT_TERMS[seed] = np.arange(64, dtype=np.uint64) * _MIX2 + _U(seed * 0x94D049BB133111EB & _MASK64)
+    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.uint64)  # (times ≥ 0)
+    x *= _MIX1
+    x += terms[points]
     x ^= x >> _U(30)
     x *= _MIX2
     x ^= x >> _U(27)
     x *= _MIX3
     x ^= x >> _U(31)
-    return (x & _U(0xFFFF)).astype(np.intp)
+    return x & _U(0xFFFF)
+
+
+_POINT_TERMS: dict[int, np.ndarray] = {}
 
 
 def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201

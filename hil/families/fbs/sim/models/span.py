@@ -34,8 +34,8 @@ from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
 from hil.families.fbs.sim.models.fun86 import _R, PREALARM_SCANS, Fun86Model, InstanceState, Law
 from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
                                                 noise_index)
-from hil.families.fbs.sim.models.temperature import TemperatureModel
-from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, SENSOR_BY_CODE, TABLE_MARKER
+from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, TemperatureModel
+from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, TABLE_MARKER
 from hil.sim.columns import last_of_each, occurrence, signed16
 from hil.sim.model import scan_grid
 
@@ -46,10 +46,6 @@ if TYPE_CHECKING:
 #: scans per batch at most (the batch's arrays are scans × columns)
 CHUNK = 2048
 
-#: each sensor code's measuring range, °C (unbounded for a code no sensor has)
-_LOW, _HIGH = np.full(256, -math.inf), np.full(256, math.inf)
-for _code, _sensor in SENSOR_BY_CODE.items():
-    _LOW[_code], _HIGH[_code] = _sensor.low_c, _sensor.high_c
 
 
 @dataclass
@@ -298,7 +294,7 @@ class Span:
         tm = ready["tm"]
         return ((engine.now, engine.scans, engine.skipped_time), [(loop.st.next_pid, loop.st.loop_since.copy())
                                                                    for loop in ready["loops"]],
-                (list(tm._next), list(tm._mux), tm._ring.copy(), tm._count.copy()))
+                (list(tm._next), list(tm._mux), tm._ring.copy(), tm._count.copy(), tm._top.copy()))
 
     @staticmethod
     def _restore(engine: "Engine", ready: dict[str, Any], saved: tuple) -> None:
@@ -309,7 +305,7 @@ class Span:
             loop.output = loop.before.copy()
         tm = ready["tm"]
         tm._next, tm._mux = list(temperature[0]), list(temperature[1])
-        tm._ring, tm._count = temperature[2].copy(), temperature[3].copy()
+        tm._ring, tm._count, tm._top = temperature[2].copy(), temperature[3].copy(), temperature[4].copy()
 
     def _compute(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
                  due: list[list[bool]]) -> "_Batch":
@@ -352,6 +348,7 @@ class Span:
             mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + loop.st.zn] = outs[-1].tolist()
             mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[-1]) for w in (*normal, *warning)]
             mem.bits[inst.alm.kind][inst.alm.index] = 1 if alm[-1] else 0
+            loop.st.view = None  # (its registers changed)
             fun86._drive(mem, inst, loop.st, float(scans[-1]), loop.enabled, outs[-1])
         tm.log = []
         fun86._log = None
@@ -408,9 +405,8 @@ class Span:
         normal = loop.enabled & np.asarray(fun86.in_band(batch.pv_at[:, loop.points], loop.sv, loop.os), dtype=bool)
         warning = np.zeros((n_scans, st.zn), dtype=bool)
         warning[:, loop.idx] = loop_open
-        b_all = np.arange(st.zn)
         alm = np.asarray(fun86.alarm((loop.enabled & ~normal).any(axis=1), warning.any(axis=1)), dtype=bool)
-        return fun86.bit_words(b_all, normal), fun86.bit_words(b_all, warning), np.broadcast_to(alm, (n_scans,)), since
+        return fun86.bit_words(st, normal), fun86.bit_words(st, warning), np.broadcast_to(alm, (n_scans,)), since
 
     def _plant(self, plant: ThermalPlant, loops: list[_Loop], outputs_at: list[np.ndarray], scans: np.ndarray,
                temps_at: np.ndarray) -> None:
@@ -544,7 +540,7 @@ class _Batch:
             noise[heated] = plant.normals[noise_index(plant.seed, points[heated], times[heated])] \
                 * plant.noise[slot[heated]]
         self.c_noise = self.rows(noise, 0.0)
-        low, high = _LOW[codes], _HIGH[codes]
+        low, high = SENSOR_LOW[codes], SENSOR_HIGH[codes]
         self.wraps = not (np.isfinite(low).all() and np.isfinite(high).all())  # (in range, PVs fit in 16 bits)
         self.limits = None
         if not self._within(slot, heated, low, high):

@@ -33,7 +33,7 @@ from hil.sim.columns import last_of_each, occurrence
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.sim.models.plant import PlantSource
-from hil.families.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
+from hil.families.fbs.temperature import (BREAK_VALUE, SENSOR_BY_CODE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
 
@@ -95,6 +95,7 @@ class TemperatureModel(Model):
         #: ones are the last _count[point] of its row (the others 0.0, so adding the row in order is their sum)
         self._ring = np.zeros((MAX_POINTS, config.averaging))
         self._count = np.zeros(MAX_POINTS, dtype=np.int64)
+        self._top = np.full(MAX_POINTS, -math.inf)  # each point's highest sample (−inf: none)
         self._measured: set[int] = set()
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         #: the fitted modules the table had measured at the last full scan (a mismatched or unlisted module's
@@ -114,11 +115,16 @@ class TemperatureModel(Model):
         self.log: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self.log_start: tuple[str, int] | None = None
         self._upper_cache: dict[int, tuple] = {}
+        self._sources_version = 0  # bumped by set_source (readings_upper and values cache what the sources are)
+        self._slots: tuple = (-1, None, None)  # (sources version, plant, slot per point): see _plant_slots
+        #: (points, sources version, R4010/R4011) → the highest of their sources' bounds, all installed
+        self._bounds: tuple = ((), None, False)
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
         self._check_point(point)
         self.sources[point] = source
+        self._sources_version += 1
         self._forget(np.array([point]))
 
     def open(self, point: int) -> None:
@@ -144,6 +150,7 @@ class TemperatureModel(Model):
         """Drop points' samples ([our choice] a repaired or re-sourced sensor reads its live value at once)."""
         self._count[points] = 0
         self._ring[points] = 0.0
+        self._top[points] = -math.inf
 
     # -- the seams broken variants override (arrays over measurements) ----------------------------------------------
     def installed(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
@@ -321,60 +328,68 @@ class TemperatureModel(Model):
     def _measure(self, emu: "Emulator", due: list[tuple[int, int, int]], readings: Address) -> None:
         """The measurements of modules ``due`` [(k, first point, sensor code)] up to now, in one batch."""
         batches = [(*self.measure_module(emu.now, k, first), code) for k, first, code in due]
-        times = np.concatenate([b[0] for b in batches])
-        points = np.concatenate([b[1] for b in batches])
-        codes = np.concatenate([np.full(len(b[0]), b[2]) for b in batches])
-        words = self.take(emu.memory, times, points, codes)
+        if len(batches) == 1:
+            times, points, code = batches[0]
+            codes = np.full(len(times), code)
+        else:
+            times = np.concatenate([b[0] for b in batches])
+            points = np.concatenate([b[1] for b in batches])
+            codes = np.concatenate([np.full(len(b[0]), b[2]) for b in batches])
+        words, last = self.take(emu.memory, times, points, codes)
         out, base = emu.memory.words[readings.kind], readings.index
-        last = last_of_each(points)
         for point, word in zip(points[last].tolist(), words[last].tolist()):
             out[base + point] = word
         if self.log is not None:
             self.log_start = (readings.kind, readings.index)
             self.log.append((times, points, (words ^ 0x8000) - 0x8000))
 
-    def take(self, mem: "Memory", times: np.ndarray, points: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    def take(self, mem: "Memory", times: np.ndarray, points: np.ndarray,
+             codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measure ``points`` at ``times`` (each point's in time order) with the sensors of ``codes``: the reading
-        words, the samples, break bits and measured points updated as one measurement after the other would."""
+        words, the samples, break bits and measured points updated as one measurement after the other would.
+        Returns the words and the index of each point's last measurement."""
         installed = np.asarray(self.installed(mem, points), dtype=bool)
         broken = np.isin(points, list(self.broken)) if self.broken else np.zeros(len(points), dtype=bool)
         good = installed & ~broken
-        live = np.zeros(len(points), dtype=np.int64)
+        last = last_of_each(points)
         if good.all():
-            live = self._live(times, points, codes).astype(np.int64)
-        elif good.any():
-            live[good] = self._live(times[good], points[good], codes[good])
-        if not good.all():
+            live = self._live(times, points, codes, last)
+        else:
+            live = np.zeros(len(points))
+            if good.any():
+                live[good] = self._live(times[good], points[good], codes[good])
             self._forget(points[~good])  # (a point is good or not for all its measurements of one scan)
         reading, flagged = self.point_result(points, installed, broken, live)
-        flagged = np.broadcast_to(np.asarray(flagged, dtype=bool), points.shape)
-        last = last_of_each(points)
+        reading, flagged = np.asarray(reading), np.asarray(flagged, dtype=bool)
+        if flagged.shape != points.shape:
+            flagged = np.full(points.shape, bool(flagged))
         breaks = self._breaks
         for point, flag in zip(points[last].tolist(), flagged[last].tolist()):
             breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
         self._breaks = breaks
         self._measured.update(points[last].tolist())
-        return np.broadcast_to(np.asarray(reading, dtype=np.int64), points.shape) & 0xFFFF
+        words = (np.full(points.shape, reading) if reading.shape != points.shape else reading).astype(np.int64)
+        return words & 0xFFFF, last
 
     def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
         """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
-        cache = self._upper_cache
-        top = -math.inf
-        n = self.config.averaging
-        for point in points:
-            source = self.sources.get(point)
-            hit = cache.get(point)
-            if hit is None or hit[0] is not source:
-                hit = cache[point] = (source, self._source_upper(source))
-            value = hit[1]
-            count = int(self._count[point])
-            if count:
-                value = max(value, float(self._ring[point, n - count:].max()))
-            if value > top:
-                top = value
+        points = np.asarray(list(points), dtype=np.intp)
+        key = (tuple(points.tolist()), self._sources_version, tuple(mem.words["R"][_MASK_LOW:_MASK_LOW + 2]))
+        if self._bounds[0] != key:  # (the sources' bounds, and whether every point is installed)
+            cache = self._upper_cache
+            bounds = []
+            for point in key[0]:
+                source = self.sources.get(point)
+                hit = cache.get(point)
+                if hit is None or hit[0] is not source:
+                    hit = cache[point] = (source, self._source_upper(source))
+                bounds.append(hit[1])
+            self._bounds = (key, max(bounds, default=-math.inf), bool(np.all(self.installed(mem, points))))
+        _key, top, installed = self._bounds
+        if len(points):
+            top = max(top, float(self._top[points].max()))
         if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
-                or math.isinf(top) or any(p in self.broken for p in points)
-                or not np.all(self.installed(mem, np.asarray(list(points))))):
+                or math.isinf(top) or not installed or any(p in self.broken for p in key[0])):
             return math.inf
         return (math.ceil(top) + 1) * 10 if self.config.rate == "fast" else math.ceil(top * 10) + 1
 
@@ -392,6 +407,11 @@ class TemperatureModel(Model):
 
     def values(self, times: np.ndarray, points: np.ndarray) -> np.ndarray:
         """Each point's source at its time, °C: the points of a thermal plant solved together."""
+        plant, slots = self._plant_slots()
+        if plant is not None:
+            slot = slots[points]
+            if (slot >= 0).all():
+                return plant.measured(slot, points, times)
         out = np.empty(len(points))
         sources = [self.sources[p] for p in points.tolist()]
         plants: dict[int, list[int]] = {}
@@ -406,9 +426,28 @@ class TemperatureModel(Model):
             out[cols] = plant.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
         return out
 
-    def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray) -> np.ndarray:
-        """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°."""
-        return self.resolution(self.average(points, self.in_unit(self.values(times, points), *sensor_limits(codes))))
+    def _plant_slots(self) -> tuple:
+        """(a plant, the slot of each point in it — −1 for a point with another source), for the plant that heats
+        the most points."""
+        if self._slots[0] != self._sources_version:
+            plants: dict[int, list] = {}
+            for point, source in self.sources.items():
+                if isinstance(source, PlantSource):
+                    plants.setdefault(id(source.plant), [source.plant, []])[1].append((point, source.slot))
+            plant, slots = None, np.full(MAX_POINTS, -1)
+            if plants:
+                plant, pairs = max(plants.values(), key=lambda entry: len(entry[1]))
+                for point, slot in pairs:
+                    slots[point] = slot
+            self._slots = (self._sources_version, plant, slots)
+        return self._slots[1], self._slots[2]
+
+    def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray,
+              last: np.ndarray | None = None) -> np.ndarray:
+        """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°
+        (``last``: each point's last measurement, if known)."""
+        return self.resolution(self.average(points, self.in_unit(self.values(times, points), SENSOR_LOW[codes],
+                                                                 SENSOR_HIGH[codes]), last))
 
     def in_unit(self, celsius: np.ndarray, low: np.ndarray | None, high: np.ndarray | None) -> np.ndarray:
         """Sensor values within the sensors' range (``low``, ``high``; None: known to be within), in the configured
@@ -424,15 +463,15 @@ class TemperatureModel(Model):
             return np.rint(mean) * 10
         return np.rint(mean * 10)
 
-    def average(self, points: np.ndarray, value: np.ndarray) -> np.ndarray:
+    def average(self, points: np.ndarray, value: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
         """Each value's mean with the point's samples before it (the last ``averaging``), the samples updated.
 
         The sum runs oldest first from 0.0 (not sum(), whose float algorithm changed in Python 3.12: the same
-        profile gives the same readings on every Python)."""
+        profile gives the same readings on every Python).  ``last``: each point's last value, if known."""
         ring, count, n = self._ring, self._count, self.config.averaging
         if n == 1:
-            last = last_of_each(points)
-            ring[points[last], 0] = value[last]
+            last = last_of_each(points) if last is None else last
+            ring[points[last], 0] = self._top[points[last]] = value[last]
             count[points[last]] = 1
             return value
         mean = np.empty(len(points))
@@ -447,6 +486,8 @@ class TemperatureModel(Model):
             for c in range(n):
                 total = total + ring[pts, c]
             mean[cols] = total / count[pts]
+        pts = np.unique(points)
+        self._top[pts] = np.where(np.arange(n) >= n - count[pts][:, None], ring[pts], -math.inf).max(axis=1)
         return mean
 
 
@@ -455,20 +496,22 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
     adds them), and the first one after it."""
     if at > limit:
         return np.empty(0), at
-    times = np.add.accumulate(np.concatenate(([at], np.full(int((limit - at) / step) + 2, step))))
+    count = int((limit - at) / step) + 2
+    if count <= 8:  # (a few: added in Python, the same additions without numpy's overhead)
+        times = [at]
+        while at + step <= limit:
+            at += step
+            times.append(at)
+        return np.array(times), at + step
+    times = np.add.accumulate(np.concatenate(([at], np.full(count, step))))
     n = int(np.searchsorted(times, limit, side="right"))
     return times[:n], float(times[n])
 
 
-def sensor_limits(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The measuring range (°C) of each sensor code (unbounded for a code no sensor has)."""
-    low, high = np.full(len(codes), -math.inf), np.full(len(codes), math.inf)
-    for code in np.unique(codes).tolist():
-        sensor = SENSOR_BY_CODE.get(code)
-        if sensor is not None:
-            at = codes == code
-            low[at], high[at] = sensor.low_c, sensor.high_c
-    return low, high
+#: each sensor code's measuring range, °C (unbounded for a code no sensor has)
+SENSOR_LOW, SENSOR_HIGH = np.full(256, -math.inf), np.full(256, math.inf)
+for _code, _sensor in SENSOR_BY_CODE.items():
+    SENSOR_LOW[_code], SENSOR_HIGH[_code] = _sensor.low_c, _sensor.high_c
 
 
 def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
