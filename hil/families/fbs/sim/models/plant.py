@@ -165,6 +165,7 @@ def normals(seed: int) -> np.ndarray:
 _MASK64 = (1 << 64) - 1
 _U = np.uint64
 _MIX1, _MIX2, _MIX3 = _U(0x9E3779B97F4A7C15), _U(0xBF58476D1CE4E5B9), _U(0x94D049BB133111EB)
+_S30, _S27, _S31, _LOW16 = _U(30), _U(27), _U(31), _U(0xFFFF)
 
 
 def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -173,15 +174,10 @@ def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
     terms = _POINT_TERMS.get(seed)
     if terms is None:  # point × K2 + seed × K3 for each point
         terms = _POINT_TERMS[seed] = np.arange(64, dtype=np.uint64) * _MIX2 + _U(seed * 0x94D049BB133111EB & _MASK64)
-    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.uint64)  # (times ≥ 0)
-    x *= _MIX1
-    x += terms[points]
-    x ^= x >> _U(30)
-    x *= _MIX2
-    x ^= x >> _U(27)
-    x *= _MIX3
-    x ^= x >> _U(31)
-    return x & _U(0xFFFF)
+    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.uint64) * _MIX1 + terms[points]  # (t ≥ 0)
+    x = (x ^ (x >> _S30)) * _MIX2
+    x = (x ^ (x >> _S27)) * _MIX3
+    return (x ^ (x >> _S31)) & _LOW16
 
 
 _POINT_TERMS: dict[int, np.ndarray] = {}

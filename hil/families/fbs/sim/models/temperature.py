@@ -115,6 +115,7 @@ class TemperatureModel(Model):
         self.log: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self.log_start: tuple[str, int] | None = None
         self._upper_cache: dict[int, tuple] = {}
+        self._installed: tuple = (None, None)  # (R4010/R4011, every point's installed bit)
         self._sources_version = 0  # bumped by set_source (readings_upper and values cache what the sources are)
         self._slots: tuple = (-1, None, None)  # (sources version, plant, slot per point): see _plant_slots
         #: (points, sources version, R4010/R4011) → the highest of their sources' bounds, all installed
@@ -348,21 +349,34 @@ class TemperatureModel(Model):
         """Measure ``points`` at ``times`` (each point's in time order) with the sensors of ``codes``: the reading
         words, the samples, break bits and measured points updated as one measurement after the other would.
         Returns the words and the index of each point's last measurement."""
-        installed = np.asarray(self.installed(mem, points), dtype=bool)
-        broken = np.isin(points, list(self.broken)) if self.broken else np.zeros(len(points), dtype=bool)
-        good = installed & ~broken
+        plain = type(self) is TemperatureModel  # (seams of its own may read more than R4010/R4011)
+        if plain:  # every point's installed bit, for these R4010/R4011
+            mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
+            if self._installed[0] != mask:
+                self._installed = (mask, np.asarray(self.installed(mem, np.arange(MAX_POINTS)), dtype=bool))
+            installed = self._installed[1][points]
+        else:
+            installed = np.asarray(self.installed(mem, points), dtype=bool)
         last = last_of_each(points)
-        if good.all():
+        if not self.broken and np.count_nonzero(installed) == len(points):
+            broken = good = None  # (every one good)
             live = self._live(times, points, codes, last)
         else:
+            broken = np.isin(points, list(self.broken))
+            good = installed & ~broken
             live = np.zeros(len(points))
-            if good.any():
+            if np.count_nonzero(good):
                 live[good] = self._live(times[good], points[good], codes[good])
             self._forget(points[~good])  # (a point is good or not for all its measurements of one scan)
-        reading, flagged = self.point_result(points, installed, broken, live)
-        reading, flagged = np.asarray(reading), np.asarray(flagged, dtype=bool)
-        if flagged.shape != points.shape:
-            flagged = np.full(points.shape, bool(flagged))
+        if plain and good is None:  # (point_result of good measurements: the live readings, no break bit)
+            reading, flagged = live, np.zeros(len(points), dtype=bool)
+        else:
+            if broken is None:
+                broken = np.zeros(len(points), dtype=bool)
+            reading, flagged = self.point_result(points, installed, broken, live)
+            reading, flagged = np.asarray(reading), np.asarray(flagged, dtype=bool)
+            if flagged.shape != points.shape:
+                flagged = np.full(points.shape, bool(flagged))
         breaks = self._breaks
         for point, flag in zip(points[last].tolist(), flagged[last].tolist()):
             breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
