@@ -5,15 +5,21 @@ FUN86's PID steps — the plant integrating the PWM between them (no dead time),
 pre-alarm limit, no heater-loop deadline due, no other model needing a scan — :class:`Span` runs those scans
 together, the state of every point in arrays:
 
-1. the measurements of the whole batch are scheduled at once (the temperature model's schedule), and whatever does
-   not depend on the loop's state — their noise, the decays, the PWM cycles' starts — is computed for all of them;
-2. then scan after scan only what does: the plant through the last interval's waveforms (its closed form for every
-   measurement and every point's anchor, :func:`~hil.families.fbs.sim.models.plant.cycles_temperature`), the
-   readings (the temperature model's ``in_unit``, ``average``, ``resolution``), the PID step of the instances due
-   (:meth:`Fun86Model.control`) and the new waveforms;
-3. then the rest for the whole batch at once: the readings replayed for the heater-loop timer, each scan's normal
-   and warning words and ALM (:meth:`Fun86Model.track`, ``in_band``, ``bit_words``, ``alarm``), the last scan's
-   outputs, the readings and samples, and the plant's anchors where its waveforms changed.
+1. the scans' times are planned on the engine's clock (the PID steps, landed as the engine lands them);
+2. block after block of scans: the block's measurements are scheduled at once (the temperature model's schedule)
+   and whatever does not depend on the loop's state — their noise, the decays, the PWM cycles' starts — is computed
+   for all of them; then scan after scan only what does: the plant through the last interval's waveforms (its closed
+   form for every measurement and every point's anchor, :func:`~hil.families.fbs.sim.models.plant.cycles_temperature`),
+   the readings (the temperature model's ``in_unit``, ``average``, ``resolution``), the PID step of the instances
+   due (:meth:`Fun86Model.control`) and the new waveforms; then the rest of the block at once: the readings
+   replayed for the heater-loop timer, each scan's normal and warning words and ALM (:meth:`Fun86Model.track`,
+   ``in_band``, ``bit_words``, ``alarm``);
+3. at the end, what the last scan left: outputs, readings and samples, the plant's anchors where its waveforms last
+   changed.  A heater-loop deadline the engine would have scanned at between two of the scans shows in a block's
+   alarms: the batch is planned again, up to it.
+
+(Blocks keep the arrays small: memory reused from block to block rather than fresh for every batch, which costs a
+page fault every 4 KiB.)
 
 These are the functions the models' own scans call, on more rows at once; scan observers (``Engine.observers``)
 still see every scan's outputs.  Anything else — a broken variant's overridden seam, dead time, a reading that could
@@ -45,6 +51,9 @@ if TYPE_CHECKING:
 
 #: scans per batch at most (the batch's arrays are scans × columns)
 CHUNK = 2048
+#: scans whose plant columns (scans × cycles × columns) are made at once: few enough for arrays that fit in
+#: reused memory (fresh memory for each batch costs a page fault per 4 KiB)
+BLOCK = 256
 
 
 
@@ -119,11 +128,10 @@ class Span:
             times, due = self._plan(engine, target, ready["loops"], bound)
             if not times:
                 return False
-            scans = np.array([start, *times])
-            batch = self._compute(engine, ready, scans, due)
-            deadline = self._deadline(ready, batch, scans, engine.scan_time)
+            batch = _Batch(self.fun86, engine, ready, np.array([start, *times]), due)
+            deadline = batch.run()
             if deadline is None:
-                self._commit(engine, ready, batch, scans)
+                batch.commit()
                 return True
             # a heater-loop deadline the engine would have scanned at, inside: again, up to it
             self._restore(engine, ready, saved)
@@ -307,282 +315,165 @@ class Span:
         tm._next, tm._mux = list(temperature[0]), list(temperature[1])
         tm._ring, tm._count, tm._top = temperature[2].copy(), temperature[3].copy(), temperature[4].copy()
 
-    def _compute(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
-                 due: list[list[bool]]) -> "_Batch":
-        """The scans at ``scans[1:]`` (``scans[0]``: the one before; the clock already at the last), computed:
-        everything but memory and the models' committed state."""
-        batch = _Batch(engine, ready, scans)
-        batch.steps(self.fun86, ready["loops"], due)
-        batch.alarms = [self._alarms(ready, loop, outs, batch) for loop, outs in zip(ready["loops"], batch.outputs_at)]
-        return batch
-
-    def _deadline(self, ready: dict[str, Any], batch: "_Batch", scans: np.ndarray, st_time: float) -> float | None:
-        """The first heater-loop deadline the engine would have scanned at between two of the batch's scans —
-        pending after one, due before the next — or None."""
-        first, limit = math.inf, None
-        for _normal, _warning, _alm, since in batch.alarms:
-            deadlines = since[:-1] + ready["loop_seconds"]
-            ahead = (deadlines > scans[1:-1, None] + 1e-9) & (scan_grid(deadlines, st_time) < scans[2:, None]
-                                                                - st_time / 2)
-            hit = np.flatnonzero(ahead.any(axis=1))
-            if len(hit) and hit[0] <= first:
-                soonest = float(deadlines[hit[0]][ahead[hit[0]]].min())
-                limit = soonest if hit[0] < first or limit is None else min(limit, soonest)
-                first = int(hit[0])
-        return limit
-
-    def _commit(self, engine: "Engine", ready: dict[str, Any], batch: "_Batch", scans: np.ndarray) -> None:
-        """Memory and every model's state as after the batch's scans (observers called after each of them)."""
-        fun86, mem = self.fun86, engine.memory
-        tm, plant, table, loops = ready["tm"], ready["plant"], ready["table"], ready["loops"]
-        for loop, run in zip(loops, batch.runs):
-            loop.st.integral[loop.idx], loop.st.pv_prev[loop.idx], loop.st.has_prev[loop.idx] = (run.integral,
-                                                                                                run.prev, run.has)
-            loop.st.prealarm[:] = 0  # (no reading could reach R4008: every count was reset at the first scan)
-        self._plant(plant, loops, batch.outputs_at, scans, batch.temps_at)
-        if engine.observers:
-            self._observe(engine, loops, batch, table)
-        self._temperature(tm, mem, table, batch)
-        for loop, outs, (normal, warning, alm, _since) in zip(loops, batch.outputs_at, batch.alarms):
-            inst = loop.inst
-            mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + loop.st.zn] = outs[-1].tolist()
-            mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[-1]) for w in (*normal, *warning)]
-            mem.bits[inst.alm.kind][inst.alm.index] = 1 if alm[-1] else 0
-            loop.st.view = None  # (its registers changed)
-            fun86._drive(mem, inst, loop.st, float(scans[-1]), loop.enabled, outs[-1])
-        tm.log = []
-        fun86._log = None
-
-    @staticmethod
-    def _temperature(tm: TemperatureModel, mem: "Memory", table: _Table, batch: "_Batch") -> None:
-        """The readings registers, samples, break bits and measured points as after the batch's measurements."""
-        points, good = batch.points, batch.good
-        last = last_of_each(points)
-        bank, base = mem.words[table.readings.kind], table.readings.index
-        for point, word in zip(points[last].tolist(), (batch.flat_readings[last] & 0xFFFF).tolist()):
-            bank[base + point] = word
-        if tm.config.averaging == 1:
-            kept = last[good[last]]
-            tm.average(points[kept], batch.values[kept])
-        if batch.some_bad:
-            tm._forget(points[~good])
-        breaks = tm._breaks
-        for point, flag in zip(points[last].tolist(), (batch.bad_flag[last] & ~good[last]).tolist()):
-            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
-        tm._breaks = breaks
-        tm._measured.update(points[last].tolist())
-        tm._quiet = None
-
-    def _alarms(self, ready: dict[str, Any], loop: _Loop, outputs: np.ndarray, batch: "_Batch") -> tuple:
-        """An instance's heater-loop starts over the batch, and each scan's (normal words, warning words, ALM,
-        heater-loop starts)."""
-        fun86, st = self.fun86, loop.st
-        high_at, scans, st_time = ready["high_at"], batch.scans, batch.st_time
-        n_scans, n = batch.n_scans, len(loop.idx)
-        column = np.full(st.zn, -1)
-        column[loop.idx] = np.arange(n)
-        b = batch.points - st.sn
-        mine = (b >= 0) & (b < st.zn)
-        mine[mine] = loop.enabled[b[mine]]
-        mine = np.flatnonzero(mine)
-        landed = scan_grid(batch.times[mine], st_time)
-        skipped = landed < scans[1:][batch.scan_of[mine]] - st_time / 2  # (else read at that very scan: its PV)
-        mine, landed = mine[skipped], landed[skipped]
-        rep_scan, rep_col, rep_row = batch.scan_of[mine], column[b[mine]], batch.rank[mine]
-        per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its readings replayed, then the scan
-        # every row of a scan starts as the scan itself (a reading seen twice changes nothing), then the replays
-        pv = np.repeat(batch.pv_at[:, loop.points[loop.idx]], per, axis=0)
-        at = np.repeat(np.broadcast_to(scans[1:, None], (n_scans, n)), per, axis=0)
-        high = np.repeat(outputs[:, loop.idx] * 100 >= high_at, per, axis=0)
-        where = rep_scan * per + rep_row
-        pv[where, rep_col] = signed16(batch.flat_readings[mine] & 0xFFFF)
-        at[where, rep_col] = landed
-        before = np.vstack((loop.before[None], outputs[:-1]))  # the outputs each scan's readings were replayed at
-        high[where, rep_col] = before[rep_scan, loop.idx[rep_col]] * 100 >= high_at
-        since = fun86.track(st, loop.idx, pv, at, high, None, loop.sv[loop.idx], loop.os[loop.idx], ready["limit"],
-                            count=False)[per - 1::per]
-        loop_open = np.asarray(fun86.loop_elapsed(since, scans[1:, None]) >= ready["loop_seconds"], dtype=bool)
-        normal = loop.enabled & np.asarray(fun86.in_band(batch.pv_at[:, loop.points], loop.sv, loop.os), dtype=bool)
-        warning = np.zeros((n_scans, st.zn), dtype=bool)
-        warning[:, loop.idx] = loop_open
-        alm = np.asarray(fun86.alarm((loop.enabled & ~normal).any(axis=1), warning.any(axis=1)), dtype=bool)
-        return fun86.bit_words(st, normal), fun86.bit_words(st, warning), np.broadcast_to(alm, (n_scans,)), since
-
-    def _plant(self, plant: ThermalPlant, loops: list[_Loop], outputs_at: list[np.ndarray], scans: np.ndarray,
-               temps_at: np.ndarray) -> None:
-        """The plant's anchors and waveforms as its scans would have left them: each slot re-anchored at the last
-        scan that changed its waveform."""
-        fun86 = self.fun86
-        for loop, outs in zip(loops, outputs_at):
-            if not len(loop.slots):
-                continue
-            slots, st, lit, dark = loop.slots, loop.st, loop.lit, loop.dark
-            on = fun86.on_times(st, outs[:, loop.driven])
-            steady = (lit == dark) | (on <= 0) | (on >= st.pwm)
-            level = np.where((lit != dark) & (on > 0) & (on >= st.pwm), lit, dark)
-            key = np.where(steady, -1.0 - level, on)
-            same_wave = (plant.w_started[slots] == st.started) & (plant.w_period[slots] == st.pwm) & (
-                plant.w_uon[slots] == lit) & (plant.w_uoff[slots] == dark)
-            initial = np.where(plant.w_pwm[slots], np.where(same_wave, plant.w_on[slots], math.nan),
-                               -1.0 - plant.w_uoff[slots])
-            changed = key != np.vstack((initial[None], key[:-1]))
-            moved = changed.any(axis=0)
-            if not moved.any():
-                continue
-            last = len(key) - 1 - np.argmax(changed[::-1], axis=0)
-            s, at = slots[moved], last[moved]
-            plant.t0[s] = scans[1:][at]
-            plant.temp0[s] = temps_at[at, s]
-            plant.w_pwm[s] = ~steady[-1, moved]
-            plant.w_started[s], plant.w_period[s], plant.w_on[s] = st.started, st.pwm, on[-1, moved]
-            plant.w_uon[s], plant.w_uoff[s] = lit[moved], level[-1, moved]
-        plant._last_outputs = None
-
-    def _observe(self, engine: "Engine", loops: list[_Loop], batch: "_Batch", table: _Table) -> None:
-        """Each scan's outputs and readings in memory, and the observers called, as after each of those scans."""
-        fun86, mem = self.fun86, engine.memory
-        bank, base = mem.words[table.readings.kind], table.readings.index
-        end = engine.now
-        for i in range(batch.n_scans):
-            fresh = np.flatnonzero(batch.updates[i] >= 0)
-            for point, word in zip(fresh.tolist(), (batch.readings[i][batch.updates[i][fresh]] & 0xFFFF).tolist()):
-                bank[base + point] = word
-            now = float(batch.scans[i + 1])
-            for loop, outs, (normal, warning, alm, _since) in zip(loops, batch.outputs_at, batch.alarms):
-                inst, st = loop.inst, loop.st
-                mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = outs[i].tolist()
-                mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = [int(w[i]) for w in (*normal, *warning)]
-                mem.bits[inst.alm.kind][inst.alm.index] = 1 if alm[i] else 0
-                on_time, y_on, y_off = fun86.waves(st, loop.enabled, outs[i])
-                mem.bits[inst.yn.kind][inst.yn.index:inst.yn.index + st.zn] = fun86.outputs_at(st, now, on_time,
-                                                                                             y_on, y_off)
-            engine.now = now
-            for observer in engine.observers:
-                observer(engine)
-        engine.now = end
 
 class _Batch:
-    """A batch's scans computed (see the module docstring): the measurements as a row of columns per scan, the
-    plant's columns (those measurements, then every slot at the scan), and what each scan left."""
+    """A batch's scans, computed block after block of scans (see the module docstring), and what they leave."""
 
-    def __init__(self, engine: "Engine", ready: dict[str, Any], scans: np.ndarray) -> None:
+    def __init__(self, fun86: Fun86Model, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
+                 due: list[list[bool]]) -> None:
+        self.fun86, self.engine, self.ready = fun86, engine, ready
         self.tm: TemperatureModel = ready["tm"]
         self.plant: ThermalPlant = ready["plant"]
-        self.scans = scans
+        self.table: _Table = ready["table"]
+        self.loops: list[_Loop] = ready["loops"]
+        self.scans, self.due = scans, due
         self.st_time = engine.scan_time
-        self.n_scans = len(scans) - 1
-        self._measurements(engine.memory, ready["table"])
-        self._plant_columns(ready["loops"])
-        bank, base = engine.memory.words[ready["table"].readings.kind], ready["table"].readings.index
-        self.pv = signed16(bank[base:base + min(MAX_POINTS, len(bank) - base)])
-        # the column of each point's last reading at each scan (its PV register's new value; −1: none)
-        self.updates = np.full((self.n_scans, len(self.pv)), -1, dtype=np.intp)
-        last = last_of_each(self.scan_of * 64 + self.points)
-        self.updates[self.scan_of[last], self.points[last]] = self.col[last]
-        self.alarms: list = []
-
-    def rows(self, flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
-        """A value per measurement as a row per scan (``fill`` where a scan has fewer)."""
-        if self._order is not None:  # every scan as wide: the values in scan order, cut in rows
-            return flat[self._order].reshape(self.n_scans, self.width)
-        out = np.full((self.n_scans, self.width), fill, dtype=np.asarray(flat).dtype)
-        out[self.scan_of, self.col] = flat
-        return out
-
-    def _measurements(self, mem: "Memory", table: _Table) -> None:
-        """Every measurement of the batch: each module's in time order (its points in turn), module after module
-        (as each scan takes them), with its column in its scan's row; then what each needs but the plant."""
-        tm, plant, scans, n_scans = self.tm, self.plant, self.scans, self.n_scans
-        parts = []
-        filled = np.zeros(n_scans, dtype=np.int64)  # columns placed in each scan's row so far
-        ends = scans[1:] + 1e-9
-        for k, first, code in table.measured:
-            t, p = tm.measure_module(float(scans[-1]), k, first)
-            scan = np.searchsorted(ends, t, side="left")
-            within = np.arange(len(t)) - np.searchsorted(scan, np.arange(n_scans))[scan]
-            parts.append((t, p, np.full(len(t), code >> 8), scan, filled[scan] + within,
-                          within // tm.fitted[k].points))  # (the how-many-th reading of its point at that scan)
-            filled += np.bincount(scan, minlength=n_scans)
-        self.times, self.points, codes, self.scan_of, self.col, self.rank = (np.concatenate(x) for x in zip(*parts))
-        self.per_scan = filled
-        self.width = width = int(filled.max()) if len(self.times) else 0
-        times, points = self.times, self.points
-        self._order = None
-        if width and (filled == width).all():
-            self._order = np.empty(len(times), dtype=np.intp)
-            self._order[self.scan_of * width + self.col] = np.arange(len(times))
-
-        every = np.arange(MAX_POINTS)  # (the seams per point, then for each measurement)
-        installed = np.asarray(tm.installed(mem, every), dtype=bool)[points]
-        broken = np.isin(every, list(tm.broken))[points]
-        self.good = good = installed & ~broken
-        self.some_bad = not good.all()
-        self.bad_flag = np.zeros(len(points), dtype=bool)
-        if self.some_bad:
-            bad_reading, bad_flag = tm.point_result(points, installed, broken, np.zeros(len(points), dtype=np.int64))
-            self.bad_flag = np.broadcast_to(np.asarray(bad_flag, dtype=bool), points.shape)
-            self.c_bad = self.rows(np.broadcast_to(np.asarray(bad_reading, dtype=np.int64), points.shape), 0)
-            self.c_good = self.rows(good, True)
-        slot_of = np.full(MAX_POINTS, -1)
+        self.n_scans = n_scans = len(scans) - 1
+        mem, tm, plant = engine.memory, self.tm, self.plant
+        # per point, what holds through the batch: the seams' verdicts, the source
+        every = np.arange(MAX_POINTS)
+        self.installed = np.asarray(tm.installed(mem, every), dtype=bool)
+        self.broken = np.isin(every, list(tm.broken))
+        self.slot_of = np.full(MAX_POINTS, -1)
         for point, source in tm.sources.items():
             if isinstance(source, PlantSource) and source.plant is plant:
-                slot_of[point] = source.slot
-        slot = slot_of[points]
-        heated = slot >= 0
-        self.mixed = not (heated | ~good).all()
-        if self.mixed:  # sources of their own: their values known beforehand
-            other = good & ~heated
-            pre = np.zeros(len(points))
-            pre[other] = tm.values(times[other], points[other])
-            self.c_pre, self.c_heated = self.rows(pre, 0.0), self.rows(heated | ~good, True)
-        noise = np.zeros(len(points))
-        if plant.normals is not None and heated.any():
-            noise[heated] = plant.normals[noise_index(plant.seed, points[heated], times[heated])] \
-                * plant.noise[slot[heated]]
-        self.c_noise = self.rows(noise, 0.0)
-        low, high = SENSOR_LOW[codes], SENSOR_HIGH[codes]
-        self.wraps = not (np.isfinite(low).all() and np.isfinite(high).all())  # (in range, PVs fit in 16 bits)
-        self.limits = None
-        if not self._within(slot, heated, low, high):
-            self.limits = self.rows(low, -math.inf), self.rows(high, math.inf)
-        self.c_points = self.rows(points, 0) if tm.config.averaging > 1 else None
-        self.m_slot = self.rows(np.where(heated, slot, 0), 0)
-        self.m_time = self.rows(times, 0.0)
-        if self._order is None:  # (padding: nothing elapsed)
-            self.m_time = np.where(self.rows(np.ones(len(times), dtype=bool), False), self.m_time, scans[:-1, None])
-        if not width:
-            self.m_slot, self.m_time = np.zeros((n_scans, 0), dtype=np.intp), np.zeros((n_scans, 0))
+                self.slot_of[point] = source.slot
+        codes = np.array([code >> 8 for _k, _first, code in self.table.measured], dtype=np.intp)
+        self.clamps = not self._within(SENSOR_LOW[codes], SENSOR_HIGH[codes])
+        self.wraps = not (np.isfinite(SENSOR_LOW[codes]).all() and np.isfinite(SENSOR_HIGH[codes]).all())
+        self._waves()
+        bank, base = mem.words[self.table.readings.kind], self.table.readings.index
+        self.pv_register = signed16(bank[base:base + min(MAX_POINTS, len(bank) - base)])  # (as the PVs read)
+        # carried from block to block
+        n_slots = len(plant.order)
+        self.temps = plant.temperatures(np.arange(n_slots), np.full(n_slots, scans[0]))
+        self.pv = self.pv_register.astype(float)
+        self.runs = [_Step(loop, len(self.pv), n_slots) for loop in self.loops]
+        self.outputs = [loop.before for loop in self.loops]  # each instance's OR at the scan before the block
+        self.last_word = np.full(MAX_POINTS, -1, dtype=np.int64)  # each point's last reading in the batch …
+        self.last_value = np.zeros(MAX_POINTS)  # … its value (the sample averaged) …
+        self.last_flag = np.zeros(MAX_POINTS, dtype=bool)  # … and its break bit
+        # each instance's per-scan words and ALM; each of its heated slots' waveform key and last change
+        self.words = [np.zeros((n_scans, 4), dtype=np.int64) for _ in self.loops]
+        self.alm = [np.zeros(n_scans, dtype=bool) for _ in self.loops]
+        self.keys = [self._initial_key(loop) for loop in self.loops]
+        self.changed = [np.full(len(loop.slots), -1) for loop in self.loops]  # scan index, −1: none
+        self.changed_temp = [np.zeros(len(loop.slots)) for loop in self.loops]
+        self.kept: list | None = [] if engine.observers else None  # (each scan's, for the observers)
 
-    def _within(self, slot: np.ndarray, heated: np.ndarray, low: np.ndarray, high: np.ndarray) -> bool:
+    # -- what holds through the batch ---------------------------------------------------------------------------
+    def _within(self, low: np.ndarray, high: np.ndarray) -> bool:
         """No measurement can leave its sensor's range (the plant's bounds within it): no clamping to do."""
         plant = self.plant
-        if not heated.all():
+        if (self.slot_of[: self.table.total] < 0).any():
             return False
-        top = np.array([plant.upper(s) for s in range(len(plant.order))])
-        bottom = np.minimum(plant.initial, plant.ambient) - NOISE_CLIP * plant.noise
-        return bool((top[slot] <= high).all() and (bottom[slot] >= low).all())
+        top = max(plant.upper(s) for s in range(len(plant.order)))
+        bottom = float((np.minimum(plant.initial, plant.ambient) - NOISE_CLIP * plant.noise).min())
+        return bool(top <= high.min() and bottom >= low.max())
 
-    def _plant_columns(self, loops: list[_Loop]) -> None:
-        """The plant's columns and what of their solution does not depend on the loop: the cycles of the PWM each
-        scan's interval meets, the decays and the heater-off part (:func:`cycle_terms`)."""
-        plant, scans, st_time, n_scans = self.plant, self.scans, self.st_time, self.n_scans
+    def _waves(self) -> None:
+        """Each plant slot's waveform through the batch: the instance driving its heater (or constant: the
+        plant's wave as it is)."""
+        plant = self.plant
         n_slots = len(plant.order)
-        self.c_slot = c_slot = np.hstack((self.m_slot, np.broadcast_to(np.arange(n_slots), (n_scans, n_slots))))
-        c_time = np.hstack((self.m_time, np.broadcast_to(scans[1:, None], (n_scans, n_slots))))
-        # each slot's waveform: the instance driving its heater (or constant: the plant's wave as it is)
-        started, period = np.zeros(n_slots), np.full(n_slots, 1e9)
+        self.started, self.period = np.zeros(n_slots), np.full(n_slots, 1e9)
         u_on, u_off = plant.w_uoff.copy(), plant.w_uoff.copy()
         self.on = np.zeros(n_slots)
-        for loop in loops:
+        for loop in self.loops:
             if len(loop.slots):
-                started[loop.slots], period[loop.slots] = loop.st.started, loop.st.pwm
+                self.started[loop.slots], self.period[loop.slots] = loop.st.started, loop.st.pwm
                 u_on[loop.slots], u_off[loop.slots] = loop.lit, loop.dark
                 self.on[loop.slots] = np.minimum(Fun86Model.on_times(loop.st, loop.output[loop.driven]), loop.st.pwm)
-        t_off = plant.ambient + plant.gain * u_off
-        lift = plant.ambient + plant.gain * u_on - t_off
-        rate = 1.0 / plant.tau
-        self.c_lift = lift[c_slot]
+        self.t_off = plant.ambient + plant.gain * u_off
+        self.lift = plant.ambient + plant.gain * u_on - self.t_off
+        self.rate = 1.0 / plant.tau
+
+    def _key(self, loop: _Loop, outputs: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The plant's waveform of each slot an instance heats, for its outputs (scans × points): a key equal
+        for equal waveforms (ON seconds of a PWM, or −1 − u for a constant u), and (steady, level, ON seconds)."""
+        on = self.fun86.on_times(loop.st, outputs[..., loop.driven])
+        lit, dark = loop.lit, loop.dark
+        steady = (lit == dark) | (on <= 0) | (on >= loop.st.pwm)
+        level = np.where((lit != dark) & (on > 0) & (on >= loop.st.pwm), lit, dark)
+        return np.where(steady, -1.0 - level, on), steady, level, on
+
+    def _initial_key(self, loop: _Loop) -> np.ndarray:
+        """The key of the slots' waveforms as the plant has them now."""
+        plant, slots, st = self.plant, loop.slots, loop.st
+        same = (plant.w_started[slots] == st.started) & (plant.w_period[slots] == st.pwm) & (
+            plant.w_uon[slots] == loop.lit) & (plant.w_uoff[slots] == loop.dark)
+        return np.where(plant.w_pwm[slots], np.where(same, plant.w_on[slots], math.nan), -1.0 - plant.w_uoff[slots])
+
+    # -- block after block -----------------------------------------------------------------------------------------
+    def run(self) -> float | None:
+        """Compute the batch's scans; None, or the first heater-loop deadline the engine would have scanned at
+        between two of them (the batch is then to be planned again, up to it)."""
+        for b0 in range(0, self.n_scans, BLOCK):
+            b1 = min(b0 + BLOCK, self.n_scans)
+            block = self._measurements(b0, b1)
+            self._columns(block, b0, b1)
+            self._steps(block, b0, b1)
+            self._readings(block, b0, b1)
+            deadline = self._alarms(block, b0, b1)
+            if deadline is not None:
+                return deadline
+            self._anchors(block, b0, b1)
+        return None
+
+    def _measurements(self, b0: int, b1: int) -> dict[str, Any]:
+        """The measurements of scans b0…b1 − 1: each module's in time order (its points in turn), module after
+        module (as each scan takes them), each with its column in its scan's row; and what each needs but the
+        plant."""
+        tm, scans, n = self.tm, self.scans, b1 - b0
+        parts = []
+        filled = np.zeros(n, dtype=np.int64)  # columns placed in each scan's row so far
+        ends = scans[b0 + 1:b1 + 1] + 1e-9
+        for k, first, code in self.table.measured:
+            t, p = tm.measure_module(float(scans[b1]), k, first)
+            scan = np.searchsorted(ends, t, side="left")
+            within = np.arange(len(t)) - np.searchsorted(scan, np.arange(n))[scan]
+            parts.append((t, p, np.full(len(t), code >> 8), scan, filled[scan] + within,
+                          within // tm.fitted[k].points))  # (the how-many-th reading of its point at that scan)
+            filled += np.bincount(scan, minlength=n)
+        times, points, codes, scan, col, rank = (np.concatenate(x) for x in zip(*parts))
+        width = int(filled.max()) if len(times) else 0
+        cell = np.full((n, width), -1, dtype=np.intp)
+        cell[scan, col] = np.arange(len(times))
+        slot = self.slot_of[points]
+        good = self.installed[points] & ~self.broken[points]
+        block = {"times": times, "points": points, "codes": codes, "scan": scan, "col": col, "rank": rank,
+                 "per_scan": filled, "width": width, "cell": cell, "slot": slot, "good": good, "heated": slot >= 0}
+        if not good.all():
+            reading, flag = tm.point_result(points, self.installed[points], self.broken[points],
+                                            np.zeros(len(points), dtype=np.int64))
+            block["bad_reading"] = np.broadcast_to(np.asarray(reading, dtype=np.int64), points.shape)
+            block["bad_flag"] = np.broadcast_to(np.asarray(flag, dtype=bool), points.shape)
+        if not (block["heated"] | ~good).all():  # sources of their own: their values known beforehand
+            other = good & ~block["heated"]
+            block["pre"] = np.zeros(len(points))
+            block["pre"][other] = tm.values(times[other], points[other])
+        return block
+
+    @staticmethod
+    def rows(block: dict[str, Any], flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
+        """A value per measurement of a block as its rows (``fill`` where a scan has fewer)."""
+        cell = block["cell"]
+        return np.where(cell >= 0, flat[cell], fill)
+
+    def _columns(self, block: dict[str, Any], b0: int, b1: int) -> None:
+        """The plant's columns of the block's scans — the measurements, then every slot at the scan — and what of
+        their solution does not depend on the loop: the cycles of the PWM each scan's interval meets, the decays and
+        the heater-off part (:func:`cycle_terms`)."""
+        plant, st_time, width = self.plant, self.st_time, block["width"]
+        scans = self.scans[b0:b1 + 1]
+        n, n_slots = b1 - b0, len(plant.order)
+        cell = block["cell"]
         a = scans[:-1, None]
+        m_slot = self.rows(block, np.where(block["heated"], block["slot"], 0), 0)
+        m_time = np.where(cell >= 0, block["times"][cell], a)  # (padding: nothing elapsed)
+        c_slot = np.hstack((m_slot, np.broadcast_to(np.arange(n_slots), (n, n_slots))))
+        c_time = np.hstack((m_time, np.broadcast_to(scans[1:, None], (n, n_slots))))
+        started, period = self.started, self.period
 
         def cycle(x: np.ndarray, before: bool) -> np.ndarray:
             """Per slot, the cycle whose start (on the grid) is the last at or before x (``before``: before x)."""
@@ -595,71 +486,88 @@ class _Batch:
         first = cycle(a, False)
         n_cycles = max(1, int((cycle(scans[1:, None], True) - first).max()) + 1)
         raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period
-        shape = (n_scans, n_cycles, c_slot.shape[1])
-        self.s3 = np.ascontiguousarray(np.broadcast_to(c_slot[:, None], shape))
-        self.raw = np.take_along_axis(raw, self.s3, axis=2)  # (each column's, where a scan's step is cheapest)
-        self.t3 = np.ascontiguousarray(np.broadcast_to(c_time[:, None], shape))
-        self.r3 = np.ascontiguousarray(np.broadcast_to(rate[c_slot][:, None], shape))
-        self.decay, self.base = cycle_terms(a, self.t3.transpose(1, 0, 2),
-                                            scan_grid(self.raw, st_time).transpose(1, 0, 2), t_off[c_slot],
-                                            self.c_lift, self.r3.transpose(1, 0, 2))
+        shape = (n, n_cycles, c_slot.shape[1])
+        s3 = np.ascontiguousarray(np.broadcast_to(c_slot[:, None], shape))
+        raw = np.take_along_axis(raw, s3, axis=2)  # (each column's, where a scan's step is cheapest)
+        t3 = np.ascontiguousarray(np.broadcast_to(c_time[:, None], shape))
+        r3 = self.rate[s3]
+        c_lift = self.lift[c_slot]
+        decay, base = cycle_terms(a, t3.transpose(1, 0, 2), scan_grid(raw, st_time).transpose(1, 0, 2),
+                                  self.t_off[c_slot], c_lift, r3.transpose(1, 0, 2))
+        if plant.normals is not None:  # (a measurement is T plus its noise: here, the columns come out measured)
+            heated = self.rows(block, block["heated"], False)
+            safe = np.where(heated, cell, 0)
+            noise = plant.normals[noise_index(plant.seed, block["points"][safe], block["times"][safe])] \
+                * plant.noise[m_slot]
+            base[:, :width] += np.where(heated, noise, 0.0)
+        block.update(c_slot=c_slot, raw=raw, s3=s3, t3=t3, r3=r3, c_lift=c_lift, decay=decay, base=base)
 
-    def steps(self, fun86: Fun86Model, loops: list[_Loop], due: list[list[bool]]) -> None:
+    def _steps(self, block: dict[str, Any], b0: int, b1: int) -> None:
         """Scan after scan: the plant through the last interval's waveforms, the readings, the PID steps due."""
-        tm, plant, n_scans, width, st_time = self.tm, self.plant, self.n_scans, self.width, self.st_time
-        n_slots = len(plant.order)
+        fun86, tm, loops, due, st_time = self.fun86, self.tm, self.loops, self.due, self.st_time
+        n, width, n_slots = b1 - b0, block["width"], len(self.plant.order)
         averaging = tm.config.averaging
-        limits = self.limits
-        plain = not (self.mixed or limits or tm.config.unit != "C" or averaging > 1 or self.some_bad or self.wraps)
-        readings = np.zeros((n_scans, width)) if averaging > 1 or self.some_bad else None  # (else: from values)
-        values = np.zeros((n_scans, width))
-        pv_at = np.zeros((n_scans, len(self.pv)))
-        temps_at = np.zeros((n_scans, n_slots))
-        outputs_at = [np.zeros((n_scans, loop.st.zn), dtype=np.int64) for loop in loops]
-        runs = [_Step(loop, len(self.pv), n_slots) for loop in loops]
+        mixed, bad = "pre" in block, "bad_reading" in block
+        plain = not (mixed or self.clamps or tm.config.unit != "C" or averaging > 1 or bad or self.wraps)
+        values = np.zeros((n, width))
+        readings = np.zeros((n, width)) if averaging > 1 or bad else None  # (else: from the values, afterwards)
+        temps_at = np.zeros((n, n_slots))
+        outputs_at = [np.zeros((n, loop.st.zn), dtype=np.int64) for loop in loops]
+        runs = self.runs
         alone = len(runs) == 1 and runs[0].every_slot  # (then a PID step's on-times are the slots' whole)
         control, in_unit, resolution, on_times = fun86.control, tm.in_unit, tm.resolution, fun86.on_times
-        whole = (self.updates >= 0).all(axis=1).tolist()  # every PV read anew at the scan
-        pv = self.pv.astype(float)  # (readings are whole numbers: as floats, the PID law's arithmetic is the same)
-        temps = self.plant.temperatures(np.arange(n_slots), np.full(n_slots, self.scans[0]))
-        on, starts = self.on, self.scans[:-1].tolist()
-        c_slot, raw, s3, t3, r3, c_lift, decay, base, c_noise = (self.c_slot, self.raw, self.s3, self.t3, self.r3,
-                                                                 self.c_lift, self.decay, self.base, self.c_noise)
-        updates = self.updates
-        for i in range(n_scans):
-            slots = c_slot[i]
-            offs = scan_grid(raw[i] + on[s3[i]], st_time)
-            temp = cycles_temperature(temps[slots], starts[i], t3[i], offs, c_lift[i], r3[i], (decay[i], base[i]))
+        # the column of each point's last reading at each scan (its PV register's new value; −1: none)
+        updates = np.full((n, len(self.pv)), -1, dtype=np.intp)
+        last = last_of_each(block["scan"] * 64 + block["points"])
+        updates[block["scan"][last], block["points"][last]] = block["col"][last]
+        whole = (updates >= 0).all(axis=1).tolist()  # every PV read anew at the scan
+        if mixed:
+            heated, pre = self.rows(block, block["heated"] | ~block["good"], True), self.rows(block, block["pre"], 0.0)
+        if self.clamps:
+            low, high = self.rows(block, SENSOR_LOW[block["codes"]], -math.inf), \
+                self.rows(block, SENSOR_HIGH[block["codes"]], math.inf)
+        if bad:
+            good, bad_reading = self.rows(block, block["good"], True), self.rows(block, block["bad_reading"], 0)
+        if averaging > 1:
+            cell_points = self.rows(block, block["points"], 0)
+        pv, temps, on = self.pv, self.temps, self.on
+        starts = self.scans[b0:b1].tolist()
+        c_slot, raw, s3, t3, r3, c_lift, decay, base = (block[name] for name in (
+            "c_slot", "raw", "s3", "t3", "r3", "c_lift", "decay", "base"))
+        for j in range(n):
+            i = b0 + j
+            slots = c_slot[j]
+            offs = scan_grid(raw[j] + on[s3[j]], st_time)
+            temp = cycles_temperature(temps[slots], starts[j], t3[j], offs, c_lift[j], r3[j], (decay[j], base[j]))
             temps = temp[width:]
-            temps_at[i] = temps
-            value = temp[:width] + c_noise[i]
+            temps_at[j] = temps
+            value = temp[:width]
             if plain:
-                values[i] = value
+                values[j] = value
                 reading = None
             else:
-                if self.mixed:
-                    value = np.where(self.c_heated[i], value, self.c_pre[i])
-                value = values[i] = in_unit(value, *(limits[0][i], limits[1][i]) if limits else (None, None))
+                if mixed:
+                    value = np.where(heated[j], value, pre[j])
+                value = values[j] = in_unit(value, *((low[j], high[j]) if self.clamps else (None, None)))
                 if averaging > 1:
-                    n = self.per_scan[i]
+                    count = block["per_scan"][j]
                     mean = value.copy()
-                    mean[:n] = tm.average(self.c_points[i, :n], value[:n])
+                    mean[:count] = tm.average(cell_points[j, :count], value[:count])
                 else:
                     mean = value
                 reading = resolution(mean)
-                if self.some_bad:
-                    reading = np.where(self.c_good[i], reading, self.c_bad[i])
+                if bad:
+                    reading = np.where(good[j], reading, bad_reading[j])
                 if readings is not None:
-                    readings[i] = reading
-            if whole[i]:
-                pv = resolution(value[updates[i]]) if reading is None else reading[updates[i]]
+                    readings[j] = reading
+            if whole[j]:
+                pv = resolution(value[updates[j]]) if reading is None else reading[updates[j]]
             else:
                 pv = pv.copy()
-                fresh = updates[i] >= 0
-                pv[fresh] = resolution(value[updates[i][fresh]]) if reading is None else reading[updates[i][fresh]]
+                fresh = updates[j] >= 0
+                pv[fresh] = resolution(value[updates[j][fresh]]) if reading is None else reading[updates[j][fresh]]
             if self.wraps:
                 pv = signed16(pv.astype(np.int64) & 0xFFFF).astype(float)
-            pv_at[i] = pv
             for loop, flags, outs, run in zip(loops, due, outputs_at, runs):
                 if flags[i]:
                     now_pv = pv if run.every_pv else pv[run.at]
@@ -675,11 +583,180 @@ class _Batch:
                     elif len(loop.slots):
                         on = on.copy()
                         on[loop.slots] = on_times(loop.st, run.output[loop.driven])
-                outs[i] = run.output
-        for loop, run in zip(loops, runs):
+                outs[j] = run.output
+        self.pv, self.temps, self.on = pv, temps, on
+        block.update(values=values, temps_at=temps_at, outputs_at=outputs_at, updates=updates,
+                     readings=(resolution(values) if readings is None else readings).astype(np.int64))
+
+    def _readings(self, block: dict[str, Any], b0: int, b1: int) -> None:
+        """The block's readings as each scan's PVs saw them, and each point's last reading so far."""
+        readings, updates, width = block["readings"], block["updates"], block["width"]
+        scan, col, points = block["scan"], block["col"], block["points"]
+        block["flat_readings"] = flat = readings[scan, col]
+        # each scan's PVs: each point's last reading so far (the register's value before the block until one)
+        cell = np.where(updates >= 0, np.arange(b1 - b0)[:, None] * width + updates, -1)
+        cell = np.maximum.accumulate(cell, axis=0)
+        fresh = signed16(readings.ravel()[np.maximum(cell, 0)] & 0xFFFF) if readings.size else 0
+        block["pv_at"] = pv_at = np.where(cell >= 0, fresh, self.pv_register)
+        self.pv_register = pv_at[-1]
+        last = last_of_each(points)
+        pts = points[last]
+        self.last_word[pts] = flat[last] & 0xFFFF
+        self.last_value[pts] = block["values"][scan, col][last]
+        self.last_flag[pts] = block["bad_flag"][last] & ~block["good"][last] if "bad_flag" in block else False
+        if self.kept is not None:
+            for j in range(b1 - b0):
+                fresh = np.flatnonzero(updates[j] >= 0)
+                self.kept.append([fresh, readings[j][updates[j][fresh]] & 0xFFFF])
+
+    def _alarms(self, block: dict[str, Any], b0: int, b1: int) -> float | None:
+        """Each instance's heater-loop starts through the block, and each scan's normal and warning words and ALM;
+        the first heater-loop deadline the engine would have scanned at between two scans, if any."""
+        fun86, ready, scans, st_time = self.fun86, self.ready, self.scans, self.st_time
+        high_at, n = ready["high_at"], b1 - b0
+        first, limit = math.inf, None
+        for k, (loop, outputs) in enumerate(zip(self.loops, block["outputs_at"])):
+            st = loop.st
+            n_on = len(loop.idx)
+            column = np.full(st.zn, -1)
+            column[loop.idx] = np.arange(n_on)
+            b = block["points"] - st.sn
+            mine = (b >= 0) & (b < st.zn)
+            mine[mine] = loop.enabled[b[mine]]
+            mine = np.flatnonzero(mine)
+            landed = scan_grid(block["times"][mine], st_time)
+            # (a reading landed at its very scan is that scan's PV)
+            skipped = landed < scans[b0 + 1:b1 + 1][block["scan"][mine]] - st_time / 2
+            mine, landed = mine[skipped], landed[skipped]
+            rep_scan, rep_col, rep_row = block["scan"][mine], column[b[mine]], block["rank"][mine]
+            per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its readings replayed, then it
+            # every row of a scan starts as the scan itself (a reading seen twice changes nothing), then the replays
+            pv_at = block["pv_at"]
+            pv = np.repeat(pv_at[:, loop.points[loop.idx]], per, axis=0)
+            at = np.repeat(np.broadcast_to(scans[b0 + 1:b1 + 1, None], (n, n_on)), per, axis=0)
+            high = np.repeat(outputs[:, loop.idx] * 100 >= high_at, per, axis=0)
+            where = rep_scan * per + rep_row
+            pv[where, rep_col] = signed16(block["flat_readings"][mine] & 0xFFFF)
+            at[where, rep_col] = landed
+            before = np.vstack((self.outputs[k][None], outputs[:-1]))  # the outputs each scan's replays saw
+            high[where, rep_col] = before[rep_scan, loop.idx[rep_col]] * 100 >= high_at
+            since = fun86.track(st, loop.idx, pv, at, high, None, loop.sv[loop.idx], loop.os[loop.idx],
+                                ready["limit"], count=False)[per - 1::per]
+            loop_open = np.asarray(fun86.loop_elapsed(since, scans[b0 + 1:b1 + 1, None]) >= ready["loop_seconds"],
+                                   dtype=bool)
+            normal = loop.enabled & np.asarray(fun86.in_band(pv_at[:, loop.points], loop.sv, loop.os), dtype=bool)
+            warning = np.zeros((n, st.zn), dtype=bool)
+            warning[:, loop.idx] = loop_open
+            words = self.words[k][b0:b1]
+            words[:, 0], words[:, 1] = fun86.bit_words(st, normal)
+            words[:, 2], words[:, 3] = fun86.bit_words(st, warning)
+            self.alm[k][b0:b1] = np.asarray(fun86.alarm(np.count_nonzero(loop.enabled & ~normal, axis=1) > 0,
+                                                       np.count_nonzero(warning, axis=1) > 0), dtype=bool)
+            # a deadline pending after a scan and due before the next one (scan i is at scans[i + 1])
+            pairs = min(b1, self.n_scans - 1) - b0
+            if pairs > 0:
+                deadlines = since[:pairs] + ready["loop_seconds"]
+                after, until = scans[b0 + 1:b0 + 1 + pairs, None], scans[b0 + 2:b0 + 2 + pairs, None]
+                ahead = (deadlines > after + 1e-9) & (scan_grid(deadlines, st_time) < until - st_time / 2)
+                hit = np.flatnonzero(np.count_nonzero(ahead, axis=1))
+                if len(hit):
+                    at_scan, soonest = b0 + int(hit[0]), float(deadlines[hit[0]][ahead[hit[0]]].min())
+                    if at_scan < first or (at_scan == first and soonest < limit):
+                        first, limit = at_scan, soonest
+            self.outputs[k] = outputs[-1]
+            if self.kept is not None:
+                block.setdefault("kept_outputs", []).append(outputs)
+        return limit
+
+    def _anchors(self, block: dict[str, Any], b0: int, b1: int) -> None:
+        """Each heated slot's last waveform change so far (the plant re-anchors there: the time, and T then)."""
+        for k, (loop, outputs) in enumerate(zip(self.loops, block["outputs_at"])):
+            if not len(loop.slots):
+                continue
+            key = self._key(loop, outputs)[0]
+            changed = key != np.vstack((self.keys[k][None], key[:-1]))
+            moved = changed.any(axis=0)
+            if moved.any():
+                last = len(key) - 1 - np.argmax(changed[::-1], axis=0)
+                self.changed[k][moved] = b0 + last[moved]
+                self.changed_temp[k][moved] = block["temps_at"][last[moved], loop.slots[moved]]
+            self.keys[k] = key[-1]
+        if self.kept is not None:
+            outputs = block["kept_outputs"]
+            for j in range(b1 - b0):
+                self.kept[b0 + j].append([out[j] for out in outputs])
+
+    # -- the end ---------------------------------------------------------------------------------------------------
+    def commit(self) -> None:
+        """Memory and every model's state as after the batch's scans (observers called after each of them)."""
+        fun86, engine, mem, tm, plant = self.fun86, self.engine, self.engine.memory, self.tm, self.plant
+        scans = self.scans
+        for loop, run in zip(self.loops, self.runs):
+            loop.st.integral[loop.idx], loop.st.pv_prev[loop.idx], loop.st.has_prev[loop.idx] = (run.integral,
+                                                                                                run.prev, run.has)
+            loop.st.prealarm[:] = 0  # (no reading could reach R4008: every count was reset at the first scan)
             loop.output = run.output.astype(np.int64)
-        self.runs, self.outputs_at, self.temps_at = runs, outputs_at, temps_at
-        self.pv_at = pv_at.astype(np.int64)
-        self.values = values[self.scan_of, self.col]
-        self.readings = (resolution(values) if readings is None else readings).astype(np.int64)
-        self.flat_readings = self.readings[self.scan_of, self.col]
+        for k, loop in enumerate(self.loops):  # the plant re-anchored where each slot's waveform last changed
+            moved = self.changed[k] >= 0
+            if not moved.any():
+                continue
+            s = loop.slots[moved]
+            _key, steady, level, on = self._key(loop, loop.output)
+            plant.t0[s] = scans[1:][self.changed[k][moved]]
+            plant.temp0[s] = self.changed_temp[k][moved]
+            plant.w_pwm[s] = ~steady[moved]
+            plant.w_started[s], plant.w_period[s], plant.w_on[s] = loop.st.started, loop.st.pwm, on[moved]
+            plant.w_uon[s], plant.w_uoff[s] = loop.lit[moved], level[moved]
+        plant._last_outputs = None
+        if self.kept is not None:
+            self._observe()
+        self._temperature()
+        for k, loop in enumerate(self.loops):
+            inst, st = loop.inst, loop.st
+            mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = loop.output.tolist()
+            mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = self.words[k][-1].tolist()
+            mem.bits[inst.alm.kind][inst.alm.index] = 1 if self.alm[k][-1] else 0
+            st.view = None  # (its registers changed)
+            fun86._drive(mem, inst, st, float(scans[-1]), loop.enabled, loop.output)
+        tm.log = []
+        fun86._log = None
+        engine.now = float(scans[-1])
+
+    def _temperature(self) -> None:
+        """The readings registers, samples, break bits and measured points as after the batch's measurements."""
+        tm, mem = self.tm, self.engine.memory
+        points = np.flatnonzero(self.last_word >= 0)
+        bank, base = mem.words[self.table.readings.kind], self.table.readings.index
+        for point, word in zip(points.tolist(), self.last_word[points].tolist()):
+            bank[base + point] = word
+        good = self.installed[points] & ~self.broken[points]
+        if tm.config.averaging == 1:
+            tm.average(points[good], self.last_value[points[good]])
+        if not good.all():
+            tm._forget(points[~good])
+        breaks = tm._breaks
+        for point, flag in zip(points.tolist(), self.last_flag[points].tolist()):
+            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
+        tm._breaks = breaks
+        tm._measured.update(points.tolist())
+        tm._quiet = None
+
+    def _observe(self) -> None:
+        """Each scan's outputs and readings in memory, and the observers called, as after each of those scans."""
+        fun86, engine, mem = self.fun86, self.engine, self.engine.memory
+        bank, base = mem.words[self.table.readings.kind], self.table.readings.index
+        for i, (fresh, words, outputs) in enumerate(self.kept):
+            for point, word in zip(fresh.tolist(), words.tolist()):
+                bank[base + point] = word
+            now = float(self.scans[i + 1])
+            for k, (loop, out) in enumerate(zip(self.loops, outputs)):
+                inst, st = loop.inst, loop.st
+                mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = out.tolist()
+                mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = self.words[k][i].tolist()
+                mem.bits[inst.alm.kind][inst.alm.index] = 1 if self.alm[k][i] else 0
+                on_time, y_on, y_off = fun86.waves(st, loop.enabled, out)
+                mem.bits[inst.yn.kind][inst.yn.index:inst.yn.index + st.zn] = fun86.outputs_at(st, now, on_time,
+                                                                                             y_on, y_off)
+            engine.now = now
+            for observer in engine.observers:
+                observer(engine)
