@@ -192,17 +192,17 @@ def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
     return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
-def cycles_temperature(temp_a, a, t, offs, lift, rate, terms):  # noqa: ANN001, ANN201
+def cycles_temperature(temp_a, a, t, offs, lift, rate, terms, out=None):  # noqa: ANN001, ANN201
     """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
     each: ``t``, ``offs`` and ``rate`` (1/τ); ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
     cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
-    plant settles with the heater on than off.
+    plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
 
     A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
     [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
     decay, base = terms
     ends = np.minimum((np.maximum(offs, a) - t) * rate, 0.0)
-    return temp_a * decay + base + lift * _cycles_sum(np.exp(ends, out=ends))
+    return np.add(temp_a * decay + base, lift * _cycles_sum(np.exp(ends, out=ends)), out=out)
 
 
 def _cycles_sum(rows: np.ndarray) -> np.ndarray:

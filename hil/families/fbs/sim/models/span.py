@@ -387,6 +387,8 @@ class _Batch:
         self.t_off = plant.ambient + plant.gain * u_off
         self.lift = plant.ambient + plant.gain * u_on - self.t_off
         self.rate = 1.0 / plant.tau
+        waves, self.wave_of = np.unique(np.stack((self.started, self.period)), axis=1, return_inverse=True)
+        self.wave_started, self.wave_period = waves
 
     def _key(self, loop: _Loop, outputs: np.ndarray) -> tuple[np.ndarray, ...]:
         """The plant's waveform of each slot an instance heats, for its outputs (scans × points): a key equal
@@ -473,10 +475,10 @@ class _Batch:
         m_time = np.where(cell >= 0, block["times"][cell], a)  # (padding: nothing elapsed)
         c_slot = np.hstack((m_slot, np.broadcast_to(np.arange(n_slots), (n, n_slots))))
         c_time = np.hstack((m_time, np.broadcast_to(scans[1:, None], (n, n_slots))))
-        started, period = self.started, self.period
+        started, period = self.wave_started, self.wave_period  # (each distinct waveform's)
 
         def cycle(x: np.ndarray, before: bool) -> np.ndarray:
-            """Per slot, the cycle whose start (on the grid) is the last at or before x (``before``: before x)."""
+            """Per waveform, the cycle whose start (on the grid) is the last at or before x (``before``: before x)."""
             k = np.floor((x - started) / period)
             start, end = (scan_grid(started + j * period, st_time) for j in (k, k + 1))
             k = np.where(start >= x if before else start > x, k - 1, k)
@@ -485,7 +487,7 @@ class _Batch:
         # from the cycle each scan's interval starts in to the last starting before the scan: scans × cycles × slots
         first = cycle(a, False)
         n_cycles = max(1, int((cycle(scans[1:, None], True) - first).max()) + 1)
-        raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period
+        raw = (started + (first[:, None] + np.arange(n_cycles)[:, None]) * period)[..., self.wave_of]
         shape = (n, n_cycles, c_slot.shape[1])
         s3 = np.ascontiguousarray(np.broadcast_to(c_slot[:, None], shape))
         raw = np.take_along_axis(raw, s3, axis=2)  # (each column's, where a scan's step is cheapest)
@@ -495,11 +497,10 @@ class _Batch:
         decay, base = cycle_terms(a, t3.transpose(1, 0, 2), scan_grid(raw, st_time).transpose(1, 0, 2),
                                   self.t_off[c_slot], c_lift, r3.transpose(1, 0, 2))
         if plant.normals is not None:  # (a measurement is T plus its noise: here, the columns come out measured)
-            heated = self.rows(block, block["heated"], False)
-            safe = np.where(heated, cell, 0)
-            noise = plant.normals[noise_index(plant.seed, block["points"][safe], block["times"][safe])] \
-                * plant.noise[m_slot]
-            base[:, :width] += np.where(heated, noise, 0.0)
+            heated = block["heated"]
+            noise = plant.normals[noise_index(plant.seed, block["points"], block["times"])] \
+                * plant.noise[np.where(heated, block["slot"], 0)]
+            base[:, :width] += self.rows(block, np.where(heated, noise, 0.0), 0.0)
         block.update(c_slot=c_slot, raw=raw, s3=s3, t3=t3, r3=r3, c_lift=c_lift, decay=decay, base=base)
 
     def _steps(self, block: dict[str, Any], b0: int, b1: int) -> None:
@@ -509,9 +510,9 @@ class _Batch:
         averaging = tm.config.averaging
         mixed, bad = "pre" in block, "bad_reading" in block
         plain = not (mixed or self.clamps or tm.config.unit != "C" or averaging > 1 or bad or self.wraps)
-        values = np.zeros((n, width))
+        solved = np.zeros((n, width + n_slots))  # each scan's plant columns: measured values, then T of each slot
+        values, temps_at = solved[:, :width], solved[:, width:]
         readings = np.zeros((n, width)) if averaging > 1 or bad else None  # (else: from the values, afterwards)
-        temps_at = np.zeros((n, n_slots))
         outputs_at = [np.zeros((n, loop.st.zn), dtype=np.int64) for loop in loops]
         runs = self.runs
         alone = len(runs) == 1 and runs[0].every_slot  # (then a PID step's on-times are the slots' whole)
@@ -538,12 +539,11 @@ class _Batch:
             i = b0 + j
             slots = c_slot[j]
             offs = scan_grid(raw[j] + on[s3[j]], st_time)
-            temp = cycles_temperature(temps[slots], starts[j], t3[j], offs, c_lift[j], r3[j], (decay[j], base[j]))
+            temp = cycles_temperature(temps[slots], starts[j], t3[j], offs, c_lift[j], r3[j], (decay[j], base[j]),
+                                      out=solved[j])
             temps = temp[width:]
-            temps_at[j] = temps
             value = temp[:width]
             if plain:
-                values[j] = value
                 reading = None
             else:
                 if mixed:
