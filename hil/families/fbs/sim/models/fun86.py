@@ -140,6 +140,9 @@ class Law:
     heating: bool
     md1: bool  # Md = 1: the integral runs outside the proportional band too
     ts: float
+    #: derivative / ts when ts is a power of two (dividing by it is exact, so (PV − PV')·this is derivative ×
+    #: ((PV − PV')/ts) to the last bit); None otherwise
+    per_change: np.ndarray | None = None
 
 
 class Fun86Model(Model):
@@ -215,8 +218,10 @@ class Fun86Model(Model):
     def law(self, inst: PidInstance, kc: np.ndarray, ki: np.ndarray, td: np.ndarray, heating: bool,
             ts: float) -> Law:
         """The PID law's coefficients from the gains (spec: the manual's formula; derivative on PV)."""
-        return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts,
-                   -kc * (td / 100 * 60) * (1 if heating else -1), heating, inst.md == 1, ts)
+        derivative = -kc * (td / 100 * 60) * (1 if heating else -1)
+        exact = ts > 0 and math.frexp(ts)[0] == 0.5  # (a power of two)
+        return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts, derivative, heating, inst.md == 1,
+                   ts, derivative / ts if exact else None)
 
     def control(self, law: Law, integral: np.ndarray, pv_prev: np.ndarray, has_prev: np.ndarray | bool,
                 sv: np.ndarray, pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -227,7 +232,10 @@ class Fun86Model(Model):
         proportional = law.kc * error
         if has_prev is not True:
             pv_prev = np.where(has_prev, pv_prev, pv)
-        derivative = law.derivative * ((pv - pv_prev) / law.ts)
+        if law.per_change is not None:
+            derivative = law.per_change * (pv - pv_prev)
+        else:
+            derivative = law.derivative * ((pv - pv_prev) / law.ts)
         integrate = law.ki if law.md1 else np.abs(proportional) < OUTPUT_FULL
         if not law.md1 and not law.every_ki:
             integrate &= law.ki
