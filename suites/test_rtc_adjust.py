@@ -39,8 +39,13 @@ def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 20, 40)).accepted
     io.write("M1953", 1)  # rising edge: 10:20:40 → 10:21:00
     bench.settle()
-    bench.wait(40)  # M1953 held at 1 through the next 30–59 window: no further correction
+    second, minute, hour = io.read_words("R4128", 3)
+    assert (hour, minute) == (10, 21) and second in (0, 1), f"the edge did not correct: {hour}:{minute}:{second}"
+    # M1953 still held at 1 while the clock shows a second in the 30–59 window: a PLC acting on the level
+    # rather than the edge would round it up to 10:22:00 at its next scan
+    assert rtc.set(dt.datetime(2024, 3, 5, 10, 21, 45)).accepted
+    bench.wait(1)
     io.write("M1953", 0)
     second, minute, hour = io.read_words("R4128", 3)
-    assert (hour, minute) == (10, 21)
-    assert second in (40, 41)
+    assert (hour, minute) == (10, 21), f"corrected again while M1953 stayed 1: {hour}:{minute}:{second}"
+    assert second in (46, 47, 48)

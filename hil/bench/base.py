@@ -29,6 +29,10 @@ class BenchBase:
         """What the family adds to the PLC's identity in reports (e.g. an FBs's RTC chip); never raises."""
         return {}
 
+    def finish(self) -> None:
+        """The session ends: put back exactly what was put back only approximately after each test (an FBs's
+        clock phase).  Raises :class:`hil.core.errors.RestoreError` when the PLC refuses."""
+
     def wait(self, seconds: float) -> None:
         """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
         self.time.wait(seconds)

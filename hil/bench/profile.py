@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from hil.bench.capabilities import DECLARABLE
 from hil.bench.family import Family, families, family as family_named
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
@@ -60,6 +61,8 @@ class Profile:
     scan_counter: str | None = None
     #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
     scratch: tuple[str, ...] = ()
+    #: [bench] offers: capabilities the bench's owner vouches for (hil.bench.capabilities.DECLARABLE)
+    offers: tuple[str, ...] = ()
 
     @property
     def rtc(self) -> Any:
@@ -119,6 +122,9 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     scratch = reader.take(bench, "bench", "scratch", list, [],
                           check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
                                               for x in v) or 'must be a list of ranges like "R1000-R1099"')
+    offers = reader.take(bench, "bench", "offers", list, [],
+                         check=lambda v: all(x in DECLARABLE for x in v)
+                         or f"may list only {', '.join(DECLARABLE)}, not {', '.join(map(str, v))}")
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -158,7 +164,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, scratch=tuple(scratch))
+                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers))
 
 
 def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:

@@ -15,7 +15,7 @@ from hil.bench.base import BenchBase as Bench
 from hil.bench.family import build_emulator, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
-from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
+from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
@@ -23,8 +23,8 @@ pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety"]  # round trips and wir
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
-             "power_on_state, scan_per_request, power_cycle, spec_choices; hil.bench.capabilities); skipped with "
-             "the reason on a bench that does not offer it",
+             "power_on_state, power_cycle, spec_choices, scan_counter; hil.bench.capabilities); skipped with "
+             "the reason and what would offer it on a bench that does not; power_on_state tests run first",
     "slow": "slow: takes minutes of bench time on a real PLC; skipped there unless --hil-run-slow "
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
@@ -205,7 +205,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     except HilError as exc:
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
-    offered = bench_capabilities(target, profile.scan_counter)
+    offered = bench_capabilities(target, profile.scan_counter, profile.offers)
+    # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
+    items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
     for item in items:
         if "bench" in getattr(item, "fixturenames", ()):
             family = item.get_closest_marker("family")
@@ -221,8 +223,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             missing = [name for name in marker.args if name not in offered]
             if missing:
                 why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
+                offer = "; ".join(how_to_offer(name) for name in missing)
                 item.add_marker(pytest.mark.skip(
-                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it)"))
+                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
         if item.get_closest_marker("destructive") and not destructive_ok:
             item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):

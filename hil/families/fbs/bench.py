@@ -66,7 +66,11 @@ class Bench(BenchBase):
             self.io.durable = self.journal
         self.io.side_effects = self.plc.pid.side_effects
         self.io.before_write = self._before_write
-        self.clock_origin: tuple[dt.datetime, float] | None = None  # (PLC time, reference) before a test set it
+        #: (PLC time, reference) before the session's first write that touched the clock; kept (and journaled)
+        #: until the session's end puts the clock back exactly, so that per-test restores never compound
+        self.clock_origin: tuple[dt.datetime, float] | None = None
+        #: the clock differs from its original offset: a test set it and it is not put back yet
+        self.clock_changed = False
 
     def recover(self):  # noqa: ANN201 - hil.families.fbs.recovery.Recovery, or None for an in-process emulator
         """Replay what a dead run left in this bench's journal (before anything else; see hil.families.fbs.recovery)."""
@@ -82,7 +86,10 @@ class Bench(BenchBase):
         return self.time.now() if self.time.virtual else _time.time() * self.profile.time_scale
 
     def _before_write(self, base: list) -> None:
-        if self.clock_origin is not None or not _RTC_TOUCHES.intersection(base):
+        if not _RTC_TOUCHES.intersection(base):
+            return
+        self.clock_changed = True
+        if self.clock_origin is not None:
             return
         from hil.families.fbs.rtc_time import RtcTime
         try:
@@ -97,15 +104,36 @@ class Bench(BenchBase):
         plc_time, ref = self.clock_origin  # type: ignore[misc]
         return plc_time + dt.timedelta(seconds=self._reference() - ref)
 
-    def restore_clock(self) -> None:
-        """Put the clock back at its original offset (or on host time when it held no valid time)."""
+    def restore_clock(self, exact: bool = True) -> None:
+        """Put the clock back at its original offset (or on host time when it held no valid time).
+
+        ``exact`` waits for the original clock's next whole second before the set fires, because the chip
+        restarts its second at a set (up to a second of bench time); between two tests the set fires at once,
+        with the original time rounded to the nearest second (within ±0.5 s), and the session's end, or the
+        next run's recovery if this one dies, makes it exact — both from the session's first origin, so the
+        per-test errors never add up."""
         from hil.core.errors import RestoreError
-        if self.clock_origin is not None:
-            result = self.plc.rtc.sync_to(self._original_clock)
+        clock = self._original_clock if self.clock_origin is not None else self.time.calendar
+        if exact:
+            result = self.plc.rtc.sync_to(clock)
         else:
-            result = self.plc.rtc.sync_to_host()
+            result = self.plc.rtc.set(clock() + dt.timedelta(microseconds=500_000))
         if not result.accepted:
             raise RestoreError([("RTC", 0, f"the PLC refused the restored time {result.sent} (M1955 = 1)")])
+        self.clock_changed = False
+
+    def finish(self) -> None:
+        """The session ends: the clock back at its original offset exactly, and its journal entry cleared."""
+        if self.clock_origin is None and not self.clock_changed:
+            return
+        try:
+            self.restore_clock(exact=True)
+            self.clock_origin = None
+            if self.journal is not None:
+                self.journal.drop_clock()
+        finally:
+            self.io.restore()  # the set's own writes (M1952, R4128–R4134), journaled like a test's
+            self.io.start_journal()
 
     def identity(self) -> dict[str, str]:
         try:
@@ -141,11 +169,8 @@ class Bench(BenchBase):
         still not as it was found), then start its journal."""
         if self.journal is not None:
             self.journal.test = test_id
-        if self.clock_origin is not None:
-            self.restore_clock()
-            self.clock_origin = None
-            if self.journal is not None:
-                self.journal.drop_clock()
+        if self.clock_changed:
+            self.restore_clock(exact=False)
         if self.io.unrestored:
             self.io.restore()
         self.io.start_journal()
@@ -154,7 +179,6 @@ class Bench(BenchBase):
         """Put the PLC back as it was found: injected faults, journaled values, then the RTC if a test touched it.
 
         Idempotent: a second call finds nothing left to undo."""
-        touched_rtc = bool(self.io.touched & _RTC_TOUCHES)
         try:
             try:
                 self.faults.undo_all()  # first: a plc-bit injector's own writes are then restored and verified
@@ -163,11 +187,8 @@ class Bench(BenchBase):
                 # write-back and one read-back verify the test's and the sync's writes together (6 round trips
                 # on FATEK, not 9 with a restore on each side of the sync).
                 try:
-                    if touched_rtc or self.clock_origin is not None:
-                        self.restore_clock()
-                        self.clock_origin = None
-                        if self.journal is not None:
-                            self.journal.drop_clock()
+                    if self.clock_changed:
+                        self.restore_clock(exact=False)
                 finally:
                     self.io.restore()
         finally:

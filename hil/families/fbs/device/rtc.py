@@ -7,6 +7,7 @@ time, sleeping) and the emulator (virtual time, a simulated day in milliseconds)
 from __future__ import annotations
 
 import datetime as dt
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
@@ -70,7 +71,7 @@ class DriftMeasurement:
     plc_elapsed: float  # PLC seconds between them (whole seconds)
     #: (reference t since the first transition, PLC − reference in seconds) at each timed transition
     samples: list[tuple[float, float]] = field(default_factory=list)
-    resolution: float = 0.0  # s/day: worst-case error from polling (widest transition bracket / duration)
+    resolution: float = 0.0  # s/day: worst-case error of the rate from the transitions' polling brackets
 
     @property
     def ppm(self) -> float:
@@ -101,8 +102,9 @@ _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 class Rtc:
     """``plc.rtc``: the RTC of one FBs PLC."""
 
-    #: Bench time between polls of R4128 when timing a second transition.
-    poll_interval = 1 / 50
+    #: Bench time between polls of R4128 while a second transition is due (back to back on a real wire, where a
+    #: round trip takes longer; on the emulator it is what moves virtual time on between two polls).
+    poll_interval = 1 / 500
 
     def __init__(self, plc: "FbsPlc") -> None:
         self.plc = plc
@@ -241,6 +243,7 @@ class Drift:
     def __init__(self, plc: "FbsPlc", rtc: Rtc | None = None) -> None:
         self.plc = plc
         self.rtc = rtc if rtc is not None else plc.rtc
+        self._edge: float | None = None  # reference time of the last timed second transition
 
     def measure(self, duration: float, *, transitions: int = 3, checkpoints: int = 8,
                 timeout: float = 3.0) -> DriftMeasurement:
@@ -257,6 +260,7 @@ class Drift:
         """
         if transitions < 1:
             raise InvalidValue(f"transitions must be at least 1, not {transitions}")
+        self._edge = None  # a new measurement learns the phase afresh (the clock may have been set since)
         if duration < transitions + 2:
             raise InvalidValue(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
         # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
@@ -283,10 +287,13 @@ class Drift:
         slope = sum((x - mx) * (y - my) for x, y in samples) / sum((x - mx) ** 2 for x in xs)
         reference_elapsed = xs[-1]
         plc_elapsed = reference_elapsed + ys[-1]
-        # Each transition is known to ± half its bracket; two ends of the measurement → at most one bracket.
-        bracket = max(width for _, _, width in first + middle + last)
-        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
-                                resolution=bracket / reference_elapsed * 86400)
+        # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
+        # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
+        # host) weighs only as much as its sample does, not as the whole measurement's worst case.
+        widths = [width for _, _, width in first + middle + last]
+        sxx = sum((x - mx) ** 2 for x in xs)
+        bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
+        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
 
     def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
                       checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
@@ -312,11 +319,18 @@ class Drift:
         return code
 
     # -- timing one second transition -------------------------------------------------------------------------
+    #: bench seconds before an expected transition that polling starts, plus this fraction of the time since the
+    #: last timed one (the PLC's second may differ from the bench's by a crystal error and D4054's ±192 ppm)
+    lead = 0.05
+    lead_per_second = 5e-4
+
     def _transition(self, timeout: float, phase: float = 0.0) -> tuple[float, int, float]:
         """The next second transition: (reference time, PLC seconds since 2000 just after it, bracket width).
 
         The reference time is the middle of the bracket between the last poll that showed the old second and
-        the first that showed the new one.
+        the first that showed the new one.  Once one transition is timed the next is expected a whole number of
+        seconds later: the wait until just before it is one sleep, and the polls around it come back to back,
+        so a bracket is about one round trip (not a polling interval) and few requests are spent per second.
         """
         clock = self.plc.time
         if phase > 0:
@@ -324,12 +338,22 @@ class Drift:
         old = self.rtc.read()
         before = clock.now()  # the read above saw the old second at (or before) this reference time
         deadline = before + timeout
+        if self._edge is not None:
+            since = before - self._edge
+            lead = self.lead + self.lead_per_second * since
+            upcoming = self._edge + math.ceil(since + lead)  # the first expected transition not yet too close
+            if upcoming - lead > before:
+                clock.wait(upcoming - lead - before)
+                old = self.rtc.read()  # a transition earlier than expected is simply not this one: time the next
+                before = clock.now()
+                deadline = before + timeout
         while True:
             clock.wait(self.rtc.poll_interval)
             current = self.rtc.read()
             after = clock.now()
             if current.second != old.second:
-                return (before + after) / 2, _seconds(current), after - before
+                self._edge = (before + after) / 2
+                return self._edge, _seconds(current), after - before
             if after > deadline:
                 raise RtcError(f"R4128 stayed at {old.second} for {after - before:.2f} s of bench time: the RTC "
                                f"is not running (chip missing, M1952 left at 1?)")
