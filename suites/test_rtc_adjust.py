@@ -25,14 +25,17 @@ OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
     ("2024-12-31 23:59:50", "2025-01-01 00:00:00"),  # month → year
     pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=OUR_CHOICE_WRAP),
 ])
-def test_adjust_30s(rtc, io, start, after):
+def test_adjust_30s(bench, rtc, io, start, after):
     assert rtc.set(dt.datetime.fromisoformat(start)).accepted
+    began = bench.time.now()
     rtc.adjust_30s()
     expected = dt.datetime.fromisoformat(after)
     second, minute, hour, day, month, year = io.read_words("R4128", 6)
     assert (minute, hour, day, month, year) == (expected.minute, expected.hour, expected.day, expected.month,
                                                 expected.year - 2000)
-    assert second in (0, 1)
+    # :00 at the edge, then the clock runs on for what is left of the procedure (a busy host's bench seconds)
+    ran = bench.time.now() - began
+    assert 0 <= second <= 1 + ran, f"seconds {second} after the correction (procedure took {ran:.1f} s)"
 
 
 def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
