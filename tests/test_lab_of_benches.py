@@ -37,7 +37,7 @@ pytestmark = pytest.mark.skipif(MISSING is not None, reason=MISSING or "")
 
 SUITES = [str(REPO / "suites" / "test_rtc.py"), str(REPO / "suites" / "test_temperature.py")]
 SMOKE = [str(REPO / "suites" / "test_smoke.py")]
-SCALE = 20.0  # the emulator's time scale: the temperature suite's 158 bench seconds in about 8
+SCALE = 10.0  # the emulator's time scale, as tests/test_bench_mode.py: the temperature suite's 158 bench s in 16
 TAGS = "family=fbs rtc=s35390a"
 PLACES = {"bench1": ("lab-host/fbs-bench/*", TAGS), "bench2": ("lab-host/fbs-bench-twin/*", "family=fbs twin=yes"),
           "dead": ("lab-host/switched-off/*", "family=fbs")}

@@ -1,7 +1,11 @@
-"""A run on a labgrid place (``--lg-place`` / ``--lg-reserve``, or a profile's ``[labgrid]``): the place is held
-for the whole pytest session — reserved and acquired in ``pytest_configure``, before anything is collected, and
-released in ``pytest_unconfigure``, which pytest runs however the session ends (failures, errors, Ctrl-C; SIGTERM
-and SIGHUP unwind like Ctrl-C, :mod:`hil.core.signals`)."""
+"""A run on a labgrid place (``hil run --lg-place`` / ``--lg-reserve``, pytest's ``--hil-lg-place`` /
+``--hil-lg-reserve``, or a profile's ``[labgrid]``): the place is held for the whole pytest session — reserved and
+acquired in ``pytest_configure``, before anything is collected, and released in ``pytest_unconfigure``, which
+pytest runs however the session ends (failures, errors, Ctrl-C; SIGTERM and SIGHUP unwind like Ctrl-C,
+:mod:`hil.core.signals`).
+
+The pytest options are ``--hil-lg-…``: labgrid's own pytest plugin (installed with it, ``-p no:labgrid`` keeps it
+out) already has ``--lg-coordinator``."""
 
 from __future__ import annotations
 
@@ -24,30 +28,31 @@ LOG_EVERY = 30.0
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("hil")
-    group.addoption("--lg-place", metavar="NAME", default=None,
+    group.addoption("--hil-lg-place", metavar="NAME", default=None,
                     help="run on this labgrid place: reserve it, wait for it, acquire it, take the target (and the "
                          "fault rig's coils) from its resources, release it at the end")
-    group.addoption("--lg-reserve", metavar="TAGS", default=None,
+    group.addoption("--hil-lg-reserve", metavar="TAGS", default=None,
                     help="run on any labgrid place with these tags, e.g. \"family=fbs rtc=s35390a\"")
-    group.addoption("--lg-coordinator", metavar="HOST:PORT", default=None,
+    group.addoption("--hil-lg-coordinator", metavar="HOST:PORT", default=None,
                     help="the labgrid coordinator (default [labgrid] coordinator, $LG_COORDINATOR, 127.0.0.1:20408)")
-    group.addoption("--lg-wait", metavar="SECONDS", type=float, default=None,
+    group.addoption("--hil-lg-wait", metavar="SECONDS", type=float, default=None,
                     help="give up when no place is allocated within SECONDS (default: wait as long as it takes)")
 
 
-def hold_place(config: pytest.Config, bench_path: Callable[[], Path]) -> LabSession | None:
-    """Reserve, wait for and acquire the place the run asks for (None when it asks for none).  The whole profile
-    is checked first, so a bad key costs no wait in the queue, and again with the place's URLs."""
+def hold_place(config: pytest.Config, state: Any, bench_path: Callable[[], Path]) -> None:
+    """Reserve, wait for and acquire the place the run asks for, as ``state.lab`` (left None when it asks for
+    none).  The whole profile is checked first, so a bad key costs no wait in the queue, and again with the
+    place's URLs."""
     from hil.bench.profile import check_profile, lab_request, load_profile
     from hil.core import signals
-    place, tags = config.getoption("--lg-place"), config.getoption("--lg-reserve")
+    place, tags = config.getoption("--hil-lg-place"), config.getoption("--hil-lg-reserve")
     if not (place or tags or config.getoption("--bench")):
-        return None  # the bundled default profile names no place
+        return  # the bundled default profile names no place
     try:
-        spec = lab_request(bench_path(), place=place, tags=tags, coordinator=config.getoption("--lg-coordinator"),
-                           wait=config.getoption("--lg-wait"))
+        spec = lab_request(bench_path(), place=place, tags=tags,
+                           coordinator=config.getoption("--hil-lg-coordinator"), wait=config.getoption("--hil-lg-wait"))
         if spec is None:
-            return None
+            return
         if config.getoption("--target"):
             raise pytest.UsageError(f"--target and {spec.describe()} both say where the PLC is: give one of them")
         station = check_profile(bench_path(), spec).station
@@ -56,16 +61,12 @@ def hold_place(config: pytest.Config, bench_path: Callable[[], Path]) -> LabSess
         session = LabSession(spec, progress=progress)
         try:
             lab = session.open(station=station)
+            state.lab = session  # from here on, pytest_unconfigure lets go of it
         finally:
             progress.stop()  # the status line, however the wait ended
-    except HilError as exc:
-        raise pytest.UsageError(str(exc)) from None
-    try:
         load_profile(bench_path(), lab=lab)  # what the place resolved to fits the profile (a rig for its faults…)
     except HilError as exc:
-        let_go(config, session)
         raise pytest.UsageError(str(exc)) from None
-    return session
 
 
 def let_go(config: pytest.Config, session: LabSession) -> None:

@@ -66,7 +66,7 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[BENCH_STATE] = state
     from hil.plugin.lab import hold_place
     # a labgrid place is held for the whole session: the target comes from it, so before anything is collected
-    state.lab = hold_place(config, lambda: resolve_bench_path(config))
+    hold_place(config, state, lambda: resolve_bench_path(config))
 
 
 class _State:
@@ -262,6 +262,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         reporter.write_line(line)
 
 
+@pytest.hookimpl(tryfirst=True)  # while hil.core.signals still defers a signal (the safety plugin uninstalls it)
 def pytest_unconfigure(config: pytest.Config) -> None:
     state = config.stash.get(_STATE, None)
     if state is not None:
