@@ -12,7 +12,8 @@ All at once, so the test costs about two suite runs of wall time:
 * C queues for bench1 too and is stopped with SIGTERM while queued: its reservation is cancelled;
 * D runs on a place whose PLC is switched off: the run fails, and the place is released;
 * E holds bench2 — the same PLC through another resource — and waits for hil's local lock on the PLC's endpoint,
-  which A holds (the second guard beside labgrid's); stopped with SIGTERM while it holds the place: released.
+  which A holds (the second guard beside labgrid's); stopped with SIGTERM while it holds the place: released;
+* F gives up on bench1 after ``--lg-wait 2``; G asks for tags no place has and is refused at once.
 """
 
 from __future__ import annotations
@@ -165,15 +166,18 @@ def test_runs_queue_for_labgrid_places_and_always_let_go(tmp_path):
         c, c_log = start(lab, tmp_path, "C", ["--lg-place", "bench1"], SMOKE)
         d, d_log = start(lab, tmp_path, "D", ["--lg-place", "dead"], SMOKE)
         e, e_log = start(lab, tmp_path, "E", ["--lg-place", "bench2"], SMOKE, "--hil-lock-wait", "300")
+        f, f_log = start(lab, tmp_path, "F", ["--lg-place", "bench1", "--lg-wait", "2"], SMOKE)
+        g, g_log = start(lab, tmp_path, "G", ["--lg-reserve", "family=s7"], SMOKE)
 
         c_token = wait_for(c_log, r"queued for labgrid place bench1 \(reservation (\w+)", 60, c).group(1)
         c.send_signal(signal.SIGTERM)
         wait_for(e_log, r"^collected \d+ items", 60, e)  # E holds bench2; next it waits for A's lock on the PLC
         time.sleep(0.5)
         e.send_signal(signal.SIGTERM)
-        codes = {name: proc.wait(timeout=300) for name, proc in (("C", c), ("D", d), ("E", e), ("A", a), ("B", b))}
-        logs = {name: log.read_text() for name, log in (("A", a_log), ("B", b_log), ("C", c_log), ("D", d_log),
-                                                          ("E", e_log))}
+        runs = {"A": (a, a_log), "B": (b, b_log), "C": (c, c_log), "D": (d, d_log), "E": (e, e_log), "F": (f, f_log),
+                "G": (g, g_log)}
+        codes = {name: proc.wait(timeout=300) for name, (proc, _) in runs.items()}
+        logs = {name: log.read_text() for name, (_, log) in runs.items()}
         print(f"all runs done after {time.monotonic() - started:.1f} s: exit codes {codes}")
         events = lab.events("bench1")
         status = fatek_status_through_ser2net(lab)
@@ -209,6 +213,10 @@ def test_runs_queue_for_labgrid_places_and_always_let_go(tmp_path):
     assert codes["E"] == 2, logs["E"][-3000:]  # held bench2, waited for A's endpoint lock, SIGTERM: let go
     assert "labgrid place bench2 released" in logs["E"]
     assert "hil bench -" not in logs["E"]  # the panel of an open bench: E never opened it (A's lock kept it out)
+    assert codes["F"] == 4 and "allocated to reservation" in logs["F"] and "within 2 s" in logs["F"], logs["F"][-3000:]  # --lg-wait
+    assert "labgrid reservation" in logs["F"] and "cancelled" in logs["F"]
+    assert codes["G"] == 4, logs["G"][-3000:]  # tags no place has: refused at once, naming the places there are
+    assert "no place on coordinator" in logs["G"] and "bench1 (family=fbs rtc=s35390a)" in logs["G"]
     for place, text in shown.items():
         assert "acquired: None" in text, f"{place} is still acquired:\n{text}"
     assert not reservations.strip(), reservations

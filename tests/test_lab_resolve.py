@@ -185,5 +185,13 @@ def test_the_command_line_refuses_in_one_line(tmp_path, argv, says):
     assert proc.returncode == 4 and says in " ".join(proc.stderr.split()), proc.stderr
 
 
+def test_benches_that_are_places_run_in_parallel_each_reserving_its_own(tmp_path):
+    from hil.cli.many import plan
+    first = lab_bench(tmp_path, 'place = "a"\n')
+    second = tmp_path / "second.toml"
+    second.write_text(first.read_text().replace('name = "emulator"', 'name = "other"', 1))
+    assert [run.name for run in plan([str(first), str(second)], str(tmp_path / "junit.xml"))] == ["emulator", "other"]
+
+
 def _with(resource: Resource, **params: object) -> Resource:
     return dataclasses.replace(resource, params={**resource.params, **params})

@@ -120,7 +120,8 @@ def check_profile(path: str | Path, spec: LabSpec | None) -> Profile:
     return load_profile(path, lab=Lab.pending(spec) if spec is not None else None)
 
 
-def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "", lab: Any = None) -> Profile:
+def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "",
+                      lab: Any = None) -> Profile:
     where = str(path) if path else "<profile>"
     if "labgrid" in data:
         spec = parse_lab_section(Reader(where), data)

@@ -279,8 +279,6 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         from hil.core.paths import default_bench
         spec = lab_request(args.bench or default_bench(), place=args.lg_place, tags=args.lg_reserve,
                            coordinator=args.lg_coordinator, wait=args.lg_wait)
-        if spec is not None and args.target:
-            raise InvalidValue(f"--target and {spec.describe()} both say where the PLC is: give one of them")
         if args.bench or spec is not None:  # a bad profile: one line here, before pytest starts (and before a queue)
             check_profile(args.bench or default_bench(), spec)
         return run(args.bench, args.target, args.junitxml, extra, html=args.html, operator=args.operator,

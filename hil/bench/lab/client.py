@@ -195,7 +195,8 @@ class LabgridClient:
             while True:
                 waited = time.monotonic() - started
                 if limit is not None and waited > limit:
-                    raise LabWaitExpired(f"reservation {token} was not allocated within {limit:g} s")
+                    raise LabWaitExpired(f"no place was allocated to reservation {token} within {limit:g} s "
+                                         f"(--lg-wait): `labgrid-client who` shows who holds the places")
                 try:
                     line = lines.get(timeout=1.0)
                 except queue.Empty:
