@@ -108,6 +108,8 @@ def start(lab: RunningLab, tmp: Path, name: str, reserve: list[str], tests: list
     env.pop("HIL_LABGRID_CLIENT", None)
     if python is None:
         env["HIL_LABGRID_CLIENT"] = str(lab.bin / "labgrid-client")
+    else:  # that environment's hil is a copy (pip install 'hil[labgrid]'): this tree's code, its packages
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
     log = tmp / f"{name}.log"
     with open(log, "w") as out:
         proc = subprocess.Popen(
