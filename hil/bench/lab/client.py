@@ -155,7 +155,7 @@ class LabgridClient:
         except OSError as exc:
             raise LabError(f"cannot run {self.executable}: {exc}") from None
         if proc.returncode:
-            raise LabError(f"labgrid {' '.join(args)}{f' ({place})' if place else ''} failed: "
+            raise LabError(f"labgrid-client {' '.join(args)}{f' on {place}' if place else ''} failed: "
                            f"{_last_line(proc.stderr or proc.stdout)} (coordinator {self.coordinator})")
         return proc.stdout
 
