@@ -19,7 +19,8 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
+# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -61,9 +62,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
-    config.stash[_STATE] = _State(config)
+    state = config.stash[_STATE] = _State(config)
     from hil.plugin.safety import BENCH_STATE
-    config.stash[BENCH_STATE] = config.stash[_STATE]
+    config.stash[BENCH_STATE] = state
+    from hil.plugin.lab import hold_place
+    # a labgrid place is held for the whole session: the target comes from it, so before anything is collected
+    hold_place(config, state, lambda: resolve_bench_path(config))
 
 
 class _State:
@@ -75,13 +79,15 @@ class _State:
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
+        self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
+        self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
         self.recovery = None  # hil.families.fbs.recovery.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
 
     @property
     def profile(self) -> Profile:
         if self._profile is None:
-            self._profile = load_profile(resolve_bench_path(self.config))
+            self._profile = load_profile(resolve_bench_path(self.config), lab=self.lab.lab if self.lab else None)
         return self._profile
 
     @property
@@ -122,7 +128,10 @@ class _State:
         if self.lock is not None or parse_target(self.target).in_process:
             return
         from hil.core.lock import BenchLock
-        self.lock = BenchLock(self.target).acquire(wait=self.config.getoption("--hil-lock-wait") or 0.0)
+        wait = self.config.getoption("--hil-lock-wait") or 0.0
+        if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
+            self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
+        self.lock = BenchLock(self.target).acquire(wait=wait)
 
     def release(self) -> None:
         try:
@@ -130,9 +139,14 @@ class _State:
                 self.bench.close()
         finally:
             self.bench = None
-            if self.lock is not None:
-                self.lock.release()
-                self.lock = None
+            for lock in (self.lock, self.place_lock):
+                if lock is not None:
+                    lock.release()
+            self.lock = self.place_lock = None
+            if self.lab is not None:
+                from hil.plugin.lab import let_go
+                session, self.lab = self.lab, None
+                let_go(self.config, session)
 
     def finish(self, request: pytest.FixtureRequest, bench: Bench) -> None:
         """The bench fixture's teardown: restore; a restore that fails goes into the report (JUnit properties);
@@ -252,6 +266,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         reporter.write_line(line)
 
 
+@pytest.hookimpl(tryfirst=True)  # while hil.core.signals still defers a signal (the safety plugin uninstalls it)
 def pytest_unconfigure(config: pytest.Config) -> None:
     state = config.stash.get(_STATE, None)
     if state is not None:
