@@ -81,7 +81,7 @@ class _State:
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
         self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
         self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
-        self.recovery = None  # hil.families.fbs.recovery.Recovery: what a dead run left, replayed when the bench opened
+        self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
 
     @property
@@ -114,8 +114,7 @@ class _State:
 
     def _recover(self) -> None:
         """Recovery first (issue 15): a journal a dead run left is replayed before any test, and said loudly."""
-        recover = getattr(self.bench, "recover", None)
-        self.recovery = recover() if recover is not None else None
+        self.recovery = self.bench.recover()
         if self.recovery is None or not self.recovery.needed:
             return
         from hil.plugin.safety import announce

@@ -23,7 +23,7 @@ RECOVERY_NOTES = pytest.StashKey[list]()
 BENCH_STATE = pytest.StashKey[object]()
 
 
-def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.families.fbs.recovery.Recovery
+def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.bench.guard.Recovery
     text = recovery.summary()
     config.stash.setdefault(RECOVERY_NOTES, []).append(text)
     reporter = config.pluginmanager.get_plugin("terminalreporter")
@@ -115,10 +115,12 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 def _unrestored(bench, exact: bool = True) -> list[str]:  # noqa: ANN001
     """What is still not as it was found; ``exact=False`` leaves out a clock put back to within half a second
     (the session's end makes it exact)."""
-    out = [f"{a} (original {v})" for a, v in getattr(bench.io, "unrestored", [])]
-    origin = getattr(bench, "clock_origin", None)
-    if origin is not None and (exact or getattr(bench, "clock_changed", False)):
-        out.append(f"RTC (original {origin[0]}, to be kept at its offset from host time)")
+    io = bench.io
+    out = [f"{a} (original {v})" for a, v in getattr(io, "unrestored", [])]  # the clock too, while a test has it set
+    origin = getattr(io, "clock_origin", None)
+    if exact and origin is not None and not getattr(io, "clock_due", False):
+        out.append(f"clock (original {origin.plc:%Y-%m-%d %H:%M:%S}, to be put back exactly at its offset from host "
+                   f"time)")
     faults = getattr(bench, "faults", None)
     for injector in getattr(faults, "_made", {}).values():
         for point in sorted(getattr(injector, "opened", ())):

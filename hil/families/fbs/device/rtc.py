@@ -11,10 +11,13 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
+from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
+from hil.core.timebase import nearest_whole_second, next_whole_second, wait_until
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import code_for_rate
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
+from hil.families.fbs.transport.guard import expand
 
 if TYPE_CHECKING:
     from hil.families.fbs.device.plc import FbsPlc
@@ -99,6 +102,10 @@ class RtcSetLost(RtcError):
 _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 
 
+#: Writes to these may set the clock (the guard journals its time first: :meth:`Rtc.clock`).
+TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
+
+
 class Rtc:
     """``plc.rtc``: the RTC of one FBs PLC."""
 
@@ -169,6 +176,23 @@ class Rtc:
         self._begin_set(value)
         return self._finish_set(value)
 
+    def clock(self) -> Clock:
+        """The RTC as the bench's guard keeps it: a write to the read-out R4128–R4134, M1952/M1953 or D4054 may
+        set it; before the first such write its time is journaled, and it is put back at its original offset
+        from the bench's time: exactly with :meth:`sync_to` (the manual's M1952 procedure, on the original clock's
+        next whole second), or at once to the nearest second with :meth:`set`."""
+        def read() -> dt.datetime | None:
+            try:
+                return self.read().to_datetime()
+            except ValueError:  # the clock holds no valid time: there is no offset to keep
+                return None
+
+        def put(when: Callable[[], dt.datetime], exact: bool) -> None:
+            result = self.sync_to(when) if exact else self.set(nearest_whole_second(when()))
+            if not result.accepted:
+                raise HilError(f"the PLC refused the restored time {result.sent} (M1955 = 1)")
+        return Clock(TOUCHES, read, put, self.plc.time)
+
     def sync_to_host(self) -> SetResult:
         """Set the clock to the bench's calendar time at the next whole second.
 
@@ -182,13 +206,10 @@ class Rtc:
 
         The bench restores a clock a test set with this: ``clock`` is then the PLC's original time carried
         forward (its original offset from the host's wall clock, whatever the host's time zone)."""
-        now = clock()
-        target = now.replace(microsecond=0) + dt.timedelta(seconds=1 if now.microsecond else 0)
+        target = next_whole_second(clock())
         value = RtcTime.from_datetime(target)
         self._begin_set(value)
-        remaining = (target - clock()).total_seconds()
-        if remaining > 0:
-            self.plc.time.wait(remaining)
+        wait_until(self.plc.time, clock, target)
         return self._finish_set(value)
 
     def _begin_set(self, value: RtcTime) -> None:
