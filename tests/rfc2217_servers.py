@@ -65,17 +65,22 @@ def _wait_listening(port: int, proc: subprocess.Popen | None, timeout: float = 1
 
 
 @contextlib.contextmanager
-def ser2net(device: str, line: str = "9600e71", *, raw: bool = False) -> Iterator[Exported]:
+def ser2net(device: str, line: str = "9600e71", *, raw: bool = False, chardelay: bool = True) -> Iterator[Exported]:
     """ser2net exporting ``device`` (``line``: its initial settings, ser2net's spelling, e.g. 9600e71; the client
-    sets its own over RFC 2217) on an RFC 2217 accepter, and a raw TCP one with ``raw``."""
+    sets its own over RFC 2217) on an RFC 2217 accepter, and a raw TCP one with ``raw``.
+
+    ``chardelay``: ser2net's default, holding what the device sends until the line has been quiet for a couple of
+    characters at its baud rate (≈ 3 ms a reply at 9600) so that it goes out in one segment — as a labgrid
+    exporter does; off, each read from the device is forwarded at once."""
     if SER2NET is None:
         raise RuntimeError(NO_SER2NET)
     ports = {"rfc2217": free_port(), "raw": free_port() if raw else None}
+    options = "" if chardelay else "  options:\n    chardelay: false\n"
     config = [f"connection: &rfc2217\n  accepter: telnet(rfc2217),tcp,127.0.0.1,{ports['rfc2217']}\n"
-              f"  connector: serialdev,{device},{line},local\n"]
+              f"  connector: serialdev,{device},{line},local\n{options}"]
     if raw:
         config.append(f"connection: &raw\n  accepter: tcp,127.0.0.1,{ports['raw']}\n"
-                      f"  connector: serialdev,{device},{line},local\n")
+                      f"  connector: serialdev,{device},{line},local\n{options}")
     with tempfile.TemporaryDirectory(prefix="hil-ser2net-") as tmp:
         path = os.path.join(tmp, "ser2net.yaml")
         with open(path, "w") as f:
@@ -180,9 +185,9 @@ def _session(conn: socket.socket, port: serial.Serial, stop: threading.Event) ->
 
 
 @contextlib.contextmanager
-def rfc2217_server(device: str, line: str = "9600e71") -> Iterator[Exported]:
-    """ser2net where installed, else pyserial's port manager."""
-    with (ser2net(device, line) if SER2NET else port_manager(device)) as exported:
+def rfc2217_server(device: str, line: str = "9600e71", *, chardelay: bool = True) -> Iterator[Exported]:
+    """ser2net where installed, else pyserial's port manager (which forwards each read at once)."""
+    with (ser2net(device, line, chardelay=chardelay) if SER2NET else port_manager(device)) as exported:
         yield exported
 
 
