@@ -36,7 +36,7 @@ NO_SER2NET = "ser2net is not installed (Debian: apt-get install ser2net; .ci/run
 @dataclass(frozen=True)
 class Exported:
     """Where a device is served: ``rfc2217`` is HOST:PORT of the RFC 2217 (telnet) accepter; ``raw`` of a plain
-    TCP accepter on the same device (ser2net only, when asked for) — one connection at a time per device."""
+    TCP accepter (ser2net only, when asked for)."""
 
     kind: str  # "ser2net" or "pyserial"
     rfc2217: str
@@ -65,22 +65,26 @@ def _wait_listening(port: int, proc: subprocess.Popen | None, timeout: float = 1
 
 
 @contextlib.contextmanager
-def ser2net(device: str, line: str = "9600e71", *, raw: bool = False, chardelay: bool = True) -> Iterator[Exported]:
+def ser2net(device: str, line: str = "9600e71", *, raw_device: str | None = None,
+            chardelay: bool = True) -> Iterator[Exported]:
     """ser2net exporting ``device`` (``line``: its initial settings, ser2net's spelling, e.g. 9600e71; the client
-    sets its own over RFC 2217) on an RFC 2217 accepter, and a raw TCP one with ``raw``.
+    sets its own over RFC 2217) on an RFC 2217 accepter, and ``raw_device`` on a raw TCP one.  (Not one device on
+    both: ser2net opens the device per connection and keeps reading it for a moment after a client leaves, so a
+    reply to the next client of the other accepter can go to the old connection.)
 
     ``chardelay``: ser2net's default, holding what the device sends until the line has been quiet for a couple of
     characters at its baud rate (≈ 3 ms a reply at 9600) so that it goes out in one segment — as a labgrid
     exporter does; off, each read from the device is forwarded at once."""
     if SER2NET is None:
         raise RuntimeError(NO_SER2NET)
+    raw = raw_device is not None
     ports = {"rfc2217": free_port(), "raw": free_port() if raw else None}
     options = "" if chardelay else "  options:\n    chardelay: false\n"
     config = [f"connection: &rfc2217\n  accepter: telnet(rfc2217),tcp,127.0.0.1,{ports['rfc2217']}\n"
               f"  connector: serialdev,{device},{line},local\n{options}"]
     if raw:
         config.append(f"connection: &raw\n  accepter: tcp,127.0.0.1,{ports['raw']}\n"
-                      f"  connector: serialdev,{device},{line},local\n{options}")
+                      f"  connector: serialdev,{raw_device},{line},local\n{options}")
     with tempfile.TemporaryDirectory(prefix="hil-ser2net-") as tmp:
         path = os.path.join(tmp, "ser2net.yaml")
         with open(path, "w") as f:

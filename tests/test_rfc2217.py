@@ -136,3 +136,19 @@ def test_a_server_that_goes_away_is_a_clear_error(server, protocol):
             assert "nothing accepted the connection — is the RFC 2217 server" in message, message
         finally:
             transport.close()
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.skipif(SER2NET is None, reason=NO_SER2NET)
+def test_a_port_another_client_holds_is_a_clear_error():
+    """ser2net serves one connection per port and closes a second one at once ("Port already in use")."""
+    with served("fatek-serial") as (_, device), exported("ser2net", device) as where:
+        first = open_transport(f"fatek+rfc2217://{where.rfc2217}?timeout=0.5")
+        try:
+            with pytest.raises(TransportError, match="closed it at once — another client holds the port"):
+                open_transport(f"fatek+rfc2217://{where.rfc2217}?timeout=0.5")
+            assert first.read_words("R4128", 1)  # the first client is undisturbed
+        finally:
+            first.close()
+        second = open_transport(f"fatek+rfc2217://{where.rfc2217}?timeout=3")  # free again, once ser2net lets go
+        second.close()

@@ -26,6 +26,9 @@ import re
 import select
 import socket
 import termios
+import threading
+import time
+import warnings
 from abc import ABC, abstractmethod
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
@@ -111,6 +114,8 @@ class Rfc2217Line(Line):
     (:data:`RFC2217_SLICE`), input drained from pyserial's local queue."""
 
     def receive(self, wait: float) -> bytes:
+        """As :meth:`Line.receive`, but an empty wait lasts the slice whatever ``wait`` is (the timeout is fixed):
+        the caller's loop overruns its deadline by at most :data:`RFC2217_SLICE`."""
         port = self.port
         if not port.in_waiting:
             first = port.read(1)  # blocks up to the slice; raises once the reader thread has died
@@ -164,8 +169,7 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
     settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
     try:
         if is_rfc2217(url):
-            return Rfc2217Line(url, serial.serial_for_url(_rfc2217_options(url, timeout), timeout=RFC2217_SLICE,
-                                                          **settings), None)
+            return Rfc2217Line(url, _open_rfc2217(url, timeout, settings), None)
         extra = {} if exclusive is None else {"exclusive": exclusive}
         # timeout=0: reads return what has arrived; the client waits with select() up to its own deadline.
         return LocalLine(url, serial.serial_for_url(url, timeout=0, write_timeout=write_timeout, **settings,
@@ -177,10 +181,51 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
         raise TransportError(f"cannot open {url}: " + (hint if known else f"{detail} — {hint}")) from exc
 
 
+def _open_rfc2217(url: str, timeout: float, settings: dict) -> serial.SerialBase:
+    """pyserial's RFC 2217 client on ``url``.  A server that accepts and closes at once (a broken pipe while the
+    options are negotiated) may still be releasing the device from the previous client — ser2net serves one
+    connection per port and opens the device per connection — so that is tried again for up to ``timeout``."""
+    _quiet_reader_deaths()
+    deadline = time.monotonic() + max(timeout, 1.0)
+    while True:
+        try:
+            with warnings.catch_warnings():  # pyserial 3.5 names its reader thread with setDaemon()/setName()
+                warnings.filterwarnings("ignore", r"set(Daemon|Name)\(\) is deprecated", DeprecationWarning)
+                return serial.serial_for_url(_rfc2217_options(url, timeout), timeout=RFC2217_SLICE, **settings)
+        except OSError as exc:
+            if exc.errno not in _CLOSED_AT_ONCE or time.monotonic() >= deadline:
+                raise
+        time.sleep(0.05)
+
+
+_CLOSED_AT_ONCE = (errno.EPIPE, errno.ECONNRESET)
+_READER = "pySerial RFC 2217 reader thread"  # the name pyserial (and its labgrid fork) gives the client's thread
+
+
+def _quiet_reader_deaths() -> None:
+    """pyserial's RFC 2217 reader thread dies with a traceback on stderr when the server drops the connection while
+    it answers a telnet option (a busy port: one per attempt).  The client sees the connection gone and hil says
+    why, so that death says nothing more: it is not printed.  Every other thread exception goes to the previous
+    hook.  Installed once, at the first RFC 2217 open."""
+    previous = threading.excepthook
+    if getattr(previous, "hil_quiet_rfc2217", False):
+        return
+
+    def hook(args: threading.ExceptHookArgs) -> None:
+        if (args.thread is not None and args.thread.name.startswith(_READER)
+                and issubclass(args.exc_type, (BrokenPipeError, ConnectionResetError))):
+            return
+        previous(args)
+
+    hook.hil_quiet_rfc2217 = True  # type: ignore[attr-defined]
+    threading.excepthook = hook
+
+
 def _rfc2217_options(url: str, timeout: float) -> str:
-    """The URL pyserial's RFC 2217 client opens: ``ign_set_control`` (ser2net answers SET_CONTROL with the state
-    it has, not the value sent, which stock pyserial takes for a refusal) and the network ``timeout`` (how long to
-    wait for each acknowledgement at open: the transport's own, not pyserial's 3 s)."""
+    """The URL pyserial's RFC 2217 client opens: ``ign_set_control`` (no ser2net answer to SET_CONTROL satisfies
+    pyserial's check: without it the open fails after the network timeout, "timeout while waiting for option
+    'control'"; with it pyserial waits 0.1 s instead) and the network ``timeout`` (how long to wait for each
+    acknowledgement at open: the transport's own, not pyserial's 3 s)."""
     parts = urlsplit(url)
     options = dict(parse_qsl(parts.query, keep_blank_values=True))
     options.setdefault("ign_set_control", "")
@@ -207,6 +252,10 @@ def open_hint(url: str, exc: BaseException) -> str:
     if "no such file" in text:
         return _OPEN_HINTS[errno.ENOENT]
     if is_rfc2217(url):
+        if code in _CLOSED_AT_ONCE:
+            return ("the server accepted the connection and closed it at once — another client holds the port "
+                    "(ser2net serves one connection per port: a labgrid console, another run?) or the server "
+                    "cannot open its device")
         if "does not seem to support rfc2217" in text or "does not accept parameter" in text:
             return ("something answered at that port but not as an RFC 2217 server — is it ser2net's "
                     "telnet(rfc2217) accepter (a raw tcp accepter is reached with fatek+tcp:// or socket://)?")
