@@ -14,9 +14,12 @@ Two kinds, chosen by the port's URL (:func:`open_line`):
   queue) and stale input is drained from that queue, never purged on the server.
 
 The protocol logic (FATEK framing, resynchronisation, pymodbus's RTU client) is written once against :class:`Line`.
-Only API that stock pyserial 3.5 and labgrid's fork ``pyserial-labgrid`` (which installs into the same ``serial``
-package) both have is used: ``serial_for_url``, ``in_waiting``, ``read``, ``write``, ``close``, the ``ign_set_control``
-and ``timeout`` URL options.
+Only what stock pyserial 3.5 and labgrid's fork ``pyserial-labgrid`` (which installs into the same ``serial``
+package) both have is used: ``serial.rfc2217.Serial``, ``in_waiting``, ``read``, ``write``, the ``ign_set_control``
+and ``timeout`` URL options, and — to close without pyserial's 0.3 s sleep and to tell a server that hung up at
+once from one that is no RFC 2217 server — the client's ``_socket``, ``_thread`` and ``_read_buffer``, which the
+fork leaves as they are (its changes: a ``.timeout`` change is no renegotiation, an unchanged subnegotiation is
+not sent again).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from abc import ABC, abstractmethod
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import serial
+import serial.rfc2217
 
 from hil.core.errors import TransportError
 from hil.io.serial_line import line_coding
@@ -182,23 +186,50 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
 
 
 def _open_rfc2217(url: str, timeout: float, settings: dict) -> serial.SerialBase:
-    """pyserial's RFC 2217 client on ``url``.  A server that accepts and closes at once (a broken pipe while the
-    options are negotiated) may still be releasing the device from the previous client — ser2net serves one
-    connection per port and opens the device per connection — so that is tried again for up to ``timeout``."""
+    """pyserial's RFC 2217 client on ``url``.  A server that accepts and closes at once (the port is in use — ser2net
+    serves one connection per port and says "Port already in use" — or it is still releasing its device from the
+    previous client, as it opens the device per connection) is tried again for up to ``timeout``."""
     _quiet_reader_deaths()
     deadline = time.monotonic() + max(timeout, 1.0)
     while True:
+        port = _Client(None, timeout=RFC2217_SLICE, **settings)
+        port.port = _rfc2217_options(url, timeout)
         try:
             with warnings.catch_warnings():  # pyserial 3.5 names its reader thread with setDaemon()/setName()
                 warnings.filterwarnings("ignore", r"set(Daemon|Name)\(\) is deprecated", DeprecationWarning)
-                return serial.serial_for_url(_rfc2217_options(url, timeout), timeout=RFC2217_SLICE, **settings)
-        except OSError as exc:
-            if exc.errno not in _CLOSED_AT_ONCE or time.monotonic() >= deadline:
+                port.open()
+            return port
+        except (serial.SerialException, OSError) as exc:
+            if not port.ended and getattr(exc, "errno", None) not in (errno.EPIPE, errno.ECONNRESET):
                 raise
+            if time.monotonic() >= deadline:
+                said = port.said
+                raise ClosedAtOnce("the server closed the connection at once" +
+                                   (f" saying {said!r}" if said else "")) from exc
         time.sleep(0.05)
 
 
-_CLOSED_AT_ONCE = (errno.EPIPE, errno.ECONNRESET)
+class ClosedAtOnce(serial.SerialException):
+    """An RFC 2217 server accepted the connection and closed it before the options were negotiated."""
+
+
+class _Client(serial.rfc2217.Serial):
+    """pyserial's RFC 2217 client, noting at close whether the connection had already ended (``ended``: the reader
+    thread is gone — the server hung up, or pyserial's reader died of a write to it while answering an option) and
+    what the server had said (``said``: the text left in the queue, e.g. ser2net's "Port already in use").  Only
+    the class's own attributes, the same in pyserial and its labgrid fork."""
+
+    ended = False
+    said = ""
+
+    def close(self) -> None:
+        thread, queue = getattr(self, "_thread", None), getattr(self, "_read_buffer", None)
+        self.ended = thread is not None and not thread.is_alive()
+        items = list(getattr(queue, "queue", ()))
+        self.said = b"".join(item for item in items if item).decode("ascii", "replace").strip()
+        super().close()
+
+
 _READER = "pySerial RFC 2217 reader thread"  # the name pyserial (and its labgrid fork) gives the client's thread
 
 
@@ -252,10 +283,9 @@ def open_hint(url: str, exc: BaseException) -> str:
     if "no such file" in text:
         return _OPEN_HINTS[errno.ENOENT]
     if is_rfc2217(url):
-        if code in _CLOSED_AT_ONCE:
-            return ("the server accepted the connection and closed it at once — another client holds the port "
-                    "(ser2net serves one connection per port: a labgrid console, another run?) or the server "
-                    "cannot open its device")
+        if isinstance(exc, ClosedAtOnce):
+            return ("another client holds the port (ser2net serves one connection per port: a labgrid console, "
+                    "another run?) or the server cannot open its device")
         if "does not seem to support rfc2217" in text or "does not accept parameter" in text:
             return ("something answered at that port but not as an RFC 2217 server — is it ser2net's "
                     "telnet(rfc2217) accepter (a raw tcp accepter is reached with fatek+tcp:// or socket://)?")
