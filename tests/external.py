@@ -75,10 +75,13 @@ def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
     assert proc.returncode == 0, f"hil emulate exited with {proc.returncode}: {proc.stderr.read()}"
 
 
-def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp") -> str:
+def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp",
+                        url: str | None = None) -> str:
     """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP (or
-    Modbus/TCP) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
-    url = f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp" else f"modbus+tcp://{where['modbus-tcp']}?unit=1"
+    Modbus/TCP, or ``url``) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the
+    rig's coils."""
+    url = url or (f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp"
+                  else f"modbus+tcp://{where['modbus-tcp']}?unit=1")
     text = re.sub(r'(?m)^target = "emulator"', f'target = "{url}"', profile_text)
     text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
 

@@ -128,6 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
                            epilog="examples:\n  hil probe fatek+tcp://192.168.1.5:500\n"
                                   "  hil probe fatek+serial:///dev/ttyUSB0?baudrate=19200\n"
                                   "  hil probe modbus+tcp://192.168.1.5:502?unit=1\n"
+                                  "  hil probe fatek+rfc2217://exporter:3001   (port 0 behind ser2net / labgrid)\n"
                                   "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
                                   "with its temperature points)\n")
     probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "

@@ -58,7 +58,7 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
     params.setdefault("unit", station)
     if target.scheme == "modbus+tcp":
         return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
-    return ModbusS7Io.rtu(target.device, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+    return ModbusS7Io.rtu(target.serial_port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
 
 
 def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[], S7Emulator]) -> S7Io:
