@@ -45,7 +45,7 @@ def test_smoke_and_rtc_suites_pass_over_rfc2217(tmp_path, protocol):
         bench = tmp_path / f"{protocol}.toml"
         bench.write_text(bench_over_the_wire(emulated.read_text(), where, TIME_SCALE,
                                              url=f"{scheme}://{server.rfc2217}?{query}"))
-        out = subprocess.run([sys.executable, "-m", "pytest", *SUITES, "--bench", str(bench), "-q", "-rsfE", "-p",
+        out = subprocess.run([sys.executable, "-m", "pytest", *SUITES, "--bench", str(bench), "-rsfE", "-p",
                               "no:cacheprovider", "-p", "no:hypothesispytest"],
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path, timeout=240,
                              env={**os.environ, "PYTHONUNBUFFERED": "1"}).stdout
@@ -53,7 +53,7 @@ def test_smoke_and_rtc_suites_pass_over_rfc2217(tmp_path, protocol):
     print(f"{protocol}+rfc2217 via {server.kind}: {counts}")
     assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
     assert counts.get("passed", 0) >= 45, out[-3000:]
-    assert f"{protocol}+rfc2217://" in out, out[-3000:]  # the skip reasons name the target: it was this one
+    assert f"hil target: {protocol}+rfc2217://" in out, out[:3000]  # the session header names the target
     for line in out.splitlines():
         if line.startswith("SKIPPED"):
             assert any(re.search(allowed, line) for allowed in ALLOWED_SKIPS + [r"pass --hil-run-slow"]), line
