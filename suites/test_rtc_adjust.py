@@ -26,15 +26,24 @@ OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
     pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=OUR_CHOICE_WRAP),
 ])
 def test_adjust_30s(bench, rtc, io, start, after):
-    assert rtc.set(dt.datetime.fromisoformat(start)).accepted
-    began = bench.time.now()
-    rtc.adjust_30s()
+    begin = dt.datetime.fromisoformat(start)
+    slack = 30 - begin.second % 30  # chip seconds before the next window boundary changes what the edge does
+    for _attempt in range(3):
+        before = bench.time.now()
+        assert rtc.set(begin).accepted
+        began = bench.time.now()
+        rtc.adjust_30s()
+        ran = bench.time.now() - began
+        if bench.time.now() - before < slack:  # the edge surely came before the chip left the start's window
+            break
+    else:
+        pytest.skip(f"the set and the M1953 edge took {bench.time.now() - before:.1f} bench seconds, more than the "
+                    f"{slack} s from {start} to the next window: lower [bench] time_scale on this host")
     expected = dt.datetime.fromisoformat(after)
     second, minute, hour, day, month, year = io.read_words("R4128", 6)
     assert (minute, hour, day, month, year) == (expected.minute, expected.hour, expected.day, expected.month,
                                                 expected.year - 2000)
     # :00 at the edge, then the clock runs on for what is left of the procedure (a busy host's bench seconds)
-    ran = bench.time.now() - began
     assert 0 <= second <= 1 + ran, f"seconds {second} after the correction (procedure took {ran:.1f} s)"
 
 

@@ -27,12 +27,13 @@ MAIN_SET = ["test_smoke.py", "test_rtc.py", "test_rtc_validity.py", "test_rtc_ad
             "test_temperature.py", "test_pid.py"]
 CLOSED_LOOP = ["test_pid_control.py"]
 #: (suites, time scale): the closed loop plans 35 bench minutes; the rest a few bench minutes
-RUNS = {"main": (MAIN_SET, 10.0), "closed-loop": (CLOSED_LOOP, 50.0)}
+RUNS = {"main": (MAIN_SET, 5.0), "closed-loop": (CLOSED_LOOP, 50.0)}
 #: what may be skipped against a separate process, and why a bench may skip it too
 ALLOWED_SKIPS = [
     r"D4054 tests need D4054: D4054 cannot be reached over the default FBs Modbus map",  # a user map removes it
     r"this bench does not measure drift \(\[rtc\] drift_max_hours = 0\)",  # the profile's key removes it
     r"brackets were too wide to decide 9 vs 10",  # a busy host: the counter could not pin the scans down
+    r"lower \[bench\] time_scale on this host",  # a busy host at an accelerated time scale
 ]
 SCAN_COUNTER = "R3999"
 
