@@ -21,7 +21,7 @@ from tests.test_bench_mode import ALLOWED_SKIPS, _summary, bench_like
 
 SUITES = [str(REPO / "suites" / f) for f in
           ("test_smoke.py", "test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py")]
-TIME_SCALE = 5.0  # every read fenced (a second request): the RTC suites need the slack of a real bench
+TIME_SCALE = 5.0  # the RTC suites keep a real bench's slack on a busy host (and the pty, ser2net and RFC 2217 hops)
 #: protocol → (the endpoint kind hil emulate prints, its option, URL scheme, query)
 WIRES = {
     "fatek": ("fatek-pty", "--fatek-pty", "fatek+rfc2217", "station=1"),  # 9600 7E1: port 0's factory setting
