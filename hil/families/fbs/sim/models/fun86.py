@@ -168,7 +168,8 @@ class Fun86Model(Model):
         self._log: tuple | None = None
         self._replays = False
         self._output_keys: dict[tuple, frozenset] = {}
-        self._span = None  # the batch runner (models/span.py), made on first use
+        #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
+        self.batcher = None
 
     # -- the seams broken variants override (per point: arrays over an instance's points) -------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -181,8 +182,9 @@ class Fun86Model(Model):
 
     def enabled(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
         """Points' bits in R4012 (points 0–15) or R4013 (16–31)."""
-        first = _R[reg.PID_ENABLE_LOW]
-        return (np.array(mem.words["R"][first:first + 2])[point // 16] >> (point % 16) & 1).astype(bool)
+        first, point = _R[reg.PID_ENABLE_LOW], np.asarray(point)
+        words = np.array(mem.words["R"][first:first + int(point.max(initial=0)) // 16 + 1])  # (a point past 31 too)
+        return (words[point // 16] >> (point % 16) & 1).astype(bool)
 
     def drive(self, enabled: np.ndarray, on: bool) -> np.ndarray:
         """The PWM outputs of points: a disabled point's output is forced off."""
@@ -514,7 +516,8 @@ class Fun86Model(Model):
         first = _R[reg.PID_ENABLE_LOW]
         key = (words[start.kind][start.index + sn:start.index + sn + zn], words[inst.sv.kind][inst.sv.index:
                inst.sv.index + zn], words[inst.os.kind][inst.os.index:inst.os.index + zn],
-               words["R"][first:first + 2], words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], limit,
+               words["R"][first:first + (sn + zn - 1) // 16 + 1],  # (R4012/R4013: the enable bits)
+               words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], limit,
                high_at, heating, start)
         view = st.view
         plain = type(self).enabled is Fun86Model.enabled  # (a seam of its own may read other registers)
@@ -607,7 +610,7 @@ class Fun86Model(Model):
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
         view = st.view  # (its enabled points, while R4012/R4013 are as it read them)
         first = _R[reg.PID_ENABLE_LOW]
-        if view is not None and view.key[3] == mem.words["R"][first:first + 2] and \
+        if view is not None and view.key[3] == mem.words["R"][first:first + (st.sn + st.zn - 1) // 16 + 1] and \
                 type(self).enabled is Fun86Model.enabled:
             points = st.sn + view.idx
         else:
@@ -661,8 +664,5 @@ class Fun86Model(Model):
         """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
         if not self.pwm_exact or self.temperature_model is None or self.temperature_model.log is None:
             return False  # (scans at PWM edges or at every measurement: none to batch)
-        if self._span is None:
-            from hil.families.fbs.sim.models.span import Span  # noqa: PLC0415 - span imports this module
-            self._span = Span(self)
-        return self._span.run(engine, target)
+        return self.batcher is not None and self.batcher.run(self, engine, target)
 

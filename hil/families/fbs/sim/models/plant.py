@@ -270,12 +270,17 @@ def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, 
 
 class PlantSource:
     """A heated point as a temperature source: a callable of time (its measurement, noise included) with a hard
-    upper bound; the temperature model measures the points of one plant together (:meth:`ThermalPlant.measured`)."""
+    upper bound; the temperature model measures the points of one ``group`` together (:meth:`ThermalPlant.measured`
+    of their slots)."""
 
     __slots__ = ("plant", "point", "slot")
 
     def __init__(self, plant: "ThermalPlant", point: int, slot: int) -> None:
         self.plant, self.point, self.slot = plant, point, slot
+
+    @property
+    def group(self) -> "ThermalPlant":
+        return self.plant
 
     def __call__(self, t: float) -> float:
         return float(self.plant.measured(np.array([self.slot]), np.array([self.point]), np.array([t]))[0])

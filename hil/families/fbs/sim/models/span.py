@@ -37,7 +37,8 @@ import numpy as np
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
 from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
-from hil.families.fbs.sim.models.fun86 import _R, PREALARM_SCANS, Fun86Model, InstanceState, Law
+from hil.families.fbs.address import parse
+from hil.families.fbs.sim.models.fun86 import PREALARM_SCANS, Fun86Model, InstanceState, Law
 from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
                                                 noise_index)
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, TemperatureModel
@@ -48,6 +49,9 @@ from hil.sim.model import scan_grid
 if TYPE_CHECKING:
     from hil.sim.engine import Engine
     from hil.families.fbs.sim.memory import Memory
+
+_INDEX = {name: parse(name).index for name in (reg.PREALARM_LIMIT, reg.HEATER_LOOP_SECONDS, reg.PID_SOURCE_KEY,
+                                                reg.INSTALLED_LOW)}
 
 #: scans per batch at most (the batch's arrays are scans × columns)
 CHUNK = 2048
@@ -110,14 +114,15 @@ class _Step:
 
 
 class Span:
-    """Runs FUN86's scans in batches (see the module docstring); :meth:`Fun86Model.span` asks it."""
+    """Runs a FUN86 model's scans in batches (see the module docstring): its :attr:`Fun86Model.batcher`."""
 
-    def __init__(self, fun86: Fun86Model) -> None:
-        self.fun86 = fun86
+    def __init__(self) -> None:
+        self.fun86: Fun86Model | None = None
         self._shared_key: object = None
         self._shared = True
 
-    def run(self, engine: "Engine", target: float) -> bool:
+    def run(self, fun86: Fun86Model, engine: "Engine", target: float) -> bool:
+        self.fun86 = fun86
         ready = self._ready(engine)
         if ready is None:
             return False
@@ -170,7 +175,7 @@ class Span:
             return None
         words = mem.words
         r = words["R"]
-        limit, loop_seconds = r[_R[reg.PREALARM_LIMIT]], r[_R[reg.HEATER_LOOP_SECONDS]]
+        limit, loop_seconds = r[_INDEX[reg.PREALARM_LIMIT]], r[_INDEX[reg.HEATER_LOOP_SECONDS]]
         loops = []
         for inst, st in zip(fun86.config.instances, states):
             if not st.running:
@@ -246,8 +251,8 @@ class Span:
 
         writes = [run(table.readings, table.total), run(table.work, 4 + 4 * table.count)]
         reads = run(fun86.temperature_model.config.table, len(table.header))
-        reads |= {("R", _R[reg.PID_SOURCE_KEY] + i) for i in range(6)} | {("R", _R[reg.PID_ENABLE_LOW] - 2 + i)
-                                                                         for i in range(4)}
+        reads |= {("R", _INDEX[reg.PID_SOURCE_KEY] + i) for i in range(6)}  # R4003–R4008
+        reads |= {("R", _INDEX[reg.INSTALLED_LOW] + i) for i in range(4)}  # R4010–R4013
         for inst, st in zip(fun86.config.instances, fun86.states):
             reads |= run(inst.en, 1)
             if inst.settable:

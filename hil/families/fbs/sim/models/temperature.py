@@ -32,7 +32,6 @@ from hil.core.errors import InvalidValue
 from hil.sim.columns import last_of_each, occurrence
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
-from hil.families.fbs.sim.models.plant import PlantSource
 from hil.families.fbs.temperature import (BREAK_VALUE, SENSOR_BY_CODE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
@@ -420,7 +419,8 @@ class TemperatureModel(Model):
         return math.inf if math.isinf(celsius) else to_unit(celsius, self.config.unit)
 
     def values(self, times: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """Each point's source at its time, °C: the points of a thermal plant solved together."""
+        """Each point's source at its time, °C.  Sources of one group (a source with ``group`` and ``slot``, e.g.
+        a thermal plant's points) are measured together: ``group.measured(slots, points, times)``."""
         plant, slots = self._plant_slots()
         if plant is not None:
             slot = slots[points]
@@ -430,24 +430,24 @@ class TemperatureModel(Model):
         sources = [self.sources[p] for p in points.tolist()]
         plants: dict[int, list[int]] = {}
         for i, source in enumerate(sources):
-            if isinstance(source, PlantSource):
-                plants.setdefault(id(source.plant), []).append(i)
+            if getattr(source, "group", None) is not None:
+                plants.setdefault(id(source.group), []).append(i)
             else:
                 out[i] = source(float(times[i]))
         for columns in plants.values():
             cols = np.array(columns)
-            plant = sources[columns[0]].plant
-            out[cols] = plant.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
+            group = sources[columns[0]].group
+            out[cols] = group.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
         return out
 
     def _plant_slots(self) -> tuple:
-        """(a plant, the slot of each point in it — −1 for a point with another source), for the plant that heats
-        the most points."""
+        """(a group of sources — a plant —, the slot of each point in it — −1 for a point with another source), for
+        the group with the most points."""
         if self._slots[0] != self._sources_version:
             plants: dict[int, list] = {}
             for point, source in self.sources.items():
-                if isinstance(source, PlantSource):
-                    plants.setdefault(id(source.plant), [source.plant, []])[1].append((point, source.slot))
+                if getattr(source, "group", None) is not None:
+                    plants.setdefault(id(source.group), [source.group, []])[1].append((point, source.slot))
             plant, slots = None, np.full(MAX_POINTS, -1)
             if plants:
                 plant, pairs = max(plants.values(), key=lambda entry: len(entry[1]))
