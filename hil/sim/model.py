@@ -12,6 +12,7 @@ if TYPE_CHECKING:
 
 
 Time = TypeVar("Time", float, np.ndarray)
+_SLACK = np.array(1e-6)
 
 
 def scan_grid(t: Time, scan_time: float) -> Time:
@@ -19,7 +20,8 @@ def scan_grid(t: Time, scan_time: float) -> Time:
     fast-forward jump lands, so the scan stepping would take."""
     if isinstance(t, float):  # (the same arithmetic, without numpy's overhead on one number)
         return math.ceil(t / scan_time - 1e-6) * scan_time
-    return np.ceil(t / scan_time - 1e-6) * scan_time
+    step = np.array(scan_time)  # (a 0-d array: cheaper as an operand than a Python number)
+    return np.ceil(t / step - _SLACK) * step
 
 
 class Model:

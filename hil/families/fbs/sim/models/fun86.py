@@ -128,6 +128,11 @@ class _View:
     waves: tuple | None = None  # (ON seconds, Y when on, Y when off)
 
 
+#: the output's bounds as 0-d arrays: numpy takes a Python number as an operand at a cost several times that of a
+#: 0-d array (and a control step over a few dozen points is a dozen such operations, once per PID interval)
+_FULL, _LOWEST, _ZERO = np.array(float(OUTPUT_FULL)), np.array(-float(OUTPUT_FULL)), np.array(0.0)
+
+
 @dataclass(frozen=True)
 class Law:
     """The control law's coefficients for some points of an instance (constant while its registers are)."""
@@ -238,14 +243,14 @@ class Fun86Model(Model):
             derivative = law.per_change * (pv - pv_prev)
         else:
             derivative = law.derivative * ((pv - pv_prev) / law.ts)
-        integrate = law.ki if law.md1 else np.abs(proportional) < OUTPUT_FULL
+        integrate = law.ki if law.md1 else np.abs(proportional) < _FULL
         if not law.md1 and not law.every_ki:
             integrate &= law.ki
         # (an integral not integrating gains 0.0 and stays within ±16383)
-        integral = np.minimum(np.maximum(integral + law.integrate * error * integrate, -OUTPUT_FULL), OUTPUT_FULL)
+        integral = np.minimum(np.maximum(integral + law.integrate * error * integrate, _LOWEST), _FULL)
         if not law.every_ki:
             integral = np.where(law.ki, integral, 0.0)
-        return np.minimum(np.maximum(np.rint(proportional + integral + derivative), 0), OUTPUT_FULL), integral
+        return np.minimum(np.maximum(np.rint(proportional + integral + derivative), _ZERO), _FULL), integral
 
     # -- helpers ---------------------------------------------------------------------------------------------------
     def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
@@ -565,7 +570,7 @@ class Fun86Model(Model):
     @staticmethod
     def on_times(st: InstanceState, output: np.ndarray) -> np.ndarray:
         """Seconds ON of each PWM period for outputs (OR): OR/16383 of the period."""
-        return output / OUTPUT_FULL * st.pwm
+        return output / _FULL * st.pwm
 
     @staticmethod
     def outputs_at(st: InstanceState, now: float, on_time: np.ndarray, y_on: np.ndarray, y_off: np.ndarray) -> bytes:

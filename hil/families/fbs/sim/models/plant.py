@@ -181,27 +181,31 @@ def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 
 _POINT_TERMS: dict[int, np.ndarray] = {}
+#: 0 as a 0-d array: numpy takes a Python number as an operand at a cost several times that of a 0-d array (and
+#: this runs once per point group and PID interval)
+_ZERO = np.array(0.0)
 
 
 def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
     """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
     (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
-    clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0)."""
+    clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0), or one row for every
+    cycle."""
     decay = np.exp((a - t[0]) * rate[0])
-    begins = np.exp(np.minimum((np.maximum(starts, a) - t) * rate, 0.0))
+    begins = np.exp(np.minimum((np.maximum(starts, a) - t) * rate, _ZERO))
     return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
 def cycles_temperature(temp_a, a, t, offs, lift, rate, terms, out=None):  # noqa: ANN001, ANN201
     """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
-    each: ``t``, ``offs`` and ``rate`` (1/τ); ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
+    each: ``offs``; ``t`` and ``rate`` (1/τ) too, or one row for all; ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
     cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
     plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
 
     A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
     [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
     decay, base = terms
-    ends = np.minimum((np.maximum(offs, a) - t) * rate, 0.0)
+    ends = np.minimum((np.maximum(offs, a) - t) * rate, _ZERO)
     return np.add(temp_a * decay + base, lift * _cycles_sum(np.exp(ends, out=ends)), out=out)
 
 

@@ -492,15 +492,22 @@ class _Batch:
         # from the cycle each scan's interval starts in to the last starting before the scan: scans × cycles × slots
         first = cycle(a, False)
         n_cycles = max(1, int((cycle(scans[1:, None], True) - first).max()) + 1)
-        raw = (started + (first[:, None] + np.arange(n_cycles)[:, None]) * period)[..., self.wave_of]
+        raw = started + (first[:, None] + np.arange(n_cycles)[:, None]) * period  # scans × cycles × waveforms
         shape = (n, n_cycles, c_slot.shape[1])
+        # each column's (with one waveform, every column's is its one), whole rows for the steps, which take a
+        # scan's row at a time: numpy broadcasts an operand at a cost per operation several times a row's
         s3 = np.ascontiguousarray(np.broadcast_to(c_slot[:, None], shape))
-        raw = np.take_along_axis(raw, s3, axis=2)  # (each column's, where a scan's step is cheapest)
+        if len(started) > 1:
+            raw = np.take_along_axis(raw[..., self.wave_of], s3, axis=2)
+            starts = scan_grid(raw, st_time)
+        else:
+            starts = scan_grid(raw, st_time)
+            raw = np.ascontiguousarray(np.broadcast_to(raw, shape))
         t3 = np.ascontiguousarray(np.broadcast_to(c_time[:, None], shape))
-        r3 = self.rate[s3]
+        r3 = np.ascontiguousarray(np.broadcast_to(self.rate[c_slot][:, None], shape))
         c_lift = self.lift[c_slot]
-        decay, base = cycle_terms(a, t3.transpose(1, 0, 2), scan_grid(raw, st_time).transpose(1, 0, 2),
-                                  self.t_off[c_slot], c_lift, r3.transpose(1, 0, 2))
+        decay, base = cycle_terms(a, t3.transpose(1, 0, 2), starts.transpose(1, 0, 2), self.t_off[c_slot], c_lift,
+                                  r3.transpose(1, 0, 2))
         if plant.normals is not None:  # (a measurement is T plus its noise: here, the columns come out measured)
             heated = block["heated"]
             noise = plant.normals[noise_index(plant.seed, block["points"], block["times"])] \

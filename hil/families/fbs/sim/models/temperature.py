@@ -43,6 +43,7 @@ if TYPE_CHECKING:
 Source = Callable[[float], float]  # virtual seconds since power-on → true temperature, °C
 
 _MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
+_TEN = np.array(10.0)  # (a 0-d array: cheaper as a numpy operand than a Python number)
 
 
 @dataclass(frozen=True)
@@ -474,8 +475,8 @@ class TemperatureModel(Model):
         """Averaged values as readings in 0.1° (the fast rate has 1° resolution, still shown in 0.1° units): whole
         numbers, as floats."""
         if self.config.rate == "fast":
-            return np.rint(mean) * 10
-        return np.rint(mean * 10)
+            return np.rint(mean) * _TEN
+        return np.rint(mean * _TEN)
 
     def average(self, points: np.ndarray, value: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
         """Each value's mean with the point's samples before it (the last ``averaging``), the samples updated.
