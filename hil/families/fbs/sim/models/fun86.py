@@ -225,6 +225,8 @@ class Fun86Model(Model):
     def law(self, inst: PidInstance, kc: np.ndarray, ki: np.ndarray, td: np.ndarray, heating: bool,
             ts: float) -> Law:
         """The PID law's coefficients from the gains (spec: the manual's formula; derivative on PV)."""
+        kc = np.asarray(kc, dtype=float)  # (gains are whole numbers: as floats, the arithmetic is the same and
+        # each step's operations take operands of one type, without a cast)
         derivative = -kc * (td / 100 * 60) * (1 if heating else -1)
         exact = ts > 0 and math.frexp(ts)[0] == 0.5  # (a power of two)
         return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts, derivative, heating, inst.md == 1,

@@ -109,7 +109,7 @@ class _Step:
                            and bool((loop.driven == np.arange(st.zn)).all()))
         self.integral, self.prev = st.integral[idx], st.pv_prev[idx]
         self.has: np.ndarray | bool = True if st.has_prev[idx].all() else st.has_prev[idx]
-        self.sv = loop.sv[idx]
+        self.sv = loop.sv[idx].astype(float)  # (as the PVs: one type, no cast at each step)
         self.output = loop.output.astype(float)
 
 
