@@ -127,11 +127,6 @@ class Transport(Link, ABC):
         with self._lock:
             return self._count(self._status())
 
-    def fence(self) -> bool:
-        """After a read whose value decides what gets restored: True when the reply cannot have been a stale one
-        (a late or repeated reply to an earlier request).  Wires with transaction ids need no fence."""
-        return True
-
     def unreachable_reason(self, address: NameLike) -> str | None:
         """Why this transport cannot reach ``address`` (e.g. D4054 over the default Modbus map), or None."""
         parse(address)

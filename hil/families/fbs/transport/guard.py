@@ -77,21 +77,11 @@ class GuardedTransport(Transport):
             wanted += list(self.side_effects(list(base)))
         fresh = [a for a in dict.fromkeys(wanted) if a not in self.journal and a not in self.volatile]
         if fresh:
-            originals = dict(zip(fresh, self.fenced_read(fresh)))
+            originals = dict(zip(fresh, self.inner.read_many(fresh)))  # a read is never a late reply (README, Safety)
             if self.durable is not None:  # on disk (fsync'd) before the write goes out
                 self.durable.add_elements({str(a): v for a, v in originals.items()})
             self.journal.update(originals)
         self.touched.update(base)
-
-    def fenced_read(self, addresses: list[Address], tries: int = 8) -> list[int]:
-        """Values that decide what gets restored (an original, a restore's read-back): read, then fenced
-        (:meth:`Transport.fence`) so a late or repeated reply to an earlier request is never taken for them."""
-        for _ in range(tries):
-            values = self.inner.read_many(addresses)
-            if self.inner.fence():
-                return values
-        raise TransportError(f"reading {', '.join(map(str, addresses[:4]))}… on {self.inner.description}: stale "
-                             f"replies kept arriving before the answer ({tries} fenced attempts)")
 
     def start_journal(self) -> None:
         """The next test starts: forget which elements were touched.  Originals whose restore failed stay in the
@@ -136,7 +126,7 @@ class GuardedTransport(Transport):
         except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
             return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         try:
-            now = self.fenced_read([a for a, _ in items])
+            now = self.inner.read_many([a for a, _ in items])
         except Exception as exc:  # noqa: BLE001
             return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         failures += [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v]
