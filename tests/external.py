@@ -54,8 +54,10 @@ def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
 def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
                     broken: str | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
-    loopback port); yields kind → address.  Stopped with SIGINT; it must exit cleanly."""
-    options = [arg for option in wires.values() for arg in (option, "127.0.0.1:0")]
+    loopback port, or a pty for ``--…-pty``); yields kind → address (a pty's path).  Stopped with SIGINT; it must
+    exit cleanly."""
+    options = [arg for option in wires.values()
+               for arg in ((option,) if option.endswith("-pty") else (option, "127.0.0.1:0"))]
     proc = subprocess.Popen(
         [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
          "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],
