@@ -214,14 +214,20 @@ def test_prealarm_needs_10_consecutive_scans(bench, pid, dip_after):
     points = _enabled_points(bench, inst)
     assert min(pid.pvs(points).values()) >= 100, "the points must read ≥ 10.0 ° for R4008 = 100 to be under PV"
     io = bench.plc.io
-    io.write("R4008", 100)  # from the next scan on, PV ≥ R4008 on every point
-    if dip_after:
-        bench.wait((dip_after - 1) * scan)  # scans 1 … dip_after − 1
-        io.write("R4008", 65535)  # serviced after scan dip_after; the next scan sees PV < R4008
-        io.write("R4008", 100)  # serviced after that (dip) scan: counting starts again with the next scan
-    bench.wait(8 * scan)  # 8 scans with PV ≥ R4008 …
-    ninth = pid.alarm_words(inst)  # … and the 9th, before this read is answered
-    tenth = pid.alarm_words(inst)
+
+    def after(scans):
+        """The words read right after the ``scans``-th consecutive scan with PV ≥ R4008 — one read each, since on
+        a wire without transaction ids a read is fenced by a second request, a scan of its own (README, Safety)."""
+        io.write("R4008", 65535)  # serviced after a scan; the next scan sees PV < R4008: the count is 0
+        if dip_after:
+            io.write("R4008", 100)  # from the next scan on, PV ≥ R4008 on every point
+            bench.wait((dip_after - 1) * scan)  # scans 1 … dip_after − 1
+            io.write("R4008", 65535)  # serviced after scan dip_after; the next scan sees PV < R4008
+        io.write("R4008", 100)  # serviced after that scan: counting starts (again) with the next one
+        bench.wait((scans - 1) * scan)  # scans − 1 scans with PV ≥ R4008 …
+        return pid.alarm_words(inst)  # … and one more before this read is answered
+
+    ninth, tenth = after(9), after(10)
     assert not ninth.warning_points(), f"9 consecutive scans ≥ R4008 are not enough: warnings {ninth.warning_points()}"
     want = _expected_words(inst, points)
     assert tenth.words[2:] == want, f"after the 10th scan every point warns: WR+2/3 = {tenth.words[2:]}, want {want}"
@@ -235,10 +241,19 @@ def _scans(bench):
     return bench.plc.io.read(bench.profile.scan_counter)
 
 
+def _scans_per_read(bench, tries=6):
+    """How many scans a read spans on this bench: port 0 services each request at the end of a scan, and on a wire
+    without transaction ids every read is followed by a fence, a second request (README, Safety).  The fewest
+    scans between two back-to-back reads of the counter."""
+    counts = [_scans(bench) for _ in range(tries + 1)]
+    return max(1, min(b - a for a, b in zip(counts, counts[1:])))
+
+
 def _write_bracketed(bench, name, value):
     """Write ``value`` between two reads of the scan counter: (c1, c2).  Port 0 services each request at the end
-    of a scan and scans between two requests, so the write landed after scan c1 + 1 at the earliest and c2 − 1 at
-    the latest: the first scan to see it is one of c1 + 2 … c2."""
+    of a scan and scans between two requests, so with reads spanning r scans (:func:`_scans_per_read`) the write
+    landed after scan c1 + r at the earliest and c2 − 1 at the latest: the first scan to see it is one of
+    c1 + r + 1 … c2."""
     c1 = _scans(bench)
     bench.plc.io.write(name, value)
     return c1, _scans(bench)
@@ -248,9 +263,9 @@ def _write_bracketed(bench, name, value):
 @pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
 def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
-    count the counter pins down exactly: the words are read between two counter reads (R in c_a + 1 … c_b − 1),
-    so with PV ≥ R4008 first seen by scan F (c1 + 2 … c2) the words show R − F + 1 counted scans, known exactly
-    when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
+    count the counter pins down exactly: the words are read between two counter reads (R in c_a + r … c_b − r, a
+    read spanning r scans), so with PV ≥ R4008 first seen by scan F (c1 + r + 1 … c2) the words show R − F + 1
+    counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
     pins down both 9 and 10 the test skips with the widths it saw."""
     inst = _instances(pid)[0]
     _need(bench, "R4008")
@@ -263,6 +278,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     io = bench.plc.io
     decided = {}  # exact count → warned
     widths = []
+    r = _scans_per_read(bench)
     for attempt in range(BENCH_ATTEMPTS):
         io.write("R4008", 65535)
         bench.settle()
@@ -272,18 +288,20 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
         if dip:
             # a dip after a few (1 … 8) counted scans: the count must start again from zero after it
             _, c3 = _write_bracketed(bench, "R4008", 65535)
-            if c3 - (c1 + 2) > 8:
+            if c3 - (c1 + r + 1) > 8:
                 continue  # the first run may have reached 10 scans before the dip: not the case under test
             c1, c2 = _write_bracketed(bench, "R4008", 100)
-        first_low, first_high = c1 + 2, c2  # the first scan that sees PV ≥ R4008
-        for _ in range(attempt % 3):  # a read takes three requests: shift the phase from attempt to attempt
-            _scans(bench)
+        first_low, first_high = c1 + r + 1, c2  # the first scan that sees PV ≥ R4008
+        # Shift the phase from attempt to attempt, one scan at a time (a write of the value R4008 holds: only scans
+        # pass), over the 3 r scans the loop below advances by, so that every count gets its chance to be exact.
+        for _ in range(attempt % (3 * r)):
+            io.write("R4008", 100)
         while True:
             ca = _scans(bench)
             words = tuple(io.read_words(str(wr), 2))
             cb = _scans(bench)
-            low = (ca + 1) - first_high + 1  # fewest counted scans the words can show
-            high = (cb - 1) - first_low + 1  # most
+            low = (ca + r) - first_high + 1  # fewest counted scans the words can show
+            high = (cb - r) - first_low + 1  # most
             widths.append(high - low)
             if high <= 9:
                 assert words == (0, 0), (f"a warning after at most {high} consecutive scans with PV ≥ R4008 "
