@@ -241,19 +241,12 @@ def _scans(bench):
     return bench.plc.io.read(bench.profile.scan_counter)
 
 
-def _scans_per_read(bench, tries=6):
-    """How many scans a read spans on this bench: port 0 services each request at the end of a scan, and on a wire
-    without transaction ids every read is followed by a fence, a second request (README, Safety).  The fewest
-    scans between two back-to-back reads of the counter."""
-    counts = [_scans(bench) for _ in range(tries + 1)]
-    return max(1, min(b - a for a, b in zip(counts, counts[1:])))
-
-
 def _write_bracketed(bench, name, value):
     """Write ``value`` between two reads of the scan counter: (c1, c2).  Port 0 services each request at the end
-    of a scan and scans between two requests, so with reads spanning r scans (:func:`_scans_per_read`) the write
-    landed after scan c1 + r at the earliest and c2 − 1 at the latest: the first scan to see it is one of
-    c1 + r + 1 … c2."""
+    of a scan and scans between two requests, and a read is r requests (``io.requests_per_read``: 2 where reads
+    are fenced, README, Safety), so the write landed after scan c1 + r at the earliest and c2 − 1 at the latest:
+    the first scan to see it is one of c1 + r + 1 … c2.  (r is what the transport says, never a count measured
+    from the scans: a busy host only makes those larger, and a bracket built on one narrower than the truth.)"""
     c1 = _scans(bench)
     bench.plc.io.write(name, value)
     return c1, _scans(bench)
@@ -278,7 +271,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     io = bench.plc.io
     decided = {}  # exact count → warned
     widths = []
-    r = _scans_per_read(bench)
+    r = io.requests_per_read
     for attempt in range(BENCH_ATTEMPTS):
         io.write("R4008", 65535)
         bench.settle()

@@ -379,6 +379,7 @@ class OverModbusWire:
     # the wire counts requests (Link.__init__ assigns 0 before the wire is known: ignored)
     requests = property(lambda self: self.wire.requests, lambda self, value: None)
     resyncs = property(lambda self: self.wire.resyncs)
+    requests_per_read = property(lambda self: 2 if self.wire.serial else 1)  # RTU: the read and its fence
     reconnects = property(lambda self: self.wire.reconnects)
     client = property(lambda self: self.wire.client)
 

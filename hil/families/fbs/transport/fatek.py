@@ -48,6 +48,7 @@ class FatekTransport(Transport):
 
     # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
+    requests_per_read = 2  # the read and its fence
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,

@@ -35,6 +35,7 @@ class GuardedTransport(Transport):
         super().__init__(f"guarded {inner.description}")
         self.inner = inner
         self.limits = inner.limits
+        self.requests_per_read = inner.requests_per_read
         self.emulator = inner.emulator
         self.writable = expand(writable)
         self.volatile = expand(volatile)

@@ -29,6 +29,7 @@ def guarded_io(guard: Any) -> Any:
     namespace["__doc__"] = f"Guarded I/O of {guard.description}: reads, and writes the profile allows."
     namespace["description"] = property(lambda self: guard.description)
     namespace["limits"] = property(lambda self: guard.limits)
+    namespace["requests_per_read"] = property(lambda self: guard.requests_per_read)
     namespace["__repr__"] = lambda self: f"<guarded I/O of {guard.description}>"
     namespace["__setattr__"] = _frozen
     return type("GuardedIO", (), namespace)()
