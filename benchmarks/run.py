@@ -12,7 +12,9 @@ Not pass/fail tests (timings are noisy on shared machines): a rich table on the 
    the floor), and the bare CPython arithmetic of plant + PID alone as that floor, measured in the same run;
 4. wall time of ``hil run`` per emulator target;
 5. bench time: the non-slow FBs suites at time scale 1 against ``hil emulate`` in real time, per suite file
-   (benchmarks/bench_time.py; target ≤ 3 min; ``--bench-time-only`` runs just this).
+   (benchmarks/bench_time.py; target ≤ 3 min; ``--bench-time-only`` runs just this);
+6. RFC 2217: a round trip over ``fatek+rfc2217://`` against a raw ``socket://`` to the same ser2net exporting the
+   same pty (target ≤ 1.5×), and ``modbus+rfc2217://`` against the pty opened directly.
 
 ``--quick`` shortens every timing (a smoke run).
 """
@@ -389,6 +391,64 @@ def arithmetic_floor(hours: float, points: int = 32, interval: float = 4.0, pwm:
 
 
 # -- 4. hil run -------------------------------------------------------------------------------------------------------
+# -- 6. RFC 2217 -----------------------------------------------------------------------------------------------------
+def _interleaved_ms(opens: dict, n: int) -> dict[str, float]:
+    """Median ms per read of R4128 ×8 over each of ``opens``' transports (all open at once, each to its own PLC),
+    ``n`` reads each, one of each in turn; connection set-up not counted."""
+    import statistics
+    transports = {name: opener() for name, opener in opens.items()}
+    samples: dict[str, list[float]] = {name: [] for name in opens}
+    try:
+        for transport in transports.values():
+            transport.read_words("R4128", 8)
+        for _ in range(n):
+            for name, transport in transports.items():
+                started = time.perf_counter()
+                transport.read_words("R4128", 8)
+                samples[name].append(time.perf_counter() - started)
+    finally:
+        for transport in transports.values():
+            transport.close()
+    return {name: statistics.median(v) * 1000 for name, v in samples.items()}
+
+
+def bench_rfc2217(n: int) -> dict:
+    """Two emulators on their own ptys, one ser2net: FATEK (9600 7E1) over its RFC 2217 accepter against a raw TCP
+    accepter, with ser2net's chardelay (its default, as labgrid exporters run it: a reply is held until the line has
+    been quiet for a couple of characters) and without (what is left is the RFC 2217 client's own cost); Modbus RTU
+    (115200 8E1) over RFC 2217 against pymodbus's client on a pty of its own (pymodbus's RTU client counts a reply
+    by ``in_waiting``, which pyserial's ``socket://`` reports as 0 or 1: no raw-socket baseline)."""
+    from tests.rfc2217_servers import NO_SER2NET, SER2NET, ser2net
+    if SER2NET is None:
+        return {"skipped": NO_SER2NET}
+    from hil.families.fbs.sim.plc import Emulator
+    from hil.families.fbs.transport.factory import open_transport, serve
+    from hil.families.fbs.transport.modbus import ModbusTransport
+    rows = []
+    for wire, line, query in (("fatek-serial", "9600e71", "station=1"),
+                              ("modbus-rtu", "115200e81", "unit=1&baudrate=115200&parity=E")):
+        served = [serve(Emulator(), wire) for _ in range(2)]
+        try:
+            for chardelay in (True, False):
+                fatek = wire.startswith("fatek")
+                with ser2net(served[0].address, line, raw_device=served[1].address if fatek else None,
+                             chardelay=chardelay) as where:
+                    baseline = (lambda: open_transport(f"fatek+tcp://{where.raw}?station=1")) if fatek else \
+                        (lambda: ModbusTransport.rtu(served[1].address, unit=1, baudrate=115200))
+                    scheme = "fatek" if fatek else "modbus"
+                    ms = _interleaved_ms({"rfc2217": lambda: open_transport(f"{scheme}+rfc2217://{where.rfc2217}?"
+                                                                            f"{query}"),
+                                          "baseline": baseline}, n)
+                rows.append({"wire": f"{'FATEK 9600 7E1' if fatek else 'Modbus RTU 115200 8E1'}",
+                             "chardelay": chardelay, "rfc2217_ms": ms["rfc2217"],
+                             "baseline": "socket:// to the same ser2net" if fatek else "the pty itself (no server)",
+                             "baseline_ms": ms["baseline"], "ratio": ms["rfc2217"] / ms["baseline"]})
+        finally:
+            for handle in served:
+                handle.stop()
+    return {"reads": n, "rows": rows}
+
+
 def hil_run_times() -> list[dict]:
     rows = []
     for target in TARGETS:
@@ -416,12 +476,13 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.bench_time import bench_times
         bt = bench_times(1.0)
         t = Table(title="Bench time at time scale 1 (hil emulate in real time over FATEK/TCP), per suite")
-        for col in ("suite", "tests", "skipped", "failures", "wall s"):
+        for col in ("suite", "tests", "skipped", "failures", "tests' time s"):
             t.add_column(col, justify="right" if col != "suite" else "left")
         for name, r in bt["per_suite"].items():
-            t.add_row(name, str(r["tests"]), str(r["skipped"]), str(r["failures"]), f"{r['wall_s']:.1f}")
+            t.add_row(name, str(r["tests"]), str(r["skipped"]), str(r["failures"]), f"{r['test_time_s']:.1f}")
         console.print(t)
-        console.print(f"non-slow FBs suites: [bold]{bt['total_wall_s']:.0f} s[/] (target ≤ 180 s)")
+        console.print(f"non-slow FBs suites, one session as `hil run` runs them: [bold]{bt['total_wall_s']:.0f} s[/] "
+                      f"(target ≤ 180 s)")
         out = Path(args.json).with_name("bench_time.json")
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(bt, indent=1))
@@ -481,6 +542,19 @@ def main(argv: list[str] | None = None) -> int:
     console.print(f"{full['virtual_hours']} h of the full PLC (the Python models): [bold]{full['wall_s']:.2f} s[/], "
                   f"[bold]{floor['full_plc_over_floor']:.2f}×[/] the bare CPython arithmetic of plant + PID alone "
                   f"({floor['wall_s']:.2f} s; target ≤ 1×)")
+
+    results["rfc2217"] = rf = bench_rfc2217(40 if args.quick else 200)
+    if "skipped" in rf:
+        console.print(f"RFC 2217 round trips: skipped — {rf['skipped']}")
+    else:
+        t = Table(title=f"RFC 2217 round trips: median of {rf['reads']} reads of R4128 ×8, ser2net exporting the "
+                        f"emulator's pty (target ≤ 1.5× the raw socket)")
+        for col in ("wire", "ser2net chardelay", "rfc2217:// ms", "baseline", "baseline ms", "ratio"):
+            t.add_column(col, justify="left" if col in ("wire", "baseline") else "right")
+        for r in rf["rows"]:
+            t.add_row(r["wire"], "on (default)" if r["chardelay"] else "off", f"{r['rfc2217_ms']:.2f}", r["baseline"],
+                      f"{r['baseline_ms']:.2f}", f"{r['ratio']:.2f}×")
+        console.print(t)
 
     if not args.skip_run:
         results["hil_run"] = runs = hil_run_times()

@@ -25,22 +25,39 @@ OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
     ("2024-12-31 23:59:50", "2025-01-01 00:00:00"),  # month → year
     pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=OUR_CHOICE_WRAP),
 ])
-def test_adjust_30s(rtc, io, start, after):
-    assert rtc.set(dt.datetime.fromisoformat(start)).accepted
-    rtc.adjust_30s()
+def test_adjust_30s(bench, rtc, io, start, after):
+    begin = dt.datetime.fromisoformat(start)
+    slack = 30 - begin.second % 30  # chip seconds before the next window boundary changes what the edge does
+    for _attempt in range(3):
+        before = bench.time.now()
+        assert rtc.set(begin).accepted
+        began = bench.time.now()
+        rtc.adjust_30s()
+        ran = bench.time.now() - began
+        if bench.time.now() - before < slack:  # the edge surely came before the chip left the start's window
+            break
+    else:
+        pytest.skip(f"the set and the M1953 edge took {bench.time.now() - before:.1f} bench seconds, more than the "
+                    f"{slack} s from {start} to the next window: lower [bench] time_scale on this host")
     expected = dt.datetime.fromisoformat(after)
     second, minute, hour, day, month, year = io.read_words("R4128", 6)
     assert (minute, hour, day, month, year) == (expected.minute, expected.hour, expected.day, expected.month,
                                                 expected.year - 2000)
-    assert second in (0, 1)
+    # :00 at the edge, then the clock runs on for what is left of the procedure (a busy host's bench seconds)
+    assert 0 <= second <= 1 + ran, f"seconds {second} after the correction (procedure took {ran:.1f} s)"
 
 
 def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 20, 40)).accepted
     io.write("M1953", 1)  # rising edge: 10:20:40 → 10:21:00
     bench.settle()
-    bench.wait(40)  # M1953 held at 1 through the next 30–59 window: no further correction
+    second, minute, hour = io.read_words("R4128", 3)
+    assert (hour, minute) == (10, 21) and second in (0, 1), f"the edge did not correct: {hour}:{minute}:{second}"
+    # M1953 still held at 1 while the clock shows a second in the 30–59 window: a PLC acting on the level
+    # rather than the edge would round it up to 10:22:00 at its next scan
+    assert rtc.set(dt.datetime(2024, 3, 5, 10, 21, 45)).accepted
+    bench.wait(1)
     io.write("M1953", 0)
     second, minute, hour = io.read_words("R4128", 3)
-    assert (hour, minute) == (10, 21)
-    assert second in (40, 41)
+    assert (hour, minute) == (10, 21), f"corrected again while M1953 stayed 1: {hour}:{minute}:{second}"
+    assert second in (46, 47, 48)

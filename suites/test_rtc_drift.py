@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from hil.families.fbs.d4054 import code_for_rate
+from hil.families.fbs.d4054 import code_for_rate, rate_for_code
 
 FINE_STEP = 0.088  # s/day, the manual's fine-mode resolution
 
@@ -75,9 +75,47 @@ def test_drift_measured_compensated_and_remeasured(bench, s35390a, io, measure, 
         f"(limit ±{FINE_STEP}); a residual near twice the drift means the correction's sign is inverted")
 
 
-def _conclusive(result, max_s: float, what: str) -> None:
-    if not result.resolution < FINE_STEP:
+def _conclusive(result, max_s: float, what: str, needed: float = FINE_STEP,
+                needed_is: str = "the manual's fine step") -> None:
+    if not result.resolution < needed:
         pytest.fail(f"inconclusive: the {what} drift measurement's resolution is {result.resolution:.3f} s/day "
-                    f"after {result.reference_elapsed / 3600:.2f} h, not below the manual's fine step {FINE_STEP} "
+                    f"after {result.reference_elapsed / 3600:.2f} h, not below {needed_is} {needed} "
                     f"s/day; measure longer ([rtc] drift_max_hours, now {max_s / 3600:g} h) or poll faster",
                     pytrace=False)
+
+
+#: Table 1's largest code: 56FCH for a clock fast by 16.61 s/day, i.e. a correction 16.6113 s/day slower
+LARGEST_CODE = 0x56FC
+LARGEST_CORRECTION = -rate_for_code(LARGEST_CODE).s_per_day
+#: each measurement's resolution (s/day): ample to tell a 16.6 s/day correction from none or from its opposite
+DIRECTION_RESOLUTION = 4.0
+
+
+@pytest.mark.slow
+@pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.measures("d4054_largest_correction", unit="s/day", low=LARGEST_CORRECTION - 2 * DIRECTION_RESOLUTION,
+                      high=LARGEST_CORRECTION + 2 * DIRECTION_RESOLUTION)
+def test_d4054_largest_code_slows_the_clock_by_table_1s_amount(bench, s35390a, io, measure):
+    """The direction and size of D4054's correction, in a fraction of the fine-step test's bench time: the clock's
+    rate measured at D4054 = 0 and at 56FCH (Table 1: a clock fast by 16.61 s/day) must differ by −16.61 s/day
+    within the two measurements' resolutions (each below 4 s/day).  A PLC that applies the code with the wrong
+    sign (+16.6) or not at all (0) is outside that by far."""
+    max_s = _drift_max_s(bench.profile)
+    if max_s <= 0:
+        pytest.skip("this bench does not measure drift ([rtc] drift_max_hours = 0); give it the hours a "
+                    "measurement to 4 s/day takes here")
+    io.write("D4054", 0x0000)
+    plain = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
+    _conclusive(plain, max_s, "D4054 = 0", DIRECTION_RESOLUTION, "the direction check's")
+    io.write("D4054", LARGEST_CODE)
+    corrected = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
+    _conclusive(corrected, max_s, f"D4054 = {LARGEST_CODE:04X}H", DIRECTION_RESOLUTION, "the direction check's")
+    change = corrected.s_per_day - plain.s_per_day
+    within = plain.resolution + corrected.resolution
+    measure("d4054_largest_correction", change, unit="s/day", low=LARGEST_CORRECTION - within,
+            high=LARGEST_CORRECTION + within,
+            note=f"{plain.s_per_day:+.3f} s/day at D4054 = 0, {corrected.s_per_day:+.3f} at {LARGEST_CODE:04X}H")
+    assert abs(change - LARGEST_CORRECTION) <= within, (
+        f"D4054 = {LARGEST_CODE:04X}H changed the clock's rate by {change:+.3f} s/day; Table 1: "
+        f"{LARGEST_CORRECTION:+.3f} s/day (± {within:.3f}, the measurements' resolutions); "
+        f"{'the correction has the wrong sign' if change > 0 else 'the code is not applied as the table says'}")

@@ -33,11 +33,14 @@ INVALID = {
 @pytest.mark.parametrize("case", list(INVALID))
 def test_invalid_time_is_refused_with_m1955_and_clock_runs_on(bench, rtc, io, case):
     assert rtc.set(START).accepted  # .accepted is M1955 = 0, read after the set
+    began = bench.time.now()  # the chip restarted its second at the set, before this
     assert rtc.set(INVALID[case]).refused, f"{case}: M1955 not set"  # .refused is M1955 = 1
-    bench.wait(2)
+    bench.wait(1)
     second, minute, hour, day, month, year, weekday = io.read_words("R4128", 7)
+    ran = bench.time.now() - began  # at least this long since the chip's restart (a busy host makes it longer)
     assert (minute, hour, day, month, year, weekday) == (0, 8, 15, 6, 24, 6), f"{case}: the clock was changed"
-    assert second in (2, 3, 4), f"{case}: the clock stopped or jumped (second = {second})"
+    assert 1 <= second and int(ran) - 1 <= second <= int(ran) + 2, (
+        f"{case}: the clock stopped or jumped (second = {second} after {ran:.1f} s)")
 
 
 def test_valid_set_after_a_refused_one_clears_m1955(rtc, io):

@@ -54,10 +54,10 @@ def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
 def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
                     broken: str | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
-    loopback port, or a pty for ``--…-pty``); yields kind → address (a pty's path).  Stopped with SIGINT; it must
-    exit cleanly."""
-    options = [arg for option in wires.values()
-               for arg in ((option,) if option.endswith("-pty") else (option, "127.0.0.1:0"))]
+    loopback port; a ``--…-pty`` option on a pseudo-terminal); yields kind → address (or the pty's path).  Stopped
+    with SIGINT; it must exit cleanly."""
+    options = [arg for option in wires.values() for arg in (option, *(() if option.endswith("-pty") else
+                                                                      ("127.0.0.1:0",)))]
     proc = subprocess.Popen(
         [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
          "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],
@@ -75,10 +75,13 @@ def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
     assert proc.returncode == 0, f"hil emulate exited with {proc.returncode}: {proc.stderr.read()}"
 
 
-def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp") -> str:
+def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp",
+                        url: str | None = None) -> str:
     """The emulator's profile rewritten for a bench that reaches ``hil emulate`` only over the wire: FATEK/TCP (or
-    Modbus/TCP) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the rig's coils."""
-    url = f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp" else f"modbus+tcp://{where['modbus-tcp']}?unit=1"
+    Modbus/TCP, or ``url``) target, the emulator's time scale, every ``kind = "emulator"`` fault injector on the
+    rig's coils."""
+    url = url or (f"fatek+tcp://{where['fatek-tcp']}" if wire == "fatek-tcp"
+                  else f"modbus+tcp://{where['modbus-tcp']}?unit=1")
     text = re.sub(r'(?m)^target = "emulator"', f'target = "{url}"', profile_text)
     text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
 

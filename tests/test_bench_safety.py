@@ -195,6 +195,13 @@ def test_different_ports_are_different_benches():
     assert lock_key("fatek+tcp://127.0.0.1:500") != lock_key("fatek+tcp://127.0.0.1:501")
 
 
+def test_an_rfc2217_line_is_keyed_by_its_servers_endpoint():
+    """Whichever protocol the line behind an RFC 2217 server speaks, one server port is one bench."""
+    assert lock_key("fatek+rfc2217://LOCALHOST:3001/?station=1") == "tcp://127.0.0.1:3001"
+    assert lock_key("modbus+rfc2217://127.0.0.1:3001?unit=1") == lock_key("fatek+rfc2217://localhost:3001")
+    assert lock_key("fatek+rfc2217://127.0.0.1:3001") != lock_key("fatek+rfc2217://127.0.0.1:3002")
+
+
 def test_a_planted_symlink_at_the_lock_path_is_refused(tmp_path, monkeypatch):
     monkeypatch.setenv("HIL_LOCK_DIR", str(tmp_path / "locks"))
     victim = tmp_path / "victim"

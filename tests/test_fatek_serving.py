@@ -23,7 +23,8 @@ from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError
 from hil.families.fbs.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegisters, WriteRegisters, build_frame,
                                 encode_error, encode_request, split_frame)
 from hil.families.fbs.address import parse
-from hil.families.fbs.transport.fatek import FatekTransport, _open_hint
+from hil.families.fbs.transport.fatek import FatekTransport
+from hil.io.line import open_hint
 from tests.concurrency import run_clients
 
 STATUS_REQUEST = b"\x020140C7\x03"
@@ -393,7 +394,7 @@ def test_opening_missing_device_is_explained():
 def test_permission_hint():
     # Running as root cannot provoke EACCES on a device; the hint is chosen from the errno pyserial reports.
     exc = serial.SerialException(errno.EACCES, "could not open port /dev/ttyUSB0: [Errno 13] Permission denied")
-    assert "dialout" in _open_hint("/dev/ttyUSB0", exc)
+    assert "dialout" in open_hint("/dev/ttyUSB0", exc)
 
 
 def test_pty_slave_path_looks_like_a_device(pty):

@@ -154,6 +154,7 @@ def settled_differences(first: dict, target: str, rig: str, moving: set) -> list
     return diff
 
 
+@pytest.mark.timeout(240)  # 13 kills and their recoveries in 3 lanes: ≈ 35 s alone, longer beside xdist workers
 def test_killed_runs_leave_the_plc_as_they_found_it(tmp_path):
     lanes = [MOMENTS[i::LANES] for i in range(LANES)]
     started = time.monotonic()

@@ -110,8 +110,18 @@ class ClockStopsOnRefusal(RtcModel):
             self._anchor_t = emu.now
 
 
+class AdjustWhileHeld(RtcModel):
+    """Applies the ±30 s correction on every scan M1953 is 1, not only on its rising edge."""
+
+    def scan(self, emu):
+        held = emu.memory.bits["M"][ADJUST] and self._adjust
+        super().scan(emu)
+        if held:
+            self.on_adjust_edge(emu)
+
+
 VARIANTS = [M1955NeverSet, LeapDayAlways, NoMinuteCarry, WindowOffByOne, R4135Swapped, SetOnRisingEdge,
-            ReadOutWhileHeld, D4054SignInverted, WeekdayStuck, M1954Cleared, ClockStopsOnRefusal]
+            ReadOutWhileHeld, D4054SignInverted, WeekdayStuck, M1954Cleared, ClockStopsOnRefusal, AdjustWhileHeld]
 
 
 def with_rtc(cls):

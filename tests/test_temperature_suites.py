@@ -24,7 +24,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITE = str(REPO / "suites" / "test_temperature.py")
-SUITE_TESTS = 14  # 2 + 3 × 4 points
+SUITE_TESTS = 6  # 2 + 1 × 4 points
 # The inner runs need no hypothesis; loading its plugin re-imports (and rewrites) ~70 modules per run.
 INNER = ("-p", "no:hypothesispytest")
 
@@ -107,17 +107,17 @@ class Variant:
 
 # variant → the suite tests that must catch it (each listed test must fail)
 CAUGHT_BY = {
-    BreakValue28766: ["test_broken_sensor_reads_28767_with_only_its_bit"],
-    BreakValueZero: ["test_broken_sensor_reads_28767_with_only_its_bit"],
-    BreakBitOnNextPoint: ["test_broken_sensor_reads_28767_with_only_its_bit"],
-    UnfittedPointStillFlagged: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back"],
-    R4011Ignored: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back[first-high]",
-                   "test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back[last-high]"],
-    BreakBitsOfHighPointsInTW1: ["test_broken_sensor_reads_28767_with_only_its_bit[first-high]",
-                                 "test_broken_sensor_reads_28767_with_only_its_bit[last-high]"],
-    MaskLatchedAtPowerOn: ["test_masking_a_broken_sensor_reads_0_and_unmasking_brings_28767_back"],
+    BreakValue28766: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
+    BreakValueZero: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
+    BreakBitOnNextPoint: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
+    UnfittedPointStillFlagged: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
+    R4011Ignored: ["test_a_sensor_broken_masked_unmasked_and_repaired[first-high]",
+                   "test_a_sensor_broken_masked_unmasked_and_repaired[last-high]"],
+    BreakBitsOfHighPointsInTW1: ["test_a_sensor_broken_masked_unmasked_and_repaired[first-high]",
+                                 "test_a_sensor_broken_masked_unmasked_and_repaired[last-high]"],
+    MaskLatchedAtPowerOn: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
     ExecutionCode55: ["test_table_is_recognised_and_measuring"],
-    RepairNeverSeen: ["test_repair_brings_the_live_value_back"],
+    RepairNeverSeen: ["test_a_sensor_broken_masked_unmasked_and_repaired"],
 }
 
 

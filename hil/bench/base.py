@@ -4,17 +4,26 @@ from __future__ import annotations
 
 from typing import Any
 
+from hil.bench.guard import Guard, Recovery, RecoveryStep
 from hil.bench.profile import Profile
+from hil.core.journal import Journal
 from hil.core.timebase import Timebase
+from hil.io.url import Target
 
 
 class BenchBase:
-    """Subclasses set ``profile``, ``raw`` (the unguarded link, with ``.emulator``), ``time`` and ``plc``."""
+    """Subclasses set ``profile``, ``target``, ``raw`` (the unguarded link, with ``.emulator``), ``io`` (the
+    family's guarded link, a :class:`~hil.bench.guard.Guard`), ``time`` and ``plc``."""
 
     profile: Profile
+    target: Target
     raw: Any
+    io: Guard
     time: Timebase
     plc: Any
+    journal: Journal | None = None
+    #: the family's own recovery steps, run before the guard's (e.g. a fault rig's coils)
+    recovery_steps: tuple[RecoveryStep, ...] = ()
 
     @property
     def name(self) -> str:
@@ -29,6 +38,11 @@ class BenchBase:
         """What the family adds to the PLC's identity in reports (e.g. an FBs's RTC chip); never raises."""
         return {}
 
+    def finish(self) -> None:
+        """The session ends: put back exactly what was put back only approximately after each test (the clock's
+        phase).  Raises :class:`hil.core.errors.RestoreError` when the PLC refuses."""
+        self.io.finish()
+
     def wait(self, seconds: float) -> None:
         """Let bench time pass: sleep on a real PLC (÷ time_scale), advance virtual time on the emulator."""
         self.time.wait(seconds)
@@ -36,3 +50,42 @@ class BenchBase:
     def settle(self) -> None:
         """Make sure the PLC has completed whole scans since the last write."""
         self.plc.settle()
+
+    # -- safety (issue 15): the durable journal, recovery first, the per-test restore ---------------------------
+    def attach_journal(self) -> Journal | None:
+        """The bench's journal on disk, given to the guard (None for an in-process emulator: each run builds its
+        own, nothing outlives the run)."""
+        if self.target.in_process:
+            return None
+        from hil.core.lock import lock_key
+        self.io.durable = Journal(lock_key(str(self.target)))
+        return self.io.durable
+
+    def recover(self) -> Recovery | None:
+        """Replay what a dead run left in this bench's journal — before anything else, with the lock held."""
+        return self.io.recover(self.recovery_steps)
+
+    def begin_test(self, test_id: str = "") -> None:
+        """A test starts: first retry any restore that failed before, then start its journal."""
+        self.io.begin(test_id)
+
+    def end_test(self) -> None:
+        """Put the PLC back as it was found (the clock, then every value written, each verified)."""
+        self.io.end()
+
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure (an emulator's server keeps running; only the client reconnects)."""
+        self.raw.reopen()
+
+    def alive(self) -> str | None:
+        """None when the PLC answers (reconnecting once if needed), else why not."""
+        try:
+            self.io.status()  # type: ignore[attr-defined]  # every family's link has it
+            return None
+        except Exception as first:  # noqa: BLE001 - any failure here means "not answering"
+            try:
+                self.raw.reopen()
+                self.io.status()  # type: ignore[attr-defined]
+                return None
+            except Exception as exc:  # noqa: BLE001
+                return f"{first}; reconnecting: {exc}"

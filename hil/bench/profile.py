@@ -17,11 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
+from hil.bench.capabilities import DECLARABLE
 from hil.bench.family import Family, families, family as family_named
+from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
 
-CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults")
+CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid")
 
 
 @dataclass(frozen=True)
@@ -60,6 +62,10 @@ class Profile:
     scan_counter: str | None = None
     #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
     scratch: tuple[str, ...] = ()
+    #: [bench] offers: capabilities the bench's owner vouches for (hil.bench.capabilities.DECLARABLE)
+    offers: tuple[str, ...] = ()
+    #: the labgrid place this run holds (hil.bench.lab.resolve.Lab) when the target came from one, else None
+    lab: Any = None
 
     @property
     def rtc(self) -> Any:
@@ -79,22 +85,56 @@ class Profile:
 
 
 # -- reading -----------------------------------------------------------------------------------------------------
-def load_profile(path: str | Path) -> Profile:
-    path = Path(path)
+def load_profile(path: str | Path, *, lab: Any = None) -> Profile:
+    """``lab``: the labgrid place the run holds (:class:`hil.bench.lab.resolve.Lab`), whose URLs replace the
+    profile's target and fill its rig (a profile with ``[labgrid]`` cannot be loaded without one)."""
+    raw, data = _read(Path(path))
+    return profile_from_dict(data, path=Path(path), digest=hashlib.sha256(raw).hexdigest(), lab=lab)
+
+
+def _read(path: Path) -> tuple[bytes, dict[str, Any]]:
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise ProfileError(f"cannot read bench profile {path}: {exc.strerror} — pass --bench with an existing "
                            f"file (see fixtures/benches/)") from None
     try:
-        data = tomllib.loads(raw.decode("utf-8"))
+        return raw, tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ProfileError(f"{path}: not valid TOML: {exc}") from None
-    return profile_from_dict(data, path=path, digest=hashlib.sha256(raw).hexdigest())
 
 
-def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "") -> Profile:
+def lab_request(path: str | Path, *, place: str | None = None, tags: str | None = None,
+                coordinator: str | None = None, wait: float | None = None) -> LabSpec | None:
+    """The labgrid place a run on this profile asks for: the profile's ``[labgrid]`` with the command line's
+    ``--lg-place`` / ``--lg-reserve`` / ``--lg-coordinator`` / ``--lg-wait`` over it; None when neither names one."""
+    where = str(path)
+    data = _read(Path(path))[1]
+    spec = parse_lab_section(Reader(where), data) if "labgrid" in data else None
+    if spec is None and not (place or tags):
+        return None
+    return (spec or LabSpec()).overridden(place=place, tags=tags, coordinator=coordinator, wait=wait)
+
+
+def check_profile(path: str | Path, spec: LabSpec | None) -> Profile:
+    """The profile, checked before its labgrid place is reserved (``spec``; stand-in URLs where the place's will
+    go), so a bad key costs no wait in the queue; without a place, just the profile."""
+    from hil.bench.lab.resolve import Lab
+    return load_profile(path, lab=Lab.pending(spec) if spec is not None else None)
+
+
+def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "",
+                      lab: Any = None) -> Profile:
     where = str(path) if path else "<profile>"
+    if "labgrid" in data:
+        spec = parse_lab_section(Reader(where), data)
+        if "target" in data.get("bench", {}):
+            raise ProfileError(f"{where}: [bench] target and [labgrid] both say where the PLC is: keep one")
+        if lab is None:
+            raise ProfileError(f"{where} takes its PLC from {spec.describe()}: `hil run --bench {where}` (or pytest "
+                               f"--bench) reserves it; other commands need its URL")
+    if lab is not None:
+        data = lab.apply(data, where)
     installed = families()
     owner = {section: plugin for plugin in installed.values() for section in plugin.sections}
     for section in data:
@@ -119,6 +159,9 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     scratch = reader.take(bench, "bench", "scratch", list, [],
                           check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
                                               for x in v) or 'must be a list of ranges like "R1000-R1099"')
+    offers = reader.take(bench, "bench", "offers", list, [],
+                         check=lambda v: all(x in DECLARABLE for x in v)
+                         or f"may list only {', '.join(DECLARABLE)}, not {', '.join(map(str, v))}")
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -158,7 +201,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, scratch=tuple(scratch))
+                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab)
 
 
 def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:

@@ -3,8 +3,8 @@
 Suites only touch the bench fixture (DESIGN).  :func:`suite_view` wraps a bench in an object that has exactly
 the suite-facing names (``plc``, ``wait``, ``settle``, ``faults``, ``cannot_reach``, ``profile``, ``time`` …);
 the bench itself lives in the methods' closure, so ``bench.raw``, ``bench.io.inner`` or a transport's private
-``_write_*`` are not there to call (issue 15).  The PLC object's ``io`` is the guarded I/O
-(:func:`hil.families.fbs.transport.guarded_io.guarded_io`), and fault injectors are wrapped the same way.
+``_write_*`` are not there to call (issue 15).  The PLC object's ``io`` is the guarded I/O (:func:`guarded_io`:
+the guard's public operations and nothing else, whatever the family), and fault injectors are wrapped the same way.
 """
 
 from __future__ import annotations
@@ -30,6 +30,20 @@ def _view(title: str, members: dict[str, Any]) -> Any:
 
 def _frozen(self, name: str, value: object) -> None:  # noqa: ANN001
     raise AttributeError(f"a suite cannot change the bench ({name})")
+
+
+def guarded_io(guard: Any) -> Any:
+    """What a suite may hold of the PLC's I/O: the names the family's guarded link lists in ``PUBLIC`` (its
+    reads, and writes through the guard).  The link lives in the methods' closure, not in an attribute: there is
+    no ``.inner``, ``.raw`` or ``_write_*`` to reach round the guard."""
+    members: dict[str, Any] = {}
+    for name in type(guard).PUBLIC:
+        member = getattr(type(guard), name, None)
+        if callable(member):
+            members[name] = (lambda n: lambda *a, **k: getattr(guard, n)(*a, **k))(name)
+        else:  # a value or property of the link (description, limits, has_cpu_clock …)
+            members[name] = property((lambda n: lambda self: getattr(guard, n))(name))
+    return _view(f"guarded I/O of {guard.description}", members)
 
 
 def suite_view(bench: Any) -> Any:
@@ -64,4 +78,4 @@ def injector_view(injector: Any) -> Any:
     return _view(f"{injector.kind} injector", members)
 
 
-__all__ = ["suite_view"]
+__all__ = ["guarded_io", "suite_view"]

@@ -59,11 +59,25 @@ def build_parser() -> argparse.ArgumentParser:
                                 "  hil run --bench fixtures/benches/example-bench.toml --operator \"J. Doe\" "
                                 "--station rig-2\n"
                                 "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
-                                "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n")
+                                "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n"
+                                "  hil run --bench lab-fbs.toml --lg-reserve \"family=fbs rtc=s35390a\"  (a labgrid "
+                                "place)\n")
     run.add_argument("--bench", metavar="FILE", action="append",
                      help="bench profile (default fixtures/benches/emulator.toml); give it more than once to run "
                           "the benches in parallel (junit-<bench>.xml each, merged into --junitxml)")
     run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
+    lab = run.add_argument_group("a lab of benches (labgrid)")
+    lab.add_argument("--lg-place", metavar="NAME",
+                     help="run on this labgrid place: reserve it, wait for it (a progress line), acquire it, take the "
+                          "target and the fault rig from its resources, release it at the end (also on failure and "
+                          "Ctrl-C)")
+    lab.add_argument("--lg-reserve", metavar="TAGS",
+                     help="run on any labgrid place with these tags, e.g. \"family=fbs rtc=s35390a\"")
+    lab.add_argument("--lg-coordinator", metavar="HOST:PORT",
+                     help="the labgrid coordinator (default: the profile's [labgrid] coordinator, $LG_COORDINATOR, "
+                          "127.0.0.1:20408)")
+    lab.add_argument("--lg-wait", metavar="SECONDS", type=float,
+                     help="give up when no place is allocated within SECONDS (default: wait as long as it takes)")
     run.add_argument("--junitxml", metavar="PATH", default="reports/junit.xml",
                      help="where the JUnit XML goes (default reports/junit.xml)")
     run.add_argument("--html", metavar="PATH", default="reports/report.html",
@@ -114,6 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
                            epilog="examples:\n  hil probe fatek+tcp://192.168.1.5:500\n"
                                   "  hil probe fatek+serial:///dev/ttyUSB0?baudrate=19200\n"
                                   "  hil probe modbus+tcp://192.168.1.5:502?unit=1\n"
+                                  "  hil probe fatek+rfc2217://exporter:3001   (port 0 behind ser2net / labgrid)\n"
                                   "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
                                   "with its temperature points)\n")
     probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
@@ -252,15 +267,24 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "run":
         from hil.cli.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
+        lab = {"place": args.lg_place, "reserve": args.lg_reserve, "coordinator": args.lg_coordinator,
+               "wait": args.lg_wait}
         if args.bench and len(args.bench) > 1:
+            if args.lg_place or args.lg_reserve:
+                raise InvalidValue("--lg-place/--lg-reserve name one place for one bench: with several --bench, "
+                                   "name each bench's place in its profile's [labgrid] section")
             from hil.cli.many import run_many
             return run_many(args.bench, args.target, args.junitxml, extra, console, html=args.html)
         args.bench = args.bench[0] if args.bench else None
-        if args.bench:
-            from hil.bench.profile import load_profile
-            load_profile(args.bench)  # a bad profile: one line here, before pytest starts
+        from hil.bench.profile import check_profile, lab_request
+        from hil.core.paths import default_bench
+        spec = lab_request(args.bench or default_bench(), place=args.lg_place, tags=args.lg_reserve,
+                           coordinator=args.lg_coordinator, wait=args.lg_wait)
+        if args.bench or spec is not None:  # a bad profile: one line here, before pytest starts (and before a queue)
+            check_profile(args.bench or default_bench(), spec)
         return run(args.bench, args.target, args.junitxml, extra, html=args.html, operator=args.operator,
-                   station=args.station, trace=args.trace, verbosity=args.verbose - args.quiet, color=args.color)
+                   station=args.station, trace=args.trace, verbosity=args.verbose - args.quiet, color=args.color,
+                   lab=lab)
     if args.command == "emulate":
         from hil.cli.emulate import emulate
         from hil.core.paths import default_bench

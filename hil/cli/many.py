@@ -47,20 +47,22 @@ def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[B
     """Load every profile first (a bad one fails before anything runs); refuse two benches that share a name
     (their reports would collide) or a PLC (their lock would make one wait for or fail against the other)."""
     from hil.core.lock import lock_key
-    from hil.bench.profile import load_profile
+    from hil.bench.profile import check_profile, lab_request
     out_dir = Path(junitxml).parent
     runs: list[BenchRun] = []
     names: dict[str, str] = {}
     plcs: dict[str, str] = {}
     for path in benches:
-        profile = load_profile(path)
+        lab = lab_request(path)  # a bench that is a labgrid place: each run reserves its own
+        profile = check_profile(path, lab)
         name = slug(profile.name)
         if name in names:
             raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r}: give each "
                            f"[bench] name its own value (reports are named after it)")
         names[name] = path
         url = target or profile.target
-        if not url.startswith("emulator"):  # in-process emulators are each run's own; real PLCs are shared
+        if lab is None and not url.startswith("emulator"):  # in-process emulators are each run's own; real PLCs
+            # are shared (labgrid queues runs on one place itself)
             key = lock_key(url)
             if key in plcs:
                 raise HilError(f"benches {plcs[key]} and {path} both reach {key}: one PLC runs one suite at a time")

@@ -36,13 +36,21 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
         if not shown:
             console.print("nothing pending: no run left a PLC changed", highlight=False)
         return 0
-    from hil.cli.target import open_target
-    from hil.families.fbs.recovery import recover
-    with open_target(url, bench) as opened:  # not writing=True: that would replay it before we report it
-        target = url or opened.profile.target  # type: ignore[union-attr]
-        from hil.core.lock import BenchLock
-        with BenchLock(target).acquire():
-            report = recover(Journal(lock_key(target)), opened.transport, opened.timebase)
+    from hil.bench.family import open_bench
+    from hil.bench.profile import load_profile
+    from hil.core.lock import BenchLock
+    from hil.core.paths import default_bench
+    profile = load_profile(bench or default_bench())  # whichever family it is: its bench replays the journal
+    target = url or profile.target
+    with BenchLock(target).acquire():
+        opened = open_bench(profile, target=target)
+        try:
+            report = opened.recover()
+        finally:
+            opened.close()
+    if report is None:
+        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False)
+        return 0
     console.print(escape(report.summary()), highlight=False)
     return 0 if report.ok else 1
 

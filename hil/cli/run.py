@@ -14,7 +14,8 @@ _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignor
                 "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
                 "--timeout", "--durations", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
                 "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures",
-                "--hil-records", "--hil-lock-wait"}
+                "--hil-records", "--hil-lock-wait", "--hil-lg-place", "--hil-lg-reserve", "--hil-lg-coordinator",
+                "--hil-lg-wait"}
 
 
 def selects_tests(extra: list[str]) -> bool:
@@ -36,7 +37,10 @@ def _names_tests(arg: str) -> bool:
 
 def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: list[str], *,
                 html: str | None = None, operator: str | None = None, station: str | None = None,
-                trace: str | None = None, verbosity: int = 0, color: str | None = None) -> list[str]:
+                trace: str | None = None, verbosity: int = 0, color: str | None = None,
+                lab: dict[str, object] | None = None) -> list[str]:
+    """``lab``: ``hil run``'s ``--lg-place`` / ``--lg-reserve`` / ``--lg-coordinator`` / ``--lg-wait``, by their
+    names without the prefix, for the plugin (:mod:`hil.plugin.lab`: ``--hil-lg-…``)."""
     paths = [] if selects_tests(extra) else [str(project_dir("suites"))]
     # The cache provider stays on (--lf, --ff, --sw work), its directory here, never inside an installed package
     cache = Path.cwd() / ".pytest_cache"
@@ -56,6 +60,10 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
         args.append("-" + ("v" if verbosity > 0 else "q") * abs(verbosity))
     if color:
         args.append(f"--color={color}")
+    args += [f"--hil-lg-{name}={value}" for name, value in (lab or {}).items() if value is not None]
+    # labgrid's own pytest plugin (installed with hil[labgrid]) would import labgrid's gRPC client into this process
+    # and reformat pytest's logging: hil runs labgrid-client as a program (hil.bench.lab.client)
+    args += ["-p", "no:labgrid"]
     return args + extra
 
 

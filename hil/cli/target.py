@@ -40,7 +40,7 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
 
     A command that writes (``writing``) holds the bench lock while it runs (keyed by the canonical endpoint:
     a test run on the same PLC, however spelt, makes it refuse) and first replays what a dead run left in the
-    bench's journal (:mod:`hil.families.fbs.recovery`)."""
+    bench's journal (:meth:`hil.bench.guard.Guard.recover`)."""
     from hil.core.paths import default_bench
     given = load_profile(bench) if bench else None
     if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family

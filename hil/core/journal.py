@@ -8,7 +8,7 @@ the PLC's time against the host's wall clock, so the restore is the same whateve
 entry leaves the journal only after its restore was written *and read back equal*.
 
 A run that dies (SIGKILL, power cut, a lost terminal) leaves the file behind; the next run on the same bench
-replays it before anything else (:mod:`hil.families.fbs.recovery`) and says so, and ``hil restore`` does it by hand.
+replays it before anything else (:meth:`hil.bench.guard.Guard.recover`) and says so, and ``hil restore`` does it by hand.
 
 File: ``<state dir>/journal-<sha256(key)[:16]>.json`` where the state dir is ``$HIL_STATE_DIR``, else
 ``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil`` (created with mode 0700).
@@ -111,7 +111,7 @@ class Journal:
                          f" (pid {entry.get('pid')})")
         if d["clock"]:
             c = d["clock"]
-            lines.append(f"RTC: was {c['plc']} at host time {c['host']:.3f} (scale {c['scale']}) — set by "
+            lines.append(f"clock: was {c['plc']} at host time {c['host']:.3f} (scale {c['scale']}) — set by "
                          f"{c.get('test') or '?'} (pid {c.get('pid')})")
         if d.get("run") is not None:
             lines.append(f"RUN/STOP: was {'RUN' if d['run'] else 'STOP'}")

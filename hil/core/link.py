@@ -5,6 +5,8 @@ from __future__ import annotations
 import threading
 from typing import Callable
 
+from hil.core.errors import TransportError
+
 
 class Link:
     """Base of :class:`hil.families.fbs.transport.base.Transport` and the S7-200 SMART link."""
@@ -30,6 +32,10 @@ class Link:
             finally:
                 for closer in reversed(self._closers):
                     closer()
+
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure (same target; an emulator's server keeps running)."""
+        raise TransportError(f"{self.description} cannot be reopened")
 
     def _close(self) -> None:
         pass

@@ -61,9 +61,9 @@ def lock_key(target: str) -> str:
         if not device.startswith("/"):
             device = "/" + device
         return f"serial://{os.path.realpath(device)}"
-    if scheme.endswith("tcp"):
+    from hil.core.ports import DEFAULT_PORTS, NETWORK_SCHEMES
+    if scheme.endswith(NETWORK_SCHEMES):  # an RFC 2217 server too: the key is the endpoint it listens on
         from urllib.parse import urlsplit
-        from hil.core.ports import DEFAULT_PORTS
         parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
         host = (parts.hostname or "").lower()
         try:

@@ -82,6 +82,24 @@ class HostTimebase:
                 listener(done, seconds)
 
 
+def next_whole_second(when: dt.datetime) -> dt.datetime:
+    """The first whole second at or after ``when``: where a clock is set, so that its seconds tick with the
+    reference's (a clock keeps whole seconds and restarts its second when set)."""
+    return when.replace(microsecond=0) + dt.timedelta(seconds=1 if when.microsecond else 0)
+
+
+def nearest_whole_second(when: dt.datetime) -> dt.datetime:
+    """``when`` rounded to the nearest whole second (a clock set at once, within half a second of ``when``)."""
+    return (when + dt.timedelta(microseconds=500_000)).replace(microsecond=0)
+
+
+def wait_until(timebase: "Timebase", clock: Callable[[], dt.datetime], when: dt.datetime) -> None:
+    """Let bench time pass until ``clock()`` says ``when`` (at once if it already does)."""
+    remaining = (when - clock()).total_seconds()
+    if remaining > 0:
+        timebase.wait(remaining)
+
+
 def timebase_for(emulator: VirtualClock | None, epoch: dt.datetime, time_scale: float = 1.0) -> "Timebase":
     """The bench's time: virtual with an in-process emulator (``emulator``), else the host's (÷ ``time_scale``
     for an accelerated external emulator).  The one place that decides it."""

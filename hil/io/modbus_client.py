@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+
+import serial
 from typing import Callable, Sequence
 
 from pymodbus import FramerType
@@ -34,8 +36,8 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.pdu import ModbusPDU
 
 from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.io.line import Line, LocalLine, open_line
 from hil.io.modbus_codes import EXCEPTION_NAMES
-from hil.io.serial_line import line_coding
 
 COILS, DISCRETE_INPUTS, HOLDING = "coil", "discrete", "holding"
 READ_FC = {COILS: 1, DISCRETE_INPUTS: 2, HOLDING: 3}
@@ -55,6 +57,41 @@ class Probe:
 
     address: int
     span: int
+
+
+class SerialClient(ModbusSerialClient):
+    """pymodbus's RTU client with its port opened through :func:`hil.io.line.open_line`, so that an
+    ``rfc2217://HOST:PORT`` port works: pymodbus's own ``connect()`` passes ``write_timeout`` (which pyserial's
+    RFC 2217 client refuses with NotImplementedError) and then sets ``inter_byte_timeout`` (a renegotiation of every
+    line setting).  Per request pymodbus only asks ``in_waiting`` and reads what it counts, which an RFC 2217 port
+    answers from its local queue: nothing else goes to the server.  ``open_error``: why the last connect failed."""
+
+    def __init__(self, port: str, **kwargs: object) -> None:
+        super().__init__(port, **kwargs)  # type: ignore[arg-type]
+        self.line: Line | None = None
+        self.open_error = ""
+
+    def connect(self) -> bool:
+        if self.socket:
+            return True
+        p = self.comm_params
+        try:
+            self.line = open_line(p.host, baudrate=p.baudrate, bytesize=p.bytesize, parity=p.parity,
+                                  stopbits=p.stopbits, timeout=p.timeout_connect, write_timeout=p.timeout_connect,
+                                  exclusive=True)
+        except TransportError as exc:
+            self.open_error = str(exc)
+            return False
+        self.socket = self.line.port
+        if isinstance(self.line, LocalLine):
+            self.socket.inter_byte_timeout = self.inter_byte_timeout  # what pymodbus's connect() sets
+        return True
+
+    def close(self) -> None:
+        if self.line is not None:
+            self.line.close()  # without the sleeps of pyserial's socket:// and rfc2217:// close()
+        self.line = None
+        self.socket = None
 
 
 class _Shape(Exception):
@@ -99,7 +136,7 @@ class ModbusWire:
         self.reconnects = 0
         if not self.client.connect():
             self.client.close()
-            raise TransportError(f"cannot connect to {description}: {hint}")
+            raise TransportError(f"cannot connect to {description}: {self._open_error() or hint}")
 
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod
@@ -114,11 +151,9 @@ class ModbusWire:
     def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
             timeout: float, retries: int, hint: str, probe: Probe, description: str,
             describe: Describe | None = None) -> "ModbusWire":
-        bytesize, parity, stopbits = line_coding(device, bytesize, parity, stopbits)
-        return cls(lambda hooks: ModbusSerialClient(device, framer=FramerType.RTU, baudrate=baudrate,
-                                                    bytesize=bytesize, parity=parity, stopbits=stopbits,
-                                                    timeout=timeout, retries=0, trace_packet=hooks[0],
-                                                    trace_pdu=hooks[1]),
+        return cls(lambda hooks: SerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
+                                              parity=parity, stopbits=stopbits, timeout=timeout, retries=0,
+                                              trace_packet=hooks[0], trace_pdu=hooks[1]),
                    description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
                    describe=describe)
 
@@ -159,7 +194,7 @@ class ModbusWire:
         """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
         self.client.close()
         if not self.client.connect():
-            raise TransportError(f"cannot reconnect to {self.description}: {self.hint}")
+            raise TransportError(f"cannot reconnect to {self.description}: {self._open_error() or self.hint}")
         self.reconnects += 1
         self.dirty = self.serial  # a late reply may still come on a serial line
 
@@ -201,6 +236,11 @@ class ModbusWire:
                 raise TransportError(f"{what} not sent: {exc}") from None
             self.dirty = False
             return
+        if not self.client.connected and not self.client.connect():
+            # pymodbus closed the port when it failed (a server gone, an adapter unplugged): say why it cannot
+            # be reopened rather than "no reply"
+            raise TransportError(f"{what} not sent to {self.description}: cannot reopen the port: "
+                                 f"{self._open_error() or self.hint}")
         tries = 1 + self.retries
         last = ""
         for attempt in range(1, tries + 1):
@@ -228,13 +268,18 @@ class ModbusWire:
         raise ReplyTimeout(f"{what} not sent to {self.description}: the line could not be resynchronised after "
                            f"an earlier fault ({last})")
 
+    def _open_error(self) -> str:
+        """Why the serial port did not open, with what to check (hil.io.line.open_line's message); "" for TCP."""
+        return getattr(self.client, "open_error", "")
+
     def _flush(self) -> None:
-        """Drop whatever is waiting on a serial line (a late reply) before a request."""
-        port = getattr(self.client, "socket", None)
-        if self.serial and port is not None:
+        """Drop whatever is waiting on a serial line (a late reply) before a request: a local drain (on an RFC 2217
+        port, of the client's queue — a purge on the server would cost a round trip of its own)."""
+        line = getattr(self.client, "line", None)
+        if line is not None:
             try:
-                port.reset_input_buffer()
-            except (OSError, ValueError, AttributeError):
+                line.discard()
+            except (OSError, ValueError, serial.SerialException):
                 pass
 
     def _fence(self, fc: int, count: int) -> None:
@@ -254,12 +299,12 @@ class ModbusWire:
     def _stale_before_probe(self) -> str:
         if self._extra > 0:
             return f"{self._extra} byte(s) more came with it or before it"
-        port = getattr(self.client, "socket", None)
+        line = getattr(self.client, "line", None)
         try:  # pymodbus drains the line before it sends the probe: look first
-            waiting = port.in_waiting if port is not None else 0
-        except (OSError, ValueError, AttributeError):
-            waiting = 0
-        return f"{waiting} byte(s) arrived right after it" if waiting else ""
+            waiting = line is not None and line.pending()
+        except (OSError, ValueError, serial.SerialException):
+            waiting = False
+        return "bytes arrived right after it" if waiting else ""
 
     def _stale_at_probe(self, fc: int, count: int) -> str:
         self._fences += 1

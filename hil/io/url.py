@@ -7,6 +7,10 @@
     fatek+serial:///dev/ttyUSB0?baudrate=9600&parity=E&bytesize=7&stopbits=1&station=1
     modbus+tcp://host:502?unit=1&timeout=1&retries=2
     modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1
+    fatek+rfc2217://host:port?station=1&baudrate=9600&parity=E&bytesize=7&stopbits=1
+    modbus+rfc2217://host:port?unit=1&baudrate=9600&parity=E
+                                              a serial line exported by an RFC 2217 server (ser2net, a labgrid
+                                              exporter), its line settings sent over the protocol (hil.io.line)
     s7+tcp://host:102?rack=0&slot=1           an S7-200 SMART over its own protocol (ISO-on-TCP)
     emulator+s7-tcp                           the in-process S7 emulator served over that protocol
     replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.families.fbs.transport.replay)
@@ -29,14 +33,17 @@ PARAMS: dict[str, dict[str, type]] = {
     "fatek+serial": {**_COMMON, **_SERIAL, "station": int},
     "modbus+tcp": {**_COMMON, "unit": int},
     "modbus+rtu": {**_COMMON, **_SERIAL, "unit": int},
+    "fatek+rfc2217": {**_COMMON, **_SERIAL, "station": int},
+    "modbus+rfc2217": {**_COMMON, **_SERIAL, "unit": int},
     "replay+fatek": {**_COMMON, "station": int},
     "s7+tcp": {**_COMMON, "rack": int, "slot": int},
 }
-from hil.core.ports import DEFAULT_PORTS  # noqa: E402 - one table, also used to key bench locks (hil.core.lock)
+from hil.core.ports import DEFAULT_PORTS, NETWORK_SCHEMES  # noqa: E402 - also used to key bench locks (hil.core.lock)
 
 FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
          "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "
-         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, s7+tcp://HOST:102?rack=0&slot=1, "
+         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, fatek+rfc2217://HOST:PORT?station=1, "
+         "modbus+rfc2217://HOST:PORT?unit=1, s7+tcp://HOST:102?rack=0&slot=1, "
          "emulator+s7-tcp, replay+fatek:///path/to/trace.txt")
 
 
@@ -63,12 +70,29 @@ class Target:
                 return protocol
         return "fatek"
 
+    @property
+    def serial_port(self) -> str:
+        """The pyserial URL of a serial target's line: its device, or ``rfc2217://HOST:PORT`` for a line exported
+        by an RFC 2217 server ("" for a TCP target)."""
+        if self.scheme.endswith("rfc2217"):
+            host = f"[{self.host}]" if ":" in self.host else self.host
+            return f"rfc2217://{host}:{self.port}"
+        return self.device
+
     def __str__(self) -> str:
         if self.in_process:
             return self.scheme
         where = f"{self.host}:{self.port}" if self.host else self.device
         query = "&".join(f"{k}={v}" for k, v in self.params.items())
         return f"{self.scheme}://{where}" + (f"?{query}" if query else "")
+
+
+def serial_target(protocol: str, port: str) -> str:
+    """The target URL of ``protocol`` ("fatek", "modbus") on the serial ``port`` a transport opens (a device, or an
+    RFC 2217 server's ``rfc2217://HOST:PORT``), for messages and reports."""
+    if port.startswith("rfc2217://"):
+        return f"{protocol}+rfc2217://{port[len('rfc2217://'):]}"
+    return f"{protocol}+{'rtu' if protocol == 'modbus' else 'serial'}://{port}"
 
 
 def parse_target(url: str) -> Target:
@@ -82,13 +106,17 @@ def parse_target(url: str) -> Target:
     if scheme not in PARAMS:
         raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {FORMS}")
     params = _params(url, scheme, parts.query)
-    if scheme.endswith("tcp"):
+    if scheme.endswith(NETWORK_SCHEMES):
+        example_port = DEFAULT_PORTS.get(scheme, 3001)
         if not parts.hostname:
-            raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{DEFAULT_PORTS[scheme]})")
+            raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{example_port})")
         try:
-            port = parts.port or DEFAULT_PORTS[scheme]
+            port = parts.port or DEFAULT_PORTS.get(scheme, 0)
         except ValueError:
             raise TargetError(f"target {url!r} has an invalid port") from None
+        if not port:
+            raise TargetError(f"target {url!r} names no port: an RFC 2217 server has no standard one — give the "
+                              f"port of its telnet(rfc2217) accepter (e.g. {scheme}://{parts.hostname}:{example_port})")
         return Target(scheme, host=parts.hostname, port=port, params=params)
     device = (parts.netloc + parts.path) if parts.netloc else parts.path
     if not device:

@@ -15,16 +15,17 @@ from hil.bench.base import BenchBase as Bench
 from hil.bench.family import build_emulator, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
-from hil.bench.capabilities import CAPABILITIES, bench_capabilities, unknown
+from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety"]  # round trips and wire bytes per test (hil_requests … JUnit properties)
+# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
-             "power_on_state, scan_per_request, power_cycle, spec_choices; hil.bench.capabilities); skipped with "
-             "the reason on a bench that does not offer it",
+             "power_on_state, power_cycle, spec_choices, scan_counter; hil.bench.capabilities); skipped with "
+             "the reason and what would offer it on a bench that does not; power_on_state tests run first",
     "slow": "slow: takes minutes of bench time on a real PLC; skipped there unless --hil-run-slow "
             "(runs in virtual time on the emulator)",
     "destructive": "destructive: changes RUN/STOP or outputs; skipped unless --hil-allow-destructive or the "
@@ -61,9 +62,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
-    config.stash[_STATE] = _State(config)
+    state = config.stash[_STATE] = _State(config)
     from hil.plugin.safety import BENCH_STATE
-    config.stash[BENCH_STATE] = config.stash[_STATE]
+    config.stash[BENCH_STATE] = state
+    from hil.plugin.lab import hold_place
+    # a labgrid place is held for the whole session: the target comes from it, so before anything is collected
+    hold_place(config, state, lambda: resolve_bench_path(config))
 
 
 class _State:
@@ -75,13 +79,15 @@ class _State:
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
-        self.recovery = None  # hil.families.fbs.recovery.Recovery: what a dead run left, replayed when the bench opened
+        self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
+        self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
+        self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
 
     @property
     def profile(self) -> Profile:
         if self._profile is None:
-            self._profile = load_profile(resolve_bench_path(self.config))
+            self._profile = load_profile(resolve_bench_path(self.config), lab=self.lab.lab if self.lab else None)
         return self._profile
 
     @property
@@ -108,8 +114,7 @@ class _State:
 
     def _recover(self) -> None:
         """Recovery first (issue 15): a journal a dead run left is replayed before any test, and said loudly."""
-        recover = getattr(self.bench, "recover", None)
-        self.recovery = recover() if recover is not None else None
+        self.recovery = self.bench.recover()
         if self.recovery is None or not self.recovery.needed:
             return
         from hil.plugin.safety import announce
@@ -122,7 +127,10 @@ class _State:
         if self.lock is not None or parse_target(self.target).in_process:
             return
         from hil.core.lock import BenchLock
-        self.lock = BenchLock(self.target).acquire(wait=self.config.getoption("--hil-lock-wait") or 0.0)
+        wait = self.config.getoption("--hil-lock-wait") or 0.0
+        if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
+            self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
+        self.lock = BenchLock(self.target).acquire(wait=wait)
 
     def release(self) -> None:
         try:
@@ -130,9 +138,14 @@ class _State:
                 self.bench.close()
         finally:
             self.bench = None
-            if self.lock is not None:
-                self.lock.release()
-                self.lock = None
+            for lock in (self.lock, self.place_lock):
+                if lock is not None:
+                    lock.release()
+            self.lock = self.place_lock = None
+            if self.lab is not None:
+                from hil.plugin.lab import let_go
+                session, self.lab = self.lab, None
+                let_go(self.config, session)
 
     def finish(self, request: pytest.FixtureRequest, bench: Bench) -> None:
         """The bench fixture's teardown: restore; a restore that fails goes into the report (JUnit properties);
@@ -205,7 +218,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     except HilError as exc:
         raise pytest.UsageError(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
-    offered = bench_capabilities(target, profile.scan_counter)
+    offered = bench_capabilities(target, profile.scan_counter, profile.offers)
+    # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
+    items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
     for item in items:
         if "bench" in getattr(item, "fixturenames", ()):
             family = item.get_closest_marker("family")
@@ -221,8 +236,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             missing = [name for name in marker.args if name not in offered]
             if missing:
                 why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
+                offer = "; ".join(how_to_offer(name) for name in missing)
                 item.add_marker(pytest.mark.skip(
-                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it)"))
+                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
         if item.get_closest_marker("destructive") and not destructive_ok:
             item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
@@ -249,6 +265,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         reporter.write_line(line)
 
 
+@pytest.hookimpl(tryfirst=True)  # while hil.core.signals still defers a signal (the safety plugin uninstalls it)
 def pytest_unconfigure(config: pytest.Config) -> None:
     state = config.stash.get(_STATE, None)
     if state is not None:

@@ -119,12 +119,17 @@ def parse(name: str | Address) -> Address:
     return _parse_text(name)
 
 
+def _ascii_digits(text: str) -> bool:
+    """0–9 only: str.isdigit() also takes '¹' or '٣', which int() then refuses."""
+    return text.isascii() and text.isdigit()
+
+
 @functools.lru_cache(maxsize=8192)
 def _parse_text(name: str) -> Address:
     # Cached: names are parsed on every request and every model access, and the answer (a frozen Address, or an
     # AddressError, which is not cached) depends on the text alone.
     text = name.strip().upper()
-    kind = next((k for k in _KINDS if text.startswith(k) and text[len(k):].isdigit()), None)
+    kind = next((k for k in _KINDS if text.startswith(k) and _ascii_digits(text[len(k):])), None)
     if kind is None:
         raise AddressError(
             f"{name!r} is not an FBs element name: expected a bank letter (X Y M S T C R D RT RC, W…, D…) "

@@ -6,7 +6,6 @@ The pytest plugin builds one Bench per session; suites see it as the ``bench`` f
 from __future__ import annotations
 
 import datetime as dt
-import time as _time
 from typing import Callable
 
 from hil.families.fbs.address import parse_range
@@ -18,13 +17,12 @@ from hil.bench.profile import Profile
 from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
-from hil.families.fbs.transport.guard import GuardedTransport, expand
+from hil.families.fbs.recovery import restore_rig_coils
+from hil.families.fbs.transport.guard import GuardedTransport
+from hil.bench.view import guarded_io
 from hil.io.url import Target, parse_target
 
 EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
-
-# Writes to these mean the RTC may be left off host time: sync it after the test.
-_RTC_TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
 
 
 class Bench(BenchBase):
@@ -46,7 +44,6 @@ class Bench(BenchBase):
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
         self.io.allow_destructive = self.allow_destructive
-        from hil.families.fbs.transport.guarded_io import guarded_io
         # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
         self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans,
                           scan_counter=profile.scan_counter)
@@ -56,56 +53,12 @@ class Bench(BenchBase):
             self.plc.pid.config = profile.sections["pid"]
         from hil.families.fbs.faults import Faults
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
-        # Safety (issue 15): originals on disk before each first write, the PLC's own side effects journaled too,
-        # the clock restored to its original offset from the host's wall clock.
-        self.journal = None
-        if not self.target.in_process:
-            from hil.core.lock import lock_key
-            from hil.core.journal import Journal
-            self.journal = Journal(lock_key(str(self.target)))
-            self.io.durable = self.journal
+        # Safety (issue 15): the PLC's own side effects journaled too (FUN86's defaults on an EN edge), the RTC
+        # restored to its original offset from the bench's time; originals on disk before each first write.
         self.io.side_effects = self.plc.pid.side_effects
-        self.io.before_write = self._before_write
-        self.clock_origin: tuple[dt.datetime, float] | None = None  # (PLC time, reference) before a test set it
-
-    def recover(self):  # noqa: ANN201 - hil.families.fbs.recovery.Recovery, or None for an in-process emulator
-        """Replay what a dead run left in this bench's journal (before anything else; see hil.families.fbs.recovery)."""
-        if self.journal is None:
-            return None
-        from hil.families.fbs.recovery import recover
-        return recover(self.journal, self.raw, self.time)
-
-    # -- the clock, journaled as an offset ---------------------------------------------------------------------
-    def _reference(self) -> float:
-        """The bench's reference time in PLC seconds: virtual time on the in-process emulator, else the host's
-        wall clock (UTC seconds, whatever TZ says) times the profile's time scale."""
-        return self.time.now() if self.time.virtual else _time.time() * self.profile.time_scale
-
-    def _before_write(self, base: list) -> None:
-        if self.clock_origin is not None or not _RTC_TOUCHES.intersection(base):
-            return
-        from hil.families.fbs.rtc_time import RtcTime
-        try:
-            plc_time = RtcTime.from_registers(self.raw.read_words(reg.RTC_SECOND, len(reg.RTC_FIELDS))).to_datetime()
-        except ValueError:  # the clock held no valid time: there is no offset to keep; sync to host time then
-            return
-        self.clock_origin = (plc_time, self._reference())
-        if self.journal is not None:
-            self.journal.set_clock(plc_time, _time.time(), self.profile.time_scale)
-
-    def _original_clock(self) -> dt.datetime:
-        plc_time, ref = self.clock_origin  # type: ignore[misc]
-        return plc_time + dt.timedelta(seconds=self._reference() - ref)
-
-    def restore_clock(self) -> None:
-        """Put the clock back at its original offset (or on host time when it held no valid time)."""
-        from hil.core.errors import RestoreError
-        if self.clock_origin is not None:
-            result = self.plc.rtc.sync_to(self._original_clock)
-        else:
-            result = self.plc.rtc.sync_to_host()
-        if not result.accepted:
-            raise RestoreError([("RTC", 0, f"the PLC refused the restored time {result.sent} (M1955 = 1)")])
+        self.io.clock = self.plc.rtc.clock()
+        self.journal = self.attach_journal()
+        self.recovery_steps = (restore_rig_coils,)  # the fault rig's coils first, then the guard's recovery
 
     def identity(self) -> dict[str, str]:
         try:
@@ -136,59 +89,18 @@ class Bench(BenchBase):
         return self.raw.unreachable_reason(name)
 
     # -- per-test bookkeeping --------------------------------------------------------------------------------
-    def begin_test(self, test_id: str = "") -> None:
-        """A test starts: first retry any restore that failed before (a RestoreError here means the PLC is
-        still not as it was found), then start its journal."""
-        if self.journal is not None:
-            self.journal.test = test_id
-        if self.clock_origin is not None:
-            self.restore_clock()
-            self.clock_origin = None
-            if self.journal is not None:
-                self.journal.drop_clock()
-        if self.io.unrestored:
-            self.io.restore()
-        self.io.start_journal()
-
     def end_test(self) -> None:
-        """Put the PLC back as it was found: injected faults, journaled values, then the RTC if a test touched it.
-
-        Idempotent: a second call finds nothing left to undo."""
-        touched_rtc = bool(self.io.touched & _RTC_TOUCHES)
-        try:
+        """Put the PLC back as it was found: injected faults first (a plc-bit injector's own writes are then
+        restored and verified with the rest), then the guard's restore (the clock, then every value).
+        Idempotent: a second call finds nothing left to undo.  Shielded: a SIGTERM/SIGHUP/Ctrl-C that arrives
+        meanwhile (the break suites' own fixture calls this too, outside the bench fixture's teardown) waits for
+        the restore to finish, then stops the run."""
+        from hil.core.signals import shielded
+        with shielded():
             try:
-                self.faults.undo_all()  # first: a plc-bit injector's own writes are then restored and verified
+                self.faults.undo_all()
             finally:
-                # The sync comes before the one restore: its writes (M1952) join the same journal, so one
-                # write-back and one read-back verify the test's and the sync's writes together (6 round trips
-                # on FATEK, not 9 with a restore on each side of the sync).
-                try:
-                    if touched_rtc or self.clock_origin is not None:
-                        self.restore_clock()
-                        self.clock_origin = None
-                        if self.journal is not None:
-                            self.journal.drop_clock()
-                finally:
-                    self.io.restore()
-        finally:
-            self.io.start_journal()
-
-    def reopen(self) -> None:
-        """Reconnect the wire after a failure (an emulator's server keeps running; only the client reconnects)."""
-        self.raw.reopen()
-
-    def alive(self) -> str | None:
-        """None when the PLC answers (reconnecting once if needed), else why not."""
-        try:
-            self.io.status()
-            return None
-        except Exception as first:  # noqa: BLE001 - any failure here means "not answering"
-            try:
-                self.raw.reopen()
-                self.io.status()
-                return None
-            except Exception as exc:  # noqa: BLE001
-                return f"{first}; reconnecting: {exc}"
+                super().end_test()
 
     def close(self) -> None:
         self.faults.close()

@@ -74,7 +74,7 @@ def check_fault_configs(faults: dict[str, dict[str, Any]], where: str = "<profil
                 raise ProfileError(f"{label} target: {exc}") from None
             if target.protocol != "modbus" or target.in_process:
                 raise ProfileError(f"{label} target: {target} is not a Modbus URL (modbus+tcp://HOST:PORT?unit=1 "
-                                   f"or modbus+rtu:///dev/ttyUSB0?unit=1)")
+                                   f"or modbus+rtu:///dev/ttyUSB0?unit=1, modbus+rfc2217://HOST:PORT?unit=1)")
             first = table.get("first_coil", 0)
             if not isinstance(first, int) or isinstance(first, bool) or not 0 <= first <= 65535 - 32:
                 raise ProfileError(f"{label} first_coil: must be 0–65503, not {first!r}")
@@ -248,16 +248,17 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
 
     def _connect(self) -> Any:
         if self._client is None:
-            from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+            from pymodbus.client import ModbusTcpClient
             from pymodbus.framer import FramerType
+            from hil.io.modbus_client import SerialClient
             t = self.target
             if t.scheme == "modbus+tcp":
                 client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=1)
             else:
                 p = t.params
-                client = ModbusSerialClient(t.device, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
-                                            parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
-                                            stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=1)
+                client = SerialClient(t.serial_port, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
+                                      parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
+                                      stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=1)
             if not client.connect():
                 raise FaultError(f"cannot reach the sensor-break relay module at {t}: is it powered and wired, "
                                  f"and is the URL in [faults.sensor_break] target right?")

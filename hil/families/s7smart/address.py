@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import Iterable
 
 from hil.core.errors import AddressError
 
@@ -75,8 +76,21 @@ def parse_s7_range(text: str) -> list[S7Address]:
     return [S7Address(first.area, b, None, first.size) for b in range(first.byte, last.byte + 1, first.size)]
 
 
-def units(address: S7Address) -> list[tuple[str, int, int | None]]:
-    """The guard's units: (area, byte, None) per byte of a byte/word/dword, (area, byte, bit) for a bit."""
+def units(address: S7Address) -> list[S7Address]:
+    """The guard's elements: one byte per byte of a byte/word/dword (VW100 → VB100, VB101), a bit as itself."""
     if address.is_bit:
-        return [(address.area, address.byte, address.bit)]
-    return [(address.area, b, None) for b in range(address.byte, address.end)]
+        return [address]
+    return [S7Address(address.area, b) for b in range(address.byte, address.end)]
+
+
+def expand_s7(ranges: Iterable[str]) -> frozenset[S7Address]:
+    """The elements ``["VB100-VB101", "Q0.0-Q0.7"]`` name; a listed byte lists its eight bits too (a bit is
+    writable when it is listed or its whole byte is)."""
+    out: set[S7Address] = set()
+    for text in ranges:
+        for a in parse_s7_range(text):
+            for element in units(a):
+                out.add(element)
+                if not element.is_bit:
+                    out.update(S7Address(element.area, element.byte, bit) for bit in range(8))
+    return frozenset(out)

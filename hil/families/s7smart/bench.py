@@ -1,7 +1,8 @@
 """An S7-200 SMART bench: the profile made live — the CPU behind its guard, the bench's time, per-test restore.
 
 The same shape as :class:`hil.families.fbs.bench.Bench` (``plc``, ``wait``, ``settle``, ``begin_test``/``end_test``,
-``is_emulator``), so the pytest plugin, timebase and reports serve both families.
+``recover``, ``is_emulator``) and the same guard, journal and recovery (:mod:`hil.bench.guard`), so the pytest
+plugin — the bench lock, recovery first, the per-test restore — timebase and reports serve both families.
 """
 
 from __future__ import annotations
@@ -12,10 +13,11 @@ from typing import Callable
 from hil.core.errors import HilError, TargetError
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile
-from hil.families.s7smart.address import parse_s7_range, units
+from hil.families.s7smart.address import parse_s7_range
 from hil.families.s7smart.device import S7Plc
 from hil.families.s7smart.emulator import S7Emulator
 from hil.families.s7smart.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
+from hil.bench.view import guarded_io
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.modbus_map import S7ModbusMap
 from hil.core.timebase import Timebase, timebase_for
@@ -56,7 +58,7 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
     params.setdefault("unit", station)
     if target.scheme == "modbus+tcp":
         return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
-    return ModbusS7Io.rtu(target.device, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+    return ModbusS7Io.rtu(target.serial_port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
 
 
 def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[], S7Emulator]) -> S7Io:
@@ -99,13 +101,14 @@ class S7Bench(BenchBase):
                                     emulator_factory=lambda: _checked(emulator_builder(profile, epoch)))
         self.io = GuardedS7Io(self.raw, profile.safety.writable)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
-        self.plc = S7Plc(self.io, self.time, layout=self.layout, settle_scans=profile.settle_scans)
-        # Writes to these mean the clock may have been set: put it back on host time after the test.
-        self._clock_inputs = set()
-        if self.layout is not None:
-            for a in (self.layout.set_trigger, self.layout.set_i_trigger):
-                if a is not None:
-                    self._clock_inputs.update(units(a))
+        # the PLC object suites hold reaches the CPU only through the guarded operations (no .inner, no _write_*)
+        self.plc = S7Plc(guarded_io(self.io), self.time, layout=self.layout, settle_scans=profile.settle_scans)
+        # Safety (issue 15), as on every bench: the test program's results journaled with the triggers that make
+        # it write them, the CPU clock restored to its original offset, originals on disk before each first write.
+        if self.plc.rtc is not None:
+            self.io.side_effects = self.plc.rtc.side_effects
+        self.io.clock = self.plc.clock()
+        self.journal = self.attach_journal()
 
     def cannot_reach(self, *names: str) -> str | None:
         """Why this bench cannot read and write ``names`` (S7 operands or ranges such as ``"VB110-VB117"``)."""
@@ -114,8 +117,7 @@ class S7Bench(BenchBase):
                 reason = self.raw.unreachable_reason(a)
                 if reason:
                     return reason
-                refused = [u for u in units(a) if not self.io.allowed(u)]
-                if refused:
+                if any(u not in self.io.writable for u in self.io.split(a)):
                     return f"{name} not in the bench's [safety] writable list"
         return None
 
@@ -124,20 +126,8 @@ class S7Bench(BenchBase):
         emulator = self.raw.emulator
         if emulator is None:
             raise HilError("power_cycle needs the in-process emulator (mark the test needs('power_cycle'))")
-        emulator.power_cycle(backup_expired=backup_expired)
-
-    def begin_test(self, test_id: str = "") -> None:
-        self.io.start_journal()
-
-    def end_test(self) -> None:
-        touched_clock = bool(self.io.touched & self._clock_inputs) or self.io.clock_set
-        try:
-            self.io.restore()
-        finally:
-            if touched_clock and self.plc.rtc is not None:
-                self.plc.rtc.sync_to_host()
-                self.io.restore()
-            self.io.start_journal()
+        # the clock may lose its time: the guard journals it first and puts it back after the test
+        self.io.setting_clock(lambda: emulator.power_cycle(backup_expired=backup_expired))
 
     def close(self) -> None:
         self.io.close()

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass
+from typing import Callable, Iterable
 
+from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
 from hil.families.s7smart import timebuf
-from hil.families.s7smart.address import S7Address
+from hil.families.s7smart.address import S7Address, units
 from hil.families.s7smart.io import S7Io
 from hil.families.s7smart.layout import S7RtcLayout
-from hil.core.timebase import Timebase
+from hil.core.timebase import Timebase, nearest_whole_second, next_whole_second, wait_until
 from hil.io.status import PlcStatus
 
 
@@ -93,9 +95,35 @@ class S7Rtc:
         self.plc.io.set_cpu_clock(when)
 
     def sync_to_host(self) -> ClockResult:
-        """Set the clock to the bench's reference time (how the bench puts the clock back after a test)."""
+        """Set the clock to the bench's calendar time, at its next whole second."""
+        return self.sync_to(self.plc.time.calendar)
+
+    def sync_to(self, clock: Callable[[], dt.datetime]) -> ClockResult:
+        """SET_RTC to what ``clock()`` says, at its next whole second (the bench restores a clock a test set with
+        this exactly: ``clock`` is then the CPU's original time carried forward)."""
         self.release()
-        return self.set(timebuf.encode(self.plc.time.calendar().replace(microsecond=0)))
+        target = next_whole_second(clock())
+        self.write_set_buffer(timebuf.encode(target))
+        wait_until(self.plc.time, clock, target)
+        return self._pulse(self.layout.set_trigger, False)
+
+    def set_now(self, clock: Callable[[], dt.datetime]) -> ClockResult:
+        """SET_RTC at once to what ``clock()`` says, to the nearest second (how the bench puts the clock back
+        between two tests, without waiting for a whole second)."""
+        self.release()
+        return self.set(timebuf.encode(nearest_whole_second(clock())))
+
+    def side_effects(self, written: Iterable[S7Address]) -> list[S7Address]:
+        """What the test program writes because of these writes: a trigger's edge makes it leave ENO and the
+        error code (and SM4.3's copy) — READ_RTC its buffer too.  The guard journals them as originals."""
+        lay = self.layout
+        fired = set(lay.triggers()).intersection(written)
+        if not fired:
+            return []
+        out = [lay.eno, *units(lay.error), *([lay.sm4_3] if lay.sm4_3 is not None else [])]
+        if lay.read_trigger in fired:
+            out += units(S7Address("V", lay.read_buffer.byte, None, 8))
+        return out
 
     def _pulse(self, trigger: S7Address, hold: bool) -> ClockResult:
         io = self.plc.io
@@ -129,6 +157,32 @@ class S7Plc:
 
     def status(self) -> PlcStatus:
         return self.io.status()
+
+    def clock(self) -> Clock | None:
+        """The CPU clock as the bench's guard keeps it: before the first write of a SET_RTC/SET_RTC_I trigger (or
+        a clock-function set) its time is journaled, and it is put back at its original offset from the bench's
+        time — with the wire's clock functions where it has them (s7+tcp://), else with the test program's
+        READ_RTC/SET_RTC.  None when this bench has neither."""
+        io, rtc = self.io, self.rtc
+        touches = frozenset(a for t in (rtc.layout.set_trigger, rtc.layout.set_i_trigger) if t is not None
+                            for a in units(t)) if rtc is not None else frozenset()
+        if getattr(io, "has_cpu_clock", False):
+            def put(when: Callable[[], dt.datetime], exact: bool) -> None:
+                if not exact:
+                    io.set_cpu_clock(nearest_whole_second(when()))
+                    return
+                target = next_whole_second(when())
+                wait_until(self.time, when, target)
+                io.set_cpu_clock(target)
+            return Clock(touches, io.cpu_clock, put, self.time)
+        if rtc is None:
+            return None
+
+        def put_by_program(when: Callable[[], dt.datetime], exact: bool) -> None:
+            result = rtc.sync_to(when) if exact else rtc.set_now(when)
+            if not result.accepted:
+                raise HilError(f"SET_RTC refused the restored time ({result})")
+        return Clock(touches, rtc.read_time, put_by_program, self.time)
 
     def settle(self, scans: int | None = None) -> None:
         """Let the program complete whole scans since our last write: each round trip spans at least one scan

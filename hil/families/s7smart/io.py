@@ -3,10 +3,10 @@
 Why not :class:`hil.families.fbs.transport.base.Transport`: that API is keyed by FBs element names all the way down (parse,
 value checks, request splitting, the guard's allow-list and the Modbus map decode FBs names), and S7 operands
 (VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small:
-byte-run primitives plus name helpers, with the same error types, the same guard/journal rules and the same
-"an address the wire cannot reach is an error naming both" rule.  Over Modbus it maps operands to register/coil
-runs through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap` and sends them through the one Modbus client,
-:class:`~hil.io.modbus_client.ModbusWire`.
+byte-run primitives plus name helpers, with the same error types, the same guard (:class:`hil.bench.guard.Guard`,
+given the S7 address model here) and the same "an address the wire cannot reach is an error naming both" rule.
+Over Modbus it maps operands to register/coil runs through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap`
+and sends them through the one Modbus client, :class:`~hil.io.modbus_client.ModbusWire`.
 
 Over Modbus, V is reached in 16-bit holding registers: writing one byte (or one V bit) reads the register and
 writes it back whole, so the other byte of that word must not be something the PLC program writes meanwhile —
@@ -18,18 +18,19 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Iterable, Sequence
 
+from hil.bench.guard import Guard
 from hil.core.link import Link
-from hil.core.errors import InvalidValue, RestoreError, TransportError, WriteRefused
-from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range, units
+from hil.core.errors import InvalidValue, TransportError
+from hil.families.s7smart.address import S7Address, expand_s7, parse_s7, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
+from hil.io.line import line_check
 from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, OverModbusWire, Probe
 from hil.io.status import PlcStatus
+from hil.io.url import serial_target
 
 if TYPE_CHECKING:
     from hil.families.s7smart.emulator import S7Emulator
-
-Unit = tuple[str, int, "int | None"]  # (area, byte, bit or None for the whole byte)
 
 
 class S7Io(Link, ABC):
@@ -169,8 +170,9 @@ class ModbusS7Io(OverModbusWire, S7Io):
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2,
             modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
-        hint = f"does {device} exist and is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
-        description = f"modbus+rtu://{device}?baudrate={baudrate}&parity={parity}&unit={unit} (S7-200 SMART map)"
+        hint = f"{line_check(device)} Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
+        description = (f"{serial_target('modbus', device)}?baudrate={baudrate}&parity={parity}&unit={unit} "
+                       f"(S7-200 SMART map)")
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
                                   description=description, describe=_names(modbus_map)),
@@ -248,65 +250,56 @@ def _names(modbus_map: S7ModbusMap):  # noqa: ANN202 - a hil.io.modbus_client.De
 
 
 # -- the guard ------------------------------------------------------------------------------------------------------
-def expand_s7(ranges: Iterable[str]) -> frozenset[Unit]:
-    out: set[Unit] = set()
-    for text in ranges:
-        for a in parse_s7_range(text):
-            out.update(units(a))
-    return frozenset(out)
+class GuardedS7Io(Guard, S7Io):
+    """The guard (:mod:`hil.bench.guard`) over S7 operands: every write checked against the profile's ``[safety]
+    writable`` (S7 ranges) before a byte is sent, originals journaled (on disk first on a real bench) and
+    restored, read back, after each test; the CPU clock kept as the family declares it
+    (:meth:`hil.families.s7smart.device.S7Plc.clock`)."""
 
-
-class GuardedS7Io(S7Io):
-    """Every write checked against the profile's ``[safety] writable`` (S7 ranges) before a byte is sent; the
-    original of each byte/bit journaled on first write and restored (and read back) by :meth:`restore`."""
+    #: what a suite may hold of it (hil.bench.view.guarded_io)
+    PUBLIC = ("read", "read_v", "read_bits", "write", "write_v", "status", "unreachable_reason", "has_cpu_clock",
+              "cpu_clock", "set_cpu_clock", "description")
 
     def __init__(self, inner: S7Io, writable: Iterable[str]) -> None:
-        super().__init__(f"guarded {inner.description}")
+        super().__init__(f"guarded {inner.description}", expand_s7(writable))
         self.inner = inner
         self.emulator = inner.emulator
-        self.writable = expand_s7(writable)
-        self.journal: dict[Unit, int] = {}
-        self.touched: set[Unit] = set()
-        self.clock_set = False  # the CPU clock was set with the protocol's clock function since start_journal
 
-    def allowed(self, unit: Unit) -> bool:
-        """A byte is writable when listed; a bit when listed or its whole byte is."""
-        area, byte, bit = unit
-        return unit in self.writable or (bit is not None and (area, byte, None) in self.writable)
+    # -- the guard's address model: bytes, and Q/I bits ---------------------------------------------------------
+    def split(self, name: "str | S7Address") -> list[S7Address]:
+        return units(parse_s7(name))
 
-    def _check(self, wanted: list[Unit], what: str) -> None:
-        refused = [u for u in wanted if not self.allowed(u)]
-        if refused:
-            shown = ", ".join(_unit_name(u) for u in refused[:4]) + ("…" if len(refused) > 4 else "")
-            raise WriteRefused(f"write to {what} refused: {shown} not in the bench's [safety] writable list — add "
-                               f"the range to the profile if this test may change it on this bench")
+    def keys(self, elements: list[S7Address]) -> list[S7Address]:
+        """A V bit is written as its whole byte (read, change, write back): journal the byte."""
+        return [S7Address("V", e.byte) if e.area == "V" else e for e in elements]
 
-    def _remember(self, wanted: list[Unit]) -> None:
-        self.touched.update(wanted)
-        for u in wanted:
-            if u not in self.journal:
-                self.journal[u] = self.inner.read(_unit_name(u))
+    def read_originals(self, elements: list[S7Address]) -> list[int]:
+        v: dict[int, int] = {}
+        for first, count in _runs(sorted({e.byte for e in elements if e.area == "V"})):
+            v.update(enumerate(self.inner.read_v(first, count), first))
+        return [(v[e.byte] >> e.bit & 1 if e.is_bit else v[e.byte]) if e.area == "V"  # type: ignore[operator]
+                else self.inner.read(e) for e in elements]
 
+    def write_back(self, items: list[tuple[S7Address, int]]) -> None:
+        v = {e.byte: value for e, value in items if e.area == "V" and not e.is_bit}
+        for first, count in _runs(sorted(v)):
+            self.inner.write_v(first, bytes(v[b] for b in range(first, first + count)))
+        for e, value in items:
+            if e.area != "V" or e.is_bit:
+                self.inner.write(e, value)
+
+    def reopen(self) -> None:
+        self.inner.reopen()
+
+    # -- writes: check, journal, then pass on --------------------------------------------------------------------
     def write_v(self, first: int, data: bytes | Sequence[int]) -> None:
         data = bytes(data)
-        wanted: list[Unit] = [("V", b, None) for b in range(first, first + len(data))]
-        with self._lock:
-            self._check(wanted, f"VB{first}" + (f"…VB{first + len(data) - 1}" if len(data) > 1 else ""))
-            self._remember(wanted)
-            self.inner.write_v(first, data)
+        self.guarded([S7Address("V", b) for b in range(first, first + len(data))],
+                     lambda: self.inner.write_v(first, data))
 
     def write(self, name: "str | S7Address", value: int) -> None:
         a = parse_s7(name)
-        wanted = units(a)
-        with self._lock:
-            self._check(wanted, str(a))
-            self._remember(wanted)
-            self.inner.write(a, value)
-
-    def start_journal(self) -> None:
-        self.journal.clear()
-        self.touched.clear()
-        self.clock_set = False
+        self.guarded([a], lambda: self.inner.write(a, value))
 
     # -- the CPU's own clock (a wire that has clock functions: the S7 protocol) ------------------------------
     @property
@@ -317,31 +310,8 @@ class GuardedS7Io(S7Io):
         return self.inner.cpu_clock()  # type: ignore[attr-defined]
 
     def set_cpu_clock(self, when) -> None:  # noqa: ANN001 - a datetime
-        """Set the clock with the protocol's function; the bench puts it back to host time after the test."""
-        with self._lock:
-            self.clock_set = True
-            self.inner.set_cpu_clock(when)  # type: ignore[attr-defined]
-
-    def restore(self) -> list[tuple[str, int]]:
-        items = [(_unit_name(u), v) for u, v in self.journal.items()]
-        failures: list[tuple[str, int, str]] = []
-        for name, value in items:
-            try:
-                self.inner.write(name, value)
-            except Exception as exc:  # noqa: BLE001 - collect every failure
-                failures.append((name, value, f"write failed: {exc}"))
-        for name, value in items:
-            try:
-                got = self.inner.read(name)
-            except Exception as exc:  # noqa: BLE001
-                failures.append((name, value, f"read-back failed: {exc}"))
-                continue
-            if got != value:
-                failures.append((name, value, f"reads {got} after restore"))
-        if failures:
-            raise RestoreError(failures)
-        self.journal.clear()
-        return items
+        """Set the clock with the protocol's function, its time journaled first (the restore keeps its offset)."""
+        self.setting_clock(lambda: self.inner.set_cpu_clock(when))  # type: ignore[attr-defined]
 
     # primitives: reads straight through (writes above are the only way in)
     def _read_v(self, first: int, count: int) -> bytes:
@@ -366,6 +336,12 @@ class GuardedS7Io(S7Io):
         self.inner.close()
 
 
-def _unit_name(unit: Unit) -> str:
-    area, byte, bit = unit
-    return f"{area}{byte}.{bit}" if bit is not None else f"{area}B{byte}"
+def _runs(numbers: list[int]) -> list[tuple[int, int]]:
+    """Sorted byte numbers as (first, count) runs of consecutive ones: one request each."""
+    runs: list[tuple[int, int]] = []
+    for n in numbers:
+        if runs and runs[-1][0] + runs[-1][1] == n:
+            runs[-1] = (runs[-1][0], runs[-1][1] + 1)
+        else:
+            runs.append((n, 1))
+    return runs

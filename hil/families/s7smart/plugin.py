@@ -21,7 +21,7 @@ class S7SmartFamily:
         return check_s7_ranges(ranges)
 
     def elements(self, ranges: Iterable[str]) -> frozenset:
-        from hil.families.s7smart.io import expand_s7
+        from hil.families.s7smart.address import expand_s7
         return expand_s7(ranges)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:

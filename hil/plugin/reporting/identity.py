@@ -98,6 +98,9 @@ def suite_properties(*, profile: Any, target: str, bench: Any | None, bench_erro
     url = public_url(target)
     who, where = operator_and_station(operator, station)
     props = [("hil.bench", profile.name), ("hil.target", url), ("hil.transport", transport_name(url))]
+    lab = getattr(profile, "lab", None)
+    if lab is not None:  # the labgrid place the target came from (hil.bench.lab.resolve.Lab)
+        props += lab.properties()  # no credentials: a NetworkService's username/password never enter a URL
     if bench is not None:
         description = getattr(getattr(bench, "raw", None), "description", "")
         if description:

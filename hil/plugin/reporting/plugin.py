@@ -171,6 +171,10 @@ class Reporter:
         plc_line = getattr(state, "plc_line", "")
         shown = [("bench", f"{state.profile.name} ({state.profile.path})")]
         props = dict(self.properties)
+        if "hil.lab.place" in props:
+            shown.append(("labgrid", f"place {props['hil.lab.place']} ({props.get('hil.lab.tags', '')}) on "
+                                     f"{props.get('hil.lab.exporter', '')}, coordinator "
+                                     f"{props.get('hil.lab.coordinator', '')}"))
         shown += [("target", props.get("hil.target", "")), ("wire", props.get("hil.wire", "-")),
                   ("PLC", plc_line.removeprefix("hil PLC: ") or "-")]
         shown += [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties if k.startswith("hil.plc.")]

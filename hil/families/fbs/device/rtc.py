@@ -7,13 +7,17 @@ time, sleeping) and the emulator (virtual time, a simulated day in milliseconds)
 from __future__ import annotations
 
 import datetime as dt
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
+from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
+from hil.core.timebase import nearest_whole_second, next_whole_second, wait_until
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import code_for_rate
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
+from hil.families.fbs.transport.guard import expand
 
 if TYPE_CHECKING:
     from hil.families.fbs.device.plc import FbsPlc
@@ -70,7 +74,7 @@ class DriftMeasurement:
     plc_elapsed: float  # PLC seconds between them (whole seconds)
     #: (reference t since the first transition, PLC − reference in seconds) at each timed transition
     samples: list[tuple[float, float]] = field(default_factory=list)
-    resolution: float = 0.0  # s/day: worst-case error from polling (widest transition bracket / duration)
+    resolution: float = 0.0  # s/day: worst-case error of the rate from the transitions' polling brackets
 
     @property
     def ppm(self) -> float:
@@ -98,11 +102,16 @@ class RtcSetLost(RtcError):
 _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 
 
+#: Writes to these may set the clock (the guard journals its time first: :meth:`Rtc.clock`).
+TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
+
+
 class Rtc:
     """``plc.rtc``: the RTC of one FBs PLC."""
 
-    #: Bench time between polls of R4128 when timing a second transition.
-    poll_interval = 1 / 50
+    #: Bench time between polls of R4128 while a second transition is due (back to back on a real wire, where a
+    #: round trip takes longer; on the emulator it is what moves virtual time on between two polls).
+    poll_interval = 1 / 500
 
     def __init__(self, plc: "FbsPlc") -> None:
         self.plc = plc
@@ -167,6 +176,23 @@ class Rtc:
         self._begin_set(value)
         return self._finish_set(value)
 
+    def clock(self) -> Clock:
+        """The RTC as the bench's guard keeps it: a write to the read-out R4128–R4134, M1952/M1953 or D4054 may
+        set it; before the first such write its time is journaled, and it is put back at its original offset
+        from the bench's time: exactly with :meth:`sync_to` (the manual's M1952 procedure, on the original clock's
+        next whole second), or at once to the nearest second with :meth:`set`."""
+        def read() -> dt.datetime | None:
+            try:
+                return self.read().to_datetime()
+            except ValueError:  # the clock holds no valid time: there is no offset to keep
+                return None
+
+        def put(when: Callable[[], dt.datetime], exact: bool) -> None:
+            result = self.sync_to(when) if exact else self.set(nearest_whole_second(when()))
+            if not result.accepted:
+                raise HilError(f"the PLC refused the restored time {result.sent} (M1955 = 1)")
+        return Clock(TOUCHES, read, put, self.plc.time)
+
     def sync_to_host(self) -> SetResult:
         """Set the clock to the bench's calendar time at the next whole second.
 
@@ -180,13 +206,10 @@ class Rtc:
 
         The bench restores a clock a test set with this: ``clock`` is then the PLC's original time carried
         forward (its original offset from the host's wall clock, whatever the host's time zone)."""
-        now = clock()
-        target = now.replace(microsecond=0) + dt.timedelta(seconds=1 if now.microsecond else 0)
+        target = next_whole_second(clock())
         value = RtcTime.from_datetime(target)
         self._begin_set(value)
-        remaining = (target - clock()).total_seconds()
-        if remaining > 0:
-            self.plc.time.wait(remaining)
+        wait_until(self.plc.time, clock, target)
         return self._finish_set(value)
 
     def _begin_set(self, value: RtcTime) -> None:
@@ -241,6 +264,7 @@ class Drift:
     def __init__(self, plc: "FbsPlc", rtc: Rtc | None = None) -> None:
         self.plc = plc
         self.rtc = rtc if rtc is not None else plc.rtc
+        self._edge: float | None = None  # reference time of the last timed second transition
 
     def measure(self, duration: float, *, transitions: int = 3, checkpoints: int = 8,
                 timeout: float = 3.0) -> DriftMeasurement:
@@ -257,6 +281,7 @@ class Drift:
         """
         if transitions < 1:
             raise InvalidValue(f"transitions must be at least 1, not {transitions}")
+        self._edge = None  # a new measurement learns the phase afresh (the clock may have been set since)
         if duration < transitions + 2:
             raise InvalidValue(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
         # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
@@ -283,10 +308,13 @@ class Drift:
         slope = sum((x - mx) * (y - my) for x, y in samples) / sum((x - mx) ** 2 for x in xs)
         reference_elapsed = xs[-1]
         plc_elapsed = reference_elapsed + ys[-1]
-        # Each transition is known to ± half its bracket; two ends of the measurement → at most one bracket.
-        bracket = max(width for _, _, width in first + middle + last)
-        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples,
-                                resolution=bracket / reference_elapsed * 86400)
+        # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
+        # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
+        # host) weighs only as much as its sample does, not as the whole measurement's worst case.
+        widths = [width for _, _, width in first + middle + last]
+        sxx = sum((x - mx) ** 2 for x in xs)
+        bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
+        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
 
     def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
                       checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
@@ -312,11 +340,18 @@ class Drift:
         return code
 
     # -- timing one second transition -------------------------------------------------------------------------
+    #: bench seconds before an expected transition that polling starts, plus this fraction of the time since the
+    #: last timed one (the PLC's second may differ from the bench's by a crystal error and D4054's ±192 ppm)
+    lead = 0.05
+    lead_per_second = 5e-4
+
     def _transition(self, timeout: float, phase: float = 0.0) -> tuple[float, int, float]:
         """The next second transition: (reference time, PLC seconds since 2000 just after it, bracket width).
 
         The reference time is the middle of the bracket between the last poll that showed the old second and
-        the first that showed the new one.
+        the first that showed the new one.  Once one transition is timed the next is expected a whole number of
+        seconds later: the wait until just before it is one sleep, and the polls around it come back to back,
+        so a bracket is about one round trip (not a polling interval) and few requests are spent per second.
         """
         clock = self.plc.time
         if phase > 0:
@@ -324,12 +359,22 @@ class Drift:
         old = self.rtc.read()
         before = clock.now()  # the read above saw the old second at (or before) this reference time
         deadline = before + timeout
+        if self._edge is not None:
+            since = before - self._edge
+            lead = self.lead + self.lead_per_second * since
+            upcoming = self._edge + math.ceil(since + lead)  # the first expected transition not yet too close
+            if upcoming - lead > before:
+                clock.wait(upcoming - lead - before)
+                old = self.rtc.read()  # a transition earlier than expected is simply not this one: time the next
+                before = clock.now()
+                deadline = before + timeout
         while True:
             clock.wait(self.rtc.poll_interval)
             current = self.rtc.read()
             after = clock.now()
             if current.second != old.second:
-                return (before + after) / 2, _seconds(current), after - before
+                self._edge = (before + after) / 2
+                return self._edge, _seconds(current), after - before
             if after > deadline:
                 raise RtcError(f"R4128 stayed at {old.second} for {after - before:.2f} s of bench time: the RTC "
                                f"is not running (chip missing, M1952 left at 1?)")

@@ -144,11 +144,6 @@ class Transport(Link, ABC):
             if reason:
                 raise (error or HilError)(f"cannot {action}: {reason} (nothing was written)")
 
-    def reopen(self) -> None:
-        """Reconnect the wire after a failure (same target; an emulator's server keeps running)."""
-        from hil.core.errors import TransportError
-        raise TransportError(f"{self.description} cannot be reopened")
-
     def budget(self, write: bool = False) -> float | None:
         """The longest one protocol request may take (retries, backoff, resynchronising included), or None."""
         return None

@@ -34,8 +34,8 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     target = url if isinstance(url, Target) else parse_target(url)
     if target.protocol == "s7":
         raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
-                          f"with fatek+tcp://, fatek+serial://, modbus+tcp:// or modbus+rtu:// (or an emulator+fatek-"
-                          f"…/emulator+modbus-… target)")
+                          f"with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// or "
+                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target)")
     if target.in_process:
         return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
     params = dict(target.params)
@@ -45,12 +45,12 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
         return _open_replay(target, params)
     if target.protocol == "fatek":
         from hil.families.fbs.transport.fatek import FatekTransport
-        port_url = f"socket://{target.host}:{target.port}" if target.host else target.device
+        port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
         return FatekTransport(port_url, description=str(target), **params)
     from hil.families.fbs.transport.modbus import ModbusTransport
     if target.scheme == "modbus+tcp":
         return ModbusTransport.tcp(target.host, target.port, **params)
-    return ModbusTransport.rtu(target.device, **params)
+    return ModbusTransport.rtu(target.serial_port, **params)  # a device, or an RFC 2217 server's line
 
 
 def _open_replay(target: Target, params: dict) -> Transport:

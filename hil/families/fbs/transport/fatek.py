@@ -1,4 +1,5 @@
-"""FatekTransport: the FATEK protocol over pyserial — a serial device, a pty, or ``socket://host:port``.
+"""FatekTransport: the FATEK protocol over pyserial — a serial device, a pty, ``socket://host:port`` or an RFC 2217
+server's ``rfc2217://host:port`` (through :mod:`hil.io.line`, which hides how each kind waits and drains).
 
 One exchange = flush stale input, send one request, collect bytes until a reply frame for our station and
 command arrives (or the deadline passes).  Frames that do not match are discarded but remembered, so a timeout
@@ -11,11 +12,7 @@ command is otherwise taken for the answer.
 
 from __future__ import annotations
 
-import errno
 import os
-import select
-import socket
-import termios
 import time
 from typing import Callable
 
@@ -29,7 +26,8 @@ from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, Deta
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
                                 check_reply, describe_frame, encode_request, show_frame)
 from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
-from hil.io.serial_line import is_pty, line_coding
+from hil.io.line import Line, open_line
+from hil.io.serial_line import is_pty
 from hil.io.trace import DESCRIBERS
 
 #: Commands that only read: safe to repeat after a lost reply.
@@ -44,7 +42,8 @@ DESCRIBERS["fatek"] = describe_frame  # wire traces of this transport decode FAT
 
 
 class FatekTransport(Transport):
-    """FATEK protocol client.  ``port_url``: ``/dev/ttyUSB0``, a pty path, or ``socket://host:port``."""
+    """FATEK protocol client.  ``port_url``: ``/dev/ttyUSB0``, a pty path, ``socket://host:port`` or
+    ``rfc2217://host:port``."""
 
     # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
@@ -71,18 +70,17 @@ class FatekTransport(Transport):
         self._identity_error: str | None = None
         # Neither a socket nor a pty has a real line rate: no transmission time to add to the deadline.
         self._virtual_line = port_url.startswith("socket://") or is_pty(port_url)
-        bytesize, parity, stopbits = line_coding(port_url, bytesize, parity, stopbits)
         self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
-                              write_timeout=self.timeout + 1.0)
+                              timeout=self.timeout, write_timeout=self.timeout + 1.0)
         self.backoff = float(backoff)
         self.dirty = False  # True: the line may hold a late reply; resynchronise before the next request
         self._broken = False  # True: the connection is gone; reopen before the next request
         self._nonce = 0
         self.resyncs = 0  # loop-back resynchronisations done
-        self.fences = 0  # loop-back fences after reads that decide a restore (fence())
+        self.fences = 0  # loop-back fences after reads (fence(), after every one)
         self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
-        self._serial = _open(port_url, **self._settings)
+        self._line: Line = open_line(port_url, **self._settings)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -137,19 +135,7 @@ class FatekTransport(Transport):
                          via=f"FATEK station {self.station} on {self.port_url}")
 
     def _close(self) -> None:
-        sock = getattr(self._serial, "_socket", None)
-        if sock is not None:
-            # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a request/response client has
-            # nothing in flight at close, so close the socket directly and skip the sleep.
-            try:
-                sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            sock.close()
-            self._serial._socket = None  # noqa: SLF001
-            self._serial.is_open = False
-            return
-        self._serial.close()
+        self._line.close()
 
     # -- the exchange -------------------------------------------------------------------------------------------
     def _identity_fields(self) -> dict[str, str]:
@@ -262,7 +248,7 @@ class FatekTransport(Transport):
                 self._close()
             except (serial.SerialException, OSError):
                 pass
-            self._serial = _open(self.port_url, **self._settings)
+            self._line = open_line(self.port_url, **self._settings)
             self._broken = False
             self.dirty = True  # a late reply may still come on a serial line
             self.reconnects += 1
@@ -270,8 +256,8 @@ class FatekTransport(Transport):
     def _once(self, command: Command, frame: bytes, attempt: int, attempts: int):  # noqa: ANN202
         self.discarded = []
         try:
-            self._serial.reset_input_buffer()  # a late reply to an earlier request must not answer this one
-        except (serial.SerialException, OSError) as exc:
+            self._line.discard()  # a late reply to an earlier request must not answer this one
+        except (serial.SerialException, OSError, ValueError) as exc:
             self._broken = True
             raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
         started = time.monotonic()
@@ -318,10 +304,9 @@ class FatekTransport(Transport):
             if self._broken or self.dirty or self.station == BROADCAST:
                 return False
             try:
-                ready, _, _ = select.select([self._serial.fileno()], [], [], 0)
+                clean = not self._line.pending()
             except (OSError, ValueError, serial.SerialException):
-                ready = [True]
-            clean = not ready
+                clean = False
             self._nonce += 1
             text = f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}"
             probe = Loopback(text)
@@ -362,20 +347,19 @@ class FatekTransport(Transport):
             self.dirty = True
             return
         try:
-            ready, _, _ = select.select([self._serial.fileno()], [], [], 0)
+            if self._line.pending():
+                self.dirty = True
         except (OSError, ValueError, serial.SerialException):
-            ready = []
-        if ready:
-            self.dirty = True
+            pass  # the next request finds out
 
     def _send(self, frame: bytes) -> None:
         self._notify("tx", frame)
         try:
-            self._serial.write(frame)
+            self._line.write(frame)
         except serial.SerialTimeoutException as exc:
             self.dirty = True
             raise ReplyTimeout(f"could not send {show_frame(frame)} to {self._where()} within "
-                               f"{self._serial.write_timeout:.2f} s (output blocked)") from exc
+                               f"{self._line.write_timeout or 0:.2f} s (output blocked)") from exc
         except (serial.SerialException, OSError) as exc:
             self._broken = True
             raise _Lost(f"{self._where()}: sending {show_frame(frame)} failed: {exc}") from exc
@@ -383,8 +367,7 @@ class FatekTransport(Transport):
     def _receive(self, remaining: float) -> bytes:
         """Whatever has arrived, waiting at most ``remaining`` seconds for the first byte."""
         try:
-            ready, _, _ = select.select([self._serial.fileno()], [], [], remaining)
-            return self._serial.read(4096) if ready else b""  # timeout is 0: read returns what is there
+            return self._line.receive(remaining)
         except (serial.SerialException, OSError, ValueError) as exc:
             self._broken = True
             raise _Lost(f"{self._where()}: connection lost while waiting for a reply: {exc}") from exc
@@ -424,42 +407,6 @@ class _Lost(TransportError):
 
 class _Stale(TransportError):
     """A read's reply could not be told from a late or repeated reply to an earlier request (repeated)."""
-
-
-_OPEN_HINTS = {
-    errno.ENOENT: "no such device — is the adapter plugged in? `python -m serial.tools.list_ports` lists ports",
-    errno.EACCES: "permission denied — add your user to the dialout group (sudo usermod -aG dialout $USER, "
-                  "then log in again)",
-    errno.EPERM: "permission denied — add your user to the dialout group",
-    errno.EBUSY: "device busy — another program (a terminal, ModemManager, another test run) holds the port",
-    errno.ENXIO: "no device behind this path (a pty whose server is gone, or an unplugged adapter)",
-}
-
-
-def _open(port_url: str, **settings: object) -> serial.SerialBase:
-    try:
-        # timeout=0: reads return what has arrived; the transport waits with select() up to its own deadline.
-        return serial.serial_for_url(port_url, timeout=0, **settings)
-    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
-        hint = _open_hint(port_url, exc)
-        # a known cause is the whole message (pyserial's own text repeats the path twice more)
-        known = hint in _OPEN_HINTS.values()
-        raise TransportError(f"cannot open {port_url}: " + (hint if known else f"{exc} — {hint}")) from exc
-
-
-def _open_hint(port_url: str, exc: Exception) -> str:
-    code = getattr(exc, "errno", None)
-    if code in _OPEN_HINTS:
-        return _OPEN_HINTS[code]
-    text = str(exc).lower()
-    if "permission denied" in text:
-        return _OPEN_HINTS[errno.EACCES]
-    if "no such file" in text:
-        return _OPEN_HINTS[errno.ENOENT]
-    if port_url.startswith("socket://"):
-        return ("nothing accepted the connection — check host and port (FATEK Ethernet modules listen on 500) "
-                "and that fewer than 8 clients are connected")
-    return "check the port name and its settings"
 
 
 __all__ = ["FatekTransport", "READ_COMMANDS"]

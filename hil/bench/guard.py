@@ -1,0 +1,360 @@
+"""The write guard every family's bench I/O goes through: the allow-list, the durable journal, restore, recovery.
+
+A real PLC is somebody's machine.  The guard
+
+* refuses any write touching an element outside the profile's ``[safety] writable`` ranges (WriteRefused,
+  raised before the link sees the request);
+* journals the original value of each element before its first write in a test — on disk first
+  (:class:`hil.core.journal.Journal`, fsync'd) when the bench has a durable journal — together with what the PLC
+  itself rewrites because of that write (:attr:`Guard.side_effects`, declared by the family's device layer);
+* before the session's first write that may set the PLC's clock (:class:`Clock`, declared by the family), journals
+  the clock's time against the bench's reference, and restores it at that *offset* (not to host local time): to
+  within half a second after each test (no wait for a whole second), exactly when the session ends
+  (:meth:`Guard.finish`) — both from the session's first origin, so the per-test errors never add up;
+* :meth:`Guard.restore`: the clock, then every original written back and read back equal; an entry leaves the
+  journal only once verified, a failed one stays and is retried by the next restore (reconnecting once when the
+  wire failed);
+* :meth:`Guard.recover`: replays what a dead run left in the durable journal, through the same restore (the
+  clock exactly).
+
+Elements the PLC itself rewrites every scan (``volatile``) are allowed but not journaled.
+
+The guard knows no family: it is mixed into a family's guarded link (a :class:`hil.core.link.Link`), which
+implements its address model — :meth:`Guard.split` (an address → the elements it covers, the journal's keys),
+:meth:`Guard.read_originals` and :meth:`Guard.write_back` — and passes the writes it guards to
+:meth:`Guard.guarded`.  ``str(element)`` is an element's name in the journal; ``split(name)`` reads it back.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Sequence, TypeVar
+
+from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
+from hil.core.journal import Journal
+from hil.core.timebase import Timebase
+
+T = TypeVar("T")
+Failure = tuple[str, Any, str]  # (element, original, why), as RestoreError lists them
+
+
+@dataclass(frozen=True)
+class Clock:
+    """A clock the PLC keeps that a test may set, as the family declares it to the guard."""
+
+    touches: frozenset  # elements a write to which may set the clock (empty: only a clock function sets it)
+    read: Callable[[], "dt.datetime | None"]  # the PLC's time now; None when it holds no valid time
+    #: set it to ``when()`` — ``exact``: at ``when``'s next whole second (a clock restarts its second when set),
+    #: else at once, to the nearest second; HilError when the PLC refuses
+    put: Callable[[Callable[[], dt.datetime], bool], None]
+    timebase: Timebase  # the bench's time: virtual on an in-process emulator, else the host's × its time scale
+
+
+@dataclass(frozen=True)
+class ClockOrigin:
+    """The PLC's time ``plc`` when the reference said ``at``; PLC seconds run ``scale`` × the reference's."""
+
+    plc: dt.datetime
+    at: float
+    scale: float
+    virtual: bool  # the reference is the in-process emulator's virtual time, not the host's wall clock (UTC)
+
+    def original(self, timebase: Timebase) -> dt.datetime:
+        """The PLC's original time carried forward to now: its offset from the reference kept."""
+        now = timebase.now() if self.virtual else time.time()
+        return self.plc + dt.timedelta(seconds=(now - self.at) * self.scale)
+
+
+@dataclass
+class Recovery:
+    """What :meth:`Guard.recover` found in a dead run's journal, and what it could not put back."""
+
+    bench: str
+    path: str
+    pending: list[str] = field(default_factory=list)  # what the journal held, one line each
+    failures: list[str] = field(default_factory=list)  # what could not be restored (still in the journal)
+
+    @property
+    def needed(self) -> bool:
+        return bool(self.pending)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def summary(self) -> str:
+        if not self.needed:
+            return f"hil bench recovery: nothing pending for {self.bench}"
+        if self.ok:
+            return (f"hil bench recovery: a previous run on {self.bench} died leaving {len(self.pending)} value(s) "
+                    f"changed — restored and verified: " + "; ".join(self.pending))
+        return (f"hil bench recovery FAILED on {self.bench}: still unrestored (kept in {self.path}): "
+                + "; ".join(self.failures))
+
+
+#: a family's own recovery step (e.g. a fault rig's coils): called with the journal and the report to add to
+RecoveryStep = Callable[[Journal, Recovery], None]
+
+
+class Guard(ABC):
+    """Mixed into a family's guarded link, before the link's own base class (it uses the link's ``_lock``)."""
+
+    _lock: Any  # the Link's: one request on the wire at a time
+
+    def __init__(self, description: str, writable: Iterable, volatile: Iterable = ()) -> None:
+        super().__init__(description)  # type: ignore[call-arg]  # the Link's
+        self.writable = frozenset(writable)
+        self.volatile = frozenset(volatile)
+        self.journal: dict[Any, int] = {}  # element → its value before the first write (until verified restored)
+        self.touched: set = set()  # every element written since the test started
+        self.reopened = 0  # reconnections made to restore
+        # On disk before each write goes out (None for an in-process emulator: nothing outlives the run).
+        self.durable: Journal | None = None
+        # What the PLC rewrites itself because of a write (e.g. an EN rising edge → PR/IR/DR of that FUN86 box):
+        # journaled as originals along with the written elements, never written by the test.
+        self.side_effects: Callable[[list], Iterable] | None = None
+        self.clock: Clock | None = None
+        # the clock before the session's (or a dead run's) first write that may set it; kept, and journaled,
+        # until the session's end puts it back exactly
+        self.clock_origin: ClockOrigin | None = None
+        self.clock_due = False  # a test may have set the clock and it is not put back yet
+        self._clock_busy = False  # the guard is reading or putting back the clock itself
+
+    # -- the family's address model ---------------------------------------------------------------------------
+    @abstractmethod
+    def split(self, name: Any) -> list:
+        """The elements a write to ``name`` covers (e.g. WM16 → M16…M31, VW100 → VB100, VB101)."""
+
+    def keys(self, elements: list) -> list:
+        """The elements to journal for a write to ``elements`` (the same, unless the wire rewrites more)."""
+        return elements
+
+    @abstractmethod
+    def read_originals(self, elements: list) -> list[int]:
+        """Their values now, read so that no late reply to an earlier request is taken for them."""
+
+    @abstractmethod
+    def write_back(self, items: list[tuple[Any, int]]) -> None:
+        """Write the values, straight to the link (no allow-list: these are the PLC's own originals)."""
+
+    @abstractmethod
+    def reopen(self) -> None:
+        """Reconnect the wire after a failure."""
+
+    def _restore_actions(self) -> None:
+        """A family's own undo that comes before the values (e.g. RUN/STOP back); journal extras cleared."""
+
+    def _adopt(self, journal: Journal) -> None:
+        """Take over a dead run's family extras from its journal (see :meth:`_restore_actions`)."""
+
+    # -- the allow-list and the journal ------------------------------------------------------------------------
+    def check(self, names: Iterable[Any]) -> list:
+        """Raise WriteRefused unless every element is writable; return the elements covered."""
+        covered: list = []
+        for name in names:
+            parts = self.split(name)
+            refused = [str(p) for p in parts if p not in self.writable]
+            if refused:
+                shown = ", ".join(refused[:4]) + ("…" if len(refused) > 4 else "")
+                raise WriteRefused(
+                    f"write to {name} refused: {shown} not in the bench's [safety] writable list — add the "
+                    f"range to the profile if this test may change it on this bench")
+            covered += parts
+        return covered
+
+    def guarded(self, names: Iterable[Any], write: Callable[[], T]) -> T:
+        """``write()`` once every element of ``names`` is allowed and its original journaled."""
+        with self._lock:
+            covered = self.check(names)
+            self._remember(covered)
+            return write()
+
+    def setting_clock(self, action: Callable[[], T]) -> T:
+        """``action()`` sets the clock by a clock function (not by writing elements): journal the clock first."""
+        with self._lock:
+            self._note_clock()
+            return action()
+
+    def _remember(self, covered: Sequence) -> None:
+        if self.clock is not None and self.clock.touches.intersection(covered):
+            self._note_clock()
+        wanted = list(covered)
+        if self.side_effects is not None:
+            wanted += list(self.side_effects(list(covered)))
+        fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
+        if fresh:
+            originals = dict(zip(fresh, self.read_originals(fresh)))
+            if self.durable is not None:  # on disk (fsync'd) before the write goes out
+                self.durable.add_elements({str(e): v for e, v in originals.items()})
+            self.journal.update(originals)
+        self.touched.update(covered)
+
+    def _note_clock(self) -> None:
+        """Before the first write that may set the clock: its time against the reference, durable first."""
+        if self._clock_busy:
+            return
+        self.clock_due = True
+        if self.clock_origin is not None or self.clock is None:
+            return
+        self._clock_busy = True
+        try:
+            plc = self.clock.read()
+        finally:
+            self._clock_busy = False
+        if plc is None:  # no valid time: there is no offset to keep; the restore puts it on the bench's time
+            return
+        timebase = self.clock.timebase
+        if timebase.virtual:
+            self.clock_origin = ClockOrigin(plc, timebase.now(), 1.0, virtual=True)
+        else:
+            scale = float(getattr(timebase, "time_scale", 1.0))
+            self.clock_origin = ClockOrigin(plc, time.time(), scale, virtual=False)
+        if self.durable is not None:
+            self.durable.set_clock(plc, self.clock_origin.at, self.clock_origin.scale)
+
+    # -- per test ----------------------------------------------------------------------------------------------
+    def begin(self, test_id: str = "") -> None:
+        """A test starts: first retry any restore that failed before (a RestoreError here means the PLC is still
+        not as it was found), then forget what was touched."""
+        if self.durable is not None:
+            self.durable.test = test_id
+        if self.unrestored:
+            self.restore()
+        self.start_journal()
+
+    def end(self) -> None:
+        """A test ended, pass or fail: put the PLC back.  Idempotent."""
+        try:
+            self.restore()
+        finally:
+            self.start_journal()
+
+    def finish(self) -> None:
+        """The session ends: the clock back exactly at its original offset, its journal entry cleared, and
+        whatever is still unrestored retried."""
+        try:
+            self.restore(exact=True)
+        finally:
+            self.start_journal()
+
+    def start_journal(self) -> None:
+        """The next test starts: forget which elements were touched.  Originals whose restore failed stay in the
+        journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
+        self.touched.clear()
+
+    @property
+    def unrestored(self) -> list[tuple[Any, Any]]:
+        """What is still to be put back: (element, original), and the clock while it is due."""
+        out: list[tuple[Any, Any]] = list(self.journal.items())
+        if self.clock_due:
+            origin = self.clock_origin
+            out.append(("clock", f"{origin.plc:%Y-%m-%d %H:%M:%S}, kept at its offset from the bench's time"
+                        if origin is not None else "on the bench's time"))
+        return out
+
+    # -- restore -----------------------------------------------------------------------------------------------
+    def restore(self, exact: bool = False) -> list[tuple[Any, int]]:
+        """The family's own undo, the clock, then every journaled original written back and read back equal.
+
+        The clock is put back when a test may have set it — to within half a second, or ``exact``ly (then also
+        when it is only approximately back), which ends its journal entry.  Returns the elements restored.
+        Raises RestoreError listing what could not be put back, each with its original value; that stays in the
+        journal for the next restore."""
+        with self._lock:
+            failures: list[Failure] = []
+            try:
+                self._restore_actions()
+            except HilError as exc:
+                failures.append(("RUN/STOP and disabled bits", "as before", str(exc)))
+            if self.clock_due or (exact and self.clock_origin is not None):
+                failures += self._put_clock(exact)
+            items = list(self.journal.items())
+            bad = self._put_back(items) if items else []
+            failed = {str(name) for name, _, _ in bad}
+            good = [(e, v) for e, v in items if str(e) not in failed]
+            for element, _ in good:
+                del self.journal[element]
+            if self.durable is not None and good:  # verified: only now may the originals leave the disk
+                self.durable.drop_elements(str(e) for e, _ in good)
+            if failures or bad:
+                raise RestoreError(failures + bad)
+            return items
+
+    def _put_clock(self, exact: bool) -> list[Failure]:
+        origin = self.clock_origin
+        shown = f"{origin.plc:%Y-%m-%d %H:%M:%S} at its offset" if origin is not None else "the bench's time"
+        if self.clock is None:
+            return [("clock", shown, "this bench has no way to set the clock")]
+        timebase = self.clock.timebase
+        self._clock_busy = True
+        try:
+            self.clock.put((lambda: origin.original(timebase)) if origin is not None else timebase.calendar, exact)
+        except HilError as exc:
+            return [("clock", shown, str(exc))]
+        finally:
+            self._clock_busy = False
+        self.clock_due = False
+        if exact:
+            self.clock_origin = None
+            if self.durable is not None:
+                self.durable.drop_clock()
+        return []
+
+    def _put_back(self, items: list[tuple[Any, int]]) -> list[Failure]:
+        """Write ``items`` and read them back; when the wire failed, reconnect once and try again."""
+        failures, wire_failed = self._put_back_once(items)
+        if failures and wire_failed:
+            try:
+                self.reopen()
+            except HilError as exc:
+                return [(a, v, f"{why}; reconnecting failed: {exc}") for a, v, why in failures]
+            self.reopened += 1
+            failures, _ = self._put_back_once(items)
+        return failures
+
+    def _put_back_once(self, items: list[tuple[Any, int]]) -> tuple[list[Failure], bool]:
+        try:
+            self.write_back(items)
+        except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
+            return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        try:
+            now = self.read_originals([a for a, _ in items])
+        except Exception as exc:  # noqa: BLE001
+            return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
+        return [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v], False
+
+    # -- recovery first ----------------------------------------------------------------------------------------
+    def recover(self, steps: Iterable[RecoveryStep] = ()) -> Recovery | None:
+        """Replay what a dead run left in the durable journal (before anything else), verified, through
+        :meth:`restore`: the family's ``steps`` first, then its extras, the clock (exactly) and the elements.
+        None without a durable journal (an in-process emulator: nothing outlives a run)."""
+        journal = self.durable
+        if journal is None:
+            return None
+        journal.data = journal.load()
+        report = Recovery(journal.key, str(journal.path), journal.describe())
+        if not journal.pending:
+            return report
+        for step in steps:
+            step(journal, report)
+        with self._lock:
+            self._adopt(journal)
+            for name, value in journal.elements().items():  # what the PLC held before the dead run
+                for element in self.split(name):
+                    self.journal.setdefault(element, value)
+            entry = journal.clock()
+            if entry:
+                self.clock_due = True
+                self.clock_origin = ClockOrigin(dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]),
+                                                float(entry["scale"]), virtual=False)
+            try:
+                self.restore(exact=True)
+            except RestoreError as exc:
+                report.failures += [f"{name} (original {value}): {why}" for name, value, why in exc.failures]
+        return report
+
+
+__all__ = ["Clock", "ClockOrigin", "Guard", "Recovery", "RecoveryStep"]
