@@ -296,7 +296,10 @@ class Fun86Model(Model):
         if pid_due:
             while st.next_pid <= now + 1e-9:
                 st.next_pid += st.interval
-        phase = (now - st.started) % st.pwm
+        # the time into the PWM cycle, the cycle found as next_event() finds it (with its 1e-9): a scan it
+        # scheduled at a cycle start a rounding error early is in the new cycle, not at the old one's end —
+        # else that output is OFF for its ON time and ON for the rest, cycle after cycle
+        phase = max(0.0, now - (st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm))
         log = self._log
         if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
             log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
