@@ -211,8 +211,10 @@ def _scans(bench):
 
 def _write_bracketed(bench, name, value):
     """Write ``value`` between two reads of the scan counter: (c1, c2).  Port 0 services each request at the end
-    of a scan and scans between two requests, so the write landed after scan c1 + 1 at the earliest and c2 − 1 at
-    the latest: the first scan to see it is one of c1 + 2 … c2."""
+    of a scan and scans between two requests, and a read is r requests (``io.requests_per_read``: 2 where reads
+    are fenced, README, Safety), so the write landed after scan c1 + r at the earliest and c2 − 1 at the latest:
+    the first scan to see it is one of c1 + r + 1 … c2.  (r is what the transport says, never a count measured
+    from the scans: a busy host only makes those larger, and a bracket built on one narrower than the truth.)"""
     c1 = _scans(bench)
     bench.plc.io.write(name, value)
     return c1, _scans(bench)
@@ -222,9 +224,9 @@ def _write_bracketed(bench, name, value):
 @pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
 def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
-    count the counter pins down exactly: the words are read between two counter reads (R in c_a + 1 … c_b − 1),
-    so with PV ≥ R4008 first seen by scan F (c1 + 2 … c2) the words show R − F + 1 counted scans, known exactly
-    when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
+    count the counter pins down exactly: the words are read between two counter reads (R in c_a + r … c_b − r, a
+    read spanning r scans), so with PV ≥ R4008 first seen by scan F (c1 + r + 1 … c2) the words show R − F + 1
+    counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
     pins down both 9 and 10 the test skips with the widths it saw."""
     inst = _instances(pid)[0]
     _need(bench, "R4008")
@@ -237,6 +239,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     io = bench.plc.io
     decided = {}  # exact count → warned
     widths = []
+    r = io.requests_per_read
     for attempt in range(BENCH_ATTEMPTS):
         io.write("R4008", 65535)
         bench.settle()
@@ -246,18 +249,20 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
         if dip:
             # a dip after a few (1 … 8) counted scans: the count must start again from zero after it
             _, c3 = _write_bracketed(bench, "R4008", 65535)
-            if c3 - (c1 + 2) > 8:
+            if c3 - (c1 + r + 1) > 8:
                 continue  # the first run may have reached 10 scans before the dip: not the case under test
             c1, c2 = _write_bracketed(bench, "R4008", 100)
-        first_low, first_high = c1 + 2, c2  # the first scan that sees PV ≥ R4008
-        for _ in range(attempt % 3):  # a read takes three requests: shift the phase from attempt to attempt
-            _scans(bench)
+        first_low, first_high = c1 + r + 1, c2  # the first scan that sees PV ≥ R4008
+        # Shift the phase from attempt to attempt, one scan at a time (a write of the value R4008 holds: only scans
+        # pass), over the 3 r scans the loop below advances by, so that every count gets its chance to be exact.
+        for _ in range(attempt % (3 * r)):
+            io.write("R4008", 100)
         while True:
             ca = _scans(bench)
             words = tuple(io.read_words(str(wr), 2))
             cb = _scans(bench)
-            low = (ca + 1) - first_high + 1  # fewest counted scans the words can show
-            high = (cb - 1) - first_low + 1  # most
+            low = (ca + r) - first_high + 1  # fewest counted scans the words can show
+            high = (cb - r) - first_low + 1  # most
             widths.append(high - low)
             if high <= 9:
                 assert words == (0, 0), (f"a warning after at most {high} consecutive scans with PV ≥ R4008 "

@@ -40,7 +40,8 @@ pytestmark = pytest.mark.skipif(MISSING is not None, reason=MISSING or "")
 #: windows then have the host to themselves
 SUITES = [str(REPO / "suites" / "test_temperature.py"), str(REPO / "suites" / "test_rtc.py")]
 SMOKE = [str(REPO / "suites" / "test_smoke.py")]
-SCALE = 10.0  # the emulator's time scale, as tests/test_bench_mode.py: the temperature suite's 158 bench s in 16
+SCALE = 5.0  # the emulator's time scale: A's RTC and temperature suites (≈ 110 bench s) hold bench1 ≈ 20 s, long
+#: enough for E to reach the PLC's lock while A holds it (at 10 a faster suite set let A finish first)
 TAGS = "family=fbs rtc=s35390a"
 PLACES = {"bench1": ("lab-host/fbs-bench/*", TAGS), "bench2": ("lab-host/fbs-bench-twin/*", "family=fbs twin=yes"),
           "dead": ("lab-host/switched-off/*", "family=fbs")}
@@ -175,6 +176,7 @@ def test_runs_queue_for_labgrid_places_and_always_let_go(tmp_path):
         c.send_signal(signal.SIGTERM)
         wait_for(e_log, r"^collected \d+ items", 60, e)  # E holds bench2; next it waits for A's lock on the PLC
         time.sleep(0.5)
+        assert a.poll() is None, "A finished before E reached the PLC's lock: the lock wait was not exercised"
         e.send_signal(signal.SIGTERM)
         runs = {"A": (a, a_log), "B": (b, b_log), "C": (c, c_log), "D": (d, d_log), "E": (e, e_log), "F": (f, f_log),
                 "G": (g, g_log)}

@@ -5,6 +5,12 @@ It owns the rules a Modbus request lives by, in one place:
 * reads are retried (with backoff) by us — pymodbus's own retries are off, since they would repeat writes too;
   a write whose reply never came raises OutcomeUnknown and is never sent again;
 * every reply must answer exactly the request sent (function, unit, quantity, write echo), else it is a fault;
+* a late or repeated reply to an earlier request is never taken for the answer (README, Safety).  On TCP the
+  transaction id tells: pymodbus skips a frame with another non-zero id and keeps waiting for ours, and refuses
+  one with id 0 (tests/test_late_replies.py pins both).  RTU has no id: pymodbus drains the input before each
+  request (the silent interval), and every read is then *fenced* — the
+  reply must be the only thing received, nothing may be waiting after it, and a probe read of a quantity the
+  read did not have must be answered next (:meth:`ModbusWire._fence`), else the read is repeated;
 * after a fault the wire is resynchronised before the next request: on TCP a new connection; on RTU, which has
   no transaction id, a probe read whose quantity no abandoned request had (every reply before it is stale);
 * every failure becomes a harness error naming the request (with the family's names for it), the target and
@@ -12,7 +18,8 @@ It owns the rules a Modbus request lives by, in one place:
 
 A family's transport maps its element names to (table, address, count) runs with its address map and calls
 :meth:`ModbusWire.read` / :meth:`ModbusWire.write`.  Frames reach ``observers`` (wire traces, statistics) through
-pymodbus's public ``trace_packet`` hook, given to the client when it is built.
+pymodbus's public ``trace_packet`` hook, and requests and replies the fence through ``trace_pdu``, both given to
+the client when it is built.
 """
 
 from __future__ import annotations
@@ -91,10 +98,17 @@ class _Shape(Exception):
     """A reply that does not answer the request sent (wrong function, unit or quantity)."""
 
 
+class _Stale(Exception):
+    """A read's reply on RTU that could be a late or repeated reply to an earlier request (the fence failed)."""
+
+
+Hooks = tuple[Callable[[bool, bytes], bytes], Callable[[bool, ModbusPDU], ModbusPDU]]  # trace_packet, trace_pdu
+
+
 class ModbusWire:
     """A pymodbus sync client with the harness's request rules.  Build with :meth:`tcp` or :meth:`rtu`."""
 
-    def __init__(self, build: Callable[[Callable[[bool, bytes], bytes]], ModbusTcpClient | ModbusSerialClient],
+    def __init__(self, build: Callable[[Hooks], ModbusTcpClient | ModbusSerialClient],
                  description: str, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
                  describe: Describe | None = None, backoff: float = 0.05) -> None:
         self.description = description
@@ -106,7 +120,11 @@ class ModbusWire:
         self.hint = hint
         self.describe = describe or (lambda table, address, count: f"{table} {address}×{count}")
         self.observers: list[Observer] = []
-        self.client = build(self._trace_packet)  # retries=0: we retry reads only
+        self._received: list[bytes] = []  # what pymodbus held each time it tried to decode, since the request
+        self._extra = 0  # RTU: bytes received since the request that were not the reply's frame
+        self._fences = 0
+        self.fenced_out = 0  # RTU reads repeated because their fence failed
+        self.client = build((self._trace_packet, self._trace_pdu))  # retries=0: we retry reads only
         self.serial = isinstance(self.client, ModbusSerialClient)
         self.kind = "modbus-rtu" if self.serial else "modbus-tcp"
         self.requests = 0  # Modbus requests sent (round trips)
@@ -124,7 +142,8 @@ class ModbusWire:
     @classmethod
     def tcp(cls, host: str, port: int, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
             description: str, describe: Describe | None = None) -> "ModbusWire":
-        return cls(lambda trace: ModbusTcpClient(host, port=port, timeout=timeout, retries=0, trace_packet=trace),
+        return cls(lambda hooks: ModbusTcpClient(host, port=port, timeout=timeout, retries=0,
+                                                 trace_packet=hooks[0], trace_pdu=hooks[1]),
                    description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
                    describe=describe)
 
@@ -132,9 +151,9 @@ class ModbusWire:
     def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
             timeout: float, retries: int, hint: str, probe: Probe, description: str,
             describe: Describe | None = None) -> "ModbusWire":
-        return cls(lambda trace: SerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
+        return cls(lambda hooks: SerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
                                               parity=parity, stopbits=stopbits, timeout=timeout, retries=0,
-                                              trace_packet=trace),
+                                              trace_packet=hooks[0], trace_pdu=hooks[1]),
                    description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
                    describe=describe)
 
@@ -168,7 +187,8 @@ class ModbusWire:
         recover = tries * self.timeout + sum(self._backoff(a) for a in range(1, tries)) + 0.5
         if write:
             return recover + self.timeout
-        return tries * (recover + self.timeout) + sum(self._backoff(a) for a in range(1, tries))
+        fence = self.timeout if self.serial else 0.0
+        return tries * (recover + self.timeout + fence) + sum(self._backoff(a) for a in range(1, tries))
 
     def reopen(self) -> None:
         """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
@@ -183,9 +203,24 @@ class ModbusWire:
 
     # -- the rules --------------------------------------------------------------------------------------------
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
+        if not sending and self.serial:
+            self._received.append(data)  # all pymodbus holds; it then decodes the first frame in it
         for observer in list(self.observers):
             observer("tx" if sending else "rx", data)
         return data
+
+    def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+        if sending:
+            self._received.clear()
+            self._extra = 0
+        elif self.serial:
+            # On RTU pymodbus drops what came with the first good frame and what it could not decode (a bad CRC):
+            # a stale reply hides ours the first way, a corrupted reply of ours then lets a stale one in the
+            # second.  Earlier holdings that are not the start of the last one were dropped.
+            last, earlier = self._received[-1], self._received[:-1]
+            self._extra = (len(last) - len(self.client.framer.buildFrame(pdu))
+                           + sum(len(held) for held in earlier if not last.startswith(held)))
+        return pdu
 
     def _backoff(self, attempt: int) -> float:
         return self.backoff * min(2 ** (attempt - 1), 8)
@@ -247,6 +282,43 @@ class ModbusWire:
             except (OSError, ValueError, serial.SerialException):
                 pass
 
+    def _fence(self, fc: int, count: int) -> None:
+        """On RTU, after a read's reply passed :meth:`_check`: prove it was not a late or repeated reply to an earlier
+        request of the same shape (unit, function and byte count are all an RTU reply has).  Replies come in order,
+        so a stale frame taken for ours leaves ours still to come: it shows up with the reply (pymodbus would drop
+        it), waiting on the line after it, or before the answer to a probe read whose quantity differs from the
+        read's.  Raises :class:`_Stale` (the read is repeated after a resynchronisation).  A second round trip per
+        read: the price of a line without transaction ids (README, Safety).  On TCP the transaction id did it."""
+        if not self.serial:
+            return
+        reason = self._stale_before_probe() or self._stale_at_probe(fc, count)
+        if reason:
+            self.fenced_out += 1
+            raise _Stale(reason)
+
+    def _stale_before_probe(self) -> str:
+        if self._extra > 0:
+            return f"{self._extra} byte(s) more came with it or before it"
+        line = getattr(self.client, "line", None)
+        try:  # pymodbus drains the line before it sends the probe: look first
+            waiting = line is not None and line.pending()
+        except (OSError, ValueError, serial.SerialException):
+            waiting = False
+        return "bytes arrived right after it" if waiting else ""
+
+    def _stale_at_probe(self, fc: int, count: int) -> str:
+        self._fences += 1
+        choices = [c for c in range(1, self.probe.span + 1) if not (fc == 3 and c == count)] or [1]
+        probe = choices[self._fences % len(choices)]
+        try:
+            rr = self.client.read_holding_registers(self.probe.address, count=probe, device_id=self.unit)
+        except ModbusException as exc:
+            return f"the probe read after it went unanswered: {exc}"
+        if (rr.isError() or rr.function_code != 3 or rr.dev_id != self.unit or len(rr.registers) != probe
+                or self._extra):
+            return f"function {rr.function_code} came before the answer to the probe read of {probe} register(s)"
+        return ""
+
     def _exchange(self, fc: int, address: int, count: int, send: Callable[[], ModbusPDU]) -> ModbusPDU:
         """One Modbus request; reads are retried with backoff, writes never are.  Every failure becomes a harness
         error naming the request, the target and the fault seen."""
@@ -266,7 +338,9 @@ class ModbusWire:
                 # leaves its reply on the way.
                 self.dirty, self._inflight = True, (fc, count)
                 rr = self._check(fc, address, count, what, send())
-                self.dirty, self._inflight = False, None
+                if not write:
+                    self._fence(fc, count)
+                self.dirty, self._inflight = self._extra > 0, None  # more than the reply came: resync first
                 return rr
             except PlcErrorReply:
                 self.dirty, self._inflight = False, None  # an exception reply is still our reply
@@ -279,7 +353,7 @@ class ModbusWire:
                     raise ReplyTimeout(f"{faults[0]}; then {exc}; {attempts} tries of {self.timeout:g} s "
                                        f"({attempts * self.timeout:g} s), {time.monotonic() - started:.2f} s "
                                        f"in all") from None
-            except (ModbusException, _Shape) as exc:
+            except (ModbusException, _Shape, _Stale) as exc:
                 self.dirty = True
                 self._abandoned.add((fc, count))
                 fault = self._fault(exc, what, attempt, attempts)
@@ -299,6 +373,9 @@ class ModbusWire:
         where = f"{what} on {self.description} (attempt {attempt} of {attempts})"
         if isinstance(exc, _Shape):
             return f"a reply of the wrong shape to {where}: {exc}"
+        if isinstance(exc, _Stale):
+            return (f"the reply to {where} could have been a late or repeated reply to an earlier request ({exc}), "
+                    f"so its value was not trusted")
         if isinstance(exc, ModbusIOException):
             # pymodbus's own "No response received after 0 retries" counts differently from our attempts: drop it
             detail = "" if "No response received" in str(exc) else f" [pymodbus: {exc}]"
@@ -347,6 +424,7 @@ class OverModbusWire:
     # the wire counts requests (Link.__init__ assigns 0 before the wire is known: ignored)
     requests = property(lambda self: self.wire.requests, lambda self, value: None)
     resyncs = property(lambda self: self.wire.resyncs)
+    requests_per_read = property(lambda self: 2 if self.wire.serial else 1)  # RTU: the read and its fence
     reconnects = property(lambda self: self.wire.reconnects)
     client = property(lambda self: self.wire.client)
 

@@ -12,7 +12,8 @@ handles one request at a time must — so a client can always resynchronise:
 ``late``      the reply is withheld, then sent just before the next reply — after the client gave up on it
 ``duplicate`` the reply is sent twice
 ``echo``      the reply is sent, then sent again 1–50 ms later (a delayed duplicate: it may land after the next
-              request, where a client without transaction ids would take it for that request's answer)
+              request, where a client without transaction ids would take it for that request's answer); like
+              every frame it goes out whole — one due while a split reply is on its way follows that reply
 ``garbage``   1–16 random bytes go out before the reply
 ``close``     the connection is closed instead of replying (on a pty: no reply, as a line cannot hang up)
 ============ ====================================================================================================
@@ -149,6 +150,8 @@ class FaultySender:
         self.corrupt = corrupt
         self.hangup = close
         self.held: list[bytes] = []  # "late" replies waiting for the next one
+        self.splitting = False  # a split reply is on its way: an echo due now waits for its last piece
+        self.echoes: list[bytes] = []  # echoes that came due meanwhile
         self.closed = False
         self._queue: asyncio.Queue[bytes] | None = None
         self._task: asyncio.Task | None = None
@@ -183,7 +186,9 @@ class FaultySender:
                 pass  # the peer went away: nothing to answer
 
     def _echo(self, reply: bytes) -> None:
-        if not self.closed:
+        if self.splitting:  # a sender writes whole frames: never inside another one
+            self.echoes.append(reply)
+        elif not self.closed:
             try:
                 self.write(reply)
             except (OSError, RuntimeError):
@@ -220,11 +225,18 @@ class FaultySender:
         elif kind == "split" and len(reply) > 1:
             cuts = sorted(rng.sample(range(1, len(reply)), min(len(reply) - 1, rng.randint(1, 3))))
             pieces = [reply[a:b] for a, b in zip([0] + cuts, cuts + [len(reply)])]
-            for piece in pieces[:-1]:
-                self.write(piece)
-                await asyncio.sleep(faults.split_gap)
+            self.splitting = True
+            try:
+                for piece in pieces[:-1]:
+                    self.write(piece)
+                    await asyncio.sleep(faults.split_gap)
+            finally:
+                self.splitting = False
             reply = pieces[-1]
         self.write(reply)
+        for echo in self.echoes:
+            self.write(echo)
+        self.echoes.clear()
 
 
 __all__ = ["KINDS", "WireFaults", "FaultySender", "check_rates", "corrupt_fatek", "corrupt_crc", "corrupt_mbap"]

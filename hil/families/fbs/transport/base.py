@@ -51,6 +51,9 @@ class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
+    #: Requests one read takes: 2 where every read is fenced by a second one (a wire without transaction ids,
+    #: README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans count with it.
+    requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: "Emulator | None" = None
 
@@ -126,11 +129,6 @@ class Transport(Link, ABC):
     def status(self) -> PlcStatus:
         with self._lock:
             return self._count(self._status())
-
-    def fence(self) -> bool:
-        """After a read whose value decides what gets restored: True when the reply cannot have been a stale one
-        (a late or repeated reply to an earlier request).  Wires with transaction ids need no fence."""
-        return True
 
     def unreachable_reason(self, address: NameLike) -> str | None:
         """Why this transport cannot reach ``address`` (e.g. D4054 over the default Modbus map), or None."""

@@ -4,8 +4,8 @@ commands 41 (RUN/STOP) and 42 (bit actions) behind it.
 The guard's rules (allow-list before a byte is sent, originals journaled, durable first, the clock kept at its
 offset, verified restore retried until it succeeds, recovery) are :class:`hil.bench.guard.Guard`'s; this module
 gives them the FBs address model: an element is a base :class:`~hil.families.fbs.address.Address` (a bit or a
-16-bit word; WM16 covers M16–M31), and every read that decides what gets restored is fenced (FATEK replies carry
-no transaction id, so a late or repeated reply is told apart only by a loop-back nonce).
+16-bit word; WM16 covers M16–M31), and its reads are the transport's, where no late or repeated reply is taken for
+an answer (FATEK and Modbus RTU fence every read: README, Safety).
 
 Elements the PLC itself rewrites every scan (``volatile``, e.g. the RTC read-out R4128–R4135) are allowed but
 not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.Rtc.clock`) puts it right.
@@ -35,12 +35,13 @@ class GuardedTransport(Guard, Transport):
     #: what a suite may hold of it (hil.bench.view.guarded_io)
     PUBLIC = ("read", "read_words", "read_bits", "read_many", "write", "write_words", "write_bits", "write_many",
               "status", "unreachable_reason", "require", "budget", "set_running", "bit_action", "description",
-              "limits")
+              "limits", "requests_per_read")
 
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
         super().__init__(f"guarded {inner.description}", expand(writable), expand(volatile))
         self.inner = inner
         self.limits = inner.limits
+        self.requests_per_read = inner.requests_per_read
         self.emulator = inner.emulator
         self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
         self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
@@ -51,20 +52,10 @@ class GuardedTransport(Guard, Transport):
         return list(parse(name).elements())
 
     def read_originals(self, elements: list[Address]) -> list[int]:
-        return self.fenced_read(elements)
+        return self.inner.read_many(elements)  # never a late reply: the transport fences its reads (README, Safety)
 
     def write_back(self, items: list[tuple[Address, int]]) -> None:
         self.inner.write_many(items)
-
-    def fenced_read(self, addresses: list[Address], tries: int = 8) -> list[int]:
-        """Values that decide what gets restored (an original, a restore's read-back): read, then fenced
-        (:meth:`Transport.fence`) so a late or repeated reply to an earlier request is never taken for them."""
-        for _ in range(tries):
-            values = self.inner.read_many(addresses)
-            if self.inner.fence():
-                return values
-        raise TransportError(f"reading {', '.join(map(str, addresses[:4]))}… on {self.inner.description}: stale "
-                             f"replies kept arriving before the answer ({tries} fenced attempts)")
 
     # -- FATEK commands 41 and 42, behind the same guard -----------------------------------------------------
     def set_running(self, run: bool) -> None:

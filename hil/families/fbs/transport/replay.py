@@ -7,6 +7,10 @@ did not answer, so the client times out as it did then).  The first request that
 silence, closes the connection and is kept as a :class:`Mismatch` naming both frames; :meth:`RecordedPlc.verify`
 raises :class:`ReplayMismatch` for it, or for recorded requests never sent.
 
+Loop-backs (command 4E) are the transport's own, not the procedure's: the fence after every read and the
+resynchronisation after a fault (:mod:`hil.families.fbs.transport.fatek`) carry a nonce unique to the run that
+sent them.  A recording keeps none of them, and the recorded PLC echoes each one it gets, as any FATEK PLC does.
+
 Uses: ``replay+fatek:///path/to/trace.txt`` is a target (:func:`hil.families.fbs.transport.open_transport`), so a failing
 bench test's trace can be replayed through the device layer on a machine with no PLC; ``fixtures/frames/`` pins the
 exact frames of the device procedures (tests/test_replay.py), next to the manual's test vectors.
@@ -21,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hil.core.errors import HilError
-from hil.families.fbs.protocol.fatek import ETX, STX, describe_frame, show_frame
+from hil.families.fbs.protocol.fatek import ETX, STX, FrameError, Loopback, describe_frame, show_frame, split_frame
 
 
 class ReplayError(HilError):
@@ -79,6 +83,8 @@ def parse_recording(text: str, where: str = "<recording>") -> list[Exchange]:
             continue  # comments, headers, calls
         arrow, rest = match.groups()
         frame = _frame_bytes(rest, where, number)
+        if _is_loopback(frame):
+            continue  # the transport's fence or resynchronisation, answered live (module docstring)
         if arrow == "->":
             if pending is not None:
                 exchanges.append(Exchange(pending, None))
@@ -93,6 +99,13 @@ def parse_recording(text: str, where: str = "<recording>") -> list[Exchange]:
     if not exchanges:
         raise ReplayError(f"{where} holds no frames")
     return exchanges
+
+
+def _is_loopback(frame: bytes) -> bool:
+    try:
+        return split_frame(frame).command == Loopback.code
+    except FrameError:
+        return False
 
 
 def _frame_bytes(rest: str, where: str, number: int) -> bytes:
@@ -155,6 +168,9 @@ class RecordedPlc:
                     return  # a mismatch: hang up, as the client must not carry on against a wrong recording
 
     def _answer(self, conn: socket.socket, frame: bytes) -> bool:
+        if _is_loopback(frame):  # echoed, as the PLC does; not part of the recording (module docstring)
+            conn.sendall(frame)
+            return True
         with self._lock:
             if self.mismatch is not None:
                 return False

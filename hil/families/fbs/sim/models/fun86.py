@@ -577,7 +577,11 @@ class Fun86Model(Model):
     @staticmethod
     def outputs_at(st: InstanceState, now: float, on_time: np.ndarray, y_on: np.ndarray, y_off: np.ndarray) -> bytes:
         """Yn… at ``now``: as when on for the first ``on_time`` seconds of each PWM period, else as when off."""
-        return np.where((now - st.started) % st.pwm < on_time, y_on, y_off).tobytes()  # (bools: bytes 0/1)
+        # the time into the PWM cycle, the cycle found as next_event() finds it (with its 1e-9): a scan it scheduled
+        # at a cycle start a rounding error early is in the new cycle, not at the old one's end — else that output
+        # is OFF for its ON time and ON for the rest, cycle after cycle
+        phase = max(0.0, now - (st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm))
+        return np.where(phase < on_time, y_on, y_off).tobytes()  # (bools: bytes 0/1)
 
     def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
                 y_off: np.ndarray) -> None:
