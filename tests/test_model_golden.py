@@ -51,12 +51,12 @@ def state(emu) -> dict:  # noqa: ANN001
     memory["counters32"] = {i: v for i, v in enumerate(snap["counters32"]) if v}
     return {
         "clock": (emu.now, emu.scans), "memory": memory,
-        "temperature": (list(tm._next), list(tm._mux), {p: list(s) for p, s in tm._samples.items()}, tm._breaks,
+        "temperature": (list(tm._next), list(tm._mux), tm.samples(), tm._breaks,
                         sorted(tm._measured), tm.state),
         "fun86": ([(st.next_pid, st.running, st.waiting, st.sn, st.zn,
-                    [(ps.integral, ps.pv_prev, ps.prealarm, ps.loop_since) for ps in st.points.values()])
+                    st.point_states())
                    for st in fun86.states], sorted((*key, wave) for key, wave in fun86.waveforms.items())),
-        "plant": [(h.t0, h.temp0, h.wave if hasattr(h, "wave") else h.history) for h in plant.points.values()],
+        "plant": plant.state(),
     }
 
 
@@ -75,16 +75,14 @@ def outputs(emu) -> list[tuple[int, ...]]:  # noqa: ANN001
 
 def traced(emu) -> list:  # noqa: ANN001
     """Record :func:`outputs` after every scan in which they changed: (time, outputs); the scans in between saw
-    the outputs of the entry before."""
+    the outputs of the entry before.  An observer of the engine: it sees the scans a model runs in a batch too."""
     trace: list = []
-    scan = emu.scan
 
-    def scan_and_record() -> None:
-        scan()
+    def record(emu) -> None:  # noqa: ANN001
         rows = outputs(emu)
         if not trace or trace[-1][1] != rows:
             trace.append((emu.now, rows))
-    emu.scan = scan_and_record
+    emu.observers.append(record)
     return trace
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
 import hil.families.fbs.device.pid  # noqa: F401 - imported outside the inner runs (see test_temperature_suites)
@@ -82,12 +83,12 @@ class PrealarmAfter11Scans(Fun86Model):
 
 class DipDoesNotResetTheCount(Fun86Model):
     def prealarm_count(self, count, pv, limit):
-        return count + 1 if pv >= limit else count
+        return np.where(pv >= limit, count + 1, count)
 
 
 class BandEdgesExclusive(Fun86Model):
     def in_band(self, pv, sv, os):
-        return sv - os < pv < sv + os
+        return (sv - os < pv) & (pv < sv + os)
 
 
 class LowPointsInSecondWord(Fun86Model):

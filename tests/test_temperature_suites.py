@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
 import pytest
 
 # Imported here, outside the inner runs: pytester restores sys.modules after each inner run, so whatever the
@@ -39,13 +40,13 @@ def test_temperature_suite_passes_on_every_emulator_target(pytester, target):
 class BreakValue28766(TemperatureModel):
     def point_result(self, point, installed, broken, live):
         reading, flag = super().point_result(point, installed, broken, live)
-        return (28766 if broken and installed else reading), flag
+        return np.where(broken & installed, 28766, reading), flag
 
 
 class BreakValueZero(TemperatureModel):
     def point_result(self, point, installed, broken, live):
         reading, flag = super().point_result(point, installed, broken, live)
-        return (0 if broken and installed else reading), flag
+        return np.where(broken & installed, 0, reading), flag
 
 
 class BreakBitOnNextPoint(TemperatureModel):
@@ -56,7 +57,7 @@ class BreakBitOnNextPoint(TemperatureModel):
 class UnfittedPointStillFlagged(TemperatureModel):
     def point_result(self, point, installed, broken, live):
         reading, flag = super().point_result(point, installed, broken, live)
-        return reading, flag or broken
+        return reading, flag | broken
 
 
 class R4011Ignored(TemperatureModel):
@@ -77,7 +78,7 @@ class MaskLatchedAtPowerOn(TemperatureModel):
         self._latched = list(emu.memory.words["R"][4010:4012])
 
     def installed(self, mem, point):
-        return bool(self._latched[point // 16] >> (point % 16) & 1)
+        return (np.array(self._latched)[point // 16] >> (point % 16) & 1).astype(bool)
 
 
 class ExecutionCode55(TemperatureModel):

@@ -47,6 +47,9 @@ class Engine:
         self.skipped_time = 0.0  # virtual seconds jumped over without scanning (no model needed a scan)
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
+        #: called with the engine after every scan, including the scans a model ran in a batch (see
+        #: :meth:`Model.span`): what they see of memory is what that scan left in it
+        self.observers: list[Callable[["Engine"], None]] = []
         # Real time: requests wait here for the end of the current scan (run_realtime services them there).
         self._pending: list[_Pending] = []
         self._pending_lock = threading.Lock()
@@ -65,10 +68,31 @@ class Engine:
     # -- scanning -------------------------------------------------------------------------------------------
     def scan(self) -> None:
         with self.lock:
-            self.now += self.scan_time
-            self.scans += 1
+            self.tick()
             for model in self.models:
                 model.scan(self)
+            self.end_scan()
+            for observer in self.observers:
+                observer(self)
+
+    def tick(self) -> None:
+        """The clock of one scan (a model running scans in a batch ticks it for each of them)."""
+        self.now += self.scan_time
+        self.scans += 1
+
+    def end_scan(self) -> None:
+        """What the controller does at the end of every scan after the models (a family may add to it)."""
+
+    def landing(self, due: float, target: float) -> float:
+        """Where the next scan lands for an event at ``due``: never before the next scan nor after ``target``."""
+        return min(max(due, self.now + self.scan_time), target)
+
+    def land(self, due: float, target: float) -> None:
+        """Set the clock so that the next :meth:`tick` lands where :meth:`landing` says, counting the scans jumped
+        over (a PLC would have run them) in :attr:`skipped_time`."""
+        landing = self.landing(due, target)
+        self.skipped_time += landing - self.scan_time - self.now
+        self.now = landing - self.scan_time
 
     @property
     def scans_represented(self) -> int:
@@ -123,10 +147,11 @@ class Engine:
                     steps += 1
                     self.scan()
             while self.now + self.scan_time <= target + 1e-9:
-                due = min((m.next_event(self.now) for m in self.models), default=math.inf)
-                landing = min(max(due, self.now + self.scan_time), target)
-                self.skipped_time += landing - self.scan_time - self.now  # scans a PLC would have run meanwhile
-                self.now = landing - self.scan_time  # the scan below lands exactly on `landing`
+                # a model may run the coming request-free scans itself, in a batch (always leaving the last one
+                # before target to a whole scan of every model)
+                if any(m.span(self, target) for m in self.models):
+                    continue
+                self.land(min((m.next_event(self.now) for m in self.models), default=math.inf), target)
                 self.scan()
             if partial:
                 self.now = max(self.now, target)

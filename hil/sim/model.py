@@ -3,10 +3,25 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
+
+import numpy as np
 
 if TYPE_CHECKING:
     from hil.sim.engine import Engine
+
+
+Time = TypeVar("Time", float, np.ndarray)
+_SLACK = np.array(1e-6)
+
+
+def scan_grid(t: Time, scan_time: float) -> Time:
+    """The first scan at or after virtual time ``t`` (a float or an array of them), on the scan grid — where a
+    fast-forward jump lands, so the scan stepping would take."""
+    if isinstance(t, float):  # (the same arithmetic, without numpy's overhead on one number)
+        return math.ceil(t / scan_time - 1e-6) * scan_time
+    step = np.array(scan_time)  # (a 0-d array: cheaper as an operand than a Python number)
+    return np.ceil(t / step - _SLACK) * step
 
 
 class Model:
@@ -17,6 +32,9 @@ class Model:
     * :meth:`next_event` — the next virtual time at which this model must see a scan; the engine fast-forwards
       to it when nothing else is pending.  ``math.inf`` means "only when a request comes".  A model that must see
       every scan (counting consecutive scans) returns ``now``.
+    * :meth:`span` — run a stretch of the coming scans itself, in a batch (optional).
+    * :meth:`footprint` — the memory elements the model reads or writes at every scan (lets another model's
+      batch know that skipping this one's scans changes nothing).
     """
 
     name = "model"
@@ -29,3 +47,14 @@ class Model:
 
     def next_event(self, now: float) -> float:
         return math.inf
+
+    def span(self, engine: "Engine", target: float) -> bool:
+        """Run, without scanning the other models, some of the scans the engine would run from ``engine.now``
+        towards ``target`` — each landed and ticked on the engine's clock (:meth:`Engine.land`,
+        :meth:`Engine.tick`), the observers called after each — and return True; or do nothing and return False.
+        Only what no request can see in between may be batched: never the last scan before ``target``."""
+        return False
+
+    def footprint(self) -> "frozenset[tuple[str, int]] | None":
+        """The (bank, index) elements the model's scans read or write (None: unknown, anything)."""
+        return None

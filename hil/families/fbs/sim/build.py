@@ -30,12 +30,14 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
 def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     """FUN86 (the ladder's PID instances, [pid]) and the thermal plant ([plant]) after the temperature modules."""
     from hil.families.fbs.sim.models.fun86 import Fun86Model  # noqa: PLC0415
+    from hil.families.fbs.sim.models.span import Span  # noqa: PLC0415
     from hil.families.fbs.sim.models.plant import ThermalPlant  # noqa: PLC0415
     from hil.families.fbs.sim.models.temperature import TemperatureModel  # noqa: PLC0415
     from hil.families.fbs.pid import PidConfig  # noqa: PLC0415
     config = profile.sections.get("pid") or PidConfig(())
     temperature = emulator.model(TemperatureModel)
     fun86 = Fun86Model(config, temperature.config if temperature else None)
+    fun86.batcher = Span()  # (the scans at PID intervals between requests, in batches)
     if temperature is not None:
         fun86.next_measurement = temperature.next_measurement
         fun86.temperature_model = temperature

@@ -32,10 +32,8 @@ class Emulator(Engine):
     #: the bench ladder's scan counter ([bench] scan_counter, fixtures/ladder.md), when the profile declares one
     scan_counter: Address | None = None
 
-    def scan(self) -> None:
-        with self.lock:
-            super().scan()
-            if self.scan_counter is not None:
-                # the rung "R := R + 1" at the end of every scan; the spans the engine jumps over (no model
-                # needed a scan, no request could look) count as the scans a PLC would have run in them
-                self.memory.set(self.scan_counter, self.scans_represented & 0xFFFF)
+    def end_scan(self) -> None:
+        if self.scan_counter is not None:
+            # the rung "R := R + 1" at the end of every scan; the spans the engine jumps over (no model
+            # needed a scan, no request could look) count as the scans a PLC would have run in them
+            self.memory.set(self.scan_counter, self.scans_represented & 0xFFFF)

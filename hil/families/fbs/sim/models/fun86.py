@@ -16,7 +16,8 @@ would, after the temperature modules in each scan.  Per instance and scan:
 
 Temperatures come from the readings, where R4003/R4004 or the temperature table say; PV is in 0.1°.
 Every decision a faulty PLC could get wrong is one small method (the "seams" below), so the harness's tests can
-build broken PLCs as tiny subclasses.
+build broken PLCs as tiny subclasses.  The per-point ones take and return arrays over an instance's points: the
+points' state is kept in arrays (:class:`InstanceState`), stepped all at once.
 
 Time: the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
 pre-alarm count is running; otherwise the engine jumps.  In between:
@@ -28,7 +29,8 @@ pre-alarm count is running; otherwise the engine jumps.  In between:
   enabled point could reach R4008 (the temperature model's hard bound on its readings; the plant clips its noise at
   6 σ for that), a pre-alarm seam is overridden, or there is no log: then every measurement gets its scan.
 
-With EN off it asks for nothing (the default bench's virtual day stays one jump).
+With EN off it asks for nothing (the default bench's virtual day stays one jump).  Between requests, with the
+plant integrating the PWM, the scans at PID intervals are run in batches (:meth:`Fun86Model.span`, models/span.py).
 """
 
 from __future__ import annotations
@@ -37,14 +39,17 @@ import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
+import numpy as np
+
 from hil.families.fbs.address import Address, parse
-from hil.sim.model import Model
+from hil.sim.columns import occurrence, signed16 as signed
+from hil.sim.model import Model, scan_grid
 from hil.families.fbs import registers as reg
-from hil.families.fbs.registers import signed16
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
 
 if TYPE_CHECKING:
+    from hil.sim.engine import Engine
     from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
 
@@ -56,12 +61,8 @@ DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
 
 
-@dataclass(slots=True)  # (read and written per point on every scan)
-class PointState:
-    integral: float = 0.0
-    pv_prev: int | None = None
-    prealarm: int = 0  # consecutive scans with PV ≥ R4008
-    loop_since: float | None = None  # when "output ≥ R4006 % and not normal" began
+def _none() -> np.ndarray:
+    return np.zeros(0)
 
 
 @dataclass
@@ -76,7 +77,77 @@ class InstanceState:
     waiting: bool = False  # executing, but not every point measured yet
     sn: int = 0
     zn: int = 0
-    points: dict[int, PointState] = field(default_factory=dict)
+    # per point b (point Sn + b):
+    integral: np.ndarray = field(default_factory=_none)
+    pv_prev: np.ndarray = field(default_factory=_none)  # PV at the last PID step (where has_prev)
+    has_prev: np.ndarray = field(default_factory=_none)
+    prealarm: np.ndarray = field(default_factory=_none)  # consecutive scans with PV ≥ R4008
+    loop_since: np.ndarray = field(default_factory=_none)  # when "output ≥ R4006 % and not normal" began (NaN: no)
+    #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
+    published: tuple | None = None
+    #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
+    view: "_View | None" = None
+    #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
+    weights: tuple | None = None
+
+    def new_points(self, zn: int) -> None:
+        self.view, self.weights = None, None
+        self.integral = np.zeros(zn)
+        self.pv_prev = np.zeros(zn, dtype=np.int64)
+        self.has_prev = np.zeros(zn, dtype=bool)
+        self.prealarm = np.zeros(zn, dtype=np.int64)
+        self.loop_since = np.full(zn, math.nan)
+
+    def point_states(self) -> list[tuple]:
+        """(integral, PV at the last PID step or None, pre-alarm count, heater-loop start or None) per point."""
+        return [(i, p if h else None, c, None if math.isnan(s) else s) for i, p, h, c, s in
+                zip(self.integral.tolist(), self.pv_prev.tolist(), self.has_prev.tolist(), self.prealarm.tolist(),
+                    self.loop_since.tolist())]
+
+
+@dataclass
+class _View:
+    """An instance's registers as a scan read them, and what follows from them alone: the next scan with the same
+    registers needs none of it again."""
+
+    key: tuple
+    pv: np.ndarray
+    sv: np.ndarray
+    os: np.ndarray
+    enabled: np.ndarray
+    idx: np.ndarray  # the enabled points
+    output: np.ndarray  # OR
+    every: bool  # every point enabled
+    sel: "slice | np.ndarray"  # the enabled points, as an index (a whole slice when every one is)
+    normal: np.ndarray | None = None  # (the alarms' part, filled by the scan that made the view)
+    normal_words: tuple = ()
+    out_of_band: bool = False
+    warning: np.ndarray | None = None  # the warning bits the last scan found, and their words
+    warning_words: tuple = ()
+    calm: bool = False  # no PV at or above R4008 and every pre-alarm count 0
+    waves: tuple | None = None  # (ON seconds, Y when on, Y when off)
+
+
+#: the output's bounds as 0-d arrays: numpy takes a Python number as an operand at a cost several times that of a
+#: 0-d array (and a control step over a few dozen points is a dozen such operations, once per PID interval)
+_FULL, _LOWEST, _ZERO = np.array(float(OUTPUT_FULL)), np.array(-float(OUTPUT_FULL)), np.array(0.0)
+
+
+@dataclass(frozen=True)
+class Law:
+    """The control law's coefficients for some points of an instance (constant while its registers are)."""
+
+    kc: np.ndarray  # Kc
+    ki: np.ndarray  # Ki ≠ 0
+    every_ki: bool  # Ki ≠ 0 for every point
+    integrate: np.ndarray  # Kc·(Ki/100/60)·ts: the integral's change per unit of error
+    derivative: np.ndarray  # −Kc·(Td/100·60), signed for heating (+) or cooling (−): the output per unit of slope
+    heating: bool
+    md1: bool  # Md = 1: the integral runs outside the proportional band too
+    ts: float
+    #: derivative / ts when ts is a power of two (dividing by it is exact, so (PV − PV')·this is derivative ×
+    #: ((PV − PV')/ts) to the last bit); None otherwise
+    per_change: np.ndarray | None = None
 
 
 class Fun86Model(Model):
@@ -99,8 +170,13 @@ class Fun86Model(Model):
         self.waveforms_version = 0
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
+        self._log: tuple | None = None
+        self._replays = False
+        self._output_keys: dict[tuple, frozenset] = {}
+        #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
+        self.batcher = None
 
-    # -- the seams broken variants override ---------------------------------------------------------------------
+    # -- the seams broken variants override (per point: arrays over an instance's points) -------------------------
     def valid(self, sn: int, zn: int) -> bool:
         """Sn/Zn in range (else ERR)."""
         return valid_sn_zn(sn, zn)
@@ -109,62 +185,81 @@ class Fun86Model(Model):
         """(PID interval, PWM period) in seconds from R4005 (low byte, high byte)."""
         return float(timing_seconds(r4005 & 0xFF)), float(timing_seconds(r4005 >> 8))
 
-    def enabled(self, mem: "Memory", point: int) -> bool:
-        """Point's bit in R4012 (points 0–15) or R4013 (16–31)."""
-        return bool(mem.words["R"][_R[reg.PID_ENABLE_LOW] + point // 16] >> (point % 16) & 1)
+    def enabled(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
+        """Points' bits in R4012 (points 0–15) or R4013 (16–31)."""
+        first, point = _R[reg.PID_ENABLE_LOW], np.asarray(point)
+        words = np.array(mem.words["R"][first:first + int(point.max(initial=0)) // 16 + 1])  # (a point past 31 too)
+        return (words[point // 16] >> (point % 16) & 1).astype(bool)
 
-    def drive(self, enabled: bool, on: bool) -> bool:
-        """The PWM output of a point: a disabled point's output is forced off."""
-        return enabled and on
+    def drive(self, enabled: np.ndarray, on: bool) -> np.ndarray:
+        """The PWM outputs of points: a disabled point's output is forced off."""
+        return enabled & on
 
-    def in_band(self, pv: int, sv: int, os: int) -> bool:
+    def in_band(self, pv: np.ndarray, sv: np.ndarray, os: np.ndarray) -> np.ndarray:
         """The "temperature normal" rule: SV − Os ≤ PV ≤ SV + Os (edges included)."""
-        return sv - os <= pv <= sv + os
+        return (sv - os <= pv) & (pv <= sv + os)
 
-    def prealarm_count(self, count: int, pv: int, limit: int) -> int:
+    def prealarm_count(self, count: np.ndarray, pv: np.ndarray, limit: int) -> np.ndarray:
         """Consecutive scans with PV ≥ R4008: one more, or back to 0 on a scan below."""
-        return count + 1 if pv >= limit else 0
+        return np.where(pv >= limit, count + 1, 0)
 
-    def prealarm(self, count: int) -> bool:
+    def prealarm(self, count: np.ndarray) -> np.ndarray:
         return count >= PREALARM_SCANS
 
     def loop_threshold(self, mem: "Memory") -> int:
         """R4006: the heater-loop check's high output, in %."""
         return mem.words["R"][_R[reg.HEATER_LOOP_PERCENT]]
 
-    def loop_elapsed(self, since: float, now: float) -> float:
+    def loop_elapsed(self, since: np.ndarray, now: float) -> np.ndarray:
         """Seconds the heater-loop condition has held."""
         return now - since
 
-    def bit_position(self, b: int) -> tuple[int, int]:
+    def bit_position(self, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(word 0/1, bit) of the point at operand offset b (b counts from Sn): WR+0/2 for b < 16, WR+1/3 above."""
         return b // 16, b % 16
 
-    def alarm(self, enabled_not_normal: bool, any_warning: bool) -> bool:
+    def alarm(self, enabled_not_normal, any_warning):  # noqa: ANN001, ANN201 - bools, or arrays of them over scans
         """ALM: a point out of its band, or a warning."""
-        return enabled_not_normal or any_warning
+        return enabled_not_normal | any_warning
 
-    def control(self, inst: PidInstance, st: PointState, kc: int, ki: int, td: int, sv: int, pv: int,
-                heating: bool, ts: float) -> int:
-        """One PID step (spec: the manual's formula; derivative on PV; Md 0 freezes the integral outside the
-        proportional band).  Units: 0.1° in, output counts 0–16383 out."""
-        error = (sv - pv) if heating else (pv - sv)
-        proportional = kc * error
-        slope = 0.0 if st.pv_prev is None else (pv - st.pv_prev) / ts
-        derivative = -kc * (td / 100 * 60) * slope * (1 if heating else -1)
-        if ki and (inst.md == 1 or abs(proportional) < OUTPUT_FULL):
-            st.integral += kc * (ki / 100 / 60) * ts * error
-            st.integral = min(max(st.integral, -OUTPUT_FULL), OUTPUT_FULL)
-        if not ki:
-            st.integral = 0.0
-        st.pv_prev = pv
-        return int(min(max(round(proportional + st.integral + derivative), 0), OUTPUT_FULL))
+    def law(self, inst: PidInstance, kc: np.ndarray, ki: np.ndarray, td: np.ndarray, heating: bool,
+            ts: float) -> Law:
+        """The PID law's coefficients from the gains (spec: the manual's formula; derivative on PV)."""
+        kc = np.asarray(kc, dtype=float)  # (gains are whole numbers: as floats, the arithmetic is the same and
+        # each step's operations take operands of one type, without a cast)
+        derivative = -kc * (td / 100 * 60) * (1 if heating else -1)
+        exact = ts > 0 and math.frexp(ts)[0] == 0.5  # (a power of two)
+        return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts, derivative, heating, inst.md == 1,
+                   ts, derivative / ts if exact else None)
+
+    def control(self, law: Law, integral: np.ndarray, pv_prev: np.ndarray, has_prev: np.ndarray | bool,
+                sv: np.ndarray, pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One PID step: (outputs, integrals) of points at ``pv`` whose integrals and PVs at the last step (where
+        ``has_prev``; none: no slope) were ``integral`` and ``pv_prev``.  Md 0 freezes the integral outside the
+        proportional band.  Units: 0.1° in, output counts 0–16383 out (as floats)."""
+        error = (sv - pv) if law.heating else (pv - sv)
+        proportional = law.kc * error
+        if has_prev is not True:
+            pv_prev = np.where(has_prev, pv_prev, pv)
+        if law.per_change is not None:
+            derivative = law.per_change * (pv - pv_prev)
+        else:
+            derivative = law.derivative * ((pv - pv_prev) / law.ts)
+        integrate = law.ki if law.md1 else np.abs(proportional) < _FULL
+        if not law.md1 and not law.every_ki:
+            integrate &= law.ki
+        # (an integral not integrating gains 0.0 and stays within ±16383)
+        integral = np.minimum(np.maximum(integral + law.integrate * error * integrate, _LOWEST), _FULL)
+        if not law.every_ki:
+            integral = np.where(law.ki, integral, 0.0)
+        return np.minimum(np.maximum(np.rint(proportional + integral + derivative), _ZERO), _FULL), integral
 
     # -- helpers ---------------------------------------------------------------------------------------------------
     def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
         if inst.settable:
-            return (signed16(mem.words[inst.sn_register.kind][inst.sn_register.index]),
-                    signed16(mem.words[inst.zn_register.kind][inst.zn_register.index]))
+            words = mem.words
+            return (int(signed([words[inst.sn_register.kind][inst.sn_register.index]])[0]),
+                    int(signed([words[inst.zn_register.kind][inst.zn_register.index]])[0]))
         return inst.sn, inst.zn
 
     def readings_start(self, mem: "Memory") -> Address | None:
@@ -185,6 +280,15 @@ class Fun86Model(Model):
         work = decode_start(mem.words[sr.kind][sr.index + 3])
         return work is not None and mem.words[work.kind][work.index] >> 8 == EXEC_MEASURING
 
+    @staticmethod
+    def pid_due(st: InstanceState, now: float) -> bool:
+        """Is a PID step due at the scan at ``now``?  (The schedule then moves past now.)"""
+        if now < st.next_pid - 1e-9:
+            return False
+        while st.next_pid <= now + 1e-9:
+            st.next_pid += st.interval
+        return True
+
     # -- the engine ---------------------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
         self._emu = emu
@@ -192,7 +296,11 @@ class Fun86Model(Model):
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
         tm = self.temperature_model
-        self._log = tm.log if tm is not None and tm.log else None
+        self._log = None
+        self._replays = False  # a reading logged for a scan skipped since the last (see _replayed)
+        if tm is not None and tm.log:
+            self._log = tuple(np.concatenate(parts) for parts in zip(*tm.log))
+            self._replays = float(scan_grid(float(self._log[0].min()), emu.scan_time)) < emu.now - emu.scan_time / 2
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -203,7 +311,7 @@ class Fun86Model(Model):
                 self._drop_waveforms(inst, st)
         if tm is not None:
             # log the readings measured until the next scan (replayed there) while any instance runs
-            tm.log = {} if any(st.running for st in self.states) else None
+            tm.log = [] if any(st.running for st in self.states) else None
 
     def _scan_at_rest(self, mem: "Memory") -> bool:
         """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
@@ -226,25 +334,76 @@ class Fun86Model(Model):
         return True
 
     def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
-        if self.waveforms:
-            for b in range(max(st.zn, 0)):
-                if self.waveforms.pop((inst.yn.kind, inst.yn.index + b), None) is not None:
-                    self.waveforms_version += 1
+        st.published = None
+        if self.waveforms and st.zn > 0:
+            keys = self._output_keys.get((inst.yn, st.zn))
+            if keys is None:
+                keys = self._output_keys[(inst.yn, st.zn)] = frozenset((inst.yn.kind, inst.yn.index + b)
+                                                                       for b in range(st.zn))
+            for key in self.waveforms.keys() & keys:
+                del self.waveforms[key]
+                self.waveforms_version += 1
 
-    def _replay(self, ps: PointState, entries: list, now: float, scan_time: float, high: bool, sv: int, os: int,
-                limit: int) -> None:
-        """The scans skipped since the last one, each of which saw a new reading of this point (the readings the
-        temperature model logged): the pre-alarm count and the heater-loop start as stepping would leave them."""
-        for at, pv in entries:
-            landed = math.ceil(at / scan_time - 1e-6) * scan_time
-            if landed >= now - scan_time / 2:
-                continue  # read at this very scan
-            ps.prealarm = self.prealarm_count(ps.prealarm, pv, limit)
-            if high and not self.in_band(pv, sv, os):
-                if ps.loop_since is None:
-                    ps.loop_since = landed
-            else:
-                ps.loop_since = None
+    def _replayed(self, points: np.ndarray, enabled: np.ndarray, now: float, scan_time: float) -> tuple | None:
+        """The readings of ``points`` (enabled ones) the temperature model logged for the scans skipped since the
+        last one — those read at this very scan left out: (rows of PV, rows of the scan each landed at, valid),
+        rows in time order, a column per point (None: no such reading).  Where a point has fewer readings than
+        others its row is not valid (to be filled with its reading at this scan)."""
+        times, logged, pvs = self._log
+        first, n = int(points[0]), len(points)
+        cells: list[tuple[int, float, int]] = []  # (point's column, landed, PV): a few since the last scan
+        for at, point, pv in zip(times.tolist(), logged.tolist(), pvs.tolist()):
+            b = point - first
+            if 0 <= b < n and enabled[b]:
+                landed = scan_grid(at, scan_time)
+                if landed < now - scan_time / 2:
+                    cells.append((b, landed, pv))
+        if not cells:
+            return None
+        b, landed, pv_cells = (np.array(x) for x in zip(*cells))
+        row = occurrence(b)
+        rows = int(row.max()) + 1
+        pv, at, valid = np.zeros((rows, n), dtype=np.int64), np.zeros((rows, n)), np.zeros((rows, n), dtype=bool)
+        pv[row, b], at[row, b], valid[row, b] = pv_cells, landed, True
+        return pv, at, valid
+
+    def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
+              valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True,
+              band: np.ndarray | None = None) -> np.ndarray:
+        """Points ``idx`` seeing readings ``pv`` (rows in time order, a column per point; ``at``: the scan each was
+        seen at): the pre-alarm counts (``count`` False: left alone) and when the heater-loop condition — output
+        ``high`` and PV out of band — began, as after each row (NaN: not holding).  Returns those starts, row by row.
+
+        ``valid`` False marks a row that is no reading of the point but the next one again (a point with fewer
+        readings than others): not counted, and harmless to the heater-loop start (None: every row a reading).
+        ``band``: :meth:`in_band` of the rows, if known."""
+        if count and (type(self).prealarm_count is not Fun86Model.prealarm_count or np.count_nonzero(pv >= limit)):
+            counts = st.prealarm[idx]
+            for r in range(len(pv)):
+                counts = self.prealarm_count(counts, pv[r], limit) if valid is None else np.where(
+                    valid[r], self.prealarm_count(counts, pv[r], limit), counts)
+            st.prealarm[idx] = counts
+        elif count:  # (no reading at R4008: every count back to 0, as the rule says)
+            st.prealarm[idx] = 0
+        holds = high & ~(np.asarray(self.in_band(pv, sv, os), dtype=bool) if band is None else band)
+        since = st.loop_since[idx]
+        if not np.count_nonzero(holds) and not np.count_nonzero(since == since):  # (nothing holding, now or before)
+            return np.full(pv.shape, math.nan)
+        before = np.concatenate((~np.isnan(since)[None], holds[:-1]))
+        # the rows' times only grow, and a start held from before is older than them: each row's start is the
+        # latest start so far
+        began = np.maximum.accumulate(np.where(holds & ~before, at, -math.inf), axis=0)
+        starts = np.where(holds, np.maximum(began, np.where(np.isnan(since), -math.inf, since)), math.nan)
+        st.loop_since[idx] = starts[-1]
+        return starts
+
+    def bit_words(self, st: InstanceState, bits: np.ndarray) -> tuple:
+        """WR+0/1 (or WR+2/3) from a bit per point (``bits``: [scans ×] points): arrays over scans for 2-D bits."""
+        if st.weights is None:  # each point's weight in word 0 and in word 1
+            word, bit = self.bit_position(np.arange(st.zn))
+            st.weights = np.stack((np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)))
+        both = np.bitwise_or.reduce(np.where(bits[..., None, :], st.weights, 0), axis=-1) & 0xFFFF
+        return both[..., 0], both[..., 1]
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -269,7 +428,7 @@ class Fun86Model(Model):
             if st.zn:
                 self._outputs_off(mem, inst, st)
             st.sn, st.zn = sn, zn
-            st.points = {p: PointState() for p in range(sn, sn + zn)}
+            st.new_points(zn)
         words = mem.words
         if not st.executed:
             st.executed = True
@@ -289,95 +448,167 @@ class Fun86Model(Model):
         st.running = True
         r = words["R"]
         limit = r[_R[reg.PREALARM_LIMIT]]
-        loop_percent = self.loop_threshold(mem)
         loop_seconds = r[_R[reg.HEATER_LOOP_SECONDS]]
+        high_at = self.loop_threshold(mem) * OUTPUT_FULL
         heating = bool(bits[inst.hc.kind][inst.hc.index])
-        pid_due = now >= st.next_pid - 1e-9
+        pid_due = self.pid_due(st, now)
+        view = self._view(mem, inst, st, start, limit, high_at, heating)
+        new = view.normal is None
+        # (PVs come from the table's readings, which the temperature model logs; else from registers of the ladder's
+        # choosing (R4003/R4004), which change only at requests)
+        replayed = None
+        if self._replays and (start.kind, start.index) == self.temperature_model.log_start:
+            replayed = self._replayed(st.sn + np.arange(zn), view.enabled, now, emu.scan_time)
+        pv, sv, os, enabled, idx, before = view.pv, view.sv, view.os, view.enabled, view.idx, view.output
+        after = before
         if pid_due:
-            while st.next_pid <= now + 1e-9:
-                st.next_pid += st.interval
-        # the time into the PWM cycle, the cycle found as next_event() finds it (with its 1e-9): a scan it
-        # scheduled at a cycle start a rounding error early is in the new cycle, not at the old one's end —
-        # else that output is OFF for its ON time and ON for the rest, cycle after cycle
-        phase = max(0.0, now - (st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm))
-        log = self._log
-        if log is not None and (start.kind, start.index) != self.temperature_model.log_start:
-            log = None  # PVs come from registers of the ladder's choosing (R4003/R4004): they change only at requests
-        waveforms = self.waveforms
-        driven = {e: (bool(self.drive(e, True)), bool(self.drive(e, False))) for e in (False, True)}
-        enabled_of, in_band, count_of, prealarm_of = self.enabled, self.in_band, self.prealarm_count, self.prealarm
-        loop_elapsed, bit_position = self.loop_elapsed, self.bit_position
-        pvs, pv_base = words[start.kind], start.index + sn
-        svs, sv_base = words[inst.sv.kind], inst.sv.index
-        oss, os_base = words[inst.os.kind], inst.os.index
-        outputs, or_base = words[inst.or_.kind], inst.or_.index
-        ys, y_kind, y_base = bits[inst.yn.kind], inst.yn.kind, inst.yn.index
-        points, pwm, started = st.points, st.pwm, st.started
-        prs, pr_base = words[inst.pr.kind], inst.pr.index
-        irs, ir_base = words[inst.ir.kind], inst.ir.index
-        drs, dr_base = words[inst.dr.kind], inst.dr.index
-        high_at = loop_percent * OUTPUT_FULL
-        normal_words, warning_words = [0, 0], [0, 0]
-        out_of_band = warning = False
-        for b in range(zn):
-            point = sn + b
-            ps = points[point]
-            pv = pvs[pv_base + b]
-            pv = pv - 0x10000 if pv & 0x8000 else pv
-            sv = svs[sv_base + b]
-            sv = sv - 0x10000 if sv & 0x8000 else sv
-            os = oss[os_base + b]
-            os = os - 0x10000 if os & 0x8000 else os
-            enabled = enabled_of(mem, point)
-            if log is not None and enabled and point in log:
-                self._replay(ps, log[point], now, emu.scan_time, outputs[or_base + b] * 100 >= high_at, sv, os,
-                             limit)
-            if pid_due:
-                if enabled:
-                    kc, ki, td = prs[pr_base + b], irs[ir_base + b], drs[dr_base + b]
-                    outputs[or_base + b] = self.control(inst, ps, kc, ki, td, sv, pv, heating, st.interval)
-                else:
-                    outputs[or_base + b] = 0
-                    ps.integral, ps.pv_prev = 0.0, None
-            value = outputs[or_base + b]
-            on_time = value / OUTPUT_FULL * pwm
-            y_on, y_off = driven[bool(enabled)]
-            ys[y_base + b] = 1 if (y_on if phase < on_time else y_off) else 0
-            wave = (started, pwm, on_time, y_on, y_off)
-            if waveforms.get((y_kind, y_base + b)) != wave:
-                waveforms[(y_kind, y_base + b)] = wave
-                self.waveforms_version += 1
-            word, bit = bit_position(b)
-            if not enabled:
-                ps.prealarm, ps.loop_since = 0, None
-                continue
-            normal = in_band(pv, sv, os)
-            if normal:
-                normal_words[word] |= 1 << bit
+            after = np.zeros(zn, dtype=np.int64)
+            if len(idx):
+                gains = [np.array(words[a.kind][a.index:a.index + zn], dtype=np.int64)[idx]
+                         for a in (inst.pr, inst.ir, inst.dr)]
+                law = self.law(inst, *gains, heating, st.interval)
+                after[idx], st.integral[idx] = self.control(law, st.integral[idx], st.pv_prev[idx], st.has_prev[idx],
+                                                            sv[idx], pv[idx])
+                st.pv_prev[idx], st.has_prev[idx] = pv[idx], True
+            off = ~enabled
+            st.integral[off], st.has_prev[off] = 0.0, False
+            words[inst.or_.kind][inst.or_.index:inst.or_.index + zn] = after.tolist()
+        self._drive(mem, inst, st, now, enabled, after, None if pid_due else view)
+        # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV — or,
+        # with the same registers as the last scan and nothing to replay, as that scan left them
+        sel = view.sel
+        if new:
+            view.normal = enabled & np.asarray(self.in_band(pv, sv, os), dtype=bool)
+            view.normal_words = self.bit_words(st, view.normal)
+            view.out_of_band = bool(np.count_nonzero(enabled & ~view.normal))
+        if replayed is not None or pid_due or new:
+            high = after[sel] * 100 >= high_at
+            pv_e = pv[sel]
+            if replayed is not None:  # (a row without a reading of the point: its reading at this scan again)
+                rpv, rat, rvalid = (x[:, sel] for x in replayed)
+                rows = (np.vstack((np.where(rvalid, rpv, pv_e), pv_e)),
+                        np.vstack((np.where(rvalid, rat, now), np.full(len(pv_e), now))),
+                        np.vstack((np.where(rvalid, before[sel] * 100 >= high_at, high), high)),
+                        np.vstack((rvalid, np.ones(len(pv_e), dtype=bool))))
+                self.track(st, sel, *rows, sv[sel], os[sel], limit)
             else:
-                out_of_band = True
-            ps.prealarm = count_of(ps.prealarm, pv, limit)
-            if value * 100 >= high_at and not normal:
-                if ps.loop_since is None:
-                    ps.loop_since = now
-            else:
-                ps.loop_since = None
-            loop_open = ps.loop_since is not None and loop_elapsed(ps.loop_since, now) >= loop_seconds
-            if prealarm_of(ps.prealarm) or loop_open:
-                warning_words[word] |= 1 << bit
-                warning = True
+                self.track(st, sel, pv_e[None], np.full((1, len(pv_e)), now), high[None], None, sv[sel], os[sel],
+                           limit, band=view.normal[sel][None])
+            if not view.every:
+                off = ~enabled
+                st.prealarm[off], st.loop_since[off] = 0, math.nan
+        elif not (view.calm and type(self).prealarm_count is Fun86Model.prealarm_count):
+            st.prealarm[sel] = self.prealarm_count(st.prealarm[sel], pv[sel], limit)
+        held = st.loop_since[sel]
+        timing = bool(np.count_nonzero(held == held))  # a heater-loop timer running (a start not NaN)
+        if new or timing or not view.calm or view.warning is None:
+            warning = np.asarray(self.prealarm(st.prealarm), dtype=bool)
+            if timing:
+                warning = warning.copy()
+                warning[sel] |= np.asarray(self.loop_elapsed(held, now) >= loop_seconds, dtype=bool)
+            warning = warning & enabled
+            if view.warning is None or np.count_nonzero(warning != view.warning):
+                view.warning, view.warning_words = warning, self.bit_words(st, warning)
+            # (calm: no PV at R4008 and no count running — the pre-alarm counts stay 0 while the registers do)
+            view.calm = not np.count_nonzero(pv[sel] >= limit) and not np.count_nonzero(st.prealarm)
         wr = inst.wr
-        words[wr.kind][wr.index:wr.index + 4] = [normal_words[0] & 0xFFFF, normal_words[1] & 0xFFFF,
-                                                  warning_words[0] & 0xFFFF, warning_words[1] & 0xFFFF]
-        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(out_of_band, warning) else 0
+        words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*view.normal_words, *view.warning_words)]
+        bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, bool(np.count_nonzero(view.warning))) else 0
+
+    def _view(self, mem: "Memory", inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
+              heating: bool) -> _View:
+        """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
+        arrays of those unchanged otherwise)."""
+        words, zn, sn = mem.words, st.zn, st.sn
+        first = _R[reg.PID_ENABLE_LOW]
+        key = (words[start.kind][start.index + sn:start.index + sn + zn], words[inst.sv.kind][inst.sv.index:
+               inst.sv.index + zn], words[inst.os.kind][inst.os.index:inst.os.index + zn],
+               words["R"][first:first + (sn + zn - 1) // 16 + 1],  # (R4012/R4013: the enable bits)
+               words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], limit,
+               high_at, heating, start)
+        view = st.view
+        plain = type(self).enabled is Fun86Model.enabled  # (a seam of its own may read other registers)
+        if view is not None and view.key == key and plain:
+            return view
+        old = view.key if view is not None else (None,) * len(key)
+        if plain and old[3] == key[3]:
+            enabled, idx = view.enabled, view.idx
+        else:
+            enabled = np.asarray(self.enabled(mem, sn + np.arange(zn)), dtype=bool)
+            idx = np.flatnonzero(enabled)
+        every = len(idx) == zn
+        same_output = old[4] == key[4] and old[3] == key[3] and plain  # (then the same waveforms)
+        st.view = _View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
+                               for i, name in ((0, "pv"), (1, "sv"), (2, "os"))),
+                        enabled, idx, view.output if old[4] == key[4] else np.array(key[4], dtype=np.int64),
+                        every, slice(None) if every else idx, waves=view.waves if same_output else None)
+        return st.view
+
+    def _drive(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
+               output: np.ndarray, view: _View | None = None) -> None:
+        """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
+        (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
+        if view is not None and view.waves is not None:
+            waves = view.waves
+        else:
+            waves = self.waves(st, enabled, output)
+            if view is not None:
+                view.waves = waves
+        ys = mem.bits[inst.yn.kind]
+        ys[inst.yn.index:inst.yn.index + st.zn] = self.outputs_at(st, now, *waves)
+        last = st.published
+        if last is None or last[0] != (st.started, st.pwm, self.waveforms_version) or last[1] is not waves[0]:
+            self.publish(inst, st, *waves)
+
+    def waves(self, st: InstanceState, enabled: np.ndarray, output: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(ON seconds of each PWM period, Y when on, Y when off) of the instance's outputs."""
+        y_on, y_off = (np.asarray(self.drive(enabled, level), dtype=bool) for level in (True, False))
+        if y_on.shape != enabled.shape:
+            y_on = np.full(enabled.shape, bool(y_on))
+        if y_off.shape != enabled.shape:
+            y_off = np.full(enabled.shape, bool(y_off))
+        return self.on_times(st, output), y_on, y_off
+
+    @staticmethod
+    def on_times(st: InstanceState, output: np.ndarray) -> np.ndarray:
+        """Seconds ON of each PWM period for outputs (OR): OR/16383 of the period."""
+        return output / _FULL * st.pwm
+
+    @staticmethod
+    def outputs_at(st: InstanceState, now: float, on_time: np.ndarray, y_on: np.ndarray, y_off: np.ndarray) -> bytes:
+        """Yn… at ``now``: as when on for the first ``on_time`` seconds of each PWM period, else as when off."""
+        # the time into the PWM cycle, the cycle found as next_event() finds it (with its 1e-9): a scan it scheduled
+        # at a cycle start a rounding error early is in the new cycle, not at the old one's end — else that output
+        # is OFF for its ON time and ON for the rest, cycle after cycle
+        phase = max(0.0, now - (st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm))
+        return np.where(phase < on_time, y_on, y_off).tobytes()  # (bools: bytes 0/1)
+
+    def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
+                y_off: np.ndarray) -> None:
+        """The waveforms of the instance's outputs (for the plant): (started, PWM period, ON seconds, Y when on,
+        Y when off), rewritten where they changed."""
+        last = st.published
+        bs: range | list = range(st.zn)
+        if last is not None and last[0] == (st.started, st.pwm, self.waveforms_version):
+            changed = (on_time != last[1]) | (y_on != last[2]) | (y_off != last[3])
+            bs = np.flatnonzero(changed).tolist()
+        waveforms, kind, base = self.waveforms, inst.yn.kind, inst.yn.index
+        if bs:
+            ons, lits, darks = on_time.tolist(), y_on.tolist(), y_off.tolist()
+            for b in bs:
+                wave = (st.started, st.pwm, ons[b], lits[b], darks[b])
+                if waveforms.get((kind, base + b)) != wave:
+                    waveforms[(kind, base + b)] = wave
+                    self.waveforms_version += 1
+        # (the version as left here: another instance writing the same outputs shows as a newer one)
+        st.published = ((st.started, st.pwm, self.waveforms_version), on_time, y_on, y_off)
 
     def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
-        for b in range(st.zn):
-            ys[inst.yn.index + b] = 0
-        for ps in st.points.values():
-            ps.prealarm, ps.loop_since = 0, None
+        ys[inst.yn.index:inst.yn.index + st.zn] = bytes(st.zn)
+        st.prealarm.fill(0)
+        st.loop_since.fill(math.nan)
 
     def _log_off(self) -> bool:
         """Without the temperature model's log of readings, every measurement needs its scan."""
@@ -388,8 +619,14 @@ class Fun86Model(Model):
         if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
             return True
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
-        points = [p for p in st.points if self.enabled(mem, p)]
-        return bool(points) and self.temperature_model.readings_upper(mem, points) >= limit
+        view = st.view  # (its enabled points, while R4012/R4013 are as it read them)
+        first = _R[reg.PID_ENABLE_LOW]
+        if view is not None and view.key[3] == mem.words["R"][first:first + (st.sn + st.zn - 1) // 16 + 1] and \
+                type(self).enabled is Fun86Model.enabled:
+            points = st.sn + view.idx
+        else:
+            points = st.sn + np.flatnonzero(np.asarray(self.enabled(mem, st.sn + np.arange(st.zn)), dtype=bool))
+        return bool(len(points)) and self.temperature_model.readings_upper(mem, points) >= limit
 
     def next_event(self, now: float) -> float:
         mem = self._emu.memory if self._emu is not None else None
@@ -403,11 +640,13 @@ class Fun86Model(Model):
                 due = min(due, self.next_measurement())
             if not st.running:
                 continue
-            for ps in st.points.values():
-                if 0 < ps.prealarm < 4 * PREALARM_SCANS:
-                    return now  # counting consecutive scans: every scan matters
-                if ps.loop_since is not None and ps.loop_since + loop_seconds > now + 1e-9:
-                    due = min(due, ps.loop_since + loop_seconds)  # (once open, its bit is recomputed each scan)
+            if np.count_nonzero(st.prealarm) and np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)):
+                return now  # counting consecutive scans: every scan matters
+            if np.count_nonzero(st.loop_since == st.loop_since):  # (a heater-loop start not NaN)
+                deadlines = st.loop_since + loop_seconds
+                pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
+                if np.count_nonzero(pending):
+                    due = min(due, float(deadlines[pending].min()))
             due = min(due, st.next_pid)
             if not measurements:
                 measurements = self._prealarm_possible(mem, st)
@@ -416,16 +655,25 @@ class Fun86Model(Model):
             # PWM: every cycle start, and the end of each point's ON time within the current cycle
             cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
             due = min(due, cycle + st.pwm)
-            outputs = mem.words[inst.or_.kind]
-            for b in range(st.zn):
-                edge = cycle + outputs[inst.or_.index + b] / OUTPUT_FULL * st.pwm
-                if edge > now + 1e-9:
-                    due = min(due, edge)
+            edges = cycle + np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]) \
+                / OUTPUT_FULL * st.pwm
+            later = edges > now + 1e-9
+            if np.count_nonzero(later):
+                due = min(due, float(edges[later].min()))
         if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
             due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
         if due == math.inf:
             return due
-        # The first scan at or after the event, on the scan grid: a jump then takes the very scan that stepping
-        # scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way).
-        st = self._emu.scan_time
-        return max(now, math.ceil(due / st - 1e-6) * st)
+        return self.scan_for(due, now)
+
+    def scan_for(self, due: float, now: float) -> float:
+        """The first scan at or after an event at ``due``, on the scan grid: a jump then takes the very scan that
+        stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
+        return max(now, float(scan_grid(due, self._emu.scan_time)))
+
+    def span(self, engine: "Engine", target: float) -> bool:
+        """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
+        if not self.pwm_exact or self.temperature_model is None or self.temperature_model.log is None:
+            return False  # (scans at PWM edges or at every measurement: none to batch)
+        return self.batcher is not None and self.batcher.run(self, engine, target)
+

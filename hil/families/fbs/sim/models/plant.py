@@ -9,6 +9,10 @@ Measurement noise is clipped at ±6 σ.  Between scans (and PWM switches) u is c
 analytically piece by piece: the plant answers T at any time in the current scan window (the temperature model
 catches measurements up at their scheduled, past times) and needs no scans of its own.
 
+The state of every point lives in arrays over the heated points (slots), and T is solved for many (slot, time)
+pairs at once (:func:`waved_temperature`): the temperature model measures through :meth:`ThermalPlant.measured`,
+and a batch of PID intervals (models/span.py) steps every point with the same closed form.
+
 ``[plant]`` (emulator only; a real bench has a real oven)::
 
     [plant]
@@ -26,14 +30,15 @@ Heaters: the point controlled by a FUN86 instance (``[pid]``) is heated by that 
 
 from __future__ import annotations
 
-import functools
 import math
 import random
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from hil.families.fbs.address import Address
-from hil.sim.model import Model
+from hil.sim.model import Model, scan_grid as grid
 from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
@@ -96,17 +101,16 @@ def parse_plant(section: dict[str, Any], where: str = "<profile>") -> PlantConfi
 
 
 class _Heated:
-    """One point: the anchor (t0, T0) at the last scan, and the heater's switch history (for the dead time)."""
+    """One point with dead time: the anchor (t0, T0) at the last switch it saw, and the heater's switch history (u
+    in effect at s is the heater state at s − dead_time).  Stepped scan by scan (FUN86 scans at every PWM edge)."""
 
-    __slots__ = ("p", "t0", "temp0", "history", "seed", "normals")
+    __slots__ = ("p", "t0", "temp0", "history")
 
-    def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
+    def __init__(self, p: PlantPoint, now: float) -> None:
         self.p = p
         self.t0 = now
         self.temp0 = p.ambient if p.initial is None else p.initial
         self.history: list[tuple[float, int]] = [(-math.inf, 0)]  # (time the heater switched, u)
-        self.seed = seed
-        self.normals = _normals(seed) if p.noise else None
 
     def temperature(self, t: float) -> float:
         """T at t ≥ t0, integrating over the instants at which the delayed heater state changes."""
@@ -115,7 +119,6 @@ class _Heated:
         if t <= at:
             return temp
         hist = self.history
-        # u in effect at time s is the heater state at s − dead_time
         k = len(hist) - 1
         while k > 0 and hist[k][0] + p.dead_time > at:
             k -= 1
@@ -140,143 +143,154 @@ class _Heated:
         while len(self.history) > 1 and self.history[1][0] <= cut:
             self.history.pop(0)
 
-    def measured(self, point: int, t: float) -> float:
-        """T at t plus the measurement's noise: a function of (seed, point, time) only, so a jump and stepping
-        agree."""
-        normals = self.normals
-        if normals is None:
-            return self.temperature(t)
-        return self.temperature(t) + normals[_noise_index(self.seed, point, t)] * self.p.noise
-
-    def upper(self) -> float:
-        """No measurement of this point ever exceeds this (T stays between its start, ambient and full power)."""
-        p = self.p
-        start = p.ambient if p.initial is None else p.initial
-        return max(start, p.ambient, p.ambient + p.gain) + NOISE_CLIP * p.noise
-
 
 #: measurement noise is clipped at this many standard deviations (so a reading has a hard bound: the FUN86 model
 #: can then skip the scans at measurements that can never reach the pre-alarm limit)
 NOISE_CLIP = 6.0
 
 
-_NORMALS: dict[int, list[float]] = {}
+_NORMALS: dict[int, np.ndarray] = {}
 
 
-def _normals(seed: int) -> list[float]:
+def normals(seed: int) -> np.ndarray:
     """65536 standard normal values, clipped at ±NOISE_CLIP, drawn once per seed."""
     table = _NORMALS.get(seed)
     if table is None:
         rng = random.Random(seed)
-        table = _NORMALS[seed] = [min(max(rng.gauss(0.0, 1.0), -NOISE_CLIP), NOISE_CLIP) for _ in range(65536)]
+        table = _NORMALS[seed] = np.array([min(max(rng.gauss(0.0, 1.0), -NOISE_CLIP), NOISE_CLIP)
+                                           for _ in range(65536)])
     return table
 
 
 _MASK64 = (1 << 64) - 1
+_U = np.uint64
+_MIX1, _MIX2, _MIX3 = _U(0x9E3779B97F4A7C15), _U(0xBF58476D1CE4E5B9), _U(0x94D049BB133111EB)
+_S30, _S27, _S31, _LOW16 = _U(30), _U(27), _U(31), _U(0xFFFF)
 
 
-def _noise_index(seed: int, point: int, t: float) -> int:
-    """Which of the 65536 normals a measurement at ``t`` draws: splitmix64's finaliser over (t in µs, point, seed),
-    integer arithmetic (exact for any seed: Python ints, masked to 64 bits)."""
-    x = (round(t * 1000000.0) * 0x9E3779B97F4A7C15 + point * 0xBF58476D1CE4E5B9 + seed * 0x94D049BB133111EB) & _MASK64
-    x ^= x >> 30
-    x = x * 0xBF58476D1CE4E5B9 & _MASK64
-    x ^= x >> 27
-    x = x * 0x94D049BB133111EB & _MASK64
-    x ^= x >> 31
-    return x & 0xFFFF
+def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Which of the 65536 normals a measurement of ``points`` at ``times`` draws: splitmix64's finaliser over
+    (t in µs, point, seed), modulo 2^64 (exact for any seed: the seed's term is taken as a Python int)."""
+    terms = _POINT_TERMS.get(seed)
+    if terms is None:  # point × K2 + seed × K3 for each point
+        terms = _POINT_TERMS[seed] = np.arange(64, dtype=np.uint64) * _MIX2 + _U(seed * 0x94D049BB133111EB & _MASK64)
+    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.uint64) * _MIX1 + terms[points]  # (t ≥ 0)
+    x = (x ^ (x >> _S30)) * _MIX2
+    x = (x ^ (x >> _S27)) * _MIX3
+    return (x ^ (x >> _S31)) & _LOW16
 
 
-def _grid(x: float, st: float) -> float:
-    """The first scan at or after virtual time x, on the scan grid (as the engine's fast-forward lands)."""
-    return math.ceil(x / st - 1e-6) * st
+_POINT_TERMS: dict[int, np.ndarray] = {}
+#: 0 as a 0-d array: numpy takes a Python number as an operand at a cost several times that of a 0-d array (and
+#: this runs once per point group and PID interval)
+_ZERO = np.array(0.0)
 
 
-class _Waved:
-    """One point without dead time whose heater follows a known waveform between scans: the anchor (t0, T0) moves
-    only when the waveform changes (a scan with a new PID output, a fault, a new output), and T at any later time
-    is solved through the PWM's switches, on the scan grid (where stepping would switch): the partial cycles at
-    either end segment by segment, the whole cycles between them in closed form.
-
-    The waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``: u_on from
-    grid(started + k·period) to grid(started + k·period + on), u_off for the rest of each cycle."""
-
-    __slots__ = ("p", "t0", "temp0", "wave", "seed", "normals")
-
-    def __init__(self, p: PlantPoint, now: float, seed: int) -> None:
-        self.p = p
-        self.t0 = now
-        self.temp0 = p.ambient if p.initial is None else p.initial
-        self.wave: tuple = (0,)
-        self.seed = seed
-        self.normals = _normals(seed) if p.noise else None
-
-    def temperature(self, t: float) -> float:
-        temp, a = self.temp0, self.t0
-        if t <= a:
-            return temp
-        p = self.p
-        wave = self.wave
-        tau = p.tau
-        exp = math.exp
-        if len(wave) == 1:
-            target = p.ambient + p.gain * wave[0]
-            return target + (temp - target) * exp(-(t - a) / tau)
-        started, period, on, u_on, u_off, st = wave
-        t_on, t_off = p.ambient + p.gain * u_on, p.ambient + p.gain * u_off
-        ceil = math.ceil
-        k = math.floor((a - started) / period) - 1
-        start = ceil((started + k * period) / st - 1e-6) * st
-        off = ceil((started + k * period + on) / st - 1e-6) * st
-        nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
-        while start < t:
-            whole = math.floor((t - start) / period) - 1  # whole cycles from this one on, the last one left out
-            if whole >= 1 and start >= a:
-                # A first-order plant under one PWM period is the affine map T → A·T + B (A = e^(−period/τ)): over
-                # `whole` identical periods T → T* + (T − T*)·A^whole, T* = B / (1 − A) its fixed point.
-                on_decay, off_decay = exp(-(off - start) / tau), exp(-(nxt - off) / tau)
-                gain_ = on_decay * off_decay
-                offset = (t_on - t_on * on_decay) * off_decay + t_off - t_off * off_decay
-                if gain_ < 1.0:
-                    fixed = offset / (1.0 - gain_)
-                    temp = fixed + (temp - fixed) * gain_ ** whole
-                k += whole
-                start = ceil((started + k * period) / st - 1e-6) * st
-                off = ceil((started + k * period + on) / st - 1e-6) * st
-                nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
-                continue
-            lo, hi = (start if start > a else a), (off if off < t else t)
-            if hi > lo:
-                temp = t_on + (temp - t_on) * exp(-(hi - lo) / tau)
-            lo, hi = (off if off > a else a), (nxt if nxt < t else t)
-            if hi > lo:
-                temp = t_off + (temp - t_off) * exp(-(hi - lo) / tau)
-            k += 1
-            start = nxt
-            if start >= t:
-                break
-            off = ceil((started + k * period + on) / st - 1e-6) * st
-            nxt = ceil((started + (k + 1) * period) / st - 1e-6) * st
-        return temp
-
-    def set_wave(self, now: float, wave: tuple) -> None:
-        if wave == self.wave:
-            return
-        if now > self.t0:
-            self.temp0 = self.temperature(now)
-            self.t0 = now
-        self.wave = wave
-
-    measured = _Heated.measured  # (its own temperature(), the same noise)
-    upper = _Heated.upper
+def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
+    """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
+    (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
+    clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0), or one row for every
+    cycle."""
+    decay = np.exp((a - t[0]) * rate[0])
+    begins = np.exp(np.minimum((np.maximum(starts, a) - t) * rate, _ZERO))
+    return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
-def _source(heated, point: int) -> functools.partial:  # noqa: ANN001
-    """A heated point as a temperature source: a callable of time (its measurement, called without a Python frame
-    of its own — the temperature model calls it ten times a second of virtual time), with a hard upper bound."""
-    source = functools.partial(heated.measured, point)
-    source.upper_bound = heated.upper
-    return source
+def cycles_temperature(temp_a, a, t, offs, lift, rate, terms, out=None):  # noqa: ANN001, ANN201
+    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
+    each: ``offs``; ``t`` and ``rate`` (1/τ) too, or one row for all; ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
+    cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
+    plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
+
+    A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
+    [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
+    decay, base = terms
+    ends = np.minimum((np.maximum(offs, a) - t) * rate, _ZERO)
+    return np.add(temp_a * decay + base, lift * _cycles_sum(np.exp(ends, out=ends)), out=out)
+
+
+def _cycles_sum(rows: np.ndarray) -> np.ndarray:
+    """The sum of a few rows, in order (cheaper than a reduction for two or three)."""
+    total = rows[0]
+    for row in rows[1:]:
+        total = total + row
+    return total
+
+
+#: cycles solved one by one around a span's ends (the span's start falls in the first two, its end in the last
+#: three); the whole cycles between them in closed form
+_HEAD, _TAIL = 2, 3
+
+
+def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, st: float):  # noqa: ANN001, ANN201
+    """T at ``t`` (≥ t0) of points anchored at (t0, temp0) whose heater follows a waveform on the scan grid: ``pwm``
+    False — constant, at T_off; True — on from grid(started + k·period) to grid(started + k·period + on), off for
+    the rest of each cycle.  All arguments are arrays over the points (or broadcast), solved at once.
+
+    The partial cycles at either end are solved cycle by cycle (:func:`cycles_temperature`), the whole cycles
+    between them in closed form: under one PWM period T → A·T + B (A = e^(−period/τ)), so over n identical periods
+    T → T* + (T − T*)·Aⁿ, T* = B / (1 − A) its fixed point."""
+    t0, temp0, t = np.asarray(t0, dtype=float), np.asarray(temp0, dtype=float), np.asarray(t, dtype=float)
+    later = t > t0
+    out = np.where(later, t_off + (temp0 - t_off) * np.exp(-(t - t0) / tau), temp0)
+    pulsed = later & pwm
+    if not pulsed.any():
+        return out
+    a, temp, t = t0[pulsed], temp0[pulsed], t[pulsed]
+    started, period, on, t_on, t_off, tau = (np.broadcast_to(x, pulsed.shape)[pulsed] if np.ndim(x) == 0 else
+                                             x[pulsed] for x in (started, period, on, t_on, t_off, tau))
+    k = np.floor((a - started) / period) - 1  # the cycle before the one a falls in (the grid rounds up)
+    free = k + np.where(grid(started + (k + 1) * period, st) >= a, 1, 2)  # the first cycle starting at or after a
+    free_start = grid(started + free * period, st)
+    whole = np.floor((t - free_start) / period) - 1  # whole cycles from there on, the last one left out
+    jump = (whole >= 1) & (free_start < t)
+    head_end = np.where(jump, free_start, t)
+    cyc = k + np.arange(_HEAD + _TAIL)[:, None]
+    raw = started + cyc * period
+    rate, lift = np.broadcast_to(1.0 / tau, raw.shape), t_on - t_off
+    ends = np.broadcast_to(head_end, raw.shape)
+    temp = cycles_temperature(temp, a, ends, grid(raw + on, st), lift, rate,
+                              cycle_terms(a, ends, grid(raw, st), t_off, lift, rate))
+    if jump.any():
+        j = jump
+        raw0 = started[j] + free[j] * period[j]
+        start0, off0, nxt0 = grid(raw0, st), grid(raw0 + on[j], st), grid(started[j] + (free[j] + 1) * period[j], st)
+        on_decay, off_decay = np.exp(-(off0 - start0) / tau[j]), np.exp(-(nxt0 - off0) / tau[j])
+        gain = on_decay * off_decay
+        offset = (t_on[j] - t_on[j] * on_decay) * off_decay + t_off[j] - t_off[j] * off_decay
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fixed = offset / (1.0 - gain)
+            jumped = np.where(gain < 1.0, fixed + (temp[j] - fixed) * gain ** whole[j], temp[j])
+        landed = free[j] + whole[j]
+        cyc = landed + np.arange(_TAIL)[:, None]
+        raw = started[j] + cyc * period[j]
+        at = grid(started[j] + landed * period[j], st)
+        ends, rates = np.broadcast_to(t[j], raw.shape), np.broadcast_to(rate[0][j], raw.shape)
+        temp[j] = cycles_temperature(jumped, at, ends, grid(raw + on[j], st), lift[j], rates,
+                                     cycle_terms(at, ends, grid(raw, st), t_off[j], lift[j], rates))
+    out[pulsed] = temp
+    return out
+
+
+class PlantSource:
+    """A heated point as a temperature source: a callable of time (its measurement, noise included) with a hard
+    upper bound; the temperature model measures the points of one ``group`` together (:meth:`ThermalPlant.measured`
+    of their slots)."""
+
+    __slots__ = ("plant", "point", "slot")
+
+    def __init__(self, plant: "ThermalPlant", point: int, slot: int) -> None:
+        self.plant, self.point, self.slot = plant, point, slot
+
+    @property
+    def group(self) -> "ThermalPlant":
+        return self.plant
+
+    def __call__(self, t: float) -> float:
+        return float(self.plant.measured(np.array([self.slot]), np.array([self.point]), np.array([t]))[0])
+
+    def upper_bound(self) -> float:
+        return self.plant.upper(self.slot)
 
 
 class ThermalPlant(Model):
@@ -287,14 +301,33 @@ class ThermalPlant(Model):
         self.config = config
         self.heaters = dict(heaters)
         self.seed = seed
-        self.points: dict[int, _Heated] = {}
+        #: the heated points in slot order: every per-point array below is indexed by slot
+        self.order = list(self.heaters)
+        self.slot = {point: i for i, point in enumerate(self.order)}
+        params = [config.point(p) for p in self.order]
+        self.ambient = np.array([p.ambient for p in params], dtype=float)
+        self.gain = np.array([p.gain for p in params], dtype=float)
+        self.tau = np.array([p.tau for p in params], dtype=float)
+        self.noise = np.array([p.noise for p in params], dtype=float)
+        self.initial = np.array([p.ambient if p.initial is None else p.initial for p in params], dtype=float)
+        self.normals = normals(seed) if any(p.noise for p in params) else None
         self.faults: dict[str, set[int]] = {name: set() for name in FAULTS}
-        self._wiring: list | None = None  # (point, state, bit bank, index) per heater, built at the first scan
+        #: without dead time the heaters' PWM is integrated exactly between scans (FUN86 then needs no scans at its
+        #: PWM edges); with dead time the plant follows the outputs scan by scan (FUN86 scans at every edge)
+        self.waved = all(p.dead_time == 0.0 for p in params)
+        n = len(self.order)
+        # waved: each slot's anchor (t0, T0) and waveform (pwm False: constant u = w_uoff)
+        self.t0 = np.zeros(n)
+        self.temp0 = self.initial.copy()
+        self.w_pwm = np.zeros(n, dtype=bool)
+        self.w_started, self.w_period, self.w_on = np.zeros(n), np.ones(n), np.zeros(n)
+        self.w_uon, self.w_uoff = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        self.heated: list[_Heated] = []  # with dead time
+        self._wiring: list | None = None  # (slot, point, bit bank, index) per heater, built at the first scan
         self._spans: list = []  # (bit bank, first, end) covering every heater output
         self._last_outputs: object = None  # those outputs (and FUN86's waveforms version) at the last fast-path scan
         self._fun86 = None
         self._scan_time = 0.01
-        self.waved = False
 
     # -- faults (injectors) ------------------------------------------------------------------------------------------
     def set_fault(self, fault: str, point: int, on: bool) -> None:
@@ -314,9 +347,46 @@ class ThermalPlant(Model):
             return 1
         return 1 if output else 0
 
+    # -- the solution ------------------------------------------------------------------------------------------
+    def temperatures(self, slots: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """The true temperatures (no noise) of heated slots at ``times`` (each ≥ the last scan)."""
+        if not self.waved:
+            heated = self.heated
+            return np.array([heated[s].temperature(t) for s, t in zip(slots.tolist(), times.tolist())], dtype=float)
+        gain, ambient = self.gain[slots], self.ambient[slots]
+        return waved_temperature(self.t0[slots], self.temp0[slots], times, self.w_pwm[slots], self.w_started[slots],
+                                 self.w_period[slots], self.w_on[slots], ambient + gain * self.w_uon[slots],
+                                 ambient + gain * self.w_uoff[slots], self.tau[slots], self._scan_time)
+
+    def measured(self, slots: np.ndarray, points: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Measurements of heated slots (temperature points ``points``) at ``times``: T plus the measurement noise,
+        a function of (seed, point, time) only, so a jump and stepping agree."""
+        values = self.temperatures(slots, times)
+        if self.normals is None:
+            return values
+        return values + self.normals[noise_index(self.seed, points, times)] * self.noise[slots]
+
     def temperature(self, point: int, t: float) -> float:
         """The true temperature (no noise) of a heated point at ``t`` (≥ the last scan)."""
-        return self.points[point].temperature(t)
+        return float(self.temperatures(np.array([self.slot[point]]), np.array([float(t)]))[0])
+
+    def upper(self, slot: int) -> float:
+        """No measurement of this slot ever exceeds this (T stays between its start, ambient and full power)."""
+        ambient, noise = float(self.ambient[slot]), float(self.noise[slot])
+        return max(float(self.initial[slot]), ambient, ambient + float(self.gain[slot])) + NOISE_CLIP * noise
+
+    def wave(self, slot: int) -> tuple:
+        """A waved slot's waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``."""
+        if not self.w_pwm[slot]:
+            return (int(self.w_uoff[slot]),)
+        return (float(self.w_started[slot]), float(self.w_period[slot]), float(self.w_on[slot]),
+                int(self.w_uon[slot]), int(self.w_uoff[slot]), self._scan_time)
+
+    def state(self) -> list[tuple]:
+        """(t0, T0, waveform — or the switch history with dead time) per heated point, in slot order."""
+        if not self.waved:
+            return [(h.t0, h.temp0, list(h.history)) for h in self.heated]
+        return [(float(self.t0[s]), float(self.temp0[s]), self.wave(s)) for s in range(len(self.order))]
 
     # -- the engine ---------------------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
@@ -325,54 +395,55 @@ class ThermalPlant(Model):
         from hil.families.fbs.sim.models.fun86 import Fun86Model
         self._fun86 = emu.model(Fun86Model)
         self._scan_time = emu.scan_time
-        #: without dead time the heaters' PWM is integrated exactly between scans (FUN86 then needs no scans at its
-        #: PWM edges); with dead time the plant follows the outputs scan by scan (FUN86 scans at every edge)
-        self.waved = all(self.config.point(p).dead_time == 0.0 for p in self.heaters)
         if self._fun86 is not None:
             self._fun86.pwm_exact = self.waved
-        for point in self.heaters:
-            heated = (_Waved if self.waved else _Heated)(self.config.point(point), emu.now, self.seed)
-            self.points[point] = heated
+        self.t0[:] = emu.now
+        self.temp0[:] = self.initial
+        self.heated = [] if self.waved else [_Heated(self.config.point(p), emu.now) for p in self.order]
+        for point, slot in self.slot.items():
             if temperature is not None and point < temperature.config.points:
-                temperature.set_source(point, _source(heated, point))
+                temperature.set_source(point, PlantSource(self, point, slot))
+
+    def set_waves(self, now: float, slots: np.ndarray, pwm: np.ndarray, started: np.ndarray, period: np.ndarray,
+                  on: np.ndarray, u_on: np.ndarray, u_off: np.ndarray) -> None:
+        """New waveforms for ``slots`` from ``now``: a slot whose waveform changes is re-anchored at now."""
+        same = (pwm == self.w_pwm[slots]) & (u_off == self.w_uoff[slots]) & (
+            ~pwm | ((started == self.w_started[slots]) & (period == self.w_period[slots]) & (on == self.w_on[slots])
+                    & (u_on == self.w_uon[slots])))
+        if same.all():
+            return
+        changed = slots[~same]
+        moved = changed[now > self.t0[changed]]
+        if len(moved):
+            self.temp0[moved] = self.temperatures(moved, np.full(len(moved), now))
+            self.t0[moved] = now
+        keep = ~same
+        self.w_pwm[changed], self.w_started[changed], self.w_period[changed] = pwm[keep], started[keep], period[keep]
+        self.w_on[changed], self.w_uon[changed], self.w_uoff[changed] = on[keep], u_on[keep], u_off[keep]
 
     def scan(self, emu: "Emulator") -> None:
         y = emu.memory.bits
         now = emu.now
         if self._wiring is None:
-            self._wiring = [(point, heated, y[self.heaters[point].kind], self.heaters[point].index)
-                            for point, heated in self.points.items()]
-            kinds = {self.heaters[p].kind for p in self.points}
+            self._wiring = [(slot, point, y[self.heaters[point].kind], self.heaters[point].index)
+                            for point, slot in self.slot.items()]
+            kinds = {self.heaters[p].kind for p in self.order}
             self._spans = [(y[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
                             max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
+        plain = type(self).power is ThermalPlant.power and not any(self.faults.values())
         if self.waved:
             # each point's waveform follows from its output, FUN86's published waveform and the faults: with all
-            # three as at the last scan, every set_wave below would find its waveform unchanged
+            # three as at the last scan, every waveform is as it is
             key = None
-            if type(self).power is ThermalPlant.power and not any(self.faults.values()):
+            if plain:
                 key = ([bytes(bank[lo:hi]) for bank, lo, hi in self._spans],
                        self._fun86.waveforms_version if self._fun86 is not None else 0)
                 if key == self._last_outputs:
                     return
             self._last_outputs = key
-            waves = self._fun86.waveforms if self._fun86 is not None else {}
-            power, st = self.power, self._scan_time
-            for point, heated, bank, index in self._wiring:
-                w = waves.get((self.heaters[point].kind, index))
-                if w is None:
-                    wave = (power(point, bool(bank[index])),)
-                else:
-                    started, period, on, y_on, y_off = w
-                    u_on, u_off = power(point, bool(y_on)), power(point, bool(y_off))
-                    if u_on == u_off or on <= 0:
-                        wave = (u_off,)
-                    elif on >= period:
-                        wave = (u_on,)
-                    else:
-                        wave = (started, period, on, u_on, u_off, st)
-                heated.set_wave(now, wave)
+            self.set_waves(now, *self.waveforms())
             return
-        if type(self).power is ThermalPlant.power and not any(self.faults.values()):
+        if plain:
             # the common case, without a call per point: u is the output itself; a point whose u is unchanged
             # keeps its anchor (what _Heated.advance would do), so outputs unchanged since the last such scan
             # mean nothing to do
@@ -383,14 +454,40 @@ class ThermalPlant(Model):
                 outputs += bank[lo:hi]
             if outputs == self._last_outputs:
                 return
-            for _point, heated, bank, index in self._wiring:
-                if bank[index] != heated.history[-1][1]:
-                    heated.advance(now, 1 if bank[index] else 0)
+            heated = self.heated
+            for slot, _point, bank, index in self._wiring:
+                if bank[index] != heated[slot].history[-1][1]:
+                    heated[slot].advance(now, 1 if bank[index] else 0)
             self._last_outputs = outputs
             return
         self._last_outputs = None
-        for point, heated, bank, index in self._wiring:
-            heated.advance(now, self.power(point, bool(bank[index])))
+        for slot, point, bank, index in self._wiring:
+            self.heated[slot].advance(now, self.power(point, bool(bank[index])))
+
+    def waveforms(self) -> tuple[np.ndarray, ...]:
+        """(slots, pwm, started, period, on, u_on, u_off) of every slot from its output, FUN86's published
+        waveform of that output and the faults."""
+        waves = self._fun86.waveforms if self._fun86 is not None else {}
+        power = self.power
+        n = len(self._wiring)
+        pwm = np.zeros(n, dtype=bool)
+        started, period, on = np.zeros(n), np.ones(n), np.zeros(n)
+        u_on, u_off = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        for slot, point, bank, index in self._wiring:
+            w = waves.get((self.heaters[point].kind, index))
+            if w is None:
+                u_off[slot] = power(point, bool(bank[index]))
+                continue
+            w_started, w_period, w_on, y_on, y_off = w
+            lit, dark = power(point, bool(y_on)), power(point, bool(y_off))
+            if lit == dark or w_on <= 0:
+                u_off[slot] = dark
+            elif w_on >= w_period:
+                u_off[slot] = lit
+            else:
+                pwm[slot] = True
+                started[slot], period[slot], on[slot], u_on[slot], u_off[slot] = w_started, w_period, w_on, lit, dark
+        return np.arange(n), pwm, started, period, on, u_on, u_off
 
     def next_event(self, now: float) -> float:
         return math.inf  # solved analytically between scans; u changes only at scans

@@ -139,6 +139,13 @@ class RtcModel(Model):
         request before it jumps, so edges and new D4054 codes are seen on time."""
         return math.inf
 
+    def footprint(self) -> frozenset[tuple[str, int]]:
+        """R4128–R4135, M1952–M1955, D4053, D4054: a scan that skips the clock loses nothing but its read-out,
+        which the next scan writes whole (skipping it is safe when nothing else touches these)."""
+        return frozenset([("R", i) for i in range(_FIRST, _HOUR_MINUTE + 1)]
+                         + [("M", i) for i in (_HOLD, _ADJUST, _INSTALLED, _SET_ERROR)]
+                         + [("D", _CHIP), ("D", _RATE_CODE)])
+
     # -- the chip -------------------------------------------------------------------------------------------
     def chip_seconds(self, now: float) -> float:
         """The chip's reading at virtual time ``now``: seconds since 2000-01-01, wrapped at 2099 → 2000."""

@@ -15,21 +15,24 @@ Each point's true temperature comes from a *source*: any callable ``source(t) ->
 
 The decisions a broken PLC could get wrong are small methods (``installed``, ``point_result``,
 ``break_position``, ``execution_code``) so the harness's tests can build broken variants as tiny subclasses.
+Measurements are taken in batches — every measurement due at a scan at once, as arrays over (time, point)
+columns (:meth:`TemperatureModel.take`) — so ``installed`` and ``point_result`` take and return arrays.
 On a real PLC the ladder/WinProladder writes the table; here :meth:`power_on` plays that part.
 """
 
 from __future__ import annotations
 
-import collections
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Sequence
 
+import numpy as np
+
 from hil.core.errors import InvalidValue
+from hil.sim.columns import last_of_each, occurrence
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
-from hil.families.fbs.registers import signed16
-from hil.families.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
+from hil.families.fbs.temperature import (BREAK_VALUE, SENSOR_BY_CODE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
 
@@ -40,6 +43,7 @@ if TYPE_CHECKING:
 Source = Callable[[float], float]  # virtual seconds since power-on → true temperature, °C
 
 _MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
+_TEN = np.array(10.0)  # (a 0-d array: cheaper as a numpy operand than a Python number)
 
 
 @dataclass(frozen=True)
@@ -87,7 +91,11 @@ class TemperatureModel(Model):
             self.sources[point] = source_from_spec(spec)
         self.broken: set[int] = set()
         self.state = "idle"
-        self._samples: dict[int, collections.deque[float]] = {}
+        #: the last ``averaging`` samples of each point (in the unit), oldest first and right-aligned: the valid
+        #: ones are the last _count[point] of its row (the others 0.0, so adding the row in order is their sum)
+        self._ring = np.zeros((MAX_POINTS, config.averaging))
+        self._count = np.zeros(MAX_POINTS, dtype=np.int64)
+        self._top = np.full(MAX_POINTS, -math.inf)  # each point's highest sample (−inf: none)
         self._measured: set[int] = set()
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         #: the fitted modules the table had measured at the last full scan (a mismatched or unlisted module's
@@ -102,17 +110,23 @@ class TemperatureModel(Model):
         #: the last scan's result while nothing can change it: (table words, next measurement due, bank, first
         #: index, block) — a scan with the same table before that time only rewrites the block (see scan)
         self._quiet: tuple | None = None
-        #: while a FUN86 model runs: point → [(time, reading)] measured since its last scan (it replays them), and
-        #: where those readings are (kind, first index)
-        self.log: dict[int, list[tuple[float, int]]] | None = None
+        #: while a FUN86 model runs: the measurements since its last scan (it replays them), as batches of columns
+        #: (times, points, readings as signed words), and where those readings are (kind, first index)
+        self.log: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self.log_start: tuple[str, int] | None = None
         self._upper_cache: dict[int, tuple] = {}
+        self._installed: tuple = (None, None)  # (R4010/R4011, every point's installed bit)
+        self._sources_version = 0  # bumped by set_source (readings_upper and values cache what the sources are)
+        self._slots: tuple = (-1, None, None)  # (sources version, plant, slot per point): see _plant_slots
+        #: (points, sources version, R4010/R4011) → the highest of their sources' bounds, all installed
+        self._bounds: tuple = ((), None, False)
 
     # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
     def set_source(self, point: int, source: Source) -> None:
         self._check_point(point)
         self.sources[point] = source
-        self._samples.pop(point, None)
+        self._sources_version += 1
+        self._forget(np.array([point]))
 
     def open(self, point: int) -> None:
         """Open point's sensor circuit (a broken thermocouple); seen at the point's next measurement."""
@@ -128,18 +142,27 @@ class TemperatureModel(Model):
         if not 0 <= point < MAX_POINTS:
             raise InvalidValue(f"temperature point {point} is outside 0–{MAX_POINTS - 1}")
 
-    # -- the seams broken variants override ----------------------------------------------------------------------
-    def installed(self, mem: "Memory", point: int) -> bool:
-        """Point's bit in R4010 (points 0–15) or R4011 (16–31)."""
-        return bool(mem.words["R"][_MASK_LOW + point // 16] >> (point % 16) & 1)
+    def samples(self) -> dict[int, list[float]]:
+        """Each point's samples (oldest first) of the averaging, for the points that have any."""
+        n = self.config.averaging
+        return {p: self._ring[p, n - c:].tolist() for p, c in enumerate(self._count.tolist()) if c}
 
-    def point_result(self, point: int, installed: bool, broken: bool, live: int) -> tuple[int, bool]:
-        """(reading, break bit) of one measurement."""
-        if not installed:
-            return 0, False
-        if broken:
-            return BREAK_VALUE, True
-        return live, False
+    def _forget(self, points: np.ndarray) -> None:
+        """Drop points' samples ([our choice] a repaired or re-sourced sensor reads its live value at once)."""
+        self._count[points] = 0
+        self._ring[points] = 0.0
+        self._top[points] = -math.inf
+
+    # -- the seams broken variants override (arrays over measurements) ----------------------------------------------
+    def installed(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
+        """Points' bits in R4010 (points 0–15) or R4011 (16–31)."""
+        mask = np.array(mem.words["R"][_MASK_LOW:_MASK_LOW + 2])
+        return (mask[point // 16] >> (point % 16) & 1).astype(bool)
+
+    def point_result(self, point: np.ndarray, installed: np.ndarray, broken: np.ndarray,
+                     live: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(reading, break bit) of each measurement."""
+        return np.where(installed, np.where(broken, BREAK_VALUE, live), 0), installed & broken
 
     def break_position(self, point: int) -> tuple[int, int]:
         """(offset from TW, bit) of the point's break bit."""
@@ -252,9 +275,9 @@ class TemperatureModel(Model):
             mismatch, expected, entries, measured = plan
             self._active = tuple(k for k, _first, _code in measured)
             now = emu.now
-            for k, first, code in measured:
-                if self._next[k] <= now + 1e-9:
-                    self._measure_module(emu, k, first, code >> 8, readings)
+            due = [(k, first, code >> 8) for k, first, code in measured if self._next[k] <= now + 1e-9]
+            if due:
+                self._measure(emu, due, readings)
             entries = list(entries)
             for k in range(min(len(codes), len(self._mux))):
                 entries[4 * k + 3] = self._mux[k]
@@ -288,121 +311,99 @@ class TemperatureModel(Model):
                 words[offset] = words.get(offset, 0) | 1 << bit
         return words[1] & 0xFFFF, words[2] & 0xFFFF
 
-    def _measure_module(self, emu: "Emulator", k: int, first: int, sensor_code: int, readings) -> None:  # noqa: ANN001
+    def measure_module(self, now: float, k: int, first: int) -> tuple[np.ndarray, np.ndarray]:
+        """(times, points) of module k's measurements due by ``now``, its schedule moved past them."""
         module = self.fitted[k]
         step = self._step(module)
         cycle = module.update_s[self.config.rate]
         # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
         # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
         keep = (self.config.averaging + 1) * cycle
-        if emu.now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
-            self._next[k] += math.floor((emu.now - self._next[k] - keep) / cycle) * cycle
-        if self._plain():
-            self._measure_plain(emu, k, first, sensor_code, readings, module.points, step)
-            return
-        while self._next[k] <= emu.now + 1e-9:
-            point = first + self._mux[k]
-            self._measure_point(emu, point, sensor_code, readings, self._next[k])
-            self._mux[k] = (self._mux[k] + 1) % module.points
-            self._next[k] += step
+        if now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
+            self._next[k] += math.floor((now - self._next[k] - keep) / cycle) * cycle
+        times, self._next[k] = schedule(self._next[k], step, now + 1e-9)
+        points = first + (self._mux[k] + np.arange(len(times))) % module.points
+        self._mux[k] = (self._mux[k] + len(times)) % module.points
+        return times, points
 
-    def _plain(self) -> bool:
-        """No seam of a measurement is overridden (a broken variant's are): the inlined loop below applies."""
-        cls = type(self)
-        return cls is TemperatureModel or all(getattr(cls, name) is getattr(TemperatureModel, name) for name in
-                                              ("installed", "point_result", "_live", "_measure_point"))
-
-    def _measure_plain(self, emu: "Emulator", k: int, first: int, sensor_code: int, readings,  # noqa: ANN001
-                       points: int, step: float) -> None:
-        """_measure_point for each due measurement of module k, inlined (the same arithmetic, in the same order)."""
-        mem = emu.memory
-        mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
-        out, base = mem.words[readings.kind], readings.index
-        broken, sources, samples_of = self.broken, self.sources, self._samples
-        sensor = SENSOR_BY_CODE.get(sensor_code)
-        low, high = (sensor.low_c, sensor.high_c) if sensor is not None else (None, None)
-        fahrenheit = self.config.unit != "C"
-        fast = self.config.rate == "fast"
-        averaging = self.config.averaging
-        log = self.log
-        if log is not None:
-            self.log_start = (readings.kind, readings.index)
-        limit = emu.now + 1e-9
-        at, mux = self._next[k], self._mux[k]
-        breaks, measured = self._breaks, self._measured.add
-        while at <= limit:
-            point = first + mux
-            if mask[point // 16] >> (point % 16) & 1 and point not in broken:
-                celsius = sources[point](at)
-                if low is not None:
-                    celsius = min(max(celsius, low), high)
-                value = celsius * 9 / 5 + 32 if fahrenheit else celsius
-                samples = samples_of.get(point)
-                if samples is None:
-                    samples = samples_of[point] = collections.deque(maxlen=averaging)
-                samples.append(value)
-                mean = value if len(samples) == 1 else mean_of(samples)
-                reading = int(round(mean)) * 10 if fast else int(round(mean * 10))
-                breaks &= ~(1 << point)
-            else:
-                samples_of.pop(point, None)
-                if point in broken and mask[point // 16] >> (point % 16) & 1:
-                    reading = BREAK_VALUE
-                    breaks |= 1 << point
-                else:
-                    reading = 0
-                    breaks &= ~(1 << point)
-            word = reading & 0xFFFF
+    def _measure(self, emu: "Emulator", due: list[tuple[int, int, int]], readings: Address) -> None:
+        """The measurements of modules ``due`` [(k, first point, sensor code)] up to now, in one batch."""
+        batches = [(*self.measure_module(emu.now, k, first), code) for k, first, code in due]
+        if len(batches) == 1:
+            times, points, code = batches[0]
+            codes = np.full(len(times), code)
+        else:
+            times = np.concatenate([b[0] for b in batches])
+            points = np.concatenate([b[1] for b in batches])
+            codes = np.concatenate([np.full(len(b[0]), b[2]) for b in batches])
+        words, last = self.take(emu.memory, times, points, codes)
+        out, base = emu.memory.words[readings.kind], readings.index
+        for point, word in zip(points[last].tolist(), words[last].tolist()):
             out[base + point] = word
-            if log is not None:
-                entries = log.get(point)
-                if entries is None:
-                    log[point] = [(at, signed16(word))]
-                else:
-                    entries.append((at, signed16(word)))
-            measured(point)
-            mux = (mux + 1) % points
-            at += step
-        self._next[k], self._mux[k], self._breaks = at, mux, breaks
-
-    def _measure_point(self, emu: "Emulator", point: int, sensor_code: int, readings,  # noqa: ANN001
-                       at: float) -> None:
-        """One measurement of ``point`` as scheduled at virtual time ``at`` (≤ now when caught up)."""
-        mem = emu.memory
-        installed = self.installed(mem, point)
-        broken = point in self.broken
-        live = self._live(at, point, sensor_code) if installed and not broken else 0
-        if broken or not installed:
-            self._samples.pop(point, None)  # [our choice] a repaired sensor reads its live value at once
-        reading, flagged = self.point_result(point, installed, broken, live)
-        mem.words[readings.kind][readings.index + point] = reading & 0xFFFF
         if self.log is not None:
             self.log_start = (readings.kind, readings.index)
-            self.log.setdefault(point, []).append((at, signed16(reading & 0xFFFF)))
-        if flagged:
-            self._breaks |= 1 << point
+            self.log.append((times, points, (words ^ 0x8000) - 0x8000))
+
+    def take(self, mem: "Memory", times: np.ndarray, points: np.ndarray,
+             codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measure ``points`` at ``times`` (each point's in time order) with the sensors of ``codes``: the reading
+        words, the samples, break bits and measured points updated as one measurement after the other would.
+        Returns the words and the index of each point's last measurement."""
+        plain = type(self) is TemperatureModel  # (seams of its own may read more than R4010/R4011)
+        if plain:  # every point's installed bit, for these R4010/R4011
+            mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
+            if self._installed[0] != mask:
+                self._installed = (mask, np.asarray(self.installed(mem, np.arange(MAX_POINTS)), dtype=bool))
+            installed = self._installed[1][points]
         else:
-            self._breaks &= ~(1 << point)
-        self._measured.add(point)
+            installed = np.asarray(self.installed(mem, points), dtype=bool)
+        last = last_of_each(points)
+        if not self.broken and np.count_nonzero(installed) == len(points):
+            broken = good = None  # (every one good)
+            live = self._live(times, points, codes, last)
+        else:
+            broken = np.isin(points, list(self.broken))
+            good = installed & ~broken
+            live = np.zeros(len(points))
+            if np.count_nonzero(good):
+                live[good] = self._live(times[good], points[good], codes[good])
+            self._forget(points[~good])  # (a point is good or not for all its measurements of one scan)
+        if plain and good is None:  # (point_result of good measurements: the live readings, no break bit)
+            reading, flagged = live, np.zeros(len(points), dtype=bool)
+        else:
+            if broken is None:
+                broken = np.zeros(len(points), dtype=bool)
+            reading, flagged = self.point_result(points, installed, broken, live)
+            reading, flagged = np.asarray(reading), np.asarray(flagged, dtype=bool)
+            if flagged.shape != points.shape:
+                flagged = np.full(points.shape, bool(flagged))
+        breaks = self._breaks
+        for point, flag in zip(points[last].tolist(), flagged[last].tolist()):
+            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
+        self._breaks = breaks
+        self._measured.update(points[last].tolist())
+        words = (np.full(points.shape, reading) if reading.shape != points.shape else reading).astype(np.int64)
+        return words & 0xFFFF, last
 
     def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
         """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
-        cache = self._upper_cache
-        samples_of = self._samples
-        top = -math.inf
-        for point in points:
-            source = self.sources.get(point)
-            hit = cache.get(point)
-            if hit is None or hit[0] is not source:
-                hit = cache[point] = (source, self._source_upper(source))
-            value = hit[1]
-            samples = samples_of.get(point)
-            if samples:
-                value = max(value, max(samples))
-            if value > top:
-                top = value
+        points = np.asarray(list(points), dtype=np.intp)
+        key = (tuple(points.tolist()), self._sources_version, tuple(mem.words["R"][_MASK_LOW:_MASK_LOW + 2]))
+        if self._bounds[0] != key:  # (the sources' bounds, and whether every point is installed)
+            cache = self._upper_cache
+            bounds = []
+            for point in key[0]:
+                source = self.sources.get(point)
+                hit = cache.get(point)
+                if hit is None or hit[0] is not source:
+                    hit = cache[point] = (source, self._source_upper(source))
+                bounds.append(hit[1])
+            self._bounds = (key, max(bounds, default=-math.inf), bool(np.all(self.installed(mem, points))))
+        _key, top, installed = self._bounds
+        if len(points):
+            top = max(top, float(self._top[points].max()))
         if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
-                or math.isinf(top) or any(p in self.broken or not self.installed(mem, p) for p in points)):
+                or math.isinf(top) or not installed or any(p in self.broken for p in key[0])):
             return math.inf
         return (math.ceil(top) + 1) * 10 if self.config.rate == "fast" else math.ceil(top * 10) + 1
 
@@ -418,28 +419,114 @@ class TemperatureModel(Model):
             return math.inf
         return math.inf if math.isinf(celsius) else to_unit(celsius, self.config.unit)
 
-    def _live(self, now: float, point: int, sensor_code: int) -> int:
-        """The reading of a working sensor: source → unit → range → averaging → resolution, in 0.1°."""
-        sensor = SENSOR_BY_CODE.get(sensor_code)
-        celsius = self.sources[point](now)
-        if sensor is not None:
-            celsius = min(max(celsius, sensor.low_c), sensor.high_c)
-        value = to_unit(celsius, self.config.unit)
-        samples = self._samples.setdefault(point, collections.deque(maxlen=self.config.averaging))
-        samples.append(value)
-        mean = mean_of(samples)
-        if self.config.rate == "fast":  # 1° resolution, still shown in 0.1° units
-            return int(round(mean)) * 10
-        return int(round(mean * 10))
+    def values(self, times: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Each point's source at its time, °C.  Sources of one group (a source with ``group`` and ``slot``, e.g.
+        a thermal plant's points) are measured together: ``group.measured(slots, points, times)``."""
+        plant, slots = self._plant_slots()
+        if plant is not None:
+            slot = slots[points]
+            if (slot >= 0).all():
+                return plant.measured(slot, points, times)
+        out = np.empty(len(points))
+        sources = [self.sources[p] for p in points.tolist()]
+        plants: dict[int, list[int]] = {}
+        for i, source in enumerate(sources):
+            if getattr(source, "group", None) is not None:
+                plants.setdefault(id(source.group), []).append(i)
+            else:
+                out[i] = source(float(times[i]))
+        for columns in plants.values():
+            cols = np.array(columns)
+            group = sources[columns[0]].group
+            out[cols] = group.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
+        return out
+
+    def _plant_slots(self) -> tuple:
+        """(a group of sources — a plant —, the slot of each point in it — −1 for a point with another source), for
+        the group with the most points."""
+        if self._slots[0] != self._sources_version:
+            plants: dict[int, list] = {}
+            for point, source in self.sources.items():
+                if getattr(source, "group", None) is not None:
+                    plants.setdefault(id(source.group), [source.group, []])[1].append((point, source.slot))
+            plant, slots = None, np.full(MAX_POINTS, -1)
+            if plants:
+                plant, pairs = max(plants.values(), key=lambda entry: len(entry[1]))
+                for point, slot in pairs:
+                    slots[point] = slot
+            self._slots = (self._sources_version, plant, slots)
+        return self._slots[1], self._slots[2]
+
+    def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray,
+              last: np.ndarray | None = None) -> np.ndarray:
+        """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°
+        (``last``: each point's last measurement, if known)."""
+        return self.resolution(self.average(points, self.in_unit(self.values(times, points), SENSOR_LOW[codes],
+                                                                 SENSOR_HIGH[codes]), last))
+
+    def in_unit(self, celsius: np.ndarray, low: np.ndarray | None, high: np.ndarray | None) -> np.ndarray:
+        """Sensor values within the sensors' range (``low``, ``high``; None: known to be within), in the configured
+        unit."""
+        if low is not None:
+            celsius = np.minimum(np.maximum(celsius, low), high)
+        return celsius * 9 / 5 + 32 if self.config.unit != "C" else celsius
+
+    def resolution(self, mean: np.ndarray) -> np.ndarray:
+        """Averaged values as readings in 0.1° (the fast rate has 1° resolution, still shown in 0.1° units): whole
+        numbers, as floats."""
+        if self.config.rate == "fast":
+            return np.rint(mean) * _TEN
+        return np.rint(mean * _TEN)
+
+    def average(self, points: np.ndarray, value: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
+        """Each value's mean with the point's samples before it (the last ``averaging``), the samples updated.
+
+        The sum runs oldest first from 0.0 (not sum(), whose float algorithm changed in Python 3.12: the same
+        profile gives the same readings on every Python).  ``last``: each point's last value, if known."""
+        ring, count, n = self._ring, self._count, self.config.averaging
+        if n == 1:
+            last = last_of_each(points) if last is None else last
+            ring[points[last], 0] = self._top[points[last]] = value[last]
+            count[points[last]] = 1
+            return value
+        mean = np.empty(len(points))
+        rounds = occurrence(points)
+        for r in range(int(rounds.max()) + 1 if len(points) else 0):
+            cols = np.flatnonzero(rounds == r)
+            pts = points[cols]
+            ring[pts, :-1] = ring[pts, 1:]
+            ring[pts, -1] = value[cols]
+            count[pts] = np.minimum(count[pts] + 1, n)
+            total = np.zeros(len(cols))
+            for c in range(n):
+                total = total + ring[pts, c]
+            mean[cols] = total / count[pts]
+        pts = np.unique(points)
+        self._top[pts] = np.where(np.arange(n) >= n - count[pts][:, None], ring[pts], -math.inf).max(axis=1)
+        return mean
 
 
-def mean_of(samples) -> float:  # noqa: ANN001
-    """The average of the last readings, added oldest first: not sum(), whose float algorithm changed in Python
-    3.12 (compensated) — the same profile gives the same readings on every Python."""
-    total = 0.0
-    for value in samples:
-        total += value
-    return total / len(samples)
+def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
+    """The times at, at + step, … up to ``limit`` (each one step after the one before, added as a running clock
+    adds them), and the first one after it."""
+    if at > limit:
+        return np.empty(0), at
+    count = int((limit - at) / step) + 2
+    if count <= 8:  # (a few: added in Python, the same additions without numpy's overhead)
+        times = [at]
+        while at + step <= limit:
+            at += step
+            times.append(at)
+        return np.array(times), at + step
+    times = np.add.accumulate(np.concatenate(([at], np.full(count, step))))
+    n = int(np.searchsorted(times, limit, side="right"))
+    return times[:n], float(times[n])
+
+
+#: each sensor code's measuring range, °C (unbounded for a code no sensor has)
+SENSOR_LOW, SENSOR_HIGH = np.full(256, -math.inf), np.full(256, math.inf)
+for _code, _sensor in SENSOR_BY_CODE.items():
+    SENSOR_LOW[_code], SENSOR_HIGH[_code] = _sensor.low_c, _sensor.high_c
 
 
 def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
