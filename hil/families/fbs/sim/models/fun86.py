@@ -473,7 +473,7 @@ class Fun86Model(Model):
             off = ~enabled
             st.integral[off], st.has_prev[off] = 0.0, False
             words[inst.or_.kind][inst.or_.index:inst.or_.index + zn] = after.tolist()
-        self._drive(mem, inst, st, now, enabled, after, None if pid_due else view)
+        self.drive_outputs(mem, inst, st, now, enabled, after, None if pid_due else view)
         # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV — or,
         # with the same registers as the last scan and nothing to replay, as that scan left them
         sel = view.sel
@@ -544,7 +544,7 @@ class Fun86Model(Model):
                         every, slice(None) if every else idx, waves=view.waves if same_output else None)
         return st.view
 
-    def _drive(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
+    def drive_outputs(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
                output: np.ndarray, view: _View | None = None) -> None:
         """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
         (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
@@ -610,11 +610,15 @@ class Fun86Model(Model):
         st.prealarm.fill(0)
         st.loop_since.fill(math.nan)
 
+    def readings_replayed(self) -> None:
+        """The temperature model's log of readings was consumed elsewhere (a batch of scans): nothing to replay."""
+        self._log = None
+
     def _log_off(self) -> bool:
         """Without the temperature model's log of readings, every measurement needs its scan."""
         return self.temperature_model is None or self.temperature_model.log is None
 
-    def _prealarm_possible(self, mem: "Memory", st: InstanceState) -> bool:
+    def prealarm_possible(self, mem: "Memory", st: InstanceState) -> bool:
         """Could a reading of an enabled point reach R4008 (then every measurement needs its scan)?"""
         if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
             return True
@@ -649,7 +653,7 @@ class Fun86Model(Model):
                     due = min(due, float(deadlines[pending].min()))
             due = min(due, st.next_pid)
             if not measurements:
-                measurements = self._prealarm_possible(mem, st)
+                measurements = self.prealarm_possible(mem, st)
             if self.pwm_exact:
                 continue  # the plant integrates the PWM between scans; the outputs are recomputed at each scan
             # PWM: every cycle start, and the end of each point's ON time within the current cycle

@@ -389,6 +389,15 @@ class ThermalPlant(Model):
         return [(float(self.t0[s]), float(self.temp0[s]), self.wave(s)) for s in range(len(self.order))]
 
     # -- the engine ---------------------------------------------------------------------------------------------
+    @property
+    def driver(self) -> object:
+        """The FUN86 model whose outputs drive the heaters (None without one)."""
+        return self._fun86
+
+    def waveforms_replaced(self) -> None:
+        """The waveforms were set elsewhere (a batch of scans re-anchored them): the next scan reads the outputs."""
+        self._last_outputs = None
+
     def power_on(self, emu: "Emulator") -> None:
         from hil.families.fbs.sim.models.temperature import TemperatureModel
         temperature = emu.model(TemperatureModel)

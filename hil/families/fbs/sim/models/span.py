@@ -41,9 +41,9 @@ from hil.families.fbs.address import parse
 from hil.families.fbs.sim.models.fun86 import PREALARM_SCANS, Fun86Model, InstanceState, Law
 from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
                                                 noise_index)
-from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, TemperatureModel
-from hil.families.fbs.temperature import MAX_MODULES, MAX_POINTS, TABLE_MARKER
-from hil.sim.columns import last_of_each, occurrence, signed16
+from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
+from hil.families.fbs.temperature import MAX_POINTS
+from hil.sim.columns import last_of_each, signed16
 from hil.sim.model import scan_grid
 
 if TYPE_CHECKING:
@@ -59,18 +59,6 @@ CHUNK = 2048
 #: reused memory (fresh memory for each batch costs a page fault per 4 KiB)
 BLOCK = 256
 
-
-
-@dataclass
-class _Table:
-    """The temperature table as the temperature model reads it (measuring, every point measured once)."""
-
-    readings: Address
-    work: Address
-    measured: tuple  # (module k, first point, table code) of the modules measured
-    header: tuple[int, ...]
-    count: int  # modules in the table
-    total: int  # points in the table
 
 
 @dataclass
@@ -155,7 +143,7 @@ class Span:
             return None
         models = engine.models
         plant = next((m for m in models if type(m) is ThermalPlant), None)
-        if plant is None or not plant.waved or plant._fun86 is not fun86:
+        if plant is None or not plant.waved or plant.driver is not fun86:
             return None
         at = [next((i for i, m in enumerate(models) if m is model), -1) for model in (tm, fun86, plant)]
         if not 0 <= at[0] < at[1] < at[2]:
@@ -165,7 +153,7 @@ class Span:
         if any(m.next_event(now) != math.inf for m in others):
             return None
         mem = engine.memory
-        table = self._table(tm, mem)
+        table = tm.measuring_table(mem)
         if table is None:
             return None
         start = fun86.readings_start(mem)
@@ -180,7 +168,7 @@ class Span:
         for inst, st in zip(fun86.config.instances, states):
             if not st.running:
                 continue
-            if (st.interval <= 2 * engine.scan_time or fun86._prealarm_possible(mem, st)
+            if (st.interval <= 2 * engine.scan_time or fun86.prealarm_possible(mem, st)
                     or ((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)).any()):
                 return None
             b = np.arange(st.zn)
@@ -195,23 +183,6 @@ class Span:
             return None
         return {"tm": tm, "plant": plant, "table": table, "loops": loops, "limit": limit,
                 "loop_seconds": loop_seconds, "high_at": fun86.loop_threshold(mem) * OUTPUT_FULL}
-
-    @staticmethod
-    def _table(tm: TemperatureModel, mem: "Memory") -> _Table | None:
-        """The table as the temperature model's scan reads it, if it is measuring and every point was measured."""
-        words = mem.words[tm.config.table.kind]
-        sr = tm.config.table.index
-        if words[sr] != TABLE_MARKER:
-            return None
-        count = words[sr + 1]
-        header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
-        state, readings, work, codes, table_modules, total = tm._layout(header)
-        if state != "measuring" or readings is None or work is None or work.kind not in mem.words:
-            return None
-        _mismatch, expected, _entries, measured = tm._plan(codes, table_modules, words[sr + 2])
-        if not expected or not expected <= tm._measured:
-            return None
-        return _Table(readings, work, measured, header, min(count, MAX_MODULES), total)
 
     def _loop(self, mem: "Memory", inst: PidInstance, st: InstanceState, enabled: np.ndarray,
               plant: ThermalPlant) -> _Loop:
@@ -235,7 +206,7 @@ class Span:
                      np.array([d[0] for d in driven], dtype=np.intp), np.array([d[1] for d in driven], dtype=np.intp),
                      np.array(y_on), np.array(y_off), lit, dark)
 
-    def _unshared(self, engine: "Engine", mem: "Memory", table: _Table, others: list) -> bool:
+    def _unshared(self, engine: "Engine", mem: "Memory", table: MeasuringTable, others: list) -> bool:
         """No element the batch writes is read or written by anything else between its scans: not by the
         models' reads (table, R4003–R4013, the instances' operands), not by another part of the batch, not by
         another model nor the scan counter.  (A scan would see such an element change between two others.)"""
@@ -307,7 +278,7 @@ class Span:
         tm = ready["tm"]
         return ((engine.now, engine.scans, engine.skipped_time), [(loop.st.next_pid, loop.st.loop_since.copy())
                                                                    for loop in ready["loops"]],
-                (list(tm._next), list(tm._mux), tm._ring.copy(), tm._count.copy(), tm._top.copy()))
+                tm.schedule_state())
 
     @staticmethod
     def _restore(engine: "Engine", ready: dict[str, Any], saved: tuple) -> None:
@@ -316,9 +287,7 @@ class Span:
         for loop, (next_pid, loop_since) in zip(ready["loops"], loops):
             loop.st.next_pid, loop.st.loop_since = next_pid, loop_since.copy()
             loop.output = loop.before.copy()
-        tm = ready["tm"]
-        tm._next, tm._mux = list(temperature[0]), list(temperature[1])
-        tm._ring, tm._count, tm._top = temperature[2].copy(), temperature[3].copy(), temperature[4].copy()
+        ready["tm"].restore_schedule(temperature)
 
 
 class _Batch:
@@ -329,7 +298,7 @@ class _Batch:
         self.fun86, self.engine, self.ready = fun86, engine, ready
         self.tm: TemperatureModel = ready["tm"]
         self.plant: ThermalPlant = ready["plant"]
-        self.table: _Table = ready["table"]
+        self.table: MeasuringTable = ready["table"]
         self.loops: list[_Loop] = ready["loops"]
         self.scans, self.due = scans, due
         self.st_time = engine.scan_time
@@ -719,7 +688,7 @@ class _Batch:
             plant.w_pwm[s] = ~steady[moved]
             plant.w_started[s], plant.w_period[s], plant.w_on[s] = loop.st.started, loop.st.pwm, on[moved]
             plant.w_uon[s], plant.w_uoff[s] = loop.lit[moved], level[moved]
-        plant._last_outputs = None
+        plant.waveforms_replaced()
         if self.kept is not None:
             self._observe()
         self._temperature()
@@ -729,9 +698,9 @@ class _Batch:
             mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = self.words[k][-1].tolist()
             mem.bits[inst.alm.kind][inst.alm.index] = 1 if self.alm[k][-1] else 0
             st.view = None  # (its registers changed)
-            fun86._drive(mem, inst, st, float(scans[-1]), loop.enabled, loop.output)
+            fun86.drive_outputs(mem, inst, st, float(scans[-1]), loop.enabled, loop.output)
         tm.log = []
-        fun86._log = None
+        fun86.readings_replayed()
         engine.now = float(scans[-1])
 
     def _temperature(self) -> None:
@@ -741,17 +710,8 @@ class _Batch:
         bank, base = mem.words[self.table.readings.kind], self.table.readings.index
         for point, word in zip(points.tolist(), self.last_word[points].tolist()):
             bank[base + point] = word
-        good = self.installed[points] & ~self.broken[points]
-        if tm.config.averaging == 1:
-            tm.average(points[good], self.last_value[points[good]])
-        if not good.all():
-            tm._forget(points[~good])
-        breaks = tm._breaks
-        for point, flag in zip(points.tolist(), self.last_flag[points].tolist()):
-            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
-        tm._breaks = breaks
-        tm._measured.update(points.tolist())
-        tm._quiet = None
+        tm.batch_measured(points, self.installed[points] & ~self.broken[points], self.last_value[points],
+                          self.last_flag[points])
 
     def _observe(self) -> None:
         """Each scan's outputs and readings in memory, and the observers called, as after each of those scans."""

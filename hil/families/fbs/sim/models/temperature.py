@@ -32,7 +32,8 @@ from hil.core.errors import InvalidValue
 from hil.sim.columns import last_of_each, occurrence
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
-from hil.families.fbs.temperature import (BREAK_VALUE, SENSOR_BY_CODE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
+from hil.families.fbs.address import Address
+from hil.families.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
 
@@ -70,6 +71,19 @@ def source_from_spec(spec: dict) -> Source:
         return Fixed(float(spec["celsius"]))
     return Ramp(float(spec["start"]), float(spec["per_s"]), float(spec.get("low", -math.inf)),
                 float(spec.get("high", math.inf)))
+
+
+
+@dataclass(frozen=True)
+class MeasuringTable:
+    """The temperature table as the model reads it while measuring, every point measured once."""
+
+    readings: Address
+    work: Address
+    measured: tuple  # (module k, first point, table code) of the modules measured
+    header: tuple[int, ...]
+    count: int  # modules in the table
+    total: int  # points in the table
 
 
 class TemperatureModel(Model):
@@ -377,13 +391,55 @@ class TemperatureModel(Model):
             reading, flagged = np.asarray(reading), np.asarray(flagged, dtype=bool)
             if flagged.shape != points.shape:
                 flagged = np.full(points.shape, bool(flagged))
-        breaks = self._breaks
-        for point, flag in zip(points[last].tolist(), flagged[last].tolist()):
-            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
-        self._breaks = breaks
-        self._measured.update(points[last].tolist())
+        self._record_results(points[last].tolist(), flagged[last].tolist())
         words = (np.full(points.shape, reading) if reading.shape != points.shape else reading).astype(np.int64)
         return words & 0xFFFF, last
+
+    def _record_results(self, points: Sequence[int], flagged: Sequence[bool]) -> None:
+        """Break bits and measured points after the last measurement of each of ``points`` (``flagged``: its break
+        bit)."""
+        breaks = self._breaks
+        for point, flag in zip(points, flagged):
+            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
+        self._breaks = breaks
+        self._measured.update(points)
+
+    # -- what a batch of scans run elsewhere (FUN86's spans, models/span.py) reads and leaves ----------------------
+    def measuring_table(self, mem: "Memory") -> MeasuringTable | None:
+        """The table as this model's scan reads it, if it is measuring and every point was measured."""
+        words = mem.words[self.config.table.kind]
+        sr = self.config.table.index
+        if words[sr] != TABLE_MARKER:
+            return None
+        count = words[sr + 1]
+        header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
+        state, readings, work, codes, table_modules, total = self._layout(header)
+        if state != "measuring" or readings is None or work is None or work.kind not in mem.words:
+            return None
+        _mismatch, expected, _entries, measured = self._plan(codes, table_modules, words[sr + 2])
+        if not expected or not expected <= self._measured:
+            return None
+        return MeasuringTable(readings, work, measured, header, min(count, MAX_MODULES), total)
+
+    def schedule_state(self) -> tuple:
+        """The measurement schedule and samples, to be put back by :meth:`restore_schedule` (a batch computed and
+        then dropped for a shorter one moves them)."""
+        return list(self._next), list(self._mux), self._ring.copy(), self._count.copy(), self._top.copy()
+
+    def restore_schedule(self, state: tuple) -> None:
+        next_due, mux, ring, count, top = state
+        self._next, self._mux = list(next_due), list(mux)
+        self._ring, self._count, self._top = ring.copy(), count.copy(), top.copy()
+
+    def batch_measured(self, points: np.ndarray, good: np.ndarray, values: np.ndarray, flagged: np.ndarray) -> None:
+        """Samples, break bits and measured points as after a batch whose last measurement of each of ``points``
+        was ``values`` (in the unit; used where ``good``) with break bits ``flagged``."""
+        if self.config.averaging == 1:
+            self.average(points[good], values[good])
+        if not good.all():
+            self._forget(points[~good])
+        self._record_results(points.tolist(), flagged.tolist())
+        self._quiet = None
 
     def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
         """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
