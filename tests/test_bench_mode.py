@@ -47,7 +47,7 @@ def bench_like(text: str) -> str:
     return text.replace("[rtc]\n", "[rtc]\ndrift_max_hours = 0\n", 1)
 
 
-def _summary(out: str) -> dict[str, int]:
+def outcome_counts(out: str) -> dict[str, int]:
     last = [line for line in out.splitlines() if re.search(r"\d+ (passed|failed|skipped)", line)][-1]
     return {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error|errors)", last)}
 
@@ -72,7 +72,7 @@ def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path):
         outputs = {key: proc.communicate(timeout=540)[0] for key, proc in runs.items()}
     print(f"bench mode: {len(runs)} runs in parallel took {time.monotonic() - started:.1f} s")
     for (name, wire), out in outputs.items():
-        counts = _summary(out)
+        counts = outcome_counts(out)
         print(f"{name} over {wire}: {counts}")
         assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
         assert counts.get("passed", 0) > 0, out[-3000:]

@@ -265,12 +265,12 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
 BYPASSES = '''
 import pytest
 from hil.core.errors import WriteRefused
-from hil.plugin.pytest_plugin import _STATE
+from hil.plugin.pytest_plugin import BENCH_SESSION
 
 
 @pytest.fixture
 def real(request):  # the harness's own bench, to count what reached the PLC
-    return request.config.stash[_STATE].bench
+    return request.config.stash[BENCH_SESSION].bench
 
 
 def _sent(real):
@@ -449,12 +449,12 @@ def test_a_session_ending_with_values_unrestored_fails_naming_each(pytester):
     bench = pytester.makefile(".toml", bench=text.replace("time_scale = 1.0", "time_scale = 1.0\ntimeout = 0.5"))
     pytester.makepyfile(test_gone='''
 import pytest
-from hil.plugin.pytest_plugin import _STATE
+from hil.plugin.pytest_plugin import BENCH_SESSION
 
 
 def test_writes_then_the_plc_goes_for_good(bench, request):
     bench.plc.io.write_many({"R1000": 42, "M1000": 1})
-    request.config.stash[_STATE].bench.raw.server.stop()
+    request.config.stash[BENCH_SESSION].bench.raw.server.stop()
 ''')
     result = pytester.runpytest_inprocess("--bench", str(bench), "-q", "-p", "no:cacheprovider",
                                           "-p", "no:hypothesispytest")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from hil.cli.many import BenchRun, _summary
+from hil.cli.many import BenchRun, print_summary
 from hil.core.timebase import HostTimebase
 from hil.plugin.reporting.console import WaitProgress, header_panel, render, summary_table
 from hil.plugin.reporting.model import TestRecord as Record
@@ -62,7 +62,7 @@ def test_long_waits_print_a_line_every_so_often_when_not_on_a_terminal(monkeypat
 
 def test_many_benches_summary_keeps_bench_names(tmp_path: Path) -> None:
     console = Console(record=True, width=200, force_terminal=True)
-    _summary(console, [BenchRun("ext[pid]", "p.toml", tmp_path / "junit-ext[pid].xml", tmp_path / "run.log",
+    print_summary(console, [BenchRun("ext[pid]", "p.toml", tmp_path / "junit-ext[pid].xml", tmp_path / "run.log",
                                 exit=0)], "reports/junit[all].xml")
     text = console.export_text()
     assert "ext[pid]" in text and "junit[all].xml" in text

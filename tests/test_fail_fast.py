@@ -12,11 +12,11 @@ def test_remaining_tests_error_at_once_when_the_plc_stops_answering(pytester):
     bench = pytester.makefile(".toml", bench=text.replace("time_scale = 1.0", "time_scale = 1.0\ntimeout = 1.0"))
     pytester.makepyfile(test_session="""
         import pytest
-        from hil.plugin.pytest_plugin import _STATE
+        from hil.plugin.pytest_plugin import BENCH_SESSION
 
         @pytest.fixture
         def real(request):  # the harness's own bench object: its tests break the wire from inside a test
-            return request.config.stash[_STATE].bench
+            return request.config.stash[BENCH_SESSION].bench
 
         import time
 

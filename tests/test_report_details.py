@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.plugin.reporting.html import _CSS, write_html, write_html_sections
+from hil.plugin.reporting.html import write_html, write_html_sections
 from hil.plugin.reporting.model import Measurement, Series
 from hil.plugin.reporting.model import TestRecord as Record
 
@@ -78,7 +78,7 @@ def _records() -> list[Record]:
 
 def test_html_layout_rules_filter_and_sections(tmp_path: Path) -> None:
     page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
-    assert "table-layout:fixed" in _CSS and "overflow-wrap:anywhere" in _CSS  # long ids wrap inside the page
+    assert "table-layout:fixed" in page and "overflow-wrap:anywhere" in page  # long ids wrap inside the page (inline CSS)
     assert '<div class="filters">' in page and 'value="passed"' in page and "hide-" in page
     assert page.count('<details class="section"') >= 3
     assert "wire trace (5 calls)" in page  # the in-process target records calls, not frames

@@ -65,11 +65,11 @@ def _profile(pytester, extra: str = "") -> str:
 def test_failed_restore_goes_into_the_junit_report(pytester):
     pytester.makepyfile(test_dies="""
         import pytest
-        from hil.plugin.pytest_plugin import _STATE
+        from hil.plugin.pytest_plugin import BENCH_SESSION
 
         @pytest.fixture
         def real(request):  # the harness's own bench object: its tests break the wire from inside a test
-            return request.config.stash[_STATE].bench
+            return request.config.stash[BENCH_SESSION].bench
 
         def test_writes_then_loses_the_plc(bench, real):
             bench.plc.io.write("R1000", 42)
@@ -86,11 +86,11 @@ def test_failed_restore_goes_into_the_junit_report(pytester):
 def test_a_test_killed_by_pytest_timeout_is_still_restored(pytester):
     pytester.makepyfile(test_hangs="""
         import pytest
-        from hil.plugin.pytest_plugin import _STATE
+        from hil.plugin.pytest_plugin import BENCH_SESSION
 
         @pytest.fixture
         def real(request):  # the harness's own bench object: its tests break the wire from inside a test
-            return request.config.stash[_STATE].bench
+            return request.config.stash[BENCH_SESSION].bench
 
 
         @pytest.mark.timeout(1, method="signal")

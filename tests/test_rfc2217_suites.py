@@ -17,7 +17,7 @@ import pytest
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, emulate_process
 from tests.rfc2217_servers import rfc2217_server
-from tests.test_bench_mode import ALLOWED_SKIPS, _summary, bench_like
+from tests.test_bench_mode import ALLOWED_SKIPS, bench_like, outcome_counts
 
 SUITES = [str(REPO / "suites" / f) for f in
           ("test_smoke.py", "test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py")]
@@ -49,7 +49,7 @@ def test_smoke_and_rtc_suites_pass_over_rfc2217(tmp_path, protocol):
                               "no:cacheprovider", "-p", "no:hypothesispytest"],
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path, timeout=240,
                              env={**os.environ, "PYTHONUNBUFFERED": "1"}).stdout
-    counts = _summary(out)
+    counts = outcome_counts(out)
     print(f"{protocol}+rfc2217 via {server.kind}: {counts}")
     assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
     assert counts.get("passed", 0) >= 45, out[-3000:]

@@ -97,7 +97,7 @@ def run_many(benches: list[str], target: str | None, junitxml: str, extra: list[
     if html:
         merged = Path(html) if isinstance(html, str) else out_dir / "report.html"
         merge_html(runs, merged)
-    _summary(console, runs, junitxml)
+    print_summary(console, runs, junitxml)
     if merged is not None:
         console.print(Text(f"merged HTML: {merged}"))
     return next((r.exit for r in runs if r.exit), 0)
@@ -197,7 +197,7 @@ def _error_suite(name: str, message: str) -> ET.Element:
     return suite
 
 
-def _summary(console: Console, runs: list[BenchRun], junitxml: str) -> None:
+def print_summary(console: Console, runs: list[BenchRun], junitxml: str) -> None:
     table = Table(title="hil run: benches in parallel")
     for col in ("bench", "exit", "wall s", "JUnit", "log"):
         table.add_column(col)
