@@ -211,6 +211,42 @@ def test_jumping_equals_stepping_with_the_pid_running(seconds):
     assert stepped.memory.read("R300", 4) == jumped.memory.read("R300", 4)
 
 
+def test_a_prealarm_count_never_runs_ahead_of_the_scans_after_a_jump_off_the_grid(emu):
+    """A jump clipped at a request's time lands between two grid points and the scans go on from there: a reading
+    taken in the next scan's interval was first seen by that scan, not by a 'skipped' grid point it had already
+    passed — counting it twice put one point's pre-alarm count a scan ahead (a warning after 9 scans on the scan
+    counter of `hil emulate` that had fallen behind).  Every count is at most the scans since R4008 went under
+    the PVs."""
+    import random
+    m = emu.memory
+    m.write("R4012", [0xFFFF, 0xFFFF])
+    emu.advance(20)
+    emu.scan()
+    m.write("R100", m.read("R3020", 10))  # SV = PV, a wide band, no heating: PVs stay put
+    m.write("R110", [1000] * 10)
+    m.write("R120", [1] * 10)
+    m.write("R130", [0] * 10)
+    m.write("R140", [0] * 10)
+    _run(emu)
+    emu.advance(10)
+    st = emu.model(Fun86Model).states[0]
+    rng = random.Random(1)
+    ahead = []
+    for trial in range(120):
+        m.set("R4008", 65535)
+        emu.scan()
+        emu.advance(rng.uniform(0.0, 30.0))  # ends off the grid, wherever the time runs out
+        m.set("R4008", 100)
+        since = emu.scans_represented
+        for _ in range(rng.randint(1, 12)):
+            emu.scan()
+            counted = emu.scans_represented - since
+            if st.prealarm.max() > counted:
+                ahead.append((trial, counted, st.prealarm.tolist()))
+    assert min(m.read("R3020", 10)) >= 100
+    assert ahead == []
+
+
 def test_a_virtual_day_with_every_en_off_is_still_one_jump(emu):
     emu.advance(86400)
     assert emu.scans < 10  # (counted, not timed: wall-clock limits are flaky on shared machines)

@@ -24,6 +24,17 @@ def scan_grid(t: Time, scan_time: float) -> Time:
     return np.ceil(t / step - _SLACK) * step
 
 
+def first_scan_after(at: Time, previous: Time, scan_time: float) -> Time:
+    """The scan that first sees what happened at ``at``, after the scan at ``previous``: the scan grid's next, but
+    never one at or before ``previous`` — a scan train off the grid (a jump clipped at a request's time lands
+    between two grid points, and scans follow from there) sees it at ``previous + scan_time``, not at a grid
+    point it has already passed (which would make a skipped scan of the very scan that sees it)."""
+    landed = scan_grid(at, scan_time)
+    if isinstance(landed, float):
+        return landed if landed >= previous + scan_time / 2 else previous + scan_time
+    return np.where(landed < previous + scan_time / 2, previous + scan_time, landed)
+
+
 class Model:
     """Base class: override what you need.
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from hil.families.fbs.address import Address, parse
 from hil.sim.columns import occurrence, signed16 as signed
-from hil.sim.model import Model, scan_grid
+from hil.sim.model import Model, first_scan_after, scan_grid
 from hil.families.fbs import registers as reg
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
@@ -171,6 +171,7 @@ class Fun86Model(Model):
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
         self._log: tuple | None = None
+        self._last_scan = -math.inf  # when this model last scanned (the readings logged since came after it)
         self._replays = False
         self._output_keys: dict[tuple, frozenset] = {}
         #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
@@ -300,10 +301,12 @@ class Fun86Model(Model):
         self._replays = False  # a reading logged for a scan skipped since the last (see _replayed)
         if tm is not None and tm.log:
             self._log = tuple(np.concatenate(parts) for parts in zip(*tm.log))
-            self._replays = float(scan_grid(float(self._log[0].min()), emu.scan_time)) < emu.now - emu.scan_time / 2
+            self._replays = first_scan_after(float(self._log[0].min()), self._last_scan,
+                                             emu.scan_time) < emu.now - emu.scan_time / 2
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
+            self._last_scan = emu.now
             return
         for inst, st in zip(self.config.instances, self.states):
             self._scan_instance(emu, mem, inst, st)
@@ -312,6 +315,7 @@ class Fun86Model(Model):
         if tm is not None:
             # log the readings measured until the next scan (replayed there) while any instance runs
             tm.log = [] if any(st.running for st in self.states) else None
+        self._last_scan = emu.now
 
     def _scan_at_rest(self, mem: "Memory") -> bool:
         """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
@@ -355,7 +359,7 @@ class Fun86Model(Model):
         for at, point, pv in zip(times.tolist(), logged.tolist(), pvs.tolist()):
             b = point - first
             if 0 <= b < n and enabled[b]:
-                landed = scan_grid(at, scan_time)
+                landed = first_scan_after(at, self._last_scan, scan_time)
                 if landed < now - scan_time / 2:
                     cells.append((b, landed, pv))
         if not cells:
@@ -610,9 +614,11 @@ class Fun86Model(Model):
         st.prealarm.fill(0)
         st.loop_since.fill(math.nan)
 
-    def readings_replayed(self) -> None:
-        """The temperature model's log of readings was consumed elsewhere (a batch of scans): nothing to replay."""
+    def readings_replayed(self, last_scan: float) -> None:
+        """The temperature model's log of readings was consumed elsewhere, by a batch of scans whose last was at
+        ``last_scan``: nothing to replay."""
         self._log = None
+        self._last_scan = last_scan
 
     def _log_off(self) -> bool:
         """Without the temperature model's log of readings, every measurement needs its scan."""

@@ -44,7 +44,7 @@ from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalP
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
 from hil.families.fbs.temperature import MAX_POINTS
 from hil.sim.columns import last_of_each, signed16
-from hil.sim.model import scan_grid
+from hil.sim.model import first_scan_after, scan_grid
 
 if TYPE_CHECKING:
     from hil.sim.engine import Engine
@@ -605,7 +605,7 @@ class _Batch:
             mine = (b >= 0) & (b < st.zn)
             mine[mine] = loop.enabled[b[mine]]
             mine = np.flatnonzero(mine)
-            landed = scan_grid(block["times"][mine], st_time)
+            landed = first_scan_after(block["times"][mine], scans[b0:b1][block["scan"][mine]], st_time)
             # (a reading landed at its very scan is that scan's PV)
             skipped = landed < scans[b0 + 1:b1 + 1][block["scan"][mine]] - st_time / 2
             mine, landed = mine[skipped], landed[skipped]
@@ -700,7 +700,7 @@ class _Batch:
             st.view = None  # (its registers changed)
             fun86.drive_outputs(mem, inst, st, float(scans[-1]), loop.enabled, loop.output)
         tm.log = []
-        fun86.readings_replayed()
+        fun86.readings_replayed(float(scans[-1]))
         engine.now = float(scans[-1])
 
     def _temperature(self) -> None:
