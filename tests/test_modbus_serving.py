@@ -124,8 +124,8 @@ def test_mixed_read_and_write(plc: ModbusTransport, emulator: Emulator) -> None:
 
 
 def _reads(plc: ModbusTransport, n: int) -> int:
-    """Requests the server sees for ``n`` reads: on RTU each is followed by its fence, a probe read."""
-    return 2 * n if plc.serial else n
+    """Requests the server sees for ``n`` reads (on RTU each is followed by its fence, a probe read)."""
+    return plc.requests_per_read * n
 
 
 def test_large_transfers_split_at_the_modbus_limits(plc: ModbusTransport, emulator: Emulator) -> None:

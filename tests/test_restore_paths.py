@@ -36,7 +36,7 @@ def test_a_write_whose_reply_is_lost_is_still_restored(wire):
     with _guarded(wire, faults) as io:
         # The journal's read of the original passes (fenced on the wires without transaction ids — a FATEK
         # loop-back, an RTU probe read: one more reply); the write's reply is lost.
-        faults.push(*[None] * (1 if wire == "emulator+modbus-tcp" else 2), "drop")
+        faults.push(*[None] * io.requests_per_read, "drop")
         with pytest.raises(OutcomeUnknown, match="outcome unknown"):
             io.write("R1001", 9)
         assert io.emulator.memory.get("R1001") == 9  # it did land

@@ -19,7 +19,7 @@ import pytest
 from hil.core.errors import TransportError
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.transport.factory import open_transport, serve
-from tests.rfc2217_servers import (NO_SER2NET, SER2NET, SET_BAUDRATE, SET_DATASIZE, SET_PARITY,
+from tests.rfc2217_servers import (NO_SER2NET, SER2NET, free_port, SET_BAUDRATE, SET_DATASIZE, SET_PARITY,
                                    SET_STOPSIZE, TelnetTap, port_manager, ser2net)
 
 SERVERS = [pytest.param("ser2net", marks=pytest.mark.skipif(SER2NET is None, reason=NO_SER2NET)), "pyserial"]
@@ -92,9 +92,7 @@ def test_line_settings_go_once_and_requests_cost_no_purge(server, protocol):
 @pytest.mark.timeout(20)
 @pytest.mark.parametrize("scheme", ["fatek+rfc2217", "modbus+rfc2217"])
 def test_a_port_nobody_listens_on_is_a_clear_error(scheme):
-    with socket.socket() as s:  # a port the OS chose, closed again: nothing listens there
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()  # a port the OS chose, closed again: nothing listens there
     with pytest.raises(TransportError, match=rf"rfc2217://127\.0\.0\.1:{port}.*nothing accepted the connection — "
                                              r"is the RFC 2217 server \(ser2net"):
         open_transport(f"{scheme}://127.0.0.1:{port}?timeout=0.5")

@@ -33,7 +33,6 @@ RATES = {"drop": 0.006, "delay": 0.004, "corrupt": 0.006, "split": 0.02, "late":
          "garbage": 0.015, "close": 0.003}
 ECHO = {"echo": 0.03}
 LOSSES = ("drop", "close")
-TRANSACTION_IDS = ("emulator+modbus-tcp",)
 TIMEOUT = 0.1
 SECONDS_PER_WIRE = 9.0  # the whole file stays well under 60 s
 MAX_CALLS = 3000
@@ -62,21 +61,22 @@ class Shadow:
             self.possible[name] = {value}
 
 
-def phases(wire: str) -> list[dict[str, float]]:
-    """The fault rates of each phase of a wire's soak (module docstring)."""
-    if wire in TRANSACTION_IDS:
+def phases(fenced: bool) -> list[dict[str, float]]:
+    """The fault rates of each phase of a wire's soak (module docstring); ``fenced``: a wire without transaction
+    ids, whose reads the transport fences (more than one request per read)."""
+    if not fenced:
         return [RATES | ECHO]
     return [RATES, {kind: p for kind, p in RATES.items() if kind not in LOSSES} | ECHO]
 
 
 def _soak(wire: str, seed: int) -> dict:
-    plan = phases(wire)
-    faults = WireFaults(rates=plan[0], seed=seed, delay=TIMEOUT * 1.6, split_gap=0.003)
+    faults = WireFaults(rates=dict(RATES), seed=seed, delay=TIMEOUT * 1.6, split_gap=0.003)
     rng = random.Random(seed)
     shadow = Shadow(WORDS + BITS)
     figures: dict = {"wire": wire, "calls": 0, "errors": collections.Counter(), "over_budget": []}
     with open_transport(wire, timeout=TIMEOUT, wire_faults=faults) as plc:
         read_budget, write_budget = plc.budget(False), plc.budget(True)
+        plan = phases(plc.requests_per_read > 1)
         assert read_budget and write_budget
         began = time.monotonic()
         while (elapsed := time.monotonic() - began) < SECONDS_PER_WIRE and figures["calls"] < MAX_CALLS:
