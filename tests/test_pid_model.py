@@ -211,6 +211,22 @@ def test_jumping_equals_stepping_with_the_pid_running(seconds):
     assert stepped.memory.read("R300", 4) == jumped.memory.read("R300", 4)
 
 
+def _in_band_without_heating(emu):
+    """Zone-a running with SV = PV, a wide band and no heating (PVs stay put), every point measured."""
+    m = emu.memory
+    m.write("R4012", [0xFFFF, 0xFFFF])
+    emu.advance(20)
+    emu.scan()
+    m.write("R100", m.read("R3020", 10))
+    m.write("R110", [1000] * 10)
+    m.write("R120", [1] * 10)
+    m.write("R130", [0] * 10)
+    m.write("R140", [0] * 10)
+    _run(emu)
+    emu.advance(10)
+    assert min(m.read("R3020", 10)) >= 100  # R4008 = 100 is under every PV
+
+
 def test_a_prealarm_count_never_runs_ahead_of_the_scans_after_a_jump_off_the_grid(emu):
     """A jump clipped at a request's time lands between two grid points and the scans go on from there: a reading
     taken in the next scan's interval was first seen by that scan, not by a 'skipped' grid point it had already
@@ -219,16 +235,7 @@ def test_a_prealarm_count_never_runs_ahead_of_the_scans_after_a_jump_off_the_gri
     the PVs."""
     import random
     m = emu.memory
-    m.write("R4012", [0xFFFF, 0xFFFF])
-    emu.advance(20)
-    emu.scan()
-    m.write("R100", m.read("R3020", 10))  # SV = PV, a wide band, no heating: PVs stay put
-    m.write("R110", [1000] * 10)
-    m.write("R120", [1] * 10)
-    m.write("R130", [0] * 10)
-    m.write("R140", [0] * 10)
-    _run(emu)
-    emu.advance(10)
+    _in_band_without_heating(emu)
     st = emu.model(Fun86Model).states[0]
     rng = random.Random(1)
     ahead = []
@@ -243,7 +250,39 @@ def test_a_prealarm_count_never_runs_ahead_of_the_scans_after_a_jump_off_the_gri
             counted = emu.scans_represented - since
             if st.prealarm.max() > counted:
                 ahead.append((trial, counted, st.prealarm.tolist()))
-    assert min(m.read("R3020", 10)) >= 100
+    assert ahead == []
+
+
+def test_a_prealarm_count_never_runs_ahead_of_the_scans_of_a_real_time_plc_that_fell_behind(emu):
+    """The same in real time, as `hil emulate` runs: the engine scans on its own (time scale 50) and the host
+    stalls it (the lock held) for more scans than it catches up one by one, so it jumps — clipped at the wall
+    clock's time, off the grid — and the readings of the jump are replayed.  Read at the end of a scan, as port 0
+    answers, no count exceeds the scans the counter shows since R4008 went under the PVs (before the fix one point
+    ran a scan ahead in about a third of the stalls)."""
+    import random
+    import threading
+    import time
+    _in_band_without_heating(emu)
+    st = emu.model(Fun86Model).states[0]
+    stop = threading.Event()
+    runner = threading.Thread(target=emu.run_realtime, args=(stop, 50.0), daemon=True)
+    runner.start()
+    rng = random.Random(0)
+    ahead = []
+    try:
+        for trial in range(20):
+            emu.service(lambda mem: mem.set("R4008", 65535))
+            with emu.lock:  # the host stalls: 0.25 s is 1250 scans at time scale 50, past realtime_catch_up
+                time.sleep(rng.uniform(0.25, 0.35))
+            since = emu.service(lambda mem: (mem.set("R4008", 100), emu.scans_represented)[1])
+            for _ in range(rng.randint(3, 12)):
+                counted, count = emu.service(lambda mem: (emu.scans_represented - since, int(st.prealarm.max())))
+                if count > counted:
+                    ahead.append((trial, counted, count))
+    finally:
+        stop.set()
+        runner.join(timeout=10)
+    assert emu.realtime_catch_up < 0.25 * 50 / emu.scan_time  # (the stall is long enough to make it jump)
     assert ahead == []
 
 
