@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from hil.plugin.perf import WireCounter, line_seconds  # noqa: E402
+from hil.plugin.perf import WireCounter  # noqa: E402
 from hil.bench.profile import load_profile, profile_from_dict  # noqa: E402
 
 BENCH = ROOT / "fixtures" / "benches" / "emulator.toml"
@@ -87,7 +87,6 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
 
     ``models``: the default bench's emulator (each request runs one scan of the RTC and temperature models first,
     as every request does); False: an emulator with no models (the server's own overhead)."""
-    import asyncio
 
     from pymodbus.client import ModbusTcpClient
     from pymodbus.server import ModbusTcpServer
@@ -340,10 +339,7 @@ def virtual_time(quick: bool) -> list[dict]:
     hours = 2 if quick else 24
     for name, build, note in cases:
         emulator = build()
-        start = time.perf_counter()
-        emulator.advance(hours * 3600)
-        emulator.scan()
-        wall = time.perf_counter() - start
+        wall = advance_timed(emulator, hours)
         # A test that polls once a virtual second (one request each) over an hour.
         emulator2 = build()
         start = time.perf_counter()
@@ -359,7 +355,7 @@ def virtual_time(quick: bool) -> list[dict]:
     rounds = 3 if quick else 7
     full_walls, floors, ratios = full_plc_against_floor(full_plc, hours, rounds)
     full_row = next(r for r in rows if r["configuration"] == "full PLC")
-    full_row["wall_s"] = min(full_walls)
+    full_row["wall_s"] = min(full_walls + [full_row["wall_s"]])  # (the run above is one more)
     full_row["virtual_s_per_wall_s"] = hours * 3600 / full_row["wall_s"]
     floor = min(floors)
     rows.append({"configuration": "floor: plant + PID arithmetic alone", "virtual_hours": hours, "wall_s": floor,
@@ -381,12 +377,16 @@ def full_plc_against_floor(build, hours: float, rounds: int) -> tuple[list[float
             if part == "floor":
                 floors.append(arithmetic_floor(hours))
                 continue
-            emulator = build()
-            start = time.perf_counter()
-            emulator.advance(hours * 3600)
-            emulator.scan()
-            fulls.append(time.perf_counter() - start)
+            fulls.append(advance_timed(build(), hours))
     return fulls, floors, sorted(f / g for f, g in zip(fulls, floors))
+
+
+def advance_timed(emulator, hours: float) -> float:  # noqa: ANN001
+    """Wall seconds for ``hours`` of virtual time and the scan at their end."""
+    start = time.perf_counter()
+    emulator.advance(hours * 3600)
+    emulator.scan()
+    return time.perf_counter() - start
 
 
 def arithmetic_floor(hours: float, points: int = 32, interval: float = 4.0, pwm: float = 2.0) -> float:
