@@ -70,8 +70,20 @@ class BenchBase:
         self.io.begin(test_id)
 
     def end_test(self) -> None:
-        """Put the PLC back as it was found (the clock, then every value written, each verified)."""
-        self.io.end()
+        """Put the PLC back as it was found: injected faults first (a plc-bit injector's own writes are then
+        restored and verified with the rest), then the guard's restore (the clock, then every value written, each
+        verified).  Idempotent: a second call finds nothing left to undo.  Shielded, for every caller (the bench
+        fixture's teardown, a suite's own fixture, the session's end): a SIGTERM/SIGHUP/Ctrl-C that arrives
+        meanwhile waits for the restore to finish, then stops the run."""
+        from hil.core.signals import shielded
+        with shielded():
+            try:
+                self.undo_faults()
+            finally:
+                self.io.end()
+
+    def undo_faults(self) -> None:
+        """Undo what the family's fault injectors did in this test (a family without injectors has nothing)."""
 
     def reopen(self) -> None:
         """Reconnect the wire after a failure (an emulator's server keeps running; only the client reconnects)."""

@@ -16,37 +16,21 @@ import asyncio
 import collections
 from typing import Callable
 
+from pymodbus.framer.rtu import FramerRTU
+
 FRAME_GAP = 0.004  # s: 3.5 characters at 9600 bit/s; on a pty a whole frame arrives in one write anyway
 MIN_FRAME = 4  # unit, function, CRC
 MAX_FRAME = 256  # the RTU ADU limit: unit, PDU (≤ 253) and CRC
 
 
-def _table() -> list[int]:
-    table = []
-    for byte in range(256):
-        crc = byte
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-        table.append(crc)
-    return table
-
-
-_TABLE = _table()
+_TABLE = FramerRTU.crc16_table  # the Modbus RTU CRC-16 (poly A001H) table pymodbus computes its CRCs with
 # The high bytes of the table's entries are all different, so a CRC step can be run backwards (last_frame).
 _BY_HIGH = {entry >> 8: index for index, entry in enumerate(_TABLE)}
 assert len(_BY_HIGH) == 256
 
 
-def crc16(data: bytes) -> int:
-    """Modbus RTU CRC-16 (poly A001H, init FFFFH); sent low byte first."""
-    crc = 0xFFFF
-    for byte in data:
-        crc = (crc >> 8) ^ _TABLE[(crc ^ byte) & 0xFF]
-    return crc
-
-
 def is_frame(chunk: bytes) -> bool:
-    return len(chunk) >= MIN_FRAME and crc16(chunk[:-2]) == int.from_bytes(chunk[-2:], "little")
+    return len(chunk) >= MIN_FRAME and FramerRTU.check_CRC(chunk[:-2], int.from_bytes(chunk[-2:], "big"))
 
 
 def last_frame(chunk: bytes) -> tuple[bytes, int]:

@@ -89,18 +89,8 @@ class Bench(BenchBase):
         return self.raw.unreachable_reason(name)
 
     # -- per-test bookkeeping --------------------------------------------------------------------------------
-    def end_test(self) -> None:
-        """Put the PLC back as it was found: injected faults first (a plc-bit injector's own writes are then
-        restored and verified with the rest), then the guard's restore (the clock, then every value).
-        Idempotent: a second call finds nothing left to undo.  Shielded: a SIGTERM/SIGHUP/Ctrl-C that arrives
-        meanwhile (the break suites' own fixture calls this too, outside the bench fixture's teardown) waits for
-        the restore to finish, then stops the run."""
-        from hil.core.signals import shielded
-        with shielded():
-            try:
-                self.faults.undo_all()
-            finally:
-                super().end_test()
+    def undo_faults(self) -> None:
+        self.faults.undo_all()
 
     def close(self) -> None:
         self.faults.close()

@@ -253,12 +253,14 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
             from hil.io.modbus_client import SerialClient
             t = self.target
             if t.scheme == "modbus+tcp":
-                client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=1)
+                # retries=0: pymodbus re-sends a request that timed out, a coil write included (a write is never
+                # repeated: its first copy may have landed)
+                client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=0)
             else:
                 p = t.params
                 client = SerialClient(t.serial_port, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
                                       parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
-                                      stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=1)
+                                      stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=0)
             if not client.connect():
                 raise FaultError(f"cannot reach the sensor-break relay module at {t}: is it powered and wired, "
                                  f"and is the URL in [faults.sensor_break] target right?")
