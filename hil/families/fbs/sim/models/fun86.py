@@ -259,8 +259,8 @@ class Fun86Model(Model):
     def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
         if inst.settable:
             words = mem.words
-            return (int(signed([words[inst.sn_register.kind][inst.sn_register.index]])[0]),
-                    int(signed([words[inst.zn_register.kind][inst.zn_register.index]])[0]))
+            return (reg.signed16(words[inst.sn_register.kind][inst.sn_register.index]),
+                    reg.signed16(words[inst.zn_register.kind][inst.zn_register.index]))
         return inst.sn, inst.zn
 
     def readings_start(self, mem: "Memory") -> Address | None:
@@ -584,8 +584,21 @@ class Fun86Model(Model):
         # the time into the PWM cycle, the cycle found as next_event() finds it (with its 1e-9): a scan it scheduled
         # at a cycle start a rounding error early is in the new cycle, not at the old one's end — else that output
         # is OFF for its ON time and ON for the rest, cycle after cycle
-        phase = max(0.0, now - (st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm))
+        phase = max(0.0, now - Fun86Model.cycle_start(st, now))
         return np.where(phase < on_time, y_on, y_off).tobytes()  # (bools: bytes 0/1)
+
+    @staticmethod
+    def cycle_start(st: InstanceState, now: float) -> float:
+        """The start of the PWM cycle ``now`` is in — with 1e-9 to spare, so that a scan scheduled at a cycle's
+        start that lands a rounding error early is in that cycle (outputs_at and next_event agree on it)."""
+        return st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
+
+    @staticmethod
+    def counting(st: InstanceState) -> bool:
+        """Is a pre-alarm count running (then every scan matters, and none may be jumped over or batched)?  A
+        count past 4 × 10 scans has long set its warning: it can run on unwatched."""
+        return bool(np.count_nonzero(st.prealarm)  # (a quick no first: most scans count nothing)
+                    and np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)))
 
     def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
                 y_off: np.ndarray) -> None:
@@ -650,7 +663,7 @@ class Fun86Model(Model):
                 due = min(due, self.next_measurement())
             if not st.running:
                 continue
-            if np.count_nonzero(st.prealarm) and np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)):
+            if self.counting(st):
                 return now  # counting consecutive scans: every scan matters
             if np.count_nonzero(st.loop_since == st.loop_since):  # (a heater-loop start not NaN)
                 deadlines = st.loop_since + loop_seconds
@@ -663,10 +676,9 @@ class Fun86Model(Model):
             if self.pwm_exact:
                 continue  # the plant integrates the PWM between scans; the outputs are recomputed at each scan
             # PWM: every cycle start, and the end of each point's ON time within the current cycle
-            cycle = st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
+            cycle = self.cycle_start(st, now)
             due = min(due, cycle + st.pwm)
-            edges = cycle + np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]) \
-                / OUTPUT_FULL * st.pwm
+            edges = cycle + self.on_times(st, np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]))
             later = edges > now + 1e-9
             if np.count_nonzero(later):
                 due = min(due, float(edges[later].min()))

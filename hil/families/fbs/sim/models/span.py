@@ -38,7 +38,7 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
 from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
 from hil.families.fbs.address import parse
-from hil.families.fbs.sim.models.fun86 import PREALARM_SCANS, Fun86Model, InstanceState, Law
+from hil.families.fbs.sim.models.fun86 import Fun86Model, InstanceState, Law
 from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
                                                 noise_index)
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
@@ -74,8 +74,7 @@ class _Loop:
     law: Law  # of the enabled points
     sv: np.ndarray
     os: np.ndarray
-    output: np.ndarray  # OR (per b), as now
-    before: np.ndarray  # OR as before the batch
+    output: np.ndarray  # OR (per b), as before the batch (until it is committed)
     driven: np.ndarray  # the b whose output heats a plant slot …
     slots: np.ndarray  # … and those slots
     y_on: np.ndarray  # per b
@@ -169,7 +168,7 @@ class Span:
             if not st.running:
                 continue
             if (st.interval <= 2 * engine.scan_time or fun86.prealarm_possible(mem, st)
-                    or ((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)).any()):
+                    or fun86.counting(st)):
                 return None
             b = np.arange(st.zn)
             points = st.sn + b
@@ -201,7 +200,6 @@ class Span:
         return _Loop(inst, st, enabled, idx, off, st.sn + np.arange(zn), self.fun86.law(inst, *gains, heating, st.interval),
                      signed16(words[inst.sv.kind][inst.sv.index:inst.sv.index + zn]),
                      signed16(words[inst.os.kind][inst.os.index:inst.os.index + zn]),
-                     np.array(words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], dtype=np.int64),
                      np.array(words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], dtype=np.int64),
                      np.array([d[0] for d in driven], dtype=np.intp), np.array([d[1] for d in driven], dtype=np.intp),
                      np.array(y_on), np.array(y_off), lit, dark)
@@ -286,7 +284,6 @@ class Span:
         engine.now, engine.scans, engine.skipped_time = clock
         for loop, (next_pid, loop_since) in zip(ready["loops"], loops):
             loop.st.next_pid, loop.st.loop_since = next_pid, loop_since.copy()
-            loop.output = loop.before.copy()
         ready["tm"].restore_schedule(temperature)
 
 
@@ -323,7 +320,7 @@ class _Batch:
         self.temps = plant.temperatures(np.arange(n_slots), np.full(n_slots, scans[0]))
         self.pv = self.pv_register.astype(float)
         self.runs = [_Step(loop, len(self.pv), n_slots) for loop in self.loops]
-        self.outputs = [loop.before for loop in self.loops]  # each instance's OR at the scan before the block
+        self.outputs = [loop.output for loop in self.loops]  # each instance's OR at the scan before the block
         self.last_word = np.full(MAX_POINTS, -1, dtype=np.int64)  # each point's last reading in the batch …
         self.last_value = np.zeros(MAX_POINTS)  # … its value (the sample averaged) …
         self.last_flag = np.zeros(MAX_POINTS, dtype=bool)  # … and its break bit
@@ -726,9 +723,8 @@ class _Batch:
                 mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn] = out.tolist()
                 mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4] = self.words[k][i].tolist()
                 mem.bits[inst.alm.kind][inst.alm.index] = 1 if self.alm[k][i] else 0
-                on_time, y_on, y_off = fun86.waves(st, loop.enabled, out)
-                mem.bits[inst.yn.kind][inst.yn.index:inst.yn.index + st.zn] = fun86.outputs_at(st, now, on_time,
-                                                                                             y_on, y_off)
+                mem.bits[inst.yn.kind][inst.yn.index:inst.yn.index + st.zn] = fun86.outputs_at(
+                    st, now, fun86.on_times(st, out), loop.y_on, loop.y_off)
             engine.now = now
             for observer in engine.observers:
                 observer(engine)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 import numpy as np
 
 from hil.core.errors import InvalidValue
-from hil.sim.columns import last_of_each, occurrence
+from hil.sim.columns import last_of_each, occurrence, signed16
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
@@ -356,7 +356,7 @@ class TemperatureModel(Model):
             out[base + point] = word
         if self.log is not None:
             self.log_start = (readings.kind, readings.index)
-            self.log.append((times, points, (words ^ 0x8000) - 0x8000))
+            self.log.append((times, points, signed16(words)))
 
     def take(self, mem: "Memory", times: np.ndarray, points: np.ndarray,
              codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -400,7 +400,7 @@ class TemperatureModel(Model):
         bit)."""
         breaks = self._breaks
         for point, flag in zip(points, flagged):
-            breaks = breaks | 1 << point if flag else breaks & ~(1 << point)
+            breaks = reg.with_bit(breaks, point, flag)
         self._breaks = breaks
         self._measured.update(points)
 
@@ -525,7 +525,7 @@ class TemperatureModel(Model):
         unit."""
         if low is not None:
             celsius = np.minimum(np.maximum(celsius, low), high)
-        return celsius * 9 / 5 + 32 if self.config.unit != "C" else celsius
+        return to_unit(celsius, self.config.unit)
 
     def resolution(self, mean: np.ndarray) -> np.ndarray:
         """Averaged values as readings in 0.1° (the fast rate has 1° resolution, still shown in 0.1° units): whole
