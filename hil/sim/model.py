@@ -35,6 +35,14 @@ def first_scan_after(at: Time, previous: Time, scan_time: float) -> Time:
     return np.where(landed < previous + scan_time / 2, previous + scan_time, landed)
 
 
+def seen_at_skipped_scans(at: Time, previous: Time, now: Time, scan_time: float) -> tuple[Time, Time]:
+    """For what happened at ``at`` after the scan at ``previous``: (the scan that first saw it —
+    :func:`first_scan_after` —, whether that was a scan the engine skipped before the one at ``now`` rather than
+    that one itself)."""
+    landed = first_scan_after(at, previous, scan_time)
+    return landed, landed < now - scan_time / 2
+
+
 class Model:
     """Base class: override what you need.
 

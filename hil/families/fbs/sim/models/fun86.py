@@ -43,7 +43,7 @@ import numpy as np
 
 from hil.families.fbs.address import Address, parse
 from hil.sim.columns import occurrence, signed16 as signed
-from hil.sim.model import Model, first_scan_after, scan_grid
+from hil.sim.model import Model, scan_grid, seen_at_skipped_scans
 from hil.families.fbs import registers as reg
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
@@ -172,7 +172,6 @@ class Fun86Model(Model):
         self._wiring_for: "Memory | None" = None
         self._log: tuple | None = None
         self._last_scan = -math.inf  # when this model last scanned (the readings logged since came after it)
-        self._replays = False
         self._output_keys: dict[tuple, frozenset] = {}
         #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
         self.batcher = None
@@ -297,12 +296,13 @@ class Fun86Model(Model):
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
         tm = self.temperature_model
-        self._log = None
-        self._replays = False  # a reading logged for a scan skipped since the last (see _replayed)
+        self._log = None  # the readings logged for scans skipped since the last: (landed, points, PVs) (_replayed)
         if tm is not None and tm.log:
-            self._log = tuple(np.concatenate(parts) for parts in zip(*tm.log))
-            self._replays = first_scan_after(float(self._log[0].min()), self._last_scan,
-                                             emu.scan_time) < emu.now - emu.scan_time / 2
+            times, points, pvs = (np.concatenate(parts) for parts in zip(*tm.log))
+            previous, now, st = self._last_scan, emu.now, emu.scan_time
+            if seen_at_skipped_scans(float(times.min()), previous, now, st)[1]:  # (most scans: none at all)
+                landed, skipped = seen_at_skipped_scans(times, previous, now, st)
+                self._log = (landed[skipped], points[skipped], pvs[skipped])
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -348,23 +348,19 @@ class Fun86Model(Model):
                 del self.waveforms[key]
                 self.waveforms_version += 1
 
-    def _replayed(self, points: np.ndarray, enabled: np.ndarray, now: float, scan_time: float) -> tuple | None:
+    def _replayed(self, points: np.ndarray, enabled: np.ndarray) -> tuple | None:
         """The readings of ``points`` (enabled ones) the temperature model logged for the scans skipped since the
         last one — those read at this very scan left out: (rows of PV, rows of the scan each landed at, valid),
         rows in time order, a column per point (None: no such reading).  Where a point has fewer readings than
         others its row is not valid (to be filled with its reading at this scan)."""
-        times, logged, pvs = self._log
+        landed, logged, pvs = self._log
         first, n = int(points[0]), len(points)
-        cells: list[tuple[int, float, int]] = []  # (point's column, landed, PV): a few since the last scan
-        for at, point, pv in zip(times.tolist(), logged.tolist(), pvs.tolist()):
-            b = point - first
-            if 0 <= b < n and enabled[b]:
-                landed = first_scan_after(at, self._last_scan, scan_time)
-                if landed < now - scan_time / 2:
-                    cells.append((b, landed, pv))
-        if not cells:
+        b = logged - first
+        mine = (b >= 0) & (b < n)
+        mine[mine] = enabled[b[mine]]
+        if not mine.any():
             return None
-        b, landed, pv_cells = (np.array(x) for x in zip(*cells))
+        b, landed, pv_cells = b[mine], landed[mine], pvs[mine]
         row = occurrence(b)
         rows = int(row.max()) + 1
         pv, at, valid = np.zeros((rows, n), dtype=np.int64), np.zeros((rows, n)), np.zeros((rows, n), dtype=bool)
@@ -461,8 +457,8 @@ class Fun86Model(Model):
         # (PVs come from the table's readings, which the temperature model logs; else from registers of the ladder's
         # choosing (R4003/R4004), which change only at requests)
         replayed = None
-        if self._replays and (start.kind, start.index) == self.temperature_model.log_start:
-            replayed = self._replayed(st.sn + np.arange(zn), view.enabled, now, emu.scan_time)
+        if self._log is not None and (start.kind, start.index) == self.temperature_model.log_start:
+            replayed = self._replayed(st.sn + np.arange(zn), view.enabled)
         pv, sv, os, enabled, idx, before = view.pv, view.sv, view.os, view.enabled, view.idx, view.output
         after = before
         if pid_due:

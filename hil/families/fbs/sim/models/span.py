@@ -44,7 +44,7 @@ from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalP
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
 from hil.families.fbs.temperature import MAX_POINTS
 from hil.sim.columns import last_of_each, signed16
-from hil.sim.model import first_scan_after, scan_grid
+from hil.sim.model import scan_grid, seen_at_skipped_scans
 
 if TYPE_CHECKING:
     from hil.sim.engine import Engine
@@ -602,9 +602,9 @@ class _Batch:
             mine = (b >= 0) & (b < st.zn)
             mine[mine] = loop.enabled[b[mine]]
             mine = np.flatnonzero(mine)
-            landed = first_scan_after(block["times"][mine], scans[b0:b1][block["scan"][mine]], st_time)
             # (a reading landed at its very scan is that scan's PV)
-            skipped = landed < scans[b0 + 1:b1 + 1][block["scan"][mine]] - st_time / 2
+            landed, skipped = seen_at_skipped_scans(block["times"][mine], scans[b0:b1][block["scan"][mine]],
+                                                    scans[b0 + 1:b1 + 1][block["scan"][mine]], st_time)
             mine, landed = mine[skipped], landed[skipped]
             rep_scan, rep_col, rep_row = block["scan"][mine], column[b[mine]], block["rank"][mine]
             per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its readings replayed, then it
