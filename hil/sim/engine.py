@@ -48,7 +48,8 @@ class Engine:
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
         #: called with the engine after every scan, including the scans a model ran in a batch (see
-        #: :meth:`Model.span`): what they see of memory is what that scan left in it
+        #: :meth:`Model.span`): after a whole scan they see what it left in memory; after a batched one, what the
+        #: batching model wrote for it (the rest, e.g. end_scan's writes, as the batch's last scan leaves it)
         self.observers: list[Callable[["Engine"], None]] = []
         # Real time: requests wait here for the end of the current scan (run_realtime services them there).
         self._pending: list[_Pending] = []
@@ -86,6 +87,11 @@ class Engine:
     def landing(self, due: float, target: float) -> float:
         """Where the next scan lands for an event at ``due``: never before the next scan nor after ``target``."""
         return min(max(due, self.now + self.scan_time), target)
+
+    def leaves_a_scan(self, landing: float, target: float) -> bool:
+        """Does a scan landing there leave room for a whole scan by ``target`` (the last one before a target is
+        always a whole scan of every model, never part of a model's batch)?"""
+        return landing + self.scan_time <= target + 1e-9
 
     def land(self, due: float, target: float) -> None:
         """Set the clock so that the next :meth:`tick` lands where :meth:`landing` says, counting the scans jumped

@@ -693,5 +693,13 @@ class Fun86Model(Model):
         """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
         if not self.pwm_exact or self.temperature_model is None or self.temperature_model.log is None:
             return False  # (scans at PWM edges or at every measurement: none to batch)
-        return self.batcher is not None and self.batcher.run(self, engine, target)
+        if self.batcher is None or not any(st.running for st in self.states):
+            return False
+        if not engine.leaves_a_scan(engine.landing(self.next_pid_scan(engine.now), target), target):
+            return False  # (no PID scan before the last one, which is the engine's: nothing to batch)
+        return self.batcher.run(self, engine, target)
+
+    def next_pid_scan(self, now: float) -> float:
+        """The scan of the next PID step of any running instance."""
+        return self.scan_for(min(st.next_pid for st in self.states if st.running), now)
 

@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from hil.families.fbs.sim.memory import Memory
 
 _INDEX = {name: parse(name).index for name in (reg.PREALARM_LIMIT, reg.HEATER_LOOP_SECONDS, reg.PID_SOURCE_KEY,
-                                                reg.INSTALLED_LOW)}
+                                                reg.INSTALLED_LOW, reg.PID_ENABLE_HIGH)}
 
 #: scans per batch at most (the batch's arrays are scans × columns)
 CHUNK = 2048
@@ -220,8 +220,8 @@ class Span:
 
         writes = [run(table.readings, table.total), run(table.work, 4 + 4 * table.count)]
         reads = run(fun86.temperature_model.config.table, len(table.header))
-        reads |= {("R", _INDEX[reg.PID_SOURCE_KEY] + i) for i in range(6)}  # R4003–R4008
-        reads |= {("R", _INDEX[reg.INSTALLED_LOW] + i) for i in range(4)}  # R4010–R4013
+        reads |= {("R", i) for i in range(_INDEX[reg.PID_SOURCE_KEY], _INDEX[reg.PREALARM_LIMIT] + 1)}
+        reads |= {("R", i) for i in range(_INDEX[reg.INSTALLED_LOW], _INDEX[reg.PID_ENABLE_HIGH] + 1)}
         for inst, st in zip(fun86.config.instances, fun86.states):
             reads |= run(inst.en, 1)
             if inst.settable:
@@ -259,9 +259,9 @@ class Span:
         times: list[float] = []
         due: list[list[bool]] = [[] for _ in loops]
         while len(times) < CHUNK:
-            event = fun86.scan_for(min(loop.st.next_pid for loop in loops), engine.now)
+            event = fun86.next_pid_scan(engine.now)
             landing = engine.landing(event, target)
-            if landing >= bound or landing + engine.scan_time > target + 1e-9:
+            if landing >= bound or not engine.leaves_a_scan(landing, target):
                 break
             engine.land(event, target)
             engine.tick()
