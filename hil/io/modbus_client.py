@@ -122,7 +122,7 @@ class ModbusWire:
         self.observers: list[Observer] = []
         self._received: list[bytes] = []  # what pymodbus held each time it tried to decode, since the request
         self._extra = 0  # RTU: bytes received since the request that were not the reply's frame
-        self._fences = 0
+        self._probes = 0  # probe reads sent (resynchronisations and fences): the next quantity in turn
         self.fenced_out = 0  # RTU reads repeated because their fence failed
         self.client = build((self._trace_packet, self._trace_pdu))  # retries=0: we retry reads only
         self.serial = isinstance(self.client, ModbusSerialClient)
@@ -130,7 +130,6 @@ class ModbusWire:
         self.requests = 0  # Modbus requests sent (round trips)
         self.dirty = False  # True: a late reply may be on the line; recover before the next request
         self._abandoned: set[tuple[int, int]] = set()  # (fc, quantity) of requests given up since the last sync
-        self._sync_count = 0
         self._inflight: tuple[int, int] | None = None
         self.resyncs = 0
         self.reconnects = 0
@@ -246,22 +245,13 @@ class ModbusWire:
         for attempt in range(1, tries + 1):
             used = {count for fc, count in self._abandoned | ({self._inflight} if self._inflight else set())
                     if fc == 3}
-            choices = [c for c in range(1, self.probe.span + 1) if c not in used] or [1]
-            self._sync_count += 1
-            count = choices[self._sync_count % len(choices)]
             self._flush()
-            try:
-                rr = self.client.read_holding_registers(self.probe.address, count=count, device_id=self.unit)
-            except ModbusException as exc:
-                rr, last = None, f"no reply ({exc})"
-            if rr is not None:
-                if (not rr.isError() and rr.function_code == 3 and rr.dev_id == self.unit
-                        and len(rr.registers) == count):
-                    self.dirty = False
-                    self._abandoned.clear()
-                    self.resyncs += 1
-                    return
-                last = f"a stale reply (function {rr.function_code}) came first"
+            count, last = self._probe_read(used)
+            if not last:
+                self.dirty = False
+                self._abandoned.clear()
+                self.resyncs += 1
+                return
             self._abandoned.add((3, count))
             if attempt < tries:
                 time.sleep(self._backoff(attempt))
@@ -307,17 +297,24 @@ class ModbusWire:
         return "bytes arrived right after it" if waiting else ""
 
     def _stale_at_probe(self, fc: int, count: int) -> str:
-        self._fences += 1
-        choices = [c for c in range(1, self.probe.span + 1) if not (fc == 3 and c == count)] or [1]
-        probe = choices[self._fences % len(choices)]
+        probe, why = self._probe_read({count} if fc == 3 else set())
+        if not why and self._extra:
+            why = f"{self._extra} byte(s) more came with its answer"
+        return f"the probe read of {probe} register(s) after it: {why}" if why else ""
+
+    def _probe_read(self, avoid: set[int]) -> tuple[int, str]:
+        """A probe read of a quantity not in ``avoid`` (each call the next one, in turn): (the quantity, "" when
+        its answer came, else what went wrong: a reply with another quantity is a stale one)."""
+        self._probes += 1
+        choices = [c for c in range(1, self.probe.span + 1) if c not in avoid] or [1]
+        count = choices[self._probes % len(choices)]
         try:
-            rr = self.client.read_holding_registers(self.probe.address, count=probe, device_id=self.unit)
+            rr = self.client.read_holding_registers(self.probe.address, count=count, device_id=self.unit)
         except ModbusException as exc:
-            return f"the probe read after it went unanswered: {exc}"
-        if (rr.isError() or rr.function_code != 3 or rr.dev_id != self.unit or len(rr.registers) != probe
-                or self._extra):
-            return f"function {rr.function_code} came before the answer to the probe read of {probe} register(s)"
-        return ""
+            return count, f"no reply ({exc})"
+        if rr.isError() or rr.function_code != 3 or rr.dev_id != self.unit or len(rr.registers) != count:
+            return count, f"a stale reply (function {rr.function_code}) came first"
+        return count, ""
 
     def _exchange(self, fc: int, address: int, count: int, send: Callable[[], ModbusPDU]) -> ModbusPDU:
         """One Modbus request; reads are retried with backoff, writes never are.  Every failure becomes a harness

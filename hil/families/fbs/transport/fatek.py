@@ -222,8 +222,7 @@ class FatekTransport(Transport):
         tries = (1 + self.retries) if write else 1
         last = ""
         for attempt in range(1, tries + 1):
-            self._nonce += 1
-            probe = Loopback(f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}")
+            probe = self._loopback()
             try:
                 self._once(probe, encode_request(self.station, probe), attempt, tries)
                 self.resyncs += 1
@@ -252,13 +251,22 @@ class FatekTransport(Transport):
             self.dirty = True  # a late reply may still come on a serial line
             self.reconnects += 1
 
-    def _once(self, command: Command, frame: bytes, attempt: int, attempts: int):  # noqa: ANN202
+    def _loopback(self) -> Loopback:
+        """A loop-back with a fresh nonce (this process's and a counter's): only its own echo matches it."""
+        self._nonce += 1
+        return Loopback(f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}")
+
+    def _once(self, command: Command, frame: bytes, attempt: int, attempts: int, *,  # noqa: ANN202
+              flush: bool = True):
+        """One request and its reply; whatever else arrives first is kept in :attr:`discarded`.  ``flush``: drop
+        what waits on the line first (a late reply must not answer this request) — the fence must not."""
         self.discarded = []
-        try:
-            self._line.discard()  # a late reply to an earlier request must not answer this one
-        except (serial.SerialException, OSError, ValueError) as exc:
-            self._broken = True
-            raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
+        if flush:
+            try:
+                self._line.discard()
+            except (serial.SerialException, OSError, ValueError) as exc:
+                self._broken = True
+                raise _Lost(f"{self._where()}: cannot flush input: {exc}") from exc
         started = time.monotonic()
         # Suspect until our reply is in: an exchange cut short (a timeout, pytest-timeout's signal, Ctrl-C)
         # leaves its reply on the way, and the next request must resynchronise first.
@@ -302,39 +310,18 @@ class FatekTransport(Transport):
         with self._lock:
             if self._broken or self.dirty or self.station == BROADCAST:
                 return False
-            clean = True  # (a stale byte already waiting comes before the echo, and the loop below sees it)
-            self._nonce += 1
-            text = f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}"
-            probe = Loopback(text)
-            frame = encode_request(self.station, probe)
-            self.dirty = True
+            probe = self._loopback()
             try:
-                self._send(frame)
-            except _Lost:
+                self._once(probe, encode_request(self.station, probe), 1, 1, flush=False)
+            except PlcErrorReply:  # an error reply of an earlier request came first: ours is still on the way
+                self.dirty = True
                 return False
-            deadline = time.monotonic() + self.timeout + self._wire_time(len(frame))
-            assembler = FrameAssembler()
-            while (remaining := deadline - time.monotonic()) > 0:
-                try:
-                    replies = assembler.feed(self._receive(remaining))
-                except _Lost:
-                    return False
-                for n, reply in enumerate(replies):
-                    self._notify("rx", reply)
-                    try:
-                        echoed = probe.decode(check_reply(reply, self.station, probe.code))
-                    except (FrameError, ProtocolError, PlcErrorReply):
-                        clean = False
-                        continue
-                    if echoed != text:
-                        clean = False
-                        continue
-                    self.dirty = False
-                    self._settle(replies[n + 1:], assembler)
-                    if not clean:
-                        self.fenced_out += 1
-                    return clean
-            return False
+            except (ReplyTimeout, _Lost):
+                return False
+            if self.discarded:  # a frame came before the echo: a late or repeated reply the read may have taken
+                self.fenced_out += 1
+                return False
+            return True
 
     def _settle(self, after: list[bytes], assembler: FrameAssembler) -> None:
         """After the accepted reply: anything more on the line (a duplicate, a stray frame) makes it suspect."""
