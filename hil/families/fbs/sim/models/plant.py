@@ -353,10 +353,20 @@ class ThermalPlant(Model):
         if not self.waved:
             heated = self.heated
             return np.array([heated[s].temperature(t) for s, t in zip(slots.tolist(), times.tolist())], dtype=float)
-        gain, ambient = self.gain[slots], self.ambient[slots]
         return waved_temperature(self.t0[slots], self.temp0[slots], times, self.w_pwm[slots], self.w_started[slots],
-                                 self.w_period[slots], self.w_on[slots], ambient + gain * self.w_uon[slots],
-                                 ambient + gain * self.w_uoff[slots], self.tau[slots], self._scan_time)
+                                 self.w_period[slots], self.w_on[slots], self.settles_at(slots, self.w_uon[slots]),
+                                 self.settles_at(slots, self.w_uoff[slots]), self.tau[slots], self._scan_time)
+
+    def settles_at(self, slots: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Where slots settle under a constant heater power ``u`` (0–1): ambient + gain·u."""
+        return self.ambient[slots] + self.gain[slots] * u
+
+    def measurement_noise(self, slots: np.ndarray, points: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """The noise on measurements of slots (temperature points ``points``) at ``times``: a function of (seed,
+        point, time) only, so a jump and stepping agree (0 without noise)."""
+        if self.normals is None:
+            return np.zeros(len(points))
+        return self.normals[noise_index(self.seed, points, times)] * self.noise[slots]
 
     def measured(self, slots: np.ndarray, points: np.ndarray, times: np.ndarray) -> np.ndarray:
         """Measurements of heated slots (temperature points ``points``) at ``times``: T plus the measurement noise,
@@ -364,11 +374,15 @@ class ThermalPlant(Model):
         values = self.temperatures(slots, times)
         if self.normals is None:
             return values
-        return values + self.normals[noise_index(self.seed, points, times)] * self.noise[slots]
+        return values + self.measurement_noise(slots, points, times)
 
     def temperature(self, point: int, t: float) -> float:
         """The true temperature (no noise) of a heated point at ``t`` (≥ the last scan)."""
         return float(self.temperatures(np.array([self.slot[point]]), np.array([float(t)]))[0])
+
+    def lower(self) -> float:
+        """No measurement of any slot ever falls below this (T stays between its start, ambient and full power)."""
+        return float((np.minimum(self.initial, self.ambient) - NOISE_CLIP * self.noise).min())
 
     def upper(self, slot: int) -> float:
         """No measurement of this slot ever exceeds this (T stays between its start, ambient and full power)."""

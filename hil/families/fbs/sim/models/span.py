@@ -39,8 +39,7 @@ from hil.families.fbs.address import Address
 from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
 from hil.families.fbs.address import parse
 from hil.families.fbs.sim.models.fun86 import Fun86Model, InstanceState, Law
-from hil.families.fbs.sim.models.plant import (NOISE_CLIP, PlantSource, ThermalPlant, cycle_terms, cycles_temperature,
-                                                noise_index)
+from hil.families.fbs.sim.models.plant import ThermalPlant, cycle_terms, cycles_temperature
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
 from hil.families.fbs.temperature import MAX_POINTS
 from hil.sim.columns import last_of_each, signed16
@@ -305,10 +304,7 @@ class _Batch:
         every = np.arange(MAX_POINTS)
         self.installed = np.asarray(tm.installed(mem, every), dtype=bool)
         self.broken = np.isin(every, list(tm.broken))
-        self.slot_of = np.full(MAX_POINTS, -1)
-        for point, source in tm.sources.items():
-            if isinstance(source, PlantSource) and source.plant is plant:
-                self.slot_of[point] = source.slot
+        self.slot_of = tm.plant_slots(plant)
         codes = np.array([code >> 8 for _k, _first, code in self.table.measured], dtype=np.intp)
         self.clamps = not self._within(SENSOR_LOW[codes], SENSOR_HIGH[codes])
         self.wraps = not (np.isfinite(SENSOR_LOW[codes]).all() and np.isfinite(SENSOR_HIGH[codes]).all())
@@ -339,7 +335,7 @@ class _Batch:
         if (self.slot_of[: self.table.total] < 0).any():
             return False
         top = max(plant.upper(s) for s in range(len(plant.order)))
-        bottom = float((np.minimum(plant.initial, plant.ambient) - NOISE_CLIP * plant.noise).min())
+        bottom = plant.lower()
         return bool(top <= high.min() and bottom >= low.max())
 
     def _waves(self) -> None:
@@ -355,8 +351,9 @@ class _Batch:
                 self.started[loop.slots], self.period[loop.slots] = loop.st.started, loop.st.pwm
                 u_on[loop.slots], u_off[loop.slots] = loop.lit, loop.dark
                 self.on[loop.slots] = np.minimum(Fun86Model.on_times(loop.st, loop.output[loop.driven]), loop.st.pwm)
-        self.t_off = plant.ambient + plant.gain * u_off
-        self.lift = plant.ambient + plant.gain * u_on - self.t_off
+        every = np.arange(n_slots)
+        self.t_off = plant.settles_at(every, u_off)
+        self.lift = plant.settles_at(every, u_on) - self.t_off
         self.rate = 1.0 / plant.tau
         waves, self.wave_of = np.unique(np.stack((self.started, self.period)), axis=1, return_inverse=True)
         self.wave_started, self.wave_period = waves
@@ -476,8 +473,7 @@ class _Batch:
                                   r3.transpose(1, 0, 2))
         if plant.normals is not None:  # (a measurement is T plus its noise: here, the columns come out measured)
             heated = block["heated"]
-            noise = plant.normals[noise_index(plant.seed, block["points"], block["times"])] \
-                * plant.noise[np.where(heated, block["slot"], 0)]
+            noise = plant.measurement_noise(np.where(heated, block["slot"], 0), block["points"], block["times"])
             base[:, :width] += self.rows(block, np.where(heated, noise, 0.0), 0.0)
         block.update(c_slot=c_slot, raw=raw, s3=s3, t3=t3, r3=r3, c_lift=c_lift, decay=decay, base=base)
 

@@ -501,17 +501,23 @@ class TemperatureModel(Model):
         """(a group of sources — a plant —, the slot of each point in it — −1 for a point with another source), for
         the group with the most points."""
         if self._slots[0] != self._sources_version:
-            plants: dict[int, list] = {}
-            for point, source in self.sources.items():
-                if getattr(source, "group", None) is not None:
-                    plants.setdefault(id(source.group), [source.group, []])[1].append((point, source.slot))
-            plant, slots = None, np.full(MAX_POINTS, -1)
-            if plants:
-                plant, pairs = max(plants.values(), key=lambda entry: len(entry[1]))
-                for point, slot in pairs:
-                    slots[point] = slot
-            self._slots = (self._sources_version, plant, slots)
+            counts: dict[int, list] = {}
+            for source in self.sources.values():
+                group = getattr(source, "group", None)
+                if group is not None:
+                    counts.setdefault(id(group), [group, 0])[1] += 1
+            plant = max(counts.values(), key=lambda entry: entry[1])[0] if counts else None
+            self._slots = (self._sources_version, plant, self.plant_slots(plant))
         return self._slots[1], self._slots[2]
+
+    def plant_slots(self, group: object) -> np.ndarray:
+        """Each point's slot in ``group`` (a plant its sources are measured through), −1 for a point with another
+        source."""
+        slots = np.full(MAX_POINTS, -1)
+        for point, source in self.sources.items():
+            if group is not None and getattr(source, "group", None) is group:
+                slots[point] = source.slot
+        return slots
 
     def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray,
               last: np.ndarray | None = None) -> np.ndarray:
