@@ -145,9 +145,6 @@ class Law:
     heating: bool
     md1: bool  # Md = 1: the integral runs outside the proportional band too
     ts: float
-    #: derivative / ts when ts is a power of two (dividing by it is exact, so (PV − PV')·this is derivative ×
-    #: ((PV − PV')/ts) to the last bit); None otherwise
-    per_change: np.ndarray | None = None
 
 
 class Fun86Model(Model):
@@ -191,6 +188,12 @@ class Fun86Model(Model):
         words = np.array(mem.words["R"][first:first + int(point.max(initial=0)) // 16 + 1])  # (a point past 31 too)
         return (words[point // 16] >> (point % 16) & 1).astype(bool)
 
+    @staticmethod
+    def enable_words(mem: "Memory", sn: int, zn: int) -> list[int]:
+        """The enable words (R4012, R4013, …) that hold the bits of points Sn … Sn + Zn − 1."""
+        first = _R[reg.PID_ENABLE_LOW]
+        return mem.words["R"][first:first + (sn + zn - 1) // 16 + 1]
+
     def drive(self, enabled: np.ndarray, on: bool) -> np.ndarray:
         """The PWM outputs of points: a disabled point's output is forced off."""
         return enabled & on
@@ -228,9 +231,8 @@ class Fun86Model(Model):
         kc = np.asarray(kc, dtype=float)  # (gains are whole numbers: as floats, the arithmetic is the same and
         # each step's operations take operands of one type, without a cast)
         derivative = -kc * (td / 100 * 60) * (1 if heating else -1)
-        exact = ts > 0 and math.frexp(ts)[0] == 0.5  # (a power of two)
         return Law(kc, ki != 0, bool((ki != 0).all()), kc * (ki / 100 / 60) * ts, derivative, heating, inst.md == 1,
-                   ts, derivative / ts if exact else None)
+                   ts)
 
     def control(self, law: Law, integral: np.ndarray, pv_prev: np.ndarray, has_prev: np.ndarray | bool,
                 sv: np.ndarray, pv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -241,10 +243,7 @@ class Fun86Model(Model):
         proportional = law.kc * error
         if has_prev is not True:
             pv_prev = np.where(has_prev, pv_prev, pv)
-        if law.per_change is not None:
-            derivative = law.per_change * (pv - pv_prev)
-        else:
-            derivative = law.derivative * ((pv - pv_prev) / law.ts)
+        derivative = law.derivative * ((pv - pv_prev) / law.ts)
         integrate = law.ki if law.md1 else np.abs(proportional) < _FULL
         if not law.md1 and not law.every_ki:
             integrate &= law.ki
@@ -520,10 +519,9 @@ class Fun86Model(Model):
         """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
         arrays of those unchanged otherwise)."""
         words, zn, sn = mem.words, st.zn, st.sn
-        first = _R[reg.PID_ENABLE_LOW]
         key = (words[start.kind][start.index + sn:start.index + sn + zn], words[inst.sv.kind][inst.sv.index:
                inst.sv.index + zn], words[inst.os.kind][inst.os.index:inst.os.index + zn],
-               words["R"][first:first + (sn + zn - 1) // 16 + 1],  # (R4012/R4013: the enable bits)
+               self.enable_words(mem, sn, zn),
                words[inst.or_.kind][inst.or_.index:inst.or_.index + zn], limit,
                high_at, heating, start)
         view = st.view
@@ -639,8 +637,7 @@ class Fun86Model(Model):
             return True
         limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
         view = st.view  # (its enabled points, while R4012/R4013 are as it read them)
-        first = _R[reg.PID_ENABLE_LOW]
-        if view is not None and view.key[3] == mem.words["R"][first:first + (st.sn + st.zn - 1) // 16 + 1] and \
+        if view is not None and view.key[3] == self.enable_words(mem, st.sn, st.zn) and \
                 type(self).enabled is Fun86Model.enabled:
             points = st.sn + view.idx
         else:
