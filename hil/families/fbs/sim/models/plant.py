@@ -493,24 +493,30 @@ class ThermalPlant(Model):
         waves = self._fun86.waveforms if self._fun86 is not None else {}
         power = self.power
         n = len(self._wiring)
-        pwm = np.zeros(n, dtype=bool)
+        waved = np.zeros(n, dtype=bool)
         started, period, on = np.zeros(n), np.ones(n), np.zeros(n)
-        u_on, u_off = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+        lit, dark = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
         for slot, point, bank, index in self._wiring:
             w = waves.get((self.heaters[point].kind, index))
-            if w is None:
-                u_off[slot] = power(point, bool(bank[index]))
+            if w is None:  # no waveform published: the output as it is
+                dark[slot] = power(point, bool(bank[index]))
                 continue
-            w_started, w_period, w_on, y_on, y_off = w
-            lit, dark = power(point, bool(y_on)), power(point, bool(y_off))
-            if lit == dark or w_on <= 0:
-                u_off[slot] = dark
-            elif w_on >= w_period:
-                u_off[slot] = lit
-            else:
-                pwm[slot] = True
-                started[slot], period[slot], on[slot], u_on[slot], u_off[slot] = w_started, w_period, w_on, lit, dark
-        return np.arange(n), pwm, started, period, on, u_on, u_off
+            waved[slot] = True
+            started[slot], period[slot], on[slot], y_on, y_off = w
+            lit[slot], dark[slot] = power(point, bool(y_on)), power(point, bool(y_off))
+        pwm, level = self.classify(on, period, lit, dark)
+        pwm &= waved
+        u_off = np.where(waved, level, dark)
+        return (np.arange(n), pwm, np.where(pwm, started, 0.0), np.where(pwm, period, 1.0), np.where(pwm, on, 0.0),
+                np.where(pwm, lit, 0), u_off)
+
+    @staticmethod
+    def classify(on: np.ndarray, period: np.ndarray, lit: np.ndarray, dark: np.ndarray) -> tuple[np.ndarray, ...]:
+        """What a heater does under a PWM waveform (ON ``on`` seconds of each ``period``; power ``lit`` when on,
+        ``dark`` when off): (pulsed — a true PWM —, the constant power when not pulsed).  Equal powers, no ON time
+        or an ON time of the whole period make it constant."""
+        differ, some = lit != dark, on > 0
+        return differ & some & (on < period), np.where(differ & some & (on >= period), lit, dark)
 
     def next_event(self, now: float) -> float:
         return math.inf  # solved analytically between scans; u changes only at scans

@@ -362,9 +362,8 @@ class _Batch:
         """The plant's waveform of each slot an instance heats, for its outputs (scans × points): a key equal
         for equal waveforms (ON seconds of a PWM, or −1 − u for a constant u), and (steady, level, ON seconds)."""
         on = self.fun86.on_times(loop.st, outputs[..., loop.driven])
-        lit, dark = loop.lit, loop.dark
-        steady = (lit == dark) | (on <= 0) | (on >= loop.st.pwm)
-        level = np.where((lit != dark) & (on > 0) & (on >= loop.st.pwm), lit, dark)
+        pulsed, level = ThermalPlant.classify(on, loop.st.pwm, loop.lit, loop.dark)
+        steady = ~pulsed
         return np.where(steady, -1.0 - level, on), steady, level, on
 
     def _initial_key(self, loop: _Loop) -> np.ndarray:
