@@ -36,8 +36,9 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.pdu import ModbusPDU
 
 from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
-from hil.io.line import Line, LocalLine, open_line
+from hil.io.line import Line, LocalLine, line_check, open_line
 from hil.io.modbus_codes import EXCEPTION_NAMES
+from hil.io.url import serial_target
 
 COILS, DISCRETE_INPUTS, HOLDING = "coil", "discrete", "holding"
 READ_FC = {COILS: 1, DISCRETE_INPUTS: 2, HOLDING: 3}
@@ -148,8 +149,14 @@ class ModbusWire:
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
-            timeout: float, retries: int, hint: str, probe: Probe, description: str,
+            timeout: float, retries: int, hint: str, probe: Probe, label: str = "",
             describe: Describe | None = None) -> "ModbusWire":
+        """Modbus RTU on ``device`` (a path, or an RFC 2217 server's ``rfc2217://HOST:PORT``); ``hint``: what to check
+        on the slave's side when it does not answer (the line's own checks come first), ``label``: added to the
+        description (e.g. the address map)."""
+        hint = f"{line_check(device)} {hint}"
+        description = f"{serial_target('modbus', device)}?baudrate={baudrate}&parity={parity}&unit={unit}" + (
+            f" ({label})" if label else "")
         return cls(lambda hooks: SerialClient(device, framer=FramerType.RTU, baudrate=baudrate, bytesize=bytesize,
                                               parity=parity, stopbits=stopbits, timeout=timeout, retries=0,
                                               trace_packet=hooks[0], trace_pdu=hooks[1]),

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from urllib.parse import parse_qsl, urlsplit
 
 from hil.core.errors import TargetError
+from hil.io.line import is_rfc2217
 
 EMULATOR_WIRES = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", "s7-tcp")
 EMULATOR_TARGETS = ("emulator",) + tuple(f"emulator+{w}" for w in EMULATOR_WIRES)
@@ -90,8 +91,8 @@ class Target:
 def serial_target(protocol: str, port: str) -> str:
     """The target URL of ``protocol`` ("fatek", "modbus") on the serial ``port`` a transport opens (a device, or an
     RFC 2217 server's ``rfc2217://HOST:PORT``), for messages and reports."""
-    if port.startswith("rfc2217://"):
-        return f"{protocol}+rfc2217://{port[len('rfc2217://'):]}"
+    if is_rfc2217(port):
+        return f"{protocol}+{port}"
     return f"{protocol}+{'rtu' if protocol == 'modbus' else 'serial'}://{port}"
 
 

@@ -24,10 +24,8 @@ from hil.core.errors import InvalidValue, TransportError
 from hil.families.s7smart.address import S7Address, expand_s7, parse_s7, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
-from hil.io.line import line_check
 from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, OverModbusWire, Probe
 from hil.io.status import PlcStatus
-from hil.io.url import serial_target
 
 if TYPE_CHECKING:
     from hil.families.s7smart.emulator import S7Emulator
@@ -170,12 +168,10 @@ class ModbusS7Io(OverModbusWire, S7Io):
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2,
             modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
-        hint = f"{line_check(device)} Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
-        description = (f"{serial_target('modbus', device)}?baudrate={baudrate}&parity={parity}&unit={unit} "
-                       f"(S7-200 SMART map)")
+        hint = "Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
-                                  description=description, describe=_names(modbus_map)),
+                                  label="S7-200 SMART map", describe=_names(modbus_map)),
                    modbus_map)
 
     def unreachable_reason(self, name: "str | S7Address") -> str | None:

@@ -14,9 +14,7 @@ from hil.families.fbs.address import Address, parse, span
 from hil.families.fbs.protocol import modbus_map as mm
 from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, MAX_READ, MAX_WRITE, Run
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
-from hil.io.line import line_check
 from hil.io.modbus_client import ModbusWire, OverModbusWire, Probe
-from hil.io.url import serial_target
 
 #: A cheap read that proves the PLC answers: R4128 (RTC seconds), always mapped; R4128–R4135 are, so a
 #: resynchronising read picks its quantity in 1–8.
@@ -54,12 +52,11 @@ class ModbusTransport(OverModbusWire, Transport):
             unit: int = 1, timeout: float = 1.0, retries: int = 2) -> "ModbusTransport":
         """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL such as an RFC
         2217 server's ``rfc2217://HOST:PORT``)."""
-        hint = (f"{line_check(device)} The PLC port must be in Modbus RTU slave mode (R4047, e.g. 5502H for port 1; "
-                f"port 0 never speaks Modbus)")
-        description = f"{serial_target('modbus', device)}?baudrate={baudrate}&parity={parity}&unit={unit}"
+        hint = ("The PLC port must be in Modbus RTU slave mode (R4047, e.g. 5502H for port 1; "
+                "port 0 never speaks Modbus)")
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=PROBE,
-                                  description=description, describe=_names))
+                                  describe=_names))
 
     # -- validation before anything is sent --------------------------------------------------------------------
     def unreachable_reason(self, address: NameLike) -> str | None:
