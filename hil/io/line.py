@@ -59,8 +59,7 @@ class Line(ABC):
     """One open serial port.  Methods raise pyserial's/the OS's own errors: the protocol client decides what a
     failure means for the request in flight."""
 
-    def __init__(self, url: str, port: serial.SerialBase, write_timeout: float | None) -> None:
-        self.url = url  # as the user named it (messages), without options hil adds itself
+    def __init__(self, port: serial.SerialBase, write_timeout: float | None) -> None:
         self.port = port  # the pyserial object (pymodbus's client keeps it as its .socket)
         self.write_timeout = write_timeout  # None: this kind of port cannot time out a write
 
@@ -80,7 +79,24 @@ class Line(ABC):
         """Drop whatever has arrived (a late reply to an abandoned request) before the next request."""
 
     def close(self) -> None:
-        self.port.close()
+        """Close without the 0.3 s sleep "for quick reconnects" of pyserial's socket:// and rfc2217:// close(): a
+        request/response client has nothing in flight at close (and the server sees the connection end as soon as
+        the socket shuts down); the RFC 2217 reader thread is joined, as close() does."""
+        port = self.port
+        sock, thread = getattr(port, "_socket", None), getattr(port, "_thread", None)
+        if sock is None:
+            port.close()
+            return
+        port.is_open = False
+        try:
+            sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        sock.close()
+        if thread is not None:
+            thread.join(2)
+            port._thread = None  # noqa: SLF001
+        port._socket = None  # noqa: SLF001
 
 
 class LocalLine(Line):
@@ -96,21 +112,6 @@ class LocalLine(Line):
 
     def discard(self) -> None:
         self.port.reset_input_buffer()
-
-    def close(self) -> None:
-        sock = getattr(self.port, "_socket", None)
-        if sock is None:
-            self.port.close()
-            return
-        # pyserial's socket:// close() sleeps 0.3 s "for quick reconnects"; a request/response client has nothing
-        # in flight at close, so close the socket directly and skip the sleep.
-        try:
-            sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        sock.close()
-        self.port._socket = None  # noqa: SLF001
-        self.port.is_open = False
 
 
 class Rfc2217Line(Line):
@@ -140,24 +141,6 @@ class Rfc2217Line(Line):
         while self.port.in_waiting:
             self.port.read(self.port.in_waiting)
 
-    def close(self) -> None:
-        port = self.port
-        sock, thread = getattr(port, "_socket", None), getattr(port, "_thread", None)
-        if sock is None or thread is None:
-            port.close()
-            return
-        # pyserial's close() joins the reader thread and then sleeps 0.3 s "for quick reconnects"; the server sees
-        # the connection end as soon as the socket shuts down, so do what close() does without the sleep.
-        port.is_open = False
-        try:
-            sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        sock.close()
-        thread.join(2)
-        port._thread = None  # noqa: SLF001
-        port._socket = None  # noqa: SLF001
-
 
 def is_rfc2217(url: str) -> bool:
     return url.startswith("rfc2217://")
@@ -173,10 +156,10 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
     settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
     try:
         if is_rfc2217(url):
-            return Rfc2217Line(url, _open_rfc2217(url, timeout, settings), None)
+            return Rfc2217Line(_open_rfc2217(url, timeout, settings), None)
         extra = {} if exclusive is None else {"exclusive": exclusive}
         # timeout=0: reads return what has arrived; the client waits with select() up to its own deadline.
-        return LocalLine(url, serial.serial_for_url(url, timeout=0, write_timeout=write_timeout, **settings,
+        return LocalLine(serial.serial_for_url(url, timeout=0, write_timeout=write_timeout, **settings,
                                                     **extra), write_timeout)
     except (serial.SerialException, OSError, ValueError, termios.error) as exc:
         hint = open_hint(url, exc)

@@ -141,7 +141,10 @@ class RtcModel(Model):
 
     def footprint(self) -> frozenset[tuple[str, int]]:
         """R4128–R4135, M1952–M1955, D4053, D4054: a scan that skips the clock loses nothing but its read-out,
-        which the next scan writes whole (skipping it is safe when nothing else touches these)."""
+        which the next scan writes whole (skipping it is safe when nothing else touches these).  None for a
+        variant with a scan of its own (a deliberately broken clock): what it touches is not known here."""
+        if type(self).scan is not RtcModel.scan:
+            return None
         return frozenset([("R", i) for i in range(_FIRST, _HOUR_MINUTE + 1)]
                          + [("M", i) for i in (_HOLD, _ADJUST, _INSTALLED, _SET_ERROR)]
                          + [("D", _CHIP), ("D", _RATE_CODE)])
