@@ -1,0 +1,175 @@
+"""Verdicts that cannot lie (issue 24): a run that was interrupted (SIGINT, SIGTERM), timed out (pytest-timeout) or
+crashed (an internal error mid-session) says so on the console, in the HTML badge and in JUnit, with the counts
+pytest itself gives.  Each run is a real pytest process on a tiny suite against the in-process emulator, sent real
+signals; pytest's own terminal counts are compared with the JUnit file (read with junitparser)."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from junitparser import Error, Failure, JUnitXml, Skipped
+
+from tests.conftest import EMULATOR_BENCH, REPO
+
+TINY = '''
+import time
+import pytest
+
+def test_first(bench):
+    pass
+
+def test_writes_then_waits(bench):
+    bench.plc.io.write("R1000", 4242)
+    print("waiting", flush=True)
+    time.sleep(60)
+
+def test_never_runs(bench):
+    pass
+'''
+
+
+def run_tiny(tmp_path: Path, source: str, *args: str, signal_after: str | None = None, sig: int = 0,
+             conftest: str = "") -> tuple[subprocess.CompletedProcess, Path]:
+    """pytest on ``source`` as the only test file of a fresh directory; with ``signal_after`` the signal ``sig`` is
+    sent once that line is printed.  Returns the finished process (stdout and stderr together) and the output dir."""
+    suite = tmp_path / "suite"
+    suite.mkdir(exist_ok=True)
+    (suite / "test_tiny.py").write_text(source)
+    if conftest:
+        (suite / "conftest.py").write_text(conftest)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "pytest", str(suite), "-s", "--rootdir", str(suite), "-p", "no:cacheprovider",
+           "-p", "no:hypothesispytest", "--assert=plain", "--bench", str(EMULATOR_BENCH), "--target", "emulator",
+           f"--junitxml={out / 'junit.xml'}", "-o", "junit_family=xunit1", "--hil-html", str(out / "report.html"),
+           *args]
+    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
+    child = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    seen: list[str] = []
+    if signal_after is not None:
+        assert child.stdout is not None
+        for line in child.stdout:
+            seen.append(line)
+            if signal_after in line:
+                child.send_signal(sig)
+                break
+    rest, _ = child.communicate(timeout=60)
+    return subprocess.CompletedProcess(cmd, child.returncode, "".join(seen) + rest), out
+
+
+def pytest_counts(stdout: str) -> Counter:
+    """pytest's own counts, from its last summary line (``== 1 failed, 2 passed in 3.1s ==``)."""
+    line = [ln for ln in stdout.splitlines() if re.search(r"\b\d+ (passed|failed|errors?|skipped)\b.* in [\d.]+s", ln)]
+    assert line, stdout
+    counts = Counter()
+    for n, what in re.findall(r"(\d+) (passed|failed|errors?|skipped|xfailed|xpassed)", line[-1]):
+        counts["error" if what.startswith("error") else what] += int(n)
+    return counts
+
+
+def junit_counts(path: Path) -> tuple[Counter, dict[str, str], list]:
+    """Per-testcase outcomes (pytest's own "internal error" testcase apart), the testsuite properties, the cases."""
+    suite = next(iter(JUnitXml.fromfile(str(path))))
+    counts, cases = Counter(), []
+    for case in suite:
+        if (case.classname, case.name) == ("pytest", "internal"):
+            continue
+        cases.append(case)
+        kinds = {type(r) for r in case.result}
+        counts["failed" if Failure in kinds else "error" if Error in kinds else "skipped" if Skipped in kinds
+               else "passed"] += 1
+    assert suite.failures == counts["failed"] and suite.skipped == counts["skipped"], (suite.failures, counts)
+    return counts, {p.name: p.value for p in suite.properties()}, cases
+
+
+def html_badge(path: Path) -> str:
+    return re.search(r'<h1>.*?<span class="badge \w+">([^<]+)</span>', path.read_text(encoding="utf-8")).group(1)
+
+
+def check_stopped(proc: subprocess.CompletedProcess, out: Path, status: str, what: str) -> dict[str, str]:
+    """The verdict everywhere: console, HTML badge, JUnit (counts equal to pytest's, a property naming the stop)."""
+    counts, props, cases = junit_counts(out / "junit.xml")
+    assert counts == pytest_counts(proc.stdout), proc.stdout
+    assert all(case.name for case in cases), "no nameless <testcase/>"
+    assert props["hil.verdict"] == status and what in props["hil.stopped"], props
+    assert html_badge(out / "report.html") == status
+    lines = proc.stdout.rstrip().splitlines()
+    verdict = next(ln for ln in lines if ln.startswith("hil: ") and status in ln)
+    assert what in verdict, verdict
+    assert lines[-1].startswith("hil: reports ") and str(out / "junit.xml") in lines[-1], lines[-3:]
+    assert "hil/core/signals.py" not in proc.stdout  # pytest's interrupt line points at the test, not into hil
+    return props
+
+
+@pytest.mark.parametrize("signame", ["SIGINT", "SIGTERM"])
+def test_a_signal_mid_test_says_interrupted_everywhere(tmp_path, signame):
+    proc, out = run_tiny(tmp_path, TINY, signal_after="waiting", sig=getattr(signal, signame))
+    assert proc.returncode == 2, proc.stdout
+    props = check_stopped(proc, out, "INTERRUPTED", f"{signame} received during test_tiny.py::test_writes_then_waits")
+    counts, _, cases = junit_counts(out / "junit.xml")
+    assert counts == Counter(passed=1, failed=1)  # the interrupted test is not listed as passed
+    failed = next(c for c in cases if c.result)
+    assert failed.name == "test_writes_then_waits" and "did not finish" in failed.result[0].message
+    assert props["hil.not_run"] == "1"  # test_never_runs
+    # the PLC: restored by the bench fixture's teardown, and said so
+    assert props["hil.plc"].startswith("the PLC is as it was found"), props
+    assert "the PLC is as it was found" in proc.stdout
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert re.search(r'badge failed">failed</span> test_<wbr>', page) and "1 passed, 1 failed" in page
+
+
+def test_a_pytest_timeout_fails_the_test_and_the_run(tmp_path):
+    source = TINY.replace("def test_writes_then_waits", "@pytest.mark.timeout(1)\ndef test_writes_then_waits")
+    proc, out = run_tiny(tmp_path, source)
+    assert proc.returncode == 1, proc.stdout
+    counts, props, cases = junit_counts(out / "junit.xml")
+    assert counts == pytest_counts(proc.stdout) == Counter(passed=2, failed=1)
+    timed_out = next(c for c in cases if c.result)
+    assert timed_out.name == "test_writes_then_waits" and "Timeout" in timed_out.result[0].message
+    assert props["hil.verdict"] == "FAILED" and html_badge(out / "report.html") == "FAILED"
+    assert "hil: FAILED" in proc.stdout
+
+
+def test_a_run_killed_by_pytest_timeouts_thread_method_leaves_no_earlier_result(tmp_path):
+    """The thread method ends the process (os._exit): the reports this run began say it never finished."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "junit.xml").write_text('<testsuites><testsuite name="old" tests="1" errors="0" failures="0">'
+                                   '<testcase classname="x" name="earlier_pass"/></testsuite></testsuites>')
+    source = TINY.replace("def test_writes_then_waits", '@pytest.mark.timeout(1, method="thread")\n'
+                                                        'def test_writes_then_waits')
+    proc, out = run_tiny(tmp_path, source)
+    assert proc.returncode == 1 and "Timeout" in proc.stdout, proc.stdout
+    suite = next(iter(JUnitXml.fromfile(str(out / "junit.xml"))))
+    props = {p.name: p.value for p in suite.properties()}
+    assert props["hil.verdict"] == "INCOMPLETE" and "did not finish" in props["hil.stopped"]
+    assert suite.errors == 1 and [c.name for c in suite] == ["run"]
+    assert html_badge(out / "report.html") == "INCOMPLETE"
+
+
+CRASHING_PLUGIN = '''
+import pytest
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    if call.when == "call" and item.name == "test_writes_then_waits":
+        raise RuntimeError("a plugin broke")
+    return report
+'''
+
+
+def test_an_internal_error_mid_session_says_so_everywhere(tmp_path):
+    proc, out = run_tiny(tmp_path, TINY.replace("time.sleep(60)", "pass"), conftest=CRASHING_PLUGIN)
+    assert proc.returncode == 3, proc.stdout
+    props = check_stopped(proc, out, "INTERNAL ERROR", "RuntimeError: a plugin broke")
+    counts, _, cases = junit_counts(out / "junit.xml")
+    assert counts == Counter(passed=1, failed=1)
+    assert "a plugin broke" in next(c for c in cases if c.result).result[0].message
+    assert props["hil.not_run"] == "1"
