@@ -253,6 +253,9 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
     suite = ET.fromstring(xml).find("testsuite")
     assert any(p.get("name") == "hil_bench_recovery" and "restored and verified" in p.get("value", "")
                for p in suite.findall("properties/property")), "recovery is a testsuite property"
+    recovery = next(c for c in suite.iter("testcase") if c.get("name") == "bench_recovery")
+    assert recovery.get("classname") == "hil.bench"  # not an empty classname (issue 24)
+    assert ET.fromstring(xml).get("name") == f"hil run on bench {profile.name}"  # not pytest's "pytest tests"
     check = Bench(profile)
     try:
         assert check.raw.read_many(["R100", "M0"]) == original

@@ -221,13 +221,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     offered = bench_capabilities(target, profile.scan_counter, profile.offers)
     # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
     items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
+    _deselect_other_families(config, items, profile)
     for item in items:
-        if "bench" in getattr(item, "fixturenames", ()):
-            family = item.get_closest_marker("family")
-            wanted = tuple(family.args) if family and family.args else ("fbs",)
-            if profile.family not in wanted:
-                item.add_marker(pytest.mark.skip(
-                    reason=f"for {' or '.join(wanted)} PLCs; bench {profile.name!r} is family {profile.family!r}"))
         for marker in item.iter_markers("needs"):
             bad = unknown(marker.args)
             if bad or not marker.args:
@@ -244,6 +239,35 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
             item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
     bench_time.apply(items, profile, target.in_process)
+
+
+_OTHER_FAMILIES = pytest.StashKey[str]()
+
+
+def _deselect_other_families(config: pytest.Config, items: list[pytest.Item], profile: Profile) -> None:
+    """Bench tests for another controller family are deselected, with one line saying why (not a screen of
+    identical skips: the default run collects every family's suites)."""
+    other: dict[str, int] = {}
+    kept = []
+    for item in items:
+        family = item.get_closest_marker("family") if "bench" in getattr(item, "fixturenames", ()) else None
+        wanted = tuple(family.args) if family and family.args else ("fbs",)
+        if "bench" in getattr(item, "fixturenames", ()) and profile.family not in wanted:
+            label = " or ".join(wanted)
+            other[label] = other.get(label, 0) + 1
+        else:
+            kept.append(item)
+    if not other:
+        return
+    config.hook.pytest_deselected(items=[i for i in items if i not in kept])
+    items[:] = kept
+    config.stash[_OTHER_FAMILIES] = "; ".join(
+        f"hil: {n} test{'s' if n != 1 else ''} for {label} PLCs deselected: bench {profile.name!r} is family "
+        f"{profile.family!r}" for label, n in other.items())
+
+
+def pytest_report_collectionfinish(config: pytest.Config) -> str | None:
+    return config.stash.get(_OTHER_FAMILIES, None)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
