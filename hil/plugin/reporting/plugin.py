@@ -206,9 +206,15 @@ class Reporter:
             shown.append(("labgrid", f"place {props['hil.lab.place']} ({props.get('hil.lab.tags', '')}) on "
                                      f"{props.get('hil.lab.exporter', '')}, coordinator "
                                      f"{props.get('hil.lab.coordinator', '')}"))
-        shown += [("target", props.get("hil.target", "")), ("wire", props.get("hil.wire", "-")),
-                  ("PLC", plc_line.removeprefix("hil PLC: ") or "-")]
-        shown += [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties if k.startswith("hil.plc.")]
+        wire = props.get("hil.wire", "-")
+        plc = plc_line.removeprefix("hil PLC: ").removesuffix(f" via {wire}")  # the wire has its own row
+        shown += [("target", props.get("hil.target", "")), ("wire", wire), ("PLC", plc or "-")]
+        plc_rows = [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties
+                    if k.startswith("hil.plc.")]
+        sizes = [(k.removesuffix(" size"), v) for k, v in plc_rows if k.endswith(" size")]
+        shown += [row for row in plc_rows if not row[0].endswith(" size")]
+        if sizes:  # FATEK command 53's memory sizes: one row, not one per memory (JUnit keeps each)
+            shown.append(("memory", ", ".join(f"{k} {v}" for k, v in sizes)))
         shown += [("operator", f"{props.get('hil.operator', '')} at {props.get('hil.station', '')}"),
                   ("suites", props.get("hil.suites_commit", "")),
                   ("harness", f"hil {props.get('hil.harness_version', '')}")]
