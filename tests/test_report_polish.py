@@ -122,3 +122,55 @@ def test_hil_run_qq_still_prints_the_verdict_and_the_reports(tmp_path):
     assert lines[-2] == "hil: PASSED", lines
     assert lines[-1] == f"hil: reports {out / 'junit.xml'}, {out / 'report.html'}"
     assert Path(out / "junit.xml").is_file() and Path(out / "report.html").is_file()
+
+
+# -- hil run --bench a --bench b ------------------------------------------------------------------------------------
+def _bench_run(tmp_path: Path, name: str, exit_code: int, records: list[Record]):
+    from hil.cli.many import BenchRun
+    from hil.plugin.reporting.model import records_to_json
+    deep = tmp_path / ("a-rather-long-directory-name-for-reports-" * 2)
+    deep.mkdir(exist_ok=True)
+    run = BenchRun(name, f"{name}.toml", deep / f"junit-{name}.xml", deep / f"run-{name}.log", exit=exit_code,
+                   wall=1.5)
+    run.records.write_text(records_to_json(records, [("hil.verdict", "FAILED" if exit_code else "PASSED")]))
+    return run
+
+
+def test_many_benches_summary_in_a_pipe_keeps_whole_paths_and_names_the_failed_tests(tmp_path):
+    import io
+
+    from rich.console import Console
+    from hil.cli.many import print_summary
+    runs = [_bench_run(tmp_path, "emulator-a", 0, [Record("suites/test_smoke.py::test_ok", "smoke")]),
+            _bench_run(tmp_path, "emulator-b", 1, [
+                Record("suites/test_rtc.py::test_leap_day_sets_m1955", "RTC", "failed",
+                       message="call: AssertionError: M1955 = 0, expected 1")])]
+    buf = io.StringIO()
+    print_summary(Console(file=buf, width=40, force_terminal=False), runs, str(tmp_path / "junit.xml"))
+    text = buf.getvalue()
+    for r in runs:
+        assert str(r.junit) in text and str(r.log) in text, text  # never cut to "reports/junit-emu…"
+    assert "…" not in text
+    assert ("emulator-b: FAILED suites/test_rtc.py::test_leap_day_sets_m1955 — call: AssertionError: M1955 = 0, "
+            "expected 1") in text
+    assert "bench emulator-b: FAILED (exit 1)" in text
+
+
+def test_many_benches_status_on_a_terminal_is_one_line_updated_in_place(tmp_path):
+    import io
+
+    from rich.console import Console
+    from hil.cli.many import BenchRun, _wait_with_counts
+    runs = []
+    for name, seconds in (("a", 0.3), ("b", 1.2)):
+        log = tmp_path / f"run-{name}.log"
+        log.write_text("suites/test_smoke.py ..\n")
+        run = BenchRun(name, f"{name}.toml", tmp_path / f"junit-{name}.xml", log, wall=0.0)
+        run.process = subprocess.Popen([sys.executable, "-c", f"import time; time.sleep({seconds})"])
+        runs.append(run)
+    buf = io.StringIO()
+    _wait_with_counts(Console(file=buf, width=100, force_terminal=True), runs, every=0.1)
+    text = buf.getvalue()
+    assert "\x1b[2K" in text  # the status line is erased and redrawn, not printed again below itself
+    printed = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", text).replace("\r", "\n")
+    assert [ln.split(":")[0] for ln in printed.splitlines() if ln.startswith("bench ")] == ["bench a", "bench b"]

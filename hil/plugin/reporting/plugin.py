@@ -180,6 +180,8 @@ class Reporter:
 
     def _write_incomplete(self, state: Any) -> None:
         """Both report files say INCOMPLETE until the session's end replaces them."""
+        if self.config.option.collectonly:
+            return
         verdict = incomplete(dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z"))
         properties = self.properties + verdict.properties()
         xmlpath = _path(self.config.getoption("xmlpath", None))
@@ -333,7 +335,7 @@ class Reporter:
     def _say_verdict(self) -> None:
         """The console's last lines, at every verbosity (-qq too): the verdict, then where the reports are."""
         reporter = self.config.pluginmanager.get_plugin("terminalreporter")
-        if reporter is None or self.verdict is None or not self.uses_bench:
+        if reporter is None or self.verdict is None or not self.uses_bench or self.config.option.collectonly:
             return
         good = self.verdict.passed
         reporter.ensure_newline()
