@@ -69,4 +69,7 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
 
 def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: object) -> int:
     Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
+    for own in (junitxml, options.get("html")):  # an earlier run's result must not pass for this one's, even if
+        if own:  # this one dies before its reports say INCOMPLETE (hil.plugin.reporting.verdict)
+            Path(str(own)).unlink(missing_ok=True)
     return int(pytest.main(pytest_args(bench, target, junitxml, extra, **options)))  # type: ignore[arg-type]
