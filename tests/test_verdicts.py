@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from junitparser import Error, Failure, JUnitXml, Skipped
 
-from tests.conftest import EMULATOR_BENCH, REPO
+from tests.conftest import EMULATOR_BENCH
 
 TINY = '''
 import time
@@ -81,9 +81,10 @@ def junit_counts(path: Path) -> tuple[Counter, dict[str, str], list]:
         if (case.classname, case.name) == ("pytest", "internal"):
             continue
         cases.append(case)
-        kinds = {type(r) for r in case.result}
-        counts["failed" if Failure in kinds else "error" if Error in kinds else "skipped" if Skipped in kinds
-               else "passed"] += 1
+        if not case.result:
+            counts["passed"] += 1
+        for result in case.result:  # as pytest counts: a failed call and a failed teardown are one of each
+            counts[{Failure: "failed", Error: "error", Skipped: "skipped"}[type(result)]] += 1
     assert suite.failures == counts["failed"] and suite.skipped == counts["skipped"], (suite.failures, counts)
     return counts, {p.name: p.value for p in suite.properties()}, cases
 
@@ -122,6 +123,40 @@ def test_a_signal_mid_test_says_interrupted_everywhere(tmp_path, signame):
     assert "the PLC is as it was found" in proc.stdout
     page = (out / "report.html").read_text(encoding="utf-8")
     assert re.search(r'badge failed">failed</span> test_<wbr>', page) and "1 passed, 1 failed" in page
+
+
+PLC_GOES_AWAY = '''
+import pytest
+from hil.core.errors import TransportError
+from hil.plugin.pytest_plugin import BENCH_SESSION
+
+
+@pytest.fixture(autouse=True)
+def plc_goes_away(request, bench):
+    """Torn down before the bench: from then on the PLC answers nothing, so the stopped test's restore fails."""
+    yield
+    if request.node.name != "test_writes_then_waits":
+        return
+    raw = request.config.stash[BENCH_SESSION].bench.raw
+
+    def gone(*args, **kwargs):
+        raise TransportError("the PLC went away")
+    for name in ("write_many", "write_words", "write_bits", "write", "read_many", "read_words", "read_bits", "read"):
+        setattr(raw, name, gone)
+'''
+
+
+def test_an_interrupt_whose_restore_fails_says_the_plc_is_not_as_found(tmp_path):
+    proc, out = run_tiny(tmp_path, TINY, signal_after="waiting", sig=signal.SIGINT, conftest=PLC_GOES_AWAY)
+    assert proc.returncode == 2, proc.stdout
+    props = check_stopped(proc, out, "INTERRUPTED", "SIGINT received during test_tiny.py::test_writes_then_waits")
+    counts, _, cases = junit_counts(out / "junit.xml")
+    assert counts == Counter(passed=1, failed=1, error=1)  # the stopped call, and its restore (the teardown)
+    # pytest's JUnit gives a failed call and a failed teardown a testcase each
+    said = [r.message or "" for c in cases if c.name == "test_writes_then_waits" for r in c.result]
+    assert len(said) == 2 and "did not finish" in said[0] and "RestoreError" in said[1], said
+    assert props["hil.plc"] == "the PLC is NOT as it was found: 1 element still changed"
+    assert "the PLC is NOT as it was found" in proc.stdout.splitlines()[-2]
 
 
 def test_a_pytest_timeout_fails_the_test_and_the_run(tmp_path):

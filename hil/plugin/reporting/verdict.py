@@ -126,12 +126,14 @@ class Stops:
         try:
             return (yield)
         except BaseException as exc:
-            self.stopped = self.stopped or f"{describe(exc)} during {item.nodeid}"
-            try:
-                self._report_unfinished(item, exc)
-            except Exception:  # noqa: BLE001 - the exception that stopped the run is the one pytest must see
-                pass
-            raise
+            stop = exc
+        # outside the except block: the teardown run below must not chain its own errors to the stop
+        self.stopped = self.stopped or f"{describe(stop)} during {item.nodeid}"
+        try:
+            self._report_unfinished(item, stop)
+        except Exception:  # noqa: BLE001 - the exception that stopped the run is the one pytest must see
+            pass
+        raise stop
 
     def pytest_keyboard_interrupt(self, excinfo: pytest.ExceptionInfo) -> None:
         self.stopped = self.stopped or describe(excinfo.value)  # between tests, or during collection
@@ -154,6 +156,16 @@ class Stops:
                                    duration=now - started, start=started, stop=now,
                                    user_properties=list(item.user_properties))
         item.ihook.pytest_runtest_logreport(report=report)
+        if when != "teardown":
+            self._teardown(item)
+
+    @staticmethod
+    def _teardown(item: pytest.Item) -> None:
+        """The stopped test's teardown now, as its own reported phase (pytest would leave it to the session's end,
+        unreported): its restore's outcome is the test's, in every count."""
+        call = pytest.CallInfo.from_call(lambda: item.ihook.pytest_runtest_teardown(item=item, nextitem=None),
+                                         "teardown")
+        item.ihook.pytest_runtest_logreport(report=item.ihook.pytest_runtest_makereport(item=item, call=call))
 
 
 def _where(exc: BaseException, item: pytest.Item) -> str:
