@@ -123,7 +123,7 @@ class Reporter:
         self.trace_dir = self._trace_dir()
         self.html_written: Path | None = None
         self.junit_traces: dict[str, str] = {}  # hil.trace_file property → the trace for that testcase's system-out
-        self.stops = Stops()  # the report of a test the run stopped in, and what stopped it
+        self.stops = Stops(config)  # the report of a test the run stopped in, and what stopped it
         config.pluginmanager.register(self.stops, "hil-stops")
         self.verdict: Verdict | None = None
         state = self._state()

@@ -92,8 +92,10 @@ def describe(exc: BaseException) -> str:
 class Stops:
     """Watches each test's phases; when the run stops inside a test, logs that test's missing report."""
 
-    def __init__(self) -> None:
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
         self.stopped = ""
+        self._stopped_in: Path | None = None  # the file of the test the run stopped in
         self._phase: tuple[str, str, float] | None = None  # (nodeid, phase, started) of the phase under way
         self._reported: set[tuple[str, str]] = set()
         self._ran: set[str] = set()
@@ -129,14 +131,22 @@ class Stops:
             stop = exc
         # outside the except block: the teardown run below must not chain its own errors to the stop
         self.stopped = self.stopped or f"{describe(stop)} during {item.nodeid}"
+        self._stopped_in = getattr(item, "path", None)
         try:
             self._report_unfinished(item, stop)
         except Exception:  # noqa: BLE001 - the exception that stopped the run is the one pytest must see
             pass
         raise stop
 
+    @pytest.hookimpl(tryfirst=True)  # before the terminal reporter keeps its picture of the interrupt
     def pytest_keyboard_interrupt(self, excinfo: pytest.ExceptionInfo) -> None:
         self.stopped = self.stopped or describe(excinfo.value)  # between tests, or during collection
+        if self._stopped_in is not None and not self.config.option.fulltrace:
+            # pytest's "<file>:<line>: KeyboardInterrupt" names the test's line the run was at, not the wire
+            # read or the sleep inside hil it was waiting in (--full-trace shows those)
+            entries = [i for i, entry in enumerate(excinfo.traceback) if entry.path == self._stopped_in]
+            if entries:
+                excinfo.traceback = excinfo.traceback[:entries[-1] + 1]
 
     def pytest_internalerror(self, excrepr: Any, excinfo: pytest.ExceptionInfo) -> None:
         self.stopped = self.stopped or describe(excinfo.value)  # returns None: pytest still prints it
