@@ -123,7 +123,7 @@ def test_a_signal_mid_test_says_interrupted_everywhere(tmp_path, signame):
     assert failed.name == "test_writes_then_waits" and "did not finish" in failed.result[0].message
     assert props["hil.not_run"] == "1"  # test_never_runs
     # the PLC: restored by the bench fixture's teardown, and said so
-    assert props["hil.plc"].startswith("the PLC is as it was found"), props
+    assert props["hil.plc_restored"].startswith("the PLC is as it was found"), props
     assert "the PLC is as it was found" in proc.stdout
     page = (out / "report.html").read_text(encoding="utf-8")
     assert re.search(r'badge failed">failed</span> test_<wbr>', page) and "1 passed, 1 failed" in page
@@ -159,7 +159,7 @@ def test_an_interrupt_whose_restore_fails_says_the_plc_is_not_as_found(tmp_path)
     # pytest's JUnit gives a failed call and a failed teardown a testcase each
     said = [r.message or "" for c in cases if c.name == "test_writes_then_waits" for r in c.result]
     assert len(said) == 2 and "did not finish" in said[0] and "RestoreError" in said[1], said
-    assert props["hil.plc"] == "the PLC is NOT as it was found: 1 element still changed"
+    assert props["hil.plc_restored"] == "the PLC is NOT as it was found: 1 element still changed"
     assert "the PLC is NOT as it was found" in proc.stdout.splitlines()[-2]
 
 

@@ -60,15 +60,15 @@ class Verdict:
         return self.status + (" — " + "; ".join(parts) if parts else "")
 
     def properties(self) -> list[tuple[str, str]]:
-        """The JUnit testsuite properties: ``hil.verdict`` always, ``hil.stopped`` / ``hil.not_run`` / ``hil.plc``
-        when they say something."""
+        """The JUnit testsuite properties: ``hil.verdict`` always, ``hil.stopped`` / ``hil.not_run`` /
+        ``hil.plc_restored`` when they say something."""
         out = [("hil.verdict", self.status)]
         if self.stopped:
             out.append(("hil.stopped", self.stopped))
         if self.not_run:
             out.append(("hil.not_run", str(self.not_run)))
         if self.plc:
-            out.append(("hil.plc", self.plc))
+            out.append(("hil.plc_restored", self.plc))
         return out
 
 
