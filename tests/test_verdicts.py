@@ -212,3 +212,15 @@ def test_an_internal_error_mid_session_says_so_everywhere(tmp_path):
     assert counts == Counter(passed=1, failed=1)
     assert "a plugin broke" in next(c for c in cases if c.result).result[0].message
     assert props["hil.not_run"] == "1"
+
+
+def test_a_signal_during_the_sessions_last_restores_still_says_interrupted(tmp_path):
+    """hil.core.signals raises a signal that came during a restore once the restore finished: at the session's
+    end that is inside pytest_sessionfinish (here a conftest raises it there)."""
+    late = "def pytest_sessionfinish(session):\n    raise KeyboardInterrupt('SIGTERM received')\n"
+    proc, out = run_tiny(tmp_path, "def test_one(bench):\n    pass\n", conftest=late)
+    assert proc.returncode == 2, proc.stdout
+    props = junit_counts(out / "junit.xml")[1]
+    assert props["hil.verdict"] == "INTERRUPTED" and props["hil.stopped"] == "SIGTERM received at the end of the session"
+    assert html_badge(out / "report.html") == "INTERRUPTED"
+    assert proc.stdout.splitlines()[-2] == "hil: INTERRUPTED — SIGTERM received at the end of the session"

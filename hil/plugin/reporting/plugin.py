@@ -291,13 +291,17 @@ class Reporter:
         failure: BaseException | None = None
         try:
             return (yield)
+        except KeyboardInterrupt as exc:  # a signal during the last restores, raised once they finished
+            failure = exc
+            session.exitstatus = pytest.ExitCode.INTERRUPTED
+            return None  # the run ends here anyway; pytest still unconfigures (the JUnit file gets the verdict)
         except BaseException as exc:  # a teardown at the session's end raised: pytest stops here
             failure = exc
             raise
         finally:
             self.verdict = self._verdict(session, failure)
             self._write_reports()
-            self._say_verdict()
+            self._say_verdict(after_progress=failure is not None)  # then pytest's summary did not end the line
 
     def _verdict(self, session: pytest.Session, failure: BaseException | None) -> Verdict:
         from hil.plugin.reporting.verdict import describe
@@ -308,7 +312,8 @@ class Reporter:
         elif not stopped and (session.shouldfail or session.shouldstop):
             reason = session.shouldfail or session.shouldstop
             stopped = reason if isinstance(reason, str) else "stopped early"
-        status = status_of(3 if failure is not None else session.exitstatus)
+        status = status_of(3 if failure is not None and not isinstance(failure, KeyboardInterrupt)
+                           else session.exitstatus)
         plc = self.config.stash.get(PLC_LEFT, "")
         if plc == AS_FOUND and not stopped:
             plc = ""  # said only when the run was stopped, or left something changed
@@ -332,13 +337,15 @@ class Reporter:
             if reporter is not None:
                 reporter.write_line(f"hil: could not write the HTML report {self.html_path}: {exc}", red=True)
 
-    def _say_verdict(self) -> None:
+    def _say_verdict(self, *, after_progress: bool = False) -> None:
         """The console's last lines, at every verbosity (-qq too): the verdict, then where the reports are."""
         reporter = self.config.pluginmanager.get_plugin("terminalreporter")
         if reporter is None or self.verdict is None or not self.uses_bench or self.config.option.collectonly:
             return
         good = self.verdict.passed
         reporter.ensure_newline()
+        if after_progress:
+            reporter.write("\n")
         reporter.write_line(f"hil: {self.verdict.line()}", green=good, red=not good, bold=not good)
         written = [p for p in (_path(self.config.getoption("xmlpath", None)), self.html_written) if p is not None]
         if written:
