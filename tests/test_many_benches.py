@@ -86,4 +86,5 @@ def test_a_bench_without_junit_appears_as_an_error(tmp_path):
                  tmp_path / "junit.xml")
     assert [s.get("name") for s in root] == ["good", "dead"]
     assert root.get("tests") == "3" and root.get("errors") == "1"
+    assert root.get("name") == "hil run on benches good, dead"  # not pytest's "pytest tests"
     ET.parse(tmp_path / "junit.xml")  # valid XML on disk

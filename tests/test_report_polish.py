@@ -10,12 +10,12 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import hil.families.fbs.sim  # noqa: F401 - imported once here: pytester's in-process runs must not re-import numpy
 from hil.plugin.reporting.console import render, summary_table
 from hil.plugin.reporting.html import write_html
 from hil.plugin.reporting.model import Measurement
 from hil.plugin.reporting.model import TestRecord as Record
 from tests.conftest import EMULATOR_BENCH
+from tests.test_verdicts import run_tiny
 
 ONE = "def test_one(bench):\n    pass\n"
 
@@ -39,17 +39,16 @@ def test_a_skipped_tests_unset_measurements_are_not_out_of_limits():
     assert "1 in limits, 1 not measured" in table and ", 1 out" not in table, table
 
 
-def test_unset_measurements_of_a_test_skipped_at_run_time_in_a_session(pytester):
-    pytester.makepyfile(test_drifts='''
-        import pytest
+def test_unset_measurements_of_a_test_skipped_at_run_time_in_a_session(tmp_path):
+    proc, _ = run_tiny(tmp_path, '''
+import pytest
 
-        @pytest.mark.measures("drift", unit="s/day", low=-0.1, high=0.1)
-        def test_skips_before_measuring(bench, measure):
-            pytest.skip("D4054 cannot be reached over this wire")
-    ''')
-    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider")
-    result.assert_outcomes(skipped=1)
-    row = next(line for line in result.outlines if line.startswith("| drifts"))
+@pytest.mark.measures("drift", unit="s/day", low=-0.1, high=0.1)
+def test_skips_before_measuring(bench, measure):
+    pytest.skip("D4054 cannot be reached over this wire")
+''')
+    assert proc.returncode == 0, proc.stdout
+    row = next(line for line in proc.stdout.splitlines() if line.startswith("| tiny"))
     assert "out" not in row and "measured" not in row, row
 
 
@@ -59,29 +58,25 @@ def _panel(lines: list[str]) -> list[str]:
     return lines[start:end + 1]
 
 
-def test_header_panel_gives_the_memory_sizes_one_row_and_junit_each(pytester):
-    pytester.makepyfile(test_one=ONE)
-    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "--target", "emulator+fatek-tcp",
-                                          "--junitxml=junit.xml", "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=1)
-    panel = _panel(result.outlines)
+def test_header_panel_gives_the_memory_sizes_one_row_and_junit_each(tmp_path):
+    proc, out = run_tiny(tmp_path, ONE, target="emulator+fatek-tcp")
+    assert proc.returncode == 0, proc.stdout
+    panel = _panel(proc.stdout.splitlines())
     assert not any(" size " in line for line in panel), panel
     assert sum("memory" in line for line in panel) == 1 and any("R 8072" in line for line in panel), panel
     assert len(panel) <= 18, "\n".join(panel)
     assert not any(re.search(r"\| PLC .* via ", line) for line in panel)  # the wire has its own row
-    props = {p.get("name"): p.get("value") for p in ET.parse(pytester.path / "junit.xml").iter("property")}
+    props = {p.get("name"): p.get("value") for p in ET.parse(out / "junit.xml").iter("property")}
     assert props["hil.plc.R_size"] == "8072"  # JUnit keeps each size
 
 
-def test_the_rtc_chip_row_on_a_modbus_wire_is_short(pytester):
-    pytester.makepyfile(test_one=ONE)
-    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "--target", "emulator+modbus-tcp",
-                                          "--junitxml=junit.xml", "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=1)
-    props = {p.get("name"): p.get("value") for p in ET.parse(pytester.path / "junit.xml").iter("property")}
+def test_the_rtc_chip_row_on_a_modbus_wire_is_short(tmp_path):
+    proc, out = run_tiny(tmp_path, ONE, target="emulator+modbus-tcp")
+    assert proc.returncode == 0, proc.stdout
+    props = {p.get("name"): p.get("value") for p in ET.parse(out / "junit.xml").iter("property")}
     chip = props["hil.plc.rtc_chip"]
     assert chip.startswith("unavailable: D4053") and len(chip) < 100, chip
-    assert sum("D4053" in line for line in _panel(result.outlines)) == 1
+    assert sum("D4053" in line for line in _panel(proc.stdout.splitlines())) == 1
 
 
 def test_html_links_attachments_relative_and_wraps_ids_between_words(tmp_path):
@@ -98,14 +93,12 @@ def test_html_links_attachments_relative_and_wraps_ids_between_words(tmp_path):
     assert "summary :is(h2,h3){display:inline-block" in page  # the ▸/▾ stays on its heading's line
 
 
-def test_a_run_replaces_what_an_earlier_run_left_beside_its_reports(pytester):
-    pytester.makepyfile(test_one=ONE)
-    stale = pytester.path / "reports" / "attachments" / "old_test-trace.csv"
+def test_a_run_replaces_what_an_earlier_run_left_beside_its_reports(tmp_path):
+    stale = tmp_path / "out" / "attachments" / "old_test-trace.csv"  # run_tiny's reports go to out/
     stale.parent.mkdir(parents=True)
     stale.write_text("from an earlier run")
-    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "--junitxml=reports/junit.xml",
-                                          "--hil-html", "reports/report.html", "-p", "no:cacheprovider")
-    result.assert_outcomes(passed=1)
+    proc, _ = run_tiny(tmp_path, ONE)
+    assert proc.returncode == 0, proc.stdout
     assert not stale.exists()
 
 

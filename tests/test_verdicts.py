@@ -38,7 +38,7 @@ def test_never_runs(bench):
 
 
 def run_tiny(tmp_path: Path, source: str, *args: str, signal_after: str | None = None, sig: int = 0,
-             conftest: str = "") -> tuple[subprocess.CompletedProcess, Path]:
+             conftest: str = "", target: str = "emulator") -> tuple[subprocess.CompletedProcess, Path]:
     """pytest on ``source`` as the only test file of a fresh directory; with ``signal_after`` the signal ``sig`` is
     sent once that line is printed.  Returns the finished process (stdout and stderr together) and the output dir."""
     suite = tmp_path / "suite"
@@ -48,7 +48,7 @@ def run_tiny(tmp_path: Path, source: str, *args: str, signal_after: str | None =
         (suite / "conftest.py").write_text(conftest)
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "pytest", str(suite), "-s", "--rootdir", str(suite), "-p", "no:cacheprovider",
-           "-p", "no:hypothesispytest", "--assert=plain", "--bench", str(EMULATOR_BENCH), "--target", "emulator",
+           "-p", "no:hypothesispytest", "--assert=plain", "--bench", str(EMULATOR_BENCH), "--target", target,
            f"--junitxml={out / 'junit.xml'}", "-o", "junit_family=xunit1", "--hil-html", str(out / "report.html"),
            *args]
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
