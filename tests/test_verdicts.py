@@ -160,6 +160,10 @@ def test_an_interrupt_whose_restore_fails_says_the_plc_is_not_as_found(tmp_path)
     said = [r.message or "" for c in cases if c.name == "test_writes_then_waits" for r in c.result]
     assert len(said) == 2 and "did not finish" in said[0] and "RestoreError" in said[1], said
     assert props["hil.plc_restored"] == "the PLC is NOT as it was found: 1 element still changed"
+    # the HTML and the console's table count as pytest does: one failure and one error for that test
+    assert "2 tests · 1 passed, 1 failed, 1 error, 0 skipped" in (out / "report.html").read_text(encoding="utf-8")
+    all_row = next(line for line in proc.stdout.splitlines() if line.startswith("| all"))
+    assert re.findall(r"\d+", all_row) == ["1", "1", "1", "0"], all_row  # passed failed error skipped
     assert "the PLC is NOT as it was found" in proc.stdout.splitlines()[-2]
 
 

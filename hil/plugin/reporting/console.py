@@ -19,15 +19,16 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from hil.plugin.reporting.model import TestRecord
+from hil.plugin.reporting.model import TestRecord, outcome_counts
 
-OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed")
-_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow", "xfailed": "yellow"}
+OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed", "xpassed")
+_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow", "xfailed": "yellow",
+          "xpassed": "yellow"}
 
 
 def shown_outcomes(counts: Counter) -> tuple[str, ...]:
-    """The outcome columns of a summary: xfailed only when a test xfailed (pytest's own summary does the same)."""
-    return tuple(o for o in OUTCOMES if o != "xfailed" or counts.get(o))
+    """The outcome columns of a summary: xfailed and xpassed only when there are such (as in pytest's summary)."""
+    return tuple(o for o in OUTCOMES if o not in ("xfailed", "xpassed") or counts.get(o))
 
 
 def plural(n: int, word: str) -> str:
@@ -65,7 +66,7 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
     skips: Counter = Counter()
     measurements: Counter = Counter()
     for r in records:
-        by_area[r.area][r.outcome] += 1
+        by_area[r.area].update(outcome_counts([r]))
         if r.outcome == "skipped":
             skips[(r.area, r.message or "no reason given")] += 1
         for m in r.measurements:

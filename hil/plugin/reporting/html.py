@@ -18,7 +18,7 @@ from typing import Iterable
 from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes
-from hil.plugin.reporting.model import Series, TestRecord
+from hil.plugin.reporting.model import Series, TestRecord, outcome_counts
 from hil.plugin.reporting.verdict import INCOMPLETE, Verdict
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
@@ -109,11 +109,11 @@ def _link(attached: str, base: Path) -> str:
 
 
 def _summary(records: list[TestRecord]) -> str:
-    outcomes = shown_outcomes(Counter(r.outcome for r in records))
+    outcomes = shown_outcomes(outcome_counts(records))
     by_area: dict[str, Counter] = defaultdict(Counter)
     skips: dict[str, Counter] = defaultdict(Counter)
     for r in records:
-        by_area[r.area][r.outcome] += 1
+        by_area[r.area].update(outcome_counts([r]))
         if r.outcome == "skipped":
             skips[r.area][r.message or "no reason given"] += 1
     rows = []
@@ -203,11 +203,12 @@ for (const box of document.querySelectorAll('.filters input')) {
 
 
 def _counts_line(records: list[TestRecord]) -> str:
-    counts = Counter(r.outcome for r in records)
+    """``3 tests · 1 passed, 1 failed, 1 error, 0 skipped``: pytest's counts (a failed call and a failed teardown
+    are one of each)."""
+    counts = outcome_counts(records)
     parts = [f"{counts.get('passed', 0)} passed", f"{counts.get('failed', 0)} failed",
              plural(counts.get("error", 0), "error"), f"{counts.get('skipped', 0)} skipped"]
-    if counts.get("xfailed"):
-        parts.append(f"{counts['xfailed']} xfailed")
+    parts += [f"{counts[o]} {o}" for o in ("xfailed", "xpassed") if counts.get(o)]
     return f"{plural(len(records), 'test')} · " + ", ".join(parts)
 
 

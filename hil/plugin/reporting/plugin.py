@@ -257,6 +257,9 @@ class Reporter:
             record = self.records[report.nodeid] = TestRecord(report.nodeid, area_of(report.nodeid))
         record.duration += getattr(report, "duration", 0.0)
         _outcome(record, report)
+        category = self.config.hook.pytest_report_teststatus(report=report, config=self.config)[0]
+        if category:  # what pytest's summary counts this report as ("" for a passed setup or teardown)
+            record.counted[category] = record.counted.get(category, 0) + 1
         if report.when == "teardown":
             self._finish(record, report)
 
