@@ -9,6 +9,7 @@ import os
 import re
 import signal
 import subprocess
+import time
 import sys
 from collections import Counter
 from pathlib import Path
@@ -228,3 +229,40 @@ def test_a_signal_during_the_sessions_last_restores_still_says_interrupted(tmp_p
     assert props["hil.verdict"] == "INTERRUPTED" and props["hil.stopped"] == "SIGTERM received at the end of the session"
     assert html_badge(out / "report.html") == "INTERRUPTED"
     assert proc.stdout.splitlines()[-2] == "hil: INTERRUPTED — SIGTERM received at the end of the session"
+
+
+def test_hil_run_with_two_benches_stopped_by_sigterm_merges_interrupted_reports(tmp_path):
+    """The parent passes the signal on, waits for each bench's run to restore and report, then merges."""
+    suite = tmp_path / "suite"
+    suite.mkdir()
+    (suite / "test_tiny.py").write_text(TINY)
+    benches = []
+    for name in ("bench-a", "bench-b"):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(re.sub(r'(?m)^name\s*=.*$', f'name = "{name}"', EMULATOR_BENCH.read_text(), count=1))
+        benches += ["--bench", str(path)]
+    out = tmp_path / "reports"
+    (out).mkdir()
+    (out / "junit.xml").write_text("<testsuites><testsuite name='earlier' tests='1'/></testsuites>")  # a stale pass
+    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
+    parent = subprocess.Popen([sys.executable, "-m", "hil.cli.main", "run", *benches, "--junitxml",
+                               str(out / "junit.xml"), "--", str(suite), "-s", "--rootdir", str(suite),
+                               "-p", "no:hypothesispytest", "--assert=plain"],
+                              cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    logs = [out / "run-bench-a.log", out / "run-bench-b.log"]
+    deadline = time.monotonic() + 60
+    while not all(log.is_file() and "waiting" in log.read_text() for log in logs):
+        assert time.monotonic() < deadline and parent.poll() is None, parent.communicate()[0]
+        time.sleep(0.05)
+    parent.send_signal(signal.SIGTERM)  # to the parent only, as a CI job's cancel or `timeout` sends it
+    stdout, _ = parent.communicate(timeout=60)
+    assert parent.returncode == 2, stdout
+    merged = JUnitXml.fromfile(str(out / "junit.xml"))
+    suites = list(merged)
+    assert [s.name for s in suites] == ["bench-a", "bench-b"]
+    for suite_ in suites:
+        props = {p.name: p.value for p in suite_.properties()}
+        assert props["hil.verdict"] == "INTERRUPTED" and "SIGINT received" in props["hil.stopped"], props
+        assert suite_.failures == 1
+    assert html_badge(out / "report.html") == "INTERRUPTED"
+    assert "bench bench-a: INTERRUPTED (exit 2)" in stdout and "failed tests (2):" in stdout, stdout

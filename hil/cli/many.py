@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -88,6 +89,10 @@ def run_many(benches: list[str], target: str | None, junitxml: str, extra: list[
     runs = plan(benches, junitxml, target)
     out_dir = Path(junitxml).parent
     out_dir.mkdir(parents=True, exist_ok=True)
+    merged = None if not html else Path(html) if isinstance(html, str) else out_dir / "report.html"
+    for own in (Path(junitxml), merged):  # an earlier run's merged result must not pass for this one's
+        if own is not None:
+            own.unlink(missing_ok=True)
     for r in runs:
         cmd = [sys.executable, "-m", "hil.cli.main", "run", "--bench", r.profile, "--junitxml", str(r.junit)]
         if target:
@@ -102,16 +107,40 @@ def run_many(benches: list[str], target: str | None, junitxml: str, extra: list[
         r.wall = time.perf_counter()
         with open(r.log, "wb") as log:
             r.process = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
-    _wait_with_counts(console, runs)
+    interrupted = _wait_or_stop(console, runs)
     merge([(r.name, r.junit, r.exit, r.log) for r in runs], Path(junitxml))
-    merged = None
-    if html:
-        merged = Path(html) if isinstance(html, str) else out_dir / "report.html"
+    if merged is not None:
         merge_html(runs, merged)
     print_summary(console, runs, junitxml)
     if merged is not None:
         console.print(Text(f"merged HTML: {merged}"), soft_wrap=True)
-    return next((r.exit for r in runs if r.exit), 0)
+    return 2 if interrupted else next((r.exit for r in runs if r.exit), 0)
+
+
+def _wait_or_stop(console: Console, runs: list[BenchRun]) -> bool:
+    """Wait for every bench's run; on SIGINT, SIGTERM or SIGHUP pass SIGINT on to each run still going (a run
+    already stopping ignores it: hil.core.signals) and wait for each to restore its PLC and write its reports, so the
+    merged ones say INTERRUPTED.  Whether the runs were stopped."""
+    from hil.core import signals
+    signals.install()
+    try:
+        try:
+            _wait_with_counts(console, runs)
+            return False
+        except KeyboardInterrupt as exc:
+            console.print(Text(f"hil: {exc or 'interrupted'} — stopping each bench's run; each restores its PLC and "
+                               f"writes its reports first"), soft_wrap=True)
+        # a second signal from here on is only reported (hil.core.signals: the run is already stopping)
+        for r in runs:
+            if r.process is not None and r.process.poll() is None:
+                r.process.send_signal(signal.SIGINT)
+        for r in runs:
+            if r.exit is None and r.process is not None:
+                r.exit = r.process.wait()
+                r.wall = time.perf_counter() - r.wall
+        return True
+    finally:
+        signals.uninstall()
 
 
 _PROGRESS_LINE = re.compile(r"^(?:\S+\.py )?([.FEsxX]+)\s*(?:\[\s*\d+%\])?$")  # "suites/x.py ..F" or -q's "..F"
