@@ -248,18 +248,19 @@ def _deselect_other_families(config: pytest.Config, items: list[pytest.Item], pr
     """Bench tests for another controller family are deselected, with one line saying why (not a screen of
     identical skips: the default run collects every family's suites)."""
     other: dict[str, int] = {}
-    kept = []
+    kept, dropped = [], []
     for item in items:
         family = item.get_closest_marker("family") if "bench" in getattr(item, "fixturenames", ()) else None
         wanted = tuple(family.args) if family and family.args else ("fbs",)
         if "bench" in getattr(item, "fixturenames", ()) and profile.family not in wanted:
             label = " or ".join(wanted)
             other[label] = other.get(label, 0) + 1
+            dropped.append(item)
         else:
             kept.append(item)
-    if not other:
+    if not dropped:
         return
-    config.hook.pytest_deselected(items=[i for i in items if i not in kept])
+    config.hook.pytest_deselected(items=dropped)
     items[:] = kept
     config.stash[_OTHER_FAMILIES] = "; ".join(
         f"hil: {n} test{'s' if n != 1 else ''} for {label} PLCs deselected: bench {profile.name!r} is family "
