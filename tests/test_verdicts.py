@@ -180,6 +180,17 @@ def test_a_pytest_timeout_fails_the_test_and_the_run(tmp_path):
     assert "hil: FAILED" in proc.stdout
 
 
+def test_a_pytest_session_timeout_says_what_stopped_the_run(tmp_path):
+    """pytest-timeout's --session-timeout ends the run between tests: every test that ran passed, yet the run is
+    FAILED (pytest's exit status 1) and says why, and how many tests never ran."""
+    source = "import time\n" + "".join(f"def test_{i}(bench):\n    time.sleep(0.6)\n" for i in range(5))
+    proc, out = run_tiny(tmp_path, source, "--session-timeout", "1.5")  # expires by the third test's end
+    assert proc.returncode == 1, proc.stdout
+    props = check_stopped(proc, out, "FAILED", "session-timeout: 1.5 sec exceeded")
+    counts = junit_counts(out / "junit.xml")[0]
+    assert set(counts) == {"passed"} and int(props["hil.not_run"]) == 5 - counts["passed"] >= 2, (counts, props)
+
+
 def test_a_run_killed_by_pytest_timeouts_thread_method_leaves_no_earlier_result(tmp_path):
     """The thread method ends the process (os._exit): the reports this run began say it never finished."""
     out = tmp_path / "out"
