@@ -39,9 +39,9 @@ FBS_MODELS = ["hil/families/fbs/sim/models/rtc.py", "hil/families/fbs/sim/models
 S7_MODEL = ["hil/families/s7smart/emulator.py"]
 #: session → (mutated files, the suites that judge them)
 SESSIONS = {
-    "fbs": (FBS_MODELS, "python -m pytest suites -x -q -p no:cacheprovider -p no:randomly"),
-    "s7": (S7_MODEL, "python -m pytest suites/s7smart --bench fixtures/benches/s7-200smart.toml -x -q "
-                     "-p no:cacheprovider -p no:randomly"),
+    "fbs": (FBS_MODELS, "{python} -m pytest suites -x -q -p no:cacheprovider"),
+    "s7": (S7_MODEL, "{python} -m pytest suites/s7smart --bench fixtures/benches/s7-200smart.toml -x -q "
+                     "-p no:cacheprovider"),
 }
 SURVIVORS = ROOT / "benchmarks" / "mutation-survivors.toml"
 KINDS = ("equivalent", "choice", "not_observable", "gap")
@@ -63,7 +63,7 @@ def _config(work: Path, name: str, timeout: float) -> Path:
         f"module-path = {json.dumps(modules)}\n"
         f"timeout = {timeout}\n"
         "excluded-modules = []\n"
-        f"test-command = {json.dumps(command)}\n\n"
+        f"test-command = {json.dumps(command.format(python=sys.executable))}\n\n"
         "[cosmic-ray.distributor]\nname = \"local\"\n", encoding="utf-8")
     return path
 
@@ -145,6 +145,8 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C9
             config = _config(tree, name, timeout)
             db = tree / f"session-{name}.sqlite"
             _cosmic_ray(tree, "init", str(config), str(db))
+            # the unmutated tree must pass, or every mutant would count as killed
+            _cosmic_ray(tree, "baseline", str(config))
             dbs[name] = (config, db)
         totals = {name: _count(db) for name, (_, db) in dbs.items()}
         everything = sum(totals.values())
