@@ -19,6 +19,7 @@ from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes
 from hil.plugin.reporting.model import Series, TestRecord, outcome_counts
+from hil.plugin.reporting.requirements import requirements_section
 from hil.plugin.reporting.verdict import INCOMPLETE, Verdict
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
@@ -187,6 +188,7 @@ def _section(records: list[TestRecord], properties: list[tuple[str, str]], base:
                               f'<th>test</th><th>s</th><th>reason</th></tr>{rows}</table>', level=3)
     return (_collapsible("Bench and PLC", f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
             + _collapsible("Summary by area", _summary(records))
+            + (_collapsible("Requirements", table) if (table := requirements_section(records)) else "")
             + _collapsible("Tests", tests or "<p>no tests ran</p>"))
 
 

@@ -72,6 +72,7 @@ class TestRecord:
     trace: str = ""  # formatted wire trace, when kept
     trace_file: str = ""
     attachments: list[str] = field(default_factory=list)  # files saved with report.attach_file
+    requirements: list[str] = field(default_factory=list)  # the IDs its spec() marker names (hil.requirements)
     #: pytest's own count of this test's reports (its ``pytest_report_teststatus`` categories): a failed call and a
     #: failed teardown are one failure and one error, as pytest's summary line and its JUnit file count them
     counted: dict[str, int] = field(default_factory=dict)
