@@ -16,6 +16,8 @@ class FbsFamily:
     a_title = "a FATEK FBs"
     sections = ("rtc", "temperature", "pid", "plant")
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
+    #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal
+    clock_elements = ("R4128-R4135",)
 
     def check_ranges(self, ranges: list) -> bool:
         for item in ranges:
