@@ -99,6 +99,7 @@ class Guard(ABC):
         self._clock_busy = False  # the guard is reading or putting back the clock itself
         # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
         self.identity_vouched = False
+        self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
 
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
@@ -154,6 +155,9 @@ class Guard(ABC):
             return action()
 
     def _remember(self, covered: Sequence, wrote: dict) -> None:
+        if self._replaying:  # recovery's own writes (the clock's set procedure) put back, they journal nothing
+            self.touched.update(covered)
+            return
         if self.clock is not None and self.clock.touches.intersection(covered):
             self._note_clock()
         wanted = list(covered)
@@ -354,7 +358,11 @@ class Guard(ABC):
         self.clock_origin = ClockOrigin(dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]),
                                         float(entry["scale"]), virtual=False)
         origin = self.clock_origin
-        failures = self._put_clock(exact=True)
+        self._replaying = True
+        try:
+            failures = self._put_clock(exact=True)
+        finally:
+            self._replaying = False
         if failures:
             report.failures += [f"clock (original {value}): {why}" for _, value, why in failures]
             return

@@ -147,7 +147,7 @@ def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Ve
                 out.append(Verdict(name, "refuse", "not in the profile's [safety] writable"))
                 continue
             if allowed_side is None:  # what the PLC itself rewrites because of a write the profile allows
-                allowed_side = frozenset(guard.side_effects(sorted(guard.writable, key=str))) \
+                allowed_side = frozenset(guard.keys(list(guard.side_effects(sorted(guard.writable, key=str))))) \
                     if guard.side_effects is not None else frozenset()
             if element not in allowed_side:
                 out.append(Verdict(name, "refuse", "neither in [safety] writable nor rewritten by the PLC after a "

@@ -43,9 +43,9 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
         for lock in reversed(locks):
             lock.release()
     if report is None:
-        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False)
+        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False, soft_wrap=True)
         return 0
-    console.print(escape(report.summary()), highlight=False)
+    console.print(escape(report.summary()), highlight=False, soft_wrap=True)
     return 0 if report.ok else 1
 
 
@@ -68,7 +68,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
         key, journal, refused = inspect(path)
         if refused:
             shown += 1
-            console.print(f"[bold red]refused[/] {escape(refused)}", highlight=False)
+            console.print(f"[bold red]refused[/] {escape(refused)}", highlight=False, soft_wrap=True)
             continue
         assert journal is not None
         if not journal.pending:
@@ -76,11 +76,11 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
         shown += 1
         console.print(f"[bold]{escape(str(key))}[/] ({path}): pending restore"
                       + (f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""),
-                      highlight=False)
+                      highlight=False, soft_wrap=True)
         for line in _verdicts(journal, profile):
-            console.print(f"  {escape(line)}", highlight=False)
+            console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
     if not shown:
-        console.print("nothing pending: no run left a PLC changed", highlight=False)
+        console.print("nothing pending: no run left a PLC changed", highlight=False, soft_wrap=True)
     return 0
 
 
@@ -111,6 +111,11 @@ def _verdicts(journal: "Journal", profile: object) -> list[str]:  # noqa: F821 -
                 problem = "not an element of this PLC"
             elif not dropped and element not in writable and entry.get("wrote") is not None:
                 problem = "not in the profile's [safety] writable"
+            check = getattr(profile.plugin, "value_problem", None)  # type: ignore[attr-defined]
+            if problem is None and not dropped and check is not None:
+                bad = check(element, entry["original"]) or (entry["wrote"] is not None
+                                                             and check(element, entry["wrote"]))
+                problem = f"malformed: {bad}" if bad else None
         if problem is None and kind.section == "run" and profile is not None \
                 and not profile.safety.allow_destructive:  # type: ignore[attr-defined]
             problem = "RUN/STOP needs [safety] allow_destructive"

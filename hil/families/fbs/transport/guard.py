@@ -131,8 +131,11 @@ class GuardedTransport(Guard, Transport):
 
     def _reenable(self, bits: list[Address]) -> None:
         """Command 42 "enable" for each bit, then read back with command 43; HilError naming what stays disabled."""
+        act = getattr(self.inner, "bit_action", None)
+        if act is None:
+            raise WriteRefused(f"{self.inner.description} cannot re-enable bits (FATEK command 42)")
         for address in bits:
-            self.inner.bit_action(address, 2)
+            act(address, 2)
         read = getattr(self.inner, "read_disabled", None)
         if read is None:
             raise WriteRefused(f"{self.inner.description} cannot read back the enable state (FATEK command 43)")
@@ -197,11 +200,8 @@ class GuardedTransport(Guard, Transport):
                 journal.set_extra("disabled", [])
 
     def value_problem(self, element: Address, value: int) -> str | None:
-        try:
-            check_value(element, value)
-        except HilError as exc:
-            return str(exc)
-        return None
+        from hil.families.fbs.plugin import FAMILY
+        return FAMILY.value_problem(element, value)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
