@@ -165,7 +165,9 @@ class Guard(ABC):
             wanted += list(self.side_effects(list(covered)))
         fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
         originals = dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
-        if self.durable is not None:  # on disk (fsync'd) before the write goes out: the original and what is written
+        # on disk (fsync'd) before the write goes out: the original and what is written — except the guard's own
+        # clock restore once the journal has failed (a restore is never refused; it puts the PLC back)
+        if self.durable is not None and not (self._clock_busy and self.durable.failed):
             self.durable.add_elements({str(e): v for e, v in originals.items()},
                                       {str(e): v for e, v in wrote.items() if e not in self.volatile})
         self.journal.update(originals)

@@ -61,7 +61,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
         profile = load_profile(bench) if bench else None
         target = url or profile.target  # type: ignore[union-attr]
         paths = [journal_path(plc_key(target, profile.plc_id if profile else None))]
-    shown = 0
+    shown = listed = 0
     for path in paths:
         if not path.exists():
             continue
@@ -74,6 +74,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
         if not journal.pending:
             continue
         shown += 1
+        listed += 1
         console.print(f"[bold]{escape(str(key))}[/] ({path}): pending restore"
                       + (f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""),
                       highlight=False, soft_wrap=True)
@@ -81,6 +82,9 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
             console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
     if not shown:
         console.print("nothing pending: no run left a PLC changed", highlight=False, soft_wrap=True)
+    elif profile is None and listed:
+        console.print("(each entry also needs the PLC's profile to allow it: --bench FILE shows what it allows)",
+                      highlight=False, soft_wrap=True)
     return 0
 
 
@@ -123,6 +127,9 @@ def _verdicts(journal: "Journal", profile: object) -> list[str]:  # noqa: F821 -
             out.append(f"{what}: next run refuses it ({problem}); kept")
         elif dropped:
             out.append(f"{what}: next run drops it (volatile in the profile)")
+        elif kind.section == "elements" and writable is not None and element not in writable:
+            out.append(f"{what}: next run restores it only if the PLC rewrites it after a write the profile allows "
+                       f"(a FUN86 box's gains after its EN), else refuses it")
         elif kind.keyed and entry.get("wrote") is not None:
             out.append(f"{what}: next run restores it if it still reads {int(entry['wrote'])}, else leaves it "
                        f"and says so")

@@ -32,12 +32,8 @@ class FbsFamily:
 
     def value_problem(self, element: Any, value: int) -> str | None:
         """Why ``value`` cannot be held by ``element`` (None when it can)."""
-        from hil.families.fbs.transport.base import check_value
-        try:
-            check_value(element, value)
-        except InvalidValue as exc:
-            return str(exc)
-        return None
+        from hil.families.fbs.transport.base import value_problem
+        return value_problem(element, value)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
         from hil.families.fbs.pid import parse_pid

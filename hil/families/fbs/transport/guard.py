@@ -20,7 +20,7 @@ from hil.bench.replay import Recovery, age_problem
 from hil.core.errors import HilError, TransportError, WriteRefused
 from hil.core.journal import DISABLED, RUN, Journal
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
-from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value
+from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value, value_problem
 
 
 def expand(ranges: Iterable[str]) -> frozenset[Address]:
@@ -200,8 +200,7 @@ class GuardedTransport(Guard, Transport):
                 journal.set_extra("disabled", [])
 
     def value_problem(self, element: Address, value: int) -> str | None:
-        from hil.families.fbs.plugin import FAMILY
-        return FAMILY.value_problem(element, value)
+        return value_problem(element, value)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
