@@ -24,7 +24,7 @@ from hil.bench.profile import load_profile
 from hil.cli.main import main as hil
 from hil.core.errors import HilError, ProfileError
 from hil.core.journal import Journal, JournalError, journal_path
-from hil.core.lock import BenchBusy, BenchLock, lock_key, plc_key
+from hil.core.lock import BenchLock, lock_key, plc_key
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
 from tests.broken import BrokenEmulator  # noqa: F401 - the factory tests.broken_emulate finds here
@@ -114,7 +114,12 @@ KILL = "os.kill(os.getpid(), signal.SIGKILL)"
 
 
 def _restore(capsys, *args: str) -> tuple[int, list[str]]:
-    code = hil(["restore", *args])
+    return _restore_like(capsys, "restore", *args)
+
+
+def _restore_like(capsys, *argv: str) -> tuple[int, list[str]]:
+    """``hil ARGV`` in this process: its exit code and its non-empty output lines (stdout and stderr)."""
+    code = hil(list(argv))
     out = capsys.readouterr()
     return code, [line for line in (out.out + out.err).splitlines() if line.strip()]
 
@@ -447,11 +452,13 @@ def test_an_enable_that_does_not_read_back_is_not_called_verified(tmp_path, caps
 
 
 # -- item 12: the bundled profile is the emulator's --------------------------------------------------------------
-def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp_path):
+def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp_path, capsys):
     (tmp_path / "test_it.py").write_text("def test_it(bench):\n    bench.plc.io.write('R1000', 1)\n")
     run = subprocess.run([sys.executable, "-m", "pytest", str(tmp_path), "--target", _url(plc), "-q",
                           "-p", "no:cacheprovider", "-p", "no:hypothesispytest"], cwd=tmp_path, capture_output=True,
                          text=True, timeout=120, env=os.environ.copy())
     assert run.returncode != 0 and "names a PLC, and no --bench profile was given" in run.stdout, run.stdout
+    code, lines = _restore_like(capsys, "run", "--target", _url(plc))  # hil run gives pytest the default by name
+    assert code == 4 and len(lines) == 1 and "names a PLC, and no --bench profile was given" in lines[0], lines
     with _plc(plc) as t:
         assert t.read("R1000") == 0

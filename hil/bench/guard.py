@@ -30,7 +30,7 @@ from __future__ import annotations
 import datetime as dt
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, TypeVar
 
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
@@ -377,5 +377,6 @@ class Guard(ABC):
     def value_problem(self, element: Any, value: int) -> str | None:
         """Why ``value`` cannot be ``element``'s (None when it can): the family's range check."""
         return None
+
 
 __all__ = ["Clock", "ClockOrigin", "Guard", "Recovery", "RecoveryStep"]

@@ -211,6 +211,15 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
                    scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id)
 
 
+def refuse_default_for_a_plc(target: str | None, bench: str | None, default: Path | str) -> None:
+    """No --bench and a --target naming a PLC (not an ``emulator…`` target): refuse the default profile, which is
+    the emulator's (RUN/STOP allowed, broad writable ranges), rather than let it loose on somebody's machine."""
+    if target and not bench and not parse_target(target).in_process:
+        raise ProfileError(f"--target {target} names a PLC, and no --bench profile was given: the default profile "
+                           f"({default}) is the emulator's (RUN/STOP allowed, broad writable ranges) — pass --bench "
+                           f"with a profile for this PLC (see fixtures/benches/example-bench.toml)")
+
+
 def _check_overlap(plugin: Family, safety: Safety, where: str) -> None:
     """Refuse an element both ``writable`` and ``volatile``: a volatile element is never journaled, so a test's
     write to it would stay on the PLC.  The family's clock elements may be both: the clock restore puts them back."""

@@ -7,12 +7,15 @@ run would.  ``--show`` changes nothing: it says, for each journal and each entry
 
 from __future__ import annotations
 
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
 
 from hil.core.errors import HilError
+
+if TYPE_CHECKING:
+    from hil.core.journal import Journal
 
 
 def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False) -> int:
@@ -51,7 +54,7 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
 
 def _show(url: str | None, bench: str | None, console: Console) -> int:
     """Each pending journal, entry by entry, with what the next run does with it; one line for a refused file."""
-    from hil.core.journal import Journal, inspect, journal_path, state_dir
+    from hil.core.journal import inspect, journal_path, state_dir
     from hil.core.lock import plc_key
     profile = None
     if url is None and bench is None:
@@ -88,7 +91,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
     return 0
 
 
-def _verdicts(journal: "Journal", profile: object) -> list[str]:  # noqa: F821 - hil.core.journal.Journal
+def _verdicts(journal: Journal, profile: object) -> list[str]:
     """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
     from hil.bench.replay import age_problem
     writable = volatile = None

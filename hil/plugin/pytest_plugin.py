@@ -125,13 +125,10 @@ class _State:
             self.dead = self.recovery.summary()
 
     def _refuse_default_profile(self) -> None:
-        """The bundled profile is the emulator's (allow_destructive, a broad writable): never for a PLC named by
-        --target alone."""
-        target = self.config.getoption("--target")
-        if target and not self.config.getoption("--bench") and not parse_target(target).in_process:
-            raise HilError(f"--target {target} names a PLC, and no --bench profile was given: the default profile "
-                           f"({self.profile.path}) is the emulator's (RUN/STOP allowed, broad writable ranges) — "
-                           f"pass --bench with a profile for this PLC (see fixtures/benches/example-bench.toml)")
+        """The bundled profile is the emulator's: never for a PLC named by --target alone."""
+        from hil.bench.profile import refuse_default_for_a_plc
+        refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
+                                 self.profile.path)
 
     def _lock_bench(self) -> None:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
