@@ -462,3 +462,40 @@ def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp
     assert code == 4 and len(lines) == 1 and "names a PLC, and no --bench profile was given" in lines[0], lines
     with _plc(plc) as t:
         assert t.read("R1000") == 0
+
+
+@pytest.mark.skipif(os.getuid() != 0 or not os.path.exists("/usr/bin/python3"),
+                    reason="a second user's run can only be made as root (os.setuid to nobody)")
+def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
+    """Issue 25 item 4: the lock directory is shared by every user of the host, so another user's run on the same
+    PLC holds the same lock (both ways round)."""
+    base = Path(tempfile.mkdtemp(prefix="hil-locks-", dir="/tmp"))
+    os.chmod(base, 0o755)
+    monkeypatch.setenv("HIL_LOCK_DIR", str(base / "locks"))
+    url = "fatek+tcp://192.0.2.7:500"
+    hold = ("import sys; from hil.core.lock import BenchLock, BenchBusy\n"
+            f"try:\n    lock = BenchLock({url!r}).acquire()\nexcept BenchBusy as exc:\n    print(exc); sys.exit(3)\n"
+            "print('held', flush=True); sys.stdin.read()\n")
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    import pwd
+    nobody = pwd.getpwnam("nobody")
+
+    def drop() -> None:
+        os.setgid(nobody.pw_gid)
+        os.setuid(nobody.pw_uid)
+    try:
+        with BenchLock(url).acquire():  # ours first: theirs is refused, naming us
+            theirs = subprocess.run(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
+                                    capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+            assert theirs.returncode == 3 and "is in use by" in theirs.stdout, theirs.stdout + theirs.stderr
+        other = subprocess.Popen(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        try:
+            assert other.stdout.readline().strip() == "held"
+            with pytest.raises(HilError, match="in use by .*user nobody"):
+                BenchLock(url).acquire()
+        finally:
+            other.stdin.close()
+            other.wait(timeout=30)
+    finally:
+        shutil.rmtree(base, ignore_errors=True)
