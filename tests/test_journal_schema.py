@@ -12,7 +12,7 @@ from hil.core.journal import ELEMENTS, KINDS, EntryKind, Journal, JournalError, 
 
 
 def test_every_section_has_a_kind_with_a_validator():
-    assert set(KINDS) == {"elements", "coils", "clock", "run", "disabled"}
+    assert set(KINDS) == {"elements", "coils", "clock", "run", "disabled", "enable"}
     assert ELEMENTS.check({"original": 1, "wrote": 2, "test": "t", "pid": 1, "at": "2026-01-01T00:00:00+00:00"}) \
         is None
     for bad, why in (({"original": True, "wrote": 2}, "original"), ({"original": 1, "wrote": "2"}, "wrote"),
@@ -65,3 +65,12 @@ def test_a_written_value_is_recorded_before_each_write_and_the_first_original_ke
     data = json.loads(journal.path.read_text())
     assert data["version"] == jmod.VERSION == 2 and data["plc"] == {"serial": "01"}
     assert data["elements"]["R1"]["original"] == 7 and data["elements"]["R1"]["wrote"] == 10
+
+
+def test_enable_states_keep_the_first_and_leave_only_when_dropped(tmp_path):
+    journal = Journal("tcp://127.0.0.1:500", tmp_path)
+    journal.add_enable_states({"M1001": True})
+    journal.add_enable_states({"M1001": False, "M1002": False})
+    assert Journal("tcp://127.0.0.1:500", tmp_path).enable_states() == {"M1001": True, "M1002": False}
+    journal.drop_enable_states(["M1001", "M1002"])
+    assert not journal.path.exists()

@@ -499,3 +499,24 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
             other.wait(timeout=30)
     finally:
         shutil.rmtree(base, ignore_errors=True)
+
+
+def test_an_operators_forced_bit_stays_forced_after_recovery(plc, tmp_path, capsys):
+    """Enable states journaled with command 43 (the kind issue 25 item 7 journals) come back exactly, read back:
+    a bit the operator had disabled is disabled again, one that was enabled is enabled."""
+    url = _url(plc)
+    key = lock_key(url)
+    journal_path(key).write_text(json.dumps(_journal(key, plc, enable={
+        "M1001": _stamp({"disabled": True}), "M1002": _stamp({"disabled": False})})))
+    with _plc(plc) as t:
+        t.bit_action("M1002", 1)  # the dead run disabled M1002 and enabled M1001
+    try:
+        code, lines = _restore(capsys, url, "--bench", str(_profile(tmp_path, plc)))
+        assert code == 0, lines
+        assert "M1001 disabled (read back, command 43)" in lines[0] and "M1002 enabled (read back" in lines[0]
+        with _plc(plc) as t:
+            assert t.read_disabled("M1001", 2) == [1, 0]
+    finally:
+        with _plc(plc) as t:
+            t.bit_action("M1001", 2)
+            t.bit_action("M1002", 2)

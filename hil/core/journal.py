@@ -27,7 +27,8 @@ The schema (version 2), one JSON object::
      "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null, …}},
      "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float, …},
      "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
-     "disabled": [NAME, …]}                                             # bits command 42 disabled
+     "disabled": [NAME, …],                                             # bits command 42 disabled
+     "enable":   {NAME: {"disabled": bool, …}}}                         # enable state (command 43) before 42
 
 Each section is checked entry by entry by its kind's validator (:func:`register_kind`): a malformed entry is
 named and kept, the others still replayed.  A kind may carry fields beyond those its validator checks (they are
@@ -205,6 +206,10 @@ def _check_disabled(entry: Any) -> str | None:
     return None
 
 
+def _check_enable(entry: Any) -> str | None:
+    return _fields(entry, {"disabled": _bool}, {"disabled": "true or false"})
+
+
 def _who(entry: Any) -> str:
     return f" — by {entry.get('test') or '?'} (pid {entry.get('pid')})" if isinstance(entry, dict) else ""
 
@@ -233,11 +238,17 @@ def _show_disabled(name: str, e: Any) -> str:
     return f"{', '.join(e)} disabled by command 42 (to be re-enabled)"
 
 
+def _show_enable(name: str, e: Any) -> str:
+    return f"{name} {'disabled' if e['disabled'] else 'enabled'} (command 43) before the run changed it{_who(e)}"
+
+
 ELEMENTS = register_kind(EntryKind("elements", True, _check_element, _show_element, {}))
 COILS = register_kind(EntryKind("coils", True, _check_coil, _show_coil, {}))
 CLOCK = register_kind(EntryKind("clock", False, _check_clock, _show_clock))
 RUN = register_kind(EntryKind("run", False, _check_run, _show_run))
 DISABLED = register_kind(EntryKind("disabled", False, _check_disabled, _show_disabled, []))
+#: a bit's enable state (FATEK command 43: disabled = forced) before a test first enabled or disabled it
+ENABLE = register_kind(EntryKind("enable", True, _check_enable, _show_enable, {}))
 
 
 def entry_id(section: str, name: str | None = None) -> str:
@@ -458,14 +469,39 @@ class Journal:
             return bool(gone)
         self._change(apply, adds=False)
 
-    def set_clock(self, plc_time: dt.datetime, host: float, scale: float) -> None:
-        """The clock before a test set it: ``plc_time`` read when the host's wall clock said ``host``."""
+    def set_clock(self, plc_time: dt.datetime, host: float, scale: float, **more: Any) -> None:
+        """The clock before a test set it: ``plc_time`` read when the host's wall clock said ``host`` (``more``:
+        fields of the clock's own, e.g. what tells a host clock stepped before recovery)."""
         def apply(data: dict[str, Any]) -> bool:
             if data["clock"] is not None:
                 return False
-            data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **self._stamp()}
+            data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **more, **self._stamp()}
             return True
         self._change(apply)
+
+    def enable_states(self) -> dict[str, bool]:
+        """Bit → whether it was disabled (forced) before a test first enabled or disabled it (well-formed ones)."""
+        return {n: bool(e["disabled"]) for n, e in self.data["enable"].items() if _check_enable(e) is None}
+
+    def add_enable_states(self, states: dict[str, bool]) -> None:
+        """Bits' enable states (True: disabled) before a first command 42 enable/disable; a bit already journaled
+        keeps its first (older) state."""
+        def apply(data: dict[str, Any]) -> bool:
+            fresh = {n: bool(v) for n, v in states.items() if n not in data["enable"]}
+            stamp = self._stamp()
+            data["enable"].update({n: {"disabled": v, **stamp} for n, v in fresh.items()})
+            return bool(fresh)
+        self._change(apply)
+
+    def drop_enable_states(self, names: Iterable[str]) -> None:
+        names = set(names)
+
+        def apply(data: dict[str, Any]) -> bool:
+            gone = [n for n in data["enable"] if n in names]
+            for name in gone:
+                del data["enable"][name]
+            return bool(gone)
+        self._change(apply, adds=False)
 
     def drop_clock(self) -> None:
         def apply(data: dict[str, Any]) -> bool:
@@ -530,5 +566,5 @@ class Journal:
                                f"without its originals on disk") from None
 
 
-__all__ = ["DISABLED", "ELEMENTS", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
+__all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
            "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "parse", "register_kind", "state_dir"]

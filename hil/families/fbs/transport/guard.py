@@ -18,7 +18,7 @@ from typing import Iterable, Sequence
 from hil.bench.guard import Guard
 from hil.bench.replay import Recovery, age_problem
 from hil.core.errors import HilError, TransportError, WriteRefused
-from hil.core.journal import DISABLED, RUN, Journal
+from hil.core.journal import DISABLED, ENABLE, RUN, Journal
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
 from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value, value_problem
 
@@ -190,14 +190,44 @@ class GuardedTransport(Guard, Transport):
                 why = f"{', '.join(refused)} not in the profile's [safety] writable"
             if why:
                 report.refused.append(f"disabled bits {names}: {why}")
-                return
-            try:
-                self._reenable(bits)
-            except HilError as exc:
-                report.failures.append(f"disabled bits {', '.join(names)}: {exc}")
             else:
-                report.verified.append(f"{', '.join(names)} enabled (read back, command 43)")
-                journal.set_extra("disabled", [])
+                try:
+                    self._reenable(bits)
+                except HilError as exc:
+                    report.failures.append(f"disabled bits {', '.join(names)}: {exc}")
+                else:
+                    report.verified.append(f"{', '.join(names)} enabled (read back, command 43)")
+                    journal.set_extra("disabled", [])
+        self._recover_enable_states(journal, report, by_hand)
+
+    def _recover_enable_states(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """Each bit's journaled enable state (command 43 before the run's command 42) put back — writable bits only
+        — and read back with command 43."""
+        act, read = getattr(self.inner, "bit_action", None), getattr(self.inner, "read_disabled", None)
+        for name, entry in journal.data["enable"].items():
+            why = ENABLE.check(entry) or age_problem(entry, by_hand)
+            try:
+                bit = parse(name) if why is None else None
+            except Exception as exc:  # noqa: BLE001 - a bad name refuses the entry by name
+                why = f"not a bit of this PLC: {exc}"
+            if why is None and bit not in self.writable:
+                why = "not in the profile's [safety] writable"
+            if why is None and (act is None or read is None):
+                why = f"{self.inner.description} has no commands 42/43"
+            if why:
+                report.refused.append(f"enable state of {name}: {why}")
+                continue
+            state = "disabled" if entry["disabled"] else "enabled"
+            try:
+                if bool(read(bit, 1)[0]) != entry["disabled"]:
+                    act(bit, 1 if entry["disabled"] else 2)
+                if bool(read(bit, 1)[0]) != entry["disabled"]:
+                    raise WriteRefused(f"command 43 does not read back {state}")
+            except HilError as exc:
+                report.failures.append(f"enable state of {name} (original {state}): {exc}")
+                continue
+            report.verified.append(f"{name} {state} (read back, command 43)")
+            journal.drop_enable_states([name])
 
     def value_problem(self, element: Address, value: int) -> str | None:
         return value_problem(element, value)
