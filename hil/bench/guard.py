@@ -30,11 +30,12 @@ from __future__ import annotations
 import datetime as dt
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, TypeVar
 
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
-from hil.core.journal import Journal
+from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
+from hil.core.journal import CLOCK, Journal, JournalError
 from hil.core.timebase import Timebase
 
 T = TypeVar("T")
@@ -68,35 +69,9 @@ class ClockOrigin:
         return self.plc + dt.timedelta(seconds=(now - self.at) * self.scale)
 
 
-@dataclass
-class Recovery:
-    """What :meth:`Guard.recover` found in a dead run's journal, and what it could not put back."""
-
-    bench: str
-    path: str
-    pending: list[str] = field(default_factory=list)  # what the journal held, one line each
-    failures: list[str] = field(default_factory=list)  # what could not be restored (still in the journal)
-
-    @property
-    def needed(self) -> bool:
-        return bool(self.pending)
-
-    @property
-    def ok(self) -> bool:
-        return not self.failures
-
-    def summary(self) -> str:
-        if not self.needed:
-            return f"hil bench recovery: nothing pending for {self.bench}"
-        if self.ok:
-            return (f"hil bench recovery: a previous run on {self.bench} died leaving {len(self.pending)} value(s) "
-                    f"changed — restored and verified: " + "; ".join(self.pending))
-        return (f"hil bench recovery FAILED on {self.bench}: still unrestored (kept in {self.path}): "
-                + "; ".join(self.failures))
-
-
-#: a family's own recovery step (e.g. a fault rig's coils): called with the journal and the report to add to
-RecoveryStep = Callable[[Journal, Recovery], None]
+#: a family's own recovery step (e.g. a fault rig's coils): called with the journal, the report to add to and
+#: whether an operator asked for it by hand (``hil restore``: older entries too)
+RecoveryStep = Callable[[Journal, Recovery, bool], None]
 
 
 class Guard(ABC):
@@ -122,6 +97,9 @@ class Guard(ABC):
         self.clock_origin: ClockOrigin | None = None
         self.clock_due = False  # a test may have set the clock and it is not put back yet
         self._clock_busy = False  # the guard is reading or putting back the clock itself
+        # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
+        self.identity_vouched = False
+        self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
 
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
@@ -147,9 +125,6 @@ class Guard(ABC):
     def _restore_actions(self) -> None:
         """A family's own undo that comes before the values (e.g. RUN/STOP back); journal extras cleared."""
 
-    def _adopt(self, journal: Journal) -> None:
-        """Take over a dead run's family extras from its journal (see :meth:`_restore_actions`)."""
-
     # -- the allow-list and the journal ------------------------------------------------------------------------
     def check(self, names: Iterable[Any]) -> list:
         """Raise WriteRefused unless every element is writable; return the elements covered."""
@@ -165,11 +140,12 @@ class Guard(ABC):
             covered += parts
         return covered
 
-    def guarded(self, names: Iterable[Any], write: Callable[[], T]) -> T:
-        """``write()`` once every element of ``names`` is allowed and its original journaled."""
+    def guarded(self, names: Iterable[Any], write: Callable[[], T], wrote: dict | None = None) -> T:
+        """``write()`` once every element of ``names`` is allowed and its original journaled, with ``wrote`` (element
+        → the value about to be written, when the family knows it) — on disk before the write goes out."""
         with self._lock:
             covered = self.check(names)
-            self._remember(covered)
+            self._remember(covered, wrote or {})
             return write()
 
     def setting_clock(self, action: Callable[[], T]) -> T:
@@ -178,26 +154,31 @@ class Guard(ABC):
             self._note_clock()
             return action()
 
-    def _remember(self, covered: Sequence) -> None:
+    def _remember(self, covered: Sequence, wrote: dict) -> None:
+        if self._replaying:  # recovery's own writes (the clock's set procedure) put back, they journal nothing
+            self.touched.update(covered)
+            return
         if self.clock is not None and self.clock.touches.intersection(covered):
             self._note_clock()
         wanted = list(covered)
         if self.side_effects is not None:
             wanted += list(self.side_effects(list(covered)))
         fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
-        if fresh:
-            originals = dict(zip(fresh, self.read_originals(fresh)))
-            if self.durable is not None:  # on disk (fsync'd) before the write goes out
-                self.durable.add_elements({str(e): v for e, v in originals.items()})
-            self.journal.update(originals)
+        originals = dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
+        # on disk (fsync'd) before the write goes out: the original and what is written — except the guard's own
+        # clock restore once the journal has failed (a restore is never refused; it puts the PLC back)
+        if self.durable is not None and not (self._clock_busy and self.durable.failed):
+            self.durable.add_elements({str(e): v for e, v in originals.items()},
+                                      {str(e): v for e, v in wrote.items() if e not in self.volatile})
+        self.journal.update(originals)
         self.touched.update(covered)
 
     def _note_clock(self) -> None:
         """Before the first write that may set the clock: its time against the reference, durable first."""
         if self._clock_busy:
             return
-        self.clock_due = True
         if self.clock_origin is not None or self.clock is None:
+            self.clock_due = True
             return
         self._clock_busy = True
         try:
@@ -205,15 +186,18 @@ class Guard(ABC):
         finally:
             self._clock_busy = False
         if plc is None:  # no valid time: there is no offset to keep; the restore puts it on the bench's time
+            self.clock_due = True
             return
         timebase = self.clock.timebase
         if timebase.virtual:
-            self.clock_origin = ClockOrigin(plc, timebase.now(), 1.0, virtual=True)
+            origin = ClockOrigin(plc, timebase.now(), 1.0, virtual=True)
         else:
             scale = float(getattr(timebase, "time_scale", 1.0))
-            self.clock_origin = ClockOrigin(plc, time.time(), scale, virtual=False)
-        if self.durable is not None:
-            self.durable.set_clock(plc, self.clock_origin.at, self.clock_origin.scale)
+            origin = ClockOrigin(plc, time.time(), scale, virtual=False)
+        if self.durable is not None:  # on disk before it is kept (and before the write that may set the clock)
+            self.durable.set_clock(plc, origin.at, origin.scale)
+        self.clock_origin = origin
+        self.clock_due = True
 
     # -- per test ----------------------------------------------------------------------------------------------
     def begin(self, test_id: str = "") -> None:
@@ -327,34 +311,72 @@ class Guard(ABC):
         return [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v], False
 
     # -- recovery first ----------------------------------------------------------------------------------------
-    def recover(self, steps: Iterable[RecoveryStep] = ()) -> Recovery | None:
-        """Replay what a dead run left in the durable journal (before anything else), verified, through
-        :meth:`restore`: the family's ``steps`` first, then its extras, the clock (exactly) and the elements.
-        None without a durable journal (an in-process emulator: nothing outlives a run)."""
+    def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:
+        """Replay what a dead run left in the durable journal (before anything else), as far as it can be proven
+        (:mod:`hil.bench.replay`): the family's ``steps`` first, then its actions, the clock (exactly) and the
+        elements.  None without a durable journal (an in-process emulator: nothing outlives a run)."""
         journal = self.durable
         if journal is None:
             return None
-        journal.data = journal.load()
+        try:
+            journal.data = journal.load()
+        except JournalError as exc:
+            return Recovery(journal.key, str(journal.path), refused=[str(exc)])
         report = Recovery(journal.key, str(journal.path), journal.describe())
         if not journal.pending:
             return report
+        mismatch = identity_problem(journal, self.identity_vouched)
+        if mismatch:
+            report.refused.append(mismatch)
+            return report
         for step in steps:
-            step(journal, report)
+            step(journal, report, by_hand)
         with self._lock:
-            self._adopt(journal)
-            for name, value in journal.elements().items():  # what the PLC held before the dead run
-                for element in self.split(name):
-                    self.journal.setdefault(element, value)
-            entry = journal.clock()
-            if entry:
-                self.clock_due = True
-                self.clock_origin = ClockOrigin(dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]),
-                                                float(entry["scale"]), virtual=False)
             try:
-                self.restore(exact=True)
-            except RestoreError as exc:
-                report.failures += [f"{name} (original {value}): {why}" for name, value, why in exc.failures]
+                self._recover_actions(journal, report, by_hand)
+            except HilError as exc:
+                report.failures.append(f"RUN/STOP and disabled bits: {exc}")
+            self._recover_clock(journal, report, by_hand)
+            replay_elements(self, journal, report, by_hand)
         return report
+
+    def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """A family's own entries (e.g. RUN/STOP, disabled bits), each checked and read back, into ``report``."""
+
+    def _recover_clock(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """The clock a dead run may have set, back at its offset from the host's clock (exactly)."""
+        entry = journal.clock()
+        if entry is None:
+            return
+        why = CLOCK.check(entry) or age_problem(entry, by_hand)
+        if why is None and self.clock is None:
+            why = "this bench has no way to set the clock"
+        elif why is None and self.clock.touches and not self.clock.touches & self.writable:
+            why = "the clock's elements are not in the profile's [safety] writable"
+        if why:
+            report.refused.append(f"clock: {why}")
+            return
+        self.clock_due = True
+        self.clock_origin = ClockOrigin(dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]),
+                                        float(entry["scale"]), virtual=False)
+        origin = self.clock_origin
+        self._replaying = True
+        try:
+            failures = self._put_clock(exact=True)
+        finally:
+            self._replaying = False
+        if failures:
+            report.failures += [f"clock (original {value}): {why}" for _, value, why in failures]
+            return
+        want, got = origin.original(self.clock.timebase), self.clock.read()  # read back: whole seconds
+        if got is None or abs((got - want).total_seconds()) > 2.0 * max(1.0, origin.scale):
+            report.failures.append(f"clock: reads {got} after the restore, expected {want:%Y-%m-%d %H:%M:%S}")
+        else:
+            report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} (its offset from host time, read back)")
+
+    def value_problem(self, element: Any, value: int) -> str | None:
+        """Why ``value`` cannot be ``element``'s (None when it can): the family's range check."""
+        return None
 
 
 __all__ = ["Clock", "ClockOrigin", "Guard", "Recovery", "RecoveryStep"]

@@ -80,6 +80,7 @@ class _State:
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
         self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
+        self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
         self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
         self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
@@ -102,6 +103,7 @@ class _State:
                 raise pytest.fail.Exception(self.error, pytrace=False)
             hook = self.config.hook.pytest_hil_make_emulator
             try:
+                self._refuse_default_profile()
                 self._lock_bench()
                 self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
@@ -122,6 +124,12 @@ class _State:
         if not self.recovery.ok:
             self.dead = self.recovery.summary()
 
+    def _refuse_default_profile(self) -> None:
+        """The bundled profile is the emulator's: never for a PLC named by --target alone."""
+        from hil.bench.profile import refuse_default_for_a_plc
+        refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
+                                 self.profile.path)
+
     def _lock_bench(self) -> None:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
         if self.lock is not None or parse_target(self.target).in_process:
@@ -131,6 +139,9 @@ class _State:
         if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
             self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
         self.lock = BenchLock(self.target).acquire(wait=wait)
+        if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
+            from hil.core.lock import plc_key
+            self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
 
     def release(self) -> None:
         try:
@@ -138,10 +149,10 @@ class _State:
                 self.bench.close()
         finally:
             self.bench = None
-            for lock in (self.lock, self.place_lock):
+            for lock in (self.plc_lock, self.lock, self.place_lock):
                 if lock is not None:
                     lock.release()
-            self.lock = self.place_lock = None
+            self.lock = self.place_lock = self.plc_lock = None
             if self.lab is not None:
                 from hil.plugin.lab import let_go
                 session, self.lab = self.lab, None
