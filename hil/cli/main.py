@@ -20,6 +20,7 @@ EXAMPLES = """examples:
   hil run                                   suites on the in-process emulator, JUnit in reports/junit.xml
   hil run --target emulator+fatek-serial    the same over the FATEK protocol on a pseudo-terminal
   hil run --bench my-bench.toml -- -k rtc   a real bench, RTC suites only (pytest args after --)
+  hil run --bench s7-200smart -- s7smart    a bundled profile and suite by short name (hil list shows them)
   hil emulate --fatek-tcp 127.0.0.1:5000    serve the emulator for external clients
   hil probe fatek+serial:///dev/ttyUSB0     status and key registers of a PLC
   hil rtc read fatek+tcp://192.168.1.5:500  the PLC's clock against host time
@@ -136,6 +137,9 @@ def build_parser() -> argparse.ArgumentParser:
     probe.add_argument("--bench", metavar="FILE",
                        help="bench profile: its [temperature] section adds the temperature points to the report "
                             "(and configures an emulator… target)")
+    sub.add_parser("list", help="the bundled bench profiles and suites, by the short names --bench and hil run take",
+                   formatter_class=argparse.RawDescriptionHelpFormatter,
+                   epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n  hil run -- rtc rtc_adjust\n")
     _add_clock_commands(sub)
     restore = sub.add_parser("restore", help="put back what a run that died left changed on a PLC (its journal)",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -309,6 +313,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         if args.rtc_command == "set":
             return rtc.rtc_set(args.url, args.time, console, bench=args.bench)
         return rtc.rtc_sync(args.url, console, bench=args.bench)
+    if args.command == "list":
+        from hil.cli.listing import list_all
+        return list_all(console)
     if args.command == "restore":
         from hil.cli.restore import restore
         return restore(args.url, args.bench, console, show=args.show)

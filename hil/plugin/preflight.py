@@ -1,0 +1,47 @@
+"""A bench that cannot be opened stops the run before anything is collected: one line naming the target and what
+to check, exit 4 (pytest's usage error) — not a screen of skips and the same reason once per test.
+
+The bench is opened (lock, wire, recovery of a dead run's journal) and asked for its status in
+``pytest_sessionstart``, before pytest prints its header, whenever the run names a bench (``--bench``, which
+``hil run`` always passes, or ``--target``) — so plain ``pytest suites --target …`` behaves as ``hil run`` does.
+``--collect-only`` opens nothing.  Without either option the bundled in-process emulator is opened when the first
+bench test is collected (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.core.errors import HilError
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    # Not tryfirst: after hil.plugin.safety has installed the signal handlers (a recovery is shielded), before
+    # the terminal reporter's header (its hook is trylast).
+    config = session.config
+    if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
+        return
+    from hil.core import signals
+    from hil.plugin.pytest_plugin import BENCH_SESSION
+    state = config.stash[BENCH_SESSION]
+    try:
+        target = state.target
+        bench = state.open()
+        bench.plc.status()  # a wire that connects but never answers is as unreachable as a refused port
+    except HilError as exc:
+        raise pytest.UsageError(unreachable(state, exc)) from None
+    except pytest.fail.Exception as exc:  # state.open() says why in pytest's own form
+        raise pytest.UsageError(unreachable(state, exc, target)) from None
+    finally:
+        signals.install()  # idempotent: the safety plugin's, in case this hook ran first
+
+
+def unreachable(state, exc: BaseException, target: str | None = None) -> str:  # noqa: ANN001 - the bench state
+    """One line: the bench, the target and the reason (which says what to check)."""
+    reason = " ".join(str(getattr(exc, "msg", None) or exc).split())
+    reason = reason.removeprefix("cannot open the bench: ")
+    try:
+        name, target = state.profile.name, target or state.target
+    except HilError:
+        return f"hil: {reason}"
+    return f"hil: cannot open bench {name!r} at {target}: {reason}"
