@@ -133,7 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
                                   "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
                                   "with its temperature points)\n")
     probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
-                                              "(default: the --bench profile's target)")
+                                              "(default: the --bench profile's target, else the emulator, as hil run)")
     probe.add_argument("--bench", metavar="FILE",
                        help="bench profile: its [temperature] section adds the temperature points to the report "
                             "(and configures an emulator… target)")
@@ -158,7 +158,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     """``hil rtc read|set|sync`` and ``hil drift code|decode|measure`` (see hil/commands/rtc.py)."""
     raw = argparse.RawDescriptionHelpFormatter
-    url_help = "target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp"
+    url_help = ("target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp "
+                "(default: the --bench profile's target, else the emulator)")
     bench_help = "bench profile for an emulator… target (default fixtures/benches/emulator.toml: an S-35390A RTC)"
 
     rtc = sub.add_parser("rtc", help="read, set or sync a PLC's real-time clock", formatter_class=raw,
@@ -181,7 +182,7 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     sync = rtc_sub.add_parser("sync", help="set the clock to host time, on a whole second", formatter_class=raw,
                               epilog="example:\n  hil rtc sync fatek+serial:///dev/ttyUSB0\n")
     for p in (read, set_, sync):
-        p.add_argument("url", metavar="URL", help=url_help)
+        p.add_argument("url", metavar="URL", nargs="?", help=url_help)
     set_.add_argument("time", metavar="TIME", help="YYYY-MM-DD HH:MM:SS (ISO; 'T' or space; seconds optional)")
     for p in (read, set_, sync):
         p.add_argument("--bench", metavar="FILE", help=bench_help)
@@ -210,7 +211,7 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
                                           "Longer is finer: the resolution is one polling bracket (tens of ms) over "
                                           "the duration, about ±0.03 s/day over a day. Without --apply D4054 is left "
                                           "as it is.\n")
-    measure.add_argument("url", metavar="URL", help=url_help)
+    measure.add_argument("url", metavar="URL", nargs="?", help=url_help)
     measure.add_argument("--duration", type=float, required=True, metavar="SECONDS",
                          help="bench seconds to measure over (more than 5)")
     measure.add_argument("--apply", action="store_true",
@@ -267,7 +268,18 @@ def one_line(exc: BaseException) -> str:
     return text
 
 
+def _given(value: str | None, what: str) -> str | None:
+    """A URL the command line gives; an empty one is refused (it must not quietly mean the profile's)."""
+    if value is not None and not value.strip():
+        raise InvalidValue(f"{what} is empty: give a target URL (e.g. emulator+fatek-tcp, fatek+tcp://HOST:500), or "
+                           f"leave it out to use the bench profile's target")
+    return value
+
+
 def dispatch(args: argparse.Namespace, console: Console) -> int:
+    for name in ("url", "target"):
+        if hasattr(args, name):
+            _given(getattr(args, name), "--target" if name == "target" else "the target URL")
     if args.command == "run":
         from hil.cli.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
@@ -303,8 +315,6 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
                        args.rig_first_coil, live=not args.no_live and console.is_terminal)
     if args.command == "probe":
         from hil.cli.probe import probe
-        if not args.url and not args.bench:
-            raise InvalidValue("probe what? give a target URL, or --bench FILE to use the profile's target")
         return probe(args.url, console, bench=args.bench)
     if args.command == "rtc":
         from hil.cli import rtc

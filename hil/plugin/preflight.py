@@ -19,6 +19,10 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     # Not tryfirst: after hil.plugin.safety has installed the signal handlers (a recovery is shielded), before
     # the terminal reporter's header (its hook is trylast).
     config = session.config
+    given = config.getoption("--target")
+    if given is not None and not given.strip():
+        raise pytest.UsageError("hil: --target is empty: give a target URL (e.g. emulator+fatek-tcp, "
+                                "fatek+tcp://HOST:500), or leave it out to use the bench profile's target")
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
     from hil.core import signals
