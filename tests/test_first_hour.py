@@ -1,0 +1,102 @@
+"""A new user's first hour (issue 24): a bench that cannot be opened, usage errors, the defaults — each one line
+and exit 4 where it is the user's to fix, through the real command line (``python -m hil``, plain pytest)."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.test_cli_entry import EXIT_USAGE, REPO, hil
+
+
+def _refused_port() -> int:
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def silent_port():
+    """A TCP port that accepts and never answers."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    yield server.getsockname()[1]
+    server.close()
+
+
+def _one_line(done: subprocess.CompletedProcess) -> str:
+    lines = [line for line in (done.stdout + done.stderr).splitlines() if line.strip()]
+    assert len(lines) == 1, done.stdout + done.stderr
+    assert "Traceback" not in lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize("target, says", [
+    ("fatek+tcp://127.0.0.1:{refused}", "nothing accepted the connection — check host and port"),
+    ("modbus+tcp://127.0.0.1:{refused}", "is the PLC powered and reachable at 127.0.0.1:"),
+    ("fatek+tcp://nosuchhost.invalid:500", "the host name 'nosuchhost.invalid' does not resolve"),
+    ("fatek+tcp://127.0.0.1:{silent}?timeout=0.2&retries=0", "check the station number, the wiring or address"),
+    ("modbus+tcp://127.0.0.1:{silent}?timeout=0.2&retries=0", "check the unit id"),
+], ids=["fatek-refused", "modbus-refused", "unknown-host", "fatek-silent", "modbus-silent"])
+def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
+        target: str, says: str, silent_port: int, tmp_path: Path) -> None:
+    target = target.format(refused=_refused_port(), silent=silent_port)
+    done = hil("run", "--target", target, cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
+    line = _one_line(done)  # nothing collected, skipped or passed before it: it is the only line
+    assert f"at {target}:" in line and says in line, line
+    assert not (tmp_path / "reports" / "junit.xml").exists()  # no report claiming a verdict
+
+
+def test_plain_pytest_stops_the_same_way(tmp_path: Path) -> None:
+    target = f"fatek+tcp://127.0.0.1:{_refused_port()}"
+    done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites"), "--target", target, "-p",
+                           "no:cacheprovider"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == EXIT_USAGE
+    assert f"at {target}:" in _one_line(done)
+
+
+def test_probe_says_a_host_name_does_not_resolve(tmp_path: Path) -> None:
+    done = hil("probe", "fatek+tcp://nosuchhost.invalid:500", cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE
+    line = _one_line(done)
+    assert "does not resolve" in line and "nothing accepted" not in line, line
+
+
+def test_an_s7_target_on_an_fbs_profile_names_the_s7_profile(tmp_path: Path) -> None:
+    done = hil("run", "--target", "emulator+s7-tcp", cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE
+    assert "--bench s7-200smart" in _one_line(done)
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["emulate", "--fatek-tcp", "127.0.0.1:99999", "--no-live"], "port 99999 is not a TCP port"),
+    (["emulate", "--fatek-tcp", "nosuchhost.invalid:0", "--no-live"], "cannot listen on nosuchhost.invalid:0"),
+    (["probe", "fatek+tcp://[::1"], "an IPv6 host goes in brackets"),
+    (["run", "--target", ""], "--target is empty"),
+    (["probe", ""], "the target URL is empty"),
+])
+def test_usage_errors_are_one_line_and_exit_4(argv: list[str], says: str, tmp_path: Path) -> None:
+    done = hil(*argv, cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
+    assert says in _one_line(done)
+
+
+def test_plain_pytest_refuses_an_empty_target(tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites" / "test_smoke.py"), "--target", "",
+                           "-p", "no:cacheprovider"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == EXIT_USAGE and "--target is empty" in _one_line(done)
+
+
+def test_probe_and_rtc_read_default_as_hil_run_does(tmp_path: Path) -> None:
+    probed = hil("probe", cwd=tmp_path)
+    assert probed.returncode == 0, probed.stderr
+    assert "emulator (in-process)" in probed.stdout
+    read = hil("rtc", "read", "--bench", "emulator", cwd=tmp_path)  # the profile's target, by its short name
+    assert read.returncode == 0, read.stderr
+    assert "chip D4053" in read.stdout and "S-35390A" in read.stdout
