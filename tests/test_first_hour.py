@@ -100,3 +100,53 @@ def test_probe_and_rtc_read_default_as_hil_run_does(tmp_path: Path) -> None:
     read = hil("rtc", "read", "--bench", "emulator", cwd=tmp_path)  # the profile's target, by its short name
     assert read.returncode == 0, read.stderr
     assert "chip D4053" in read.stdout and "S-35390A" in read.stdout
+
+
+@pytest.mark.parametrize("duration", ["10", "12", "20"])
+def test_drift_measure_measures_what_was_asked(duration: str, tmp_path: Path) -> None:
+    done = hil("drift", "measure", "emulator", "--duration", duration, cwd=tmp_path)  # virtual time: instant
+    assert done.returncode == 0, done.stderr
+    assert f"{float(duration):.1f} s bench time" in done.stdout, done.stdout  # was 5.0, 5.0 and 13.0 s
+
+
+def test_probe_shows_the_clock_as_a_date(tmp_path: Path) -> None:
+    import re
+    done = hil("probe", "emulator", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    row = next(line for line in done.stdout.splitlines() if "R4128–R4134" in line)
+    assert re.search(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d [A-Z][a-z]+day", row), row
+
+
+def test_offsets_and_host_times_read_as_durations_and_dates() -> None:
+    import datetime as dt
+    from hil.cli.rtc import _vs_host
+    from hil.core.journal import Journal
+    host = dt.datetime(2026, 12, 1, 20, 0, 0)
+    far = _vs_host(host - dt.timedelta(days=1005, hours=18, minutes=7, seconds=3), host)
+    assert far.startswith("PLC 1005 d 18 h 07 min behind host time") and "-86897223.0 s" in far, far
+    assert _vs_host(host + dt.timedelta(seconds=5), host).startswith("PLC 5.0 s ahead of host time")
+    journal = Journal("tcp://127.0.0.1:1")
+    journal.set_clock(host, host.timestamp() + 0.77, 1.0)
+    line = next(line for line in journal.describe() if line.startswith("clock"))
+    assert "at host time 2026-12-01 20:00:00.770" in line, line
+
+
+def test_restore_show_says_what_is_gone(tmp_path: Path) -> None:
+    port = _refused_port()  # an emulator's port, closed since
+    writer = subprocess.run([sys.executable, "-c", "from hil.core.journal import Journal\n"
+                             f"j = Journal('tcp://127.0.0.1:{port}'); j.test = 'suites/test_x.py::t'\n"
+                             "j.add_elements({'R100': 7})"], capture_output=True, text=True, timeout=60)
+    assert writer.returncode == 0, writer.stderr
+    done = hil("restore", "--show", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    text = " ".join(done.stdout.split())
+    assert "R100 = 7" in text
+    assert "are no longer running" in text and f"nothing listens on 127.0.0.1:{port} now" in text, text
+
+
+def test_hil_list_names_the_bundled_profiles_and_suites(tmp_path: Path) -> None:
+    done = hil("list", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    names = {line.split()[0] for line in done.stdout.splitlines() if line.startswith("  ")}
+    assert {"emulator", "s7-200smart", "example-bench", "rtc", "rtc_validity", "smoke", "s7smart"} <= names
+    assert "list" in hil("--help", cwd=tmp_path).stdout

@@ -23,6 +23,7 @@ import os
 from pathlib import Path
 from typing import Any, Iterable
 
+from hil.core.humantime import moment
 from hil.core.errors import HilError
 
 VERSION = 1
@@ -111,7 +112,7 @@ class Journal:
                          f" (pid {entry.get('pid')})")
         if d["clock"]:
             c = d["clock"]
-            lines.append(f"clock: was {c['plc']} at host time {c['host']:.3f} (scale {c['scale']}) — set by "
+            lines.append(f"clock: was {c['plc']} at host time {moment(c['host'])} (scale {c['scale']}) — set by "
                          f"{c.get('test') or '?'} (pid {c.get('pid')})")
         if d.get("run") is not None:
             lines.append(f"RUN/STOP: was {'RUN' if d['run'] else 'STOP'}")
