@@ -150,3 +150,16 @@ def test_hil_list_names_the_bundled_profiles_and_suites(tmp_path: Path) -> None:
     names = {line.split()[0] for line in done.stdout.splitlines() if line.startswith("  ")}
     assert {"emulator", "s7-200smart", "example-bench", "rtc", "rtc_validity", "smoke", "s7smart"} <= names
     assert "list" in hil("--help", cwd=tmp_path).stdout
+
+
+def test_a_default_profile_that_cannot_be_opened_stops_at_collection(tmp_path: Path) -> None:
+    """No --bench nor --target: the profile found in ./fixtures/benches is opened once a bench test is collected."""
+    benches = tmp_path / "fixtures" / "benches"
+    benches.mkdir(parents=True)
+    target = f"fatek+tcp://127.0.0.1:{_refused_port()}"
+    benches.joinpath("emulator.toml").write_text(f'[bench]\nname = "mine"\ntarget = "{target}"\n')
+    done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites" / "test_smoke.py"), "-p",
+                           "no:cacheprovider", "-q"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
+    assert f"cannot open bench 'mine' at {target}:" in done.stderr
+    assert "passed" not in done.stdout and "skipped" not in done.stdout and "error" not in done.stdout.lower()

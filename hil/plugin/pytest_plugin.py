@@ -1,7 +1,8 @@
 """The hil pytest plugin: options, markers, collection-time skips, and the ``bench`` fixture.
 
-Loaded automatically through the ``pytest11`` entry point.  Nothing connects to a PLC until a test asks for
-``bench``; the bench is opened once per session and every test's writes are restored when the test ends.
+Loaded automatically through the ``pytest11`` entry point.  The bench is opened once per session — before
+collection when the run names one (:mod:`hil.plugin.preflight`), else once a bench test is collected; one that
+cannot be opened stops the run there, in one line — and every test's writes are restored when the test ends.
 """
 
 from __future__ import annotations
@@ -258,6 +259,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
             from hil.core.lock import describe_holder
             line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
     except (HilError, pytest.fail.Exception) as exc:
+        if state.bench is None:  # never opened (not opened before collection either): one line, exit 4
+            from hil.plugin.preflight import unreachable
+            raise pytest.UsageError(unreachable(state, exc)) from None
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
     state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)
