@@ -10,23 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_cli_entry import EXIT_USAGE, REPO, hil
+from tests.test_cli_entry import EXIT_USAGE, REPO, hil, silent_listener  # noqa: F401 - a fixture
 
 
 def _refused_port() -> int:
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-@pytest.fixture(scope="module")
-def silent_port():
-    """A TCP port that accepts and never answers."""
-    server = socket.socket()
-    server.bind(("127.0.0.1", 0))
-    server.listen()
-    yield server.getsockname()[1]
-    server.close()
 
 
 def _one_line(done: subprocess.CompletedProcess) -> str:
@@ -44,8 +34,8 @@ def _one_line(done: subprocess.CompletedProcess) -> str:
     ("modbus+tcp://127.0.0.1:{silent}?timeout=0.2&retries=0", "check the unit id"),
 ], ids=["fatek-refused", "modbus-refused", "unknown-host", "fatek-silent", "modbus-silent"])
 def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
-        target: str, says: str, silent_port: int, tmp_path: Path) -> None:
-    target = target.format(refused=_refused_port(), silent=silent_port)
+        target: str, says: str, silent_listener: int, tmp_path: Path) -> None:
+    target = target.format(refused=_refused_port(), silent=silent_listener)
     done = hil("run", "--target", target, cwd=tmp_path)
     assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
     line = _one_line(done)  # nothing collected, skipped or passed before it: it is the only line
@@ -97,9 +87,13 @@ def test_probe_and_rtc_read_default_as_hil_run_does(tmp_path: Path) -> None:
     probed = hil("probe", cwd=tmp_path)
     assert probed.returncode == 0, probed.stderr
     assert "emulator (in-process)" in probed.stdout
-    read = hil("rtc", "read", "--bench", "emulator", cwd=tmp_path)  # the profile's target, by its short name
+    profile = tmp_path / "wire.toml"
+    profile.write_text((REPO / "fixtures" / "benches" / "emulator.toml").read_text()
+                       .replace('target = "emulator"', 'target = "emulator+fatek-tcp"'))
+    read = hil("rtc", "read", "--bench", str(profile), cwd=tmp_path)  # the profile's target, no URL
     assert read.returncode == 0, read.stderr
-    assert "chip D4053" in read.stdout and "S-35390A" in read.stdout
+    assert "RTC of emulator+fatek-tcp" in read.stdout and "S-35390A" in read.stdout, read.stdout
+    assert hil("rtc", "read", "--bench", "emulator", cwd=tmp_path).returncode == 0  # a profile by its short name
 
 
 @pytest.mark.parametrize("duration", ["10", "12", "20"])

@@ -4,7 +4,7 @@ to check, exit 4 (pytest's usage error) — not a screen of skips and the same r
 The bench is opened (lock, wire, recovery of a dead run's journal) and asked for its status in
 ``pytest_sessionstart``, before pytest prints its header, whenever the run names a bench (``--bench``, which
 ``hil run`` always passes, or ``--target``) — so plain ``pytest suites --target …`` behaves as ``hil run`` does.
-``--collect-only`` opens nothing.  Without either option the bundled in-process emulator is opened when the first
+``--collect-only`` opens nothing; a pytest-xdist controller lets go once it has checked (its workers open it).  Without either option the bundled in-process emulator is opened when the first
 bench test is collected (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`).
 """
 
@@ -26,8 +26,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
     from hil.core import signals
-    from hil.plugin.pytest_plugin import BENCH_SESSION
-    state = config.stash[BENCH_SESSION]
+    from hil.plugin.safety import BENCH_STATE  # the session's bench state (hil.plugin.pytest_plugin._State)
+    state = config.stash[BENCH_STATE]
     try:
         target = state.target
         bench = state.open()
@@ -38,6 +38,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         raise pytest.UsageError(unreachable(state, exc, target)) from None
     finally:
         signals.install()  # idempotent: the safety plugin's, in case this hook ran first
+    if getattr(config.option, "dist", "no") != "no" and not hasattr(config, "workerinput"):
+        state.release()  # a pytest-xdist controller runs no test: it checked, its workers open the bench
 
 
 def unreachable(state, exc: BaseException, target: str | None = None) -> str:  # noqa: ANN001 - the bench state
