@@ -80,7 +80,9 @@ def test_wheel_install_runs_the_bundled_suites_from_anywhere(tmp_path: Path) -> 
     assert listed.returncode == 0 and "s7-200smart" in listed.stdout and "rtc_validity" in listed.stdout
     for argv, says in ((["--bench", "s7-200smart", "--", "s7_smoke"], "passed"),
                        (["--", "rtc_adjust", "--co", "-q"], "suites/test_rtc_adjust.py::"),
-                       (["--", "suites/test_rtc.py", "--co", "-q"], "suites/test_rtc.py::")):
+                       (["--", "suites/test_rtc.py", "--co", "-q"], "suites/test_rtc.py::"),
+                       (["--bench", "fixtures/benches/s7-200smart.toml", "--", "s7smart", "--co", "-q"],
+                        "suites/s7smart/test_s7_rtc.py::")):
         done = subprocess.run([str(fresh / "bin" / "hil"), "run", *argv], cwd=elsewhere, env=env,
                               capture_output=True, text=True, timeout=120)
         assert done.returncode == 0 and says in done.stdout, argv + [done.stdout[-2000:], done.stderr]

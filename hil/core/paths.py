@@ -39,12 +39,17 @@ def bundled_benches() -> dict[str, Path]:
 
 
 def bench_path(given: str | Path) -> Path:
-    """A bench profile given as a path, or by the short name of a bundled one (``--bench s7-200smart``): a file
-    that exists always wins, so a name never hides a user's own profile."""
+    """A bench profile given as a path, or by the short name of a bundled one (``--bench s7-200smart``), or as the
+    README spells them (``fixtures/benches/s7-200smart.toml``) where this directory has none: a file that exists
+    always wins, so a name never hides a user's own profile."""
     path = Path(given)
-    if path.exists() or path.suffix or len(path.parts) != 1:
+    if path.exists() or path.is_absolute():
         return path
-    return bundled_benches().get(str(given), path)
+    if path.parts[:1] == ("fixtures",) and (BUNDLED / path).is_file():  # the README's fixtures/benches/…, installed
+        return BUNDLED / path
+    if len(path.parts) == 1 and path.suffix in ("", ".toml"):
+        return bundled_benches().get(path.stem, path)
+    return path
 
 
 def suites_dir() -> Path:
