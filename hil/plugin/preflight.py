@@ -4,8 +4,9 @@ to check, exit 4 (pytest's usage error) — not a screen of skips and the same r
 The bench is opened (lock, wire, recovery of a dead run's journal) and asked for its status in
 ``pytest_sessionstart``, before pytest prints its header, whenever the run names a bench (``--bench``, which
 ``hil run`` always passes, or ``--target``) — so plain ``pytest suites --target …`` behaves as ``hil run`` does.
-``--collect-only`` opens nothing; a pytest-xdist controller lets go once it has checked (its workers open it).  Without either option the bundled in-process emulator is opened when the first
-bench test is collected (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`).
+``--collect-only`` opens nothing; a pytest-xdist controller lets go once it has checked (its workers open it).
+Without either option the bench is opened when the first bench test is collected
+(:func:`hil.plugin.pytest_plugin.pytest_collection_finish`), and one that cannot be is the same line there.
 """
 
 from __future__ import annotations
@@ -16,8 +17,7 @@ from hil.core.errors import HilError
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
-    # Not tryfirst: after hil.plugin.safety has installed the signal handlers (a recovery is shielded), before
-    # the terminal reporter's header (its hook is trylast).
+    # Not tryfirst: before the terminal reporter's header (its hook is trylast), nothing printed yet.
     config = session.config
     given = config.getoption("--target")
     if given is not None and not given.strip():
@@ -28,6 +28,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     from hil.core import signals
     from hil.plugin.safety import BENCH_STATE  # the session's bench state (hil.plugin.pytest_plugin._State)
     state = config.stash[BENCH_STATE]
+    signals.install()  # as hil.plugin.safety does (idempotent): a recovery replayed on opening is shielded
     try:
         target = state.target
         bench = state.open()
@@ -36,8 +37,6 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         raise pytest.UsageError(unreachable(state, exc)) from None
     except pytest.fail.Exception as exc:  # state.open() says why in pytest's own form
         raise pytest.UsageError(unreachable(state, exc, target)) from None
-    finally:
-        signals.install()  # idempotent: the safety plugin's, in case this hook ran first
     if getattr(config.option, "dist", "no") != "no" and not hasattr(config, "workerinput"):
         state.release()  # a pytest-xdist controller runs no test: it checked, its workers open the bench
 
