@@ -64,7 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 "  hil run --bench lab-fbs.toml --lg-reserve \"family=fbs rtc=s35390a\"  (a labgrid "
                                 "place)\n")
     run.add_argument("--bench", metavar="FILE", action="append",
-                     help="bench profile (default fixtures/benches/emulator.toml); give it more than once to run "
+                     help="bench profile: a file or a bundled profile's name, e.g. s7-200smart (hil list; default "
+                          "fixtures/benches/emulator.toml); give it more than once to run "
                           "the benches in parallel (junit-<bench>.xml each, merged into --junitxml)")
     run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
     lab = run.add_argument_group("a lab of benches (labgrid)")
@@ -92,8 +93,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--color", choices=("auto", "yes", "no"), default=None,
                      help="colour the console (default auto: only on a terminal, never with NO_COLOR)")
     run.add_argument("pytest_args", nargs=argparse.REMAINDER,
-                     help="after --: pytest arguments; test files or ids given there are the only ones run "
-                          "(default: every suite), e.g. hil run -- suites/test_rtc.py -k leap")
+                     help="after --: pytest arguments; test files or ids, or suites by short name (hil list), "
+                          "given there are the only ones run (default: every suite), e.g. hil run -- rtc -k leap")
 
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
