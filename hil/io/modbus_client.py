@@ -36,6 +36,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from pymodbus.pdu import ModbusPDU
 
 from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
 from hil.io.modbus_codes import EXCEPTION_NAMES
 from hil.io.url import serial_target
@@ -136,7 +137,8 @@ class ModbusWire:
         self.reconnects = 0
         if not self.client.connect():
             self.client.close()
-            raise TransportError(f"cannot connect to {description}: {self._open_error() or hint}")
+            nameless = None if self.serial else unresolved(getattr(self.client.comm_params, "host", None))
+            raise TransportError(f"cannot connect to {description}: {self._open_error() or nameless or hint}")
 
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod

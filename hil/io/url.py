@@ -102,7 +102,11 @@ def parse_target(url: str) -> Target:
         return Target(text)
     if text.startswith("emulator"):
         raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(EMULATOR_TARGETS)}")
-    parts = urlsplit(text)
+    try:
+        parts = urlsplit(text)
+    except ValueError as exc:  # "Invalid IPv6 URL": an unclosed [
+        raise TargetError(f"cannot use target {url!r}: {exc} (an IPv6 host goes in brackets, e.g. "
+                          f"fatek+tcp://[::1]:500)") from None
     scheme = parts.scheme
     if scheme not in PARAMS:
         raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {FORMS}")

@@ -33,7 +33,7 @@ from typing import Callable
 from hil.families.fbs.address import BIT_BANKS, WORD_BANKS
 from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.families.fbs.identity import emulator_status_tail
-from hil.families.fbs.sim.memory import Memory
+from hil.families.fbs.sim.memory import Memory, Refused
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_fatek
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, ChecksumError, Command, DetailedStatus, DetailedStatusReply,
@@ -100,7 +100,7 @@ class FatekServerCore:
         try:
             command = decode_request(request)
             result = self.emulator.service(lambda mem: self._execute(command, mem))
-        except RequestError as exc:
+        except (RequestError, Refused) as exc:  # the decoder's refusals, and the memory's (the same rule)
             return None if broadcast else self._error(station, request.command, exc.code)
         except Exception:  # noqa: BLE001 - a bug here must not kill the server; answer "cannot execute"
             self._count("fatek_internal_error")

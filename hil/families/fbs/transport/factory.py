@@ -35,7 +35,9 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     if target.protocol == "s7":
         raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
                           f"with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// or "
-                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target)")
+                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); an S7-200 SMART "
+                          f"needs a profile of its family: --bench s7-200smart (the bundled S7 emulator) or your copy of "
+                          f"example-s7-200smart (hil list shows the bundled profiles)")
     if target.in_process:
         return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
     params = dict(target.params)

@@ -235,9 +235,7 @@ class FatekTransport(Transport):
             if attempt < tries:
                 time.sleep(self._backoff(attempt))
         raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the request before it went "
-                           f"unanswered (or was answered garbled) and so did a loop-back — check the station "
-                           f"number, the wiring or address and serial settings, and that the PLC is powered "
-                           f"({last})")
+                           f"unanswered (or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
 
     def reopen(self) -> None:
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
@@ -373,7 +371,7 @@ class FatekTransport(Transport):
                          f"unfinished frame")
         if not isinstance(command, READ_COMMANDS):
             parts.append("outcome unknown: the write may or may not have been applied (writes are not retried)")
-        return "; ".join(parts)
+        return "; ".join(parts) + f" — {_CHECK}"
 
     def _notify(self, direction: str, frame: bytes) -> None:
         for observer in self.observers:
@@ -381,6 +379,10 @@ class FatekTransport(Transport):
 
     def _where(self) -> str:
         return f"station {self.station:02X} on {self.port_url}"
+
+
+#: what to check when a FATEK PLC does not answer
+_CHECK = "check the station number, the wiring or address and serial settings, and that the PLC is powered"
 
 
 class _Lost(TransportError):
