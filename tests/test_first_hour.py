@@ -36,7 +36,8 @@ def _one_line(done: subprocess.CompletedProcess) -> str:
 def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
         target: str, says: str, silent_listener: int, tmp_path: Path) -> None:
     target = target.format(refused=_refused_port(), silent=silent_listener)
-    done = hil("run", "--target", target, cwd=tmp_path)
+    # a PLC's profile: the bundled default is the emulator's, refused for a PLC before the wire is tried
+    done = hil("run", "--bench", "example-bench", "--target", target, cwd=tmp_path)
     assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
     line = _one_line(done)  # nothing collected, skipped or passed before it: it is the only line
     assert f"at {target}:" in line and says in line, line
@@ -45,7 +46,8 @@ def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
 
 def test_plain_pytest_stops_the_same_way(tmp_path: Path) -> None:
     target = f"fatek+tcp://127.0.0.1:{_refused_port()}"
-    done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites"), "--target", target, "-p",
+    done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites"), "--target", target,
+                           "--bench", str(REPO / "fixtures" / "benches" / "example-bench.toml"), "-p",
                            "no:cacheprovider"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert done.returncode == EXIT_USAGE
     assert f"at {target}:" in _one_line(done)
