@@ -4,9 +4,13 @@ Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn
 "normal" when SV − Os ≤ PV ≤ SV + Os (SV 2000, Os 50: 195.0 ° … 205.0 ° is normal); WR+0/WR+2 bit b = point Sn + b,
 WR+1/WR+3 bit b = point Sn + 16 + b; a warning after 10 consecutive scans with PV ≥ R4008; ALM on any point out
 of band or any warning; a point whose R4012/R4013 bit is 0 has its output forced off; R4005 = 0102H, R4006 = 90,
-R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution.  The bench profile's [pid] only says
-*where* the ladder's FUN86 operands are.
+R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4003 = A55AH with R4004 = 10000–13839
+(R0–R3839) or 20000–23999 (D0–D3999) as where FUN86 reads its PVs, any other value (or R4003 ≠ A55AH) the table's
+readings; FUN86 acting only once every fitted point has been measured.  The bench profile's [pid] only says
+*where* the ladder's FUN86 operands are; [bench] scratch names 32 R and D words the PVs may be put in.
 """
+
+import re
 
 import pytest
 
@@ -88,6 +92,114 @@ def _expected_words(inst, points):
     return tuple(words)
 
 
+# -- PVs of the suite's choosing: R4003 = A55AH, R4004 naming a scratch block (manual 20.7) -------------------------
+KEY = 0xA55A
+QUIET = 65535  # R4008 no PV reaches (6553.5 °)
+
+
+def _pv_blocks(bench):
+    """[(bank, first index)] of the [bench] scratch ranges of 32 R or D words (one per bank), writable."""
+    blocks = {}
+    for span in bench.profile.scratch:
+        first, _, last = span.partition("-")
+        m = re.fullmatch(r"([RD])(\d+)", first)
+        end = re.fullmatch(r"[RD](\d+)", last or first)
+        if m and end and m.group(1) not in blocks and int(end.group(1)) - int(m.group(2)) + 1 >= 32:
+            if not bench.cannot_reach(f"{m.group(1)}{m.group(2)}-{m.group(1)}{int(m.group(2)) + 31}"):
+                blocks[m.group(1)] = int(m.group(2))
+    return sorted(blocks.items())
+
+
+def _code(bank, index):
+    return (10000 if bank == "R" else 20000) + index  # R4004: 10000 + n → Rn, 20000 + n → Dn
+
+
+def _pv_source(bench, bank=None):
+    """Point FUN86 at a scratch block (R4003 = A55AH, R4004 = its code); (bank, first index), or skip."""
+    _need(bench, "R4003-R4004", "R4008")
+    blocks = _pv_blocks(bench)
+    if not blocks:
+        pytest.skip("the profile names no scratch block of 32 R or D words ([bench] scratch, writable) to put "
+                    "FUN86's PVs in through R4003/R4004")
+    bank, index = next((b for b in blocks if b[0] == bank), blocks[0]) if bank else blocks[0]
+    bench.plc.io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
+    return bank, index
+
+
+def _write_pvs(bench, block, pvs):
+    bank, index = block
+    bench.plc.io.write_many({f"{bank}{index + p}": v & 0xFFFF for p, v in pvs.items()})
+
+
+def _set_band(bench, inst, sv, os):
+    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), gains low (Kc 1, no I, no D: no heating)."""
+    items = {}
+    for p in inst.points:
+        items[str(inst.operand("sv", p))] = sv[p] & 0xFFFF
+        items[str(inst.operand("os", p))] = os[p] & 0xFFFF
+        items[str(inst.operand("pr", p))] = 1
+        items[str(inst.operand("ir", p))] = 0
+        items[str(inst.operand("dr", p))] = 0
+    bench.plc.io.write_many(items)
+
+
+def _fake_instances(bench, pid):
+    """Every constant-Sn/Zn instance, switched on, R4008 out of reach, PVs from a scratch block."""
+    instances = _instances(pid)
+    for inst in instances:
+        _need(bench, *(_registers(inst, k) for k in ("sv", "os", "pr", "ir", "dr")))
+        _start(bench, pid, inst)
+    block = _pv_source(bench)
+    bench.plc.io.write("R4008", QUIET)
+    return instances, block
+
+
+def _all_enabled(bench, inst):
+    return _enabled_points(bench, inst) == list(inst.points)
+
+
+# -- first of all: the first execution (only a PLC just powered on shows it) ---------------------------------------
+@pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
+                                             "110/17/50 (a bench's gains may have been tuned since), and only one "
+                                             "whose modules have not yet measured every point shows FUN86 waiting")
+def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
+    """20.7: the first execution loads Kc/Ki/Td = 110/17/50 into PR/IR/DR of every point of every box; and FUN86
+    really acts only once every fitted point has been measured.  When the work block does not yet say 56H (a PLC
+    just powered on; this test comes first in the file for that), the first box is switched on (heating, SV 100.0 °
+    above every reading) and its OR, WR+0…3 and Yn… must stay as they were until TW+0 shows 56H, and the output
+    must rise within a PID interval after.  Later in a session every point has long been measured: then only the
+    defaults are checked."""
+    temperature = bench.plc.temperature
+    first = _instances(pid)[0]
+    if temperature.configured and temperature.read_work().execution_code != 0x56:
+        _fun86_waits_for_the_measurements(bench, pid, first, temperature)
+    for inst in _instances(pid):
+        _start(bench, pid, inst)
+        for p in inst.points:
+            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
+
+
+def _fun86_waits_for_the_measurements(bench, pid, inst, temperature):
+    _need(bench, str(inst.en), str(inst.hc), _registers(inst, "sv"))
+    io = bench.plc.io
+    before = (io.read_words(str(inst.or_), inst.zn), io.read_words(str(inst.wr), 4))
+    sv = 1000 + max(0, *temperature.readings())  # 100.0 ° above every reading so far
+    io.write_many({str(inst.operand("sv", p)): sv for p in inst.points})
+    pid.enable(inst, True, heating=True)
+    bench.settle()
+    outputs, words = io.read_words(str(inst.or_), inst.zn), io.read_words(str(inst.wr), 4)
+    ys = [pid.output_bit(p) for p in inst.points]
+    if temperature.read_work().execution_code != 0x56:  # (else every point got measured meanwhile: no decision)
+        assert (outputs, words) == before and not any(ys), (
+            f"FUN86 acted before every point was measured (TW+0 ≠ 56H): OR {before[0]} → {outputs}, WR+0…3 "
+            f"{before[1]} → {words}, Y {ys}")
+    assert temperature.wait_until(lambda: temperature.read_work().execution_code == 0x56, periods=2), \
+        "the temperature modules never finished measuring every point"
+    interval, _ = _timing(io)
+    assert _comes_true(bench, lambda: any(io.read_words(str(inst.or_), inst.zn)), interval + 1.0), (
+        "every point measured, SV 100 ° above PV (heating): the output must rise within a PID interval")
+
+
 # -- ERR ---------------------------------------------------------------------------------------------------------
 @pytest.fixture
 def settable(bench, pid):
@@ -121,15 +233,6 @@ def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
     r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
     assert r4005 == 0x0102, f"R4005 = {r4005:04X}H; default: PID every 4 s (low byte 2), PWM period 2 s (high byte 1)"
     assert (r4006, r4007, r4008) == (90, 600, 3500), f"R4006–R4008 = {r4006}, {r4007}, {r4008}; defaults 90, 600, 3500"
-
-
-@pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
-                                             "110/17/50; a bench's gains may have been tuned since")
-def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
-    for inst in _instances(pid):
-        _start(bench, pid, inst)
-        for p in inst.points:
-            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
 
 
 # -- normal bits and ALM ---------------------------------------------------------------------------------------------
@@ -178,6 +281,134 @@ def test_normal_bit_positions_count_from_sn(bench, pid, which):
                                f"{words[1]:016b}, expected {want[0]:016b} {want[1]:016b}")
 
 
+#: (SV, Os) of the points, cycled along each box: a set point above 0 and one below, Os of 0 and of 0.1 °, a wide band
+BANDS = [(2000, 50), (-1000, 30), (500, 0), (0, 1), (1500, 300)]
+#: PV against SV ± Os (20.7: SV − Os ≤ PV ≤ SV + Os is normal): both edges, and 0.1 ° past each
+EDGES = [("SV − Os", lambda sv, os: sv - os, True), ("SV − Os − 0.1 °", lambda sv, os: sv - os - 1, False),
+         ("SV + Os", lambda sv, os: sv + os, True), ("SV + Os + 0.1 °", lambda sv, os: sv + os + 1, False)]
+
+
+def _band_round(bench, pid, instances, block, case):
+    """Put every point of every box at the PV ``case(inst, b)`` → (SV, Os, PV) says; {point: (what, normal)}."""
+    pvs, sv, os, cases = {}, {}, {}, {}
+    for inst in instances:
+        for p in inst.points:
+            s, o, pv, what, inside = case(inst, p - inst.sn)
+            sv[p], os[p], pvs[p], cases[p] = s, o, pv, (f"{what} (SV {s}, Os {o}, PV {pv})", inside)
+    _write_pvs(bench, block, pvs)
+    for inst in instances:
+        _set_band(bench, inst, sv, os)
+    bench.settle()
+    return cases
+
+
+def _check_normal(bench, pid, inst, cases, label):
+    enabled = _enabled_points(bench, inst)
+    alarm = pid.alarm_words(inst)
+    want = _expected_words(inst, [p for p in enabled if cases[p][1]])
+    wrong = [f"point {p}: {cases[p][0]}" for p in enabled if alarm.normal(p) != cases[p][1]]
+    assert alarm.words[:2] == want, (f"{label}, {inst.name}: WR+0/WR+1 = {_bits(alarm.words[:2])}, expected "
+                                     f"{_bits(want)}; wrong normal bits: {wrong}")
+    return enabled
+
+
+def _bits(words):
+    return " ".join(f"{w:016b}" for w in words)
+
+
+def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
+    """Every point of every box, its PV put where FUN86 reads it (R4003/R4004, a scratch block): at SV − Os and
+    SV + Os (normal) and 0.1 ° past each (not), for set points above and below 0 and Os of 0, 0.1 ° and more, each
+    point in and out over two rounds — WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b, nothing else.
+    Then ALM: 0 with every point normal (and no warning: R4008 out of reach), 1 with only the first point out of
+    its band, only the last of WR+0 (b = 15), only the first of WR+1 (b = 16), only the box's last point."""
+    instances, block = _fake_instances(bench, pid)
+    for r in range(2):
+        def case(inst, b, r=r):
+            s, o = BANDS[b % len(BANDS)]
+            what, at, inside = EDGES[(b + r) % len(EDGES)]
+            return s, o, at(s, o), what, inside
+        cases = _band_round(bench, pid, instances, block, case)
+        for inst in instances:
+            enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}")
+            if any(not cases[p][1] for p in enabled):
+                assert pid.alm(inst), f"{inst.name}: points out of their band, ALM must be 1"
+    for out in (None, 0, 15, 16, -1):
+        def case(inst, b, out=out):
+            s, o = BANDS[b % len(BANDS)]
+            last = inst.zn - 1
+            if out is not None and b == (last if out == -1 else out):
+                return s, o, s + o + 1, "the one point out of band", False
+            return s, o, s - o, "in band", True
+        cases = _band_round(bench, pid, instances, block, case)
+        for inst in instances:
+            enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out")
+            outside = [p for p in enabled if not cases[p][1]]
+            if outside:
+                assert pid.alm(inst), f"{inst.name}: only point {outside[0]} is out of its band: ALM must be 1"
+            elif enabled == list(inst.points):  # (a disabled point's bits are [our choice]: decide nothing then)
+                assert not pid.alm(inst), f"{inst.name}: every point normal and no warning: ALM must be 0"
+
+
+def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
+    """R4003 = A55AH: R4004 = 10000–13839 → PVs from R0–R3839, 20000–23999 → D0–D3999 — a scratch block of each
+    bank for every point of every box, and the edge codes 10000, 13839, 20000, 23999 for the first box's point Sn
+    wherever the bench lets the harness write the register they name; any other R4004 (9999, 13840, 19999, 24000)
+    or R4003 ≠ A55AH (A55BH, 0) → the table's readings.  Told apart with Os = 0 at PVs of the suite's choosing
+    (only the register R4004 names gives SV exactly) and with Os = 5 ° round the table's own readings (while the
+    register a wrong decoding would read holds a PV 100 ° away)."""
+    instances, _block = _fake_instances(bench, pid)
+    io = bench.plc.io
+    temperature = bench.plc.temperature
+
+    def normal_points(inst):
+        bench.settle()
+        return set(pid.alarm_words(inst).normal_points())
+
+    for bank, index in _pv_blocks(bench):
+        fake = {p: 1000 + 7 * p for inst in instances for p in inst.points}
+        _write_pvs(bench, (bank, index), fake)
+        io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
+        for inst in instances:
+            _set_band(bench, inst, fake, {p: 0 for p in inst.points})
+        for inst in instances:
+            missing = set(_enabled_points(bench, inst)) - normal_points(inst)
+            assert not missing, (f"R4003 = A55AH, R4004 = {_code(bank, index)}: points {sorted(missing)} of "
+                                 f"{inst.name} did not read their PV from {bank}{index} + point")
+    first = instances[0]
+    p0 = first.sn
+    for code, bank, index in ((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0), (23999, "D", 3999)):
+        name = f"{bank}{index + p0}"
+        if bench.cannot_reach(name) or p0 not in _enabled_points(bench, first):
+            continue
+        io.write_many({name: 1234, "R4003": KEY, "R4004": code})
+        _set_band(bench, first, {p: 1234 for p in first.points}, {p: 0 for p in first.points})
+        assert p0 in normal_points(first), (f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from "
+                                            f"{name}")
+    if not temperature.configured:
+        return
+    blocks = _pv_blocks(bench)
+    scratch = _code(*blocks[0])
+    for key, code in ((KEY, 9999), (KEY, 13840), (KEY, 19999), (KEY, 24000), (0xA55B, scratch), (0, scratch)):
+        real = temperature.readings()
+        # where a PLC that took the code would read the PVs: 100 ° away from the table's readings
+        if code == scratch:
+            _write_pvs(bench, blocks[0], {p: real[p] - 1000 for inst in instances for p in inst.points})
+        elif code in (13840, 24000):
+            bank, index = ("R", 3840) if code == 13840 else ("D", 4000)
+            wrong = {f"{bank}{index + p}": (real[p] - 1000) & 0xFFFF for p in first.points
+                     if not bench.cannot_reach(f"{bank}{index + p}")}
+            if wrong:
+                io.write_many(wrong)
+        io.write_many({"R4003": key, "R4004": code})
+        for inst in instances:
+            _set_band(bench, inst, {p: real[p] for p in inst.points}, {p: 50 for p in inst.points})
+        for inst in instances:
+            missing = set(_enabled_points(bench, inst)) - normal_points(inst)
+            assert not missing, (f"R4003 = {key:04X}H, R4004 = {code}: FUN86 must read the table's readings; "
+                                 f"points {sorted(missing)} of {inst.name} are not within 5 ° of theirs")
+
+
 # -- warnings ---------------------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
@@ -199,6 +430,60 @@ def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
                                f"{words[3]:016b}, expected {want[0]:016b} {want[1]:016b}")
     assert words[:2] == _expected_words(inst, _enabled_points(bench, inst)), "the points are still normal"
     assert pid.alm(inst), "a warning sets ALM even with every point normal"
+
+
+def test_prealarm_of_every_point_at_r4008(bench, pid):
+    """Each point's own pre-alarm (20.7: PV ≥ R4008 for 10 consecutive scans sets its warning bit, WR+2 bit b =
+    point Sn + b, WR+3 bit b = point Sn + 16 + b, and ALM), with PVs of the suite's choosing (R4003/R4004) and every
+    point normal (SV = PV, Os = 0), so that only warnings raise ALM.  R4008 = 40000 (4000.0 °, R4008 is 100–65535)
+    with every PV at 3276.7 °: no warning, ALM 0.  R4008 = 100.0 °: one point of WR+3 (or the box's last) at exactly
+    100.0 °, every other one at 99.9 ° or −100.0 ° → only its bit, ALM only on its box; then the even points at
+    100.0 ° or 3276.7 ° too, then the odd ones: the bits only add up (a warning's clearing is not the manual's)."""
+    instances, block = _fake_instances(bench, pid)
+    limit = 1000
+
+    def warn_round(pvs, r4008=None):
+        _write_pvs(bench, block, pvs)
+        for inst in instances:
+            _set_band(bench, inst, pvs, {p: 0 for p in inst.points})
+        if r4008 is not None:
+            bench.plc.io.write("R4008", r4008)
+        bench.wait(1.0)  # ≫ 10 scans
+        bench.settle()
+
+    every = [p for inst in instances for p in inst.points]
+    warn_round({p: 32767 for p in every}, 40000)
+    for inst in instances:
+        words = pid.alarm_words(inst).words
+        assert words[2:] == (0, 0), f"R4008 = 40000 (4000.0 °) above every PV: {inst.name} WR+2/3 = {_bits(words[2:])}"
+        if _all_enabled(bench, inst):
+            assert not pid.alm(inst), f"{inst.name}: every point normal, no PV ≥ R4008: ALM must be 0"
+    wide = next((i for i in instances if i.zn > 16), instances[0])
+    lone = wide.sn + 16 if wide.zn > 16 else wide.sn + wide.zn - 1
+    below = {p: (limit - 1 if (p - inst.sn) % 2 else -1000) for inst in instances for p in inst.points}
+    pvs = {**below, lone: limit}
+    warned = {lone}
+    for step, parity in ((1, None), (2, 0), (3, 1)):
+        if parity is not None:
+            for inst in instances:
+                for p in inst.points:
+                    if (p - inst.sn) % 2 == parity:
+                        pvs[p] = limit if (p - inst.sn) // 2 % 2 else 32767
+                        warned.add(p)
+        warn_round(pvs, limit if step == 1 else None)
+        for inst in instances:
+            enabled = _enabled_points(bench, inst)
+            mine = [p for p in enabled if p in warned]
+            words = pid.alarm_words(inst).words
+            want = _expected_words(inst, mine)
+            assert words[2:] == want, (
+                f"R4008 = {limit}, {inst.name}: PVs {[pvs[p] for p in inst.points]}: WR+2/WR+3 = {_bits(words[2:])}, "
+                f"expected the points at or above R4008 ({mine}): {_bits(want)}")
+            assert words[:2] == _expected_words(inst, enabled), f"{inst.name}: every point is in its band (SV = PV)"
+            if mine:
+                assert pid.alm(inst), f"{inst.name}: points {mine} warn: ALM must be 1"
+            elif _all_enabled(bench, inst):
+                assert not pid.alm(inst), f"{inst.name}: every point normal and none warns: ALM must be 0"
 
 
 # -- the manual's scan counts: the ladder's scan counter brackets them (the emulator's profile declares one too) ----
@@ -346,18 +631,42 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
 
 
+def _high_point(bench, pid, heat_by):
+    """An enabled point ≥ 16 (R4013) of a box other than the first, switched on and heating like _heated_point's;
+    None when no box reaches one."""
+    for inst in _instances(pid)[1:]:
+        points = [p for p in _enabled_points(bench, inst) if p >= 16]
+        if points and not bench.cannot_reach(*(str(inst.operand(k, points[0])) for k in ("sv", "pr", "ir", "dr"))):
+            point = points[0]
+            pid.set_set_point(point, pid.pv(point) + heat_by)
+            _start(bench, pid, inst)
+            pid.set_gains(point, 110, 17, 50)
+            return point
+    return None
+
+
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
-    disable (proved by the scan counter where the bench declares one), not from the next PID step on."""
+    disable (proved by the scan counter where the bench declares one), not from the next PID step on — a point of
+    R4012 (0–15) and, where a box reaches one, a point of R4013 (16–31), disabled together."""
     inst, point = _heated_point(bench, pid, heat_by=500)  # 50.0 ° below SV: full output
-    register = "R4012" if point < 16 else "R4013"
-    _need(bench, register)
+    high = _high_point(bench, pid, heat_by=500)
+    points = [point] + ([high] if high is not None else [])
+    registers = sorted({"R4012" if p < 16 else "R4013" for p in points})
+    _need(bench, *registers)
     interval, pwm = _timing(bench.plc.io)
     # wait for the event, not a fixed time: a PID step sees the new SV within an interval, but a point still
     # moving from an earlier test (a plant with dead time) may need a few steps before the output comes on
-    assert _comes_true(bench, lambda: pid.output_bit(point), 6 * interval + 2 * pwm), \
-        "precondition: the enabled point's output switches on"
-    pid.set_enabled(point, False)  # its bit in R4012 (0–15) / R4013 (16–31)
+    assert _comes_true(bench, lambda: all(pid.output_bit(p) for p in points), 6 * interval + 2 * pwm), \
+        f"precondition: the enabled points' outputs {points} switch on"
+    for p in points:
+        pid.set_enabled(p, False)  # its bit in R4012 (0–15) / R4013 (16–31)
     bench.settle()
-    seen = _sample_output(bench, pid, point, 2 * pwm)
-    assert not any(seen), f"point {point} disabled in {register}: its output must stay off, saw {seen}"
+    seen = []
+    for _ in range(int(2 * pwm / 0.2) + 1):
+        seen.append(tuple(pid.output_bit(p) for p in points))
+        bench.wait(0.2)
+    for i, p in enumerate(points):
+        register = "R4012" if p < 16 else "R4013"
+        assert not any(s[i] for s in seen), (
+            f"point {p} disabled in {register}: its output must stay off, saw {[s[i] for s in seen]}")
