@@ -159,6 +159,7 @@ def _all_enabled(bench, inst):
 
 
 # -- first of all: the first execution (only a PLC just powered on shows it) ---------------------------------------
+@pytest.mark.spec("PID-DEF-1", "PID-EXEC-1")
 @pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
                                              "110/17/50 (a bench's gains may have been tuned since), and only one "
                                              "whose modules have not yet measured every point shows FUN86 waiting")
@@ -211,6 +212,7 @@ def settable(bench, pid):
     return inst
 
 
+@pytest.mark.spec("PID-OP-3")
 @pytest.mark.parametrize("sn,zn", BAD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in BAD_SN_ZN])
 def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
     pid.set_sn_zn(settable, sn, zn)
@@ -219,6 +221,7 @@ def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
     assert pid.err(settable), f"Sn = {sn}, Zn = {zn} is out of range: FUN86 must not execute and set ERR"
 
 
+@pytest.mark.spec("PID-OP-3")
 @pytest.mark.parametrize("sn,zn", GOOD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in GOOD_SN_ZN])
 def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
     pid.set_sn_zn(settable, sn, zn)
@@ -228,6 +231,7 @@ def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
 
 
 # -- defaults ------------------------------------------------------------------------------------------------------
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-R4006-1", "PID-R4007-1", "PID-R4008-1")
 @pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
 def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
     r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
@@ -236,8 +240,12 @@ def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
 
 
 # -- normal bits and ALM ---------------------------------------------------------------------------------------------
+@pytest.mark.spec("PID-NORM-1", "PID-OP-4", "PID-EXEC-2", "PID-PV-2")
 @pytest.mark.parametrize("edge", ["low", "high"])
-@pytest.mark.parametrize("beyond", [0, 1], ids=["at-edge", "one-tenth-beyond"])
+# at the edge every point is normal and ALM = 0 is expected: with a point disabled in R4012/R4013 that is the
+# spec's [our choice] PID-DIS-1 (disabled points report normal = 0, raise no ALM), so that case needs spec_choices
+@pytest.mark.parametrize("beyond", [pytest.param(0, marks=pytest.mark.spec("PID-ALM-2", "PID-DIS-1"), id="at-edge"),
+                                    pytest.param(1, marks=pytest.mark.spec("PID-ALM-1"), id="one-tenth-beyond")])
 def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
     """PV = SV ∓ Os is normal; PV one 0.1 ° further is not, and then ALM = 1."""
     inst = _instances(pid)[0]
@@ -269,6 +277,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
         assert alm, "a point out of its band sets ALM"
 
 
+@pytest.mark.spec("PID-WR-1", "PID-EXEC-4")
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_normal_bit_positions_count_from_sn(bench, pid, which):
     """WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b (an instance with Sn ≠ 0 or points ≥ 16)."""
@@ -316,6 +325,7 @@ def _bits(words):
     return " ".join(f"{w:016b}" for w in words)
 
 
+@pytest.mark.spec("PID-NORM-1", "PID-WR-1", "PID-ALM-1", "PID-ALM-2", "PID-OP-4", "PID-EXEC-4", "PID-PV-1")
 def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
     """Every point of every box, its PV put where FUN86 reads it (R4003/R4004, a scratch block): at SV − Os and
     SV + Os (normal) and 0.1 ° past each (not), for set points above and below 0 and Os of 0, 0.1 ° and more, each
@@ -350,6 +360,7 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
                 assert not pid.alm(inst), f"{inst.name}: every point normal and no warning: ALM must be 0"
 
 
+@pytest.mark.spec("PID-PV-1", "PID-PV-2")
 def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
     """R4003 = A55AH: R4004 = 10000–13839 → PVs from R0–R3839, 20000–23999 → D0–D3999 — a scratch block of each
     bank for every point of every box, and the edge codes 10000, 13839, 20000, 23999 for the first box's point Sn
@@ -410,6 +421,7 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
 
 
 # -- warnings ---------------------------------------------------------------------------------------------------------
+@pytest.mark.spec("PID-PRE-1", "PID-WR-2", "PID-ALM-2", "PID-R4008-1", "PID-EXEC-4")
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     """Bench-safe: lower R4008 under the PVs instead of heating; every point then warns on WR+2/WR+3, ALM = 1."""
@@ -432,6 +444,7 @@ def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     assert pid.alm(inst), "a warning sets ALM even with every point normal"
 
 
+@pytest.mark.spec("PID-PRE-1", "PID-WR-2", "PID-ALM-2", "PID-R4008-1", "PID-PV-1")
 def test_prealarm_of_every_point_at_r4008(bench, pid):
     """Each point's own pre-alarm (20.7: PV ≥ R4008 for 10 consecutive scans sets its warning bit, WR+2 bit b =
     point Sn + b, WR+3 bit b = point Sn + 16 + b, and ALM), with PVs of the suite's choosing (R4003/R4004) and every
@@ -505,6 +518,7 @@ def _write_bracketed(bench, name, value):
     return c1, _scans(bench)
 
 
+@pytest.mark.spec("PID-PRE-1")
 @pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
 @pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
 def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
@@ -567,6 +581,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     assert not decided[9] and decided[10]
 
 
+@pytest.mark.spec("PID-ALM-2", "PID-PRE-1")
 def test_alm_follows_a_warning_alone(bench, pid):
     inst = _instances(pid)[0]
     _need(bench, "R4008")
@@ -618,6 +633,7 @@ def _heated_point(bench, pid, heat_by=None):
     return inst, point
 
 
+@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EN-1")
 def test_output_on_below_sv_and_off_far_above(bench, pid):
     inst, point = _heated_point(bench, pid)
     interval, pwm = _timing(bench.plc.io)
@@ -645,6 +661,7 @@ def _high_point(bench, pid, heat_by):
     return None
 
 
+@pytest.mark.spec("PID-EN-2", "PID-EN-1")
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
     disable (proved by the scan counter where the bench declares one), not from the next PID step on — a point of

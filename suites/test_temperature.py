@@ -69,6 +69,8 @@ def _in_unit(celsius, unit):
     return celsius * 9 / 5 + 32 if unit == "F" else celsius
 
 
+@pytest.mark.spec("TEMP-MOD-1", "TEMP-TBL-1", "TEMP-TBL-2", "TEMP-TBL-3", "TEMP-WORK-1", "TEMP-WORK-2",
+                  "TEMP-WORK-4", "TEMP-WORK-6", "TEMP-WORK-7", "TEMP-IO-1")
 def test_table_is_recognised_and_measuring(bench, temp):
     """SR+0 = A556H, TW+0 = 56H with no mismatch bit, TW+3 = total points / module count, and per module k
     (TW+4+4k …): its sensor kind as the table names it, its point count, its readings' start (module 1 at the
@@ -107,6 +109,8 @@ def _accuracy_c(family, celsius):
     return abs(celsius) / 100 + (1.0 if family == "TC" else 0.0)
 
 
+@pytest.mark.spec("TEMP-SENS-1", "TEMP-SENS-2", "TEMP-SENS-3", "TEMP-UNIT-1", "TEMP-UNIT-2", "TEMP-RATE-1",
+                  "TEMP-ACC-1", "TEMP-MASK-1", "TEMP-BREAK-2", "TEMP-WORK-5")
 def test_readings_are_in_range_and_units(bench, temp, measure):
     """Every fitted point: 0 when masked off, else within its sensor's range in the table's unit (°C, or °F =
     °C × 9/5 + 32); at the fast rate whole degrees (1 °) in 0.1 ° units, at the normal rate 0.1 ° (not every reading
@@ -172,6 +176,7 @@ def _retable(bench, temp, items, condition):
     return temp.read_work()
 
 
+@pytest.mark.spec("TEMP-WORK-3", "TEMP-MAX-1", "TEMP-WORK-4", "TEMP-TBL-4", "TEMP-WORK-6", "TEMP-TBL-3")
 def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
     """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8, FFH for more
     than 32 points, and bit k of TW+0's low byte flags table module k + 1 not matching the module fitted — tried
@@ -230,6 +235,7 @@ def _close(after, before):
     return abs(after - before) <= 2 * (abs(before) / 100 + 10) + 10
 
 
+@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3")
 def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measure):
     """Every fitted point the rig can open goes through the manual's states at once (one module update shows
     them all), in three groups: open → 28767 with exactly the open points' break bits (TW+1 for 0–15, TW+2 for
