@@ -634,16 +634,46 @@ def _heated_point(bench, pid, heat_by=None):
 
 
 @pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EN-1")
+def _cooled_point(bench, pid):
+    """An enabled point of a box other than the first, switched on cooling (H/C = 0) at the default gains, PV 50.0 °
+    above SV; None when the profile has no second box."""
+    for inst in _instances(pid)[1:]:
+        points = _enabled_points(bench, inst)
+        if points and not bench.cannot_reach(str(inst.en), str(inst.hc),
+                                             *(str(inst.operand(k, points[0])) for k in ("sv", "pr", "ir", "dr"))):
+            point = points[-1]
+            pid.set_set_point(point, pid.pv(point) - 500)
+            pid.enable(inst, True, heating=False)
+            bench.settle()
+            pid.set_gains(point, 110, 17, 50)
+            return point
+    return None
+
+
 def test_output_on_below_sv_and_off_far_above(bench, pid):
+    """Heating (H/C = 1): PV 50 ° below SV → the output rises within a PID interval and Y switches on in a PWM
+    period; PV 50 ° above → output 0 and Y off.  Cooling (H/C = 0), on a point of another box at the same time:
+    the other way round — PV 50 ° above SV drives its output up, 50 ° below brings it to 0."""
     inst, point = _heated_point(bench, pid)
+    cooled = _cooled_point(bench, pid)
     interval, pwm = _timing(bench.plc.io)
     pid.set_set_point(point, pid.pv(point) + 500)  # 50.0 ° below SV: far outside the proportional band
+    if cooled is not None:
+        pid.set_set_point(cooled, pid.pv(cooled) - 500)  # cooling: 50.0 ° above SV
     assert _comes_true(bench, lambda: pid.output(point) > 0, interval + 0.5), \
         "PV 50 ° below SV (heating): the output value must rise within a PID interval"
+    if cooled is not None:
+        assert _comes_true(bench, lambda: pid.output(cooled) > 0, interval + 0.5), \
+            f"point {cooled}, PV 50 ° above SV (cooling, H/C = 0): its output must rise within a PID interval"
     assert any(_sample_output(bench, pid, point, pwm)), f"output {pid.output(point)} but Y never on in a PWM period"
     pid.set_set_point(point, pid.pv(point) - 500)  # PV ≫ SV
+    if cooled is not None:
+        pid.set_set_point(cooled, pid.pv(cooled) + 500)  # cooling, PV ≪ SV
     assert _comes_true(bench, lambda: pid.output(point) == 0, 2 * interval + 0.5), \
         f"PV 50 ° above SV (heating): output {pid.output(point)}, expected 0 within two PID intervals"
+    if cooled is not None:
+        assert _comes_true(bench, lambda: pid.output(cooled) == 0, 2 * interval + 0.5), \
+            f"point {cooled}, PV 50 ° below SV (cooling): output {pid.output(cooled)}, expected 0"
     assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
 
 

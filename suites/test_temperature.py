@@ -176,6 +176,13 @@ def _retable(bench, temp, items, condition):
     return temp.read_work()
 
 
+@pytest.mark.spec("TEMP-MASK-2")
+@pytest.mark.needs("power_on_state", reason="a bench's program may have changed R4010/R4011 since power-on")
+def test_installed_mask_defaults_to_ffffh(bench, temp):
+    r4010, r4011 = bench.plc.io.read_words("R4010", 2)
+    assert (r4010, r4011) == (0xFFFF, 0xFFFF), f"R4010, R4011 = {r4010:04X}H, {r4011:04X}H: both default to FFFFH"
+
+
 @pytest.mark.spec("TEMP-WORK-3", "TEMP-MAX-1", "TEMP-WORK-4", "TEMP-TBL-4", "TEMP-WORK-6", "TEMP-TBL-3")
 def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
     """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8, FFH for more

@@ -241,6 +241,13 @@ class ActsBeforeMeasured(Fun86Model):
         return True
 
 
+class CoolingHeats(Fun86Model):
+    """H/C ignored: every box heats."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        return super().law(inst, kc, ki, td, True, ts)
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -283,6 +290,7 @@ CAUGHT_BY = {
     PrealarmPvUnsigned: ["test_prealarm_of_every_point_at_r4008"],
     R4013Ignored: ["test_disabled_point_output_is_forced_off"],
     ActsBeforeMeasured: ["test_first_execution_loads_kc_ki_td_110_17_50"],
+    CoolingHeats: ["test_output_on_below_sv_and_off_far_above"],
 }
 QUICK = ("-k", "not closed_loop")  # the variants do not touch the control law: skip the 30-minute loop
 

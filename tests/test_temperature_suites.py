@@ -27,7 +27,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITE = str(REPO / "suites" / "test_temperature.py")
-SUITE_TESTS = 4
+SUITE_TESTS = 5
 # The inner runs need no hypothesis; loading its plugin re-imports (and rewrites) ~70 modules per run.
 INNER = ("-p", "no:hypothesispytest")
 
@@ -156,6 +156,14 @@ class BreakWordsHoldOnePoint(TemperatureModel):
         return top & 0xFFFF, top >> 16
 
 
+class R4011DefaultsTo0000(TemperatureModel):
+    """R4011 powers on as 0000H (points 16–31 not fitted), not FFFFH."""
+
+    def power_on(self, emu):
+        super().power_on(emu)
+        emu.memory.words["R"][4011] = 0
+
+
 class Variant:
     """A plugin for the inner pytest run whose emulator has ``model_class`` in place of the temperature model."""
 
@@ -189,6 +197,7 @@ CAUGHT_BY = {
     MismatchBitsNeverSet: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     EveryEntryStartsAtSR2: ["test_table_is_recognised_and_measuring"],
     BreakWordsHoldOnePoint: [BREAK_TEST],
+    R4011DefaultsTo0000: ["test_installed_mask_defaults_to_ffffh"],
 }
 
 
