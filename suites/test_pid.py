@@ -703,7 +703,6 @@ def _heated_point(bench, pid, heat_by=None):
     return inst, point
 
 
-@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EN-1")
 def _cooled_point(bench, pid):
     """An enabled point of a box other than the first, switched on cooling (H/C = 0) at the default gains, PV 50.0 °
     above SV; None when the profile has no second box."""
@@ -720,6 +719,7 @@ def _cooled_point(bench, pid):
     return None
 
 
+@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EXEC-3", "PID-EN-1")
 def test_output_on_below_sv_and_off_far_above(bench, pid):
     """Heating (H/C = 1): PV 50 ° below SV → the output rises within a PID interval and Y switches on in a PWM
     period; PV 50 ° above → output 0 and Y off.  Cooling (H/C = 0), on a point of another box at the same time:
