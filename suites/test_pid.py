@@ -622,24 +622,28 @@ def test_alm_follows_a_warning_alone(bench, pid):
 
 # -- R4005: the PID interval, and when a new one takes effect ---------------------------------------------------------
 def _steps(bench, pid, point, seconds):
-    """Bench times at which OR of ``point`` changed, polled every 0.1 s for ``seconds``."""
+    """Polled every 0.1 s for ``seconds``: the bench times at which OR of ``point`` changed, and every poll's (OR,
+    Y) of it."""
     clock = bench.plc.time
     end = clock.now() + seconds
-    last, steps = pid.output(point), []
+    last, steps, polls = pid.output(point), [], []
     while clock.now() < end:
         bench.wait(0.1)
         value = pid.output(point)
+        polls.append((value, pid.output_bit(point)))
         if value != last:
             steps.append(clock.now())
             last = value
-    return steps
+    return steps, polls
 
 
-@pytest.mark.spec("PID-R4005-1", "PID-R4005-3")
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-3", "PID-PWM-1")
 def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     """R4005's low byte 2 → 0 (PID every 4 s → every 1 s) while EN stays 1: the output still steps every 4 s; after
-    EN 0 → 1, every 1 s.  The steps show on OR: a constant error of 1.0 ° (its PV put through R4003/R4004) with
-    integral action (Kc 100, Ki 100 = 1 repeat/min, Td 0) moves OR at every PID step and only then."""
+    EN 0 → 1, every 1 s.  The steps show on OR: a constant error of 2.0 ° (its PV put through R4003/R4004) with
+    integral action (Kc 100, Ki 100 = 1 repeat/min, Td 0) moves OR at every PID step and only then.  Meanwhile Y
+    is ON for OR/16383 of each PWM period (2 s): over the 9 s at about 13 % output, the share of polls with Y on
+    is within 15 points of OR's."""
     instances, block = _fake_instances(bench, pid)
     inst = instances[0]
     _need(bench, "R4005")
@@ -648,18 +652,22 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
         pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
     io = bench.plc.io
     _write_pvs(bench, block, {point: 1000})
-    io.write_many({str(inst.operand("sv", point)): 1010, str(inst.operand("os", point)): 0})
+    io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
     pid.set_gains(point, 100, 100, 0)
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
     pid.restart(inst)  # EN 0 → 1: in force from now
     io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
-    held = _steps(bench, pid, point, 9.0)
+    held, polls = _steps(bench, pid, point, 9.0)
     gaps = [round(b - a, 2) for a, b in zip(held, held[1:])]
     assert len(held) >= 2, f"OR stepped {len(held)} times in 9 s with integral action: expected every 4 s"
     assert min(gaps) > 2.5, (f"R4005 changed to 1 s with EN held at 1: the steps must stay 4 s apart until EN goes "
                              f"0 → 1, saw gaps {gaps} s")
+    duty = sum(y for _, y in polls) / len(polls)
+    share = sum(v for v, _ in polls) / len(polls) / 16383
+    assert abs(duty - share) <= 0.15, (f"Y on in {duty:.0%} of {len(polls)} polls over 9 s, OR averaged "
+                                       f"{share:.0%} of 16383: Y must be ON for OR/16383 of each PWM period")
     pid.restart(inst)
-    fresh = _steps(bench, pid, point, 4.5)
+    fresh, _ = _steps(bench, pid, point, 4.5)
     gaps = [round(b - a, 2) for a, b in zip(fresh, fresh[1:])]
     assert len(fresh) >= 3 and max(gaps) < 2.5, (
         f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
@@ -761,7 +769,7 @@ def _high_point(bench, pid, heat_by):
     return None
 
 
-@pytest.mark.spec("PID-EN-2", "PID-EN-1")
+@pytest.mark.spec("PID-EN-2", "PID-EN-1", "PID-OP-5")
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
     disable (proved by the scan counter where the bench declares one), not from the next PID step on — a point of
@@ -776,6 +784,9 @@ def test_disabled_point_output_is_forced_off(bench, pid):
     # moving from an earlier test (a plant with dead time) may need a few steps before the output comes on
     assert _comes_true(bench, lambda: all(pid.output_bit(p) for p in points), 6 * interval + 2 * pwm), \
         f"precondition: the enabled points' outputs {points} switch on"
+    outputs = [pid.output(p) for p in points]
+    assert outputs == [16383] * len(points), (
+        f"50 ° below SV at Kc 110 the law asks ≈ 5 × full scale: OR (0–16383) must be at 16383, read {outputs}")
     for p in points:
         pid.set_enabled(p, False)  # its bit in R4012 (0–15) / R4013 (16–31)
     bench.settle()

@@ -261,6 +261,22 @@ class R4005AppliedAtOnce(Fun86Model):
         super().scan(emu)
 
 
+class PwmInverted(Fun86Model):
+    """Y ON for 1 − OR/16383 of each PWM period (the duty inverted)."""
+
+    def waves(self, st, enabled, output):
+        on_time, y_on, y_off = super().waves(st, enabled, output)
+        return st.pwm - on_time, y_on, y_off
+
+
+class OutputClampedAt10000(Fun86Model):
+    """OR never above 10000 (61 %)."""
+
+    def control(self, law, integral, pv_prev, has_prev, sv, pv):
+        out, integral = super().control(law, integral, pv_prev, has_prev, sv, pv)
+        return np.minimum(out, 10000.0), integral
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -305,6 +321,8 @@ CAUGHT_BY = {
     ActsBeforeMeasured: ["test_first_execution_loads_kc_ki_td_110_17_50"],
     CoolingHeats: ["test_output_on_below_sv_and_off_far_above"],
     R4005AppliedAtOnce: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    PwmInverted: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    OutputClampedAt10000: ["test_disabled_point_output_is_forced_off"],
 }
 QUICK = ("-k", "not closed_loop")  # the variants do not touch the control law: skip the 30-minute loop
 
