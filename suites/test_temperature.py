@@ -17,6 +17,11 @@ POINTS = {"2TC": 2, "6TC": 6, "16TC": 16, "6RTD": 6, "16RTD": 16, "6NTC": 6}
 RANGE_C = {"J": (-200, 900), "K": (-190, 1300), "T": (-190, 380), "E": (-190, 1000), "N": (-200, 1000),
            "B": (350, 1800), "R": (0, 1800), "S": (0, 1700), "PT100": (-200, 850), "PT1000": (-200, 600)}
 BREAK = 28767  # 20.3.3: a fitted point whose sensor is open reads 28767
+#: 20.1: update time (fast, normal) in seconds — every point of the module measured once in it
+UPDATE_S = {"2TC": (1, 2), "6TC": (2, 4), "16TC": (3, 6), "6RTD": (1, 2), "16RTD": (2, 4), "6NTC": (1, 2)}
+#: bench seconds a PLC's scan may add to an update (the check is on the last poll that did not yet see the change,
+#: so the wire's and the host's delays only make it more lenient, never flaky)
+UPDATE_MARGIN_S = 0.5
 FAMILY = {"2TC": "TC", "6TC": "TC", "16TC": "TC", "6RTD": "RTD", "16RTD": "RTD", "6NTC": "NTC"}
 #: 20.3.2, high byte of TW+0
 MEASURING, BAD_MODULE_COUNT, TOO_MANY_POINTS = 0x56, 0xFE, 0xFF
@@ -242,7 +247,8 @@ def _close(after, before):
     return abs(after - before) <= 2 * (abs(before) / 100 + 10) + 10
 
 
-@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3")
+@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3",
+                  "TEMP-RATE-2")
 def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measure):
     """Every fitted point the rig can open goes through the manual's states at once (one module update shows
     them all), in three groups: open → 28767 with exactly the open points' break bits (TW+1 for 0–15, TW+2 for
@@ -287,19 +293,47 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
         assert words == want, f"{state}: TW+1 TW+2 = {_bits(words)}, expected only points {broken}: {_bits(want)}"
         return readings
 
+    # 20.1: each module measures every point once per update time, so a change shows within it (TEMP-RATE-2)
+    update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
+    clock = bench.plc.time
+
+    def within_an_update(what, event):
+        """Poll ``event`` until it holds (at most 1.5 updates and the margin); the latest bench time at which it was
+        seen not to hold, from the start: the change came after it (a lower bound, whatever the wire's delays)."""
+        started = clock.now()
+        deadline = started + 1.5 * update + UPDATE_MARGIN_S
+        missed = started
+        while True:
+            before = clock.now()
+            if event():
+                break
+            missed = before
+            if before >= deadline:
+                break
+            clock.wait(temp.poll_interval)
+        took = missed - started
+        measure(f"update_{what}", took, unit="s", low=0, high=update + UPDATE_MARGIN_S,
+                note=f"{config.rate} rate: every point measured within {update} s (the last poll that did not yet "
+                     f"see it)")
+        bench.settle()
+        return took
+
     for p in points:
         breaker.open(p)
-    temp.wait_until(lambda: temp.read_work().break_words == _words(points) and
-                    all(v == BREAK for v in (temp.readings()[p] for p in points)))
-    bench.settle()
+    took = within_an_update("open", lambda: temp.read_work().break_words == _words(points) and
+                            all(v == BREAK for v in (temp.readings()[p] for p in points)))
     check("sensors open", points, [], [])
+    assert took <= update + UPDATE_MARGIN_S, (
+        f"the open sensors were not all showing {took:.1f} s after the last was opened: every point is measured within the update time, {update} s")
 
     off = _words(masked)
     io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})  # R4010 for 0–15, R4011 for 16–31
-    temp.wait_until(lambda: temp.read_work().break_words == _words(group_c) and
-                    all(temp.readings()[p] == 0 for p in masked))
-    bench.settle()
+    took = within_an_update("mask", lambda: temp.read_work().break_words == _words(group_c) and
+                            all(temp.readings()[p] == 0 for p in masked))
     check("A and B masked off, C still open", group_c, masked, [])
+    assert took <= update + UPDATE_MARGIN_S, (
+        f"the masked points did not all read 0 {took:.1f} s after the mask was written: the mask acts at each point's next measurement, "
+        f"within the update time, {update} s")
 
     for p in group_b:
         breaker.repair(p)

@@ -164,6 +164,13 @@ class R4011DefaultsTo0000(TemperatureModel):
         emu.memory.words["R"][4011] = 0
 
 
+class UpdateTimeOneAndAHalf(TemperatureModel):
+    """Each point measured every 1.5 × the manual's update time."""
+
+    def _step(self, module):
+        return 1.5 * super()._step(module)
+
+
 class Variant:
     """A plugin for the inner pytest run whose emulator has ``model_class`` in place of the temperature model."""
 
@@ -198,6 +205,7 @@ CAUGHT_BY = {
     EveryEntryStartsAtSR2: ["test_table_is_recognised_and_measuring"],
     BreakWordsHoldOnePoint: [BREAK_TEST],
     R4011DefaultsTo0000: ["test_installed_mask_defaults_to_ffffh"],
+    UpdateTimeOneAndAHalf: [BREAK_TEST],
 }
 
 
