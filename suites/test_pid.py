@@ -18,7 +18,7 @@ import pytest
 INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}
 PWM_S = INTERVAL_S  # high byte → PWM period, same table
 BAD_SN_ZN = [(32, 1), (0, 0), (0, 33), (31, 2), (20, 13), (-1, 5)]
-GOOD_SN_ZN = [(0, 1), (31, 1), (16, 16)]
+GOOD_SN_ZN = [(0, 1), (31, 1), (16, 16), (0, 32)]  # (0, 32): Zn at its largest
 WIDE = 1000  # Os of 100.0 °: puts a point in band whatever its temperature drifts by
 
 
@@ -637,13 +637,14 @@ def _steps(bench, pid, point, seconds):
     return steps, polls
 
 
-@pytest.mark.spec("PID-R4005-1", "PID-R4005-3", "PID-PWM-1")
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-3", "PID-PWM-1", "PID-LAW-3")
 def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     """R4005's low byte 2 → 0 (PID every 4 s → every 1 s) while EN stays 1: the output still steps every 4 s; after
     EN 0 → 1, every 1 s.  The steps show on OR: a constant error of 2.0 ° (its PV put through R4003/R4004) with
     integral action (Kc 100, Ki 100 = 1 repeat/min, Td 0) moves OR at every PID step and only then.  Meanwhile Y
     is ON for OR/16383 of each PWM period (2 s): over the 9 s at about 13 % output, the share of polls with Y on
-    is within 15 points of OR's."""
+    is within 15 points of OR's.  A second point at the same error with Ki = 0, Td = 0 keeps one OR throughout
+    (no integral action)."""
     instances, block = _fake_instances(bench, pid)
     inst = instances[0]
     _need(bench, "R4005")
@@ -651,13 +652,24 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     if point is None:
         pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
     io = bench.plc.io
-    _write_pvs(bench, block, {point: 1000})
+    # a second point with Ki = 0 and Td = 0 (no integral, no derivative: 20.7) at the same error: OR constant
+    plain = next(iter(_enabled_points(bench, inst)[1:]), None)
+    _write_pvs(bench, block, {point: 1000, **({plain: 1000} if plain is not None else {})})
     io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
     pid.set_gains(point, 100, 100, 0)
+    if plain is not None:
+        io.write_many({str(inst.operand("sv", plain)): 1020, str(inst.operand("os", plain)): 0})
+        pid.set_gains(plain, 100, 0, 0)
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
     pid.restart(inst)  # EN 0 → 1: in force from now
     io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
+    flat = pid.output(plain) if plain is not None else None  # after the step at EN's rising edge
     held, polls = _steps(bench, pid, point, 9.0)
+    if plain is not None:
+        assert flat > 0, f"point {plain}: 2.0 ° below SV at Kc 100, its output must be up after a PID step"
+        assert pid.output(plain) == flat, (f"point {plain}, Ki = 0 and Td = 0 at a constant error: OR must not move "
+                                           f"over the PID steps of 9 s (no integral), read {flat} then "
+                                           f"{pid.output(plain)}")
     gaps = [round(b - a, 2) for a, b in zip(held, held[1:])]
     assert len(held) >= 2, f"OR stepped {len(held)} times in 9 s with integral action: expected every 4 s"
     assert min(gaps) > 2.5, (f"R4005 changed to 1 s with EN held at 1: the steps must stay 4 s apart until EN goes "

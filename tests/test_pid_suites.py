@@ -25,7 +25,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 32  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 33  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -277,6 +277,20 @@ class OutputClampedAt10000(Fun86Model):
         return np.minimum(out, 10000.0), integral
 
 
+class KiZeroStillIntegrates(Fun86Model):
+    """Ki = 0 taken as Ki = 100: integral action where the manual says none."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        return super().law(inst, kc, np.where(np.asarray(ki) == 0, 100, ki), td, heating, ts)
+
+
+class Zn32Refused(Fun86Model):
+    """Zn = 32 (the largest) refused with ERR."""
+
+    def valid(self, sn, zn):
+        return super().valid(sn, zn) and zn < 32
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -323,6 +337,8 @@ CAUGHT_BY = {
     R4005AppliedAtOnce: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
     PwmInverted: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
     OutputClampedAt10000: ["test_disabled_point_output_is_forced_off"],
+    KiZeroStillIntegrates: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    Zn32Refused: ["test_no_err_for_valid_sn_zn[Sn0-Zn32]"],
 }
 QUICK = ("-k", "not closed_loop")  # the variants do not touch the control law: skip the 30-minute loop
 
