@@ -143,20 +143,27 @@ def _pv_source(bench, bank=None):
 
 
 def _write_pvs(bench, block, pvs):
+    """PVs (point → 0.1 °) into the block, one write per run of consecutive points."""
     bank, index = block
-    bench.plc.io.write_many({f"{bank}{index + p}": v & 0xFFFF for p, v in pvs.items()})
+    points = sorted(pvs)
+    while points:
+        run = [points.pop(0)]
+        while points and points[0] == run[-1] + 1:
+            run.append(points.pop(0))
+        bench.plc.io.write_words(f"{bank}{index + run[0]}", [pvs[p] & 0xFFFF for p in run])
 
 
 def _set_band(bench, inst, sv, os):
-    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), gains low (Kc 1, no I, no D: no heating)."""
-    items = {}
-    for p in inst.points:
-        items[str(inst.operand("sv", p))] = sv[p] & 0xFFFF
-        items[str(inst.operand("os", p))] = os[p] & 0xFFFF
-        items[str(inst.operand("pr", p))] = 1
-        items[str(inst.operand("ir", p))] = 0
-        items[str(inst.operand("dr", p))] = 0
-    bench.plc.io.write_many(items)
+    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), one block write each."""
+    io = bench.plc.io
+    io.write_words(str(inst.sv), [sv[p] & 0xFFFF for p in inst.points])
+    io.write_words(str(inst.os), [os[p] & 0xFFFF for p in inst.points])
+
+
+def _low_gains(bench, inst):
+    """Kc 1, no I, no D for every point of ``inst``: PVs of the suite's choosing heat nothing."""
+    for key, value in (("pr", 1), ("ir", 0), ("dr", 0)):
+        bench.plc.io.write_words(str(getattr(inst, key)), [value] * inst.zn)
 
 
 def _fake_instances(bench, pid):
@@ -165,6 +172,7 @@ def _fake_instances(bench, pid):
     for inst in instances:
         _need(bench, *(_registers(inst, k) for k in ("sv", "os", "pr", "ir", "dr")))
         _start(bench, pid, inst)
+        _low_gains(bench, inst)
     block = _pv_source(bench)
     bench.plc.io.write("R4008", QUIET)
     return instances, block
@@ -390,9 +398,11 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
     io = bench.plc.io
     temperature = bench.plc.temperature
 
-    def normal_points(inst):
-        bench.settle()
-        return set(pid.alarm_words(inst).normal_points())
+    enabled = {inst.name: set(_enabled_points(bench, inst)) for inst in instances}
+
+    def missing(inst):
+        """Enabled points of ``inst`` not normal (the caller has settled)."""
+        return sorted(enabled[inst.name] - set(pid.alarm_words(inst).normal_points()))
 
     for bank, index in _pv_blocks(bench):
         fake = {p: 1000 + 7 * p for inst in instances for p in inst.points}
@@ -400,20 +410,21 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
         for inst in instances:
             _set_band(bench, inst, fake, {p: 0 for p in inst.points})
+        bench.settle()
         for inst in instances:
-            missing = set(_enabled_points(bench, inst)) - normal_points(inst)
-            assert not missing, (f"R4003 = A55AH, R4004 = {_code(bank, index)}: points {sorted(missing)} of "
-                                 f"{inst.name} did not read their PV from {bank}{index} + point")
+            assert not missing(inst), (f"R4003 = A55AH, R4004 = {_code(bank, index)}: points {missing(inst)} of "
+                                       f"{inst.name} did not read their PV from {bank}{index} + point")
     first = instances[0]
     p0 = first.sn
     for code, bank, index in ((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0), (23999, "D", 3999)):
         name = f"{bank}{index + p0}"
-        if bench.cannot_reach(name) or p0 not in _enabled_points(bench, first):
+        if bench.cannot_reach(name) or p0 not in enabled[first.name]:
             continue
         io.write_many({name: 1234, "R4003": KEY, "R4004": code})
         _set_band(bench, first, {p: 1234 for p in first.points}, {p: 0 for p in first.points})
-        assert p0 in normal_points(first), (f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from "
-                                            f"{name}")
+        bench.settle()
+        assert p0 in pid.alarm_words(first).normal_points(), (
+            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from {name}")
     if not temperature.configured:
         return
     blocks = _pv_blocks(bench)
@@ -432,10 +443,10 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         io.write_many({"R4003": key, "R4004": code})
         for inst in instances:
             _set_band(bench, inst, {p: real[p] for p in inst.points}, {p: 50 for p in inst.points})
+        bench.settle()
         for inst in instances:
-            missing = set(_enabled_points(bench, inst)) - normal_points(inst)
-            assert not missing, (f"R4003 = {key:04X}H, R4004 = {code}: FUN86 must read the table's readings; "
-                                 f"points {sorted(missing)} of {inst.name} are not within 5 ° of theirs")
+            assert not missing(inst), (f"R4003 = {key:04X}H, R4004 = {code}: FUN86 must read the table's readings; "
+                                       f"points {missing(inst)} of {inst.name} are not within 5 ° of theirs")
 
 
 # -- warnings ---------------------------------------------------------------------------------------------------------
