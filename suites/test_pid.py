@@ -10,6 +10,7 @@ readings; FUN86 acting only once every fitted point has been measured.  The benc
 *where* the ladder's FUN86 operands are; [bench] scratch names 32 R and D words the PVs may be put in.
 """
 
+import dataclasses
 import re
 
 import pytest
@@ -166,9 +167,27 @@ def _low_gains(bench, inst):
         bench.plc.io.write_words(str(getattr(inst, key)), [value] * inst.zn)
 
 
-def _fake_instances(bench, pid):
-    """Every constant-Sn/Zn instance, switched on, R4008 out of reach, PVs from a scratch block."""
+def _whole_box(bench, pid):
+    """The box whose Sn/Zn the harness sets (the ERR box), as Sn 0, Zn 32 — every bit of WR+0…WR+3 — when its
+    operand blocks are writable; else None."""
+    inst = next((i for i in pid.config.instances if i.settable), None)
+    if inst is None:
+        return None
+    whole = dataclasses.replace(inst, sn=0, zn=32)
+    if bench.cannot_reach(str(inst.sn_register), str(inst.zn_register), str(inst.en), str(inst.hc),
+                          *(_registers(whole, k) for k in ("sv", "os", "pr", "ir", "dr"))):
+        return None
+    pid.set_sn_zn(inst, 0, 32)
+    return whole
+
+
+def _fake_instances(bench, pid, whole=False):
+    """Every constant-Sn/Zn instance (and, with ``whole``, the ERR box as Sn 0, Zn 32, where it can be), switched
+    on, R4008 out of reach, PVs from a scratch block."""
     instances = _instances(pid)
+    box = _whole_box(bench, pid) if whole else None
+    if box is not None:
+        instances = instances + [box]
     for inst in instances:
         _need(bench, *(_registers(inst, k) for k in ("sv", "os", "pr", "ir", "dr")))
         _start(bench, pid, inst)
@@ -357,8 +376,9 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
     SV + Os (normal) and 0.1 ° past each (not), for set points above and below 0 and Os of 0, 0.1 ° and more, each
     point in and out over two rounds — WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b, nothing else.
     Then ALM: 0 with every point normal (and no warning: R4008 out of reach), 1 with only the first point out of
-    its band, only the last of WR+0 (b = 15), only the first of WR+1 (b = 16), only the box's last point."""
-    instances, block = _fake_instances(bench, pid)
+    its band, only the last of WR+0 (b = 15), only the first of WR+1 (b = 16), only the box's last point.  The
+    ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+0 and WR+1 to the test."""
+    instances, block = _fake_instances(bench, pid, whole=True)
     for r in range(2):
         def case(inst, b, r=r):
             s, o = BANDS[b % len(BANDS)]
@@ -482,10 +502,11 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
     point normal (SV = PV, Os = 0), so that only warnings raise ALM.  R4008 = 40000 (4000.0 °, R4008 is 100–65535)
     with every PV at 3276.7 °: no warning, ALM 0.  R4008 = 100.0 °: one point of WR+3 (or the box's last) at exactly
     100.0 °, every other one at 99.9 ° or −100.0 ° → only its bit, ALM only on its box; then the even points at
-    100.0 ° or 3276.7 ° too, then the odd ones: the bits only add up (a warning's clearing is not the manual's)."""
+    100.0 ° or 3276.7 ° too, then the odd ones: the bits only add up (a warning's clearing is not the manual's).
+    The ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+2 and WR+3 to the test."""
     for inst in _instances(pid):
         _latched(pid, inst)
-    instances, block = _fake_instances(bench, pid)
+    instances, block = _fake_instances(bench, pid, whole=True)
     limit = 1000
 
     def warn_round(pvs, r4008=None):
