@@ -836,6 +836,8 @@ def test_disabled_point_output_is_forced_off(bench, pid):
     for p in points:
         pid.set_set_point(p, 1000)
         pid.set_gains(p, 110, 17, 50)
+    for inst in {pid.of(p) for p in points}:
+        pid.restart(inst)  # EN 0 → 1: the PID step at the rising edge already sees SV 50.0 ° above PV
     interval, pwm = _timing(bench.plc.io)
     assert _comes_true(bench, lambda: all(pid.output_bit(p) for p in points), 2 * interval + 2 * pwm), \
         f"precondition: the enabled points' outputs {points} switch on"
