@@ -6,8 +6,9 @@
 
 Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 SMART clock model
 (hil/families/s7smart/emulator.py).  The test command is the suites against the in-process emulator, exactly as
-``hil run`` runs them: ``pytest suites -x`` (the slow tests included: virtual time) for the FBs models and
-``pytest suites/s7smart --bench fixtures/benches/s7-200smart.toml -x`` for the S7 model.  cosmic-ray writes each
+``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
+suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
+temperatures; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile).  cosmic-ray writes each
 mutant into the files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the
 suites at it); the checkout is never touched.
 
@@ -34,15 +35,20 @@ from collections import Counter
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-FBS_MODELS = ["hil/families/fbs/sim/models/rtc.py", "hil/families/fbs/sim/models/temperature.py",
-              "hil/families/fbs/sim/models/fun86.py"]
-S7_MODEL = ["hil/families/s7smart/emulator.py"]
-#: session → (mutated files, the suites that judge them)
+MODELS = "hil/families/fbs/sim/models/"
+RTC_SUITES = "suites/test_rtc.py suites/test_rtc_adjust.py suites/test_rtc_validity.py suites/test_rtc_drift.py"
+PID_SUITES = "suites/test_pid.py suites/test_pid_control.py"
+PYTEST = "{python} -m pytest -x -q -p no:cacheprovider "
+#: session → (the mutated file, the suites that judge it: every suite that can see the model; FUN86 reads the
+#: temperatures, so the temperature model is judged by the PID suites too)
 SESSIONS = {
-    "fbs": (FBS_MODELS, "python -m pytest suites -x -q -p no:cacheprovider -p no:randomly"),
-    "s7": (S7_MODEL, "python -m pytest suites/s7smart --bench fixtures/benches/s7-200smart.toml -x -q "
-                     "-p no:cacheprovider -p no:randomly"),
+    "rtc": (MODELS + "rtc.py", PYTEST + RTC_SUITES),
+    "temperature": (MODELS + "temperature.py", PYTEST + "suites/test_temperature.py " + PID_SUITES),
+    "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
+    "s7": ("hil/families/s7smart/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
 }
+#: the sample is drawn per group (in this order), over the group's mutants sorted by file, operator, occurrence
+GROUPS = {"fbs": ("rtc", "temperature", "fun86"), "s7": ("s7",)}
 SURVIVORS = ROOT / "benchmarks" / "mutation-survivors.toml"
 KINDS = ("equivalent", "choice", "not_observable", "gap")
 QUICK = 100
@@ -56,14 +62,14 @@ def _copy_tree(dest: Path) -> None:
 
 
 def _config(work: Path, name: str, timeout: float) -> Path:
-    modules, command = SESSIONS[name]
+    module, command = SESSIONS[name]
     path = work / f"cosmic-ray-{name}.toml"
     path.write_text(
         "[cosmic-ray]\n"
-        f"module-path = {json.dumps(modules)}\n"
+        f"module-path = {json.dumps(module)}\n"
         f"timeout = {timeout}\n"
         "excluded-modules = []\n"
-        f"test-command = {json.dumps(command)}\n\n"
+        f"test-command = {json.dumps(command.format(python=sys.executable))}\n\n"
         "[cosmic-ray.distributor]\nname = \"local\"\n", encoding="utf-8")
     return path
 
@@ -75,19 +81,28 @@ def _cosmic_ray(work: Path, *args: str) -> None:
     subprocess.run([str(exe), "--verbosity", "WARNING", *args], cwd=work, env=env, check=True)
 
 
-def _sample(db_path: Path, keep: int | None, rng: random.Random) -> int:
-    """Mark all but ``keep`` mutants (a fixed random sample) as skipped; the number left to run."""
+def _key(item) -> tuple:  # noqa: ANN001 - a cosmic_ray WorkItem
+    m = item.mutations[0]
+    return str(m.module_path), m.operator_name, m.occurrence
+
+
+def _sample(db_paths: list[Path], keep: int | None, rng: random.Random) -> int:
+    """Mark all but ``keep`` of the sessions' mutants together (a fixed random sample) as skipped; how many are left."""
     from cosmic_ray.work_db import WorkDB, use_db
     from cosmic_ray.work_item import WorkerOutcome, WorkResult
-    with use_db(str(db_path), WorkDB.Mode.open) as db:
-        items = sorted(db.work_items, key=lambda w: (str(w.mutations[0].module_path), w.mutations[0].operator_name,
-                                                   w.mutations[0].occurrence))
-        if keep is None or keep >= len(items):
-            return len(items)
-        chosen = {w.job_id for w in rng.sample(items, keep)}
-        db.set_multiple_results([w.job_id for w in items if w.job_id not in chosen],
-                                WorkResult(worker_outcome=WorkerOutcome.SKIPPED))
-        return keep
+    items = []
+    for path in db_paths:
+        with use_db(str(path), WorkDB.Mode.open) as db:
+            items += [(path, w) for w in db.work_items]
+    items.sort(key=lambda pw: _key(pw[1]))
+    if keep is None or keep >= len(items):
+        return len(items)
+    chosen = {w.job_id for _, w in rng.sample(items, keep)}
+    for path in db_paths:
+        with use_db(str(path), WorkDB.Mode.open) as db:
+            db.set_multiple_results([w.job_id for p, w in items if p == path and w.job_id not in chosen],
+                                    WorkResult(worker_outcome=WorkerOutcome.SKIPPED))
+    return keep
 
 
 def _results(db_path: Path, work: Path) -> list[dict]:
@@ -139,19 +154,22 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C9
         tree = work / "tree"
         rng = random.Random(SEED)
         rows: list[dict] = []
-        # the sample is split over the sessions in proportion to their mutants (counted after init)
         dbs = {}
         for name in SESSIONS:
             config = _config(tree, name, timeout)
             db = tree / f"session-{name}.sqlite"
             _cosmic_ray(tree, "init", str(config), str(db))
+            # the unmutated tree must pass, or every mutant would count as killed
+            _cosmic_ray(tree, "baseline", str(config))
             dbs[name] = (config, db)
         totals = {name: _count(db) for name, (_, db) in dbs.items()}
         everything = sum(totals.values())
+        for group, names in GROUPS.items():  # the sample is split over the groups in proportion to their mutants
+            size = sum(totals[n] for n in names)
+            share = None if sample is None else max(1, round(sample * size / everything))
+            left = _sample([dbs[n][1] for n in names], share, rng)
+            print(f"{group}: {left} of {size} mutants to run", flush=True)
         for name, (config, db) in dbs.items():
-            share = None if sample is None else max(1, round(sample * totals[name] / everything))
-            left = _sample(db, share, rng)
-            print(f"{name}: {left} of {totals[name]} mutants to run", flush=True)
             _cosmic_ray(tree, "exec", str(config), str(db))
             rows += _results(db, tree)
         seconds = time.monotonic() - started
@@ -188,13 +206,18 @@ def _report(rows: list[dict], totals: dict[str, int], sample: int | None, second
                   "", "```diff", r["diff"].strip(), "```", ""]
     judged = len(killed) + len(survived) - kinds["equivalent"]
     score = 100.0 * len(killed) / judged if judged else 100.0
+    # and of what a bench could show at all (without the [our choice] and the not-observable survivors)
+    showable = judged - kinds["choice"] - kinds["not_observable"]
+    observable_score = 100.0 * len(killed) / showable if showable else 100.0
     summary = {"tool": "cosmic-ray 8.7", "sample": sample, "seed": SEED, "mutants_total": totals, "run": len(rows),
                "killed": len(killed), "survived": len(survived), "incompetent": len(incompetent),
-               "survivors_by_kind": dict(kinds), "score_percent": round(score, 1), "seconds": round(seconds)}
+               "survivors_by_kind": dict(kinds), "score_percent": round(score, 1),
+               "score_observable_percent": round(observable_score, 1), "seconds": round(seconds)}
     (out_dir / "score.json").write_text(json.dumps({**summary, "mutants": rows}, indent=1), encoding="utf-8")
     (out_dir / "survivors.md").write_text("\n".join(lines), encoding="utf-8")
     print(json.dumps(summary))
-    print(f"mutation score: {score:.1f} % (killed / non-equivalent mutants run); report in {out_dir}")
+    print(f"mutation score: {score:.1f} % (killed / non-equivalent mutants run); {observable_score:.1f} % of those a "
+          f"bench could show (without [our choice] and not-observable survivors); report in {out_dir}")
     if kinds["unclassified"]:
         print(f"{kinds['unclassified']} surviving mutants are not classified yet (see {out_dir / 'survivors.md'})")
     return 0

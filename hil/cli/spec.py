@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,8 +61,19 @@ def collect(suites: Path) -> tuple[int, dict[str, tuple[str, ...]], str]:
             "-p", "hil.plugin.requirements", "-W", "ignore::pytest.PytestUnknownMarkWarning",
             str(suites)]
     out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-        code = pytest.main(args, plugins=[collector])
+    path = list(sys.path)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            code = pytest.main(args, plugins=[collector])
+    finally:
+        # in process (a test calling main()), the suites' modules ("conftest", "test_rtc" …) must not stay
+        # imported under those names for a later pytest run of other files in the same process
+        root = suites.resolve()
+        for name, module in list(sys.modules.items()):
+            file = getattr(module, "__file__", None)
+            if file and Path(file).resolve().is_relative_to(root):
+                del sys.modules[name]
+        sys.path[:] = path
     return int(code), collector.by_test, out.getvalue()
 
 
