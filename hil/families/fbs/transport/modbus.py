@@ -49,14 +49,14 @@ class ModbusTransport(OverModbusWire, Transport):
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
-            unit: int = 1, timeout: float = 1.0, retries: int = 2) -> "ModbusTransport":
+            unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble") -> "ModbusTransport":
         """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL such as an RFC
-        2217 server's ``rfc2217://HOST:PORT``)."""
+        2217 server's ``rfc2217://HOST:PORT``); ``fence="reads"``: the line may repeat replies (every read fenced)."""
         hint = ("The PLC port must be in Modbus RTU slave mode (R4047, e.g. 5502H for port 1; "
                 "port 0 never speaks Modbus)")
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=PROBE,
-                                  describe=_names))
+                                  describe=_names, fence=fence))
 
     # -- validation before anything is sent --------------------------------------------------------------------
     def unreachable_reason(self, address: NameLike) -> str | None:
