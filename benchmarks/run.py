@@ -193,17 +193,24 @@ def device_operations() -> list[dict]:
     status = len(encode_request(1, ShortStatus())) + reply_len(6)
     rtc_fields = [f"R{4128 + i}" for i in range(7)]
     set_frame = len(encode_request(1, MixedWrite([("M1952", 1)] + [(n, 0) for n in rtc_fields]))) + reply_len(0)
+    # The procedures' steps, each in its cheapest frame(s): every step that must be seen by settle_scans whole scans
+    # before the next one is followed by `settle` status round trips (the next request ends a scan itself).
+    bit_action = len(encode_request(1, BitAction(4, "M1952"))) + reply_len(0)
+    read_back = min(  # M1955 and the read-out R4128–R4134 after a set: one 48 frame, or a 44 and a 46
+        len(encode_request(1, MixedRead(["M1955"] + rtc_fields))) + reply_len(1 + 28),
+        len(encode_request(1, ReadBits("M1955", 1))) + reply_len(1)
+        + len(encode_request(1, ReadRegisters("R4128", 7))) + reply_len(28))
     minimum = {
         "rtc.read()": len(encode_request(1, ReadRegisters("R4128", 7))) + reply_len(28),
         "rtc.read_all()": len(encode_request(1, MixedRead([f"R{4128 + i}" for i in range(8)] + ["WM1952"])))
         + reply_len(36),
-        "rtc.set()": set_frame + len(encode_request(1, BitAction(4, "M1952"))) + reply_len(0) + settle * status
-        + len(encode_request(1, ReadBits("M1955", 1))) + reply_len(1),
-        "rtc.adjust_30s()": 3 * (len(encode_request(1, BitAction(3, "M1953"))) + reply_len(0)) + settle * status,
+        "rtc.set()": set_frame + settle * status + bit_action + settle * status + read_back,
+        "rtc.adjust_30s()": 3 * (bit_action + settle * status),
         "temperature.readings()": len(encode_request(1, ReadRegisters(plc_readings(profile), 32)))
         + reply_len(32 * 4),
     }
-    round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + settle, "rtc.adjust_30s()": 3 + settle,
+    round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + 2 * settle,
+                   "rtc.adjust_30s()": 3 + 3 * settle,
                    "temperature.readings()": 1}
     from hil.families.fbs.temperature import parse_temperature
     plc.temperature.config = parse_temperature(profile.areas["temperature"], str(BENCH))
