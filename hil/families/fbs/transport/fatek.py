@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Callable
+from typing import Callable, Iterable, Mapping
 
 import serial
 
@@ -31,7 +31,9 @@ from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, Deta
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
                                 check_reply, describe_frame, encode_request, show_frame)
-from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
+from hil.families.fbs.address import parse
+from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
+from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
 from hil.io.serial_line import char_bits, is_pty
 from hil.io.trace import DESCRIBERS
@@ -122,6 +124,39 @@ class FatekTransport(Transport):
 
     def loopback(self, text: str) -> str:
         return self.request(Loopback(text))
+
+    # -- many elements: the fewest bytes (hil.families.fbs.transport.plan) ------------------------------------------
+    def read_many(self, names: Iterable[NameLike]) -> list[int]:
+        """Read named elements of any kinds, in order (bits as 0/1): what fits one 48 frame in one frame (one
+        scan), more in range frames where elements are adjacent and mixed frames for the rest."""
+        addresses = [parse(n) for n in names]
+        out = [0] * len(addresses)
+        with self._lock:
+            for piece in plan(addresses, self.limits):
+                group = [addresses[i] for i in piece.positions]
+                if piece.run:
+                    read = self._read_bits if group[0].is_bit else self._read_words
+                    values = self._count(read(group[0], len(group)))
+                else:
+                    values = self._count(self._read_many(group))
+                for i, value in zip(piece.positions, values):
+                    out[i] = int(value)
+        return out
+
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
+        """Write named elements of any kinds, in the order given: as :meth:`read_many` plans its frames."""
+        pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
+        checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
+        addresses = [a for a, _ in checked]
+        values = [v for _, v in checked]
+        with self._lock:
+            for piece in plan(addresses, self.limits, values):
+                group = [checked[i] for i in piece.positions]
+                if piece.run:
+                    write = self._write_bits if group[0][0].is_bit else self._write_words
+                    self._count(write(group[0][0], [v for _, v in group]))
+                else:
+                    self._count(self._write_many(group))
 
     # -- Transport primitives -----------------------------------------------------------------------------------
     def _read_words(self, first: Address, count: int) -> list[int]:
