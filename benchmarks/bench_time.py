@@ -58,9 +58,11 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
                            capture_output=True, text=True)
             out["total_wall_s"] = round(time.monotonic() - started, 1)
         cases = list(ET.parse(junit).getroot().iter("testcase"))
-        slowest = sorted(cases, key=lambda c: -float(c.get("time", 0)))[:8]
+        slowest = sorted(cases, key=lambda c: -float(c.get("time", 0)))
         out["slowest"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
-                          for c in slowest}
+                          for c in slowest[:8]}
+        out["per_test"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
+                           for c in slowest}
         for case in cases:
             name = Path(case.get("file") or case.get("classname", "").replace(".", "/") + ".py").name
             row = out["per_suite"].setdefault(name, {"tests": 0, "failures": 0, "skipped": 0, "test_time_s": 0.0})
