@@ -97,8 +97,9 @@ class Transport(Link, ABC):
             for start, n in _chunks(len(values), self.limits.bits):
                 self._count(self._write_bits(first.offset(start) if start else first, values[start:start + n]))
 
-    def read_many(self, names: Iterable[NameLike]) -> list[int]:
-        """Read named elements of any kinds, in order (bits as 0/1)."""
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
+        """Read named elements of any kinds, in order (bits as 0/1).  ``one_scan`` False: the caller does not need
+        them from one scan (the guard's originals and read-backs), so a transport may use more, cheaper frames."""
         addresses = [parse(n) for n in names]
         out: list[int] = []
         with self._lock:
@@ -106,8 +107,9 @@ class Transport(Link, ABC):
                 out += self._count(self._read_many(group))
         return out
 
-    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
-        """Write named elements of any kinds, in the order given."""
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
+        """Write named elements of any kinds, in the order given (``one_scan``: as for :meth:`read_many`)."""
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
         with self._lock:

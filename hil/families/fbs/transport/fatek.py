@@ -126,13 +126,14 @@ class FatekTransport(Transport):
         return self.request(Loopback(text))
 
     # -- many elements: the fewest bytes (hil.families.fbs.transport.plan) ------------------------------------------
-    def read_many(self, names: Iterable[NameLike]) -> list[int]:
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
         """Read named elements of any kinds, in order (bits as 0/1): what fits one 48 frame in one frame (one
-        scan), more in range frames where elements are adjacent and mixed frames for the rest."""
+        scan) unless ``one_scan`` is False, more in range frames where elements are adjacent and mixed frames for
+        the rest."""
         addresses = [parse(n) for n in names]
         out = [0] * len(addresses)
         with self._lock:
-            for piece in plan(addresses, self.limits):
+            for piece in plan(addresses, self.limits, one_scan=one_scan):
                 group = [addresses[i] for i in piece.positions]
                 if piece.run:
                     read = self._read_bits if group[0].is_bit else self._read_words
@@ -143,14 +144,15 @@ class FatekTransport(Transport):
                     out[i] = int(value)
         return out
 
-    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
         """Write named elements of any kinds, in the order given: as :meth:`read_many` plans its frames."""
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
         addresses = [a for a, _ in checked]
         values = [v for _, v in checked]
         with self._lock:
-            for piece in plan(addresses, self.limits, values):
+            for piece in plan(addresses, self.limits, values, one_scan=one_scan):
                 group = [checked[i] for i in piece.positions]
                 if piece.run:
                     write = self._write_bits if group[0][0].is_bit else self._write_words

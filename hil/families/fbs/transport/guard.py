@@ -52,10 +52,11 @@ class GuardedTransport(Guard, Transport):
         return list(parse(name).elements())
 
     def read_originals(self, elements: list[Address]) -> list[int]:
-        return self.inner.read_many(elements)  # never a late reply (README, Safety: which reads are fenced)
+        # never a late reply (README, Safety: which reads are fenced); from one scan or not, as frames are cheapest
+        return self.inner.read_many(elements, one_scan=False)
 
     def write_back(self, items: list[tuple[Address, int]]) -> None:
-        self.inner.write_many(items)
+        self.inner.write_many(items, one_scan=False)  # in order; every restore is read back
 
     # -- FATEK commands 41 and 42, behind the same guard -----------------------------------------------------
     def set_running(self, run: bool) -> None:
@@ -122,9 +123,12 @@ class GuardedTransport(Guard, Transport):
         names = [first.offset(i) for i in range(len(values))] if values else []
         self.guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values))
 
-    def write_many(self, items) -> None:  # noqa: ANN001 - same forms as Transport.write_many
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
+        return self.inner.read_many(names, one_scan=one_scan)  # the wire's own frames (FATEK: planned)
+
+    def write_many(self, items, *, one_scan: bool = True) -> None:  # noqa: ANN001 - as Transport.write_many
         pairs = list(items.items()) if hasattr(items, "items") else list(items)
-        self.guarded([a for a, _ in pairs], lambda: super(GuardedTransport, self).write_many(pairs))
+        self.guarded([a for a, _ in pairs], lambda: self.inner.write_many(pairs, one_scan=one_scan))
 
     # -- primitives: straight to the inner transport ------------------------------------------------------------
     def _count(self, result):  # noqa: ANN001, ANN202 - each request is counted once, where it is sent

@@ -83,13 +83,14 @@ class ModbusTransport(OverModbusWire, Transport):
         with self._lock:
             self._write_items(items)  # resolves every address before the first request
 
-    def read_many(self, names: Iterable[NameLike]) -> list[int]:
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
         names = list(names)
         for name in names:
             mm.to_modbus(name)
         return super().read_many(names)
 
-    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         for name, _ in pairs:
             mm.to_modbus(name)

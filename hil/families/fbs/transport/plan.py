@@ -7,8 +7,9 @@ end of a scan: a round trip costs about a scan more than its bytes, :data:`ROUND
 the scattered rest in as few mixed frames as their limit allows.
 
 Requests that fit one mixed frame stay in one frame (one range frame when they are a single run): one frame is
-serviced in one scan, and callers rely on that (the RTC's time with its flags, a set's M1952 with the time).
-Only what needs several frames anyway is planned; writes keep their order (a restore writes what it must first).
+serviced in one scan, and callers rely on that (the RTC's time with its flags, a set's M1952 with the time) —
+unless the caller says it does not (``one_scan=False``: the guard's originals, restores and read-backs).  The rest
+is planned; writes keep their order (a restore writes what it must first).
 """
 
 from __future__ import annotations
@@ -82,15 +83,19 @@ def _range_pays(addresses: Sequence[Address], run: list[int], limits: Limits, va
     return framed < named
 
 
-def plan(addresses: Sequence[Address], limits: Limits, values: Sequence[int] | None = None) -> list[Piece]:
-    """The frames for reading ``addresses`` (``values`` None) or writing ``values`` to them."""
+def plan(addresses: Sequence[Address], limits: Limits, values: Sequence[int] | None = None, *,
+         one_scan: bool = True) -> list[Piece]:
+    """The frames for reading ``addresses`` (``values`` None) or writing ``values`` to them; ``one_scan``: keep
+    what fits one frame in one frame (False: the caller does not need one scan — the guard's originals)."""
     if not addresses:
         return []
     mixed_limit = limits.mixed_read_words if values is None else limits.mixed_write_words
     runs = _runs(addresses)
-    if sum(a.words for a in addresses) <= mixed_limit:  # one frame: one scan
-        single = len(runs) == 1 and len(addresses) <= _range_limit(addresses[0], limits)
-        return [Piece(tuple(range(len(addresses))), single)]
+    everything = tuple(range(len(addresses)))
+    if len(runs) == 1 and len(addresses) <= _range_limit(addresses[0], limits):
+        return [Piece(everything, True)]  # one run: one range frame, never dearer than naming its elements
+    if one_scan and sum(a.words for a in addresses) <= mixed_limit:
+        return [Piece(everything, False)]  # one frame: one scan
     pieces: list[Piece] = []
     pending: list[int] = []
 
