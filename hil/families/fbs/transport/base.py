@@ -103,7 +103,7 @@ class Transport(Link, ABC):
         addresses = [parse(n) for n in names]
         out: list[int] = []
         with self._lock:
-            for group in _groups(addresses, self.limits.mixed_read_words):
+            for group in word_groups(addresses, self.limits.mixed_read_words):
                 out += self._count(self._read_many(group))
         return out
 
@@ -113,7 +113,7 @@ class Transport(Link, ABC):
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
         with self._lock:
-            for group in _groups(checked, self.limits.mixed_write_words, key=lambda item: item[0]):
+            for group in word_groups(checked, self.limits.mixed_write_words, key=lambda item: item[0]):
                 self._count(self._write_many(group))
 
     def read(self, name: NameLike) -> int:
@@ -192,7 +192,7 @@ class Transport(Link, ABC):
         return address
 
 
-def _groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:  # noqa: ANN001
+def word_groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:  # noqa: ANN001
     """Split items into runs whose word cost (bit = 1, 16-bit = 1, 32-bit = 2) fits ``budget``."""
     group: list = []
     cost = 0

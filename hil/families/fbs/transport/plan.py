@@ -20,7 +20,7 @@ from typing import Iterable, Sequence
 from hil.core.errors import AddressError
 from hil.families.fbs.address import Address
 from hil.families.fbs.protocol.fatek import (ReadBits, ReadRegisters, WriteBits, WriteRegisters, encode_request)
-from hil.families.fbs.transport.base import Limits, _groups
+from hil.families.fbs.transport.base import Limits, word_groups
 
 #: characters a round trip costs beyond its frames' own: about a scan (10 ms ≈ 10 characters at 9600 bit/s)
 ROUND_TRIP = 10
@@ -100,7 +100,7 @@ def plan(addresses: Sequence[Address], limits: Limits, values: Sequence[int] | N
     pending: list[int] = []
 
     def flush() -> None:
-        for group in _groups(pending, mixed_limit, key=lambda i: addresses[i]):
+        for group in word_groups(pending, mixed_limit, key=lambda i: addresses[i]):
             pieces.append(Piece(tuple(group), False))
         pending.clear()
 
