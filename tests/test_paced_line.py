@@ -136,3 +136,13 @@ def test_the_smoke_and_rtc_suites_pass_over_a_paced_line(pytester, target, suite
     outcomes = result.parseoutcomes()
     assert outcomes.get("failed", 0) == 0 and outcomes.get("error", 0) == 0, result.stdout.str()[-3000:]
     assert outcomes["passed"] >= least
+
+
+def test_a_profile_sets_the_pace_and_a_bad_one_is_refused_naming_the_key():
+    from hil.bench.profile import profile_from_dict
+    from hil.core.errors import ProfileError
+    base = {"bench": {"name": "b", "target": "emulator+fatek-serial"}}
+    assert profile_from_dict({**base, "emulator": {"line": "9600 7E1"}}).emulator.line == LineRate(9600, 7, "E", 1)
+    assert profile_from_dict(base).emulator.line is None  # unpaced unless asked
+    with pytest.raises(ProfileError, match=r"\[emulator\] line"):
+        profile_from_dict({**base, "emulator": {"line": "9600 baud"}})
