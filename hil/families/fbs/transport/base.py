@@ -51,8 +51,9 @@ class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
-    #: Requests one read takes: 2 where every read is fenced by a second one (a wire without transaction ids,
-    #: README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans count with it.
+    #: Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids that
+    #: may repeat a reply, README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans
+    #: count with it.
     requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: "Emulator | None" = None
