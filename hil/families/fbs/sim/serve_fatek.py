@@ -55,6 +55,7 @@ _READ_CHUNK = 4096
 JUNK_SLICE = 65536
 JUNK_PAUSE = 0.001
 _MAX_PENDING_OUTPUT = 64 * 1024  # pty: replies kept for a client that stopped reading, then dropped
+_MAX_PENDING_INPUT = 64 * 1024  # pty in real time: bytes waiting for the end of a scan, then dropped
 
 
 class FatekServerCore:
@@ -261,6 +262,9 @@ class _PtyServer:
             return
         # real time: the request waits for the end of a scan — not on the shared loop (pacing timers, other
         # servers), and one at a time so replies keep their order
+        if sum(map(len, self._inbox)) + len(data) > _MAX_PENDING_INPUT:
+            self.core._count("fatek_input_dropped", len(data))  # a flood in real time: drop, don't grow
+            return
         self._inbox.append(data)
         if self._worker is None:
             self._worker = self.loop.create_task(self._work())
