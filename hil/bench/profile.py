@@ -38,6 +38,8 @@ class Safety:
 class EmulatorSettings:
     scan_time_ms: float = 10.0
     seed: int = 0
+    #: ``line = "9600 7E1"``: the pace of the emulator's pty wires (hil.sim.pacing.LineRate); None: unpaced
+    line: Any = None
 
 
 @dataclass(frozen=True)
@@ -189,7 +191,8 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     emulator = EmulatorSettings(
         scan_time_ms=reader.take(emu_t, "emulator", "scan_time_ms", float, 10.0,
                                  check=lambda v: 0.1 <= v <= 1000 or "must be 0.1–1000 ms"),
-        seed=reader.take(emu_t, "emulator", "seed", int, 0))
+        seed=reader.take(emu_t, "emulator", "seed", int, 0),
+        line=reader.take(emu_t, "emulator", "line", str, None, convert=_line_rate))
     reader.done(emu_t, "emulator")
 
 
@@ -304,6 +307,11 @@ class Reader:
     def done(self, table: dict[str, Any], section: str) -> None:
         if table:
             raise ProfileError(f"{self.where}: unknown key(s) in [{section}]: {', '.join(sorted(table))}")
+
+
+def _line_rate(value: str) -> Any:
+    from hil.sim.pacing import LineRate
+    return LineRate.parse(value)
 
 
 def _check_target(value: str) -> bool:

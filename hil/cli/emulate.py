@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 import signal
@@ -39,8 +40,11 @@ def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's s
 
 
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
-            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False) -> int:
+            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False,
+            line: str | None = None) -> int:
     """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
+
+    ``line``: "9600 7E1" paces the pty wires at that rate (over the profile's ``[emulator] line``).
 
     ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
     hil.families.fbs.sim.rig).
@@ -48,6 +52,10 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     if not (math.isfinite(time_scale) and time_scale > 0):  # before any endpoint line: scripts wait for those
         raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
     profile = load_profile(bench)
+    if line is not None:
+        from hil.sim.pacing import LineRate
+        rate = LineRate.parse(line)
+        profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []

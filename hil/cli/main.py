@@ -111,6 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
     emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
     emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
     emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    emulate.add_argument("--line", metavar="'BAUD FRAME'",
+                         help="pace the pseudo-terminals' characters at this line rate, e.g. '9600 7E1' (port 0's "
+                              "factory setting; default: the profile's [emulator] line, else unpaced)")
     emulate.add_argument("--s7-tcp", metavar="HOST:PORT",
                          help="the S7 protocol (ISO-on-TCP; an S7-200 SMART profile, e.g. fixtures/benches/"
                               "s7-200smart.toml; port 0: OS chooses)")
@@ -323,7 +326,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty, "
                                "--modbus-pty or (an S7-200 SMART profile) --s7-tcp HOST:PORT")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
-                       args.rig_first_coil, live=not args.no_live and console.is_terminal)
+                       args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line)
     if args.command == "probe":
         from hil.cli.probe import probe
         return probe(args.url, console, bench=args.bench)

@@ -235,8 +235,8 @@ class Rtc:
         self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
         started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
-        self.plc.settle_before_request()  # the read of M1955 below ends a scan too
-        refused, *fields = self.plc.io.read_many((reg.RTC_SET_ERROR, *reg.RTC_FIELDS))
+        # the read of M1955 ends a scan too (with a scan counter, read in the same frame as the counter)
+        refused, *fields = self.plc.read_settled([reg.RTC_SET_ERROR, *reg.RTC_FIELDS])
         result = SetResult(value, not refused, tuple(value.validate()))
         if result.accepted and value.is_valid:
             shown = RtcTime.from_registers(fields)
