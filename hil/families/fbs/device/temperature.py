@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 from hil.core.errors import HilError
 from hil.families.fbs import registers as reg
-from hil.families.fbs.device.waiting import poll_until
+from hil.families.fbs.device.waiting import POLLS_PER_PERIOD, poll_until
 from hil.families.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
 from hil.families.fbs.temperature import TemperatureConfig
 
@@ -136,6 +136,12 @@ class Temperature:
         """Let every point be measured again after a change (a margin over one period for scan and wire time)."""
         self.plc.time.wait(self.update_period() * periods)
         self.plc.settle()
+
+    @property
+    def poll_interval(self) -> float:
+        """Bench seconds between two looks while waiting for a reading to change: the modules' own cadence
+        (:func:`~hil.families.fbs.device.waiting.poll_until`'s fraction of the update period)."""
+        return self.update_period() / POLLS_PER_PERIOD
 
     def wait_until(self, event: Callable[[], bool], periods: float = 1.5) -> bool:
         """Poll ``event`` (a read of the PLC) until it holds, at the modules' own cadence (a fraction of the
