@@ -49,7 +49,7 @@ def journal_path(key: str, directory: Path | None = None) -> Path:
 
 
 def _empty(key: str) -> dict[str, Any]:
-    return {"version": VERSION, "bench": key, "elements": {}, "clock": None, "coils": {}}
+    return {"version": VERSION, "bench": key, "elements": {}, "clock": None, "coils": {}, "enable": {}}
 
 
 class Journal:
@@ -81,7 +81,8 @@ class Journal:
     @property
     def pending(self) -> bool:
         d = self.data
-        return bool(d["elements"] or d["clock"] or d["coils"] or d.get("run") is not None or d.get("disabled"))
+        return bool(d["elements"] or d["clock"] or d["coils"] or d.get("run") is not None or d.get("disabled")
+                    or d.get("enable"))
 
     def extra(self, name: str, default: Any = None) -> Any:
         """``run`` (RUN/STOP before a command 41) or ``disabled`` (bits a command 42 disabled)."""
@@ -95,6 +96,10 @@ class Journal:
 
     def elements(self) -> dict[str, int]:
         return {name: entry["value"] for name, entry in self.data["elements"].items()}
+
+    def enable_states(self) -> dict[str, bool]:
+        """Bit → whether it was disabled (forced, FATEK command 42) before a test first enabled or disabled it."""
+        return {name: bool(entry["disabled"]) for name, entry in self.data["enable"].items()}
 
     def coils(self) -> dict[str, dict[str, Any]]:
         return dict(self.data["coils"])
@@ -117,6 +122,9 @@ class Journal:
             lines.append(f"RUN/STOP: was {'RUN' if d['run'] else 'STOP'}")
         for name in d.get("disabled") or []:
             lines.append(f"{name} disabled by command 42 (to be re-enabled)")
+        for name, entry in d["enable"].items():
+            lines.append(f"{name} {'disabled' if entry['disabled'] else 'enabled'} (command 43) before "
+                         f"{entry.get('test') or '?'} (pid {entry.get('pid')}) enabled or disabled it")
         for key, entry in d["coils"].items():
             lines.append(f"rig coil {key} = {int(entry['value'])} — injected by {entry.get('test') or '?'} "
                          f"(pid {entry.get('pid')})")
@@ -143,16 +151,41 @@ class Journal:
                 del self.data["elements"][name]
             self._save()
 
-    def set_clock(self, plc_time: dt.datetime, host: float, scale: float) -> None:
-        """The clock before a test set it: ``plc_time`` read when the host's wall clock said ``host``."""
+    def set_clock(self, plc_time: dt.datetime, host: float, scale: float, **more: Any) -> None:
+        """The clock before a test set it: ``plc_time`` when the host's wall clock said ``host`` (``more``: the
+        host's ``boot`` id and ``since_boot`` time then, to tell a host clock stepped before recovery)."""
         if self.data["clock"] is None:
-            self.data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **self._stamp()}
+            self.data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **more,
+                                  **self._stamp()}
             self._save()
 
     def drop_clock(self) -> None:
         if self.data["clock"] is not None:
             self.data["clock"] = None
             self._save()
+
+    def add_enable_states(self, states: dict[str, bool]) -> None:
+        """Record bits' enable states (True: disabled) before a first command 42 enable/disable; a bit already
+        journaled keeps its first (older) state.  Nothing is kept in memory unless it is on disk."""
+        fresh = {n: bool(v) for n, v in states.items() if n not in self.data["enable"]}
+        if fresh:
+            stamp = self._stamp()
+            self._commit("enable", {**self.data["enable"], **{n: {"disabled": v, **stamp} for n, v in fresh.items()}})
+
+    def drop_enable_states(self, names: Iterable[str]) -> None:
+        kept = {n: e for n, e in self.data["enable"].items() if n not in set(names)}
+        if len(kept) != len(self.data["enable"]):
+            self._commit("enable", kept)
+
+    def _commit(self, name: str, value: Any) -> None:
+        """``data[name] = value`` on disk; in memory only once it is (a failed save leaves both as they were)."""
+        old = self.data[name]
+        self.data[name] = value
+        try:
+            self._save()
+        except JournalError:
+            self.data[name] = old
+            raise
 
     def add_coil(self, key: str, target: str, coil: int, unit: int, value: bool) -> None:
         if key not in self.data["coils"]:

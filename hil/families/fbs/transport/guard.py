@@ -16,7 +16,7 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 from hil.bench.guard import Guard
-from hil.core.errors import TransportError, WriteRefused
+from hil.core.errors import HilError, TransportError, WriteRefused
 from hil.core.journal import Journal
 from hil.families.fbs.address import Address, parse, parse_range
 from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport
@@ -45,7 +45,9 @@ class GuardedTransport(Guard, Transport):
         self.emulator = inner.emulator
         self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
         self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
-        self.disabled: set[Address] = set()  # bits a test disabled with command 42: re-enabled on restore
+        # bit → disabled (forced) before a test's first command 42 enable/disable of it, read with command 43:
+        # put back exactly (an operator's forced bit stays forced), read back with 43
+        self.enable_original: dict[Address, bool] = {}
 
     # -- the guard's address model -------------------------------------------------------------------------------
     def split(self, name: NameLike) -> list[Address]:
@@ -74,30 +76,29 @@ class GuardedTransport(Guard, Transport):
             inner_call(bool(run))
 
     def bit_action(self, name: NameLike, action: int) -> None:
-        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit; a disabled bit is re-enabled and
-        its value restored when the test ends."""
+        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit.  Before a bit is first enabled or
+        disabled its enable state is read (command 43) and journaled, durable first; it is put back when the test
+        ends, the bit's value with the other originals."""
         inner_call = getattr(self.inner, "bit_action", None)
-        if inner_call is None:
+        read_state = getattr(self.inner, "read_disabled", None)
+        if inner_call is None or read_state is None:
             raise WriteRefused(f"bit actions (FATEK command 42) are not offered by {self.inner.description}")
 
         def act() -> None:
             base = self.split(name)
-            if action == 1:
-                self.disabled.update(base)
+            fresh = [a for a in base if a not in self.enable_original] if action in (1, 2) else []
+            if fresh:
+                states = {a: bool(read_state(a, 1)[0]) for a in fresh}
                 if self.durable is not None:
-                    self.durable.set_extra("disabled", sorted({*self.durable.extra("disabled", []),
-                                                               *(str(a) for a in base)}))
+                    self.durable.add_enable_states({str(a): v for a, v in states.items()})
+                self.enable_original.update(states)
             inner_call(base[0], action)
         self.guarded([name], act)
 
     def _restore_actions(self) -> None:
-        """Re-enable the bits a test disabled and put RUN/STOP back (before the values are restored)."""
-        if self.disabled:
-            for address in sorted(self.disabled, key=str):
-                self.inner.bit_action(address, 2)
-            self.disabled.clear()
-            if self.durable is not None:
-                self.durable.set_extra("disabled", [])
+        """The bits' enable states back, each read back (command 43), and RUN/STOP back (before the values)."""
+        if self.enable_original:
+            self._restore_enable_states()
         if self.run_original is not None:
             if bool(self.inner.status().running) != self.run_original:
                 self.inner.set_running(self.run_original)
@@ -105,11 +106,30 @@ class GuardedTransport(Guard, Transport):
             if self.durable is not None:
                 self.durable.set_extra("run", None)
 
+    def _restore_enable_states(self) -> None:
+        wrong = []
+        for address, disabled in sorted(self.enable_original.items(), key=lambda item: str(item[0])):
+            if bool(self.inner.read_disabled(address, 1)[0]) != disabled:
+                self.inner.bit_action(address, 1 if disabled else 2)
+                if bool(self.inner.read_disabled(address, 1)[0]) != disabled:
+                    wrong.append(f"{address} (original {'disabled' if disabled else 'enabled'})")
+                    continue
+            del self.enable_original[address]
+            if self.durable is not None:
+                self.durable.drop_enable_states([str(address)])
+        if self.durable is not None and not self.enable_original:
+            self.durable.set_extra("disabled", None)  # an older journal's list of bits to re-enable: done
+        if wrong:
+            raise HilError(f"command 43 reads the enable state of {', '.join(wrong)} wrong after restoring it")
+
     def _adopt(self, journal: Journal) -> None:
         run = journal.extra("run")
         if run is not None and self.run_original is None:
             self.run_original = bool(run)
-        self.disabled.update(parse(name) for name in journal.extra("disabled", []))
+        for name, disabled in journal.enable_states().items():
+            self.enable_original.setdefault(parse(name), disabled)
+        for name in journal.extra("disabled", []):  # an older journal: bits a run disabled, to be re-enabled
+            self.enable_original.setdefault(parse(name), False)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
