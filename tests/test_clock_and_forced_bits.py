@@ -8,15 +8,17 @@ up to a second off), here against the host's real wall clock.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import socket
 import time
+from typing import Iterator
 
 import pytest
 
 from hil.bench.guard import ORIGIN_MAX_AGE, OriginRefused, origin_from_journal
 from hil.bench.profile import load_profile
-from hil.core.journal import Journal
+from hil.core.journal import Journal, JournalError
 from hil.core.timebase import HostClocks, HostTimebase
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.device.plc import FbsPlc
@@ -159,11 +161,21 @@ def test_an_origin_older_than_the_limit_or_from_the_future_is_refused():
 FORCED = ["M1001", "M1002"]  # an operator disabled (forced) these; M1003 is enabled
 
 
-def _operator_forces(bench) -> None:
-    for name in ("M1001", "M1002", "M1003"):
-        bench.raw.bit_action(name, 2)
-    for name in FORCED:
-        bench.raw.bit_action(name, 1)
+@contextlib.contextmanager
+def _forced_by_an_operator(profile) -> Iterator[Bench]:
+    """A bench on a PLC where an operator forced M1001 and M1002 (by hand, not through the guard); un-forced and
+    closed afterwards."""
+    bench = Bench(profile)
+    try:
+        for name in ("M1001", "M1002", "M1003"):
+            bench.raw.bit_action(name, 2)
+        for name in FORCED:
+            bench.raw.bit_action(name, 1)
+        yield bench
+    finally:
+        for name in FORCED:
+            bench.raw.bit_action(name, 2)
+        bench.close()
 
 
 def _tests_act(bench) -> None:
@@ -176,36 +188,35 @@ def _tests_act(bench) -> None:
 
 
 def test_forced_bits_stay_forced_after_a_clean_run(profile):
-    bench = Bench(profile)
-    try:
-        _operator_forces(bench)
+    with _forced_by_an_operator(profile) as bench:
         _tests_act(bench)
         assert set(Journal(bench.journal.key).enable_states()) == {"M1001", "M1002", "M1003"}, "journaled first"
         bench.end_test()
         assert bench.raw.read_disabled("M1001", 3) == [1, 1, 0]
         assert not bench.journal.path.exists()
-    finally:
-        for name in FORCED:
-            bench.raw.bit_action(name, 2)
-        bench.close()
 
 
 def test_forced_bits_stay_forced_after_a_crash_and_recovery(profile):
-    dead = Bench(profile)
-    _operator_forces(dead)
-    _tests_act(dead)
-    dead.close()  # killed: nothing restored
-    bench = Bench(profile)
-    try:
-        report = bench.recover()
-        assert report.ok, report.summary()
-        assert "M1002 disabled (command 43)" in report.summary()
-        assert bench.raw.read_disabled("M1001", 3) == [1, 1, 0]
-        assert not bench.journal.path.exists()
-    finally:
-        for name in FORCED:
-            bench.raw.bit_action(name, 2)
-        bench.close()
+    with _forced_by_an_operator(profile) as dead:
+        _tests_act(dead)  # then killed: nothing restored
+        bench = Bench(profile)
+        try:
+            report = bench.recover()
+            assert report.ok, report.summary()
+            assert "M1002 disabled (command 43)" in report.summary()
+            assert bench.raw.read_disabled("M1001", 3) == [1, 1, 0]
+            assert not bench.journal.path.exists()
+        finally:
+            bench.close()
+
+
+def test_an_enable_state_that_cannot_be_journaled_is_not_kept_in_memory_either(tmp_path):
+    journal = Journal("tcp://127.0.0.1:500", tmp_path / "gone")  # its directory does not exist: no save succeeds
+    with pytest.raises(JournalError):
+        journal.add_enable_states({"M1001": True})
+    assert journal.enable_states() == {} and not journal.pending  # so the next try saves it again, or fails again
+    with pytest.raises(JournalError):
+        journal.add_enable_states({"M1001": True})
 
 
 def _frame(body: str) -> bytes:
@@ -215,9 +226,7 @@ def _frame(body: str) -> bytes:
 
 
 def test_command_43_is_answered_byte_for_byte_as_the_spec_gives_it(profile, emulated):
-    bench = Bench(profile)
-    try:
-        _operator_forces(bench)  # M1001, M1002 disabled, M1003 enabled
+    with _forced_by_an_operator(profile):  # M1001, M1002 disabled, M1003 enabled
         host, port = emulated["fatek-tcp"].rsplit(":", 1)
         with socket.create_connection((host, int(port)), timeout=5) as wire:
             wire.sendall(_frame("014303M1001"))  # station 01, command 43, N = 03, start bit M1001
@@ -225,7 +234,3 @@ def test_command_43_is_answered_byte_for_byte_as_the_spec_gives_it(profile, emul
             while not reply.endswith(b"\x03"):
                 reply += wire.recv(64)
         assert reply == _frame("01430110"), reply  # error 0, then one character per bit, 1 = disabled
-    finally:
-        for name in FORCED:
-            bench.raw.bit_action(name, 2)
-        bench.close()
