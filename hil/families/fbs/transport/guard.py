@@ -97,16 +97,22 @@ class GuardedTransport(Guard, Transport):
 
     def _restore_actions(self) -> None:
         """The bits' enable states back, each read back (command 43), and RUN/STOP back (before the values)."""
-        if self.enable_original:
-            self._restore_enable_states()
-        if self.run_original is not None:
-            if bool(self.inner.status().running) != self.run_original:
-                self.inner.set_running(self.run_original)
-            self.run_original = None
-            if self.durable is not None:
-                self.durable.set_extra("run", None)
+        try:
+            if self.enable_original:
+                self._restore_enable_states()
+        finally:  # RUN/STOP back even when an enable state could not be
+            if self.run_original is not None:
+                if bool(self.inner.status().running) != self.run_original:
+                    self.inner.set_running(self.run_original)
+                self.run_original = None
+                if self.durable is not None:
+                    self.durable.set_extra("run", None)
 
     def _restore_enable_states(self) -> None:
+        if getattr(self.inner, "read_disabled", None) is None or getattr(self.inner, "bit_action", None) is None:
+            names = ", ".join(sorted(str(a) for a in self.enable_original))
+            raise HilError(f"the enable states of {names} (FATEK commands 42/43) cannot be put back over "
+                           f"{self.inner.description}: restore them over the PLC's FATEK port")
         wrong = []
         for address, disabled in sorted(self.enable_original.items(), key=lambda item: str(item[0])):
             if bool(self.inner.read_disabled(address, 1)[0]) != disabled:
