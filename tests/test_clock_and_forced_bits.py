@@ -219,6 +219,18 @@ def test_an_enable_state_that_cannot_be_journaled_is_not_kept_in_memory_either(t
         journal.add_enable_states({"M1001": True})
 
 
+def test_a_bit_action_that_cannot_be_journaled_is_not_sent(tmp_path):
+    bench = Bench(load_profile(EMULATOR_BENCH), target="emulator+fatek-tcp")  # in process, over a real wire
+    try:
+        bench.io.durable = Journal("tcp://127.0.0.1:500", tmp_path / "gone")  # a journal no save reaches
+        for _ in range(2):  # and the second try as well: nothing was kept in memory as journaled
+            with pytest.raises(JournalError):
+                bench.plc.io.bit_action("M1001", 1)
+            assert bench.raw.read_disabled("M1001") == [0]
+    finally:
+        bench.close()
+
+
 def _frame(body: str) -> bytes:
     """STX, ``body``, the checksum of STX through the last data character (2 uppercase hex), ETX (spec)."""
     text = "\x02" + body
