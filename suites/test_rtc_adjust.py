@@ -7,23 +7,26 @@ import datetime as dt
 
 import pytest
 
-OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
-    reason="the 2099 → 2000 wrap of a ±30 s carry is the spec's [our choice], not a manual statement")
+DROP, ROUND_UP = pytest.mark.spec("RTC-ADJ-1"), pytest.mark.spec("RTC-ADJ-2")
+# the carry of the added minute into hour, day, month, year (and 2099 → 2000) is the spec's [our choice]: the
+# marks name it, so these cases need spec_choices (hil.plugin.requirements)
+CARRY = pytest.mark.spec("RTC-ADJ-2", "RTC-ADJ-4")
+WRAP = pytest.mark.spec("RTC-ADJ-2", "RTC-ADJ-4", "RTC-ADJ-5")
 
 
 @pytest.mark.parametrize("start, after", [
-    ("2024-03-05 10:20:00", "2024-03-05 10:20:00"),
-    ("2024-03-05 10:20:10", "2024-03-05 10:20:00"),
-    ("2024-03-05 10:20:29", "2024-03-05 10:20:00"),  # last second of the "drop" window
-    ("2024-03-05 10:20:30", "2024-03-05 10:21:00"),  # first second of the "round up" window
-    ("2024-03-05 10:20:45", "2024-03-05 10:21:00"),
-    ("2024-03-05 10:59:45", "2024-03-05 11:00:00"),  # minute → hour
-    ("2024-03-05 23:59:45", "2024-03-06 00:00:00"),  # hour → day
-    ("2024-04-30 23:59:40", "2024-05-01 00:00:00"),  # 30-day month → next month
-    ("2024-02-29 23:59:30", "2024-03-01 00:00:00"),  # leap day → March
-    ("2023-02-28 23:59:30", "2023-03-01 00:00:00"),  # non-leap February → March
-    ("2024-12-31 23:59:50", "2025-01-01 00:00:00"),  # month → year
-    pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=OUR_CHOICE_WRAP),
+    pytest.param("2024-03-05 10:20:00", "2024-03-05 10:20:00", marks=DROP),
+    pytest.param("2024-03-05 10:20:10", "2024-03-05 10:20:00", marks=DROP),
+    pytest.param("2024-03-05 10:20:29", "2024-03-05 10:20:00", marks=DROP),  # last second of the "drop" window
+    pytest.param("2024-03-05 10:20:30", "2024-03-05 10:21:00", marks=ROUND_UP),  # first second of "round up"
+    pytest.param("2024-03-05 10:20:45", "2024-03-05 10:21:00", marks=ROUND_UP),
+    pytest.param("2024-03-05 10:59:45", "2024-03-05 11:00:00", marks=CARRY),  # minute → hour
+    pytest.param("2024-03-05 23:59:45", "2024-03-06 00:00:00", marks=CARRY),  # hour → day
+    pytest.param("2024-04-30 23:59:40", "2024-05-01 00:00:00", marks=CARRY),  # 30-day month → next month
+    pytest.param("2024-02-29 23:59:30", "2024-03-01 00:00:00", marks=CARRY),  # leap day → March
+    pytest.param("2023-02-28 23:59:30", "2023-03-01 00:00:00", marks=CARRY),  # non-leap February → March
+    pytest.param("2024-12-31 23:59:50", "2025-01-01 00:00:00", marks=CARRY),  # month → year
+    pytest.param("2099-12-31 23:59:30", "2000-01-01 00:00:00", marks=WRAP),
 ])
 def test_adjust_30s(bench, rtc, io, start, after):
     begin = dt.datetime.fromisoformat(start)
@@ -47,6 +50,7 @@ def test_adjust_30s(bench, rtc, io, start, after):
     assert 0 <= second <= 1 + ran, f"seconds {second} after the correction (procedure took {ran:.1f} s)"
 
 
+@pytest.mark.spec("RTC-ADJ-3", "RTC-ADJ-2")
 def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 20, 40)).accepted
     io.write("M1953", 1)  # rising edge: 10:20:40 → 10:21:00

@@ -24,12 +24,14 @@ def s35390a(bench):
     return bench.plc.rtc
 
 
+@pytest.mark.spec("RTC-DRIFT-7")
 @pytest.mark.parametrize("code", [0x56E5, 0x5603, 0x56FC, 0x5602, 0x0000])
 def test_d4054_write_read_back(s35390a, io, code):
     io.write("D4054", code)
     assert io.read("D4054") == code
 
 
+@pytest.mark.spec("RTC-DRIFT-3")
 def test_table_codes_of_the_manuals_worked_examples():
     assert code_for_rate(3.38) == 0x56E5  # "runs fast by 3.38 s/day"
     assert code_for_rate(-5.62) == 0x5603  # "runs slow by 5.62 s/day"
@@ -47,6 +49,7 @@ def _planned(profile) -> float:
 
 @pytest.mark.slow
 @pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-2", "RTC-DRIFT-4")
 @pytest.mark.measures("drift_uncompensated", unit="s/day")
 @pytest.mark.measures("drift_residual", unit="s/day", low=-FINE_STEP, high=FINE_STEP)
 def test_drift_measured_compensated_and_remeasured(bench, s35390a, io, measure, report):
@@ -93,6 +96,7 @@ DIRECTION_RESOLUTION = 4.0
 
 @pytest.mark.slow
 @pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4")
 @pytest.mark.measures("d4054_largest_correction", unit="s/day", low=LARGEST_CORRECTION - 2 * DIRECTION_RESOLUTION,
                       high=LARGEST_CORRECTION + 2 * DIRECTION_RESOLUTION)
 def test_d4054_largest_code_slows_the_clock_by_table_1s_amount(bench, s35390a, io, measure):

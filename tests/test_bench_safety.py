@@ -11,12 +11,13 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
 from hil.bench.profile import load_profile
 from hil.core.errors import HilError, RestoreError
-from hil.core.lock import BenchBusy, BenchLock, lock_key
+from hil.core.lock import BenchBusy, BenchLock, lock_dir, lock_key
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.rtc_time import RtcTime
 from hil.core.journal import Journal
@@ -32,7 +33,7 @@ def test_journal_is_on_disk_with_bench_test_and_pid_and_keeps_the_first_original
     journal.add_elements({"R100": 9, "M1": 1})  # R100 keeps its first (older) original
     data = json.loads(journal.path.read_text())  # what a fresh process would see
     assert data["bench"] == "tcp://127.0.0.1:500"
-    assert data["elements"]["R100"]["value"] == 7 and data["elements"]["M1"]["value"] == 1
+    assert data["elements"]["R100"]["original"] == 7 and data["elements"]["M1"]["original"] == 1
     assert data["elements"]["R100"]["test"] == "suites/test_x.py::test_y"
     assert data["elements"]["R100"]["pid"] == os.getpid()
     assert os.stat(journal.path).st_mode & 0o077 == 0
@@ -214,12 +215,20 @@ def test_a_planted_symlink_at_the_lock_path_is_refused(tmp_path, monkeypatch):
     assert victim.read_text() == "precious"
 
 
-def test_the_lock_directory_is_private(tmp_path, monkeypatch):
+def test_the_lock_directory_is_shared_by_every_user_of_the_host(tmp_path, monkeypatch):
+    """Issue 25 item 4: two users on one host are kept apart — one directory for all (1777, like /tmp), each
+    lock file open to all; a world-writable directory without the sticky bit is refused."""
     monkeypatch.delenv("HIL_LOCK_DIR", raising=False)
-    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    assert lock_dir() in (Path("/run/lock/hil"), Path("/tmp/hil-locks"))  # the same for every user
+    monkeypatch.setenv("HIL_LOCK_DIR", str(tmp_path / "locks"))
     with BenchLock("fatek+tcp://127.0.0.1:500").acquire() as lock:
-        assert lock.path.parent == tmp_path / "hil"
-        assert os.stat(lock.path.parent).st_mode & 0o777 == 0o700
+        assert os.stat(lock.path.parent).st_mode & 0o7777 == 0o1777
+        assert os.stat(lock.path).st_mode & 0o777 == 0o666
+    loose = tmp_path / "loose"
+    loose.mkdir()
+    os.chmod(loose, 0o777)
+    with pytest.raises(HilError, match="sticky"):
+        BenchLock("fatek+tcp://127.0.0.1:500", loose).acquire()
 
 
 def test_hil_rtc_set_refuses_while_a_run_holds_the_bench(tmp_path, emulated):
@@ -253,6 +262,9 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
     suite = ET.fromstring(xml).find("testsuite")
     assert any(p.get("name") == "hil_bench_recovery" and "restored and verified" in p.get("value", "")
                for p in suite.findall("properties/property")), "recovery is a testsuite property"
+    recovery = next(c for c in suite.iter("testcase") if c.get("name") == "bench_recovery")
+    assert recovery.get("classname") == "hil.bench"  # not an empty classname (issue 24)
+    assert ET.fromstring(xml).get("name") == f"hil run on bench {profile.name}"  # not pytest's "pytest tests"
     check = Bench(profile)
     try:
         assert check.raw.read_many(["R100", "M0"]) == original

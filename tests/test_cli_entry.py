@@ -128,8 +128,9 @@ def test_unreachable_plc_is_one_error_then_the_run_stops(tmp_path: Path) -> None
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    done = hil("run", "-q", "--target", f"fatek+tcp://127.0.0.1:{port}?timeout=0.2", "--junitxml",
-               str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), cwd=tmp_path)
+    bench = REPO / "fixtures" / "benches" / "example-bench.toml"  # a PLC's profile: the default is the emulator's
+    done = hil("run", "-q", "--bench", str(bench), "--target", f"fatek+tcp://127.0.0.1:{port}?timeout=0.2",
+               "--junitxml", str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), cwd=tmp_path)
     assert done.returncode == 1
     assert done.stdout.count("cannot open the bench") <= 3, done.stdout  # the error, its summary line, the stop
     assert "1 error" in done.stdout and "passed" not in done.stdout.splitlines()[-1]

@@ -9,6 +9,7 @@ import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import numpy  # noqa: F401 - pytester's in-process runs restore sys.modules, and numpy cannot load twice in a process
 import pytest
 
 from hil.plugin.reporting.html import write_html, write_html_sections

@@ -138,17 +138,19 @@ def test_s7_suites_fail_on_broken_plc(pytester, plugin, catcher, target):
     assert any(catcher in f for f in failed), f"{catcher} did not catch {_name(plugin)}; failed: {failed}"
 
 
-def test_families_skip_each_other_with_the_reason(pytester):
-    # FBs bench: S7 suites skipped
+def test_families_deselect_each_other_with_the_reason(pytester):
+    # FBs bench: S7 suites deselected, one line saying why (not a screen of identical skips, issue 24)
     result = pytester.runpytest_inprocess(str(S7_SUITES), "--bench", str(EMULATOR_BENCH), "-rs",
                                           "-p", "no:cacheprovider")
-    result.assert_outcomes(skipped=len(run_s7(pytester)[0]))
-    result.stdout.fnmatch_lines(["*for s7-200smart PLCs; bench 'emulator' is family 'fbs'*"])
-    # S7 bench: FBs smoke suite skipped
+    result.assert_outcomes(deselected=len(run_s7(pytester)[0]))
+    result.stdout.fnmatch_lines(["hil: * tests for s7-200smart PLCs deselected: bench 'emulator' is family 'fbs'"])
+    assert "SKIPPED" not in result.stdout.str()
+    # S7 bench: FBs smoke suite deselected
     result = pytester.runpytest_inprocess(str(REPO / "suites" / "test_smoke.py"), "--bench", str(S7_BENCH), "-rs",
                                           "-p", "no:cacheprovider")
-    result.assert_outcomes(skipped=5)
-    result.stdout.fnmatch_lines(["*for fbs PLCs; bench 's7-200smart emulator' is family 's7-200smart'*"])
+    result.assert_outcomes(deselected=5)
+    result.stdout.fnmatch_lines(["hil: 5 tests for fbs PLCs deselected: bench 's7-200smart emulator' is family "
+                                 "'s7-200smart'"])
 
 
 def test_cr40_loses_the_time_at_every_power_cycle(pytester, tmp_path):

@@ -53,17 +53,24 @@ class BenchBase:
 
     # -- safety (issue 15): the durable journal, recovery first, the per-test restore ---------------------------
     def attach_journal(self) -> Journal | None:
-        """The bench's journal on disk, given to the guard (None for an in-process emulator: each run builds its
-        own, nothing outlives the run)."""
+        """The PLC's journal on disk, given to the guard (None for an in-process emulator: each run builds its
+        own, nothing outlives the run).  Keyed by the PLC (:func:`hil.core.lock.plc_key`), it records the endpoint
+        and the identity the wire reads (:meth:`plc_identity`), which recovery checks before replaying."""
         if self.target.in_process:
             return None
-        from hil.core.lock import lock_key
-        self.io.durable = Journal(lock_key(str(self.target)))
+        from hil.core.lock import lock_key, plc_key
+        self.io.identity_vouched = bool(self.profile.plc_id)
+        self.io.durable = Journal(plc_key(str(self.target), self.profile.plc_id), endpoint=lock_key(str(self.target)),
+                                  plc=self.plc_identity())
         return self.io.durable
 
-    def recover(self) -> Recovery | None:
-        """Replay what a dead run left in this bench's journal — before anything else, with the lock held."""
-        return self.io.recover(self.recovery_steps)
+    def plc_identity(self) -> dict[str, str] | None:
+        """Which PLC the wire reaches, as far as it can tell (None: it cannot); the family's."""
+        return None
+
+    def recover(self, *, by_hand: bool = False) -> Recovery | None:
+        """Replay what a dead run left in this PLC's journal — before anything else, with the lock held."""
+        return self.io.recover(self.recovery_steps, by_hand=by_hand)
 
     def begin_test(self, test_id: str = "") -> None:
         """A test starts: first retry any restore that failed before, then start its journal."""

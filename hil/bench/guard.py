@@ -32,11 +32,12 @@ from __future__ import annotations
 
 import datetime as dt
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, TypeVar
 
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
-from hil.core.journal import Journal
+from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
+from hil.core.journal import CLOCK, Journal, JournalError
 from hil.core.timebase import HostClocks, Timebase
 
 T = TypeVar("T")
@@ -108,35 +109,9 @@ def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClo
     return ClockOrigin(plc, timebase.now() - elapsed * scale, scale)
 
 
-@dataclass
-class Recovery:
-    """What :meth:`Guard.recover` found in a dead run's journal, and what it could not put back."""
-
-    bench: str
-    path: str
-    pending: list[str] = field(default_factory=list)  # what the journal held, one line each
-    failures: list[str] = field(default_factory=list)  # what could not be restored (still in the journal)
-
-    @property
-    def needed(self) -> bool:
-        return bool(self.pending)
-
-    @property
-    def ok(self) -> bool:
-        return not self.failures
-
-    def summary(self) -> str:
-        if not self.needed:
-            return f"hil bench recovery: nothing pending for {self.bench}"
-        if self.ok:
-            return (f"hil bench recovery: a previous run on {self.bench} died leaving {len(self.pending)} value(s) "
-                    f"changed — restored and verified: " + "; ".join(self.pending))
-        return (f"hil bench recovery FAILED on {self.bench}: still unrestored (kept in {self.path}): "
-                + "; ".join(self.failures))
-
-
-#: a family's own recovery step (e.g. a fault rig's coils): called with the journal and the report to add to
-RecoveryStep = Callable[[Journal, Recovery], None]
+#: a family's own recovery step (e.g. a fault rig's coils): called with the journal, the report to add to and
+#: whether an operator asked for it by hand (``hil restore``: older entries too)
+RecoveryStep = Callable[[Journal, Recovery, bool], None]
 
 
 class Guard(ABC):
@@ -145,6 +120,7 @@ class Guard(ABC):
     _lock: Any  # the Link's: one request on the wire at a time
     CLOCK_SETS = 3  # exact clock restores tried before settling for CLOCK_ROUGH
     CLOCK_ROUGH = 0.5  # bench seconds: what the per-test restore promises, and all an exact one falls back to
+
 
     def __init__(self, description: str, writable: Iterable, volatile: Iterable = ()) -> None:
         super().__init__(description)  # type: ignore[call-arg]  # the Link's
@@ -165,6 +141,9 @@ class Guard(ABC):
         self.clock_due = False  # a test may have set the clock and it is not put back yet
         self._clock_busy = False  # the guard is reading or putting back the clock itself
         self.clock_error: float | None = None  # seconds the last exact put left it off, read back (None: not read)
+        # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
+        self.identity_vouched = False
+        self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
 
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
@@ -190,9 +169,6 @@ class Guard(ABC):
     def _restore_actions(self) -> None:
         """A family's own undo that comes before the values (e.g. RUN/STOP back); journal extras cleared."""
 
-    def _adopt(self, journal: Journal) -> None:
-        """Take over a dead run's family extras from its journal (see :meth:`_restore_actions`)."""
-
     # -- the allow-list and the journal ------------------------------------------------------------------------
     def check(self, names: Iterable[Any]) -> list:
         """Raise WriteRefused unless every element is writable; return the elements covered."""
@@ -208,11 +184,12 @@ class Guard(ABC):
             covered += parts
         return covered
 
-    def guarded(self, names: Iterable[Any], write: Callable[[], T]) -> T:
-        """``write()`` once every element of ``names`` is allowed and its original journaled."""
+    def guarded(self, names: Iterable[Any], write: Callable[[], T], wrote: dict | None = None) -> T:
+        """``write()`` once every element of ``names`` is allowed and its original journaled, with ``wrote`` (element
+        → the value about to be written, when the family knows it) — on disk before the write goes out."""
         with self._lock:
             covered = self.check(names)
-            self._remember(covered)
+            self._remember(covered, wrote or {})
             return write()
 
     def setting_clock(self, action: Callable[[], T]) -> T:
@@ -221,26 +198,31 @@ class Guard(ABC):
             self._note_clock()
             return action()
 
-    def _remember(self, covered: Sequence) -> None:
+    def _remember(self, covered: Sequence, wrote: dict) -> None:
+        if self._replaying:  # recovery's own writes (the clock's set procedure) put back, they journal nothing
+            self.touched.update(covered)
+            return
         if self.clock is not None and self.clock.touches.intersection(covered):
             self._note_clock()
         wanted = list(covered)
         if self.side_effects is not None:
             wanted += list(self.side_effects(list(covered)))
         fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
-        if fresh:
-            originals = dict(zip(fresh, self.read_originals(fresh)))
-            if self.durable is not None:  # on disk (fsync'd) before the write goes out
-                self.durable.add_elements({str(e): v for e, v in originals.items()})
-            self.journal.update(originals)
+        originals = dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
+        # on disk (fsync'd) before the write goes out: the original and what is written — except the guard's own
+        # clock restore once the journal has failed (a restore is never refused; it puts the PLC back)
+        if self.durable is not None and not (self._clock_busy and self.durable.failed):
+            self.durable.add_elements({str(e): v for e, v in originals.items()},
+                                      {str(e): v for e, v in wrote.items() if e not in self.volatile})
+        self.journal.update(originals)
         self.touched.update(covered)
 
     def _note_clock(self) -> None:
         """Before the first write that may set the clock: its origin, durable first."""
         if self._clock_busy:
             return
-        self.clock_due = True
         if self.clock_origin is not None or self.clock is None:
+            self.clock_due = True
             return
         self._clock_busy = True
         try:
@@ -248,14 +230,16 @@ class Guard(ABC):
         finally:
             self._clock_busy = False
         if origin is None:  # no valid time: there is no offset to keep; the restore puts it on the bench's time
+            self.clock_due = True
             return
-        if self.durable is not None:
+        if self.durable is not None:  # on disk before it is kept (and before the write that may set the clock)
             timebase = self.clock.timebase
             lag = (timebase.now() - origin.at) / origin.scale  # host seconds since the origin
             host = HostClocks.now()
             self.durable.set_clock(origin.plc, host.wall - lag, origin.scale, boot=host.boot,
                                    since_boot=None if host.since_boot is None else host.since_boot - lag)
         self.clock_origin = origin
+        self.clock_due = True
 
     @staticmethod
     def _take_origin(clock: Clock) -> ClockOrigin | None:
@@ -411,40 +395,77 @@ class Guard(ABC):
         return [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(items, now) if got != v], False
 
     # -- recovery first ----------------------------------------------------------------------------------------
-    def recover(self, steps: Iterable[RecoveryStep] = ()) -> Recovery | None:
-        """Replay what a dead run left in the durable journal (before anything else), verified, through
-        :meth:`restore`: the family's ``steps`` first, then its extras, the clock (exactly) and the elements.
-        None without a durable journal (an in-process emulator: nothing outlives a run)."""
+    def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:
+        """Replay what a dead run left in the durable journal (before anything else), as far as it can be proven
+        (:mod:`hil.bench.replay`): the family's ``steps`` first, then its actions, the clock (exactly) and the
+        elements.  None without a durable journal (an in-process emulator: nothing outlives a run)."""
         journal = self.durable
         if journal is None:
             return None
-        journal.data = journal.load()
+        try:
+            journal.data = journal.load()
+        except JournalError as exc:
+            return Recovery(journal.key, str(journal.path), refused=[str(exc)])
         report = Recovery(journal.key, str(journal.path), journal.describe())
         if not journal.pending:
             return report
+        mismatch = identity_problem(journal, self.identity_vouched)
+        if mismatch:
+            report.refused.append(mismatch)
+            return report
         for step in steps:
-            step(journal, report)
+            step(journal, report, by_hand)
         with self._lock:
-            self._adopt(journal)
-            for name, value in journal.elements().items():  # what the PLC held before the dead run
-                for element in self.split(name):
-                    self.journal.setdefault(element, value)
-            entry = journal.clock()
-            if entry and self.clock is not None:
-                try:
-                    self.clock_origin = origin_from_journal(entry, self.clock.timebase, HostClocks.now())
-                    self.clock_due = True
-                except OriginRefused as exc:  # kept in the journal: only a person can tell the right time now
-                    report.failures.append(f"clock (original {entry['plc']} at host time {entry['host']:.3f}): "
-                                           f"its origin is refused — {exc}; not set. Set the PLC's clock by hand, "
-                                           f"then remove the \"clock\" entry from {journal.path}")
-            elif entry:
-                self.clock_due = True
             try:
-                self.restore(exact=True)
-            except RestoreError as exc:
-                report.failures += [f"{name} (original {value}): {why}" for name, value, why in exc.failures]
+                self._recover_actions(journal, report, by_hand)
+            except HilError as exc:
+                report.failures.append(f"RUN/STOP and disabled bits: {exc}")
+            self._recover_clock(journal, report, by_hand)
+            replay_elements(self, journal, report, by_hand)
         return report
+
+    def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """A family's own entries (e.g. RUN/STOP, disabled bits), each checked and read back, into ``report``."""
+
+    def _recover_clock(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """The clock a dead run may have set, back at its offset from the host's clock (exactly)."""
+        entry = journal.clock()
+        if entry is None:
+            return
+        why = CLOCK.check(entry) or age_problem(entry, by_hand)
+        if why is None and self.clock is None:
+            why = "this bench has no way to set the clock"
+        elif why is None and self.clock.touches and not self.clock.touches & self.writable:
+            why = "the clock's elements are not in the profile's [safety] writable"
+        if why:
+            report.refused.append(f"clock: {why}")
+            return
+        try:
+            origin = origin_from_journal(entry, self.clock.timebase, HostClocks.now())
+        except OriginRefused as exc:  # kept in the journal: only a person can tell the right time now
+            report.refused.append(f"clock (original {entry['plc']} at host time {entry['host']:.3f}): its origin is "
+                                  f"refused — {exc}; not set. Set the PLC's clock by hand, then remove the "
+                                  f"\"clock\" entry from {journal.path}")
+            return
+        self.clock_due = True
+        self.clock_origin = origin
+        self._replaying = True
+        try:
+            failures = self._put_clock(exact=True)
+        finally:
+            self._replaying = False
+        if failures:
+            report.failures += [f"clock (original {value}): {why}" for _, value, why in failures]
+            return
+        want, got = origin.original(self.clock.timebase), self.clock.read()  # read back: whole seconds
+        if got is None or abs((got - want).total_seconds()) > 2.0 * max(1.0, origin.scale):
+            report.failures.append(f"clock: reads {got} after the restore, expected {want:%Y-%m-%d %H:%M:%S}")
+        else:
+            report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} (its offset from host time, read back)")
+
+    def value_problem(self, element: Any, value: int) -> str | None:
+        """Why ``value`` cannot be ``element``'s (None when it can): the family's range check."""
+        return None
 
 
 __all__ = ["Clock", "ClockOrigin", "Guard", "ORIGIN_MAX_AGE", "OriginRefused", "Recovery", "RecoveryStep",

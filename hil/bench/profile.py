@@ -66,6 +66,9 @@ class Profile:
     offers: tuple[str, ...] = ()
     #: the labgrid place this run holds (hil.bench.lab.resolve.Lab) when the target came from one, else None
     lab: Any = None
+    #: [bench] plc_id: the PLC's name on this site — one lock and one journal for it whatever wire reaches it
+    #: (hil.core.lock.plc_key), and the key recovery trusts where the wire reads no identity (Modbus)
+    plc_id: str | None = None
 
     @property
     def rtc(self) -> Any:
@@ -162,6 +165,9 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     offers = reader.take(bench, "bench", "offers", list, [],
                          check=lambda v: all(x in DECLARABLE for x in v)
                          or f"may list only {', '.join(DECLARABLE)}, not {', '.join(map(str, v))}")
+    plc_id = reader.take(bench, "bench", "plc_id", str, None,
+                         check=lambda v: bool(re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._:/-]{0,63}", v))
+                         or "must be a name of 1–64 letters, digits and . _ : / - (e.g. \"line-3-fbs\")")
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -173,6 +179,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         volatile=tuple(reader.take(safety_t, "safety", "volatile", list, volatile_default, check=ranges)),
         allow_destructive=reader.take(safety_t, "safety", "allow_destructive", bool, False))
     reader.done(safety_t, "safety")
+    _check_overlap(plugin, safety, where)
 
     emu_t = reader.table(data, "emulator")
     emulator = EmulatorSettings(
@@ -201,7 +208,29 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab)
+                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id)
+
+
+def refuse_default_for_a_plc(target: str | None, bench: str | None, default: Path | str) -> None:
+    """No --bench and a --target naming a PLC (not an ``emulator…`` target): refuse the default profile, which is
+    the emulator's (RUN/STOP allowed, broad writable ranges), rather than let it loose on somebody's machine."""
+    if target and not bench and not parse_target(target).in_process:
+        raise ProfileError(f"--target {target} names a PLC, and no --bench profile was given: the default profile "
+                           f"({default}) is the emulator's (RUN/STOP allowed, broad writable ranges) — pass --bench "
+                           f"with a profile for this PLC (see fixtures/benches/example-bench.toml)")
+
+
+def _check_overlap(plugin: Family, safety: Safety, where: str) -> None:
+    """Refuse an element both ``writable`` and ``volatile``: a volatile element is never journaled, so a test's
+    write to it would stay on the PLC.  The family's clock elements may be both: the clock restore puts them back."""
+    both = (plugin.elements(safety.writable) & plugin.elements(safety.volatile)) - plugin.elements(
+        getattr(plugin, "clock_elements", ()))
+    if both:
+        shown = sorted(both, key=lambda e: (getattr(e, "kind", ""), getattr(e, "index", 0), str(e)))
+        names = ", ".join(str(e) for e in shown[:6]) + ("…" if len(shown) > 6 else "")
+        raise ProfileError(f"{where}: [safety] volatile and writable overlap at {names}: a volatile element is never "
+                           f"journaled, so a test's write to it would be left on the PLC — keep each element in one "
+                           f"of the two lists")
 
 
 def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:

@@ -1,67 +1,144 @@
-"""``hil restore``: replay (or ``--show``) what a run that died left in a bench's journal (:mod:`hil.core.journal`)."""
+"""``hil restore``: replay (or ``--show``) what a run that died left in a PLC's journal (:mod:`hil.core.journal`).
+
+By hand, recovery follows the same rules as a run's (:mod:`hil.bench.replay`: this user's file, this PLC, the
+profile's allow-list and switches, still the value the run wrote), except that it also takes entries older than a
+run would.  ``--show`` changes nothing: it says, for each journal and each entry, what the next run does with it.
+"""
 
 from __future__ import annotations
 
-import json
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
 
 from hil.core.errors import HilError
 
+if TYPE_CHECKING:
+    from hil.core.journal import Journal
+
 
 def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False) -> int:
-    from hil.core.lock import lock_key
-    from hil.core.journal import Journal, state_dir
     if show:
-        if url is None and bench is None:
-            paths = sorted(state_dir().glob("journal-*.json"))
-            keys = []
-            for path in paths:
-                try:
-                    keys.append(json.loads(path.read_text()).get("bench", "?"))
-                except (OSError, ValueError):
-                    keys.append(f"? (unreadable {path})")
-        else:
-            keys = [lock_key(_target(url, bench))]
-        shown = 0
-        for key in keys:
-            journal = Journal(key)
-            if not journal.pending:
-                continue
-            shown += 1
-            console.print(f"[bold]{escape(key)}[/] ({journal.path}): pending restore", highlight=False)
-            for line in journal.describe():
-                console.print(f"  {escape(line)}", highlight=False)
-        if not shown:
-            console.print("nothing pending: no run left a PLC changed", highlight=False)
-        return 0
+        return _show(url, bench, console)
     from hil.bench.family import open_bench
     from hil.bench.profile import load_profile
-    from hil.core.lock import BenchLock
+    from hil.core.lock import BenchLock, plc_key
     from hil.core.paths import default_bench
+    from hil.io.url import parse_target
+    if url and bench is None and not parse_target(url).in_process:
+        raise HilError(f"name the profile of the PLC at {url} (--bench FILE): recovery replays only what that "
+                       f"profile's [safety] allows, and the default profile is the emulator's")
     profile = load_profile(bench or default_bench())  # whichever family it is: its bench replays the journal
     target = url or profile.target
-    with BenchLock(target).acquire():
+    locks = [BenchLock(target)]
+    if profile.plc_id:
+        locks.append(BenchLock(target, key=plc_key(target, profile.plc_id)))
+    try:
+        for lock in locks:
+            lock.acquire()
         opened = open_bench(profile, target=target)
         try:
-            report = opened.recover()
+            report = opened.recover(by_hand=True)
         finally:
             opened.close()
+    finally:
+        for lock in reversed(locks):
+            lock.release()
     if report is None:
-        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False)
+        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False, soft_wrap=True)
         return 0
-    console.print(escape(report.summary()), highlight=False)
+    console.print(escape(report.summary()), highlight=False, soft_wrap=True)
     return 0 if report.ok else 1
 
 
-def _target(url: str | None, bench: str | None) -> str:
-    if url:
-        return url
-    if bench is None:
-        raise HilError("name a target URL or a bench profile (--bench FILE)")
-    from hil.bench.profile import load_profile
-    return load_profile(bench).target
+def _show(url: str | None, bench: str | None, console: Console) -> int:
+    """Each pending journal, entry by entry, with what the next run does with it; one line for a refused file."""
+    from hil.core.journal import inspect, journal_path, state_dir
+    from hil.core.lock import plc_key
+    profile = None
+    if url is None and bench is None:
+        paths = sorted(state_dir().glob("journal-*.json"))
+    else:
+        from hil.bench.profile import load_profile
+        profile = load_profile(bench) if bench else None
+        target = url or profile.target  # type: ignore[union-attr]
+        paths = [journal_path(plc_key(target, profile.plc_id if profile else None))]
+    shown = listed = 0
+    for path in paths:
+        if not path.exists():
+            continue
+        key, journal, refused = inspect(path)
+        if refused:
+            shown += 1
+            console.print(f"[bold red]refused[/] {escape(refused)}", highlight=False, soft_wrap=True)
+            continue
+        assert journal is not None
+        if not journal.pending:
+            continue
+        shown += 1
+        listed += 1
+        console.print(f"[bold]{escape(str(key))}[/] ({path}): pending restore"
+                      + (f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""),
+                      highlight=False, soft_wrap=True)
+        for line in _verdicts(journal, profile):
+            console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
+    if not shown:
+        console.print("nothing pending: no run left a PLC changed", highlight=False, soft_wrap=True)
+    elif profile is None and listed:
+        console.print("(each entry also needs the PLC's profile to allow it: --bench FILE shows what it allows)",
+                      highlight=False, soft_wrap=True)
+    return 0
+
+
+def _verdicts(journal: Journal, profile: object) -> list[str]:
+    """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
+    from hil.bench.replay import age_problem
+    writable = volatile = None
+    if profile is not None:
+        plugin = profile.plugin  # type: ignore[attr-defined]
+        writable = plugin.elements(profile.safety.writable)  # type: ignore[attr-defined]
+        volatile = plugin.elements(profile.safety.volatile)  # type: ignore[attr-defined]
+    out = []
+    for kind, name, entry in journal.entries():
+        problem = kind.check(entry)
+        what = kind.describe(name or kind.section, entry) if problem is None else f"{kind.section} {name or ''}".strip()
+        if problem is None:
+            problem = age_problem(entry, by_hand=False)
+            if problem:
+                problem += " — not replayed by a run"
+        dropped = False
+        if problem is None and kind.section == "elements" and writable is not None:
+            try:
+                element = next(iter(profile.plugin.elements([name])), None)  # type: ignore[attr-defined]
+            except (HilError, ValueError):
+                element = None
+            dropped = element in volatile
+            if element is None:
+                problem = "not an element of this PLC"
+            elif not dropped and element not in writable and entry.get("wrote") is not None:
+                problem = "not in the profile's [safety] writable"
+            check = getattr(profile.plugin, "value_problem", None)  # type: ignore[attr-defined]
+            if problem is None and not dropped and check is not None:
+                bad = check(element, entry["original"]) or (entry["wrote"] is not None
+                                                             and check(element, entry["wrote"]))
+                problem = f"malformed: {bad}" if bad else None
+        if problem is None and kind.section == "run" and profile is not None \
+                and not profile.safety.allow_destructive:  # type: ignore[attr-defined]
+            problem = "RUN/STOP needs [safety] allow_destructive"
+        if problem is not None:
+            out.append(f"{what}: next run refuses it ({problem}); kept")
+        elif dropped:
+            out.append(f"{what}: next run drops it (volatile in the profile)")
+        elif kind.section == "elements" and writable is not None and element not in writable:
+            out.append(f"{what}: next run restores it only if the PLC rewrites it after a write the profile allows "
+                       f"(a FUN86 box's gains after its EN), else refuses it")
+        elif kind.keyed and entry.get("wrote") is not None:
+            out.append(f"{what}: next run restores it if it still reads {int(entry['wrote'])}, else leaves it "
+                       f"and says so")
+        else:
+            out.append(f"{what}: next run restores it (read back)")
+    return out
 
 
 __all__ = ["restore"]

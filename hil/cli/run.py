@@ -68,5 +68,10 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
 
 
 def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: object) -> int:
+    from hil.bench.profile import refuse_default_for_a_plc
+    refuse_default_for_a_plc(target, bench, default_bench())  # before pytest is given the default by name
     Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
+    for own in (junitxml, options.get("html")):  # an earlier run's result must not pass for this one's, even if
+        if own:  # this one dies before its reports say INCOMPLETE (hil.plugin.reporting.verdict)
+            Path(str(own)).unlink(missing_ok=True)
     return int(pytest.main(pytest_args(bench, target, junitxml, extra, **options)))  # type: ignore[arg-type]

@@ -57,26 +57,32 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
         factory = lambda: build_emulator(profile, epoch)  # noqa: E731
     timeout = given.timeout if given is not None else None
     with contextlib.ExitStack() as stack:
+        plc_id = given.plc_id if given is not None else None
         if writing and not target.in_process:
-            from hil.core.lock import BenchLock
+            from hil.core.lock import BenchLock, plc_key
             stack.enter_context(BenchLock(str(target)).acquire())
+            if plc_id:
+                stack.enter_context(BenchLock(str(target), key=plc_key(str(target), plc_id)).acquire())
         transport = stack.enter_context(open_transport(target, emulator_factory=factory, timeout=timeout))
         timebase = timebase_for(transport.emulator, epoch, given.time_scale if given is not None else 1.0)
         if writing and not target.in_process:
-            recover_first(str(target), transport, timebase)
+            recover_first(str(target), transport, timebase, given)
         yield OpenTarget(transport, timebase, profile)
 
 
-def recover_first(target: str, transport: Transport, timebase: Timebase) -> None:
-    """Replay a journal a dead run left for this bench, saying so on stderr; refuse to go on if that failed."""
+def recover_first(target: str, transport: Transport, timebase: Timebase, profile: Profile | None = None) -> None:
+    """Replay a journal a dead run left for this PLC (under ``profile``'s allow-list; without one nothing is
+    replayed), saying so on stderr; refuse to go on if that failed."""
     import sys
-    from hil.core.lock import lock_key
+    from hil.core.lock import lock_key, plc_key
     from hil.core.journal import Journal
+    from hil.families.fbs.identity import read_identity
     from hil.families.fbs.recovery import recover
-    journal = Journal(lock_key(target))
+    journal = Journal(plc_key(target, profile.plc_id if profile is not None else None), endpoint=lock_key(target),
+                      plc=read_identity(transport))
     if not journal.pending:
         return
-    report = recover(journal, transport, timebase)
+    report = recover(journal, transport, timebase, profile)
     print(report.summary(), file=sys.stderr, flush=True)
     if not report.ok:
         raise HilError(f"{report.summary()} — not going on; `hil restore --show` lists them")

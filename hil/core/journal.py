@@ -1,14 +1,38 @@
-"""The durable write-ahead journal of one bench: what must be put back if this run dies.
+"""The durable write-ahead journal of one PLC: what must be put back if this run dies.
 
-Before the first write to an element in a test, its original value is on disk (written to a temporary file,
-fsync'd, moved over the journal with :func:`os.replace`, and the directory fsync'd), together with the bench's
-identity (its canonical endpoint, :func:`hil.core.lock.lock_key`), the test's id and the run's pid.  The same
-goes for what a fault rig's coils held before an injection, and for the clock before a test sets it (recorded as
-the PLC's time against the host's wall clock, so the restore is the same whatever the host's time zone).  An
-entry leaves the journal only after its restore was written *and read back equal*.
+Before each write to an element, its original value *and the value about to be written* are on disk (written to a
+temporary file, fsync'd, moved over the journal with :func:`os.replace`, and the directory fsync'd) — save before
+mutate: the change is made to a copy, the copy saved, and only then the journal in memory (and the PLC) changed.  A
+save that fails refuses that write and every later one of the session (:attr:`Journal.failed`): nothing goes out
+unjournaled.  The same goes for a fault rig's coils, RUN/STOP, bits disabled by command 42, and the clock before a
+test sets it (recorded as the PLC's time against the host's wall clock).  An entry leaves the journal only after
+its restore was written *and read back equal*.
 
-A run that dies (SIGKILL, power cut, a lost terminal) leaves the file behind; the next run on the same bench
-replays it before anything else (:meth:`hil.bench.guard.Guard.recover`) and says so, and ``hil restore`` does it by hand.
+A run that dies leaves the file behind; the next run on the same PLC replays it before anything else
+(:meth:`hil.bench.guard.Guard.recover`) — only as far as it can be proven — and ``hil restore`` does it by hand.
+
+Trust: the state directory must be a directory of this user's that nobody else can write, and the journal a
+regular file of this user's that nobody else can write; anything else is refused whole (:class:`JournalRefused`,
+one line, the file kept).
+
+The schema (version 2), one JSON object::
+
+    {"version": 2,
+     "bench": KEY,                # the PLC's key (:func:`hil.core.lock.plc_key`): must match the file's name
+     "endpoint": "tcp://…:500",   # the wire the run wrote over
+     "plc": {…} | null,           # the PLC's identity as the wire read it (FATEK command 53, the S7 identity)
+     "created": ISO-8601 UTC,
+     # one section per registered entry kind (:data:`KINDS`); each entry carries test, pid and at (ISO-8601 UTC)
+     "elements": {NAME: {"original": int, "wrote": int | null, …}},    # wrote null: the PLC changed it itself
+     "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null, …}},
+     "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float, …},
+     "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
+     "disabled": [NAME, …],                                             # bits command 42 disabled
+     "enable":   {NAME: {"disabled": bool, …}}}                         # enable state (command 43) before 42
+
+Each section is checked entry by entry by its kind's validator (:func:`register_kind`): a malformed entry is
+named and kept, the others still replayed.  A kind may carry fields beyond those its validator checks (they are
+its own business); an unknown *section*, another version or another bench refuses the whole file.
 
 File: ``<state dir>/journal-<sha256(key)[:16]>.json`` where the state dir is ``$HIL_STATE_DIR``, else
 ``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil`` (created with mode 0700).
@@ -16,20 +40,56 @@ File: ``<state dir>/journal-<sha256(key)[:16]>.json`` where the state dir is ``$
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import datetime as dt
 import hashlib
 import json
+import math
 import os
+import stat
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 from hil.core.errors import HilError
 
-VERSION = 1
+VERSION = 2
+#: top-level fields that are not entry sections
+META = ("version", "bench", "endpoint", "plc", "created")
+FUTURE_SLACK = 120.0  # s: an entry stamped later than now + this was not written by a run on this host's clock
 
 
 class JournalError(HilError):
     """The journal cannot be written or read (a run must not write to a PLC it cannot journal)."""
+
+
+class JournalRefused(JournalError):
+    """The journal on disk cannot be trusted as a whole (owner, mode, version, bench, not a journal): kept."""
+
+
+# -- trust --------------------------------------------------------------------------------------------------------
+def _private(path: Path, what: str, *, directory: bool) -> None:
+    """Refuse ``path`` unless it is this user's, of the right type, and nobody else can write it."""
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise JournalRefused(f"cannot check the {what} {path}: {exc}") from None
+    kind_ok = stat.S_ISDIR(info.st_mode) if directory else stat.S_ISREG(info.st_mode)
+    if not kind_ok:
+        shown = "a symbolic link" if stat.S_ISLNK(info.st_mode) else "not a " + ("directory" if directory else
+                                                                                 "regular file")
+        raise JournalRefused(f"the {what} {path} is {shown} — refusing to trust it (kept; check it by hand)")
+    if info.st_uid != os.getuid():
+        raise JournalRefused(f"the {what} {path} belongs to uid {info.st_uid}, not to you (uid {os.getuid()}) — "
+                             f"refusing to trust it (kept; check it by hand)")
+    if info.st_mode & 0o022:
+        raise JournalRefused(f"the {what} {path} is writable by others (mode {stat.S_IMODE(info.st_mode):04o}) — "
+                             f"refusing to trust journals there (kept; use a private directory, mode 0700)")
+    if not directory and info.st_nlink != 1:
+        raise JournalRefused(f"the {what} {path} has {info.st_nlink} hard links — refusing to trust it (kept)")
 
 
 def state_dir() -> Path:
@@ -39,7 +99,11 @@ def state_dir() -> Path:
     else:
         xdg = os.environ.get("XDG_STATE_HOME")
         base = (Path(xdg) if xdg else Path.home() / ".local" / "state") / "hil"
-    base.mkdir(parents=True, exist_ok=True, mode=0o700)
+    try:
+        base.mkdir(parents=True, exist_ok=True, mode=0o700)
+    except OSError as exc:
+        raise JournalError(f"cannot create the state directory {base}: {exc}") from None
+    _private(base, "state directory", directory=True)
     return base
 
 
@@ -48,58 +112,278 @@ def journal_path(key: str, directory: Path | None = None) -> Path:
     return (Path(directory) if directory else state_dir()) / f"journal-{digest}.json"
 
 
+# -- the entry kinds ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EntryKind:
+    """One section of the journal: ``keyed`` sections map names to entries, the others hold one entry or null."""
+
+    section: str
+    keyed: bool
+    check: Callable[[Any], "str | None"]  # why an entry is malformed, None when well formed
+    describe: Callable[[str, Any], str]  # one line for people: (name, entry)
+    empty: Any = None  # the section's value when nothing is pending
+
+    def present(self, value: Any) -> bool:
+        return bool(value) if self.keyed or isinstance(self.empty, list) else value is not None
+
+
+KINDS: dict[str, EntryKind] = {}
+
+
+def register_kind(kind: EntryKind) -> EntryKind:
+    KINDS[kind.section] = kind
+    return kind
+
+
+def _when(text: Any) -> dt.datetime | None:
+    if not isinstance(text, str):
+        return None
+    try:
+        when = dt.datetime.fromisoformat(text)
+    except ValueError:
+        return None
+    return when if when.tzinfo is not None else when.replace(tzinfo=dt.timezone.utc)
+
+
+def _integer(value: Any, top: int = 0xFFFFFFFF) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= top
+
+
+def _stamp_problem(entry: dict) -> str | None:
+    if not isinstance(entry.get("test", ""), str) or not _integer(entry.get("pid", 0), 1 << 31):
+        return "its test or pid is not a name and a process id"
+    at = _when(entry.get("at"))
+    if at is None:
+        return f"its time stamp {entry.get('at')!r} is not an ISO-8601 time"
+    if (at - dt.datetime.now(dt.timezone.utc)).total_seconds() > FUTURE_SLACK:
+        return f"it is stamped {at.isoformat()}, in the future"
+    return None
+
+
+def _fields(entry: Any, checks: dict[str, Callable[[Any], bool]], what: dict[str, str]) -> str | None:
+    if not isinstance(entry, dict):
+        return f"it is {json.dumps(entry)}, not an object"
+    for name, ok in checks.items():
+        if name not in entry or not ok(entry[name]):
+            return f"its {name} is {json.dumps(entry.get(name)) if name in entry else 'missing'} (want {what[name]})"
+    return _stamp_problem(entry)
+
+
+def _bool(v: Any) -> bool:
+    return isinstance(v, bool)
+
+
+def _check_element(entry: Any) -> str | None:
+    return _fields(entry, {"original": _integer, "wrote": lambda v: v is None or _integer(v)},
+                   {"original": "an integer 0…0xFFFFFFFF", "wrote": "an integer 0…0xFFFFFFFF or null"})
+
+
+def _check_coil(entry: Any) -> str | None:
+    return _fields(entry, {"target": lambda v: isinstance(v, str) and "://" in v, "coil": lambda v: _integer(v, 65535),
+                           "unit": lambda v: _integer(v, 255), "original": _bool,
+                           "wrote": lambda v: v is None or _bool(v)},
+                   {"target": "a Modbus URL", "coil": "0…65535", "unit": "0…255", "original": "true or false",
+                    "wrote": "true, false or null"})
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_clock(entry: Any) -> str | None:
+    return _fields(entry, {"plc": lambda v: isinstance(v, str) and _when(v) is not None,
+                           "host": lambda v: _finite(v) and v > 0, "scale": lambda v: _finite(v) and v > 0},
+                   {"plc": "an ISO-8601 time", "host": "host seconds > 0", "scale": "a time scale > 0"})
+
+
+def _check_run(entry: Any) -> str | None:
+    return _fields(entry, {"original": _bool, "wrote": _bool}, {"original": "true or false", "wrote": "true or false"})
+
+
+def _check_disabled(entry: Any) -> str | None:
+    if not isinstance(entry, list) or not all(isinstance(n, str) and n for n in entry):
+        return f"it is {json.dumps(entry)}, not a list of bit names"
+    return None
+
+
+def _check_enable(entry: Any) -> str | None:
+    return _fields(entry, {"disabled": _bool}, {"disabled": "true or false"})
+
+
+def _who(entry: Any) -> str:
+    return f" — by {entry.get('test') or '?'} (pid {entry.get('pid')})" if isinstance(entry, dict) else ""
+
+
+def _show_element(name: str, e: Any) -> str:
+    wrote = e.get("wrote")
+    return (f"{name} = {e['original']} (0x{e['original']:04X}), the run wrote "
+            f"{'(the PLC itself)' if wrote is None else wrote}{_who(e)}")
+
+
+def _show_coil(name: str, e: Any) -> str:
+    return f"rig coil {name} = {int(e['original'])}, the run wrote {e.get('wrote')}{_who(e)}"
+
+
+def _show_clock(name: str, e: Any) -> str:
+    return f"clock: was {e['plc']} at host time {e['host']:.3f} (scale {e['scale']}){_who(e)}"
+
+
+def _show_run(name: str, e: Any) -> str:
+    def state(v: bool) -> str:
+        return "RUN" if v else "STOP"
+    return f"RUN/STOP: was {state(e['original'])}, the run set {state(e['wrote'])}{_who(e)}"
+
+
+def _show_disabled(name: str, e: Any) -> str:
+    return f"{', '.join(e)} disabled by command 42 (to be re-enabled)"
+
+
+def _show_enable(name: str, e: Any) -> str:
+    return f"{name} {'disabled' if e['disabled'] else 'enabled'} (command 43) before the run changed it{_who(e)}"
+
+
+ELEMENTS = register_kind(EntryKind("elements", True, _check_element, _show_element, {}))
+COILS = register_kind(EntryKind("coils", True, _check_coil, _show_coil, {}))
+CLOCK = register_kind(EntryKind("clock", False, _check_clock, _show_clock))
+RUN = register_kind(EntryKind("run", False, _check_run, _show_run))
+DISABLED = register_kind(EntryKind("disabled", False, _check_disabled, _show_disabled, []))
+#: a bit's enable state (FATEK command 43: disabled = forced) before a test first enabled or disabled it
+ENABLE = register_kind(EntryKind("enable", True, _check_enable, _show_enable, {}))
+
+
+def entry_id(section: str, name: str | None = None) -> str:
+    """How an entry is named in reports: ``elements R1000``, ``coils tcp://…/coil3``, ``clock``."""
+    return f"{section} {name}" if name is not None else section
+
+
 def _empty(key: str) -> dict[str, Any]:
-    return {"version": VERSION, "bench": key, "elements": {}, "clock": None, "coils": {}, "enable": {}}
+    return {"version": VERSION, "bench": key, "endpoint": None, "plc": None, "created": None,
+            **{k.section: copy.deepcopy(k.empty) for k in KINDS.values()}}
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number a journal may hold")
+
+
+def parse(raw: bytes | str, key: str, path: Path) -> dict[str, Any]:
+    """The journal's data once its file-level fields are right (JournalRefused otherwise, one line)."""
+    where = f"the bench journal {path}"
+    keep = "kept; check it by hand with `hil restore --show`, then delete it"
+    try:
+        data = json.loads(raw, parse_constant=_reject_constant)
+    except (ValueError, RecursionError) as exc:
+        raise JournalRefused(f"{where} is damaged (not JSON: {exc}) — {keep}") from None
+    if not isinstance(data, dict):
+        raise JournalRefused(f"{where} holds {json.dumps(data)[:40]}, not a journal (a JSON object) — {keep}")
+    if data.get("version") != VERSION:
+        raise JournalRefused(f"{where} is version {json.dumps(data.get('version'))}, this hil reads version "
+                             f"{VERSION} only — {keep}")
+    if data.get("bench") != key:
+        raise JournalRefused(f"{where} belongs to bench {json.dumps(data.get('bench'))}, not to {key} (whose name "
+                             f"it has) — {keep}")
+    unknown = sorted(set(data) - set(META) - set(KINDS))
+    if unknown:
+        raise JournalRefused(f"{where} has unknown section(s) {', '.join(unknown)} — {keep}")
+    if not (data.get("endpoint") is None or isinstance(data["endpoint"], str)) or not (
+            data.get("plc") is None or (isinstance(data["plc"], dict)
+                                        and all(isinstance(v, str) for v in data["plc"].values()))):
+        raise JournalRefused(f"{where}: its endpoint or PLC identity is malformed — {keep}")
+    for kind in KINDS.values():
+        value = data.setdefault(kind.section, copy.deepcopy(kind.empty))
+        if kind.keyed and not isinstance(value, dict):
+            raise JournalRefused(f"{where}: section {kind.section} is {json.dumps(value)[:40]}, not an object "
+                                 f"— {keep}")
+    for name in META:
+        data.setdefault(name, None)
+    return data
+
+
+def _pending(data: dict[str, Any]) -> bool:
+    return any(kind.present(data.get(kind.section)) for kind in KINDS.values())
+
+
+def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
+    """A journal file found in the state directory, for ``hil restore --show``: (its bench key, the journal, why
+    it is refused as a whole) — the key None when the file does not say one."""
+    try:
+        _private(path, "bench journal", directory=False)
+        key = json.loads(path.read_bytes(), parse_constant=_reject_constant).get("bench")
+    except JournalRefused as exc:
+        return None, None, str(exc)
+    except (OSError, ValueError, AttributeError, RecursionError):
+        key = None
+    if not isinstance(key, str) or journal_path(key, path.parent) != path:
+        try:
+            parse(path.read_bytes(), f"<the bench whose journal is {path.name}>", path)
+        except JournalRefused as exc:
+            return None, None, str(exc)
+        return None, None, f"the bench journal {path} is refused (unreadable)"
+    try:
+        return key, Journal(key, path.parent), None
+    except JournalError as exc:
+        return key, None, str(exc)
 
 
 class Journal:
-    """One bench's journal file.  Every mutation is on disk (fsync'd) when the method returns."""
+    """One PLC's journal file.  Every mutation is on disk (fsync'd) before it shows in :attr:`data`.
 
-    def __init__(self, key: str, directory: Path | None = None) -> None:
+    ``endpoint`` and ``plc`` (the PLC's identity as the wire reads it) go into a new journal's file."""
+
+    def __init__(self, key: str, directory: Path | None = None, *, endpoint: str | None = None,
+                 plc: dict[str, str] | None = None) -> None:
         self.key = key
         self.path = journal_path(key, directory)
+        self.endpoint = endpoint
+        self.plc = plc
         self.test = ""  # the test now running (its node id), written with each entry
+        self.failed: str | None = None  # why a save failed: no write may go out after it (this session)
         self.data = self.load()
 
     # -- reading ----------------------------------------------------------------------------------------------------
     def load(self) -> dict[str, Any]:
+        """The file's data (an empty journal when there is none); JournalRefused when it cannot be trusted."""
+        _private(self.path.parent, "state directory", directory=True)
+        _private(self.path, "bench journal", directory=False)
         try:
-            raw = self.path.read_text()
+            fd = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW)
         except FileNotFoundError:
             return _empty(self.key)
         except OSError as exc:
             raise JournalError(f"cannot read the bench journal {self.path}: {exc}") from None
         try:
-            data = json.loads(raw)
-        except ValueError as exc:
-            raise JournalError(f"the bench journal {self.path} is damaged ({exc}); it lists values a crashed run "
-                               f"left changed on {self.key} — check them by hand, then delete the file") from None
-        for name, default in _empty(self.key).items():
-            data.setdefault(name, default)
-        return data
+            raw = b""
+            while chunk := os.read(fd, 1 << 16):
+                raw += chunk
+        finally:
+            os.close(fd)
+        return parse(raw, self.key, self.path)
 
     @property
     def pending(self) -> bool:
-        d = self.data
-        return bool(d["elements"] or d["clock"] or d["coils"] or d.get("run") is not None or d.get("disabled")
-                    or d.get("enable"))
+        return _pending(self.data)
+
+    def entries(self) -> Iterable[tuple[EntryKind, str | None, Any]]:
+        """Every pending entry: (kind, name or None, entry), malformed ones included."""
+        for kind in KINDS.values():
+            value = self.data.get(kind.section)
+            if kind.keyed:
+                for name, entry in (value or {}).items():
+                    yield kind, name, entry
+            elif kind.present(value):
+                yield kind, None, value
+
+    def problem(self, kind: EntryKind, entry: Any) -> str | None:
+        """Why ``entry`` of ``kind`` is malformed (None when well formed)."""
+        return kind.check(entry)
 
     def extra(self, name: str, default: Any = None) -> Any:
         """``run`` (RUN/STOP before a command 41) or ``disabled`` (bits a command 42 disabled)."""
         value = self.data.get(name)
         return default if value is None else value
 
-    def set_extra(self, name: str, value: Any) -> None:
-        if self.data.get(name) != value:
-            self.data[name] = value
-            self._save()
-
     def elements(self) -> dict[str, int]:
-        return {name: entry["value"] for name, entry in self.data["elements"].items()}
-
-    def enable_states(self) -> dict[str, bool]:
-        """Bit → whether it was disabled (forced, FATEK command 42) before a test first enabled or disabled it."""
-        return {name: bool(entry["disabled"]) for name, entry in self.data["enable"].items()}
+        """Each well-formed element entry's original."""
+        return {n: e["original"] for n, e in self.data["elements"].items() if _check_element(e) is None}
 
     def coils(self) -> dict[str, dict[str, Any]]:
         return dict(self.data["coils"])
@@ -108,121 +392,179 @@ class Journal:
         return self.data["clock"]
 
     def describe(self) -> list[str]:
-        """What is pending, for people: one line per entry."""
-        d = self.data
+        """What is pending, for people: one line per entry (a malformed one says what is wrong with it)."""
         lines = []
-        for name, entry in d["elements"].items():
-            lines.append(f"{name} = {entry['value']} (0x{entry['value']:04X}) — written by {entry.get('test') or '?'}"
-                         f" (pid {entry.get('pid')})")
-        if d["clock"]:
-            c = d["clock"]
-            lines.append(f"clock: was {c['plc']} at host time {c['host']:.3f} (scale {c['scale']}) — set by "
-                         f"{c.get('test') or '?'} (pid {c.get('pid')})")
-        if d.get("run") is not None:
-            lines.append(f"RUN/STOP: was {'RUN' if d['run'] else 'STOP'}")
-        for name in d.get("disabled") or []:
-            lines.append(f"{name} disabled by command 42 (to be re-enabled)")
-        for name, entry in d["enable"].items():
-            lines.append(f"{name} {'disabled' if entry['disabled'] else 'enabled'} (command 43) before "
-                         f"{entry.get('test') or '?'} (pid {entry.get('pid')}) enabled or disabled it")
-        for key, entry in d["coils"].items():
-            lines.append(f"rig coil {key} = {int(entry['value'])} — injected by {entry.get('test') or '?'} "
-                         f"(pid {entry.get('pid')})")
+        for kind, name, entry in self.entries():
+            problem = kind.check(entry)
+            if problem:
+                lines.append(f"{entry_id(kind.section, name)}: malformed, {problem}")
+            else:
+                lines.append(kind.describe(name or kind.section, entry))
         return lines
 
-    # -- writing (each one durable before it returns) ----------------------------------------------------------
+    # -- writing (save before mutate: each change durable before it shows) ---------------------------------------
     def _stamp(self) -> dict[str, Any]:
         return {"test": self.test, "pid": os.getpid(), "at": dt.datetime.now(dt.timezone.utc).isoformat()}
 
-    def add_elements(self, originals: dict[str, int]) -> None:
-        """Record originals; an element already journaled keeps its first (older) original."""
-        fresh = {n: v for n, v in originals.items() if n not in self.data["elements"]}
-        if not fresh:
+    def _change(self, apply: Callable[[dict[str, Any]], bool], *, adds: bool = True) -> None:
+        """Apply ``apply`` to a copy of the data, save the copy, and only then take it.  ``apply`` returns False
+        when nothing changed.  Once a save has failed, nothing more may be added (``adds``)."""
+        if adds and self.failed:
+            raise JournalError(f"the bench journal {self.path} could not be written earlier in this run "
+                               f"({self.failed}) — refusing every later write to the PLC")
+        data = copy.deepcopy(self.data)
+        fresh = not _pending(data)
+        if not apply(data):
             return
-        stamp = self._stamp()
-        for name, value in fresh.items():
-            self.data["elements"][name] = {"value": int(value), **stamp}
-        self._save()
+        if adds and fresh:  # a new journal: where and what it is about
+            data.update(endpoint=self.endpoint, plc=self.plc,
+                        created=dt.datetime.now(dt.timezone.utc).isoformat())
+        try:
+            self._save(data)
+        except JournalError as exc:
+            if adds:
+                self.failed = str(exc)
+            raise
+        self.data = data
+
+    def set_extra(self, name: str, value: Any) -> None:
+        if name not in KINDS or KINDS[name].keyed:
+            raise JournalError(f"no journal entry kind {name!r} (register it: hil.core.journal.register_kind)")
+
+        def apply(data: dict[str, Any]) -> bool:
+            new = copy.deepcopy(KINDS[name].empty) if value is None else value
+            if isinstance(new, dict) and "at" not in new:
+                new = {**new, **self._stamp()}
+            if data.get(name) == new:
+                return False
+            data[name] = new
+            return True
+        self._change(apply, adds=value is not None and value != KINDS[name].empty)
+
+    def add_elements(self, originals: dict[str, int], wrote: dict[str, int | None] | None = None) -> None:
+        """Record originals (an element already journaled keeps its first, older, one) and the values about to be
+        written (``wrote``; None for what the PLC rewrites itself)."""
+        wrote = wrote or {}
+
+        def apply(data: dict[str, Any]) -> bool:
+            entries, changed, stamp = data["elements"], False, self._stamp()
+            for name, value in originals.items():
+                if name not in entries:
+                    entries[name] = {"original": int(value), "wrote": wrote.get(name), **stamp}
+                    changed = True
+            for name, value in wrote.items():
+                if name in entries and value is not None and entries[name].get("wrote") != value:
+                    entries[name] = {**entries[name], "wrote": int(value)}
+                    changed = True
+            return changed
+        self._change(apply)
 
     def drop_elements(self, names: Iterable[str]) -> None:
-        names = [n for n in names if n in self.data["elements"]]
-        if names:
-            for name in names:
-                del self.data["elements"][name]
-            self._save()
+        names = list(names)
+
+        def apply(data: dict[str, Any]) -> bool:
+            gone = [n for n in names if n in data["elements"]]
+            for name in gone:
+                del data["elements"][name]
+            return bool(gone)
+        self._change(apply, adds=False)
 
     def set_clock(self, plc_time: dt.datetime, host: float, scale: float, **more: Any) -> None:
-        """The clock before a test set it: ``plc_time`` when the host's wall clock said ``host`` (``more``: the
-        host's ``boot`` id and ``since_boot`` time then, to tell a host clock stepped before recovery)."""
-        if self.data["clock"] is None:
-            self.data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **more,
-                                  **self._stamp()}
-            self._save()
+        """The clock before a test set it: ``plc_time`` read when the host's wall clock said ``host`` (``more``:
+        fields of the clock's own, e.g. what tells a host clock stepped before recovery)."""
+        def apply(data: dict[str, Any]) -> bool:
+            if data["clock"] is not None:
+                return False
+            data["clock"] = {"plc": plc_time.isoformat(), "host": host, "scale": scale, **more, **self._stamp()}
+            return True
+        self._change(apply)
 
-    def drop_clock(self) -> None:
-        if self.data["clock"] is not None:
-            self.data["clock"] = None
-            self._save()
+    def enable_states(self) -> dict[str, bool]:
+        """Bit → whether it was disabled (forced) before a test first enabled or disabled it (well-formed ones)."""
+        return {n: bool(e["disabled"]) for n, e in self.data["enable"].items() if _check_enable(e) is None}
 
     def add_enable_states(self, states: dict[str, bool]) -> None:
-        """Record bits' enable states (True: disabled) before a first command 42 enable/disable; a bit already
-        journaled keeps its first (older) state.  Nothing is kept in memory unless it is on disk."""
-        fresh = {n: bool(v) for n, v in states.items() if n not in self.data["enable"]}
-        if fresh:
+        """Bits' enable states (True: disabled) before a first command 42 enable/disable; a bit already journaled
+        keeps its first (older) state."""
+        def apply(data: dict[str, Any]) -> bool:
+            fresh = {n: bool(v) for n, v in states.items() if n not in data["enable"]}
             stamp = self._stamp()
-            self._commit("enable", {**self.data["enable"], **{n: {"disabled": v, **stamp} for n, v in fresh.items()}})
+            data["enable"].update({n: {"disabled": v, **stamp} for n, v in fresh.items()})
+            return bool(fresh)
+        self._change(apply)
 
     def drop_enable_states(self, names: Iterable[str]) -> None:
-        kept = {n: e for n, e in self.data["enable"].items() if n not in set(names)}
-        if len(kept) != len(self.data["enable"]):
-            self._commit("enable", kept)
+        names = set(names)
 
-    def _commit(self, name: str, value: Any) -> None:
-        """``data[name] = value`` on disk; in memory only once it is (a failed save leaves both as they were)."""
-        old = self.data[name]
-        self.data[name] = value
-        try:
-            self._save()
-        except JournalError:
-            self.data[name] = old
-            raise
+        def apply(data: dict[str, Any]) -> bool:
+            gone = [n for n in data["enable"] if n in names]
+            for name in gone:
+                del data["enable"][name]
+            return bool(gone)
+        self._change(apply, adds=False)
 
-    def add_coil(self, key: str, target: str, coil: int, unit: int, value: bool) -> None:
-        if key not in self.data["coils"]:
-            self.data["coils"][key] = {"target": target, "coil": coil, "unit": unit, "value": bool(value),
-                                       **self._stamp()}
-            self._save()
+    def drop_clock(self) -> None:
+        def apply(data: dict[str, Any]) -> bool:
+            if data["clock"] is None:
+                return False
+            data["clock"] = None
+            return True
+        self._change(apply, adds=False)
+
+    def add_coil(self, key: str, target: str, coil: int, unit: int, value: bool, wrote: bool | None = None) -> None:
+        """A rig coil's original (kept from its first record) and the state about to be written (``wrote``)."""
+        def apply(data: dict[str, Any]) -> bool:
+            old = data["coils"].get(key)
+            if old is None:
+                data["coils"][key] = {"target": target, "coil": coil, "unit": unit, "original": bool(value),
+                                      "wrote": wrote, **self._stamp()}
+                return True
+            if wrote is None or old.get("wrote") == wrote:
+                return False
+            data["coils"][key] = {**old, "wrote": bool(wrote)}
+            return True
+        self._change(apply)
 
     def drop_coil(self, key: str) -> None:
-        if self.data["coils"].pop(key, None) is not None:
-            self._save()
+        def apply(data: dict[str, Any]) -> bool:
+            return data["coils"].pop(key, None) is not None
+        self._change(apply, adds=False)
 
-    def _save(self) -> None:
+    def _save(self, data: dict[str, Any]) -> None:
         directory = self.path.parent
         try:
-            if not self.pending:
+            if not _pending(data):
                 try:
                     os.unlink(self.path)
                 except FileNotFoundError:
                     return
             else:
-                self.data["bench"] = self.key
+                data["bench"] = self.key
                 tmp = directory / f".{self.path.name}.{os.getpid()}.tmp"
                 fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)
                 try:
-                    os.write(fd, json.dumps(self.data, indent=1, sort_keys=True).encode())
+                    raw = json.dumps(data, indent=1, sort_keys=True, allow_nan=False).encode()
+                    written = os.write(fd, raw)
+                    if written != len(raw):
+                        raise OSError(f"short write ({written} of {len(raw)} bytes)")
                     os.fsync(fd)
-                finally:
                     os.close(fd)
-                os.replace(tmp, self.path)
+                    os.replace(tmp, self.path)
+                except BaseException:
+                    with contextlib.suppress(OSError):
+                        os.close(fd)
+                    with contextlib.suppress(OSError):
+                        os.unlink(tmp)  # the journal on disk stays as it was
+                    raise
             dfd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
             try:
                 os.fsync(dfd)
             finally:
                 os.close(dfd)
-        except OSError as exc:
+        except (OSError, ValueError) as exc:
             raise JournalError(f"cannot write the bench journal {self.path}: {exc} — refusing to write to the PLC "
                                f"without its originals on disk") from None
 
 
-__all__ = ["Journal", "JournalError", "journal_path", "state_dir"]
+__all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
+           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "parse", "register_kind", "state_dir"]

@@ -1,11 +1,14 @@
-"""One harness run per bench: an OS file lock (``fcntl.flock``) keyed by the target.
+"""One harness run per PLC: an OS file lock (``fcntl.flock``) keyed by the PLC.
 
-Two runs against the same PLC would interleave writes and restores and corrupt each other's results.  The lock
-file lives in a per-user directory (:func:`lock_dir`, mode 0700, opened with O_NOFOLLOW), is keyed by the
-bench's canonical endpoint (:func:`lock_key`), and holds who has it — pid, host, user, start time,
-command — so a run that cannot get it can say who to ask.  The kernel drops a flock when its process dies, so
-a lock left by a crashed run is taken over at once; its leftover holder record is kept as :attr:`stale`.
-In-process ``emulator…`` targets need no lock: each run builds its own emulator.
+Two runs against the same PLC would interleave writes and restores and corrupt each other's results.  The key is
+the PLC (:func:`plc_key`): the profile's ``[bench] plc_id`` where it names one — then every wire to that PLC (FATEK,
+Modbus, another port) shares one lock and one journal — and the canonical endpoint (:func:`lock_key`) always: a run
+takes both.  The lock files live in a directory shared by every user of the host (:func:`lock_dir`, mode 1777 like
+/tmp, opened with O_NOFOLLOW; each file checked to be a plain file), so two users' runs on one PLC are kept apart
+too; each file holds who has it — pid, host, user, start time, command — so a run that cannot get it can say who to
+ask.  The kernel drops a flock when its process dies, so a lock left by a crashed run is taken over at once; its
+leftover holder record is kept as :attr:`stale`.  In-process ``emulator…`` targets need no lock: each run builds its
+own emulator.
 """
 
 from __future__ import annotations
@@ -81,33 +84,46 @@ def lock_key(target: str) -> str:
     return f"{scheme}://{rest.rstrip('/')}"
 
 
+def plc_key(target: str, plc_id: str | None = None) -> str:
+    """The key of the PLC behind ``target``: ``plc:<plc_id>`` when the profile names it, else the endpoint."""
+    return f"plc:{plc_id}" if plc_id else lock_key(target)
+
+
 def lock_dir() -> Path:
-    """A per-user directory nobody else can write (mode 0700): ``$HIL_LOCK_DIR``, else
-    ``$XDG_RUNTIME_DIR/hil``, else ``~/.cache/hil/locks``."""
+    """The directory every user of the host shares for bench locks (mode 1777): ``$HIL_LOCK_DIR``, else
+    ``/run/lock/hil`` (``/tmp/hil-locks`` where there is no /run/lock)."""
     given = os.environ.get("HIL_LOCK_DIR")
     if given:
         return Path(given)
-    runtime = os.environ.get("XDG_RUNTIME_DIR")
-    if runtime and os.path.isdir(runtime):
-        return Path(runtime) / "hil"
-    cache = os.environ.get("XDG_CACHE_HOME")
-    return (Path(cache) if cache else Path.home() / ".cache") / "hil" / "locks"
+    return Path("/run/lock/hil") if os.path.isdir("/run/lock") else Path("/tmp/hil-locks")
 
 
-def _private_dir(directory: Path) -> None:
-    directory.mkdir(parents=True, exist_ok=True, mode=0o700)
-    info = os.lstat(directory)
+def _shared_dir(directory: Path) -> None:
+    """Create ``directory`` (mode 1777) or check it: a real directory, owned by this user or root, and sticky if
+    others can write it (so nobody removes or replaces another's lock file)."""
     import stat
-    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
-        raise HilError(f"lock directory {directory} is not a directory owned by you — refusing to use it")
-    if info.st_mode & 0o077:
-        os.chmod(directory, 0o700)
+    try:
+        directory.mkdir(parents=True, mode=0o700)
+        os.chmod(directory, 0o1777)  # mkdir's mode is cut by the umask
+    except FileExistsError:
+        pass
+    except OSError as exc:
+        raise HilError(f"cannot create the lock directory {directory}: {exc}") from None
+    info = os.lstat(directory)
+    if not stat.S_ISDIR(info.st_mode):
+        raise HilError(f"lock directory {directory} is not a directory — refusing to use it")
+    if info.st_uid not in (os.getuid(), 0):
+        raise HilError(f"lock directory {directory} belongs to uid {info.st_uid} — refusing to use it (it must be "
+                       f"yours or root's)")
+    if info.st_mode & 0o002 and not info.st_mode & stat.S_ISVTX:
+        raise HilError(f"lock directory {directory} is writable by everyone without the sticky bit — refusing to use "
+                       f"it (chmod 1777)")
 
 
 class BenchLock:
-    def __init__(self, target: str, directory: Path | None = None) -> None:
-        self.key = lock_key(target)
-        self.name = target if lock_key(target) == target else f"{target} (endpoint {self.key})"
+    def __init__(self, target: str, directory: Path | None = None, *, key: str | None = None) -> None:
+        self.key = key or lock_key(target)
+        self.name = target if self.key == target else f"{target} ({'PLC' if key else 'endpoint'} {self.key})"
         digest = hashlib.sha256(self.key.encode()).hexdigest()[:16]
         self.directory = Path(directory) if directory else lock_dir()
         self.path = self.directory / f"bench-{digest}.lock"
@@ -122,14 +138,8 @@ class BenchLock:
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:
             return self
-        _private_dir(self.directory)
-        try:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
-        except OSError as exc:
-            if os.path.islink(self.path):
-                raise HilError(f"bench lock {self.path} is a symbolic link — refusing to follow it (someone planted "
-                               f"it; remove it after checking where it points)") from None
-            raise HilError(f"cannot open the bench lock {self.path}: {exc}") from None
+        _shared_dir(self.directory)
+        fd = self._open()
         started = time.monotonic()
         while True:
             try:
@@ -148,18 +158,49 @@ class BenchLock:
         record = {"pid": os.getpid(), "host": socket.gethostname(), "user": _user(),
                   "started": dt.datetime.now().isoformat(timespec="seconds"),
                   "command": " ".join(sys.argv) or sys.executable, "target": self.key}
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, json.dumps(record).encode(), 0)
-        os.fsync(fd)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, json.dumps(record).encode(), 0)
+            os.fsync(fd)
+        except OSError:
+            pass  # another user's lock file opened read-only: the lock is held, only the holder record is missing
         self._fd = fd
         return self
+
+    def _open(self) -> int:
+        """The lock file: created readable and writable by all (the directory is shared; each user records
+        themselves in it), opened without following a link, and checked to be a plain file."""
+        import stat
+        flags = os.O_NOFOLLOW | os.O_CLOEXEC
+        try:
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | flags, 0o666)
+                os.fchmod(fd, 0o666)  # open's mode is cut by the umask
+            except FileExistsError:
+                try:
+                    fd = os.open(self.path, os.O_RDWR | flags)
+                except PermissionError:
+                    fd = os.open(self.path, os.O_RDONLY | flags)  # flock needs no write access
+        except OSError as exc:
+            if os.path.islink(self.path):
+                raise HilError(f"bench lock {self.path} is a symbolic link — refusing to follow it (someone planted "
+                               f"it; remove it after checking where it points)") from None
+            raise HilError(f"cannot open the bench lock {self.path}: {exc}") from None
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+            os.close(fd)
+            raise HilError(f"bench lock {self.path} is not a plain file (or has other links) — refusing to use it")
+        return fd
 
     def release(self) -> None:
         if self._fd is None:
             return
         fd, self._fd = self._fd, None
         try:
-            os.ftruncate(fd, 0)
+            try:
+                os.ftruncate(fd, 0)
+            except OSError:
+                pass  # opened read-only (another user's file): there is no record of ours to clear
             fcntl.flock(fd, fcntl.LOCK_UN)
         finally:
             os.close(fd)
@@ -197,4 +238,4 @@ def _user() -> str:
         return str(os.getuid())
 
 
-__all__ = ["BenchLock", "BenchBusy", "lock_key", "lock_dir", "describe_holder"]
+__all__ = ["BenchLock", "BenchBusy", "describe_holder", "lock_dir", "lock_key", "plc_key"]

@@ -25,6 +25,9 @@ _stopping = False  # a signal has already been raised: the run is unwinding; lat
 
 
 def _handler(signum: int, frame: object) -> None:  # noqa: ARG001
+    # pytest's traceback and its "<file>:<line>: KeyboardInterrupt" line skip this frame: they point where the run
+    # was when the signal came (the test), not here
+    __tracebackhide__ = True  # noqa: F841
     global _pending, _stopping
     name = signal.Signals(signum).name
     if _depth or _stopping:
@@ -67,6 +70,7 @@ def uninstall() -> None:
 @contextlib.contextmanager
 def shielded() -> Iterator[None]:
     """Run a restore to its end whatever signals arrive; a signal that came meanwhile is raised afterwards."""
+    __tracebackhide__ = True  # noqa: F841 - a deferred signal is raised here: point at the restore's caller
     global _depth, _pending, _stopping
     main = threading.current_thread() is threading.main_thread()
     if main:

@@ -19,8 +19,8 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
-# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab"]
+# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -80,6 +80,7 @@ class _State:
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
         self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
         self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
+        self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
         self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
         self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
         self._profile: Profile | None = None
@@ -102,6 +103,7 @@ class _State:
                 raise pytest.fail.Exception(self.error, pytrace=False)
             hook = self.config.hook.pytest_hil_make_emulator
             try:
+                self._refuse_default_profile()
                 self._lock_bench()
                 self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
@@ -122,6 +124,12 @@ class _State:
         if not self.recovery.ok:
             self.dead = self.recovery.summary()
 
+    def _refuse_default_profile(self) -> None:
+        """The bundled profile is the emulator's: never for a PLC named by --target alone."""
+        from hil.bench.profile import refuse_default_for_a_plc
+        refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
+                                 self.profile.path)
+
     def _lock_bench(self) -> None:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
         if self.lock is not None or parse_target(self.target).in_process:
@@ -131,6 +139,9 @@ class _State:
         if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
             self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
         self.lock = BenchLock(self.target).acquire(wait=wait)
+        if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
+            from hil.core.lock import plc_key
+            self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
 
     def release(self) -> None:
         try:
@@ -138,10 +149,10 @@ class _State:
                 self.bench.close()
         finally:
             self.bench = None
-            for lock in (self.lock, self.place_lock):
+            for lock in (self.plc_lock, self.lock, self.place_lock):
                 if lock is not None:
                     lock.release()
-            self.lock = self.place_lock = None
+            self.lock = self.place_lock = self.plc_lock = None
             if self.lab is not None:
                 from hil.plugin.lab import let_go
                 session, self.lab = self.lab, None
@@ -221,13 +232,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     offered = bench_capabilities(target, profile.scan_counter, profile.offers)
     # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
     items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
+    _deselect_other_families(config, items, profile)
     for item in items:
-        if "bench" in getattr(item, "fixturenames", ()):
-            family = item.get_closest_marker("family")
-            wanted = tuple(family.args) if family and family.args else ("fbs",)
-            if profile.family not in wanted:
-                item.add_marker(pytest.mark.skip(
-                    reason=f"for {' or '.join(wanted)} PLCs; bench {profile.name!r} is family {profile.family!r}"))
         for marker in item.iter_markers("needs"):
             bad = unknown(marker.args)
             if bad or not marker.args:
@@ -244,6 +250,36 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
             item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
     bench_time.apply(items, profile, target.in_process)
+
+
+_OTHER_FAMILIES = pytest.StashKey[str]()
+
+
+def _deselect_other_families(config: pytest.Config, items: list[pytest.Item], profile: Profile) -> None:
+    """Bench tests for another controller family are deselected, with one line saying why (not a screen of
+    identical skips: the default run collects every family's suites)."""
+    other: dict[str, int] = {}
+    kept, dropped = [], []
+    for item in items:
+        family = item.get_closest_marker("family") if "bench" in getattr(item, "fixturenames", ()) else None
+        wanted = tuple(family.args) if family and family.args else ("fbs",)
+        if "bench" in getattr(item, "fixturenames", ()) and profile.family not in wanted:
+            label = " or ".join(wanted)
+            other[label] = other.get(label, 0) + 1
+            dropped.append(item)
+        else:
+            kept.append(item)
+    if not dropped:
+        return
+    config.hook.pytest_deselected(items=dropped)
+    items[:] = kept
+    config.stash[_OTHER_FAMILIES] = "; ".join(
+        f"hil: {n} test{'s' if n != 1 else ''} for {label} PLCs deselected: bench {profile.name!r} is family "
+        f"{profile.family!r}" for label, n in other.items())
+
+
+def pytest_report_collectionfinish(config: pytest.Config) -> str | None:
+    return config.stash.get(_OTHER_FAMILIES, None)
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:

@@ -21,6 +21,10 @@ from hil.core import signals
 RECOVERY_NOTES = pytest.StashKey[list]()
 #: the hil plugin's per-session state (hil.plugin.pytest_plugin._State), put here by that plugin
 BENCH_STATE = pytest.StashKey[object]()
+#: whether the PLC is as it was found once the session ended (set only when a bench was opened): the verdict
+#: (hil.plugin.reporting.verdict) says it after a run that was stopped
+PLC_LEFT = pytest.StashKey[str]()
+AS_FOUND = "the PLC is as it was found (every value written was put back and read back)"
 
 
 def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.bench.guard.Recovery
@@ -66,7 +70,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     state = session.config.stash.get(BENCH_STATE, None)
     recovery = getattr(state, "recovery", None)
     if recovery is not None and recovery.needed:
-        session.items.insert(0, BenchRecoveryItem.from_parent(session, name="bench_recovery", recovery=recovery))
+        # nodeid "hil.bench::bench_recovery": JUnit's classname hil.bench (a bare name gives an empty classname)
+        session.items.insert(0, BenchRecoveryItem.from_parent(session, name="bench_recovery",
+                                                              nodeid="hil.bench::bench_recovery", recovery=recovery))
 
 
 @pytest.hookimpl(trylast=True)
@@ -88,9 +94,11 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             bench.finish()  # what each test put back only approximately (the clock's phase), now exactly
         except Exception as exc:  # noqa: BLE001
             error = exc
-    if error is None and not _unrestored(bench):
-        return
     left = _unrestored(bench)
+    session.config.stash[PLC_LEFT] = AS_FOUND if not left else (
+        f"the PLC is NOT as it was found: {len(left)} element{'s' if len(left) != 1 else ''} still changed")
+    if error is None and not left:
+        return
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     if not left:
         if not retried:

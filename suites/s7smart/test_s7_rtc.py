@@ -41,6 +41,7 @@ def assert_reads(clock, expected_prefix: bytes, weekday: int, seconds: range, wh
 
 
 # -- set and read ----------------------------------------------------------------------------------------------
+@pytest.mark.spec("S7-RTC-1", "S7-RTC-2", "S7-RTC-3", "S7-RTC-7", "S7-RTC-9")
 @pytest.mark.parametrize("buffer, weekday", [
     (T("24 06 15 08 30 00 00 07"), 7),   # Saturday
     (T("00 01 01 00 00 00 00 07"), 7),   # the first second of the clock's range, a Saturday
@@ -54,6 +55,7 @@ def test_set_then_read_round_trip(clock, buffer, weekday):
     assert_reads(clock, buffer[:5], weekday, range(second, second + 3))
 
 
+@pytest.mark.spec("S7-RTC-9")
 def test_clock_runs_after_a_set(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(5)
@@ -61,6 +63,7 @@ def test_clock_runs_after_a_set(bench, clock):
 
 
 # -- weekday -----------------------------------------------------------------------------------------------------
+@pytest.mark.spec("S7-RTC-7")
 @pytest.mark.parametrize("written", [0x01, 0x03, 0x06])
 def test_weekday_ignored_on_write_and_computed_on_read(clock, written):
     result = clock.set(bytes([0x24, 0x06, 0x15, 0x08, 0x30, 0x00, 0x00, written]))
@@ -68,6 +71,7 @@ def test_weekday_ignored_on_write_and_computed_on_read(clock, written):
     assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), f"weekday {written:02X} written: ")
 
 
+@pytest.mark.spec("S7-RTC-9", "S7-RTC-7")
 def test_weekday_advances_at_midnight(bench, clock):
     assert clock.set(T("24 06 15 23 59 58 00 07")).accepted  # Saturday 23:59:58
     bench.wait(3)
@@ -93,7 +97,19 @@ INVALID = {
 }
 
 
-@pytest.mark.parametrize("case", list(INVALID))
+#: what each case checks beyond S7-RTC-4 (ENO = 0, 0007H, the clock unchanged); S7-RTC-6 is the spec's reading
+#: (needs spec_choices)
+CHECKS = {"29 February 2023": ("S7-RTC-8",), "hour 24": ("S7-RTC-3", "S7-RTC-6"),
+          "minute 60": ("S7-RTC-3", "S7-RTC-6"), "second 60": ("S7-RTC-3", "S7-RTC-6"),
+          "non-BCD minute 16#1A": ("S7-RTC-5", "S7-RTC-6"),
+          "non-BCD year 16#A4": ("S7-RTC-5", "S7-RTC-6"), "non-BCD day 16#0F": ("S7-RTC-5", "S7-RTC-6"),
+          "reserved byte 01": ("S7-RTC-3", "S7-RTC-5", "S7-RTC-6"),
+          "reserved byte 80": ("S7-RTC-3", "S7-RTC-5", "S7-RTC-6")}
+
+
+@pytest.mark.spec("S7-RTC-4")
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.spec(*CHECKS.get(c, ("S7-RTC-3",))), id=c)
+                                  for c in INVALID])
 def test_invalid_buffer_refused_with_0007(bench, clock, case):
     assert clock.set(SATURDAY_15_JUNE_2024).accepted
     result = clock.set(INVALID[case])
@@ -103,6 +119,7 @@ def test_invalid_buffer_refused_with_0007(bench, clock, case):
     assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(2, 5), f"{case}: ")
 
 
+@pytest.mark.spec("S7-RTC-4")
 def test_valid_set_after_a_refused_one(clock):
     assert clock.set(INVALID["30 February 2024"]).error == T_DATA_ERROR
     result = clock.set(T("24 02 29 09 00 00 00 01"))
@@ -111,6 +128,7 @@ def test_valid_set_after_a_refused_one(clock):
 
 
 # -- leap years 2000–2099 ------------------------------------------------------------------------------------------
+@pytest.mark.spec("S7-RTC-8", "S7-RTC-7")
 def test_leap_days_2000_to_2096_accepted_with_correct_weekday(clock):
     refused, wrong = [], []
     for year in range(2000, 2100, 4):
@@ -127,6 +145,7 @@ def test_leap_days_2000_to_2096_accepted_with_correct_weekday(clock):
     assert not wrong, f"29 February read back wrong: {wrong}"
 
 
+@pytest.mark.spec("S7-RTC-8", "S7-RTC-4")
 @pytest.mark.parametrize("year", [2001, 2023, 2025, 2099])
 def test_29_february_refused_in_common_years(clock, year):
     result = clock.set(bytes([bcd(year - 2000), 0x02, 0x29, 0x12, 0x00, 0x00, 0x00, 0x01]))
@@ -141,6 +160,7 @@ def set_i(clock):
     return clock
 
 
+@pytest.mark.spec("S7-RTC-15")
 @pytest.mark.parametrize("integers, bcd_buffer, weekday", [
     ([24, 6, 15, 8, 30, 0, 0, 0], T("24 06 15 08 30 00 00 00"), 7),
     ([36, 2, 29, 23, 59, 0, 0, 1], T("36 02 29 23 59 00 00 00"), 6),   # 29 Feb 2036, a Friday
@@ -154,9 +174,11 @@ def test_set_rtc_i_equals_set_rtc_with_bcd(set_i, integers, bcd_buffer, weekday)
     assert_reads(set_i, bcd_buffer[:5], weekday, range(0, 3), "SET_RTC: ")
 
 
+@pytest.mark.spec("S7-RTC-15", "S7-RTC-4")
 @pytest.mark.parametrize("integers", [[24, 2, 30, 9, 0, 0, 0, 0], [23, 2, 29, 9, 0, 0, 0, 0],
-                                      [24, 13, 1, 9, 0, 0, 0, 0], [24, 6, 20, 24, 0, 0, 0, 0],
-                                      [24, 6, 20, 9, 0, 0, 1, 0]])
+                                      [24, 13, 1, 9, 0, 0, 0, 0],
+                                      pytest.param([24, 6, 20, 24, 0, 0, 0, 0], marks=pytest.mark.spec("S7-RTC-6")),
+                                      pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6"))])
 def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
     assert set_i.set(SATURDAY_15_JUNE_2024).accepted
     result = set_i.set_int(integers)
@@ -165,6 +187,7 @@ def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
 
 
 # -- edge-triggered --------------------------------------------------------------------------------------------
+@pytest.mark.spec("S7-RTC-10")
 def test_held_trigger_sets_once(bench, clock):
     """SET_RTC must run on a one-shot edge: holding the trigger does not keep setting the clock."""
     assert clock.set(T("24 06 15 08 30 00 00 07"), hold=True).accepted
@@ -179,6 +202,7 @@ def test_held_trigger_sets_once(bench, clock):
 
 # -- power loss (emulator: power cycles on demand) -----------------------------------------------------------------
 @pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
+@pytest.mark.spec("S7-RTC-13")
 def test_power_loss_starts_at_2000_01_01_saturday(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.power_cycle(backup_expired=True)
@@ -186,6 +210,7 @@ def test_power_loss_starts_at_2000_01_01_saturday(bench, clock):
 
 
 @pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
+@pytest.mark.spec("S7-RTC-14")
 def test_power_cycle_keeps_the_time_only_with_an_rtc(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(2)
@@ -204,6 +229,7 @@ def cpu_clock(clock):
     return clock
 
 
+@pytest.mark.spec("S7-WIRE-2")
 def test_cpu_clock_function_reads_the_clock_read_rtc_reads(cpu_clock):
     assert cpu_clock.set(SATURDAY_15_JUNE_2024).accepted
     via_protocol = cpu_clock.cpu_clock()
@@ -213,6 +239,7 @@ def test_cpu_clock_function_reads_the_clock_read_rtc_reads(cpu_clock):
     assert_reads(cpu_clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), "after reading it with the clock function: ")
 
 
+@pytest.mark.spec("S7-WIRE-2")
 def test_cpu_clock_function_sets_what_read_rtc_reads(cpu_clock):
     cpu_clock.set_cpu_clock(dt.datetime(2012, 3, 4, 17, 45, 10))
     assert_reads(cpu_clock, T("12 03 04 17 45 10 00 01")[:5], 1, range(10, 13), "set with the clock function: ")

@@ -17,7 +17,8 @@ from hil.bench.profile import Profile
 from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
-from hil.families.fbs.recovery import restore_rig_coils
+from hil.families.fbs.identity import read_identity
+from hil.families.fbs.recovery import rig_steps, rig_targets
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.bench.view import guarded_io
 from hil.io.url import Target, parse_target
@@ -58,13 +59,17 @@ class Bench(BenchBase):
         self.io.side_effects = self.plc.pid.side_effects
         self.io.clock = self.plc.rtc.clock()
         self.journal = self.attach_journal()
-        self.recovery_steps = (restore_rig_coils,)  # the fault rig's coils first, then the guard's recovery
+        # the fault rig's coils first (only the profile's own rigs, never the PLC itself), then the guard's recovery
+        self.recovery_steps = rig_steps(rig_targets(profile), self.faults.not_the_plc)
+
+    def plc_identity(self) -> dict[str, str] | None:
+        return read_identity(self.raw)
 
     def identity(self) -> dict[str, str]:
         try:
             reason = self.raw.unreachable_reason(reg.RTC_CHIP)
-            if reason:
-                return {"rtc chip": f"unavailable: {reason}"}
+            if reason:  # its first clause ("D4053 cannot be reached over …"); the suites' skips give the rest
+                return {"rtc chip": f"unavailable: {reason.split(': ', 1)[0]}"}
             chip = self.plc.rtc.chip
             return {"rtc chip": f"{reg.RTC_CHIP} = {int(chip)} ({chip.name})"}
         except Exception as exc:  # noqa: BLE001 - a PLC that will not say what it is still gets tested

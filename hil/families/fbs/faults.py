@@ -268,6 +268,10 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         return self._client
 
     def _set(self, point: int, open_circuit: bool) -> None:
+        if self.journal is not None:  # what the coil is about to hold, on disk before it is switched
+            coil = self.first_coil + point
+            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, self.originals[point],
+                                  wrote=bool(open_circuit))
         self._write(point, open_circuit)
 
     def _write(self, point: int, open_circuit: bool) -> None:
@@ -402,10 +406,9 @@ class Faults:
                 EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
                 else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
         elif kind == "modbus-coil":
-            from hil.core.lock import lock_key
-            if lock_key(str(spec["target"])) == lock_key(str(self.bench.target)):
-                raise FaultError(f"[faults.{name}] target {spec['target']} is the PLC under test "
-                                 f"({self.bench.target}): a fault rig must be a separate device — refused")
+            why = self.not_the_plc(str(spec["target"]))
+            if why:
+                raise FaultError(f"[faults.{name}] target {why}: a fault rig must be a separate device — refused")
             injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
                                              float(spec.get("timeout", self.bench.profile.timeout)),
                                              journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
@@ -415,6 +418,43 @@ class Faults:
             injector = ManualSensorBreak(fault=name)
         self._made[name] = injector
         return injector
+
+    def not_the_plc(self, target: str) -> str | None:
+        """Why the rig at ``target`` is the PLC under test (None when it is a separate device, as far as can be
+        told): the same endpoint, or a Modbus port that serves the PLC's own memory — its RTC read-out
+        R4128–R4134 reads there as it does over the bench's wire (the PLC's own Modbus port on another port
+        number).  Asked once per target."""
+        cache = self.__dict__.setdefault("_not_the_plc", {})
+        if target not in cache:
+            cache[target] = self._rig_is_plc(target)
+        return cache[target]
+
+    def _rig_is_plc(self, target: str) -> str | None:
+        from hil.core.lock import lock_key
+        from hil.families.fbs.protocol.modbus_map import to_modbus
+        from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
+        if lock_key(target) == lock_key(str(self.bench.target)):
+            return f"{target} is the PLC under test ({self.bench.target})"
+        raw = self.bench.raw
+        if raw.unreachable_reason(RTC_READ_FIRST):
+            return None
+        ref = to_modbus(RTC_READ_FIRST)
+        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout))
+        try:
+            before = raw.read_words(RTC_READ_FIRST, 7)
+            try:
+                reply = rig._connect().read_holding_registers(ref.pdu, count=7, device_id=rig.unit)
+            except Exception:  # noqa: BLE001 - a rig that cannot answer as an FBs is not this FBs
+                return None
+            after = raw.read_words(RTC_READ_FIRST, 7)
+        finally:
+            rig.close()
+        if reply.isError() or not any(before):
+            return None
+        if list(reply.registers[:7]) in (before, after):
+            return (f"{target} serves the PLC's own memory (its RTC read-out {RTC_READ_FIRST}… reads there as over "
+                    f"{self.bench.target}): it is the PLC's own Modbus port")
+        return None
 
     @property
     def heater_open(self) -> SensorBreakInjector | None:

@@ -16,6 +16,8 @@ class FbsFamily:
     a_title = "a FATEK FBs"
     sections = ("rtc", "temperature", "pid", "plant")
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
+    #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal
+    clock_elements = ("R4128-R4135",)
 
     def check_ranges(self, ranges: list) -> bool:
         for item in ranges:
@@ -27,6 +29,11 @@ class FbsFamily:
     def elements(self, ranges: Iterable[str]) -> frozenset:
         from hil.families.fbs.transport.guard import expand
         return expand(ranges)
+
+    def value_problem(self, element: Any, value: int) -> str | None:
+        """Why ``value`` cannot be held by ``element`` (None when it can)."""
+        from hil.families.fbs.transport.base import value_problem
+        return value_problem(element, value)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
         from hil.families.fbs.pid import parse_pid

@@ -1,47 +1,93 @@
 """Recovery first, the FBs side: a fault rig's coils, and recovery over a command's direct transport.
 
-The rules — replay a dead run's journal before anything else, verify it, say so — are the guard's
-(:meth:`hil.bench.guard.Guard.recover`).  This module adds what only an FBs bench has: the Modbus fault rig,
-whose coils are put back (and read back) first, and :func:`recover` for the CLI's writing commands (``hil rtc
-set``, ``hil drift measure --apply``), which hold a direct transport rather than a bench.
+The rules — replay a dead run's journal before anything else, only as far as it can be proven, verify it, say so —
+are the guard's (:meth:`hil.bench.guard.Guard.recover`, :mod:`hil.bench.replay`).  This module adds what only an
+FBs bench has: the Modbus fault rig, whose coils are put back (and read back) first — only on a rig the profile
+names, never on the PLC itself, and only while a coil still holds what the run switched it to — and
+:func:`recover` for the CLI's writing commands (``hil rtc set``, ``hil drift measure --apply``), which hold a direct
+transport rather than a bench.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable, Iterable
 
-from hil.bench.guard import Recovery
+from hil.bench.guard import Recovery, RecoveryStep
+from hil.bench.replay import age_problem
 from hil.core.errors import HilError
-from hil.core.journal import Journal
+from hil.core.journal import COILS, Journal
 
 
-def restore_rig_coils(journal: Journal, report: Recovery) -> None:
-    """Each fault-rig coil a dead run switched, back to the state it held before (read back to verify)."""
+def rig_targets(profile: Any) -> frozenset[str]:
+    """The canonical endpoints of the profile's Modbus fault rigs (``[faults.*] kind = "modbus-coil"``)."""
+    from hil.core.lock import lock_key
+    if profile is None:
+        return frozenset()
+    return frozenset(lock_key(str(spec["target"])) for spec in profile.faults.values()
+                     if spec.get("kind") == "modbus-coil" and "target" in spec)
+
+
+def rig_steps(rigs: Iterable[str], not_the_plc: Callable[[str], "str | None"]) -> tuple[RecoveryStep, ...]:
+    """The recovery step for a bench whose profile names ``rigs``; ``not_the_plc(target)`` says why a rig target is
+    the PLC under test (None when it is a separate device)."""
+    allowed = frozenset(rigs)
+
+    def step(journal: Journal, report: Recovery, by_hand: bool) -> None:
+        restore_rig_coils(journal, report, by_hand, allowed, not_the_plc)
+    return (step,)
+
+
+def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False, rigs: frozenset[str] = frozenset(),
+                      not_the_plc: Callable[[str], "str | None"] = lambda target: None) -> None:
+    """Each fault-rig coil a dead run switched, back to the state it held before (read back to verify) — only on
+    one of the profile's ``rigs``, and only while it still holds what the run switched it to."""
+    from hil.core.lock import lock_key
     from hil.families.fbs.faults import ModbusCoilSensorBreak
     for key, entry in journal.coils().items():
-        rig = ModbusCoilSensorBreak(entry["target"], entry["coil"])
+        why = COILS.check(entry) or age_problem(entry, by_hand)
+        if why is None and lock_key(entry["target"]) not in rigs:
+            why = f"{entry['target']} is not a fault rig of this profile ([faults.*] kind = \"modbus-coil\")"
+        if why is None:
+            why = not_the_plc(entry["target"])
+        if why:
+            report.refused.append(f"rig coil {key}: {why}")
+            continue
+        original, wrote = entry["original"], entry["wrote"]
+        rig = ModbusCoilSensorBreak(entry["target"], 0)
         try:
-            rig._write(0, bool(entry["value"]))
-            if rig._read(entry["coil"]) != bool(entry["value"]):
-                raise HilError("does not read back")
+            now = rig._read(entry["coil"])
+            if now != original and wrote is not None and now != wrote:
+                report.changed.append(f"rig coil {key} reads {int(now)}, the run wrote {int(wrote)} (original "
+                                      f"{int(original)})")
+                continue
+            if now != original:
+                rig._write(entry["coil"], original)
+                if rig._read(entry["coil"]) != original:
+                    raise HilError("does not read back")
         except Exception as exc:  # noqa: BLE001 - every entry is tried; failures are listed
-            report.failures.append(f"rig coil {key} (original {int(entry['value'])}): {exc}")
+            report.failures.append(f"rig coil {key} (original {int(original)}): {exc}")
             continue
         finally:
             rig.close()
+        report.verified.append(f"rig coil {key} = {int(original)}")
         journal.drop_coil(key)
 
 
-def recover(journal: Journal, transport: Any, timebase: Any) -> Recovery:
-    """Replay ``journal`` onto the PLC behind ``transport`` (a command's direct transport) through the guard."""
+def recover(journal: Journal, transport: Any, timebase: Any, profile: Any = None) -> Recovery:
+    """Replay ``journal`` onto the PLC behind ``transport`` (a command's direct transport) through the guard, under
+    ``profile``'s allow-list and switches (without one nothing is replayed: everything is refused, by name)."""
     from hil.families.fbs.device.plc import FbsPlc
     from hil.families.fbs.transport.guard import GuardedTransport
-    guard = GuardedTransport(transport, writable=())  # restores only: nothing is written through its allow-list
+    safety = profile.safety if profile is not None else None
+    guard = GuardedTransport(transport, writable=safety.writable if safety else (),
+                             volatile=safety.volatile if safety else ())
+    guard.allow_destructive = bool(safety and safety.allow_destructive)
+    guard.identity_vouched = bool(profile is not None and getattr(profile, "plc_id", None))
     guard.durable = journal
     guard.clock = FbsPlc(transport, timebase).rtc.clock()
-    report = guard.recover((restore_rig_coils,))
+    report = guard.recover(rig_steps(rig_targets(profile), lambda target: None))
     assert report is not None  # a durable journal was given
     return report
 
 
-__all__ = ["recover", "restore_rig_coils"]
+__all__ = ["recover", "restore_rig_coils", "rig_steps", "rig_targets"]

@@ -110,6 +110,11 @@ class S7Bench(BenchBase):
         self.io.clock = self.plc.clock()
         self.journal = self.attach_journal()
 
+    def plc_identity(self) -> dict[str, str] | None:
+        """The CPU's identity over the S7 protocol (Modbus reads none)."""
+        ask = getattr(self.raw, "plc_identity", None)
+        return ask() if ask is not None else None
+
     def cannot_reach(self, *names: str) -> str | None:
         """Why this bench cannot read and write ``names`` (S7 operands or ranges such as ``"VB110-VB117"``)."""
         for name in names:

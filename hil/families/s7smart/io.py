@@ -287,15 +287,23 @@ class GuardedS7Io(Guard, S7Io):
     def reopen(self) -> None:
         self.inner.reopen()
 
+    def value_problem(self, element: S7Address, value: int) -> str | None:
+        top = 1 if element.is_bit else 0xFF  # the guard's elements: bits and bytes
+        return None if 0 <= value <= top else f"value {value} for {element} is outside 0–{top}"
+
     # -- writes: check, journal, then pass on --------------------------------------------------------------------
     def write_v(self, first: int, data: bytes | Sequence[int]) -> None:
         data = bytes(data)
-        self.guarded([S7Address("V", b) for b in range(first, first + len(data))],
-                     lambda: self.inner.write_v(first, data))
+        names = [S7Address("V", b) for b in range(first, first + len(data))]
+        self.guarded(names, lambda: self.inner.write_v(first, data), dict(zip(names, data)))
 
     def write(self, name: "str | S7Address", value: int) -> None:
         a = parse_s7(name)
-        self.guarded([a], lambda: self.inner.write(a, value))
+        # what each journaled element will hold (big-endian bytes; a Q bit itself); a V bit changes its byte by a
+        # read-modify-write, so that byte's new value is not known here
+        wrote = ({a: int(value) & 1} if a.is_bit and a.area != "V" else {} if a.is_bit else
+                 dict(zip(units(a), int(value).to_bytes(a.size, "big"))) if 0 <= int(value) < 1 << 8 * a.size else {})
+        self.guarded([a], lambda: self.inner.write(a, value), wrote)
 
     # -- the CPU's own clock (a wire that has clock functions: the S7 protocol) ------------------------------
     @property

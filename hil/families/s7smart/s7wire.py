@@ -153,6 +153,18 @@ class SnapS7Io(S7Io):
             return f"{a} is not reached over this wire (V memory as DB{V_DB}, Q and I bits)"
         return None
 
+    def plc_identity(self) -> dict[str, str] | None:
+        """Which CPU this is (the S7 module identification: module type and serial number), for the journal and
+        recovery; None when the CPU does not say."""
+        try:
+            info = self._call("read the CPU identity", self.client.get_cpu_info)
+        except HilError:
+            return None
+
+        def text(value: object) -> str:
+            return (value.decode("ascii", "replace") if isinstance(value, bytes) else str(value)).strip("\x00 ")
+        return {"module": text(info.ModuleTypeName), "serial": text(info.SerialNumber)}
+
     # -- the CPU's own clock ----------------------------------------------------------------------------------
     def cpu_clock(self) -> dt.datetime:
         """The time-of-day clock, read with the S7 protocol's clock function."""

@@ -19,15 +19,16 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
-from hil.plugin.reporting.model import TestRecord
+from hil.plugin.reporting.model import TestRecord, outcome_counts
 
-OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed")
-_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow", "xfailed": "yellow"}
+OUTCOMES = ("passed", "failed", "error", "skipped", "xfailed", "xpassed")
+_STYLE = {"passed": "green", "failed": "bold red", "error": "bold red", "skipped": "yellow", "xfailed": "yellow",
+          "xpassed": "yellow"}
 
 
 def shown_outcomes(counts: Counter) -> tuple[str, ...]:
-    """The outcome columns of a summary: xfailed only when a test xfailed (pytest's own summary does the same)."""
-    return tuple(o for o in OUTCOMES if o != "xfailed" or counts.get(o))
+    """The outcome columns of a summary: xfailed and xpassed only when there are such (as in pytest's summary)."""
+    return tuple(o for o in OUTCOMES if o not in ("xfailed", "xpassed") or counts.get(o))
 
 
 def plural(n: int, word: str) -> str:
@@ -65,11 +66,14 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
     skips: Counter = Counter()
     measurements: Counter = Counter()
     for r in records:
-        by_area[r.area][r.outcome] += 1
+        by_area[r.area].update(outcome_counts([r]))
         if r.outcome == "skipped":
             skips[(r.area, r.message or "no reason given")] += 1
         for m in r.measurements:
-            measurements[(r.area, m.passed)] += 1
+            if m.value is not None:
+                measurements[(r.area, "in limits" if m.passed else "out")] += 1
+            elif r.outcome not in ("skipped", "xfailed"):  # a skipped test measures nothing: not a missing value
+                measurements[(r.area, "not measured")] += 1
     table = Table(title="hil results by area", box=_box(color), title_justify="left")
     table.add_column("area", no_wrap=True)
     outcomes = shown_outcomes(Counter(o for counts in by_area.values() for o in counts.elements()))
@@ -82,13 +86,12 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
         total.update(counts)
         cells = [Text(str(counts.get(o, 0)), style=_STYLE[o] if (counts.get(o) and color) else "")
                  for o in outcomes]
-        ok, bad = measurements[(area, True)], measurements[(area, False)]
-        shown = "" if not (ok or bad) else f"{ok} in limits" + (f", {bad} out" if bad else "")
-        table.add_row(Text(area), *cells, shown)
+        table.add_row(Text(area), *cells, _measured({k: n for (a, k), n in measurements.items() if a == area}))
     table.add_section()
-    ok, bad = sum(n for (a, p), n in measurements.items() if p), sum(n for (a, p), n in measurements.items() if not p)
-    table.add_row("all", *(str(total.get(o, 0)) for o in outcomes),
-                  "" if not (ok or bad) else f"{ok} in limits" + (f", {bad} out" if bad else ""))
+    everywhere: Counter = Counter()
+    for (_, kind), n in measurements.items():
+        everywhere[kind] += n
+    table.add_row("all", *(str(total.get(o, 0)) for o in outcomes), _measured(everywhere))
     if not skips:
         return table
     reasons = Table(title="skip reasons", box=_box(color), title_justify="left")
@@ -98,6 +101,14 @@ def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableTy
     for (area, why), n in sorted(skips.items(), key=lambda kv: (kv[0][0], -kv[1])):
         reasons.add_row(Text(area), str(n), Text(why))  # "[pid]" in a reason is the section to add, not markup
     return Group(table, reasons)
+
+
+def _measured(counts: dict[str, int]) -> str:
+    """``5 in limits, 1 out, 2 not measured`` (the kinds that occur; "in limits" always when any does)."""
+    if not any(counts.values()):
+        return ""
+    return ", ".join(f"{counts.get(kind, 0)} {kind}" for kind in ("in limits", "out", "not measured")
+                     if counts.get(kind) or kind == "in limits")
 
 
 class WaitProgress:

@@ -10,12 +10,17 @@ import base64
 import datetime as dt
 import html
 import io
+import os
+import re
 from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Iterable
+from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes
-from hil.plugin.reporting.model import Series, TestRecord
+from hil.plugin.reporting.model import Series, TestRecord, outcome_counts
+from hil.plugin.reporting.requirements import requirements_section
+from hil.plugin.reporting.verdict import INCOMPLETE, Verdict
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
 
@@ -26,7 +31,7 @@ h1{margin:0 0 4px;font-size:24px} h2{margin-top:28px;border-bottom:1px solid #d8
 table{border-collapse:collapse;margin:8px 0;background:#fff;max-width:100%}
 table.other{table-layout:fixed;width:100%} table.other col.o{width:7em} table.other col.a{width:8em}
 table.other col.s{width:5em} table.other col.t{width:45%}
-table.other td code{word-break:break-all;overflow-wrap:anywhere}
+table.other td code{overflow-wrap:anywhere}
 td{overflow-wrap:anywhere}
 th,td{border:1px solid #d8dee4;padding:4px 10px;text-align:left;vertical-align:top;font-size:14px}
 th{background:#f1f3f5}
@@ -37,13 +42,14 @@ td.n{text-align:right;font-variant-numeric:tabular-nums}
 .test{background:#fff;border:1px solid #d8dee4;border-radius:6px;padding:10px 14px;margin:10px 0}
 .test.failed,.test.error{border-left:5px solid #cf222e}.test.passed{border-left:5px solid #1a7f37}
 .test.skipped,.test.xfailed{border-left:5px solid #9a6700}
-details.section>summary{list-style:none} details.section>summary h2{display:inline-block}
+details.section>summary{list-style:none} details.section>summary :is(h2,h3){display:inline-block;margin:8px 0}
 details.section>summary::before{content:"▸ ";color:#57606a} details.section[open]>summary::before{content:"▾ "}
 .test>summary{list-style:none}
 .filters label{margin-right:14px;font-size:14px;cursor:pointer}
 body.hide-passed .passed-row,body.hide-failed .failed-row,body.hide-error .error-row,
 body.hide-skipped .skipped-row,body.hide-xfailed .xfailed-row{display:none}
-.test h3{margin:0 0 6px;font-size:15px;font-family:ui-monospace,SFMono-Regular,Menlo,monospace;word-break:break-all}
+.test h3{margin:0 0 6px;font-size:15px;font-family:ui-monospace,SFMono-Regular,Menlo,monospace;overflow-wrap:anywhere}
+.verdict{font-weight:600;margin-bottom:8px}.verdict.bad{color:#cf222e}
 pre{background:#f6f8fa;border:1px solid #d8dee4;padding:8px;overflow-x:auto;font-size:12px;white-space:pre-wrap}
 img.plot{max-width:100%;border:1px solid #d8dee4;background:#fff;margin:6px 0}
 details summary{cursor:pointer;color:#0969da}
@@ -88,12 +94,27 @@ def _e(text: object) -> str:
     return html.escape(str(text), quote=True)
 
 
+def _id(nodeid: str) -> str:
+    """A test id that wraps where it reads (after / :: . _ - [ ,), not in the middle of a word."""
+    return "<wbr>".join(_e(part) for part in re.split(r"(?<=[/:._\-\[,])", nodeid))
+
+
+def _link(attached: str, base: Path) -> str:
+    """An attachment's link relative to the report, so an archived copy of the reports directory keeps it."""
+    target = Path(attached).resolve()
+    try:
+        href = quote(Path(os.path.relpath(target, base.resolve())).as_posix())
+    except ValueError:  # another drive (Windows): no relative path exists
+        href = target.as_uri()
+    return f'<a href="{_e(href)}">{_e(target.name)}</a>'
+
+
 def _summary(records: list[TestRecord]) -> str:
-    outcomes = shown_outcomes(Counter(r.outcome for r in records))
+    outcomes = shown_outcomes(outcome_counts(records))
     by_area: dict[str, Counter] = defaultdict(Counter)
     skips: dict[str, Counter] = defaultdict(Counter)
     for r in records:
-        by_area[r.area][r.outcome] += 1
+        by_area[r.area].update(outcome_counts([r]))
         if r.outcome == "skipped":
             skips[r.area][r.message or "no reason given"] += 1
     rows = []
@@ -109,11 +130,11 @@ def _summary(records: list[TestRecord]) -> str:
     return f"<table><tr><th>area</th>{head}<th>skip reasons</th></tr>{''.join(rows)}</table>"
 
 
-def _test(record: TestRecord) -> str:
+def _test(record: TestRecord, base: Path) -> str:
     opened = " open" if record.outcome in ("failed", "error") or record.series else ""
     parts = [f'<details class="test {record.outcome} {record.outcome}-row" id="{_e(record.nodeid)}"{opened}>',
              f'<summary><h3 style="display:inline"><span class="badge {record.outcome}">{record.outcome}</span> '
-             f'{_e(record.nodeid)}</h3></summary>',
+             f'{_id(record.nodeid)}</h3></summary>',
              f'<div class="meta">area {_e(record.area)} · {record.duration:.3f} s</div>']
     if record.measurements:
         rows = "".join(
@@ -135,7 +156,7 @@ def _test(record: TestRecord) -> str:
         except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the report
             parts.append(f"<div>plot {_e(series.name)} could not be drawn: {_e(exc)}</div>")
     for attached in record.attachments:
-        parts.append(f'<div>attached: <a href="{_e(Path(attached).resolve().as_uri())}">{_e(Path(attached).name)}</a></div>')
+        parts.append(f"<div>attached: {_link(attached, base)}</div>")
     if record.trace:
         lines = record.trace.splitlines()
         shown = "\n".join(lines[:MAX_TRACE_LINES])
@@ -149,17 +170,17 @@ def _test(record: TestRecord) -> str:
     return "\n".join(parts)
 
 
-def _section(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:
+def _section(records: list[TestRecord], properties: list[tuple[str, str]], base: Path) -> str:
     """Bench properties, the summary by area, and the tests of one bench."""
     props = "".join(f"<tr><th>{_e(k.removeprefix('hil.'))}</th><td>{_e(v)}</td></tr>" for k, v in properties)
     order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2, "xfailed": 2}
     ranked = sorted(records, key=lambda r: (order.get(r.outcome, 3), not r.series, r.nodeid))
     detailed = [r for r in ranked if r.outcome in ("failed", "error") or r.measurements or r.series or r.trace]
     plain = [r for r in ranked if r not in detailed]
-    tests = "\n".join(_test(r) for r in detailed)
+    tests = "\n".join(_test(r, base) for r in detailed)
     if plain:
         rows = "".join(f'<tr class="{r.outcome}-row"><td><span class="badge {r.outcome}">{r.outcome}</span></td>'
-                       f'<td>{_e(r.area)}</td><td><code>{_e(r.nodeid)}</code></td>'
+                       f'<td>{_e(r.area)}</td><td><code>{_id(r.nodeid)}</code></td>'
                        f'<td class="n">{r.duration:.3f}</td>'
                        f'<td>{_e(r.message if r.outcome in ("skipped", "xfailed") else "")}</td></tr>' for r in plain)
         tests += _collapsible("Other tests", '<table class="other"><colgroup><col class="o"><col class="a">'
@@ -167,6 +188,7 @@ def _section(records: list[TestRecord], properties: list[tuple[str, str]]) -> st
                               f'<th>test</th><th>s</th><th>reason</th></tr>{rows}</table>', level=3)
     return (_collapsible("Bench and PLC", f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
             + _collapsible("Summary by area", _summary(records))
+            + (_collapsible("Requirements", table) if (table := requirements_section(records)) else "")
             + _collapsible("Tests", tests or "<p>no tests ran</p>"))
 
 
@@ -183,32 +205,39 @@ for (const box of document.querySelectorAll('.filters input')) {
 
 
 def _counts_line(records: list[TestRecord]) -> str:
-    counts = Counter(r.outcome for r in records)
+    """``3 tests · 1 passed, 1 failed, 1 error, 0 skipped``: pytest's counts (a failed call and a failed teardown
+    are one of each)."""
+    counts = outcome_counts(records)
     parts = [f"{counts.get('passed', 0)} passed", f"{counts.get('failed', 0)} failed",
              plural(counts.get("error", 0), "error"), f"{counts.get('skipped', 0)} skipped"]
-    if counts.get("xfailed"):
-        parts.append(f"{counts['xfailed']} xfailed")
+    parts += [f"{counts[o]} {o}" for o in ("xfailed", "xpassed") if counts.get(o)]
     return f"{plural(len(records), 'test')} · " + ", ".join(parts)
 
 
 def write_html(path: Path, records: Iterable[TestRecord], properties: list[tuple[str, str]], *,
-               title: str = "hil test report") -> Path:
-    """One bench's report."""
-    return write_html_sections(path, [("", list(records), properties)], title=title)
+               title: str = "hil test report", verdict: Verdict | None = None) -> Path:
+    """One bench's report; ``verdict``: the run's (:mod:`hil.plugin.reporting.verdict`, from pytest's exit status)."""
+    return write_html_sections(path, [("", list(records), properties)], title=title, verdict=verdict)
 
 
 def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], list[tuple[str, str]]]], *,
-                        title: str = "hil test report") -> Path:
-    """One page; with several benches (``hil run --bench a --bench b``) one collapsible section per bench."""
+                        title: str = "hil test report", verdict: Verdict | None = None) -> Path:
+    """One page; with several benches (``hil run --bench a --bench b``) one collapsible section per bench.
+
+    The badge is ``verdict``'s; without one (a page made outside a session) it is read from the records."""
     everything = [r for _, records, _ in sections for r in records]
     counts = Counter(r.outcome for r in everything)
-    verdict = "FAILED" if counts.get("failed") or counts.get("error") else "PASSED"
+    if verdict is None:
+        verdict = Verdict("FAILED" if counts.get("failed") or counts.get("error") else "PASSED")
     if len(sections) == 1 and not sections[0][0]:
-        body = _section(sections[0][1], sections[0][2])
+        body = _section(sections[0][1], sections[0][2], path.parent)
     else:
         body = "".join(f'<details class="section bench" open><summary><h2>bench {_e(name)} — '
-                       f"{_e(_counts_line(records))}</h2></summary>\n{_section(records, props)}</details>\n"
-                       for name, records, props in sections)
+                       f"{_e(_counts_line(records))}</h2></summary>\n{_section(records, props, path.parent)}"
+                       f"</details>\n" for name, records, props in sections)
+    badge = "passed" if verdict.passed else "skipped" if verdict.status == INCOMPLETE else "failed"
+    said = verdict.line().partition(" — ")[2]
+    said = f'<div class="verdict{"" if verdict.passed else " bad"}">{_e(said)}</div>' if said else ""
     filters = "".join(f'<label><input type="checkbox" value="{o}" checked> {o} ({counts.get(o, 0)})</label>'
                       for o in shown_outcomes(counts))
     now = dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z")
@@ -216,8 +245,8 @@ def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], 
 <html lang="en"><head><meta charset="utf-8"><title>{_e(title)}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
 <body>
-<h1>{_e(title)} — <span class="badge {'passed' if verdict == 'PASSED' else 'failed'}">{verdict}</span></h1>
-<div class="meta">generated {_e(now)} · {_e(_counts_line(everything))}</div>
+<h1>{_e(title)} — <span class="badge {badge}">{_e(verdict.status)}</span></h1>
+{said}<div class="meta">generated {_e(now)} · {_e(_counts_line(everything))}</div>
 <div class="filters">show: {filters}</div>
 {body}
 <script>{_FILTER_JS}</script>

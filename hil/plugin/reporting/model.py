@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import PurePath
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 from hil.core.measurement import Measurement
 
@@ -71,6 +72,18 @@ class TestRecord:
     trace: str = ""  # formatted wire trace, when kept
     trace_file: str = ""
     attachments: list[str] = field(default_factory=list)  # files saved with report.attach_file
+    requirements: list[str] = field(default_factory=list)  # the IDs its spec() marker names (hil.requirements)
+    #: pytest's own count of this test's reports (its ``pytest_report_teststatus`` categories): a failed call and a
+    #: failed teardown are one failure and one error, as pytest's summary line and its JUnit file count them
+    counted: dict[str, int] = field(default_factory=dict)
+
+
+def outcome_counts(records: Iterable[TestRecord]) -> Counter:
+    """The counts pytest gives for these tests (a record made outside a session counts its outcome once)."""
+    total: Counter = Counter()
+    for r in records:
+        total.update(r.counted or {r.outcome: 1})
+    return total
 
 
 def records_to_json(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:

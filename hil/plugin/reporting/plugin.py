@@ -6,11 +6,15 @@
 * Console: a header panel, a bar during long waits on a real bench (a terminal only), a summary table by area.
 * HTML: ``--hil-html PATH`` (``hil run`` always writes reports/report.html): summary, measurements, failures,
   wire traces and plots (``report.attach_series``) in one self-contained file.
+* The verdict (:mod:`hil.plugin.reporting.verdict`): pytest's exit status and what stopped the run, in the HTML
+  badge, the JUnit testsuite properties and the console's last lines; while the run is under way both report
+  files say INCOMPLETE, so a run that dies never leaves an earlier run's result behind.
 """
 
 from __future__ import annotations
 
 import contextlib
+import datetime as dt
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -19,6 +23,7 @@ from typing import Any, Callable, Mapping, Sequence
 import pytest
 
 from hil.plugin.reporting.model import Measurement, Series, TestRecord, area_of
+from hil.plugin.reporting.verdict import Stops, Verdict, incomplete, status_of
 
 TRACE_MODES = ("failures", "all", "off")
 
@@ -118,6 +123,9 @@ class Reporter:
         self.trace_dir = self._trace_dir()
         self.html_written: Path | None = None
         self.junit_traces: dict[str, str] = {}  # hil.trace_file property → the trace for that testcase's system-out
+        self.stops = Stops(config)  # the report of a test the run stopped in, and what stopped it
+        config.pluginmanager.register(self.stops, "hil-stops")
+        self.verdict: Verdict | None = None
         state = self._state()
         if state is not None:
             state.header_panel = True  # the panel below replaces the plugin's "hil PLC: …" line
@@ -137,11 +145,17 @@ class Reporter:
         return self.config.stash.get(BENCH_SESSION, None)
 
     def pytest_sessionstart(self, session: pytest.Session) -> None:
-        """Traces beside a report belong to that report: drop the previous run's (an explicit dir is left alone)."""
+        """Traces and attachments beside a report belong to that report: drop the previous run's (an explicit
+        directory is left alone)."""
         if self.trace_dir is not None and self.config.getoption("--hil-trace-dir") is None:
-            for old in self.trace_dir.glob("*.txt") if self.trace_dir.is_dir() else ():
+            for old in [*self.trace_dir.glob("*.txt"), *self.attachments_dir.glob("*")]:
                 with contextlib.suppress(OSError):
                     old.unlink()
+
+    @property
+    def attachments_dir(self) -> Path:
+        assert self.trace_dir is not None
+        return self.trace_dir.parent / "attachments"
 
     # -- collection: properties and the header ----------------------------------------------------------------
     @pytest.hookimpl(trylast=True)
@@ -162,6 +176,25 @@ class Reporter:
             self.properties = [("hil.properties", f"unavailable: {exc}")]
         self._write_header(state)
         self._attach(state)
+        self._write_incomplete(state)
+
+    def _write_incomplete(self, state: Any) -> None:
+        """Both report files say INCOMPLETE until the session's end replaces them."""
+        if self.config.option.collectonly:
+            return
+        verdict = incomplete(dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z"))
+        properties = self.properties + verdict.properties()
+        xmlpath = _path(self.config.getoption("xmlpath", None))
+        try:
+            if xmlpath is not None:
+                from hil.plugin.reporting.junit import write_incomplete
+                write_incomplete(xmlpath, suite_name=state.profile.name, properties=properties,
+                                 message=verdict.stopped)
+            if self.html_path is not None:
+                from hil.plugin.reporting.html import write_html
+                write_html(self.html_path, [], properties, verdict=verdict)
+        except OSError as exc:
+            raise pytest.UsageError(f"cannot write the reports: {exc}") from None
 
     def _write_header(self, state: Any) -> None:
         reporter = self.config.pluginmanager.get_plugin("terminalreporter")
@@ -175,9 +208,15 @@ class Reporter:
             shown.append(("labgrid", f"place {props['hil.lab.place']} ({props.get('hil.lab.tags', '')}) on "
                                      f"{props.get('hil.lab.exporter', '')}, coordinator "
                                      f"{props.get('hil.lab.coordinator', '')}"))
-        shown += [("target", props.get("hil.target", "")), ("wire", props.get("hil.wire", "-")),
-                  ("PLC", plc_line.removeprefix("hil PLC: ") or "-")]
-        shown += [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties if k.startswith("hil.plc.")]
+        wire = props.get("hil.wire", "-")
+        plc = plc_line.removeprefix("hil PLC: ").removesuffix(f" via {wire}")  # the wire has its own row
+        shown += [("target", props.get("hil.target", "")), ("wire", wire), ("PLC", plc or "-")]
+        plc_rows = [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties
+                    if k.startswith("hil.plc.")]
+        sizes = [(k.removesuffix(" size"), v) for k, v in plc_rows if k.endswith(" size")]
+        shown += [row for row in plc_rows if not row[0].endswith(" size")]
+        if sizes:  # FATEK command 53's memory sizes: one row, not one per memory (JUnit keeps each)
+            shown.append(("memory", ", ".join(f"{k} {v}" for k, v in sizes)))
         shown += [("operator", f"{props.get('hil.operator', '')} at {props.get('hil.station', '')}"),
                   ("suites", props.get("hil.suites_commit", "")),
                   ("harness", f"hil {props.get('hil.harness_version', '')}")]
@@ -218,6 +257,9 @@ class Reporter:
             record = self.records[report.nodeid] = TestRecord(report.nodeid, area_of(report.nodeid))
         record.duration += getattr(report, "duration", 0.0)
         _outcome(record, report)
+        category = self.config.hook.pytest_report_teststatus(report=report, config=self.config)[0]
+        if category:  # what pytest's summary counts this report as ("" for a passed setup or teardown)
+            record.counted[category] = record.counted.get(category, 0) + 1
         if report.when == "teardown":
             self._finish(record, report)
 
@@ -245,26 +287,77 @@ class Reporter:
         self.junit_traces[key] = record.trace
 
     # -- the end ---------------------------------------------------------------------------------------------------
-    @pytest.hookimpl(tryfirst=True)
-    def pytest_sessionfinish(self, session: pytest.Session) -> None:
+    @pytest.hookimpl(wrapper=True, tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session) -> Any:
+        """Around everything else at the session's end (the last restores, pytest's JUnit file, its summary): then
+        the verdict, from the session's final exit status, into the HTML and the console's last lines."""
+        failure: BaseException | None = None
+        try:
+            return (yield)
+        except KeyboardInterrupt as exc:  # a signal during the last restores, raised once they finished
+            failure = exc
+            session.exitstatus = pytest.ExitCode.INTERRUPTED
+            return None  # the run ends here anyway; pytest still unconfigures (the JUnit file gets the verdict)
+        except BaseException as exc:  # a teardown at the session's end raised: pytest stops here
+            failure = exc
+            raise
+        finally:
+            self.verdict = self._verdict(session, failure)
+            self._write_reports()
+            self._say_verdict(after_progress=failure is not None)  # then pytest's summary did not end the line
+
+    def _verdict(self, session: pytest.Session, failure: BaseException | None) -> Verdict:
+        from hil.plugin.reporting.verdict import describe
+        from hil.plugin.safety import AS_FOUND, PLC_LEFT
+        stopped = self.stops.stopped
+        if failure is not None:
+            stopped = stopped or f"{describe(failure)} at the end of the session"
+        elif not stopped and (session.shouldfail or session.shouldstop):
+            reason = session.shouldfail or session.shouldstop
+            stopped = reason if isinstance(reason, str) else "stopped early"
+        status = status_of(3 if failure is not None and not isinstance(failure, KeyboardInterrupt)
+                           else session.exitstatus)
+        plc = self.config.stash.get(PLC_LEFT, "")
+        if plc == AS_FOUND and not stopped:
+            plc = ""  # said only when the run was stopped, or left something changed
+        return Verdict(status, stopped, self.stops.not_run(session.items) if stopped else 0, plc)
+
+    def _write_reports(self) -> None:
+        assert self.verdict is not None
+        properties = self.properties + self.verdict.properties()
         records_path = _path(self.config.getoption("--hil-records"))
         if records_path is not None:
             from hil.plugin.reporting.model import records_to_json
             records_path.parent.mkdir(parents=True, exist_ok=True)
-            records_path.write_text(records_to_json(list(self.records.values()), self.properties), encoding="utf-8")
+            records_path.write_text(records_to_json(list(self.records.values()), properties), encoding="utf-8")
         if self.html_path is None:
             return
         from hil.plugin.reporting.html import write_html
         try:
-            self.html_written = write_html(self.html_path, self.records.values(), self.properties)
+            self.html_written = write_html(self.html_path, self.records.values(), properties, verdict=self.verdict)
         except OSError as exc:
             reporter = self.config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:
                 reporter.write_line(f"hil: could not write the HTML report {self.html_path}: {exc}", red=True)
 
+    def _say_verdict(self, *, after_progress: bool = False) -> None:
+        """The console's last lines, at every verbosity (-qq too): the verdict, then where the reports are."""
+        reporter = self.config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is None or self.verdict is None or not self.uses_bench or self.config.option.collectonly:
+            return
+        good = self.verdict.passed
+        reporter.ensure_newline()
+        if after_progress:
+            reporter.write("\n")
+        reporter.write_line(f"hil: {self.verdict.line()}", green=good, red=not good, bold=not good)
+        written = [p for p in (_path(self.config.getoption("xmlpath", None)), self.html_written) if p is not None]
+        if written:
+            reporter.write_line("hil: reports " + ", ".join(str(p) for p in written))
+
     @pytest.hookimpl(trylast=True)
     def pytest_unconfigure(self, config: pytest.Config) -> None:
-        """After --junitxml wrote its file (pytest_sessionfinish): the bench's name, properties and traces."""
+        """After --junitxml wrote its file (pytest_sessionfinish): the bench's name, properties, the verdict and
+        traces."""
         xmlpath = _path(config.getoption("xmlpath", None))
         if xmlpath is None or not xmlpath.is_file() or not self.uses_bench:
             return
@@ -277,7 +370,9 @@ class Reporter:
         try:
             from hil.plugin.safety import RECOVERY_NOTES
             recovery = [("hil_bench_recovery", note) for note in config.stash.get(RECOVERY_NOTES, [])]
-            finish_junit(xmlpath, suite_name=name, properties=self.properties + recovery, traces=self.junit_traces)
+            verdict = self.verdict.properties() if self.verdict is not None else []
+            finish_junit(xmlpath, suite_name=name, properties=self.properties + verdict + recovery,
+                         traces=self.junit_traces)
         except (OSError, ET.ParseError) as exc:
             reporter = config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:
@@ -290,8 +385,6 @@ class Reporter:
         tw = self.config.get_terminal_writer()
         terminalreporter.write(render(summary_table(self.records.values(), color=tw.hasmarkup),
                                       color=tw.hasmarkup, width=tw.fullwidth))
-        if self.html_written is not None:
-            terminalreporter.write_line(f"hil: HTML report {self.html_written}")
 
 
 # -- fixtures ---------------------------------------------------------------------------------------------------------
@@ -347,7 +440,7 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
 def report(request: pytest.FixtureRequest) -> ReportHandle:
     """Attach plot-ready series to this test's entry in the HTML report (``report.attach_series(...)``)."""
     plugin = request.config.pluginmanager.get_plugin("hil-reporter")
-    directory = plugin.trace_dir.parent / "attachments" if plugin is not None and plugin.trace_dir else None
+    directory = plugin.attachments_dir if plugin is not None and plugin.trace_dir else None
     return ReportHandle(_record(request), request.node, directory)
 
 

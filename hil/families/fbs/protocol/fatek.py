@@ -416,7 +416,8 @@ class DetailedStatus(Command):
         raw = bytearray([result.status1, result.unit_type, result.io_code, result.os_version])
         for name in DETAILED_COUNTS:
             raw += result.sizes.get(name, 0).to_bytes(2, "big")
-        raw += bytes(64 - len(raw))  # STATUS1…STATUS64
+        raw += result.raw[len(raw):64]  # the rest of STATUS1…STATUS64 as given (zeros when not)
+        raw += bytes(64 - len(raw))
         return raw.hex().upper()
 
     def describe(self) -> str:

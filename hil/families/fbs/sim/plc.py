@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Iterable
 
 from hil.families.fbs.address import Address
@@ -24,6 +25,9 @@ class Emulator(Engine):
     def __init__(self, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
                  seed: int = 0) -> None:
         super().__init__(Memory(), scan_time=scan_time, station=station, seed=seed)
+        # [our choice] each emulator is a PLC of its own: a serial of its own, served in its identity (command
+        # 53), so that a journal, a lock or a rig check never takes one emulator for another
+        self.serial = os.urandom(8)
         for name, value in POWER_ON_DEFAULTS.items():
             self.memory.set(name, value)
         for model in models:

@@ -32,6 +32,7 @@ from typing import Callable
 
 from hil.families.fbs.address import BIT_BANKS, WORD_BANKS
 from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
+from hil.families.fbs.identity import emulator_status_tail
 from hil.families.fbs.sim.memory import Memory
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_fatek
@@ -116,7 +117,7 @@ class FatekServerCore:
             return StatusReply(int(emu.running))
         if isinstance(command, DetailedStatus):
             return DetailedStatusReply(int(emu.running), UNIT_TYPE_MC, IO_POINTS_CODE, OS_VERSION,
-                                       dict(DETAILED_SIZES))
+                                       dict(DETAILED_SIZES), emulator_status_tail(emu.serial))
         if isinstance(command, RunStop):
             emu.running = command.run
             return None

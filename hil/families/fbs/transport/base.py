@@ -42,6 +42,15 @@ def check_value(address: Address, value: int) -> int:
     return value
 
 
+def value_problem(address: Address, value: int) -> str | None:
+    """Why ``value`` cannot be ``address``'s (None when it can): :func:`check_value` as a verdict."""
+    try:
+        check_value(address, value)
+    except InvalidValue as exc:
+        return str(exc)
+    return None
+
+
 def _chunks(count: int, size: int) -> Iterable[tuple[int, int]]:
     for start in range(0, count, size):
         yield start, min(size, count - start)

@@ -16,10 +16,11 @@ from __future__ import annotations
 from typing import Iterable, Sequence
 
 from hil.bench.guard import Guard
+from hil.bench.replay import Recovery, age_problem
 from hil.core.errors import HilError, TransportError, WriteRefused
-from hil.core.journal import Journal
-from hil.families.fbs.address import Address, parse, parse_range
-from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport
+from hil.core.journal import DISABLED, ENABLE, RUN, Journal
+from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
+from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value, value_problem
 
 
 def expand(ranges: Iterable[str]) -> frozenset[Address]:
@@ -29,6 +30,26 @@ def expand(ranges: Iterable[str]) -> frozenset[Address]:
         for element in parse_range(text):
             out.update(element.elements())
     return frozenset(out)
+
+
+def element_values(pairs: Iterable[tuple[Address, int]]) -> dict[Address, int]:
+    """What a write of (address, value) pairs leaves in each base element (WM16 → M16…M31, DR0 → R0, R1), for the
+    journal's "wrote"; a value that does not fit is left out (the write itself refuses it)."""
+    out: dict[Address, int] = {}
+    for address, value in pairs:
+        try:
+            value = check_value(address, int(value))
+        except (HilError, TypeError, ValueError):
+            continue
+        parts = list(address.elements())
+        if len(parts) == 1:
+            out[parts[0]] = value
+        elif address.kind in PAIRED_32:
+            lo, hi = value & 0xFFFF, value >> 16
+            out[parts[0]], out[parts[1]] = (lo, hi) if LOW_WORD_FIRST else (hi, lo)
+        else:  # packed bits, lowest first
+            out.update({bit: value >> i & 1 for i, bit in enumerate(parts)})
+    return out
 
 
 class GuardedTransport(Guard, Transport):
@@ -69,10 +90,12 @@ class GuardedTransport(Guard, Transport):
         if inner_call is None:
             raise WriteRefused(f"RUN/STOP is not offered by {self.inner.description}")
         with self._lock:
-            if self.run_original is None:
-                self.run_original = bool(self.inner.status().running)
-                if self.durable is not None:
-                    self.durable.set_extra("run", self.run_original)
+            original = self.run_original
+            if original is None:
+                original = bool(self.inner.status().running)
+            if self.durable is not None:  # the original and what is about to be set, on disk first
+                self.durable.set_extra("run", {"original": original, "wrote": bool(run)})
+            self.run_original = original
             inner_call(bool(run))
 
     def bit_action(self, name: NameLike, action: int) -> None:
@@ -89,68 +112,170 @@ class GuardedTransport(Guard, Transport):
             fresh = [a for a in base if a not in self.enable_original] if action in (1, 2) else []
             if fresh:
                 states = {a: bool(read_state(a, 1)[0]) for a in fresh}
-                if self.durable is not None:
+                if self.durable is not None:  # on disk before it is kept (and before the command goes out)
                     self.durable.add_enable_states({str(a): v for a, v in states.items()})
                 self.enable_original.update(states)
             inner_call(base[0], action)
-        self.guarded([name], act)
+        base = self.split(name)
+        wrote = {base[0]: 1 if action == 3 else 0} if action in (3, 4) else None
+        self.guarded([name], act, wrote)
 
     def _restore_actions(self) -> None:
-        """The bits' enable states back, each read back (command 43), and RUN/STOP back (before the values)."""
+        """The bits' enable states back and RUN/STOP back (before the values are restored), each read back
+        (command 43, command 40) before it leaves the journal."""
         try:
             if self.enable_original:
                 self._restore_enable_states()
         finally:  # RUN/STOP back even when an enable state could not be
             if self.run_original is not None:
-                if bool(self.inner.status().running) != self.run_original:
-                    self.inner.set_running(self.run_original)
+                self._put_running(self.run_original)
                 self.run_original = None
                 if self.durable is not None:
                     self.durable.set_extra("run", None)
 
     def _restore_enable_states(self) -> None:
-        if getattr(self.inner, "read_disabled", None) is None or getattr(self.inner, "bit_action", None) is None:
-            names = ", ".join(sorted(str(a) for a in self.enable_original))
-            raise HilError(f"the enable states of {names} (FATEK commands 42/43) cannot be put back over "
-                           f"{self.inner.description}: restore them over the PLC's FATEK port")
         wrong = []
         for address, disabled in sorted(self.enable_original.items(), key=lambda item: str(item[0])):
-            if bool(self.inner.read_disabled(address, 1)[0]) != disabled:
-                self.inner.bit_action(address, 1 if disabled else 2)
-                if bool(self.inner.read_disabled(address, 1)[0]) != disabled:
-                    wrong.append(f"{address} (original {'disabled' if disabled else 'enabled'})")
-                    continue
+            try:
+                self._put_enable_state(address, disabled)
+            except HilError as exc:
+                wrong.append(f"{address} (original {'disabled' if disabled else 'enabled'}): {exc}")
+                continue
             del self.enable_original[address]
             if self.durable is not None:
                 self.durable.drop_enable_states([str(address)])
-        if self.durable is not None and not self.enable_original:
-            self.durable.set_extra("disabled", None)  # an older journal's list of bits to re-enable: done
         if wrong:
-            raise HilError(f"command 43 reads the enable state of {', '.join(wrong)} wrong after restoring it")
+            raise HilError(f"enable states not put back: {'; '.join(wrong)}")
 
-    def _adopt(self, journal: Journal) -> None:
+    def _put_enable_state(self, bit: Address, disabled: bool) -> None:
+        """``bit`` disabled (forced) or enabled as ``disabled`` says — command 42 only if it is not — read back
+        with command 43; WriteRefused when it does not read back so."""
+        act, read = getattr(self.inner, "bit_action", None), getattr(self.inner, "read_disabled", None)
+        if act is None or read is None:
+            raise WriteRefused(f"{self.inner.description} has no commands 42/43")
+        state = "disabled" if disabled else "enabled"
+        if bool(read(bit, 1)[0]) != disabled:
+            act(bit, 1 if disabled else 2)
+            if bool(read(bit, 1)[0]) != disabled:
+                raise WriteRefused(f"command 43 does not read back {state}")
+
+    def _reenable(self, bits: list[Address]) -> None:
+        """Command 42 "enable" for each bit, then read back with command 43; HilError naming what stays disabled."""
+        act = getattr(self.inner, "bit_action", None)
+        if act is None:
+            raise WriteRefused(f"{self.inner.description} cannot re-enable bits (FATEK command 42)")
+        for address in bits:
+            act(address, 2)
+        read = getattr(self.inner, "read_disabled", None)
+        if read is None:
+            raise WriteRefused(f"{self.inner.description} cannot read back the enable state (FATEK command 43)")
+        still = [str(a) for a in bits if read(a, 1)[0]]
+        if still:
+            raise WriteRefused(f"{', '.join(still)} still read as disabled (command 43) after command 42 enable")
+
+    def _put_running(self, run: bool) -> None:
+        """RUN/STOP back to ``run`` and read back (command 40)."""
+        if bool(self.inner.status().running) != run:
+            self.inner.set_running(run)
+        if bool(self.inner.status().running) != run:
+            raise WriteRefused(f"the PLC does not read back {'RUN' if run else 'STOP'} after command 41")
+
+    def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """A dead run's RUN/STOP (only with allow_destructive, and only while the PLC is still as the run set it)
+        and its disabled bits (only writable ones), each read back."""
         run = journal.extra("run")
-        if run is not None and self.run_original is None:
-            self.run_original = bool(run)
-        for name, disabled in journal.enable_states().items():
-            self.enable_original.setdefault(parse(name), disabled)
-        for name in journal.extra("disabled", []):  # an older journal: bits a run disabled, to be re-enabled
-            self.enable_original.setdefault(parse(name), False)
+        if run is not None:
+            why = RUN.check(run) or age_problem(run, by_hand)
+            if why is None and not self.allow_destructive:
+                why = "RUN/STOP is destructive and the profile's [safety] allow_destructive is off"
+            if why is None and not hasattr(self.inner, "set_running"):
+                why = f"RUN/STOP is not offered by {self.inner.description}"
+            if why:
+                report.refused.append(f"RUN/STOP: {why}")
+            else:
+                now = bool(self.inner.status().running)  # read: what the PLC is in now
+                state = {True: "RUN", False: "STOP"}
+                if now not in (run["original"], run["wrote"]):  # the run left it as it was; someone changed it
+                    report.changed.append(f"RUN/STOP is {state[now]}, the run set {state[run['wrote']]} (original "
+                                          f"{state[run['original']]})")
+                else:
+                    try:
+                        self._put_running(run["original"])
+                    except HilError as exc:
+                        report.failures.append(f"RUN/STOP (original {state[run['original']]}): {exc}")
+                    else:
+                        report.verified.append(f"RUN/STOP = {state[run['original']]}")
+                        journal.set_extra("run", None)
+        names = journal.extra("disabled", [])
+        if names:
+            why = DISABLED.check(names)
+            bits = []
+            if why is None:
+                try:
+                    bits = [parse(n) for n in names]
+                except Exception as exc:  # noqa: BLE001 - a bad name refuses the entry by name
+                    why = f"not bits of this PLC: {exc}"
+            refused = [str(b) for b in bits if b not in self.writable]
+            if why is None and refused:
+                why = f"{', '.join(refused)} not in the profile's [safety] writable"
+            if why:
+                report.refused.append(f"disabled bits {names}: {why}")
+            else:
+                try:
+                    self._reenable(bits)
+                except HilError as exc:
+                    report.failures.append(f"disabled bits {', '.join(names)}: {exc}")
+                else:
+                    report.verified.append(f"{', '.join(names)} enabled (read back, command 43)")
+                    journal.set_extra("disabled", [])
+        self._recover_enable_states(journal, report, by_hand)
+
+    def _recover_enable_states(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """Each bit's journaled enable state (command 43 before the run's command 42) put back — writable bits only
+        — and read back with command 43."""
+        act, read = getattr(self.inner, "bit_action", None), getattr(self.inner, "read_disabled", None)
+        for name, entry in journal.data["enable"].items():
+            why = ENABLE.check(entry) or age_problem(entry, by_hand)
+            try:
+                bit = parse(name) if why is None else None
+            except Exception as exc:  # noqa: BLE001 - a bad name refuses the entry by name
+                why = f"not a bit of this PLC: {exc}"
+            if why is None and bit not in self.writable:
+                why = "not in the profile's [safety] writable"
+            if why is None and (act is None or read is None):
+                why = f"{self.inner.description} has no commands 42/43"
+            if why:
+                report.refused.append(f"enable state of {name}: {why}")
+                continue
+            state = "disabled" if entry["disabled"] else "enabled"
+            try:
+                self._put_enable_state(bit, entry["disabled"])
+            except HilError as exc:
+                report.failures.append(f"enable state of {name} (original {state}): {exc}")
+                continue
+            report.verified.append(f"{name} {state} (read back, command 43)")
+            journal.drop_enable_states([name])
+
+    def value_problem(self, element: Address, value: int) -> str | None:
+        return value_problem(element, value)
 
     # -- writes: check, journal, then pass on --------------------------------------------------------------
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
         first = parse(address)
         names = [first.offset(i) for i in range(len(values))] if values else []
-        self.guarded(names, lambda: super(GuardedTransport, self).write_words(first, values))
+        self.guarded(names, lambda: super(GuardedTransport, self).write_words(first, values),
+                     element_values(zip(names, values)))
 
     def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
         first = parse(address)
         names = [first.offset(i) for i in range(len(values))] if values else []
-        self.guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values))
+        self.guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values),
+                     element_values(zip(names, values)))
 
     def write_many(self, items) -> None:  # noqa: ANN001 - same forms as Transport.write_many
         pairs = list(items.items()) if hasattr(items, "items") else list(items)
-        self.guarded([a for a, _ in pairs], lambda: super(GuardedTransport, self).write_many(pairs))
+        self.guarded([a for a, _ in pairs], lambda: super(GuardedTransport, self).write_many(pairs),
+                     element_values((parse(a), v) for a, v in pairs))
 
     # -- primitives: straight to the inner transport ------------------------------------------------------------
     def _count(self, result):  # noqa: ANN001, ANN202 - each request is counted once, where it is sent

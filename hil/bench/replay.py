@@ -1,0 +1,204 @@
+"""Recovery: what a dead run's journal may put back, entry by entry, and only as far as it can be proven.
+
+A journal (:mod:`hil.core.journal`) is replayed only when
+
+* the file can be trusted (this user's, not writable by others, version 2, this bench's key) — else nothing;
+* it was written on this PLC: the identity the wire reads now (FATEK command 53, the S7 identity) is the one the
+  journal recorded; a wire that can read none relies on the key, which a profile's ``[bench] plc_id`` vouches for;
+
+and then each entry only when it is well formed, within the profile's ``[safety] writable`` (RUN/STOP only with
+``allow_destructive``; rig coils only on the profile's own rig), not ``volatile`` (the PLC rewrites it: dropped,
+said), not older than :data:`MAX_AGE` (``hil restore`` by hand takes older ones), and *still holds the value the run
+wrote* — an element someone changed since is left as it is and listed.  Everything not replayed is named and kept
+in the journal; the report's "verified" list is exactly what was read back equal.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from hil.core.journal import ELEMENTS, Journal
+
+if TYPE_CHECKING:  # the guard imports this module
+    from hil.bench.guard import Guard
+
+MAX_AGE = 7 * 86400.0  # s: an older entry is not replayed by a run (the PLC has surely been used since)
+
+
+@dataclass
+class Recovery:
+    """What :meth:`hil.bench.guard.Guard.recover` found in a dead run's journal, and what became of each entry."""
+
+    bench: str
+    path: str
+    pending: list[str] = field(default_factory=list)  # what the journal held, one line each
+    verified: list[str] = field(default_factory=list)  # put back (or found back) and read back equal
+    refused: list[str] = field(default_factory=list)  # not replayed, each with why (kept in the journal)
+    changed: list[str] = field(default_factory=list)  # someone changed it since the run: left as it is (kept)
+    failures: list[str] = field(default_factory=list)  # a restore that failed (kept)
+    notes: list[str] = field(default_factory=list)  # dropped without a write, and why (volatile)
+
+    @property
+    def needed(self) -> bool:
+        return bool(self.pending or self.refused)
+
+    @property
+    def ok(self) -> bool:
+        return not (self.failures or self.refused or self.changed)
+
+    def summary(self) -> str:
+        if not self.needed:
+            return f"hil bench recovery: nothing pending for {self.bench}"
+        parts = []
+        if self.verified:
+            parts.append("restored and verified (read back): " + "; ".join(self.verified))
+        if self.notes:
+            parts.append("dropped: " + "; ".join(self.notes))
+        if self.changed:
+            parts.append("changed by someone since the run (left as they are): " + "; ".join(self.changed))
+        if self.refused:
+            parts.append("not replayed: " + "; ".join(self.refused))
+        if self.failures:
+            parts.append("restore failed: " + "; ".join(self.failures))
+        if self.ok:
+            return (f"hil bench recovery: a previous run on {self.bench} died leaving {len(self.pending)} entry(s) "
+                    f"— " + " — ".join(parts))
+        return (f"hil bench recovery FAILED on {self.bench} (what is left is kept in {self.path}; `hil restore "
+                f"--show` lists it): " + " — ".join(parts))
+
+
+def _describe_plc(identity: dict[str, str]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in sorted(identity.items()))
+
+
+def identity_problem(journal: Journal, vouched: bool) -> str | None:
+    """Why this journal may not be replayed on the PLC the wire reaches now (None: it may).  ``vouched``: the key
+    is the profile's ``[bench] plc_id``, so a wire that reads no identity may still replay it."""
+    then, now = journal.data.get("plc"), journal.plc
+    if then is None:
+        return None
+    if now is None:
+        if vouched:
+            return None
+        return (f"the journal was written on the PLC {_describe_plc(then)}, and this wire cannot read the PLC's "
+                f"identity to check it is that one — nothing replayed (name the PLC with [bench] plc_id, or use "
+                f"the wire the run used, {journal.data.get('endpoint')})")
+    if then != now:
+        return (f"the journal was written on the PLC {_describe_plc(then)}; the PLC reached now is "
+                f"{_describe_plc(now)} — nothing replayed")
+    return None
+
+
+def age_problem(entry: Any, by_hand: bool) -> str | None:
+    """Why an entry is too old for a run to replay (``hil restore`` by hand takes it)."""
+    if by_hand or not isinstance(entry, dict):
+        return None
+    try:
+        at = dt.datetime.fromisoformat(entry["at"])
+    except (KeyError, TypeError, ValueError):
+        return "it has no time stamp"
+    age = (dt.datetime.now(dt.timezone.utc) - at).total_seconds()
+    if age > MAX_AGE:
+        return f"it is {age / 86400:.0f} days old (over {MAX_AGE / 86400:.0f}); `hil restore` replays it by hand"
+    return None
+
+
+@dataclass
+class Verdict:
+    """What the next replay does with one element entry (also for ``hil restore --show``)."""
+
+    name: str
+    action: str  # "restore", "drop" (volatile), "refuse", or "check" (restore if it still holds what was written)
+    why: str = ""
+    element: Any = None
+    entry: dict = field(default_factory=dict)
+
+
+def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Verdict]:
+    """Each element entry's verdict from the journal and the profile alone (no PLC read yet)."""
+    out = []
+    allowed_side: frozenset | None = None
+    for name, entry in journal.data["elements"].items():
+        problem = ELEMENTS.check(entry)
+        if problem:
+            out.append(Verdict(name, "refuse", f"malformed: {problem}"))
+            continue
+        try:
+            elements = guard.split(name)
+        except Exception as exc:  # noqa: BLE001 - any bad name is refused by name
+            out.append(Verdict(name, "refuse", f"not an element of this PLC: {exc}"))
+            continue
+        if len(elements) != 1 or str(elements[0]) != name:
+            out.append(Verdict(name, "refuse", "not one base element (a journal names bits and words)"))
+            continue
+        element = elements[0]
+        if element in guard.volatile:
+            out.append(Verdict(name, "drop", "volatile in the profile: the PLC rewrites it itself"))
+            continue
+        bad = guard.value_problem(element, entry["original"]) or (
+            entry["wrote"] is not None and guard.value_problem(element, entry["wrote"]))
+        if bad:
+            out.append(Verdict(name, "refuse", f"malformed: {bad}"))
+            continue
+        if element not in guard.writable:
+            if entry["wrote"] is not None:
+                out.append(Verdict(name, "refuse", "not in the profile's [safety] writable"))
+                continue
+            if allowed_side is None:  # what the PLC itself rewrites because of a write the profile allows
+                allowed_side = frozenset(guard.keys(list(guard.side_effects(sorted(guard.writable, key=str))))) \
+                    if guard.side_effects is not None else frozenset()
+            if element not in allowed_side:
+                out.append(Verdict(name, "refuse", "neither in [safety] writable nor rewritten by the PLC after a "
+                                                   "write it allows"))
+                continue
+        old = age_problem(entry, by_hand)
+        if old:
+            out.append(Verdict(name, "refuse", old))
+            continue
+        out.append(Verdict(name, "check", "", element, entry))
+    return out
+
+
+def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand: bool) -> None:
+    """Put back each element that still holds what the run wrote, read back; list the rest."""
+    checks = []
+    for verdict in element_verdicts(guard, journal, by_hand):
+        label = f"{verdict.name}"
+        if verdict.action == "refuse":
+            report.refused.append(f"{label}: {verdict.why}")
+        elif verdict.action == "drop":
+            report.notes.append(f"{label}: {verdict.why}")
+            journal.drop_elements([verdict.name])
+        else:
+            checks.append(verdict)
+    if not checks:
+        return
+    try:
+        now = guard.read_originals([v.element for v in checks])
+    except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
+        report.failures += [f"{v.name} (original {v.entry['original']}): reading it failed: {exc}" for v in checks]
+        return
+    back, restore = [], []
+    for verdict, value in zip(checks, now):
+        original, wrote = verdict.entry["original"], verdict.entry["wrote"]
+        if value == original:
+            back.append(verdict)
+        elif wrote is None or value == wrote:  # wrote None: the PLC rewrote it itself after a write of the run
+            restore.append(verdict)
+        else:
+            report.changed.append(f"{verdict.name} reads {value}, the run wrote {wrote} (original {original})")
+    bad = {str(name): why for name, _, why in guard._put_back([(v.element, v.entry["original"]) for v in restore])} \
+        if restore else {}
+    for verdict in restore:
+        if verdict.name in bad:
+            report.failures.append(f"{verdict.name} (original {verdict.entry['original']}): {bad[verdict.name]}")
+        else:
+            back.append(verdict)
+    report.verified += [f"{v.name} = {v.entry['original']}" for v in back]
+    journal.drop_elements(v.name for v in back)
+
+
+__all__ = ["MAX_AGE", "Recovery", "Verdict", "age_problem", "element_verdicts", "identity_problem",
+           "replay_elements"]
