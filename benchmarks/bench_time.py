@@ -1,6 +1,8 @@
 """Bench time of the non-slow FBs suites at time scale 1: ``hil emulate`` in real time as a separate process (a
-PLC on a wire: it scans on its own and answers at scan boundaries), reached over FATEK/TCP with its relay rig and
-a bench-like profile (scan counter declared).  Per suite file: wall seconds, tests, skips.  Target ≤ 3 min."""
+PLC on a wire: it scans on its own and answers at scan boundaries), reached over FATEK/TCP — or over its pty paced
+at a serial line's rate (``line="9600 7E1"``: port 0's factory setting, every character its 10 bits' time) — with
+its relay rig and a bench-like profile (scan counter declared).  Per suite file: wall seconds, tests, skips.
+Target ≤ 3 min."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from tests.external import bench_over_the_wire, hil_emulate  # noqa: E402
+from hil.sim.pacing import LineRate  # noqa: E402
+from tests.external import bench_over_the_wire, emulate_process  # noqa: E402
 from tests.test_bench_mode import MAIN_SET, bench_like  # noqa: E402
 
 SUITES = ROOT / "suites"
@@ -24,18 +27,29 @@ PROFILE = ROOT / "fixtures" / "benches" / "emulator.toml"
 WARM_UP_S = 7.0
 
 
-def bench_times(time_scale: float = 1.0, files: list[str] | None = None) -> dict:
+def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: str | None = None) -> dict:
     """One pytest session over the non-slow FBs suite files, as ``hil run`` would run them on a bench: the total
-    wall time, and per suite file the tests' own time (setup, call and teardown, from the JUnit report)."""
+    wall time, and per suite file the tests' own time (setup, call and teardown, from the JUnit report).  ``line``
+    ("9600 7E1"): over ``hil emulate``'s FATEK pty paced at that rate instead of FATEK/TCP."""
     files = files or MAIN_SET
-    out: dict = {"time_scale": time_scale, "per_suite": {}}
+    out: dict = {"time_scale": time_scale, "per_suite": {}, "wire": f"FATEK pty at {line}" if line else "FATEK/TCP"}
     with tempfile.TemporaryDirectory() as tmp:
         tmp_path = Path(tmp)
         emulated = tmp_path / "emulated.toml"
-        emulated.write_text(bench_like(PROFILE.read_text()))
-        with hil_emulate(emulated, time_scale) as where:
+        text = bench_like(PROFILE.read_text())
+        if line:
+            text = text.replace("[emulator]\n", f'[emulator]\nline = "{line}"\n', 1)
+        emulated.write_text(text)
+        wires = {"fatek-pty" if line else "fatek-tcp": "--fatek-pty" if line else "--fatek-tcp",
+                 "rig-modbus-tcp": "--rig-modbus-tcp"}
+        with emulate_process(emulated, time_scale, wires) as where:
+            url = None
+            if line:
+                rate = LineRate.parse(line)
+                url = (f"fatek+serial://{where['fatek-pty']}?baudrate={rate.baudrate}&bytesize={rate.bytesize}"
+                       f"&parity={rate.parity}&stopbits={rate.stopbits}&station=1")
             bench = tmp_path / "bench.toml"
-            bench.write_text(bench_over_the_wire(emulated.read_text(), where, time_scale))
+            bench.write_text(bench_over_the_wire(emulated.read_text(), where, time_scale, url=url))
             junit = tmp_path / "junit.xml"
             time.sleep(WARM_UP_S / time_scale)
             started = time.monotonic()
@@ -44,9 +58,11 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None) -> dict
                            capture_output=True, text=True)
             out["total_wall_s"] = round(time.monotonic() - started, 1)
         cases = list(ET.parse(junit).getroot().iter("testcase"))
-        slowest = sorted(cases, key=lambda c: -float(c.get("time", 0)))[:8]
+        slowest = sorted(cases, key=lambda c: -float(c.get("time", 0)))
         out["slowest"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
-                          for c in slowest}
+                          for c in slowest[:8]}
+        out["per_test"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
+                           for c in slowest}
         for case in cases:
             name = Path(case.get("file") or case.get("classname", "").replace(".", "/") + ".py").name
             row = out["per_suite"].setdefault(name, {"tests": 0, "failures": 0, "skipped": 0, "test_time_s": 0.0})
@@ -59,7 +75,8 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None) -> dict
 
 if __name__ == "__main__":
     import json
-    result = bench_times(float(sys.argv[1]) if len(sys.argv) > 1 else 1.0)
+    result = bench_times(float(sys.argv[1]) if len(sys.argv) > 1 else 1.0,
+                         files=sys.argv[3:] or None, line=sys.argv[2] if len(sys.argv) > 2 and sys.argv[2] else None)
     print(json.dumps(result, indent=1))
     total = result["total_wall_s"]
     print(f"non-slow FBs suites at time scale {result['time_scale']}: {total:.0f} s "

@@ -11,7 +11,8 @@ Not pass/fail tests (timings are noisy on shared machines): a rich table on the 
    32 PID loops with the thermal plant) — 24 virtual hours of the full PLC in Python (+ numpy; target: at or below
    the floor), and the bare CPython arithmetic of plant + PID alone as that floor, measured in the same run;
 4. wall time of ``hil run`` per emulator target;
-5. bench time: the non-slow FBs suites at time scale 1 against ``hil emulate`` in real time, per suite file
+5. bench time: the non-slow FBs suites at time scale 1 against ``hil emulate`` in real time, per suite file, over
+   FATEK/TCP and over its pty paced at port 0's 9600 7E1 (``--line``), measured, side by side
    (benchmarks/bench_time.py; target ≤ 3 min; ``--bench-time-only`` runs just this);
 6. RFC 2217: a round trip over ``fatek+rfc2217://`` against a raw ``socket://`` to the same ser2net exporting the
    same pty (target ≤ 1.5×), and ``modbus+rfc2217://`` against the pty opened directly.
@@ -176,7 +177,15 @@ def cheapest_request(frame: bytes) -> int:
 
 
 def device_operations() -> list[dict]:
-    """Bytes a device procedure puts on a FATEK wire, against the fewest its steps need."""
+    """Bytes a device procedure puts on a FATEK wire, against the fewest its steps need: on a direct line (the
+    PLC's own Ethernet module; port 0 alike) and on a line that may repeat replies, where every read is fenced."""
+    rows = _device_operations("emulator+fatek-tcp")
+    for row, fenced in zip(rows, _device_operations("emulator+fatek-serial?fence=reads")):
+        row.update(fenced_bytes=fenced["bytes"], fenced_ratio=fenced["ratio"])
+    return rows
+
+
+def _device_operations(url: str) -> list[dict]:
     from hil.families.fbs.device.plc import FbsPlc
     from hil.families.fbs.sim.build import build_emulator
     from hil.families.fbs.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, ShortStatus,
@@ -185,7 +194,7 @@ def device_operations() -> list[dict]:
     from hil.families.fbs.transport.factory import open_transport
 
     profile = load_profile(BENCH)
-    transport = open_transport("emulator+fatek-tcp", emulator_factory=lambda: build_emulator(profile, EPOCH))
+    transport = open_transport(url, emulator_factory=lambda: build_emulator(profile, EPOCH))
     plc = FbsPlc(transport, EmulatorTimebase(transport.emulator, EPOCH), settle_scans=profile.settle_scans)
     transport.status()  # the one-off detailed status (53) out of the way
     counter = WireCounter().attach(transport)
@@ -193,17 +202,24 @@ def device_operations() -> list[dict]:
     status = len(encode_request(1, ShortStatus())) + reply_len(6)
     rtc_fields = [f"R{4128 + i}" for i in range(7)]
     set_frame = len(encode_request(1, MixedWrite([("M1952", 1)] + [(n, 0) for n in rtc_fields]))) + reply_len(0)
+    # The procedures' steps, each in its cheapest frame(s): every step that must be seen by settle_scans whole scans
+    # before the next one is followed by `settle` status round trips (the next request ends a scan itself).
+    bit_action = len(encode_request(1, BitAction(4, "M1952"))) + reply_len(0)
+    read_back = min(  # M1955 and the read-out R4128–R4134 after a set: one 48 frame, or a 44 and a 46
+        len(encode_request(1, MixedRead(["M1955"] + rtc_fields))) + reply_len(1 + 28),
+        len(encode_request(1, ReadBits("M1955", 1))) + reply_len(1)
+        + len(encode_request(1, ReadRegisters("R4128", 7))) + reply_len(28))
     minimum = {
         "rtc.read()": len(encode_request(1, ReadRegisters("R4128", 7))) + reply_len(28),
         "rtc.read_all()": len(encode_request(1, MixedRead([f"R{4128 + i}" for i in range(8)] + ["WM1952"])))
         + reply_len(36),
-        "rtc.set()": set_frame + len(encode_request(1, BitAction(4, "M1952"))) + reply_len(0) + settle * status
-        + len(encode_request(1, ReadBits("M1955", 1))) + reply_len(1),
-        "rtc.adjust_30s()": 3 * (len(encode_request(1, BitAction(3, "M1953"))) + reply_len(0)) + settle * status,
+        "rtc.set()": set_frame + settle * status + bit_action + settle * status + read_back,
+        "rtc.adjust_30s()": 3 * (bit_action + settle * status),
         "temperature.readings()": len(encode_request(1, ReadRegisters(plc_readings(profile), 32)))
         + reply_len(32 * 4),
     }
-    round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + settle, "rtc.adjust_30s()": 3 + settle,
+    round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + 2 * settle,
+                   "rtc.adjust_30s()": 3 + 3 * settle,
                    "temperature.readings()": 1}
     from hil.families.fbs.temperature import parse_temperature
     plc.temperature.config = parse_temperature(profile.areas["temperature"], str(BENCH))
@@ -415,6 +431,33 @@ def arithmetic_floor(hours: float, points: int = 32, interval: float = 4.0, pwm:
 
 
 # -- 4. hil run -------------------------------------------------------------------------------------------------------
+# -- 5. bench time --------------------------------------------------------------------------------------------------
+def bench_time_table(line: str) -> dict:
+    """The non-slow FBs suites at time scale 1 against ``hil emulate`` in real time: over FATEK/TCP and over its
+    FATEK pty paced at ``line`` (the real figure, not bytes × bit time), per suite side by side."""
+    from benchmarks.bench_time import bench_times
+    runs = {"FATEK/TCP": bench_times(1.0)}
+    if line:
+        runs[f"pty at {line}"] = bench_times(1.0, line=line)
+    t = Table(title="Bench time at time scale 1 (hil emulate in real time), per suite: tests' time s")
+    t.add_column("suite")
+    for wire in runs:
+        t.add_column(wire, justify="right")
+    names = list(dict.fromkeys(n for r in runs.values() for n in r["per_suite"]))
+    for name in names:
+        cells = []
+        for r in runs.values():
+            row = r["per_suite"].get(name)
+            cells.append("" if row is None else f"{row['test_time_s']:.1f}"
+                         + (f" ({row['skipped']} skipped)" if row["skipped"] else "")
+                         + (f" [red]{row['failures']} failed[/]" if row["failures"] else ""))
+        t.add_row(name, *cells)
+    t.add_row("[bold]session wall s[/]", *(f"[bold]{r['total_wall_s']:.0f}[/]" for r in runs.values()))
+    console.print(t)
+    console.print("target: ≤ 180 s for the non-slow set, on either wire")
+    return runs
+
+
 # -- 6. RFC 2217 -----------------------------------------------------------------------------------------------------
 def _interleaved_ms(opens: dict, n: int) -> dict[str, float]:
     """Median ms per read of R4128 ×8 over each of ``opens``' transports (all open at once, each to its own PLC),
@@ -494,19 +537,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", default=str(ROOT / "reports" / "benchmarks.json"), help="where the JSON goes")
     parser.add_argument("--skip-run", action="store_true", help="leave out the `hil run` wall times")
     parser.add_argument("--bench-time-only", action="store_true",
-                        help="only the bench time of the non-slow FBs suites at time scale 1 (about 3 min)")
+                        help="only the bench time of the non-slow FBs suites at time scale 1, over FATEK/TCP and "
+                             "over the paced serial line (--line; about 3 + 5 min)")
+    parser.add_argument("--line", default="9600 7E1",
+                        help="the paced pty's line rate for the bench-time figure (default '9600 7E1', port 0's "
+                             "factory setting; '' for TCP only)")
     args = parser.parse_args(argv)
     if args.bench_time_only:
-        from benchmarks.bench_time import bench_times
-        bt = bench_times(1.0)
-        t = Table(title="Bench time at time scale 1 (hil emulate in real time over FATEK/TCP), per suite")
-        for col in ("suite", "tests", "skipped", "failures", "tests' time s"):
-            t.add_column(col, justify="right" if col != "suite" else "left")
-        for name, r in bt["per_suite"].items():
-            t.add_row(name, str(r["tests"]), str(r["skipped"]), str(r["failures"]), f"{r['test_time_s']:.1f}")
-        console.print(t)
-        console.print(f"non-slow FBs suites, one session as `hil run` runs them: [bold]{bt['total_wall_s']:.0f} s[/] "
-                      f"(target ≤ 180 s)")
+        bt = bench_time_table(args.line)
         out = Path(args.json).with_name("bench_time.json")
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(bt, indent=1))
@@ -533,12 +571,14 @@ def main(argv: list[str] | None = None) -> int:
                   f"{m['hil_requests_per_s']:,.0f} vs {m['bare_requests_per_s']:,.0f} req/s ({m['best_round_ratio']:.2f}×)")
 
     results["device_operations"] = ops = device_operations()
-    t = Table(title="FATEK bytes per device operation (request + reply frames)")
-    for col in ("operation", "round trips", "bytes", "fewest bytes", "ratio", "ms at 9600 7E1"):
+    t = Table(title="FATEK bytes per device operation (request + reply frames; target ≤ 1.3× the fewest)")
+    for col in ("operation", "round trips", "bytes", "fewest bytes", "ratio", "ms at 9600 7E1",
+                "fence=reads: bytes", "ratio"):
         t.add_column(col, justify="right" if col != "operation" else "left")
     for r in ops:
         t.add_row(r["operation"], f"{r['round_trips']} (min {r['min_round_trips']})", str(r["bytes"]),
-                  str(r["min_bytes"]), f"{r['ratio']:.2f}", f"{r['line_9600_ms']:.0f}")
+                  str(r["min_bytes"]), f"{r['ratio']:.2f}", f"{r['line_9600_ms']:.0f}", str(r["fenced_bytes"]),
+                  f"{r['fenced_ratio']:.2f}")
     console.print(t)
 
     results["suites"] = s = suite_efficiency()

@@ -4,9 +4,14 @@ Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn
 "normal" when SV − Os ≤ PV ≤ SV + Os (SV 2000, Os 50: 195.0 ° … 205.0 ° is normal); WR+0/WR+2 bit b = point Sn + b,
 WR+1/WR+3 bit b = point Sn + 16 + b; a warning after 10 consecutive scans with PV ≥ R4008; ALM on any point out
 of band or any warning; a point whose R4012/R4013 bit is 0 has its output forced off; R4005 = 0102H, R4006 = 90,
-R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution.  The bench profile's [pid] only says
-*where* the ladder's FUN86 operands are.
+R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4003 = A55AH with R4004 = 10000–13839
+(R0–R3839) or 20000–23999 (D0–D3999) as where FUN86 reads its PVs, any other value (or R4003 ≠ A55AH) the table's
+readings; FUN86 acting only once every fitted point has been measured.  The bench profile's [pid] only says
+*where* the ladder's FUN86 operands are; [bench] scratch names 32 R and D words the PVs may be put in.
 """
+
+import dataclasses
+import re
 
 import pytest
 
@@ -14,7 +19,7 @@ import pytest
 INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}
 PWM_S = INTERVAL_S  # high byte → PWM period, same table
 BAD_SN_ZN = [(32, 1), (0, 0), (0, 33), (31, 2), (20, 13), (-1, 5)]
-GOOD_SN_ZN = [(0, 1), (31, 1), (16, 16)]
+GOOD_SN_ZN = [(0, 1), (31, 1), (16, 16), (0, 32)]  # (0, 32): Zn at its largest
 WIDE = 1000  # Os of 100.0 °: puts a point in band whatever its temperature drifts by
 
 
@@ -79,6 +84,22 @@ def _enabled_points(bench, inst):
     return [p for p in inst.points if mask >> p & 1]
 
 
+def _only(words, inst, points):
+    """``words`` (a pair) with only the bits of ``points`` kept: what a check may compare without leaning on the
+    spec's [our choice] PID-DIS-1 (a disabled point's bits)."""
+    mask = _expected_words(inst, points)
+    return tuple(w & m for w, m in zip(words, mask))
+
+
+def _latched(pid, inst):
+    """Skip when warnings are already set as a test begins: when a warning clears is the spec's [our choice]
+    (PID-WARN-1), so a PLC that latches them is not wrong — it just decides nothing here."""
+    points = pid.alarm_words(inst).warning_points()
+    if points:
+        pytest.skip(f"{inst.name}: warnings of points {points} still set from before this test; when a warning "
+                    f"clears is not the manual's (the spec's [our choice] PID-WARN-1)")
+
+
 def _expected_words(inst, points):
     """(first word, second word) with the bits of ``points``: bit b of WR+0/2 = point Sn + b, WR+1/3 = Sn + 16 + b."""
     words = [0, 0]
@@ -86,6 +107,154 @@ def _expected_words(inst, points):
         b = p - inst.sn
         words[b // 16] |= 1 << (b % 16)
     return tuple(words)
+
+
+# -- PVs of the suite's choosing: R4003 = A55AH, R4004 naming a scratch block (manual 20.7) -------------------------
+KEY = 0xA55A
+QUIET = 65535  # R4008 no PV reaches (6553.5 °)
+
+
+def _pv_blocks(bench):
+    """[(bank, first index)] of the [bench] scratch ranges of 32 R or D words (one per bank), writable."""
+    blocks = {}
+    for span in bench.profile.scratch:
+        first, _, last = span.partition("-")
+        m = re.fullmatch(r"([RD])(\d+)", first)
+        end = re.fullmatch(r"[RD](\d+)", last or first)
+        if m and end and m.group(1) not in blocks and int(end.group(1)) - int(m.group(2)) + 1 >= 32:
+            if not bench.cannot_reach(f"{m.group(1)}{m.group(2)}-{m.group(1)}{int(m.group(2)) + 31}"):
+                blocks[m.group(1)] = int(m.group(2))
+    return sorted(blocks.items())
+
+
+def _code(bank, index):
+    return (10000 if bank == "R" else 20000) + index  # R4004: 10000 + n → Rn, 20000 + n → Dn
+
+
+def _pv_source(bench, bank=None):
+    """Point FUN86 at a scratch block (R4003 = A55AH, R4004 = its code); (bank, first index), or skip."""
+    _need(bench, "R4003-R4004", "R4008")
+    blocks = _pv_blocks(bench)
+    if not blocks:
+        pytest.skip("the profile names no scratch block of 32 R or D words ([bench] scratch, writable) to put "
+                    "FUN86's PVs in through R4003/R4004")
+    bank, index = next((b for b in blocks if b[0] == bank), blocks[0]) if bank else blocks[0]
+    bench.plc.io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
+    return bank, index
+
+
+def _write_pvs(bench, block, pvs):
+    """PVs (point → 0.1 °) into the block, one write per run of consecutive points."""
+    bank, index = block
+    points = sorted(pvs)
+    while points:
+        run = [points.pop(0)]
+        while points and points[0] == run[-1] + 1:
+            run.append(points.pop(0))
+        bench.plc.io.write_words(f"{bank}{index + run[0]}", [pvs[p] & 0xFFFF for p in run])
+
+
+def _set_band(bench, inst, sv, os):
+    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), one block write each."""
+    io = bench.plc.io
+    io.write_words(str(inst.sv), [sv[p] & 0xFFFF for p in inst.points])
+    io.write_words(str(inst.os), [os[p] & 0xFFFF for p in inst.points])
+
+
+def _low_gains(bench, inst):
+    """Kc 1, no I, no D for every point of ``inst``: PVs of the suite's choosing heat nothing."""
+    for key, value in (("pr", 1), ("ir", 0), ("dr", 0)):
+        bench.plc.io.write_words(str(getattr(inst, key)), [value] * inst.zn)
+
+
+def _whole_box(bench, pid):
+    """The box whose Sn/Zn the harness sets (the ERR box), as Sn 0, Zn 32 — every bit of WR+0…WR+3 — when its
+    operand blocks are writable; else None."""
+    inst = next((i for i in pid.config.instances if i.settable), None)
+    if inst is None:
+        return None
+    whole = dataclasses.replace(inst, sn=0, zn=32)
+    if bench.cannot_reach(str(inst.sn_register), str(inst.zn_register), str(inst.en), str(inst.hc),
+                          *(_registers(whole, k) for k in ("sv", "os", "pr", "ir", "dr"))):
+        return None
+    pid.set_sn_zn(inst, 0, 32)
+    return whole
+
+
+def _fake_instances(bench, pid, whole=False):
+    """Every constant-Sn/Zn instance (and, with ``whole``, the ERR box as Sn 0, Zn 32, where it can be), switched
+    on, R4008 out of reach, PVs from a scratch block."""
+    instances = _instances(pid)
+    box = _whole_box(bench, pid) if whole else None
+    if box is not None:
+        instances = instances + [box]
+    for inst in instances:
+        _need(bench, *(_registers(inst, k) for k in ("sv", "os", "pr", "ir", "dr")))
+        _start(bench, pid, inst)
+        _low_gains(bench, inst)
+    block = _pv_source(bench)
+    bench.plc.io.write("R4008", QUIET)
+    return instances, block
+
+
+def _ten_scans(bench):
+    """Wait until more than 10 scans have passed since now: 1 s, and longer if the ladder's scan counter (where
+    the bench declares one) says the PLC scanned fewer than 12 times in it."""
+    counter = bench.profile.scan_counter
+    first = bench.plc.io.read(counter) if counter else None
+    bench.wait(1.0)
+    for _ in range(20):
+        if first is None or (bench.plc.io.read(counter) - first) & 0xFFFF >= 12:
+            break
+        bench.wait(0.5)
+    bench.settle()
+
+
+def _all_enabled(bench, inst):
+    return _enabled_points(bench, inst) == list(inst.points)
+
+
+# -- first of all: the first execution (only a PLC just powered on shows it) ---------------------------------------
+@pytest.mark.spec("PID-DEF-1", "PID-EXEC-1")
+@pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
+                                             "110/17/50 (a bench's gains may have been tuned since), and only one "
+                                             "whose modules have not yet measured every point shows FUN86 waiting")
+def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
+    """20.7: the first execution loads Kc/Ki/Td = 110/17/50 into PR/IR/DR of every point of every box; and FUN86
+    really acts only once every fitted point has been measured.  When the work block does not yet say 56H (a PLC
+    just powered on; this test comes first in the file for that), the first box is switched on (heating, SV 100.0 °
+    above every reading) and its OR, WR+0…3 and Yn… must stay as they were until TW+0 shows 56H, and the output
+    must rise within a PID interval after.  Later in a session every point has long been measured: then only the
+    defaults are checked."""
+    temperature = bench.plc.temperature
+    first = _instances(pid)[0]
+    if temperature.configured and temperature.read_work().execution_code != 0x56:
+        _fun86_waits_for_the_measurements(bench, pid, first, temperature)
+    for inst in _instances(pid):
+        _start(bench, pid, inst)
+        for p in inst.points:
+            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
+
+
+def _fun86_waits_for_the_measurements(bench, pid, inst, temperature):
+    _need(bench, str(inst.en), str(inst.hc), _registers(inst, "sv"))
+    io = bench.plc.io
+    before = (io.read_words(str(inst.or_), inst.zn), io.read_words(str(inst.wr), 4))
+    sv = 1000 + max(0, *temperature.readings())  # 100.0 ° above every reading so far
+    io.write_many({str(inst.operand("sv", p)): sv for p in inst.points})
+    pid.enable(inst, True, heating=True)
+    bench.settle()
+    outputs, words = io.read_words(str(inst.or_), inst.zn), io.read_words(str(inst.wr), 4)
+    ys = [pid.output_bit(p) for p in inst.points]
+    if temperature.read_work().execution_code != 0x56:  # (else every point got measured meanwhile: no decision)
+        assert (outputs, words) == before and not any(ys), (
+            f"FUN86 acted before every point was measured (TW+0 ≠ 56H): OR {before[0]} → {outputs}, WR+0…3 "
+            f"{before[1]} → {words}, Y {ys}")
+    assert temperature.wait_until(lambda: temperature.read_work().execution_code == 0x56, periods=2), \
+        "the temperature modules never finished measuring every point"
+    interval, _ = _timing(io)
+    assert _comes_true(bench, lambda: any(io.read_words(str(inst.or_), inst.zn)), interval + 1.0), (
+        "every point measured, SV 100 ° above PV (heating): the output must rise within a PID interval")
 
 
 # -- ERR ---------------------------------------------------------------------------------------------------------
@@ -118,31 +287,21 @@ def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
 
 
 # -- defaults ------------------------------------------------------------------------------------------------------
-@pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-R4006-1", "PID-R4007-1", "PID-R4008-1")
+@pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
 def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
     r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
     assert r4005 == 0x0102, f"R4005 = {r4005:04X}H; default: PID every 4 s (low byte 2), PWM period 2 s (high byte 1)"
     assert (r4006, r4007, r4008) == (90, 600, 3500), f"R4006–R4008 = {r4006}, {r4007}, {r4008}; defaults 90, 600, 3500"
 
 
-@pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
-                                             "110/17/50; a bench's gains may have been tuned since")
-@pytest.mark.spec("PID-DEF-1")
-def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
-    for inst in _instances(pid):
-        _start(bench, pid, inst)
-        for p in inst.points:
-            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
-
-
 # -- normal bits and ALM ---------------------------------------------------------------------------------------------
+@pytest.mark.spec("PID-NORM-1", "PID-OP-4", "PID-EXEC-2", "PID-PV-2")
 @pytest.mark.parametrize("edge", ["low", "high"])
 # at the edge every point is normal and ALM = 0 is expected: with a point disabled in R4012/R4013 that is the
 # spec's [our choice] PID-DIS-1 (disabled points report normal = 0, raise no ALM), so that case needs spec_choices
 @pytest.mark.parametrize("beyond", [pytest.param(0, marks=pytest.mark.spec("PID-ALM-2", "PID-DIS-1"), id="at-edge"),
                                     pytest.param(1, marks=pytest.mark.spec("PID-ALM-1"), id="one-tenth-beyond")])
-@pytest.mark.spec("PID-NORM-1", "PID-OP-4", "PID-EXEC-2", "PID-PV-2")
 def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
     """PV = SV ∓ Os is normal; PV one 0.1 ° further is not, and then ALM = 1."""
     inst = _instances(pid)[0]
@@ -181,10 +340,146 @@ def test_normal_bit_positions_count_from_sn(bench, pid, which):
     inst = _nth_instance(pid, which, "WR+1")
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
-    words = pid.alarm_words(inst).words
-    want = _expected_words(inst, _enabled_points(bench, inst))
-    assert words[:2] == want, (f"{inst.name} (Sn {inst.sn}, Zn {inst.zn}): WR+0/WR+1 = {words[0]:016b} "
+    enabled = _enabled_points(bench, inst)
+    words = _only(pid.alarm_words(inst).words[:2], inst, enabled)
+    want = _expected_words(inst, enabled)
+    assert words == want, (f"{inst.name} (Sn {inst.sn}, Zn {inst.zn}): WR+0/WR+1 = {words[0]:016b} "
                                f"{words[1]:016b}, expected {want[0]:016b} {want[1]:016b}")
+
+
+#: (SV, Os) of the points, cycled along each box: a set point above 0 and one below, Os of 0 and of 0.1 °, a wide band
+BANDS = [(2000, 50), (-1000, 30), (500, 0), (0, 1), (1500, 300)]
+#: PV against SV ± Os (20.7: SV − Os ≤ PV ≤ SV + Os is normal): both edges, and 0.1 ° past each
+EDGES = [("SV − Os", lambda sv, os: sv - os, True), ("SV − Os − 0.1 °", lambda sv, os: sv - os - 1, False),
+         ("SV + Os", lambda sv, os: sv + os, True), ("SV + Os + 0.1 °", lambda sv, os: sv + os + 1, False)]
+
+
+def _band_round(bench, pid, instances, block, case):
+    """Put every point of every box at the PV ``case(inst, b)`` → (SV, Os, PV) says; {point: (what, normal)}."""
+    pvs, sv, os, cases = {}, {}, {}, {}
+    for inst in instances:
+        for p in inst.points:
+            s, o, pv, what, inside = case(inst, p - inst.sn)
+            sv[p], os[p], pvs[p], cases[p] = s, o, pv, (f"{what} (SV {s}, Os {o}, PV {pv})", inside)
+    _write_pvs(bench, block, pvs)
+    for inst in instances:
+        _set_band(bench, inst, sv, os)
+    bench.settle()
+    return cases
+
+
+def _check_normal(bench, pid, inst, cases, label):
+    enabled = _enabled_points(bench, inst)
+    alarm = pid.alarm_words(inst)
+    want = _expected_words(inst, [p for p in enabled if cases[p][1]])
+    wrong = [f"point {p}: {cases[p][0]}" for p in enabled if alarm.normal(p) != cases[p][1]]
+    assert _only(alarm.words[:2], inst, enabled) == want, (
+        f"{label}, {inst.name}: WR+0/WR+1 = {_bits(alarm.words[:2])}, expected "
+                                     f"{_bits(want)}; wrong normal bits: {wrong}")
+    return enabled
+
+
+def _bits(words):
+    return " ".join(f"{w:016b}" for w in words)
+
+
+@pytest.mark.spec("PID-NORM-1", "PID-WR-1", "PID-ALM-1", "PID-ALM-2", "PID-OP-4", "PID-EXEC-4", "PID-PV-1")
+def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
+    """Every point of every box, its PV put where FUN86 reads it (R4003/R4004, a scratch block): at SV − Os and
+    SV + Os (normal) and 0.1 ° past each (not), for set points above and below 0 and Os of 0, 0.1 ° and more, each
+    point in and out over two rounds — WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b, nothing else.
+    Then ALM: 0 with every point normal (and no warning: R4008 out of reach), 1 with only the first point out of
+    its band, only the last of WR+0 (b = 15), only the first of WR+1 (b = 16), only the box's last point.  The
+    ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+0 and WR+1 to the test."""
+    instances, block = _fake_instances(bench, pid, whole=True)
+    for r in range(2):
+        def case(inst, b, r=r):
+            s, o = BANDS[b % len(BANDS)]
+            what, at, inside = EDGES[(b + r) % len(EDGES)]
+            return s, o, at(s, o), what, inside
+        cases = _band_round(bench, pid, instances, block, case)
+        for inst in instances:
+            enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}")
+            if any(not cases[p][1] for p in enabled):
+                assert pid.alm(inst), f"{inst.name}: points out of their band, ALM must be 1"
+    for out in (None, 0, 15, 16, -1):
+        def case(inst, b, out=out):
+            s, o = BANDS[b % len(BANDS)]
+            last = inst.zn - 1
+            if out is not None and b == (last if out == -1 else out):
+                return s, o, s + o + 1, "the one point out of band", False
+            return s, o, s - o, "in band", True
+        cases = _band_round(bench, pid, instances, block, case)
+        for inst in instances:
+            enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out")
+            outside = [p for p in enabled if not cases[p][1]]
+            if outside:
+                assert pid.alm(inst), f"{inst.name}: only point {outside[0]} is out of its band: ALM must be 1"
+            elif enabled == list(inst.points):  # (a disabled point's bits are [our choice]: decide nothing then)
+                assert not pid.alm(inst), f"{inst.name}: every point normal and no warning: ALM must be 0"
+
+
+@pytest.mark.spec("PID-PV-1", "PID-PV-2")
+def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
+    """R4003 = A55AH: R4004 = 10000–13839 → PVs from R0–R3839, 20000–23999 → D0–D3999 — a scratch block of each
+    bank for every point of every box, and the edge codes 10000, 13839, 20000, 23999 for the first box's point Sn
+    wherever the bench lets the harness write the register they name; any other R4004 (9999, 13840, 19999, 24000)
+    or R4003 ≠ A55AH (A55BH, 0) → the table's readings.  Told apart with Os = 0 at PVs of the suite's choosing
+    (only the register R4004 names gives SV exactly) and with Os = 5 ° round the table's own readings (while the
+    register a wrong decoding would read holds a PV 100 ° away)."""
+    instances, _block = _fake_instances(bench, pid)
+    io = bench.plc.io
+    temperature = bench.plc.temperature
+
+    enabled = {inst.name: set(_enabled_points(bench, inst)) for inst in instances}
+
+    def missing(inst):
+        """Enabled points of ``inst`` not normal (the caller has settled)."""
+        return sorted(enabled[inst.name] - set(pid.alarm_words(inst).normal_points()))
+
+    for bank, index in _pv_blocks(bench):
+        fake = {p: 1000 + 7 * p for inst in instances for p in inst.points}
+        _write_pvs(bench, (bank, index), fake)
+        io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
+        for inst in instances:
+            _set_band(bench, inst, fake, {p: 0 for p in inst.points})
+        bench.settle()
+        for inst in instances:
+            assert not missing(inst), (f"R4003 = A55AH, R4004 = {_code(bank, index)}: points {missing(inst)} of "
+                                       f"{inst.name} did not read their PV from {bank}{index} + point")
+    first = instances[0]
+    p0 = first.sn
+    for code, bank, index in ((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0), (23999, "D", 3999)):
+        name = f"{bank}{index + p0}"
+        if bench.cannot_reach(name) or p0 not in enabled[first.name]:
+            continue
+        io.write_many({name: 1234, "R4003": KEY, "R4004": code})
+        _set_band(bench, first, {p: 1234 for p in first.points}, {p: 0 for p in first.points})
+        bench.settle()
+        assert p0 in pid.alarm_words(first).normal_points(), (
+            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from {name}")
+    if not temperature.configured:
+        return
+    blocks = _pv_blocks(bench)
+    scratch = _code(*blocks[0])
+    for key, code in ((KEY, 9999), (KEY, 13840), (KEY, 19999), (KEY, 24000), (0xA55B, scratch), (0, scratch)):
+        real = temperature.readings()
+        # where a PLC that took the code would read the PVs: 100 ° away from the table's readings
+        if code == scratch:
+            _write_pvs(bench, blocks[0], {p: real[p] - 1000 for inst in instances for p in inst.points})
+        elif code in (13840, 24000):
+            bank, index = ("R", 3840) if code == 13840 else ("D", 4000)
+            wrong = {f"{bank}{index + p}": (real[p] - 1000) & 0xFFFF for p in first.points
+                     if not bench.cannot_reach(f"{bank}{index + p}")}
+            if wrong:
+                io.write_many(wrong)
+        io.write_many({"R4003": key, "R4004": code})
+        for inst in instances:
+            _set_band(bench, inst, {p: real[p] for p in inst.points}, {p: 50 for p in inst.points})
+        bench.settle()
+        for inst in instances:
+            assert not missing(inst), (f"R4003 = {key:04X}H, R4004 = {code}: FUN86 must read the table's readings; "
+                                       f"points {missing(inst)} of {inst.name} are not within 5 ° of theirs")
 
 
 # -- warnings ---------------------------------------------------------------------------------------------------------
@@ -196,19 +491,79 @@ def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     _need(bench, "R4008")
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
-    assert not pid.alarm_words(inst).warning_points(), "no warning before R4008 is lowered"
+    _latched(pid, inst)
     limit = max(100, min(pid.pvs(inst.points).values()) - 100)
     bench.plc.io.write("R4008", limit)
     bench.wait(1.0)  # ≫ 10 scans
     bench.settle()
     pvs = pid.pvs(inst.points)
-    warned = [p for p in _enabled_points(bench, inst) if pvs[p] >= limit]
+    enabled = _enabled_points(bench, inst)
+    warned = [p for p in enabled if pvs[p] >= limit]
     words = pid.alarm_words(inst).words
     want = _expected_words(inst, warned)
-    assert words[2:] == want, (f"R4008 = {limit} ≤ PV of points {warned}: WR+2/WR+3 = {words[2]:016b} "
-                               f"{words[3]:016b}, expected {want[0]:016b} {want[1]:016b}")
-    assert words[:2] == _expected_words(inst, _enabled_points(bench, inst)), "the points are still normal"
+    assert _only(words[2:], inst, enabled) == want, (
+        f"R4008 = {limit} ≤ PV of points {warned}: WR+2/WR+3 = {words[2]:016b} {words[3]:016b}, expected "
+        f"{want[0]:016b} {want[1]:016b}")
+    assert _only(words[:2], inst, enabled) == _expected_words(inst, enabled), "the points are still normal"
     assert pid.alm(inst), "a warning sets ALM even with every point normal"
+
+
+@pytest.mark.spec("PID-PRE-1", "PID-WR-2", "PID-ALM-2", "PID-R4008-1", "PID-PV-1")
+def test_prealarm_of_every_point_at_r4008(bench, pid):
+    """Each point's own pre-alarm (20.7: PV ≥ R4008 for 10 consecutive scans sets its warning bit, WR+2 bit b =
+    point Sn + b, WR+3 bit b = point Sn + 16 + b, and ALM), with PVs of the suite's choosing (R4003/R4004) and every
+    point normal (SV = PV, Os = 0), so that only warnings raise ALM.  R4008 = 40000 (4000.0 °, R4008 is 100–65535)
+    with every PV at 3276.7 °: no warning, ALM 0.  R4008 = 100.0 °: one point of WR+3 (or the box's last) at exactly
+    100.0 °, every other one at 99.9 ° or −100.0 ° → only its bit, ALM only on its box; then the even points at
+    100.0 ° or 3276.7 ° too, then the odd ones: the bits only add up (a warning's clearing is not the manual's).
+    The ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+2 and WR+3 to the test."""
+    for inst in _instances(pid):
+        _latched(pid, inst)
+    instances, block = _fake_instances(bench, pid, whole=True)
+    limit = 1000
+
+    def warn_round(pvs, r4008=None):
+        _write_pvs(bench, block, pvs)
+        for inst in instances:
+            _set_band(bench, inst, pvs, {p: 0 for p in inst.points})
+        if r4008 is not None:
+            bench.plc.io.write("R4008", r4008)
+        _ten_scans(bench)
+
+    every = [p for inst in instances for p in inst.points]
+    warn_round({p: 32767 for p in every}, 40000)
+    for inst in instances:
+        words = _only(pid.alarm_words(inst).words[2:], inst, _enabled_points(bench, inst))
+        assert words == (0, 0), f"R4008 = 40000 (4000.0 °) above every PV: {inst.name} WR+2/3 = {_bits(words)}"
+        if _all_enabled(bench, inst):
+            assert not pid.alm(inst), f"{inst.name}: every point normal, no PV ≥ R4008: ALM must be 0"
+    wide = next((i for i in instances if i.zn > 16), instances[0])
+    lone = wide.sn + 16 if wide.zn > 16 else wide.sn + wide.zn - 1
+    below = {p: (limit - 1 if (p - inst.sn) % 2 else -1000) for inst in instances for p in inst.points}
+    pvs = {**below, lone: limit}
+    warned = {lone}
+    for step, parity in ((1, None), (2, 0), (3, 1)):
+        if parity is not None:
+            for inst in instances:
+                for p in inst.points:
+                    if (p - inst.sn) % 2 == parity:
+                        pvs[p] = limit if (p - inst.sn) // 2 % 2 else 32767
+                        warned.add(p)
+        warn_round(pvs, limit if step == 1 else None)
+        for inst in instances:
+            enabled = _enabled_points(bench, inst)
+            mine = [p for p in enabled if p in warned]
+            words = pid.alarm_words(inst).words
+            want = _expected_words(inst, mine)
+            assert _only(words[2:], inst, enabled) == want, (
+                f"R4008 = {limit}, {inst.name}: PVs {[pvs[p] for p in inst.points]}: WR+2/WR+3 = {_bits(words[2:])}, "
+                f"expected the points at or above R4008 ({mine}): {_bits(want)}")
+            assert _only(words[:2], inst, enabled) == _expected_words(inst, enabled), \
+                f"{inst.name}: every point is in its band (SV = PV)"
+            if mine:
+                assert pid.alm(inst), f"{inst.name}: points {mine} warn: ALM must be 1"
+            elif _all_enabled(bench, inst):
+                assert not pid.alm(inst), f"{inst.name}: every point normal and none warns: ALM must be 0"
 
 
 # -- the manual's scan counts: the ladder's scan counter brackets them (the emulator's profile declares one too) ----
@@ -230,8 +585,8 @@ def _write_bracketed(bench, name, value):
     return c1, _scans(bench)
 
 
-@pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
 @pytest.mark.spec("PID-PRE-1")
+@pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
 @pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
 def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
@@ -299,12 +654,84 @@ def test_alm_follows_a_warning_alone(bench, pid):
     _need(bench, "R4008")
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
-    assert not pid.alm(inst), "every point normal and no warning: ALM = 0"
+    _latched(pid, inst)
+    if _all_enabled(bench, inst):  # (a disabled point's part in ALM is the spec's [our choice] PID-DIS-1)
+        assert not pid.alm(inst), "every point normal and no warning: ALM = 0"
     bench.plc.io.write("R4008", 100)
     bench.wait(1.0)
     bench.settle()
     assert pid.alarm_words(inst).warning_points(), "R4008 below every PV must warn"
     assert pid.alm(inst), "a warning sets ALM"
+
+
+# -- R4005: the PID interval, and when a new one takes effect ---------------------------------------------------------
+def _steps(bench, pid, point, seconds):
+    """Polled every 0.1 s for ``seconds``: the bench times at which OR of ``point`` changed, and every poll's (OR,
+    Y, bench time) of it."""
+    clock = bench.plc.time
+    end = clock.now() + seconds
+    last, steps, polls = pid.output(point), [], []
+    while clock.now() < end:
+        bench.wait(0.1)
+        value = pid.output(point)
+        polls.append((value, pid.output_bit(point), clock.now()))
+        if value != last:
+            steps.append(clock.now())
+            last = value
+    return steps, polls
+
+
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-R4005-3", "PID-PWM-1", "PID-LAW-3")
+def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
+    """R4005's low byte 2 → 0 (PID every 4 s → every 1 s) while EN stays 1: the output still steps every 4 s; after
+    EN 0 → 1, every 1 s.  The steps show on OR: a constant error of 2.0 ° (its PV put through R4003/R4004) with
+    integral action (Kc 100, Ki 100 = 1 repeat/min, Td 0) moves OR at every PID step and only then.  Meanwhile Y
+    is ON for OR/16383 of each PWM period (2 s): over the 9 s at about 13 % output, the share of polls with Y on
+    is within 15 points of OR's, and Y switches on every 2 s (R4005's high byte 1).  A second point at the same error with Ki = 0, Td = 0 keeps one OR throughout
+    (no integral action)."""
+    instances, block = _fake_instances(bench, pid)
+    inst = instances[0]
+    _need(bench, "R4005")
+    point = next(iter(_enabled_points(bench, inst)), None)
+    if point is None:
+        pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
+    io = bench.plc.io
+    # a second point with Ki = 0 and Td = 0 (no integral, no derivative: 20.7) at the same error: OR constant
+    plain = next(iter(_enabled_points(bench, inst)[1:]), None)
+    _write_pvs(bench, block, {point: 1000, **({plain: 1000} if plain is not None else {})})
+    io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
+    pid.set_gains(point, 100, 100, 0)
+    if plain is not None:
+        io.write_many({str(inst.operand("sv", plain)): 1020, str(inst.operand("os", plain)): 0})
+        pid.set_gains(plain, 100, 0, 0)
+    io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
+    pid.restart(inst)  # EN 0 → 1: in force from now
+    io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
+    flat = pid.output(plain) if plain is not None else None  # after the step at EN's rising edge
+    held, polls = _steps(bench, pid, point, 9.0)
+    if plain is not None:
+        assert flat > 0, f"point {plain}: 2.0 ° below SV at Kc 100, its output must be up after a PID step"
+        assert pid.output(plain) == flat, (f"point {plain}, Ki = 0 and Td = 0 at a constant error: OR must not move "
+                                           f"over the PID steps of 9 s (no integral), read {flat} then "
+                                           f"{pid.output(plain)}")
+    gaps = [round(b - a, 2) for a, b in zip(held, held[1:])]
+    assert len(held) >= 2, f"OR stepped {len(held)} times in 9 s with integral action: expected every 4 s"
+    assert min(gaps) > 2.5, (f"R4005 changed to 1 s with EN held at 1: the steps must stay 4 s apart until EN goes "
+                             f"0 → 1, saw gaps {gaps} s")
+    duty = sum(y for _, y, _ in polls) / len(polls)
+    share = sum(v for v, _, _ in polls) / len(polls) / 16383
+    assert abs(duty - share) <= 0.15, (f"Y on in {duty:.0%} of {len(polls)} polls over 9 s, OR averaged "
+                                       f"{share:.0%} of 16383: Y must be ON for OR/16383 of each PWM period")
+    rises = [t for (_, before, _), (_, y, t) in zip(polls, polls[1:]) if y and not before]
+    assert len(rises) >= 3, f"Y switched on {len(rises)} times in 9 s: with a PWM period of 2 s, 4 or 5 times"
+    period = (rises[-1] - rises[0]) / (len(rises) - 1)
+    assert 1.5 <= period <= 2.5, (f"Y switches on every {period:.2f} s: R4005's high byte 1 gives a PWM period of "
+                                  f"2 s (rises at {[round(t - rises[0], 2) for t in rises]})")
+    pid.restart(inst)
+    fresh, _ = _steps(bench, pid, point, 4.5)
+    gaps = [round(b - a, 2) for a, b in zip(fresh, fresh[1:])]
+    assert len(fresh) >= 3 and max(gaps) < 2.5, (
+        f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
 
 
 # -- outputs ----------------------------------------------------------------------------------------------------------
@@ -345,33 +772,86 @@ def _heated_point(bench, pid, heat_by=None):
     return inst, point
 
 
-@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EN-1")
+def _cooled_point(bench, pid):
+    """An enabled point of a box other than the first, switched on cooling (H/C = 0) at the default gains, PV 50.0 °
+    above SV; None when the profile has no second box."""
+    for inst in _instances(pid)[1:]:
+        points = _enabled_points(bench, inst)
+        if points and not bench.cannot_reach(str(inst.en), str(inst.hc),
+                                             *(str(inst.operand(k, points[0])) for k in ("sv", "pr", "ir", "dr"))):
+            point = points[-1]
+            pid.set_set_point(point, pid.pv(point) - 500)
+            pid.enable(inst, True, heating=False)
+            bench.settle()
+            pid.set_gains(point, 110, 17, 50)
+            return point
+    return None
+
+
+@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EXEC-3", "PID-EN-1")
 def test_output_on_below_sv_and_off_far_above(bench, pid):
+    """Heating (H/C = 1): PV 50 ° below SV → the output rises within a PID interval and Y switches on in a PWM
+    period; PV 50 ° above → output 0 and Y off.  Cooling (H/C = 0), on a point of another box at the same time:
+    the other way round — PV 50 ° above SV drives its output up, 50 ° below brings it to 0."""
     inst, point = _heated_point(bench, pid)
+    cooled = _cooled_point(bench, pid)
     interval, pwm = _timing(bench.plc.io)
     pid.set_set_point(point, pid.pv(point) + 500)  # 50.0 ° below SV: far outside the proportional band
+    if cooled is not None:
+        pid.set_set_point(cooled, pid.pv(cooled) - 500)  # cooling: 50.0 ° above SV
     assert _comes_true(bench, lambda: pid.output(point) > 0, interval + 0.5), \
         "PV 50 ° below SV (heating): the output value must rise within a PID interval"
+    if cooled is not None:
+        assert _comes_true(bench, lambda: pid.output(cooled) > 0, interval + 0.5), \
+            f"point {cooled}, PV 50 ° above SV (cooling, H/C = 0): its output must rise within a PID interval"
     assert any(_sample_output(bench, pid, point, pwm)), f"output {pid.output(point)} but Y never on in a PWM period"
     pid.set_set_point(point, pid.pv(point) - 500)  # PV ≫ SV
+    if cooled is not None:
+        pid.set_set_point(cooled, pid.pv(cooled) + 500)  # cooling, PV ≪ SV
     assert _comes_true(bench, lambda: pid.output(point) == 0, 2 * interval + 0.5), \
         f"PV 50 ° above SV (heating): output {pid.output(point)}, expected 0 within two PID intervals"
+    if cooled is not None:
+        assert _comes_true(bench, lambda: pid.output(cooled) == 0, 2 * interval + 0.5), \
+            f"point {cooled}, PV 50 ° below SV (cooling): output {pid.output(cooled)}, expected 0"
     assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
 
 
-@pytest.mark.spec("PID-EN-2", "PID-EN-1")
+@pytest.mark.spec("PID-EN-2", "PID-EN-1", "PID-OP-5")
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
-    disable (proved by the scan counter where the bench declares one), not from the next PID step on."""
-    inst, point = _heated_point(bench, pid, heat_by=500)  # 50.0 ° below SV: full output
-    register = "R4012" if point < 16 else "R4013"
-    _need(bench, register)
+    disable (proved by the scan counter where the bench declares one), not from the next PID step on — a point of
+    R4012 (0–15) and, where a box reaches one, a point of R4013 (16–31), disabled together, nothing else changed:
+    their PVs are the suite's (R4003/R4004), steady, 50.0 ° below SV."""
+    instances, block = _fake_instances(bench, pid)
+    low = _enabled_points(bench, instances[0])
+    if not low:
+        pytest.skip(f"every point of {instances[0].name} is disabled in R4012/R4013")
+    points = [low[min(3, len(low) - 1)]]
+    # the R4013 point at another bit position than the R4012 one (a PLC reading R4012 for it must show)
+    points += [p for p in (next((p for inst in instances[1:] for p in _enabled_points(bench, inst)
+                                 if p >= 16 and p % 16 != points[0] % 16), None),) if p is not None]
+    registers = sorted({"R4012" if p < 16 else "R4013" for p in points})
+    _need(bench, *registers)
+    _write_pvs(bench, block, {p: 500 for p in points})
+    for p in points:
+        pid.set_set_point(p, 1000)
+        pid.set_gains(p, 110, 17, 50)
+    for inst in {pid.of(p) for p in points}:
+        pid.restart(inst)  # EN 0 → 1: the PID step at the rising edge already sees SV 50.0 ° above PV
     interval, pwm = _timing(bench.plc.io)
-    # wait for the event, not a fixed time: a PID step sees the new SV within an interval, but a point still
-    # moving from an earlier test (a plant with dead time) may need a few steps before the output comes on
-    assert _comes_true(bench, lambda: pid.output_bit(point), 6 * interval + 2 * pwm), \
-        "precondition: the enabled point's output switches on"
-    pid.set_enabled(point, False)  # its bit in R4012 (0–15) / R4013 (16–31)
+    assert _comes_true(bench, lambda: all(pid.output_bit(p) for p in points), 2 * interval + 2 * pwm), \
+        f"precondition: the enabled points' outputs {points} switch on"
+    outputs = [pid.output(p) for p in points]
+    assert outputs == [16383] * len(points), (
+        f"50 ° below SV at Kc 110 the law asks ≈ 5 × full scale: OR (0–16383) must be at 16383, read {outputs}")
+    for p in points:
+        pid.set_enabled(p, False)  # its bit in R4012 (0–15) / R4013 (16–31)
     bench.settle()
-    seen = _sample_output(bench, pid, point, 2 * pwm)
-    assert not any(seen), f"point {point} disabled in {register}: its output must stay off, saw {seen}"
+    seen = []
+    for _ in range(int(2 * pwm / 0.2) + 1):
+        seen.append(tuple(pid.output_bit(p) for p in points))
+        bench.wait(0.2)
+    for i, p in enumerate(points):
+        register = "R4012" if p < 16 else "R4013"
+        assert not any(s[i] for s in seen), (
+            f"point {p} disabled in {register}: its output must stay off, saw {[s[i] for s in seen]}")

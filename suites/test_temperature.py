@@ -1,9 +1,13 @@
 """Temperature modules (FBs manual ch. 20.1–20.4): the table and work block, readings, sensor break and the mask.
 
-Every expectation is stated here, literally from the manual: the table marker A556H, execution code 56H, the
-break value 28767, R4010 for points 0–15 and R4011 for 16–31, TW+1/TW+2 for their break bits, a masked point
-reading 0 with no break bit.  The bench profile's [temperature] section only says *where* the table, readings
-and work block are and *which* modules are fitted; [faults.sensor_break] says how this bench opens a sensor.
+Every expectation is stated here, literally from the manual: the table marker A556H, execution codes 56H (every
+point measured), FEH (module count 0 or > 8), FFH (more than 32 points) and the mismatch bits of TW+0's low byte,
+the per-module entries from TW+4 on, each sensor's range in °C or °F, 0.1 ° resolution at the normal rate and 1 °
+at the fast one (shown in 0.1 ° units either way), the accuracy ±(1 % + 1 °C) for thermocouples and ±1 % for
+RTD/NTC, the break value 28767, R4010 for points 0–15 and R4011 for 16–31, TW+1/TW+2 for their break bits, a
+masked point reading 0 with no break bit.  The bench profile's [temperature] section only says *where* the table,
+readings and work block are, *which* modules are fitted and, optionally, which points a reference holds at a
+known temperature; [faults.sensor_break] says how this bench opens a sensor.
 """
 
 import pytest
@@ -13,8 +17,16 @@ POINTS = {"2TC": 2, "6TC": 6, "16TC": 16, "6RTD": 6, "16RTD": 16, "6NTC": 6}
 RANGE_C = {"J": (-200, 900), "K": (-190, 1300), "T": (-190, 380), "E": (-190, 1000), "N": (-200, 1000),
            "B": (350, 1800), "R": (0, 1800), "S": (0, 1700), "PT100": (-200, 850), "PT1000": (-200, 600)}
 BREAK = 28767  # 20.3.3: a fitted point whose sensor is open reads 28767
-# both ends of R4010/TW+1 (points 0–15) and of R4011/TW+2 (16–31): the first and last fitted point of each half
-BREAK_POINTS = ["first-low", "last-low", "first-high", "last-high"]
+#: 20.1: update time (fast, normal) in seconds — every point of the module measured once in it
+UPDATE_S = {"2TC": (1, 2), "6TC": (2, 4), "16TC": (3, 6), "6RTD": (1, 2), "16RTD": (2, 4), "6NTC": (1, 2)}
+#: bench seconds a PLC's scan may add to an update (the check is on the last poll that did not yet see the change,
+#: so the wire's and the host's delays only make it more lenient, never flaky)
+UPDATE_MARGIN_S = 0.5
+FAMILY = {"2TC": "TC", "6TC": "TC", "16TC": "TC", "6RTD": "RTD", "16RTD": "RTD", "6NTC": "NTC"}
+#: 20.3.2, high byte of TW+0
+MEASURING, BAD_MODULE_COUNT, TOO_MANY_POINTS = 0x56, 0xFE, 0xFF
+#: fewest readings a normal-rate (0.1 °) check needs before "every one a whole degree" means whole degrees
+RESOLUTION_SAMPLES = 8
 
 
 @pytest.fixture
@@ -39,43 +51,37 @@ def breaker(bench, temp):
     temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and BREAK not in temp.readings())
 
 
-def _point(temp, role):
-    """The fitted point a role names, from the profile's modules (e.g. 30 points: 0, 15, 16, 29)."""
-    fitted = temp.config.points
-    half = range(0, min(16, fitted)) if role.endswith("low") else range(16, fitted)
-    if not half:
-        pytest.skip(f"no fitted point among {'0–15' if role.endswith('low') else '16–31'} (the profile's modules "
-                    f"give {fitted} points)")
-    return half[0] if role.startswith("first") else half[-1]
+def _words(points):
+    """(TW+1, TW+2) — or (R4010, R4011) — with the bits of ``points`` (20.3.2/20.3.3: 0–15 in the first word,
+    16–31 in the second)."""
+    words = [0, 0]
+    for p in points:
+        words[p // 16] |= 1 << (p % 16)
+    return tuple(words)
 
 
-def _mask_register(point):
-    return "R4010" if point < 16 else "R4011"  # 20.3.3
+def _bits(words):
+    return " ".join(f"{w:016b}" for w in words)
 
 
-def _expected_break_words(point):
-    """(TW+1, TW+2) with only ``point``'s bit set (20.3.2: TW+1 = sensors 0–15, TW+2 = sensors 16–31)."""
-    return (1 << point, 0) if point < 16 else (0, 1 << (point - 16))
-
-
-def _set_mask_bit(bench, point, on):
-    name = _mask_register(point)
-    reason = bench.cannot_reach(name)
+def _need(bench, *names):
+    reason = bench.cannot_reach(*names)
     if reason:
-        pytest.skip(f"cannot change the installed mask: {reason}")
-    word = bench.plc.io.read(name)
-    bit = 1 << (point % 16)
-    bench.plc.io.write(name, word | bit if on else word & ~bit)
+        pytest.skip(reason)
 
 
-def _ensure_installed(bench, point):
-    if not bench.plc.io.read(_mask_register(point)) >> (point % 16) & 1:
-        _set_mask_bit(bench, point, True)
+def _in_unit(celsius, unit):
+    return celsius * 9 / 5 + 32 if unit == "F" else celsius
 
 
 @pytest.mark.spec("TEMP-MOD-1", "TEMP-TBL-1", "TEMP-TBL-2", "TEMP-TBL-3", "TEMP-WORK-1", "TEMP-WORK-2",
-                  "TEMP-WORK-4", "TEMP-WORK-6")
+                  "TEMP-WORK-4", "TEMP-WORK-6", "TEMP-WORK-7", "TEMP-IO-1")
 def test_table_is_recognised_and_measuring(bench, temp):
+    """SR+0 = A556H, TW+0 = 56H with no mismatch bit, TW+3 = total points / module count, and per module k
+    (TW+4+4k …): its sensor kind as the table names it, its point count, its readings' start (module 1 at the
+    table's SR+2, each next one after the points before it), its multiplexer index within its points, and its
+    I/O: each module takes 1 input register and 8 digital outputs (20.4), so each module's DO number is at least 8
+    and its AI number at least 1 past the one before."""
     modules = temp.config.modules
     table = temp.read_table()
     assert table.marker == 0xA556, f"SR+0 = {table.marker:04X}H, the table is valid only with A556H"
@@ -85,93 +91,268 @@ def test_table_is_recognised_and_measuring(bench, temp):
     assert work.mismatch_bits == 0, f"TW+0 low byte {work.mismatch_bits:08b}: table ≠ modules fitted"
     assert work.module_count == len(modules)
     assert work.total_points == sum(POINTS[m.type.name] for m in modules)
+    first = 0
+    for k, module in enumerate(modules):
+        kind_do, points_ai, start, mux = work.entry(k)
+        name = f"module {k + 1} ({module.type.name}), TW+{4 + 4 * k}…"
+        assert kind_do >> 8 == table.words[4 + k] >> 8, (
+            f"{name}: sensor kind {kind_do >> 8:02X}H, the table's SR+{4 + k} names {table.words[4 + k] >> 8:02X}H")
+        assert points_ai >> 8 == POINTS[module.type.name], (
+            f"{name}: {points_ai >> 8} points, an FBs-{module.type.name} has {POINTS[module.type.name]}")
+        assert start == (table.words[2] + first) & 0xFFFF, (
+            f"{name}: readings start {start}, expected SR+2 ({table.words[2]}) + the {first} points before it")
+        assert 0 <= mux < POINTS[module.type.name], f"{name}: multiplexer index {mux} outside its points"
+        if k:
+            do_before, ai_before = work.entry(k - 1)[0] & 0xFF, work.entry(k - 1)[1] & 0xFF
+            assert (kind_do & 0xFF) >= do_before + 8, f"{name}: DO {kind_do & 0xFF}, the module before has {do_before}"
+            assert (points_ai & 0xFF) >= ai_before + 1, f"{name}: AI {points_ai & 0xFF}, the one before has {ai_before}"
+        first += POINTS[module.type.name]
 
 
-@pytest.mark.spec("TEMP-SENS-1", "TEMP-SENS-2", "TEMP-UNIT-1", "TEMP-UNIT-2", "TEMP-RATE-1", "TEMP-MASK-1",
-                  "TEMP-BREAK-2", "TEMP-WORK-5")
+def _accuracy_c(family, celsius):
+    """20.1: ±(1 % + 1 °C) for thermocouples, ±1 % for RTD and NTC (1 % of the reading, in °C)."""
+    return abs(celsius) / 100 + (1.0 if family == "TC" else 0.0)
+
+
+@pytest.mark.spec("TEMP-SENS-1", "TEMP-SENS-2", "TEMP-SENS-3", "TEMP-UNIT-1", "TEMP-UNIT-2", "TEMP-RATE-1",
+                  "TEMP-ACC-1", "TEMP-MASK-1", "TEMP-BREAK-2", "TEMP-WORK-5")
 def test_readings_are_in_range_and_units(bench, temp, measure):
+    """Every fitted point: 0 when masked off, else within its sensor's range in the table's unit (°C, or °F =
+    °C × 9/5 + 32); at the fast rate whole degrees (1 °) in 0.1 ° units, at the normal rate 0.1 ° (not every reading
+    a whole degree — taken over at least 8 readings, more updates on a bench with fewer points); and each point a
+    reference holds at a known temperature ([temperature] reference) reads it, in the unit, within the module's
+    accuracy — which is what tells °C from °F and the sensor kinds without a manual range (NTC)."""
     config = temp.config
-    readings = temp.readings()
-    mask = bench.plc.io.read_words("R4010", 2)
-    for point, value in enumerate(readings):
-        installed = mask[point // 16] >> (point % 16) & 1
-        if not installed:
-            assert value == 0, f"point {point} is not installed (mask bit 0) yet reads {value}"
-            continue
-        assert value != BREAK, f"point {point} reads the break value 28767 with no fault injected"
-        _, module = config.point_module(point)
-        if module.sensor.name in RANGE_C:
-            low, high = RANGE_C[module.sensor.name]
-            if config.unit == "F":
-                low, high = low * 9 / 5 + 32, high * 9 / 5 + 32
-            measure(f"point{point}", value / 10, unit=f"°{config.unit}", low=low, high=high,
-                    note=f"{module.sensor.name} sensor range (readings are in 0.1°)")
-            assert low * 10 <= value <= high * 10, (
-                f"point {point} ({module.sensor.name}) reads {value / 10} °{config.unit}, outside "
-                f"{low}…{high} °{config.unit} (readings are in 0.1°)")
-        if config.rate == "fast":
-            assert value % 10 == 0, f"fast rate has 1° resolution, point {point} reads {value} (0.1° units)"
+    unit = config.unit
+    samples = []
+    for attempt in range(4):
+        readings = temp.readings()
+        mask = bench.plc.io.read_words("R4010", 2)
+        live = []
+        for point, value in enumerate(readings):
+            installed = mask[point // 16] >> (point % 16) & 1
+            if not installed:
+                assert value == 0, f"point {point} is not installed (mask bit 0) yet reads {value}"
+                continue
+            assert value != BREAK, f"point {point} reads the break value 28767 with no fault injected"
+            _, module = config.point_module(point)
+            live.append(value)
+            if module.sensor.name in RANGE_C:
+                low, high = (_in_unit(c, unit) for c in RANGE_C[module.sensor.name])
+                if attempt == 0:
+                    measure(f"point{point}", value / 10, unit=f"°{unit}", low=low, high=high,
+                            note=f"{module.sensor.name} sensor range (readings are in 0.1°)")
+                assert low * 10 <= value <= high * 10, (
+                    f"point {point} ({module.sensor.name}) reads {value / 10} °{unit}, outside "
+                    f"{low}…{high} °{unit} (readings are in 0.1°)")
+            if config.rate == "fast":
+                assert value % 10 == 0, f"fast rate has 1° resolution, point {point} reads {value} (0.1° units)"
+            if point in config.reference and attempt == 0:
+                celsius = config.reference[point]
+                family = FAMILY[module.type.name]
+                allowed = (_accuracy_c(family, celsius) + config.reference_tolerance) * (9 / 5 if unit == "F" else 1)
+                allowed += 0.5 if config.rate == "fast" else 0.05  # the reading's own rounding
+                want = _in_unit(celsius, unit)
+                measure(f"point{point}_reference", value / 10, unit=f"°{unit}", low=want - allowed,
+                        high=want + allowed, note=f"a reference holds it at {celsius} °C")
+                assert abs(value / 10 - want) <= allowed + 1e-9, (
+                    f"point {point} ({module.sensor.name}) is held at {celsius} °C = {want:.2f} °{unit}: it reads "
+                    f"{value / 10} °{unit}, more than the module's accuracy ±{allowed:.2f} °{unit} off")
+        samples += live
+        if config.rate == "fast" or len(samples) >= RESOLUTION_SAMPLES:
+            break
+        temp.wait_for_update(1.0)  # few points: their next readings, one update later
     assert temp.read_work().break_words == (0, 0), "break bits set with no fault injected"
+    if config.rate == "normal":
+        if len(samples) < RESOLUTION_SAMPLES:
+            pytest.fail(f"inconclusive: {len(samples)} readings over 4 updates, fewer than {RESOLUTION_SAMPLES}, "
+                        f"cannot tell 0.1 ° resolution from whole degrees")
+        assert any(v % 10 for v in samples), (
+            f"normal rate has 0.1 ° resolution, yet all {len(samples)} readings are whole degrees: {samples[:12]}")
 
 
-#: the manual's two ways back from a masked broken sensor (20.3.3): unmasked while still broken → 28767, or
-#: repaired while masked and then unmasked → its live reading; each register gets both, at different ends
-UNMASKED_STILL_BROKEN = {"first-low", "last-high"}
-
-
-@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3")
-@pytest.mark.parametrize("point", BREAK_POINTS)
-def test_a_sensor_broken_masked_unmasked_and_repaired(bench, temp, breaker, point, measure):
-    """One sensor through the manual's states, each checked as the PLC shows it: open → 28767 with only its
-    break bit (TW+1 for 0–15, TW+2 for 16–31); masked off in R4010/R4011 → 0 and no break bit; then restoring the
-    bit brings back 28767 when the sensor is still broken (and the live reading once it is repaired), or — at the
-    other end of each half — the live reading when it was repaired while masked.
-
-    One test walks them all because each state shows only at the point's next update (up to the module's update
-    time, 6 s on a 16TC at 0.1 °): separate tests would each pay for the way in and the way back out."""
-    role = point
-    point = _point(temp, role)
-    _ensure_installed(bench, point)
-    temp.wait_until(lambda: temp.reading(point) not in (0, BREAK))
-    before = temp.reading(point)
-
-    breaker.open(point)
-    temp.wait_until(lambda: temp.reading(point) == BREAK)
+def _retable(bench, temp, items, condition):
+    """Write table words (``items``: offset from SR → word) and wait (at most the update time) for ``condition``
+    of the work block; the work block as then read."""
+    sr = temp.config.table
+    bench.plc.io.write_many({str(sr.offset(k)): v & 0xFFFF for k, v in items.items()})
     bench.settle()
-    readings = temp.readings()
-    assert readings[point] == 28767, f"broken point {point} reads {readings[point]}, expected 28767"
-    others = [p for p, v in enumerate(readings) if v == 28767 and p != point]
-    assert not others, f"points {others} read 28767 though only point {point} is broken"
-    tw1, tw2 = temp.read_work().break_words
-    want1, want2 = _expected_break_words(point)
-    assert (tw1, tw2) == (want1, want2), (
-        f"break bits TW+1={tw1:016b} TW+2={tw2:016b}; expected only point {point}: "
-        f"TW+1={want1:016b} TW+2={want2:016b}")
+    temp.wait_until(lambda: condition(temp.read_work()))
+    return temp.read_work()
 
-    _set_mask_bit(bench, point, False)  # R4010 for 0–15, R4011 for 16–31
-    temp.wait_until(lambda: temp.reading(point) == 0 and temp.read_work().break_words == (0, 0))
-    assert temp.reading(point) == 0, f"point {point} masked off in {_mask_register(point)} must read 0"
-    assert temp.read_work().break_words == (0, 0), f"masked point {point} must have no break bit"
 
-    if role in UNMASKED_STILL_BROKEN:
-        _set_mask_bit(bench, point, True)
-        temp.wait_until(lambda: temp.reading(point) == BREAK)
+@pytest.mark.spec("TEMP-MASK-2")
+@pytest.mark.needs("power_on_state", reason="a bench's program may have changed R4010/R4011 since power-on")
+def test_installed_mask_defaults_to_ffffh(bench, temp):
+    r4010, r4011 = bench.plc.io.read_words("R4010", 2)
+    assert (r4010, r4011) == (0xFFFF, 0xFFFF), f"R4010, R4011 = {r4010:04X}H, {r4011:04X}H: both default to FFFFH"
+
+
+@pytest.mark.spec("TEMP-WORK-3", "TEMP-MAX-1", "TEMP-WORK-4", "TEMP-TBL-4", "TEMP-WORK-6", "TEMP-TBL-3")
+def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
+    """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8, FFH for more
+    than 32 points, and bit k of TW+0's low byte flags table module k + 1 not matching the module fitted — tried
+    with every module, the even ones and then the odd ones (each bit seen set and clear), the entry's module name
+    replaced by FFH (no module).  The harness then puts the table back, and the code returns to 56H.  Needs the
+    table (SR … SR+11) in [safety] writable; the guard restores it whatever happens."""
+    config = temp.config
+    sr = config.table
+    _need(bench, f"{sr}-{sr.offset(4 + 8 - 1)}")
+    table = temp.read_table().words
+    n = len(config.modules)
+    before = temp.readings()
+
+    for count in (0, 9):
+        work = _retable(bench, temp, {1: count}, lambda w: w.execution_code == BAD_MODULE_COUNT)
+        assert work.execution_code == BAD_MODULE_COUNT, (
+            f"module count {count} in SR+1: execution code {work.execution_code:02X}H, expected FEH")
+        assert work.module_count == count, f"module count {count}: TW+3 low byte {work.module_count}"
+    _retable(bench, temp, {1: n}, lambda w: w.execution_code == MEASURING)
+
+    biggest = max(range(n), key=lambda k: POINTS[config.modules[k].type.name])
+    size = POINTS[config.modules[biggest].type.name]
+    many = 32 // size + 1  # modules of the biggest kind that make more than 32 points
+    if many <= 8:
+        items = {1: many, **{4 + k: table[4 + biggest] for k in range(many)}}
+        work = _retable(bench, temp, items, lambda w: w.execution_code == TOO_MANY_POINTS)
+        assert work.execution_code == TOO_MANY_POINTS, (
+            f"{many} × {config.modules[biggest].type.name} = {many * size} points: execution code "
+            f"{work.execution_code:02X}H, expected FFH (more than 32 points)")
+        _retable(bench, temp, {1: n, **{4 + k: table[4 + k] for k in range(many) if 4 + k < len(table)}},
+                 lambda w: w.execution_code == MEASURING)
+
+    for parity in (0, 1):
+        wrong = [k for k in range(n) if k % 2 == parity]
+        if not wrong:
+            continue
+        want = sum(1 << k for k in wrong)
+        items = {4 + k: (table[4 + k] & 0xFF00) | 0xFF for k in wrong}
+        work = _retable(bench, temp, items, lambda w: w.mismatch_bits == want)
+        assert work.mismatch_bits == want, (
+            f"table modules {[k + 1 for k in wrong]} name no fitted module: TW+0 low byte {work.mismatch_bits:08b}, "
+            f"expected {want:08b}")
+        work = _retable(bench, temp, {4 + k: table[4 + k] for k in wrong},
+                        lambda w: w.mismatch_bits == 0 and w.execution_code == MEASURING)
+        assert work.mismatch_bits == 0 and work.execution_code == MEASURING, (
+            f"the table put back: TW+0 = {work.words[0]:04X}H, expected 5600H")
+    # Left as found: a module the PLC stopped measuring (or measured elsewhere) averages its way back over as many
+    # updates as it averages samples; the next test must not see those readings.
+    bench.plc.io.write_words(str(sr), table)
+    temp.wait_until(lambda: all(_close(a, b) for a, b in zip(temp.readings(), before)),
+                    periods=config.averaging + 1.5)
+
+
+def _close(after, before):
+    """The same sensor a little later: within the module accuracy ±(1 % + 1 °C), doubled for drift."""
+    return abs(after - before) <= 2 * (abs(before) / 100 + 10) + 10
+
+
+@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3",
+                  "TEMP-RATE-2")
+def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measure):
+    """Every fitted point the rig can open goes through the manual's states at once (one module update shows
+    them all), in three groups: open → 28767 with exactly the open points' break bits (TW+1 for 0–15, TW+2 for
+    16–31); groups A and B masked off in R4010/R4011 → 0 and no break bit, while group C, still broken and still
+    fitted, keeps 28767 and its bits; B repaired while masked and A still broken, then both unmasked → A reads
+    28767 with its bits again, B its live reading; all repaired → every point its live reading, no break bit.
+    Points the rig cannot open keep their readings throughout."""
+    config = temp.config
+    fitted = list(range(config.points))
+    points = breaker.openable(fitted)
+    if not points:
+        pytest.skip("the sensor-break rig can open none of the fitted points")
+    # groups alternate along the points, so that each half (R4010/TW+1, R4011/TW+2) has points of each
+    group_a, group_b, group_c = points[0::3], points[1::3], points[2::3]
+    masked = group_a + group_b
+    io = bench.plc.io
+    _need(bench, "R4010-R4011")
+    mask = io.read_words("R4010", 2)
+    everything = _words(fitted)
+    if (mask[0] & everything[0], mask[1] & everything[1]) != everything:
+        io.write_many({"R4010": mask[0] | everything[0], "R4011": mask[1] | everything[1]})
+        temp.wait_until(lambda: 0 not in temp.readings())
+    mask = io.read_words("R4010", 2)
+    others = [p for p in fitted if p not in points]
+
+    def healthy(readings):
+        return all(readings[p] not in (0, BREAK) for p in points)
+
+    temp.wait_until(lambda: healthy(temp.readings()))
+    before = temp.readings()
+
+    def check(state, broken, zero, live, extra=""):
+        readings = temp.readings()
+        words = temp.read_work().break_words
+        wrong = [p for p in broken if readings[p] != BREAK]
+        assert not wrong, f"{state}: points {wrong} read {[readings[p] for p in wrong]}, expected 28767{extra}"
+        stray = [p for p in live + others if readings[p] in (BREAK, 0)]
+        assert not stray, f"{state}: points {stray} read {[readings[p] for p in stray]}, expected live readings"
+        wrong = [p for p in zero if readings[p] != 0]
+        assert not wrong, f"{state}: masked-off points {wrong} read {[readings[p] for p in wrong]}, expected 0"
+        want = _words(broken)
+        assert words == want, f"{state}: TW+1 TW+2 = {_bits(words)}, expected only points {broken}: {_bits(want)}"
+        return readings
+
+    # 20.1: each module measures every point once per update time, so a change shows within it (TEMP-RATE-2)
+    update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
+    clock = bench.plc.time
+
+    def within_an_update(what, event):
+        """Poll ``event`` until it holds (at most 1.5 updates and the margin); the latest bench time at which it was
+        seen not to hold, from the start: the change came after it (a lower bound, whatever the wire's delays)."""
+        started = clock.now()
+        deadline = started + 1.5 * update + UPDATE_MARGIN_S
+        missed = started
+        while True:
+            before = clock.now()
+            if event():
+                break
+            missed = before
+            if before >= deadline:
+                break
+            clock.wait(temp.poll_interval)
+        took = missed - started
+        measure(f"update_{what}", took, unit="s", low=0, high=update + UPDATE_MARGIN_S,
+                note=f"{config.rate} rate: every point measured within {update} s (the last poll that did not yet "
+                     f"see it)")
         bench.settle()
-        assert temp.reading(point) == 28767, f"point {point} unmasked, still broken: expected 28767"
-        assert temp.read_work().break_words == _expected_break_words(point), f"point {point} unmasked: its bit again"
-        breaker.repair(point)
-        how = "repaired"
-    else:
-        breaker.repair(point)
-        _set_mask_bit(bench, point, True)
-        how = "repaired while masked, then unmasked"
-    temp.wait_until(lambda: temp.reading(point) not in (0, BREAK) and temp.read_work().break_words == (0, 0))
+        return took
+
+    for p in points:
+        breaker.open(p)
+    took = within_an_update("open", lambda: temp.read_work().break_words == _words(points) and
+                            all(v == BREAK for v in (temp.readings()[p] for p in points)))
+    check("sensors open", points, [], [])
+    assert took <= update + UPDATE_MARGIN_S, (
+        f"the open sensors were not all showing {took:.1f} s after the last was opened: every point is measured within the update time, {update} s")
+
+    off = _words(masked)
+    io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})  # R4010 for 0–15, R4011 for 16–31
+    took = within_an_update("mask", lambda: temp.read_work().break_words == _words(group_c) and
+                            all(temp.readings()[p] == 0 for p in masked))
+    check("A and B masked off, C still open", group_c, masked, [])
+    assert took <= update + UPDATE_MARGIN_S, (
+        f"the masked points did not all read 0 {took:.1f} s after the mask was written: the mask acts at each point's next measurement, "
+        f"within the update time, {update} s")
+
+    for p in group_b:
+        breaker.repair(p)
+    io.write_many({"R4010": mask[0], "R4011": mask[1]})
+    temp.wait_until(lambda: temp.read_work().break_words == _words(group_a + group_c) and
+                    all(temp.readings()[p] not in (0, BREAK) for p in group_b) and
+                    all(temp.readings()[p] == BREAK for p in group_a))
     bench.settle()
-    after = temp.reading(point)
-    assert after != 28767, f"point {point} {how} but still reads 28767"
-    # The same sensor some seconds later: within the module accuracy ±(1 % + 1 °C), doubled for drift.
-    tolerance = 2 * (abs(before) / 100 + 10) + 10
-    measure(f"point{point}_repair_change", abs(after - before) / 10, unit=f"°{temp.config.unit}", low=0,
-            high=tolerance / 10, note=f"read {before / 10} before the break, {after / 10} after: {how}")
-    assert abs(after - before) <= tolerance, f"point {point} read {before} before the break, {after} after: {how}"
-    assert temp.read_work().break_words == (0, 0), f"point {point} {how} but its break bit is still set"
+    check("B repaired while masked, then A and B unmasked", sorted(group_a + group_c), [], group_b,
+          " (unmasked while still broken)")
+
+    for p in group_a + group_c:
+        breaker.repair(p)
+    temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and healthy(temp.readings()))
+    bench.settle()
+    after = check("all repaired", [], [], points)
+    for p in points:
+        tolerance = 2 * (abs(before[p]) / 100 + 10) + 10
+        measure(f"point{p}_repair_change", abs(after[p] - before[p]) / 10, unit=f"°{config.unit}", low=0,
+                high=tolerance / 10, note=f"read {before[p] / 10} before the break, {after[p] / 10} after")
+        assert _close(after[p], before[p]), (
+            f"point {p} read {before[p]} before the break, {after[p]} after being repaired")

@@ -105,8 +105,10 @@ def test_plugin_refuses_a_bench_another_run_holds(tmp_path, pytester):
         pytester.makepyfile(test_one="def test_one(bench):\n    pass\n")
         result = pytester.runpytest_inprocess("--bench", str(bench), "--hil-lock-wait", "0.2", "-p",
                                               "no:cacheprovider")
-        result.assert_outcomes(errors=1)
-        result.stdout.fnmatch_lines([f"*bench {TARGET}*is in use by pid {proc.pid} on *waited*"])
+        # before anything is collected: one line naming the holder, exit 4 (hil.plugin.preflight)
+        assert result.ret == 4
+        result.stderr.fnmatch_lines([f"ERROR: hil: cannot open bench *bench {TARGET}*is in use by pid {proc.pid} on "
+                                     f"*waited*"])
     finally:
         proc.kill()
         proc.wait()

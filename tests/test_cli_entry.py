@@ -30,7 +30,7 @@ def test_pytest_arguments_that_name_tests_replace_the_default_suites() -> None:
     assert selects_tests(["suites/test_rtc.py"]) and selects_tests(["-q", "suites/test_rtc.py::test_x[a]"])
     assert not selects_tests(["-k", "rtc", "-m", "slow", "-x", "--lf", "-o", "junit_family=xunit1"])
     assert not selects_tests(["--deselect", "suites/test_rtc.py::test_x"])
-    assert pytest_args(None, None, "j.xml", ["suites/test_rtc.py"])[0] == "--bench"
+    assert pytest_args(None, None, "j.xml", ["suites/test_rtc.py"])[0].startswith("--")  # no suites dir added
     assert pytest_args(None, None, "j.xml", ["-k", "rtc"])[0].endswith("suites")
 
 
@@ -122,18 +122,6 @@ def test_modbus_listener_that_never_replies_is_one_line(silent_listener: int, tm
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1, done.stderr  # pymodbus's own log lines are silenced
     assert "no valid reply" in lines[0] and "retries" not in lines[0]
-
-
-def test_unreachable_plc_is_one_error_then_the_run_stops(tmp_path: Path) -> None:
-    with socket.socket() as s:  # a port nothing listens on
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    bench = REPO / "fixtures" / "benches" / "example-bench.toml"  # a PLC's profile: the default is the emulator's
-    done = hil("run", "-q", "--bench", str(bench), "--target", f"fatek+tcp://127.0.0.1:{port}?timeout=0.2",
-               "--junitxml", str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), cwd=tmp_path)
-    assert done.returncode == 1
-    assert done.stdout.count("cannot open the bench") <= 3, done.stdout  # the error, its summary line, the stop
-    assert "1 error" in done.stdout and "passed" not in done.stdout.splitlines()[-1]
 
 
 def test_emulate_refuses_time_scale_zero_before_any_endpoint_line(tmp_path: Path) -> None:

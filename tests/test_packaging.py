@@ -61,3 +61,28 @@ def test_wheel_install_runs_the_bundled_suites_from_anywhere(tmp_path: Path) -> 
     cases = list(ET.parse(elsewhere / "reports" / "junit.xml").iter("testcase"))
     assert cases and all("smoke" in (c.get("name", "") + c.get("classname", "")) or c.find("skipped") is not None
                          for c in cases)
+    # the same ids and JUnit classnames as a checkout's, whatever the venv's path (CI history keys on them)
+    assert {c.get("classname") for c in cases} == {"suites.test_smoke", "suites.s7smart.test_s7_smoke"}, \
+        [c.get("classname") for c in cases]
+
+    def ids(command: list[str], cwd: Path) -> list[str]:
+        listed = subprocess.run([*command, "run", "--", "--co", "-q", "-p", "no:cacheprovider"], cwd=cwd, env=env,
+                                capture_output=True, text=True, timeout=120)
+        assert listed.returncode == 0, listed.stdout + listed.stderr
+        return [line for line in listed.stdout.splitlines() if "::" in line]
+
+    installed, checkout = ids([str(fresh / "bin" / "hil")], elsewhere), ids([sys.executable, "-m", "hil"], REPO)
+    assert installed == checkout and installed[0].startswith("suites/"), (installed[:3], checkout[:3])
+
+    # bundled profiles and suites by short name, listed by a command; the README's paths work once installed
+    listed = subprocess.run([str(fresh / "bin" / "hil"), "list"], cwd=elsewhere, env=env, capture_output=True,
+                            text=True, timeout=60)
+    assert listed.returncode == 0 and "s7-200smart" in listed.stdout and "rtc_validity" in listed.stdout
+    for argv, says in ((["--bench", "s7-200smart", "--", "s7_smoke"], "passed"),
+                       (["--", "rtc_adjust", "--co", "-q"], "suites/test_rtc_adjust.py::"),
+                       (["--", "suites/test_rtc.py", "--co", "-q"], "suites/test_rtc.py::"),
+                       (["--bench", "fixtures/benches/s7-200smart.toml", "--", "s7smart", "--co", "-q"],
+                        "suites/s7smart/test_s7_rtc.py::")):
+        done = subprocess.run([str(fresh / "bin" / "hil"), "run", *argv], cwd=elsewhere, env=env,
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0 and says in done.stdout, argv + [done.stdout[-2000:], done.stderr]

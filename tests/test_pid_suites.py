@@ -19,12 +19,13 @@ import hil.families.fbs.transport.modbus  # noqa: F401
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.temperature import decode_start
 from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 28  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 33  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -130,6 +131,182 @@ class DisabledPointStillDriven(Fun86Model):
         return on
 
 
+class R4004Ignored(Fun86Model):
+    """PVs always from the table's readings, whatever R4003/R4004 say."""
+
+    def readings_start(self, mem):
+        words = mem.words["R"]
+        saved = words[4003]
+        words[4003] = 0
+        try:
+            return super().readings_start(mem)
+        finally:
+            words[4003] = saved
+
+
+class R4004DBankRejected(Fun86Model):
+    """R4004 = 20000–23999 (D0–D3999) not taken: the table's readings instead."""
+
+    def readings_start(self, mem):
+        start = super().readings_start(mem)
+        if start is not None and start.kind == "D" and mem.words["R"][4003] == 0xA55A:
+            return decode_start(mem.words[self.temperature.table.kind][self.temperature.table.index + 2])
+        return start
+
+
+class R4004UpperEdgesRejected(Fun86Model):
+    """R4004 = 13839 and 23999, the last codes of each bank, not taken."""
+
+    def readings_start(self, mem):
+        if mem.words["R"][4003] == 0xA55A and mem.words["R"][4004] in (13839, 23999):
+            return decode_start(mem.words[self.temperature.table.kind][self.temperature.table.index + 2])
+        return super().readings_start(mem)
+
+
+class R4004PastTheEndTaken(Fun86Model):
+    """R4004 = 13840 and 24000 (past each bank's range) taken as R3840 / D4000."""
+
+    def readings_start(self, mem):
+        if mem.words["R"][4003] == 0xA55A and mem.words["R"][4004] in (13840, 24000):
+            return decode_start(mem.words["R"][4004])
+        return super().readings_start(mem)
+
+
+class R4003KeyIgnored(Fun86Model):
+    """R4004 taken whatever R4003 holds."""
+
+    def readings_start(self, mem):
+        code = mem.words["R"][4004]
+        if 10000 <= code <= 13839 or 20000 <= code <= 23999:
+            return decode_start(code)
+        return super().readings_start(mem)
+
+
+class BandComparedUnsigned(Fun86Model):
+    """SV − Os ≤ PV ≤ SV + Os compared as unsigned words: a band below 0 never holds."""
+
+    def in_band(self, pv, sv, os):
+        pv, sv, os = (np.asarray(x, dtype=np.int64) & 0xFFFF for x in (pv, sv, os))
+        return ((sv - os) & 0xFFFF <= pv) & (pv <= (sv + os) & 0xFFFF)
+
+
+class AlmIgnoresTheSecondWords(Fun86Model):
+    """ALM from points Sn…Sn + 15 only (WR+0/WR+2): a point of WR+1/WR+3 alone never raises it."""
+
+    def scan(self, emu):
+        super().scan(emu)
+        mem = emu.memory
+        for inst in self.config.instances:
+            if not mem.bits[inst.en.kind][inst.en.index] or inst.settable:
+                continue
+            wr = mem.words[inst.wr.kind][inst.wr.index:inst.wr.index + 4]
+            points = range(inst.sn, inst.sn + min(inst.zn, 16))
+            enabled = self.enabled(mem, np.array(list(points)))
+            expected = sum(1 << (p - inst.sn) for p, e in zip(points, enabled) if e)
+            mem.bits[inst.alm.kind][inst.alm.index] = int((wr[0] & expected) != expected or wr[2] != 0)
+
+
+class PrealarmOnlyAboveR4008(Fun86Model):
+    """PV > R4008, not PV ≥ R4008."""
+
+    def prealarm_count(self, count, pv, limit):
+        return np.where(pv > limit, count + 1, 0)
+
+
+class PrealarmLimitSigned(Fun86Model):
+    """R4008 read as a signed word: 40000 (4000.0 °) is below every PV."""
+
+    def prealarm_count(self, count, pv, limit):
+        return np.where(pv >= (limit - 65536 if limit > 32767 else limit), count + 1, 0)
+
+
+class PrealarmPvUnsigned(Fun86Model):
+    """PV read as an unsigned word: −100.0 ° counts as 6453.6 °, above R4008."""
+
+    def prealarm_count(self, count, pv, limit):
+        return np.where((np.asarray(pv, dtype=np.int64) & 0xFFFF) >= limit, count + 1, 0)
+
+
+class R4013Ignored(Fun86Model):
+    """Every point's enable bit taken from R4012 (point % 16)."""
+
+    def enabled(self, mem, point):
+        return super().enabled(mem, np.asarray(point) % 16)
+
+
+class ActsBeforeMeasured(Fun86Model):
+    """Runs at once, not only after every fitted point has been measured."""
+
+    def all_measured(self, mem):
+        return True
+
+
+class CoolingHeats(Fun86Model):
+    """H/C ignored: every box heats."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        return super().law(inst, kc, ki, td, True, ts)
+
+
+class R4005AppliedAtOnce(Fun86Model):
+    """A new PID interval in R4005 takes effect at once, with EN held."""
+
+    def scan(self, emu):
+        for st in self.states:
+            if st.running:
+                interval, pwm = self.timing(emu.memory.words["R"][4005])
+                if interval != st.interval:
+                    st.interval, st.pwm = interval, pwm
+                    st.next_pid = min(st.next_pid, emu.now + interval)
+        super().scan(emu)
+
+
+class PwmInverted(Fun86Model):
+    """Y ON for 1 − OR/16383 of each PWM period (the duty inverted)."""
+
+    def waves(self, st, enabled, output):
+        on_time, y_on, y_off = super().waves(st, enabled, output)
+        return st.pwm - on_time, y_on, y_off
+
+
+class OutputClampedAt10000(Fun86Model):
+    """OR never above 10000 (61 %)."""
+
+    def control(self, law, integral, pv_prev, has_prev, sv, pv):
+        out, integral = super().control(law, integral, pv_prev, has_prev, sv, pv)
+        return np.minimum(out, 10000.0), integral
+
+
+class KiZeroStillIntegrates(Fun86Model):
+    """Ki = 0 taken as Ki = 100: integral action where the manual says none."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        return super().law(inst, kc, np.where(np.asarray(ki) == 0, 100, ki), td, heating, ts)
+
+
+class Zn32Refused(Fun86Model):
+    """Zn = 32 (the largest) refused with ERR."""
+
+    def valid(self, sn, zn):
+        return super().valid(sn, zn) and zn < 32
+
+
+class PwmPeriodFromTheLowByte(Fun86Model):
+    """The PWM period taken from R4005's low byte too (4 s at 0102H instead of 2 s)."""
+
+    def timing(self, r4005):
+        interval, _pwm = super().timing(r4005)
+        return interval, interval
+
+
+class SecondWordsKeepFourBits(Fun86Model):
+    """WR+1/WR+3 keep only bits 0–3 (points Sn + 16 … Sn + 19, as far as the default boxes reach)."""
+
+    def bit_words(self, st, bits):
+        first, second = super().bit_words(st, bits)
+        return first, second & 0x000F
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -159,6 +336,28 @@ CAUGHT_BY = {
     HeaterLoopIgnoresR4006: ["test_heater_loop_threshold_is_r4006[R4006-80-warns]"],
     NoErrForSnPlusZn33: ["test_err_for_invalid_sn_zn[Sn31-Zn2]", "test_err_for_invalid_sn_zn[Sn20-Zn13]"],
     DisabledPointStillDriven: ["test_disabled_point_output_is_forced_off"],
+    R4004Ignored: ["test_pvs_come_from_where_r4003_and_r4004_say", "test_prealarm_of_every_point_at_r4008"],
+    R4004DBankRejected: ["test_pvs_come_from_where_r4003_and_r4004_say"],
+    R4004UpperEdgesRejected: ["test_pvs_come_from_where_r4003_and_r4004_say"],
+    R4004PastTheEndTaken: ["test_pvs_come_from_where_r4003_and_r4004_say"],
+    R4003KeyIgnored: ["test_pvs_come_from_where_r4003_and_r4004_say"],
+    BandComparedUnsigned: ["test_normal_bits_of_every_point_at_both_edges_and_alm"],
+    AlmIgnoresTheSecondWords: ["test_normal_bits_of_every_point_at_both_edges_and_alm",
+                               "test_prealarm_of_every_point_at_r4008"],
+    PrealarmOnlyAboveR4008: ["test_prealarm_of_every_point_at_r4008"],
+    PrealarmLimitSigned: ["test_prealarm_of_every_point_at_r4008"],
+    PrealarmPvUnsigned: ["test_prealarm_of_every_point_at_r4008"],
+    R4013Ignored: ["test_disabled_point_output_is_forced_off"],
+    ActsBeforeMeasured: ["test_first_execution_loads_kc_ki_td_110_17_50"],
+    CoolingHeats: ["test_output_on_below_sv_and_off_far_above"],
+    R4005AppliedAtOnce: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    PwmInverted: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    OutputClampedAt10000: ["test_disabled_point_output_is_forced_off"],
+    KiZeroStillIntegrates: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    Zn32Refused: ["test_no_err_for_valid_sn_zn[Sn0-Zn32]"],
+    PwmPeriodFromTheLowByte: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    SecondWordsKeepFourBits: ["test_normal_bits_of_every_point_at_both_edges_and_alm",
+                              "test_prealarm_of_every_point_at_r4008"],
 }
 QUICK = ("-k", "not closed_loop")  # the variants do not touch the control law: skip the 30-minute loop
 

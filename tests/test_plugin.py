@@ -67,13 +67,19 @@ def test_markers_skip_with_reasons_on_a_real_bench_target(pytester):
         @pytest.mark.destructive
         def test_destructive(bench): pass
     """)
-    bench_file = pytester.makefile(".toml", bench="""
-        [bench]
-        name = "unplugged"
-        target = "fatek+tcp://127.0.0.1:9"
-        timeout = 0.2
-    """)
-    result = pytester.runpytest_inprocess("--bench", str(bench_file), "-rs")
+    from hil.families.fbs.sim.plc import Emulator
+    from hil.families.fbs.transport.factory import serve
+    server = serve(Emulator(), "fatek-tcp")  # a PLC on a wire, as a bench's (a bench that cannot be opened stops
+    try:                                     # the run before collection: tests/test_first_hour.py)
+        bench_file = pytester.makefile(".toml", bench=f"""
+            [bench]
+            name = "on a wire"
+            target = "fatek+tcp://{server.address}"
+            timeout = 1
+        """)
+        result = pytester.runpytest_inprocess("--bench", str(bench_file), "-rs")
+    finally:
+        server.stop()
     result.assert_outcomes(skipped=3)
     result.stdout.fnmatch_lines(["*needs virtual_time: jumps virtual time*", "*--hil-run-slow*",
                                  "*--hil-allow-destructive*"])

@@ -174,7 +174,7 @@ def test_a_journal_planted_by_another_user_is_refused_and_nothing_written(plc, t
     code, lines = _restore(capsys, url, "--bench", str(_profile(tmp_path, plc)))
     assert code != 0 and len(lines) == 1 and "belongs to uid" in lines[0], lines
     run = _session(tmp_path, _profile(tmp_path, plc), "bench.plc.io.write('R1000', 1)")
-    assert run.returncode != 0 and "belongs to uid" in run.stdout, run.stdout
+    assert run.returncode != 0 and "belongs to uid" in run.stdout + run.stderr, run.stdout + run.stderr
     assert _state(plc) == before and path.read_bytes() == raw
 
 
@@ -272,7 +272,7 @@ def test_fatek_then_modbus_to_one_plc_share_one_lock_and_one_recovery(plc, tmp_p
     over_modbus = _profile(tmp_path, plc, "modbus", wire="modbus-tcp", plc_id="line-3")
     with BenchLock(_url(plc), key=key).acquire():  # a FATEK run holds the PLC: the Modbus run must not start
         busy = _session(tmp_path, over_modbus, "pass", "busy")
-        assert busy.returncode != 0 and "is in use by" in busy.stdout, busy.stdout
+        assert busy.returncode != 0 and "is in use by" in busy.stdout + busy.stderr, busy.stdout + busy.stderr
     nxt = _session(tmp_path, over_modbus, "pass", "next")
     assert nxt.returncode == 0, nxt.stdout
     assert "restored and verified (read back): R1002 = 0" in nxt.stdout
@@ -457,7 +457,8 @@ def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp
     run = subprocess.run([sys.executable, "-m", "pytest", str(tmp_path), "--target", _url(plc), "-q",
                           "-p", "no:cacheprovider", "-p", "no:hypothesispytest"], cwd=tmp_path, capture_output=True,
                          text=True, timeout=120, env=os.environ.copy())
-    assert run.returncode != 0 and "names a PLC, and no --bench profile was given" in run.stdout, run.stdout
+    assert run.returncode != 0 and "names a PLC, and no --bench profile was given" in run.stdout + run.stderr, \
+        run.stdout + run.stderr
     code, lines = _restore_like(capsys, "run", "--target", _url(plc))  # hil run gives pytest the default by name
     assert code == 4 and len(lines) == 1 and "names a PLC, and no --bench profile was given" in lines[0], lines
     with _plc(plc) as t:

@@ -20,6 +20,7 @@ from typing import Any, Callable
 from hil.bench.capabilities import DECLARABLE
 from hil.bench.family import Family, families, family as family_named
 from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
+from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
 
@@ -37,6 +38,8 @@ class Safety:
 class EmulatorSettings:
     scan_time_ms: float = 10.0
     seed: int = 0
+    #: ``line = "9600 7E1"``: the pace of the emulator's pty wires (hil.sim.pacing.LineRate); None: unpaced
+    line: Any = None
 
 
 @dataclass(frozen=True)
@@ -90,8 +93,10 @@ class Profile:
 # -- reading -----------------------------------------------------------------------------------------------------
 def load_profile(path: str | Path, *, lab: Any = None) -> Profile:
     """``lab``: the labgrid place the run holds (:class:`hil.bench.lab.resolve.Lab`), whose URLs replace the
-    profile's target and fill its rig (a profile with ``[labgrid]`` cannot be loaded without one)."""
-    raw, data = _read(Path(path))
+    profile's target and fill its rig (a profile with ``[labgrid]`` cannot be loaded without one).  ``path`` may
+    be a bundled profile's short name (``s7-200smart``, :func:`hil.core.paths.bench_path`)."""
+    path = bench_path(path)
+    raw, data = _read(path)
     return profile_from_dict(data, path=Path(path), digest=hashlib.sha256(raw).hexdigest(), lab=lab)
 
 
@@ -100,7 +105,7 @@ def _read(path: Path) -> tuple[bytes, dict[str, Any]]:
         raw = path.read_bytes()
     except OSError as exc:
         raise ProfileError(f"cannot read bench profile {path}: {exc.strerror} — pass --bench with an existing "
-                           f"file (see fixtures/benches/)") from None
+                           f"file or a bundled profile's name (hil list shows them)") from None
     try:
         return raw, tomllib.loads(raw.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
@@ -111,8 +116,9 @@ def lab_request(path: str | Path, *, place: str | None = None, tags: str | None 
                 coordinator: str | None = None, wait: float | None = None) -> LabSpec | None:
     """The labgrid place a run on this profile asks for: the profile's ``[labgrid]`` with the command line's
     ``--lg-place`` / ``--lg-reserve`` / ``--lg-coordinator`` / ``--lg-wait`` over it; None when neither names one."""
+    path = bench_path(path)
     where = str(path)
-    data = _read(Path(path))[1]
+    data = _read(path)[1]
     spec = parse_lab_section(Reader(where), data) if "labgrid" in data else None
     if spec is None and not (place or tags):
         return None
@@ -185,7 +191,8 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     emulator = EmulatorSettings(
         scan_time_ms=reader.take(emu_t, "emulator", "scan_time_ms", float, 10.0,
                                  check=lambda v: 0.1 <= v <= 1000 or "must be 0.1–1000 ms"),
-        seed=reader.take(emu_t, "emulator", "seed", int, 0))
+        seed=reader.take(emu_t, "emulator", "seed", int, 0),
+        line=reader.take(emu_t, "emulator", "line", str, None, convert=_line_rate))
     reader.done(emu_t, "emulator")
 
 
@@ -300,6 +307,11 @@ class Reader:
     def done(self, table: dict[str, Any], section: str) -> None:
         if table:
             raise ProfileError(f"{self.where}: unknown key(s) in [{section}]: {', '.join(sorted(table))}")
+
+
+def _line_rate(value: str) -> Any:
+    from hil.sim.pacing import LineRate
+    return LineRate.parse(value)
 
 
 def _check_target(value: str) -> bool:

@@ -14,7 +14,7 @@ from typing import Any
 #: callables and values a suite may use, when the bench has them
 METHODS = ("wait", "settle", "cannot_reach", "end_test", "power_cycle", "identity", "unreachable_reason")
 VALUES = ("plc", "profile", "time", "settings", "is_emulator", "target", "name", "allow_destructive")
-INJECTOR = ("open", "repair", "inject", "clear")
+INJECTOR = ("open", "repair", "inject", "clear", "openable")
 
 
 def _view(title: str, members: dict[str, Any]) -> Any:

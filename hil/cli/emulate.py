@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 import signal
@@ -17,14 +18,33 @@ from hil.bench.profile import load_profile
 
 def split_host_port(text: str) -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
-    if not sep or not port.isdigit():
+    if not sep or not port.isascii() or not port.isdigit():
         raise InvalidValue(f"{text!r} is not HOST:PORT (e.g. 127.0.0.1:5000; port 0 lets the OS choose)")
+    if int(port) > 65535:
+        raise InvalidValue(f"{text!r}: port {port} is not a TCP port (0–65535; 0 lets the OS choose)")
+    if host.startswith("[") and host.endswith("]"):  # [::1]:5000
+        host = host[1:-1]
     return host or "127.0.0.1", int(port)
 
 
+def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's start, its handle
+    """Start a server; an address this host cannot listen on is the user's to fix: one line saying which."""
+    try:
+        return start()
+    except OSError as exc:
+        from hil.io.hosts import unresolved
+        host = split_host_port(where)[0] if where else ""
+        why = f"the host name {host!r} does not resolve" if unresolved(host) else (exc.strerror or str(exc))
+        raise InvalidValue(f"cannot listen on {where or 'a pseudo-terminal'}: {why} — give an address of this host "
+                           f"(127.0.0.1, 0.0.0.0 for all) and a free port (0 lets the OS choose)") from None
+
+
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
-            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False) -> int:
+            rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False,
+            line: str | None = None) -> int:
     """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
+
+    ``line``: "9600 7E1" paces the pty wires at that rate (over the profile's ``[emulator] line``).
 
     ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
     hil.families.fbs.sim.rig).
@@ -32,6 +52,10 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     if not (math.isfinite(time_scale) and time_scale > 0):  # before any endpoint line: scripts wait for those
         raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
     profile = load_profile(bench)
+    if line is not None:
+        from hil.sim.pacing import LineRate
+        rate = LineRate.parse(line)
+        profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []
@@ -39,13 +63,14 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
-            handle = profile.plugin.serve(profile, emulator, wire, host, port)
+            handle = _listening(where, lambda: profile.plugin.serve(profile, emulator, wire, host, port))
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         if rig_modbus_tcp:
             from hil.families.fbs.sim.rig import start_rig_modbus_tcp
             host, port = split_host_port(rig_modbus_tcp)
-            handle = start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil)
+            handle = _listening(rig_modbus_tcp,
+                                lambda: start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil))
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):

@@ -21,6 +21,7 @@ EXAMPLES = """examples:
   hil run                                   suites on the in-process emulator, JUnit in reports/junit.xml
   hil run --target emulator+fatek-serial    the same over the FATEK protocol on a pseudo-terminal
   hil run --bench my-bench.toml -- -k rtc   a real bench, RTC suites only (pytest args after --)
+  hil run --bench s7-200smart -- s7smart    a bundled profile and suite by short name (hil list shows them)
   hil emulate --fatek-tcp 127.0.0.1:5000    serve the emulator for external clients
   hil probe fatek+serial:///dev/ttyUSB0     status and key registers of a PLC
   hil rtc read fatek+tcp://192.168.1.5:500  the PLC's clock against host time
@@ -64,7 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                                 "  hil run --bench lab-fbs.toml --lg-reserve \"family=fbs rtc=s35390a\"  (a labgrid "
                                 "place)\n")
     run.add_argument("--bench", metavar="FILE", action="append",
-                     help="bench profile (default fixtures/benches/emulator.toml); give it more than once to run "
+                     help="bench profile: a file or a bundled profile's name, e.g. s7-200smart (hil list; default "
+                          "fixtures/benches/emulator.toml); give it more than once to run "
                           "the benches in parallel (junit-<bench>.xml each, merged into --junitxml)")
     run.add_argument("--target", metavar="URL", help="target URL overriding the profile's")
     lab = run.add_argument_group("a lab of benches (labgrid)")
@@ -92,8 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--color", choices=("auto", "yes", "no"), default=None,
                      help="colour the console (default auto: only on a terminal, never with NO_COLOR)")
     run.add_argument("pytest_args", nargs=argparse.REMAINDER,
-                     help="after --: pytest arguments; test files or ids given there are the only ones run "
-                          "(default: every suite), e.g. hil run -- suites/test_rtc.py -k leap")
+                     help="after --: pytest arguments; test files or ids, or suites by short name (hil list), "
+                          "given there are the only ones run (default: every suite), e.g. hil run -- rtc -k leap")
 
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -109,6 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
     emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
     emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
     emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    emulate.add_argument("--line", metavar="'BAUD FRAME'",
+                         help="pace the pseudo-terminals' characters at this line rate, e.g. '9600 7E1' (port 0's "
+                              "factory setting; default: the profile's [emulator] line, else unpaced)")
     emulate.add_argument("--s7-tcp", metavar="HOST:PORT",
                          help="the S7 protocol (ISO-on-TCP; an S7-200 SMART profile, e.g. fixtures/benches/"
                               "s7-200smart.toml; port 0: OS chooses)")
@@ -133,10 +138,13 @@ def build_parser() -> argparse.ArgumentParser:
                                   "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
                                   "with its temperature points)\n")
     probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
-                                              "(default: the --bench profile's target)")
+                                              "(default: the --bench profile's target, else the emulator, as hil run)")
     probe.add_argument("--bench", metavar="FILE",
                        help="bench profile: its [temperature] section adds the temperature points to the report "
                             "(and configures an emulator… target)")
+    sub.add_parser("list", help="the bundled bench profiles and suites, by the short names --bench and hil run take",
+                   formatter_class=argparse.RawDescriptionHelpFormatter,
+                   epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n  hil run -- rtc rtc_adjust\n")
     _add_clock_commands(sub)
     restore = sub.add_parser("restore", help="put back what a run that died left changed on a PLC (its journal)",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -155,7 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     """``hil rtc read|set|sync`` and ``hil drift code|decode|measure`` (see hil/commands/rtc.py)."""
     raw = argparse.RawDescriptionHelpFormatter
-    url_help = "target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp"
+    url_help = ("target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp "
+                "(default: the --bench profile's target, else the emulator)")
     bench_help = "bench profile for an emulator… target (default fixtures/benches/emulator.toml: an S-35390A RTC)"
 
     rtc = sub.add_parser("rtc", help="read, set or sync a PLC's real-time clock", formatter_class=raw,
@@ -178,7 +187,7 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     sync = rtc_sub.add_parser("sync", help="set the clock to host time, on a whole second", formatter_class=raw,
                               epilog="example:\n  hil rtc sync fatek+serial:///dev/ttyUSB0\n")
     for p in (read, set_, sync):
-        p.add_argument("url", metavar="URL", help=url_help)
+        p.add_argument("url", metavar="URL", nargs="?", help=url_help)
     set_.add_argument("time", metavar="TIME", help="YYYY-MM-DD HH:MM:SS (ISO; 'T' or space; seconds optional)")
     for p in (read, set_, sync):
         p.add_argument("--bench", metavar="FILE", help=bench_help)
@@ -207,7 +216,7 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
                                           "Longer is finer: the resolution is one polling bracket (tens of ms) over "
                                           "the duration, about ±0.03 s/day over a day. Without --apply D4054 is left "
                                           "as it is.\n")
-    measure.add_argument("url", metavar="URL", help=url_help)
+    measure.add_argument("url", metavar="URL", nargs="?", help=url_help)
     measure.add_argument("--duration", type=float, required=True, metavar="SECONDS",
                          help="bench seconds to measure over (more than 5)")
     measure.add_argument("--apply", action="store_true",
@@ -273,7 +282,18 @@ def one_line(exc: BaseException) -> str:
     return text
 
 
+def _given(value: str | None, what: str) -> str | None:
+    """A URL the command line gives; an empty one is refused (it must not quietly mean the profile's)."""
+    if value is not None and not value.strip():
+        raise InvalidValue(f"{what} is empty: give a target URL (e.g. emulator+fatek-tcp, fatek+tcp://HOST:500), or "
+                           f"leave it out to use the bench profile's target")
+    return value
+
+
 def dispatch(args: argparse.Namespace, console: Console) -> int:
+    for name in ("url", "target"):
+        if hasattr(args, name):
+            _given(getattr(args, name), "--target" if name == "target" else "the target URL")
     if args.command == "run":
         from hil.cli.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args
@@ -306,11 +326,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty, "
                                "--modbus-pty or (an S7-200 SMART profile) --s7-tcp HOST:PORT")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
-                       args.rig_first_coil, live=not args.no_live and console.is_terminal)
+                       args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line)
     if args.command == "probe":
         from hil.cli.probe import probe
-        if not args.url and not args.bench:
-            raise InvalidValue("probe what? give a target URL, or --bench FILE to use the profile's target")
         return probe(args.url, console, bench=args.bench)
     if args.command == "rtc":
         from hil.cli import rtc
@@ -319,6 +337,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         if args.rtc_command == "set":
             return rtc.rtc_set(args.url, args.time, console, bench=args.bench)
         return rtc.rtc_sync(args.url, console, bench=args.bench)
+    if args.command == "list":
+        from hil.cli.listing import list_all
+        return list_all(console)
     if args.command == "restore":
         from hil.cli.restore import restore
         return restore(args.url, args.bench, console, show=args.show)

@@ -20,12 +20,11 @@ from hil.cli.target import open_target
 
 # (label, element) — read only where the wire can reach them.
 PROBE_REGISTERS = [
-    ("RTC second/minute/hour", "R4128"), ("RTC day/month/year", "R4131"), ("RTC weekday", "R4134"),
     ("RTC chip (D4053)", "D4053"), ("RTC rate code (D4054)", "D4054"),
     ("PID timing R4005", "R4005"), ("heater-loop % R4006", "R4006"), ("heater-loop s R4007", "R4007"),
     ("pre-alarm R4008", "R4008"), ("installed R4010/R4011", "R4010"), ("PID enable R4012/R4013", "R4012"),
 ]
-_COUNTS = {"R4128": 3, "R4131": 3, "R4010": 2, "R4012": 2}
+_COUNTS = {"R4010": 2, "R4012": 2}
 
 
 def _probe_s7(profile: object, url: str | None, console: Console) -> int:
@@ -50,6 +49,7 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
         table = Table(title="key registers", show_header=True)
         table.add_column("item")
         table.add_column("value")
+        table.add_row("RTC R4128–R4134", _rtc_row(transport))
         for label, element in PROBE_REGISTERS:
             reason = transport.unreachable_reason(element)
             if reason:
@@ -61,6 +61,16 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
         if profile is not None and "temperature" in profile.sections:
             console.print(temperature_table(transport, profile))
     return 0
+
+
+def _rtc_row(transport: Transport) -> str:
+    """The clock as ``hil rtc read`` shows it: a date and weekday (invalid fields pointed out)."""
+    from hil.cli.rtc import format_time
+    from hil.families.fbs.rtc_time import RtcTime
+    reason = transport.unreachable_reason("R4128")
+    if reason:
+        return f"[dim]not reachable: {escape(reason)}[/dim]"
+    return format_time(RtcTime.from_registers(transport.read_words("R4128", 7)))
 
 
 def temperature_table(transport: Transport, profile: Profile) -> Table:

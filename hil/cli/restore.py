@@ -7,6 +7,9 @@ run would.  ``--show`` changes nothing: it says, for each journal and each entry
 
 from __future__ import annotations
 
+import ipaddress
+import os
+import socket
 from typing import TYPE_CHECKING
 
 from rich.console import Console
@@ -83,6 +86,8 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
                       highlight=False, soft_wrap=True)
         for line in _verdicts(journal, profile):
             console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
+        for note in _gone(str(journal.data.get("endpoint") or key), journal.data):
+            console.print(f"  [yellow]{escape(note)}[/]", highlight=False, soft_wrap=True)
     if not shown:
         console.print("nothing pending: no run left a PLC changed", highlight=False, soft_wrap=True)
     elif profile is None and listed:
@@ -139,6 +144,63 @@ def _verdicts(journal: Journal, profile: object) -> list[str]:
         else:
             out.append(f"{what}: next run restores it (read back)")
     return out
+
+
+def _pids(data: object) -> set[int]:
+    """Every run's pid a journal names (its entries carry the writer's)."""
+    if isinstance(data, dict):
+        found = {data["pid"]} if isinstance(data.get("pid"), int) else set()
+        return found.union(*(_pids(v) for v in data.values()))
+    if isinstance(data, list):
+        return set().union(*(_pids(v) for v in data))
+    return set()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: it exists
+        return True
+    return True
+
+
+def _gone(key: str, data: object) -> list[str]:
+    """What no longer exists behind a journal: the runs that wrote it, an emulator's loopback port or pty (a
+    journal of an emulator that has stopped cannot be replayed, and needs none)."""
+    notes = []
+    dead = sorted(p for p in _pids(data) if not _alive(p))
+    if dead:
+        notes.append(f"the run(s) that wrote this (pid {', '.join(map(str, dead))}) are no longer running: "
+                     f"the next run on this PLC replays it, or hil restore does now")
+    scheme, _, rest = key.partition("://")
+    if scheme == "serial" and not os.path.exists(rest):
+        notes.append(f"{rest} no longer exists (an emulator's pseudo-terminal that has closed?): nothing to restore "
+                     f"there; delete the journal if that PLC is gone for good")
+    elif scheme == "tcp":
+        host, _, port = rest.rpartition(":")
+        host = host.strip("[]")
+        if port.isdigit() and _loopback(host) and not _listening(host, int(port)):
+            notes.append(f"nothing listens on {rest} now (an emulator that has stopped?): nothing to restore there; "
+                         f"delete the journal if that PLC is gone for good")
+    return notes
+
+
+def _loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _listening(host: str, port: int) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=0.5):
+            return True
+    except OSError:
+        return False
+
 
 
 __all__ = ["restore"]

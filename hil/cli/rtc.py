@@ -95,7 +95,9 @@ def _vs_host(plc: dt.datetime, host: dt.datetime) -> str:
     if -1.0 < diff <= 1e-6:
         return "in step (to the whole second the RTC shows)"
     side = "ahead of" if diff > 0 else "behind"
-    return f"{diff:+.1f} s, PLC {side} host time (±1 s: the RTC shows whole seconds)"
+    from hil.core.humantime import span
+    readable = f"PLC {span(diff)} {side} host time" + (f" ({diff:+.1f} s)" if abs(diff) >= 60 else "")
+    return f"{readable}; ±1 s: the RTC shows whole seconds"
 
 
 # -- hil rtc ------------------------------------------------------------------------------------------------------

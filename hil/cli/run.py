@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.core.paths import default_bench, project_dir
+from hil.core.paths import default_bench, suite_path, suites_dir
 
 #: pytest options whose value is the next argument (so that value is not a test path): ``-k rtc``, ``-m slow``…
 _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
@@ -21,12 +21,31 @@ _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignor
 def selects_tests(extra: list[str]) -> bool:
     """Whether the pytest arguments name test files, directories or ids of their own: then only those run
     (on a real bench, running every suite instead means writes nobody asked for)."""
-    previous = ""
-    for arg in extra:
-        if not arg.startswith("-") and previous not in _TAKES_VALUE and _names_tests(arg):
-            return True
+    return bool(_test_args(extra))
+
+
+def _test_args(extra: list[str]) -> list[int]:
+    """The positions of the arguments that name tests (not options, nor an option's value)."""
+    found, previous = [], ""
+    for n, arg in enumerate(extra):
+        if not arg.startswith("-") and previous not in _TAKES_VALUE and (_names_tests(arg) or suite_path(arg)):
+            found.append(n)
         previous = arg if "=" not in arg else ""
-    return False
+    return found
+
+
+def with_suite_names(extra: list[str]) -> tuple[list[str], bool]:
+    """The arguments with each suite's short name (``rtc``, ``s7smart``) and each ``suites/…`` path this directory
+    lacks replaced by the bundled suite's path; and whether every test they name is one of the suites (then the
+    suites' directory's parent is pytest's rootdir, so test ids read ``suites/test_rtc.py::…`` wherever hil is
+    installed and whatever the current directory)."""
+    extra, ours = list(extra), True
+    root = suites_dir()
+    for n in _test_args(extra):
+        extra[n] = suite_path(extra[n]) or extra[n]
+        path = Path(extra[n].partition("::")[0]).absolute()
+        ours = ours and (path == root or root in path.parents)
+    return extra, ours
 
 
 def _names_tests(arg: str) -> bool:
@@ -41,7 +60,10 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
                 lab: dict[str, object] | None = None) -> list[str]:
     """``lab``: ``hil run``'s ``--lg-place`` / ``--lg-reserve`` / ``--lg-coordinator`` / ``--lg-wait``, by their
     names without the prefix, for the plugin (:mod:`hil.plugin.lab`: ``--hil-lg-…``)."""
-    paths = [] if selects_tests(extra) else [str(project_dir("suites"))]
+    extra, ours = with_suite_names(extra)
+    paths = [] if selects_tests(extra) else [str(suites_dir())]
+    if ours and not any(a == "--rootdir" or a.startswith("--rootdir=") for a in extra):
+        paths.append(f"--rootdir={suites_dir().parent}")
     # The cache provider stays on (--lf, --ff, --sw work), its directory here, never inside an installed package
     cache = Path.cwd() / ".pytest_cache"
     args = [*paths, "--bench", bench or str(default_bench()), f"--junitxml={junitxml}",

@@ -47,9 +47,9 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
         raise HilError(f"bench {given.name!r} ({bench}) is {given.plugin.a_title} (family {given.family!r}); this "
                        f"command works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows "
                        f"it, hil run --bench {bench} runs its suites")
-    if url is None and given is None:
-        raise InvalidValue("name a target URL or a bench profile (--bench FILE)")
-    target = parse_target(url or given.target)
+    if url is None and given is None:  # as hil run: the default profile's target, the emulator
+        given = load_profile(default_bench())
+    target = parse_target(url if url is not None else given.target)
     profile = given if given is not None or not target.in_process else load_profile(default_bench())
     epoch = dt.datetime.now().replace(microsecond=0)
     factory = None

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from hil.core.humantime import moment
 from hil.core.errors import HilError
 
 VERSION = 2
@@ -225,7 +226,7 @@ def _show_coil(name: str, e: Any) -> str:
 
 
 def _show_clock(name: str, e: Any) -> str:
-    return f"clock: was {e['plc']} at host time {e['host']:.3f} (scale {e['scale']}){_who(e)}"
+    return f"clock: was {e['plc']} at host time {moment(e['host'])} (scale {e['scale']}){_who(e)}"
 
 
 def _show_run(name: str, e: Any) -> str:

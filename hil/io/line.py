@@ -40,6 +40,7 @@ import serial.rfc2217
 
 from hil.core.errors import TransportError
 from hil.io.serial_line import line_coding
+from hil.io.hosts import unresolved
 
 #: How long one wait of an RFC 2217 line may block for its first byte: a reply wakes it at once (a queue's
 #: condition), so this only bounds how far a wait may overrun its deadline.
@@ -162,6 +163,9 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
         return LocalLine(serial.serial_for_url(url, timeout=0, write_timeout=write_timeout, **settings,
                                                     **extra), write_timeout)
     except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        nameless = unresolved(urlsplit(url).hostname) if url.startswith(("socket://", "rfc2217://")) else None
+        if nameless is not None:
+            raise TransportError(f"cannot open {url}: {nameless}") from exc
         hint = open_hint(url, exc)
         known = hint in _OPEN_HINTS.values()  # a known cause is the whole message (pyserial repeats the path)
         detail = re.sub(r"^Could not open port \S+: ", "", str(exc))  # the URL again, with hil's own options

@@ -8,9 +8,11 @@ It owns the rules a Modbus request lives by, in one place:
 * a late or repeated reply to an earlier request is never taken for the answer (README, Safety).  On TCP the
   transaction id tells: pymodbus skips a frame with another non-zero id and keeps waiting for ours, and refuses
   one with id 0 (tests/test_late_replies.py pins both).  RTU has no id: pymodbus drains the input before each
-  request (the silent interval), and every read is then *fenced* — the
-  reply must be the only thing received, nothing may be waiting after it, and a probe read of a quantity the
-  read did not have must be answered next (:meth:`ModbusWire._fence`), else the read is repeated;
+  request (the silent interval), and a read's reply must be the only thing received with nothing waiting after
+  it, else the read is repeated.  On a line that may repeat a reply (``fence="reads"``: a gateway, a wire-fault
+  plan) every read is also *fenced*: a probe read of a quantity the read did not have must be answered next
+  (:meth:`ModbusWire._fence`); a direct line cannot repeat one, and a late one follows a timeout, after which the
+  wire is resynchronised anyway (below);
 * after a fault the wire is resynchronised before the next request: on TCP a new connection; on RTU, which has
   no transaction id, a probe read whose quantity no abandoned request had (every reply before it is stale);
 * every failure becomes a harness error naming the request (with the family's names for it), the target and
@@ -35,7 +37,8 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 from pymodbus.pdu import ModbusPDU
 
-from hil.core.errors import OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.core.errors import InvalidValue, OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
 from hil.io.modbus_codes import EXCEPTION_NAMES
 from hil.io.url import serial_target
@@ -111,7 +114,10 @@ class ModbusWire:
 
     def __init__(self, build: Callable[[Hooks], ModbusTcpClient | ModbusSerialClient],
                  description: str, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
-                 describe: Describe | None = None, backoff: float = 0.05) -> None:
+                 describe: Describe | None = None, backoff: float = 0.05, fence: str = "trouble") -> None:
+        if fence not in ("trouble", "reads"):
+            raise InvalidValue(f"fence must be 'trouble' or 'reads', not {fence!r}")
+        self.fence_every_read = fence == "reads"  # RTU only: TCP has transaction ids
         self.description = description
         self.unit = unit
         self.timeout = timeout
@@ -136,7 +142,8 @@ class ModbusWire:
         self.reconnects = 0
         if not self.client.connect():
             self.client.close()
-            raise TransportError(f"cannot connect to {description}: {self._open_error() or hint}")
+            nameless = None if self.serial else unresolved(getattr(self.client.comm_params, "host", None))
+            raise TransportError(f"cannot connect to {description}: {self._open_error() or nameless or hint}")
 
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod
@@ -150,7 +157,7 @@ class ModbusWire:
     @classmethod
     def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
             timeout: float, retries: int, hint: str, probe: Probe, label: str = "",
-            describe: Describe | None = None) -> "ModbusWire":
+            describe: Describe | None = None, fence: str = "trouble") -> "ModbusWire":
         """Modbus RTU on ``device`` (a path, or an RFC 2217 server's ``rfc2217://HOST:PORT``); ``hint``: what to check
         on the slave's side when it does not answer (the line's own checks come first), ``label``: added to the
         description (e.g. the address map)."""
@@ -161,7 +168,7 @@ class ModbusWire:
                                               parity=parity, stopbits=stopbits, timeout=timeout, retries=0,
                                               trace_packet=hooks[0], trace_pdu=hooks[1]),
                    description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
-                   describe=describe)
+                   describe=describe, fence=fence)
 
     # -- requests ---------------------------------------------------------------------------------------------
     def read(self, table: str, address: int, count: int) -> list[int]:
@@ -193,7 +200,7 @@ class ModbusWire:
         recover = tries * self.timeout + sum(self._backoff(a) for a in range(1, tries)) + 0.5
         if write:
             return recover + self.timeout
-        fence = self.timeout if self.serial else 0.0
+        fence = self.timeout if self.serial and self.fence_every_read else 0.0
         return tries * (recover + self.timeout + fence) + sum(self._backoff(a) for a in range(1, tries))
 
     def reopen(self) -> None:
@@ -284,11 +291,12 @@ class ModbusWire:
         request of the same shape (unit, function and byte count are all an RTU reply has).  Replies come in order,
         so a stale frame taken for ours leaves ours still to come: it shows up with the reply (pymodbus would drop
         it), waiting on the line after it, or before the answer to a probe read whose quantity differs from the
-        read's.  Raises :class:`_Stale` (the read is repeated after a resynchronisation).  A second round trip per
-        read: the price of a line without transaction ids (README, Safety).  On TCP the transaction id did it."""
+        read's.  Raises :class:`_Stale` (the read is repeated after a resynchronisation).  The probe read, a second
+        round trip, only on a line that may repeat a reply (``fence_every_read``; README, Safety); on a direct line
+        the reply must only have come alone.  On TCP the transaction id did it."""
         if not self.serial:
             return
-        reason = self._stale_before_probe() or self._stale_at_probe(fc, count)
+        reason = self._stale_before_probe() or (self._stale_at_probe(fc, count) if self.fence_every_read else "")
         if reason:
             self.fenced_out += 1
             raise _Stale(reason)
@@ -428,7 +436,8 @@ class OverModbusWire:
     # the wire counts requests (Link.__init__ assigns 0 before the wire is known: ignored)
     requests = property(lambda self: self.wire.requests, lambda self, value: None)
     resyncs = property(lambda self: self.wire.resyncs)
-    requests_per_read = property(lambda self: 2 if self.wire.serial else 1)  # RTU: the read and its fence
+    # RTU on a line that may repeat replies: the read and its fence
+    requests_per_read = property(lambda self: 2 if self.wire.serial and self.wire.fence_every_read else 1)
     reconnects = property(lambda self: self.wire.reconnects)
     client = property(lambda self: self.wire.client)
 

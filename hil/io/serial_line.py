@@ -22,3 +22,8 @@ def line_coding(device: str, bytesize: int, parity: str, stopbits: int) -> tuple
     previous client already applied — pyserial sets them again on every reconfigure.  FATEK's 7-bit ASCII frames
     and Modbus RTU bytes pass through 8N1 unchanged."""
     return (8, "N", 1) if is_pty(device) else (bytesize, parity, stopbits)
+
+
+def char_bits(bytesize: int, parity: str, stopbits: int) -> int:
+    """Bits one character takes on the line: start, data, parity, stop (7E1: 10, 8E1: 11, 8N1: 10)."""
+    return 1 + bytesize + (parity.upper() != "N") + stopbits

@@ -3,6 +3,9 @@
     emulator                                  in-process emulator, no wire
     emulator+fatek-tcp | emulator+fatek-serial | emulator+modbus-tcp | emulator+modbus-rtu
                                               in-process emulator served on loopback / a pty, reached over that wire
+    emulator+fatek-serial?baudrate=9600&parity=E&bytesize=7
+                                              the pty paced at that line rate (hil.sim.pacing; 7E1 for FATEK,
+                                              8E1 for Modbus RTU unless given)
     fatek+tcp://host:500?station=1&timeout=1&retries=2
     fatek+serial:///dev/ttyUSB0?baudrate=9600&parity=E&bytesize=7&stopbits=1&station=1
     modbus+tcp://host:502?unit=1&timeout=1&retries=2
@@ -29,14 +32,21 @@ EMULATOR_TARGETS = ("emulator",) + tuple(f"emulator+{w}" for w in EMULATOR_WIRES
 
 _COMMON = {"timeout": float, "retries": int}
 _SERIAL = {"baudrate": int, "parity": str, "bytesize": int, "stopbits": int}
+#: fence=reads: the line may repeat a reply (a gateway, a protocol converter): every read is fenced; fence=trouble
+#: (the default): a direct line, fenced only after a timeout, a retry or a stray frame (README, Safety)
+_FENCE = {"fence": str}
+FENCES = ("trouble", "reads")
 PARAMS: dict[str, dict[str, type]] = {
-    "fatek+tcp": {**_COMMON, "station": int},
-    "fatek+serial": {**_COMMON, **_SERIAL, "station": int},
+    "fatek+tcp": {**_COMMON, **_FENCE, "station": int},
+    "fatek+serial": {**_COMMON, **_SERIAL, **_FENCE, "station": int},
     "modbus+tcp": {**_COMMON, "unit": int},
-    "modbus+rtu": {**_COMMON, **_SERIAL, "unit": int},
-    "fatek+rfc2217": {**_COMMON, **_SERIAL, "station": int},
-    "modbus+rfc2217": {**_COMMON, **_SERIAL, "unit": int},
+    "modbus+rtu": {**_COMMON, **_SERIAL, **_FENCE, "unit": int},
+    "fatek+rfc2217": {**_COMMON, **_SERIAL, **_FENCE, "station": int},
+    "modbus+rfc2217": {**_COMMON, **_SERIAL, **_FENCE, "unit": int},
     "replay+fatek": {**_COMMON, "station": int},
+    # the emulator's serial wires: the pty's line rate (the client opens it with the same settings)
+    "emulator+fatek-serial": {**_SERIAL, **_FENCE},
+    "emulator+modbus-rtu": {**_SERIAL, **_FENCE},
     "s7+tcp": {**_COMMON, "rack": int, "slot": int},
 }
 from hil.core.ports import DEFAULT_PORTS, NETWORK_SCHEMES  # noqa: E402 - also used to key bench locks (hil.core.lock)
@@ -82,7 +92,7 @@ class Target:
 
     def __str__(self) -> str:
         if self.in_process:
-            return self.scheme
+            return self.scheme + ("?" + "&".join(f"{k}={v}" for k, v in self.params.items()) if self.params else "")
         where = f"{self.host}:{self.port}" if self.host else self.device
         query = "&".join(f"{k}={v}" for k, v in self.params.items())
         return f"{self.scheme}://{where}" + (f"?{query}" if query else "")
@@ -100,9 +110,16 @@ def parse_target(url: str) -> Target:
     text = url.strip()
     if text in EMULATOR_TARGETS:
         return Target(text)
+    scheme, mark, query = text.partition("?")
+    if mark and scheme in PARAMS and scheme in EMULATOR_TARGETS:
+        return Target(scheme, params=_params(url, scheme, query))
     if text.startswith("emulator"):
         raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(EMULATOR_TARGETS)}")
-    parts = urlsplit(text)
+    try:
+        parts = urlsplit(text)
+    except ValueError as exc:  # "Invalid IPv6 URL": an unclosed [
+        raise TargetError(f"cannot use target {url!r}: {exc} (an IPv6 host goes in brackets, e.g. "
+                          f"fatek+tcp://[::1]:500)") from None
     scheme = parts.scheme
     if scheme not in PARAMS:
         raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {FORMS}")
@@ -138,6 +155,8 @@ def _params(url: str, scheme: str, query: str) -> dict[str, object]:
             value = allowed[key](raw)
         except ValueError:
             raise TargetError(f"target {url!r}: {key}={raw!r} is not a valid {allowed[key].__name__}") from None
+        if key == "fence" and value not in FENCES:
+            raise TargetError(f"target {url!r}: fence must be {' or '.join(FENCES)}, not {raw!r}")
         if key == "parity":
             value = str(value).upper()
             if value not in ("N", "E", "O"):

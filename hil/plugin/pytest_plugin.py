@@ -1,7 +1,8 @@
 """The hil pytest plugin: options, markers, collection-time skips, and the ``bench`` fixture.
 
-Loaded automatically through the ``pytest11`` entry point.  Nothing connects to a PLC until a test asks for
-``bench``; the bench is opened once per session and every test's writes are restored when the test ends.
+Loaded automatically through the ``pytest11`` entry point.  The bench is opened once per session — before
+collection when the run names one (:mod:`hil.plugin.preflight`), else once a bench test is collected; one that
+cannot be opened stops the run there, in one line — and every test's writes are restored when the test ends.
 """
 
 from __future__ import annotations
@@ -19,8 +20,10 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
-# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements"]
+# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
+# the bench opened before collection
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
+                  "hil.plugin.preflight"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -294,6 +297,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
             from hil.core.lock import describe_holder
             line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
     except (HilError, pytest.fail.Exception) as exc:
+        if state.bench is None:  # never opened (not opened before collection either): one line, exit 4
+            from hil.plugin.preflight import unreachable
+            raise pytest.UsageError(unreachable(state, exc)) from None
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
     state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)

@@ -15,6 +15,7 @@ import errno
 import os
 import tty
 
+from hil.sim.pacing import LineRate, PacedSender
 from hil.sim.rtu_gate import RtuGate
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_crc
 
@@ -25,12 +26,19 @@ class PtyPair:
     """Bytes written to :attr:`path_a` come out of :attr:`path_b` and vice versa (create and use on the loop)."""
 
     def __init__(self, loop: asyncio.AbstractEventLoop, *, gate_b_to_a: bool = False,
-                 faults: WireFaults | None = None) -> None:
+                 faults: WireFaults | None = None, line: LineRate | None = None) -> None:
         """``gate_b_to_a``: pass what the client (side b) sends through an :class:`RtuGate` on its way to a.
-        ``faults``: a wire-fault plan applied to what side a (the server) sends back — its replies."""
+        ``faults``: a wire-fault plan applied to what side a (the server) sends back — its replies.  ``line``:
+        every character takes its time at that rate and frame, both ways (:mod:`hil.sim.pacing`)."""
         self.loop = loop
+        self.line = line
         self._gate = RtuGate(loop, self._write_to_a) if gate_b_to_a else None
-        self._replies = FaultySender(faults, self._write_to_b, corrupt_crc) if faults is not None else None
+        # the client's bytes reach the gate (or side a) one character time at a time; replies leave side a paced
+        # after the fault plan, as a noisy line delays nothing but carries everything at its rate
+        self._paced_a_to_b = PacedSender(loop, line, self._write_to_b) if line else None
+        self._to_b = self._paced_a_to_b.send if self._paced_a_to_b else self._write_to_b
+        self._paced_b_to_a = PacedSender(loop, line, self._arrived_at_a) if line else None
+        self._replies = FaultySender(faults, self._to_b, corrupt_crc) if faults is not None else None
         self.stats: collections.Counter[str] = collections.Counter()  # bytes moved / dropped, for tests
         self._fds: list[int] = []
         try:
@@ -63,15 +71,27 @@ class PtyPair:
                 self.loop.remove_reader(src)
             return
         self.stats[direction] += len(data)
-        if self._gate is not None and direction == "b_to_a":
+        if direction == "b_to_a":
+            if self._paced_b_to_a is not None:
+                self._paced_b_to_a.send(data)
+            else:
+                self._arrived_at_a(data)
+            return
+        if self._replies is not None:
+            self._replies.send(data)
+            return
+        self._to_b(data)
+
+    def _arrived_at_a(self, data: bytes) -> None:
+        """What the client sent, as it comes off the line at side a's end."""
+        if self.closed:
+            return
+        if self._gate is not None:
             self._gate.feed(data)
             self.stats.update(self._gate.stats)
             self._gate.stats.clear()
             return
-        if self._replies is not None and direction == "a_to_b":
-            self._replies.send(data)
-            return
-        self._write(dst, data, direction)
+        self._write_to_a(data)
 
     def _write_to_a(self, data: bytes) -> None:
         self._write(self._a_master, data, "b_to_a")
@@ -102,6 +122,9 @@ class PtyPair:
             self._gate.close()
         if self._replies is not None:
             self._replies.stop()
+        for paced in (self._paced_a_to_b, self._paced_b_to_a):
+            if paced is not None:
+                paced.close()
         for master in (self._a_master, self._b_master):
             self.loop.remove_reader(master)
         self._close_fds()

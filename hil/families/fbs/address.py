@@ -189,6 +189,21 @@ def parse_range(text: str) -> list[Address]:
     return [Address(a.kind, i) for i in range(a.index, b.index + 1)]
 
 
+def missing(address: Address, count: int = 1) -> str | None:
+    """Why a run of ``count`` elements from ``address`` touches elements an FBs does not have (R4168–R4999,
+    which the flat R block keeps as slots), or None.  The one rule: the emulator's memory refuses such a request
+    whoever makes it (in process or a wire server), the FATEK decoder answers it with error A in its place in the
+    frame's order of faults, and the Modbus map has no addresses for them."""
+    words = {"R": 1, "DR": 2}.get(address.kind)
+    if words is None:
+        return None
+    first, last = address.index, address.index + count * words - 1
+    low, high = MISSING_R
+    if first <= high and last >= low:
+        return f"{count} from {address} reaches R{max(first, low)}: an FBs has no R{low}–R{high}"
+    return None
+
+
 def is_valid(name: str) -> bool:
     try:
         parse(name)
@@ -198,7 +213,7 @@ def is_valid(name: str) -> bool:
 
 
 __all__ = ["Address", "parse", "take_frame_name", "span", "parse_range", "is_valid", "BIT", "WORD", "DWORD",
-           "BIT_BANKS", "WORD_BANKS", "PACKED_16", "PACKED_32", "PAIRED_32", "LOW_WORD_FIRST", "MISSING_R"]
+           "BIT_BANKS", "WORD_BANKS", "PACKED_16", "PACKED_32", "PAIRED_32", "LOW_WORD_FIRST", "MISSING_R", "missing"]
 
 
 def take_frame_name(text: str, pos: int = 0) -> tuple[Address, int]:

@@ -41,7 +41,8 @@ class Bench(BenchBase):
             from hil.sim.wire_faults import WireFaults
             wire_faults = WireFaults.from_config(profile.wire_faults)  # the emulator wires' servers apply it
         self.raw: Transport = open_transport(self.target, timeout=profile.timeout, wire_faults=wire_faults,
-                                             emulator_factory=lambda: emulator_builder(profile, epoch))
+                                             emulator_factory=lambda: emulator_builder(profile, epoch),
+                                             line=profile.emulator.line)
         self.io = GuardedTransport(self.raw, profile.safety.writable, profile.safety.volatile)
         self.time: Timebase = timebase_for(self.raw.emulator, epoch, profile.time_scale)
         self.io.allow_destructive = self.allow_destructive

@@ -129,6 +129,11 @@ class SensorBreakInjector(ABC):
     def close(self) -> None:
         pass
 
+    def openable(self, points: list[int]) -> list[int]:
+        """Which of ``points`` this injector can open (all of them, unless a rig's allow-list or a person's hands
+        say fewer)."""
+        return list(points)
+
     @staticmethod
     def _check(point: int) -> None:
         if not isinstance(point, int) or not 0 <= point < MAX_POINTS:
@@ -220,6 +225,10 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         self._allowed(point)
         self._original(point)
         super().repair(point)
+
+    def openable(self, points: list[int]) -> list[int]:
+        """The points whose coils are in the rig's allow-list (all, without one)."""
+        return [p for p in points if self.allowed is None or self.first_coil + p in self.allowed]
 
     def _allowed(self, point: int) -> None:
         coil = self.first_coil + point
@@ -322,6 +331,11 @@ class PlcBitSensorBreak(SensorBreakInjector):
     def bit(self, point: int) -> str:
         return str(self.first.offset(point))
 
+    def openable(self, points: list[int]) -> list[int]:
+        """The points whose bit the bench's [safety] writable list lets the harness switch."""
+        writable = getattr(self.io, "writable", None)
+        return [p for p in points if writable is None or self.first.offset(p) in writable]
+
     def _set(self, point: int, open_circuit: bool) -> None:
         self.io.write(self.bit(point), 1 if open_circuit else 0)
 
@@ -335,6 +349,14 @@ class ManualSensorBreak(SensorBreakInjector):
         super().__init__()
         self.ask = ask or _ask_terminal
         self.fault = fault
+
+    def openable(self, points: list[int]) -> list[int]:
+        """A person opens each circuit by hand: the first and last of points 0–15 and of 16–31 (the ends of R4010/TW+1
+        and of R4011/TW+2), not every point."""
+        ends = []
+        for half in ([p for p in points if p < 16], [p for p in points if p >= 16]):
+            ends += sorted({half[0], half[-1]}) if half else []
+        return ends
 
     def _set(self, point: int, open_circuit: bool) -> None:
         if self.fault == "sensor_break":

@@ -60,7 +60,7 @@ class FbsFamily:
     def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
         from hil.families.fbs.transport.factory import serve
         check_wire(self, wire)
-        return serve(emulator, wire, host, port)
+        return serve(emulator, wire, host, port, line=profile.emulator.line)  # [emulator] line paces the ptys
 
 
 FAMILY = FbsFamily()

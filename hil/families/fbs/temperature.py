@@ -138,6 +138,10 @@ class TemperatureConfig:
     averaging: int = 1
     rate: str = "normal"
     sources: dict[int, dict[str, Any]] = field(default_factory=dict)  # emulator only: point → source spec
+    #: point → °C a reference holds it at on this bench (a calibrator, an ice point, a stable bath): the readings
+    #: suite checks those points within the module's accuracy (the emulator holds them there too)
+    reference: dict[int, float] = field(default_factory=dict)
+    reference_tolerance: float = 0.0  # °C: the reference's own uncertainty, added to the module's accuracy
 
     @property
     def points(self) -> int:
@@ -162,7 +166,8 @@ class TemperatureConfig:
             m.sensor.code << 8 | m.type.code for m in self.modules]
 
 
-_KEYS = {"table", "readings", "work", "modules", "unit", "averaging", "rate", "sources"}
+_KEYS = {"table", "readings", "work", "modules", "unit", "averaging", "rate", "sources", "reference",
+         "reference_tolerance"}
 
 
 def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> TemperatureConfig:
@@ -225,8 +230,26 @@ def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> Temp
         if start.index + sizes[key] > _bank_size(start.kind):
             raise fail(key, f"the {key} block {start}+{sizes[key]} runs past the end of the {start.kind} bank")
     sources = _parse_sources(section.get("sources", {}), points, fail)
+    reference = _parse_reference(section.get("reference", {}), points, fail)
+    tolerance = section.get("reference_tolerance", 0.0)
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or tolerance < 0:
+        raise fail("reference_tolerance", f"must be a number of °C ≥ 0, not {tolerance!r}")
     return TemperatureConfig(starts["table"], starts["readings"], starts["work"], tuple(modules), unit, averaging,
-                             rate, sources)
+                             rate, sources, reference, float(tolerance))
+
+
+def _parse_reference(raw: Any, points: int, fail) -> dict[int, float]:  # noqa: ANN001
+    """``reference = {"10" = 28.0, "11" = 28.3}``: point → °C."""
+    if not isinstance(raw, dict):
+        raise fail("reference", "must be a table of point → °C, like {\"10\" = 25.0}")
+    out = {}
+    for key, celsius in raw.items():
+        if not str(key).isdigit() or int(key) >= points:
+            raise fail(f"reference.{key}", f"is not a configured point (0–{points - 1})")
+        if isinstance(celsius, bool) or not isinstance(celsius, (int, float)):
+            raise fail(f"reference.{key}", f"must be a temperature in °C, not {celsius!r}")
+        out[int(key)] = float(celsius)
+    return out
 
 
 def _bank_size(kind: str) -> int:

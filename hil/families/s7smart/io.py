@@ -166,12 +166,12 @@ class ModbusS7Io(OverModbusWire, S7Io):
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
-            unit: int = 1, timeout: float = 1.0, retries: int = 2,
+            unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble",
             modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
         hint = "Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
-                                  label="S7-200 SMART map", describe=_names(modbus_map)),
+                                  label="S7-200 SMART map", describe=_names(modbus_map), fence=fence),
                    modbus_map)
 
     def unreachable_reason(self, name: "str | S7Address") -> str | None:

@@ -9,12 +9,14 @@ from __future__ import annotations
 import csv
 import io as _io
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Iterable
+from typing import TYPE_CHECKING, Callable, Iterable
 
 from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
-from hil.families.fbs.pid import OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance
+from hil.families.fbs.device.waiting import poll_until
+from hil.families.fbs.pid import (OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance,
+                                  timing_seconds)
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
@@ -234,6 +236,19 @@ class Pid:
             if s not in TIMING_SECONDS:
                 raise InvalidValue(f"{s} s is not one of {TIMING_SECONDS}")
         return TIMING_SECONDS.index(pwm_s) << 8 | TIMING_SECONDS.index(interval_s)
+
+    def timing(self) -> tuple[int, int]:
+        """(PID interval, PWM period) in seconds, from R4005 (one read)."""
+        word = self.plc.io.read(reg.PID_TIMING)
+        return timing_seconds(word & 0xFF), timing_seconds(word >> 8)
+
+    def wait_until(self, event: Callable[[], bool], steps: float = 2.0) -> bool:
+        """Poll ``event`` (a read of the PLC) at FUN86's own cadence — a fraction of the PID interval of R4005,
+        :func:`~hil.families.fbs.device.waiting.poll_until` — until it holds (True), for at most ``steps`` PID
+        intervals plus a PWM period (False): an output follows a change within one PID step, a Y within the PWM
+        period after it.  Not back to back: FUN86 changes its outputs only once per interval."""
+        interval, pwm = self.timing()
+        return poll_until(self.plc.time, event, period=interval, within=steps * interval + pwm)
 
     # -- closed loop ----------------------------------------------------------------------------------------------
     def record(self, point: int, seconds: float, every: float = 5.0) -> Trace:

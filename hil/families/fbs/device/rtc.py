@@ -272,8 +272,8 @@ class Rtc:
             self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
         started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
-        self.plc.settle_before_request()  # the read of M1955 below ends a scan too
-        refused, *fields = self.plc.io.read_many((reg.RTC_SET_ERROR, *reg.RTC_FIELDS))
+        # the read of M1955 ends a scan too (with a scan counter, read in the same frame as the counter)
+        refused, *fields = self.plc.read_settled([reg.RTC_SET_ERROR, *reg.RTC_FIELDS])
         result = SetResult(value, not refused, tuple(value.validate()))
         if result.accepted and value.is_valid:
             shown = RtcTime.from_registers(fields)
@@ -325,13 +325,20 @@ class Drift:
         # phases of the chip's second (on the emulator they would otherwise land identically every time).
         step = self.rtc.poll_interval / transitions
         first = [self._transition(timeout, i * step) for i in range(transitions)]
-        remaining = duration - (first[-1][0] - first[0][0]) - transitions - 1.0 - checkpoints
+        # Scheduled on the bench clock from the first transition, so the measurement spans the duration asked
+        # (to the PLC's whole second): each timing starts half a second before the second it is to catch, and the
+        # last group ends at first + duration.  A short measurement has room for fewer checkpoints (none at 10 s).
+        clock, t0 = self.plc.time, first[0][0]
+        last_start = t0 + duration - (transitions - 1) - 0.5
         middle = []
-        if remaining > 0:
-            for _ in range(checkpoints):
-                self.plc.time.wait(remaining / (checkpoints + 1))
-                middle.append(self._transition(timeout))
-            self.plc.time.wait(remaining / (checkpoints + 1))
+        for k in range(1, checkpoints + 1):
+            at = t0 + k * duration / (checkpoints + 1) - 0.5
+            if at <= clock.now() or at + 1.5 > last_start:
+                continue
+            clock.wait(at - clock.now())
+            middle.append(self._transition(timeout))
+        if last_start > clock.now():
+            clock.wait(last_start - clock.now())
         last = [self._transition(timeout, i * step) for i in range(transitions)]
 
         t0, s0, _ = first[0]

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from hil.core.errors import HilError
 from hil.families.fbs import registers as reg
+from hil.families.fbs.device.waiting import poll_until
 from hil.families.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
 from hil.families.fbs.temperature import TemperatureConfig
 
@@ -136,19 +137,11 @@ class Temperature:
         self.plc.time.wait(self.update_period() * periods)
         self.plc.settle()
 
-    #: bench seconds between two looks while waiting for an event
-    poll_interval = 0.25
-
     def wait_until(self, event: Callable[[], bool], periods: float = 1.5) -> bool:
-        """Poll ``event`` (a read of the PLC) until it holds, with the manual's worst case — every point measured
-        once more, ``periods`` × the update period — as the timeout; True if it held.  A test then asserts what
-        it expects as it would after the full wait: an event that never comes fails there, a fast PLC costs
-        only the time it takes."""
-        clock = self.plc.time
-        deadline = clock.now() + self.update_period() * periods
-        while True:
-            if event():
-                return True
-            if clock.now() >= deadline:
-                return False
-            clock.wait(min(self.poll_interval, max(deadline - clock.now(), 0.0)))
+        """Poll ``event`` (a read of the PLC) until it holds, at the modules' own cadence (a fraction of the
+        update period: :func:`~hil.families.fbs.device.waiting.poll_until`; 0.25 s for a 16TC at 0.1 °), with the
+        manual's worst case — every point measured once more, ``periods`` × the update period — as the timeout;
+        True if it held.  A test then asserts what it expects as it would after the full wait: an event that never
+        comes fails there, a fast PLC costs only the time it takes."""
+        period = self.update_period()
+        return poll_until(self.plc.time, event, period=period, within=period * periods)

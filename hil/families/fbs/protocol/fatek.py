@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar, Sequence
 
-from hil.families.fbs.address import MISSING_R, Address, DWORD, parse, take_frame_name
+from hil.families.fbs.address import Address, DWORD, missing, parse, take_frame_name
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 
 STX = 0x02
@@ -265,15 +265,11 @@ def _take_name(data: str, pos: int) -> tuple[Address, int]:
 
 
 def _check_exists(address: Address, count: int) -> None:
-    """Error A for a run that touches registers an FBs does not have (R4168–R4999), as for any address beyond
-    the model; the address model keeps them (memory, the Modbus map's own refusal) so only requests see this."""
-    words = {"R": 1, "DR": 2}.get(address.kind)
-    if words is None:
-        return
-    first, last = address.index, address.index + count * words - 1
-    low, high = MISSING_R
-    if first <= high and last >= low:
-        raise RequestError("A", f"{count} from {address} reaches R{max(first, low)}: an FBs has no R{low}–R{high}")
+    """Error A, at this point of the frame's order of faults, for a run an FBs does not have (the rule:
+    :func:`hil.families.fbs.address.missing`; the emulator's memory refuses the same runs for any requester)."""
+    reason = missing(address, count)
+    if reason is not None:
+        raise RequestError("A", reason)
 
 
 def _check_extent(cls: type, address: Address, count: int) -> None:

@@ -1,7 +1,9 @@
 """The emulator's element memory, sized like an FBs main unit, with access by :class:`~hil.families.fbs.address.Address`.
 
-Models reach the banks directly (``mem.words["R"][4128]``, ``mem.bits["M"][1952]``) for speed; requests from
-the wire go through :meth:`Memory.read` / :meth:`Memory.write`, which understand every element kind.
+Models reach the banks directly (``mem.words["R"][4128]``, ``mem.bits["M"][1952]``) for speed; requests —
+from a wire server or from the in-process transport alike — go through :meth:`Memory.read` / :meth:`Memory.write`
+/ :meth:`Memory.get` / :meth:`Memory.set`, which understand every element kind and refuse what an FBs does not have
+(:class:`Refused`), so the emulator answers the same whoever asks.
 """
 
 from __future__ import annotations
@@ -9,10 +11,27 @@ from __future__ import annotations
 import copy
 from typing import Sequence
 
+from hil.core.errors import PlcErrorReply
 from hil.families.fbs.address import (BIT_BANKS, COUNTER32_FIRST, LOW_WORD_FIRST, PACKED_16, PACKED_32, PAIRED_32, WORD_BANKS,
-                         Address, parse)
+                         Address, missing, parse)
 
 _COUNTER32_COUNT = 256 - COUNTER32_FIRST
+
+
+class Refused(PlcErrorReply):
+    """A request the emulated PLC refuses as an FBs does: error A for elements it does not have (R4168–R4999).
+    The FATEK server answers with :attr:`code`; in process the caller sees this error, as a FATEK client sees the
+    PLC's error reply."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__("A", "illegal address", reason)
+
+
+def _exists(a: Address, count: int = 1) -> Address:
+    reason = missing(a, count)
+    if reason is not None:
+        raise Refused(reason)
+    return a
 
 
 class Memory:
@@ -24,7 +43,7 @@ class Memory:
 
     # -- single elements ------------------------------------------------------------------------------------
     def get(self, address: str | Address) -> int:
-        a = parse(address)
+        a = _exists(parse(address))
         kind, i = a.kind, a.index
         if kind in self.bits:
             return self.bits[kind][i]
@@ -39,7 +58,7 @@ class Memory:
         return self.counters32[i - COUNTER32_FIRST]  # DRC
 
     def set(self, address: str | Address, value: int) -> None:
-        a = parse(address)
+        a = _exists(parse(address))
         kind, i = a.kind, a.index
         if kind in self.bits:
             self.bits[kind][i] = 1 if value else 0
@@ -58,7 +77,7 @@ class Memory:
 
     # -- runs -------------------------------------------------------------------------------------------------
     def read(self, first: str | Address, count: int) -> list[int]:
-        a = parse(first)
+        a = _exists(parse(first), count)
         if a.kind in self.words:  # the common case, without per-element parsing
             return self.words[a.kind][a.index:a.index + count]
         if a.kind in self.bits:
@@ -66,7 +85,7 @@ class Memory:
         return [self.get(a.offset(n)) for n in range(count)]
 
     def write(self, first: str | Address, values: Sequence[int]) -> None:
-        a = parse(first)
+        a = _exists(parse(first), len(values))
         if a.kind in self.words:
             self.words[a.kind][a.index:a.index + len(values)] = [v & 0xFFFF for v in values]
         elif a.kind in self.bits:

@@ -33,7 +33,8 @@ from typing import Callable
 from hil.families.fbs.address import BIT_BANKS, WORD_BANKS
 from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.families.fbs.identity import emulator_status_tail
-from hil.families.fbs.sim.memory import Memory
+from hil.families.fbs.sim.memory import Memory, Refused
+from hil.sim.pacing import LineRate, PacedSender
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_fatek
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, ChecksumError, Command, DetailedStatus, DetailedStatusReply,
@@ -55,6 +56,7 @@ _READ_CHUNK = 4096
 JUNK_SLICE = 65536
 JUNK_PAUSE = 0.001
 _MAX_PENDING_OUTPUT = 64 * 1024  # pty: replies kept for a client that stopped reading, then dropped
+_MAX_PENDING_INPUT = 64 * 1024  # pty in real time: bytes waiting for the end of a scan, then dropped
 
 
 class FatekServerCore:
@@ -100,7 +102,7 @@ class FatekServerCore:
         try:
             command = decode_request(request)
             result = self.emulator.service(lambda mem: self._execute(command, mem))
-        except RequestError as exc:
+        except (RequestError, Refused) as exc:  # the decoder's refusals, and the memory's (the same rule)
             return None if broadcast else self._error(station, request.command, exc.code)
         except Exception:  # noqa: BLE001 - a bug here must not kill the server; answer "cannot execute"
             self._count("fatek_internal_error")
@@ -214,9 +216,17 @@ class _PtyServer:
     """The master side of a pty; a pyserial client opens the slave path as if it were /dev/ttyUSB0."""
 
     def __init__(self, emulator: Emulator, loop: asyncio.AbstractEventLoop,
-                 faults: WireFaults | None = None) -> None:
+                 faults: WireFaults | None = None, line: LineRate | None = None) -> None:
         self.core = FatekServerCore(emulator)
-        self.sender = FaultySender(faults, self._send, corrupt_fatek)  # a pty cannot hang up: "close" = silence
+        self.emulator = emulator
+        # ``line``: characters take their time both ways — a request is decoded when its last character is in,
+        # and the reply (sent at the end of the scan that services it) leaves one character time at a time
+        self.paced_in = PacedSender(loop, line, self._serve) if line else None
+        self.paced_out = PacedSender(loop, line, self._queue_output) if line else None
+        self.sender = FaultySender(faults, self.paced_out.send if self.paced_out else self._queue_output,
+                                   corrupt_fatek)  # a pty cannot hang up: "close" = silence
+        self._inbox: list[bytes] = []  # real time: requests waiting for the worker (one at a time, in order)
+        self._worker: asyncio.Task | None = None
         self.loop = loop
         self.assembler = self.core.session()
         self.master, self.slave = os.openpty()
@@ -242,9 +252,35 @@ class _PtyServer:
             if exc.errno == errno.EIO:  # cannot happen while we hold the slave, but never spin on it
                 self.loop.remove_reader(self.master)
             return
-        self.sender.send_all(self.core.feed(self.assembler, data))
+        if self.paced_in is not None:
+            self.paced_in.send(data)
+        else:
+            self._serve(data)
 
-    def _send(self, reply: bytes) -> None:
+    def _serve(self, data: bytes) -> None:
+        if not self.emulator.realtime:
+            self.sender.send_all(self.core.feed(self.assembler, data))
+            return
+        # real time: the request waits for the end of a scan — not on the shared loop (pacing timers, other
+        # servers), and one at a time so replies keep their order
+        if sum(map(len, self._inbox)) + len(data) > _MAX_PENDING_INPUT:
+            self.core._count("fatek_input_dropped", len(data))  # a flood in real time: drop, don't grow
+            return
+        self._inbox.append(data)
+        if self._worker is None:
+            self._worker = self.loop.create_task(self._work())
+
+    async def _work(self) -> None:
+        try:
+            while self._inbox and not self.closed:
+                data = self._inbox.pop(0)
+                replies = await self.loop.run_in_executor(None, self.core.feed, self.assembler, data)
+                if not self.closed:
+                    self.sender.send_all(replies)
+        finally:
+            self._worker = None
+
+    def _queue_output(self, reply: bytes) -> None:
         if len(self.pending) + len(reply) > _MAX_PENDING_OUTPUT:
             self.core._count("fatek_output_dropped")  # a client that stopped reading: drop, don't grow
             return
@@ -270,6 +306,11 @@ class _PtyServer:
             return
         self.closed = True
         self.sender.stop()
+        for paced in (self.paced_in, self.paced_out):
+            if paced is not None:
+                paced.close()
+        if self._worker is not None:
+            self._worker.cancel()
         self.loop.remove_reader(self.master)
         self.loop.remove_writer(self.master)
         for fd in (self.master, self.slave):
@@ -279,12 +320,14 @@ class _PtyServer:
                 pass
 
 
-def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None) -> ServerHandle:
-    """Serve ``emulator`` on a new pty; the handle's address is the slave path a serial client opens."""
+def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
+                    line: LineRate | None = None) -> ServerHandle:
+    """Serve ``emulator`` on a new pty; the handle's address is the slave path a serial client opens.  ``line``:
+    pace every character at that rate and frame (:mod:`hil.sim.pacing`); None: as fast as the pty copies."""
     runtime = LoopThread.shared()
 
     async def start() -> _PtyServer:
-        pty = _PtyServer(emulator, asyncio.get_running_loop(), faults)
+        pty = _PtyServer(emulator, asyncio.get_running_loop(), faults, line)
         pty.start()
         return pty
 
@@ -293,7 +336,9 @@ def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None) -> 
     async def stop() -> None:
         pty.close()
 
-    return ServerHandle("fatek-pty", pty.path, lambda: _run_on_loop(runtime, stop))
+    handle = ServerHandle("fatek-pty", pty.path, lambda: _run_on_loop(runtime, stop))
+    handle.line = line  # type: ignore[attr-defined]
+    return handle
 
 
 def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], "asyncio.Future | object"]) -> None:

@@ -44,6 +44,7 @@ from hil.families.fbs.address import Address
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.memory import Memory
 from hil.sim.modbus_server import STRICT_REQUESTS, InOrderTcpServer, tcp_unit_aliases
+from hil.sim.pacing import LineRate
 from hil.sim.ptypair import PtyPair
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_mbap
@@ -372,15 +373,17 @@ def _fault_proxy(host: str, port: int, faults: WireFaults):  # noqa: ANN202 - an
     return client
 
 
-def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1, *, faults: WireFaults | None = None) -> ServerHandle:
+def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1, *, faults: WireFaults | None = None,
+                         line: LineRate | None = None) -> ServerHandle:
     """Serve ``emulator`` as Modbus RTU unit ``unit`` on a pty; the handle's address is the path a client opens.
 
-    Settings (baud rate, parity) mean nothing on a pty; any client settings work.
+    The client's settings (baud rate, parity) mean nothing on a pty; any work.  ``line``: the bridge paces every
+    character at that rate and frame, both ways (:mod:`hil.sim.pacing`); None: as fast as the pty copies.
     """
     runtime = LoopThread.shared()
 
     async def start() -> tuple[PtyPair, ModbusSerialServer]:
-        pair = PtyPair(asyncio.get_running_loop(), gate_b_to_a=True, faults=faults)
+        pair = PtyPair(asyncio.get_running_loop(), gate_b_to_a=True, faults=faults, line=line)
         try:
             server = ModbusSerialServer(build_device(emulator, unit), port=pair.path_a, baudrate=9600, parity="N",
                                         ignore_missing_devices=True, broadcast_enable=True, reconnect_delay=0.1,
@@ -402,6 +405,7 @@ def start_modbus_rtu_pty(emulator: Emulator, unit: int = 1, *, faults: WireFault
 
     handle = ServerHandle("modbus-rtu", pair.path_b, _stopper(runtime, stop))
     handle.ptys = pair  # type: ignore[attr-defined]  # byte counters for tests
+    handle.line = line  # type: ignore[attr-defined]
     return handle
 
 

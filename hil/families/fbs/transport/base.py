@@ -60,8 +60,9 @@ class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
-    #: Requests one read takes: 2 where every read is fenced by a second one (a wire without transaction ids,
-    #: README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans count with it.
+    #: Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids that
+    #: may repeat a reply, README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans
+    #: count with it.
     requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: "Emulator | None" = None
@@ -106,21 +107,23 @@ class Transport(Link, ABC):
             for start, n in _chunks(len(values), self.limits.bits):
                 self._count(self._write_bits(first.offset(start) if start else first, values[start:start + n]))
 
-    def read_many(self, names: Iterable[NameLike]) -> list[int]:
-        """Read named elements of any kinds, in order (bits as 0/1)."""
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
+        """Read named elements of any kinds, in order (bits as 0/1).  ``one_scan`` False: the caller does not need
+        them from one scan (the guard's originals and read-backs), so a transport may use more, cheaper frames."""
         addresses = [parse(n) for n in names]
         out: list[int] = []
         with self._lock:
-            for group in _groups(addresses, self.limits.mixed_read_words):
+            for group in word_groups(addresses, self.limits.mixed_read_words):
                 out += self._count(self._read_many(group))
         return out
 
-    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
-        """Write named elements of any kinds, in the order given."""
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
+        """Write named elements of any kinds, in the order given (``one_scan``: as for :meth:`read_many`)."""
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
         with self._lock:
-            for group in _groups(checked, self.limits.mixed_write_words, key=lambda item: item[0]):
+            for group in word_groups(checked, self.limits.mixed_write_words, key=lambda item: item[0]):
                 self._count(self._write_many(group))
 
     def read(self, name: NameLike) -> int:
@@ -199,7 +202,7 @@ class Transport(Link, ABC):
         return address
 
 
-def _groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:  # noqa: ANN001
+def word_groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:  # noqa: ANN001
     """Split items into runs whose word cost (bit = 1, 16-bit = 1, 32-bit = 2) fits ``budget``."""
     group: list = []
     cost = 0

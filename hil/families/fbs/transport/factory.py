@@ -12,6 +12,7 @@ from hil.core.errors import TargetError
 from hil.io.url import Target, parse_target
 
 if TYPE_CHECKING:
+    from hil.sim.pacing import LineRate
     from hil.sim.wire_faults import WireFaults
 
 EmulatorFactory = Callable[[], Emulator]
@@ -22,22 +23,26 @@ PTY_BAUDRATE = 115200
 
 
 def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
-                   timeout: float | None = None, wire_faults: "WireFaults | None" = None) -> Transport:
+                   timeout: float | None = None, wire_faults: "WireFaults | None" = None,
+                   line: "LineRate | None" = None) -> Transport:
     """Open the target named by ``url``.
 
     For ``emulator…`` targets a fresh in-process emulator is built by ``emulator_factory`` (default: a plain
     FBs main unit) and, for the wire variants, served on loopback or a pty; the returned transport's
     ``.emulator`` is that emulator, ``.server`` its server handle (``.server.faults`` the wire-fault plan given as
     ``wire_faults``, used by the emulator wires only) and closing the transport stops its server;
-    ``transport.reopen()`` reconnects the client to the same, still running, server.
+    ``transport.reopen()`` reconnects the client to the same, still running, server.  ``line``: the pace of the
+    emulator's pty wires (a profile's ``[emulator] line``) when the URL gives no ``baudrate`` of its own.
     """
     target = url if isinstance(url, Target) else parse_target(url)
     if target.protocol == "s7":
         raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
                           f"with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// or "
-                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target)")
+                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); an S7-200 SMART "
+                          f"needs a profile of its family: --bench s7-200smart (the bundled S7 emulator) or your copy of "
+                          f"example-s7-200smart (hil list shows the bundled profiles)")
     if target.in_process:
-        return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults)
+        return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults, line)
     params = dict(target.params)
     if timeout is not None:
         params.setdefault("timeout", timeout)
@@ -46,6 +51,8 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     if target.protocol == "fatek":
         from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
+        if target.scheme == "fatek+serial" and "baudrate" in params:
+            params["paced"] = True  # a pty with a baud rate of its own is a paced one (hil emulate --line)
         return FatekTransport(port_url, description=str(target), **params)
     from hil.families.fbs.transport.modbus import ModbusTransport
     if target.scheme == "modbus+tcp":
@@ -69,15 +76,33 @@ def _open_replay(target: Target, params: dict) -> Transport:
     return transport
 
 
+def emulator_line(target: Target, line: "LineRate | None" = None) -> "LineRate | None":
+    """The pace of an emulator serial wire: the URL's ``baudrate`` (with its frame, else the protocol's usual one:
+    FATEK 7E1, Modbus RTU 8E1), else ``line``; None (unpaced) for every other wire or when neither says."""
+    if target.scheme not in ("emulator+fatek-serial", "emulator+modbus-rtu"):
+        return None
+    params = target.params
+    if "baudrate" not in params:
+        if any(k in params for k in ("bytesize", "parity", "stopbits")):
+            raise InvalidValue(f"target {target}: a character frame without a baudrate — give baudrate= too")
+        return line
+    from hil.sim.pacing import LineRate
+    return LineRate(int(params["baudrate"]), int(params.get("bytesize", 7 if "fatek" in target.scheme else 8)),
+                    str(params.get("parity", "E")), int(params.get("stopbits", 1)))
+
+
 def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
-                   wire_faults: "WireFaults | None" = None) -> Transport:
+                   wire_faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> Transport:
     wire = target.scheme.partition("+")[2]
     if not wire:
         from hil.families.fbs.transport.local import LocalTransport
         return LocalTransport(emulator)
-    server = serve(emulator, wire, faults=wire_faults)
+    rate = emulator_line(target, line)
+    server = serve(emulator, wire, faults=wire_faults, line=rate)
+    # A wire-fault plan can repeat a reply (duplicate, echo) at any time: such a line fences every read.
+    fence = "reads" if wire_faults is not None else str(target.params.get("fence", "trouble"))
     try:
-        transport = _client_for(wire, server, emulator.station, timeout or 2.0)
+        transport = _client_for(wire, server, emulator.station, timeout or 2.0, rate, fence)
     except BaseException:
         server.stop()
         raise
@@ -89,34 +114,40 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
 
 
 def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
-          faults: "WireFaults | None" = None) -> ServerHandle:
+          faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> ServerHandle:
     """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
-    wire-fault plan every reply goes through (the handle keeps it as ``.faults``)."""
+    wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
+    wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
     if wire == "fatek-tcp":
         from hil.families.fbs.sim.serve_fatek import start_fatek_tcp
         handle = start_fatek_tcp(emulator, host, port, faults=faults)
     elif wire == "fatek-serial":
         from hil.families.fbs.sim.serve_fatek import start_fatek_pty
-        handle = start_fatek_pty(emulator, faults=faults)
+        handle = start_fatek_pty(emulator, faults=faults, line=line)
     elif wire == "modbus-tcp":
         from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
         handle = start_modbus_tcp(emulator, host, port, unit=emulator.station, faults=faults)
     elif wire == "modbus-rtu":
         from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
-        handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults)
+        handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults, line=line)
     else:
         raise InvalidValue(f"unknown emulator wire {wire!r}")
     handle.faults = faults  # type: ignore[attr-defined]
     return handle
 
 
-def _client_for(wire: str, server: ServerHandle, station: int, timeout: float) -> Transport:
+def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, line: "LineRate | None",
+                fence: str) -> Transport:
+    settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
+                                            stopbits=line.stopbits)
     if wire.startswith("fatek"):
         from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
-        return FatekTransport(port_url, station=station, timeout=timeout)
+        return FatekTransport(port_url, station=station, timeout=timeout, fence=fence, paced=line is not None,
+                              **settings)
     from hil.families.fbs.transport.modbus import ModbusTransport
     if wire == "modbus-tcp":
         host, _, port = server.address.rpartition(":")
         return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
-    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout, baudrate=PTY_BAUDRATE)
+    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout, fence=fence,
+                               **(settings or {"baudrate": PTY_BAUDRATE}))

@@ -5,16 +5,22 @@ One exchange = flush stale input, send one request, collect bytes until a reply 
 command arrives (or the deadline passes).  Frames that do not match are discarded but remembered, so a timeout
 can say "I did hear something, and it was wrong".  Reads are retried; writes never are: a write whose reply
 was lost may or may not have happened, and repeating it could be wrong (e.g. a counter preset), so the caller
-is told the outcome is unknown.  Every read is fenced (:meth:`FatekTransport.fence`) before its value is
-returned: FATEK replies carry no transaction id, and a late or repeated reply to an earlier request of the same
-command is otherwise taken for the answer.
+is told the outcome is unknown.  FATEK replies carry no transaction id, so a late or repeated reply to an earlier
+request of the same command would be taken for the answer; what guards against it depends on the line (``fence``):
+
+* ``"trouble"`` (a direct serial line, TCP to the PLC's own Ethernet module): a reply is never repeated, and one
+  that comes late comes after a timeout — so after anything odd (a timeout, a retry, a stray frame, a reconnect)
+  the next request is preceded by a resynchronising loop-back, and a read whose reply had anything after it is
+  repeated.  A clean read costs one round trip.
+* ``"reads"`` (a gateway, a protocol converter, a line the profile says repeats replies; every emulator wire with
+  a wire-fault plan): every read is fenced as well (:meth:`FatekTransport.fence`), two round trips a read.
 """
 
 from __future__ import annotations
 
 import os
 import time
-from typing import Callable
+from typing import Callable, Iterable, Mapping
 
 import serial
 
@@ -25,9 +31,11 @@ from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, Deta
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
                                 check_reply, describe_frame, encode_request, show_frame)
-from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
+from hil.families.fbs.address import parse
+from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
+from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
-from hil.io.serial_line import is_pty
+from hil.io.serial_line import char_bits, is_pty
 from hil.io.trace import DESCRIBERS
 
 #: Commands that only read: safe to repeat after a lost reply.
@@ -47,17 +55,21 @@ class FatekTransport(Transport):
 
     # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
-    requests_per_read = 2  # the read and its fence
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
-                 backoff: float = 0.05, description: str | None = None) -> None:
+                 backoff: float = 0.05, description: str | None = None, fence: str = "trouble",
+                 paced: bool | None = None) -> None:
+        """``fence``: "trouble" (a direct line) or "reads" (a line that may repeat replies: every read fenced);
+        ``paced``: the port has a line rate (None: a device or RFC 2217 port has, a pty or socket has not)."""
         if not 0 <= station <= 0xFE:
             raise InvalidValue(f"station {station} outside 1–254 (0 = broadcast)")
         if timeout <= 0:
             raise InvalidValue(f"timeout must be positive, not {timeout}")
         if retries < 0:
             raise InvalidValue(f"retries must be 0 or more, not {retries}")
+        if fence not in ("trouble", "reads"):
+            raise InvalidValue(f"fence must be 'trouble' or 'reads', not {fence!r}")
         super().__init__(description or f"FATEK station {station} on {port_url}")
         self.port_url = port_url
         self.station = station
@@ -68,8 +80,12 @@ class FatekTransport(Transport):
         self.discarded: list[tuple[bytes, str]] = []  # bad frames of the last exchange, with the reason
         self._identity: DetailedStatusReply | None = None
         self._identity_error: str | None = None
-        # Neither a socket nor a pty has a real line rate: no transmission time to add to the deadline.
-        self._virtual_line = port_url.startswith("socket://") or is_pty(port_url)
+        # Neither a socket nor a pty has a real line rate (unless the emulator paces it): no transmission time to
+        # add to the deadline.
+        self._virtual_line = not paced if paced is not None else (port_url.startswith("socket://")
+                                                                  or is_pty(port_url))
+        self._char_bits = char_bits(bytesize, parity, stopbits)
+        self.fence_every_read = fence == "reads"
         self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
                               timeout=self.timeout, write_timeout=self.timeout + 1.0)
         self.backoff = float(backoff)
@@ -108,6 +124,41 @@ class FatekTransport(Transport):
 
     def loopback(self, text: str) -> str:
         return self.request(Loopback(text))
+
+    # -- many elements: the fewest bytes (hil.families.fbs.transport.plan) ------------------------------------------
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
+        """Read named elements of any kinds, in order (bits as 0/1): what fits one 48 frame in one frame (one
+        scan) unless ``one_scan`` is False, more in range frames where elements are adjacent and mixed frames for
+        the rest."""
+        addresses = [parse(n) for n in names]
+        out = [0] * len(addresses)
+        with self._lock:
+            for piece in plan(addresses, self.limits, one_scan=one_scan):
+                group = [addresses[i] for i in piece.positions]
+                if piece.run:
+                    read = self._read_bits if group[0].is_bit else self._read_words
+                    values = self._count(read(group[0], len(group)))
+                else:
+                    values = self._count(self._read_many(group))
+                for i, value in zip(piece.positions, values):
+                    out[i] = int(value)
+        return out
+
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
+        """Write named elements of any kinds, in the order given: as :meth:`read_many` plans its frames."""
+        pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
+        checked = [(address, check_value(address, v)) for address, v in ((parse(a), v) for a, v in pairs)]
+        addresses = [a for a, _ in checked]
+        values = [v for _, v in checked]
+        with self._lock:
+            for piece in plan(addresses, self.limits, values, one_scan=one_scan):
+                group = [checked[i] for i in piece.positions]
+                if piece.run:
+                    write = self._write_bits if group[0][0].is_bit else self._write_words
+                    self._count(write(group[0][0], [v for _, v in group]))
+                else:
+                    self._count(self._write_many(group))
 
     # -- Transport primitives -----------------------------------------------------------------------------------
     def _read_words(self, first: Address, count: int) -> list[int]:
@@ -178,7 +229,7 @@ class FatekTransport(Transport):
             try:
                 self._prepare(command, write=False)
                 result = self._once(command, frame, attempt, attempts)
-                if self.fence():  # nothing stale came before the reply: it is the answer to this request
+                if self._trusted():  # nothing stale came before the reply: it is the answer to this request
                     return result
                 raise _Stale(f"{command.describe()} to {self._where()}: something else came before or right after "
                              f"the reply (a late or repeated reply to an earlier request, or no loop-back "
@@ -235,9 +286,7 @@ class FatekTransport(Transport):
             if attempt < tries:
                 time.sleep(self._backoff(attempt))
         raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the request before it went "
-                           f"unanswered (or was answered garbled) and so did a loop-back — check the station "
-                           f"number, the wiring or address and serial settings, and that the PLC is powered "
-                           f"({last})")
+                           f"unanswered (or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
 
     def reopen(self) -> None:
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
@@ -295,6 +344,17 @@ class FatekTransport(Transport):
                 return result
         self.dirty = True  # whatever we asked may still be answered, late
         raise ReplyTimeout(self._timeout_message(command, frame, wait, attempt, attempts, assembler))
+
+    @property
+    def requests_per_read(self) -> int:  # type: ignore[override]
+        """Round trips a clean read takes: 2 where every read is fenced, else 1."""
+        return 2 if self.fence_every_read else 1
+
+    def _trusted(self) -> bool:
+        """After a read's reply: may its value be returned?  On a line that may repeat replies, only after the
+        fence; on a direct line, when nothing came with or after it (:meth:`_settle` left the line clean) — a
+        late reply there follows a timeout, and the loop-back before the next request has dropped it."""
+        return self.fence() if self.fence_every_read else not self.dirty
 
     def fence(self) -> bool:
         """After every read, before its value is returned: True when nothing stale came before its reply.
@@ -358,7 +418,7 @@ class FatekTransport(Transport):
         """Time a real serial line needs to carry the request and a longest reply (nothing over a socket)."""
         if self._virtual_line:
             return 0.0
-        return (request_len + 508) * 10 / self.baudrate  # ≈ 10 bits per character at 7E1/8N1
+        return (request_len + 508) * self._char_bits / self.baudrate
 
     def _timeout_message(self, command: Command, frame: bytes, wait: float, attempt: int, attempts: int,
                          assembler: FrameAssembler) -> str:
@@ -373,7 +433,7 @@ class FatekTransport(Transport):
                          f"unfinished frame")
         if not isinstance(command, READ_COMMANDS):
             parts.append("outcome unknown: the write may or may not have been applied (writes are not retried)")
-        return "; ".join(parts)
+        return "; ".join(parts) + f" — {_CHECK}"
 
     def _notify(self, direction: str, frame: bytes) -> None:
         for observer in self.observers:
@@ -381,6 +441,10 @@ class FatekTransport(Transport):
 
     def _where(self) -> str:
         return f"station {self.station:02X} on {self.port_url}"
+
+
+#: what to check when a FATEK PLC does not answer
+_CHECK = "check the station number, the wiring or address and serial settings, and that the PLC is powered"
 
 
 class _Lost(TransportError):

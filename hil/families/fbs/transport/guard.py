@@ -5,7 +5,7 @@ The guard's rules (allow-list before a byte is sent, originals journaled, durabl
 offset, verified restore retried until it succeeds, recovery) are :class:`hil.bench.guard.Guard`'s; this module
 gives them the FBs address model: an element is a base :class:`~hil.families.fbs.address.Address` (a bit or a
 16-bit word; WM16 covers M16–M31), and its reads are the transport's, where no late or repeated reply is taken for
-an answer (FATEK and Modbus RTU fence every read: README, Safety).
+an answer (README, Safety: which reads are fenced).
 
 Elements the PLC itself rewrites every scan (``volatile``, e.g. the RTC read-out R4128–R4135) are allowed but
 not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.Rtc.clock`) puts it right.
@@ -75,10 +75,11 @@ class GuardedTransport(Guard, Transport):
         return list(parse(name).elements())
 
     def read_originals(self, elements: list[Address]) -> list[int]:
-        return self.inner.read_many(elements)  # never a late reply: the transport fences its reads (README, Safety)
+        # never a late reply (README, Safety: which reads are fenced); from one scan or not, as frames are cheapest
+        return self.inner.read_many(elements, one_scan=False)
 
     def write_back(self, items: list[tuple[Address, int]]) -> None:
-        self.inner.write_many(items)
+        self.inner.write_many(items, one_scan=False)  # in order; every restore is read back
 
     # -- FATEK commands 41 and 42, behind the same guard -----------------------------------------------------
     def set_running(self, run: bool) -> None:
@@ -272,9 +273,12 @@ class GuardedTransport(Guard, Transport):
         self.guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values),
                      element_values(zip(names, values)))
 
-    def write_many(self, items) -> None:  # noqa: ANN001 - same forms as Transport.write_many
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
+        return self.inner.read_many(names, one_scan=one_scan)  # the wire's own frames (FATEK: planned)
+
+    def write_many(self, items, *, one_scan: bool = True) -> None:  # noqa: ANN001 - as Transport.write_many
         pairs = list(items.items()) if hasattr(items, "items") else list(items)
-        self.guarded([a for a, _ in pairs], lambda: super(GuardedTransport, self).write_many(pairs),
+        self.guarded([a for a, _ in pairs], lambda: self.inner.write_many(pairs, one_scan=one_scan),
                      element_values((parse(a), v) for a, v in pairs))
 
     # -- primitives: straight to the inner transport ------------------------------------------------------------

@@ -1,4 +1,8 @@
-"""LocalTransport: direct calls into an in-process emulator (no wire), each one serviced at a scan boundary."""
+"""LocalTransport: direct calls into an in-process emulator (no wire), each one serviced at a scan boundary.
+
+Nothing is checked here that a wire server would not check: the emulator's memory refuses what an FBs does not
+have (error A, :class:`hil.families.fbs.sim.memory.Refused`) for this transport and the servers alike, and values
+are checked by the base class before any transport sends (tests/test_emulator_parity.py)."""
 
 from __future__ import annotations
 

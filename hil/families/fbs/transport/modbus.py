@@ -49,14 +49,14 @@ class ModbusTransport(OverModbusWire, Transport):
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
-            unit: int = 1, timeout: float = 1.0, retries: int = 2) -> "ModbusTransport":
+            unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble") -> "ModbusTransport":
         """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL such as an RFC
-        2217 server's ``rfc2217://HOST:PORT``)."""
+        2217 server's ``rfc2217://HOST:PORT``); ``fence="reads"``: the line may repeat replies (every read fenced)."""
         hint = ("The PLC port must be in Modbus RTU slave mode (R4047, e.g. 5502H for port 1; "
                 "port 0 never speaks Modbus)")
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=PROBE,
-                                  describe=_names))
+                                  describe=_names, fence=fence))
 
     # -- validation before anything is sent --------------------------------------------------------------------
     def unreachable_reason(self, address: NameLike) -> str | None:
@@ -83,13 +83,14 @@ class ModbusTransport(OverModbusWire, Transport):
         with self._lock:
             self._write_items(items)  # resolves every address before the first request
 
-    def read_many(self, names: Iterable[NameLike]) -> list[int]:
+    def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
         names = list(names)
         for name in names:
             mm.to_modbus(name)
         return super().read_many(names)
 
-    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]]) -> None:
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
         pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         for name, _ in pairs:
             mm.to_modbus(name)

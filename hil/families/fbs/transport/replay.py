@@ -7,9 +7,9 @@ did not answer, so the client times out as it did then).  The first request that
 silence, closes the connection and is kept as a :class:`Mismatch` naming both frames; :meth:`RecordedPlc.verify`
 raises :class:`ReplayMismatch` for it, or for recorded requests never sent.
 
-Loop-backs (command 4E) are the transport's own, not the procedure's: the fence after every read and the
-resynchronisation after a fault (:mod:`hil.families.fbs.transport.fatek`) carry a nonce unique to the run that
-sent them.  A recording keeps none of them, and the recorded PLC echoes each one it gets, as any FATEK PLC does.
+Loop-backs (command 4E) are the transport's own, not the procedure's: the fence after a read (where reads are
+fenced) and the resynchronisation after a fault (:mod:`hil.families.fbs.transport.fatek`) carry a nonce unique to
+the run that sent them.  A recording keeps none of them, and the recorded PLC echoes each one it gets, as any FATEK PLC does.
 
 Uses: ``replay+fatek:///path/to/trace.txt`` is a target (:func:`hil.families.fbs.transport.open_transport`), so a failing
 bench test's trace can be replayed through the device layer on a machine with no PLC; ``fixtures/frames/`` pins the

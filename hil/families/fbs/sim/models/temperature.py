@@ -101,6 +101,8 @@ class TemperatureModel(Model):
             low, high = module.sensor.low_c, module.sensor.high_c
             base = 25.0 if low <= 25.0 <= high else low + 50.0
             self.sources[point] = Fixed(round(base + 0.3 * point, 1))
+        for point, celsius in config.reference.items():  # (a bench's calibrator holds these points there)
+            self.sources[point] = Fixed(celsius)
         for point, spec in config.sources.items():
             self.sources[point] = source_from_spec(spec)
         self.broken: set[int] = set()

@@ -1,0 +1,52 @@
+"""A bench that cannot be opened stops the run before anything is collected: one line naming the target and what
+to check, exit 4 (pytest's usage error) — not a screen of skips and the same reason once per test.
+
+The bench is opened (lock, wire, recovery of a dead run's journal) and asked for its status in
+``pytest_sessionstart``, before pytest prints its header, whenever the run names a bench (``--bench``, which
+``hil run`` always passes, or ``--target``) — so plain ``pytest suites --target …`` behaves as ``hil run`` does.
+``--collect-only`` opens nothing; a pytest-xdist controller lets go once it has checked (its workers open it).
+Without either option the bench is opened when the first bench test is collected
+(:func:`hil.plugin.pytest_plugin.pytest_collection_finish`), and one that cannot be is the same line there.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.core.errors import HilError
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    # Not tryfirst: before the terminal reporter's header (its hook is trylast), nothing printed yet.
+    config = session.config
+    given = config.getoption("--target")
+    if given is not None and not given.strip():
+        raise pytest.UsageError("hil: --target is empty: give a target URL (e.g. emulator+fatek-tcp, "
+                                "fatek+tcp://HOST:500), or leave it out to use the bench profile's target")
+    if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
+        return
+    from hil.core import signals
+    from hil.plugin.safety import BENCH_STATE  # the session's bench state (hil.plugin.pytest_plugin._State)
+    state = config.stash[BENCH_STATE]
+    signals.install()  # as hil.plugin.safety does (idempotent): a recovery replayed on opening is shielded
+    try:
+        target = state.target
+        bench = state.open()
+        bench.plc.status()  # a wire that connects but never answers is as unreachable as a refused port
+    except HilError as exc:
+        raise pytest.UsageError(unreachable(state, exc)) from None
+    except pytest.fail.Exception as exc:  # state.open() says why in pytest's own form
+        raise pytest.UsageError(unreachable(state, exc, target)) from None
+    if getattr(config.option, "dist", "no") != "no" and not hasattr(config, "workerinput"):
+        state.release()  # a pytest-xdist controller runs no test: it checked, its workers open the bench
+
+
+def unreachable(state, exc: BaseException, target: str | None = None) -> str:  # noqa: ANN001 - the bench state
+    """One line: the bench, the target and the reason (which says what to check)."""
+    reason = " ".join(str(getattr(exc, "msg", None) or exc).split())
+    reason = reason.removeprefix("cannot open the bench: ")
+    try:
+        name, target = state.profile.name, target or state.target
+    except HilError:
+        return f"hil: {reason}"
+    return f"hil: cannot open bench {name!r} at {target}: {reason}"
