@@ -7,15 +7,18 @@ A real PLC is somebody's machine.  The guard
 * journals the original value of each element before its first write in a test — on disk first
   (:class:`hil.core.journal.Journal`, fsync'd) when the bench has a durable journal — together with what the PLC
   itself rewrites because of that write (:attr:`Guard.side_effects`, declared by the family's device layer);
-* before the session's first write that may set the PLC's clock (:class:`Clock`, declared by the family), journals
-  the clock's time against the bench's reference, and restores it at that *offset* (not to host local time): to
-  within half a second after each test (no wait for a whole second), exactly when the session ends
-  (:meth:`Guard.finish`) — both from the session's first origin, so the per-test errors never add up;
+* before the session's first write that may set the PLC's clock (:class:`Clock`, declared by the family), takes
+  the clock's origin — its time at one of its second transitions, timed against the bench's monotonic reference
+  (a whole-second reading alone is up to a second late) — journals it with the host's wall clock, and restores it
+  at that *offset* (not to host local time): to within half a second after each test (no wait for a whole
+  second), exactly when the session ends (:meth:`Guard.finish`) — both from the session's first origin, on the
+  monotonic reference, so the per-test errors never add up and a host clock step moves nothing;
 * :meth:`Guard.restore`: the clock, then every original written back and read back equal; an entry leaves the
   journal only once verified, a failed one stays and is retried by the next restore (reconnecting once when the
   wire failed);
 * :meth:`Guard.recover`: replays what a dead run left in the durable journal, through the same restore (the
-  clock exactly).
+  clock exactly, from its journaled wall-clock origin — refused, and said so, when that origin is older than
+  :data:`ORIGIN_MAX_AGE` or the host clock was stepped since: :func:`origin_from_journal`).
 
 Elements the PLC itself rewrites every scan (``volatile``) are allowed but not journaled.
 
@@ -28,7 +31,6 @@ implements its address model — :meth:`Guard.split` (an address → the element
 from __future__ import annotations
 
 import datetime as dt
-import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Sequence, TypeVar
@@ -36,7 +38,7 @@ from typing import Any, Callable, Iterable, Sequence, TypeVar
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
 from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
 from hil.core.journal import CLOCK, Journal, JournalError
-from hil.core.timebase import Timebase
+from hil.core.timebase import HostClocks, Timebase
 
 T = TypeVar("T")
 Failure = tuple[str, Any, str]  # (element, original, why), as RestoreError lists them
@@ -52,21 +54,59 @@ class Clock:
     #: else at once, to the nearest second; HilError when the PLC refuses
     put: Callable[[Callable[[], dt.datetime], bool], None]
     timebase: Timebase  # the bench's time: virtual on an in-process emulator, else the host's × its time scale
+    #: the clock's next second transition: (its time then, the timebase's time of it, ± twice how well that is
+    #: known); HilError when it does not tick.  None: the origin is a plain read, and an exact put is not read back
+    transition: Callable[[], tuple[dt.datetime, float, float]] | None = None
+
+
+#: recovery refuses a journaled clock origin older than this (host seconds): carried further, the host clock's
+#: steps across reboots (which nothing can detect) and the PLC crystal's own drift make its offset a guess
+ORIGIN_MAX_AGE = 24 * 3600.0
+#: how far the host's wall clock and its boot clock may disagree about the time since an origin (seconds, plus
+#: NTP's largest slew of 500 ppm) before the host clock counts as stepped
+ORIGIN_SLACK = 0.1
+_SLEW = 5e-4
 
 
 @dataclass(frozen=True)
 class ClockOrigin:
-    """The PLC's time ``plc`` when the reference said ``at``; PLC seconds run ``scale`` × the reference's."""
+    """The PLC's time ``plc`` when the bench's timebase said ``at`` (:meth:`Timebase.now`: monotonic, so a step of
+    the host's wall clock moves nothing); a PLC second is one bench second (``scale`` host seconds⁻¹)."""
 
     plc: dt.datetime
     at: float
     scale: float
-    virtual: bool  # the reference is the in-process emulator's virtual time, not the host's wall clock (UTC)
+    width: float = 0.0  # ``at`` is known to ± half this (the bracket of the transition it was timed at)
 
     def original(self, timebase: Timebase) -> dt.datetime:
         """The PLC's original time carried forward to now: its offset from the reference kept."""
-        now = timebase.now() if self.virtual else time.time()
-        return self.plc + dt.timedelta(seconds=(now - self.at) * self.scale)
+        return self.plc + dt.timedelta(seconds=timebase.now() - self.at)
+
+
+class OriginRefused(HilError):
+    """A dead run's clock origin that cannot be carried to now (too old, or the host clock stepped since)."""
+
+
+def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClocks) -> ClockOrigin:
+    """A journaled clock origin (PLC time at host wall time ``host``, ×``scale``) on this session's ``timebase``,
+    checked against the host's clocks now: refused when it is in the future, older than :data:`ORIGIN_MAX_AGE`,
+    or — same boot — when the wall clock and the boot clock disagree about the time since (a stepped host clock
+    would move the restored PLC clock with it).  Raises :class:`OriginRefused` saying which."""
+    plc, wall, scale = dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]), float(entry["scale"])
+    elapsed = host.wall - wall
+    if elapsed < -ORIGIN_SLACK:
+        raise OriginRefused(f"its host time is {-elapsed:.1f} s in the future: the host clock was set back since")
+    if elapsed > ORIGIN_MAX_AGE:
+        raise OriginRefused(f"it is {elapsed / 3600:.1f} h old (limit {ORIGIN_MAX_AGE / 3600:.0f} h): too long to "
+                            f"carry its offset from host time")
+    booted = entry.get("since_boot")
+    same_boot = host.boot is not None and entry.get("boot") == host.boot
+    if same_boot and booted is not None and host.since_boot is not None:
+        passed = host.since_boot - float(booted)
+        if abs(elapsed - passed) > ORIGIN_SLACK + _SLEW * passed:
+            raise OriginRefused(f"the host's wall clock moved {elapsed:+.1f} s since it while {passed:.1f} s passed "
+                                f"(boot clock): the host clock was stepped, so its offset from host time is lost")
+    return ClockOrigin(plc, timebase.now() - elapsed * scale, scale)
 
 
 #: a family's own recovery step (e.g. a fault rig's coils): called with the journal, the report to add to and
@@ -78,6 +118,9 @@ class Guard(ABC):
     """Mixed into a family's guarded link, before the link's own base class (it uses the link's ``_lock``)."""
 
     _lock: Any  # the Link's: one request on the wire at a time
+    CLOCK_SETS = 3  # exact clock restores tried before settling for CLOCK_ROUGH
+    CLOCK_ROUGH = 0.5  # bench seconds: what the per-test restore promises, and all an exact one falls back to
+
 
     def __init__(self, description: str, writable: Iterable, volatile: Iterable = ()) -> None:
         super().__init__(description)  # type: ignore[call-arg]  # the Link's
@@ -97,6 +140,7 @@ class Guard(ABC):
         self.clock_origin: ClockOrigin | None = None
         self.clock_due = False  # a test may have set the clock and it is not put back yet
         self._clock_busy = False  # the guard is reading or putting back the clock itself
+        self.clock_error: float | None = None  # seconds the last exact put left it off, read back (None: not read)
         # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
         self.identity_vouched = False
         self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
@@ -174,7 +218,7 @@ class Guard(ABC):
         self.touched.update(covered)
 
     def _note_clock(self) -> None:
-        """Before the first write that may set the clock: its time against the reference, durable first."""
+        """Before the first write that may set the clock: its origin, durable first."""
         if self._clock_busy:
             return
         if self.clock_origin is not None or self.clock is None:
@@ -182,22 +226,35 @@ class Guard(ABC):
             return
         self._clock_busy = True
         try:
-            plc = self.clock.read()
+            origin = self._take_origin(self.clock)
         finally:
             self._clock_busy = False
-        if plc is None:  # no valid time: there is no offset to keep; the restore puts it on the bench's time
+        if origin is None:  # no valid time: there is no offset to keep; the restore puts it on the bench's time
             self.clock_due = True
             return
-        timebase = self.clock.timebase
-        if timebase.virtual:
-            origin = ClockOrigin(plc, timebase.now(), 1.0, virtual=True)
-        else:
-            scale = float(getattr(timebase, "time_scale", 1.0))
-            origin = ClockOrigin(plc, time.time(), scale, virtual=False)
         if self.durable is not None:  # on disk before it is kept (and before the write that may set the clock)
-            self.durable.set_clock(plc, origin.at, origin.scale)
+            timebase = self.clock.timebase
+            lag = (timebase.now() - origin.at) / origin.scale  # host seconds since the origin
+            host = HostClocks.now()
+            self.durable.set_clock(origin.plc, host.wall - lag, origin.scale, boot=host.boot,
+                                   since_boot=None if host.since_boot is None else host.since_boot - lag)
         self.clock_origin = origin
         self.clock_due = True
+
+    @staticmethod
+    def _take_origin(clock: Clock) -> ClockOrigin | None:
+        """The clock's time at one of its second transitions (where it shows whole seconds), else as read."""
+        timebase = clock.timebase
+        plc = clock.read()
+        if plc is None:
+            return None
+        at, width = timebase.now(), 0.0
+        if clock.transition is not None:
+            try:
+                plc, at, width = clock.transition()
+            except HilError:  # it does not tick (a read-out left frozen): its reading is all there is
+                pass
+        return ClockOrigin(plc, at, float(getattr(timebase, "time_scale", 1.0)), width)
 
     # -- per test ----------------------------------------------------------------------------------------------
     def begin(self, test_id: str = "") -> None:
@@ -275,7 +332,11 @@ class Guard(ABC):
         timebase = self.clock.timebase
         self._clock_busy = True
         try:
-            self.clock.put((lambda: origin.original(timebase)) if origin is not None else timebase.calendar, exact)
+            if exact and origin is not None:
+                self._put_exactly(origin)
+            else:
+                self.clock.put((lambda: origin.original(timebase)) if origin is not None else timebase.calendar,
+                               exact)
         except HilError as exc:
             return [("clock", shown, str(exc))]
         finally:
@@ -286,6 +347,29 @@ class Guard(ABC):
             if self.durable is not None:
                 self.durable.drop_clock()
         return []
+
+    def _put_exactly(self, origin: ClockOrigin) -> None:
+        """The clock back at its origin's offset, read back where its second transitions can be timed: the error
+        at the next one, against the origin timed the same way (so a bias of the timing cancels).  Over the two
+        timings' brackets, set again with the error taken off, up to :attr:`CLOCK_SETS` sets (a busy host spoils
+        a timing now and then); then an error within :attr:`CLOCK_ROUGH` is kept (:attr:`clock_error` says it),
+        one beyond it is a HilError saying by how much."""
+        clock, timebase = self.clock, self.clock.timebase
+        assert clock is not None
+        shift = dt.timedelta(0)
+        for _ in range(self.CLOCK_SETS):
+            clock.put(lambda: origin.original(timebase) - shift, True)
+            if clock.transition is None:
+                return
+            shown, at, width = clock.transition()
+            error = (shown - (origin.plc + dt.timedelta(seconds=at - origin.at))).total_seconds()
+            self.clock_error = error
+            if abs(error) <= origin.width + width:
+                return
+            shift += dt.timedelta(seconds=error)
+        if abs(error) > self.CLOCK_ROUGH:
+            raise HilError(f"after {self.CLOCK_SETS} sets the clock is {error * 1000:+.0f} ms off its original "
+                           f"offset (read back at a second transition, ± {(origin.width + width) * 1000:.0f} ms)")
 
     def _put_back(self, items: list[tuple[Any, int]]) -> list[Failure]:
         """Write ``items`` and read them back; when the wire failed, reconnect once and try again."""
@@ -356,10 +440,15 @@ class Guard(ABC):
         if why:
             report.refused.append(f"clock: {why}")
             return
+        try:
+            origin = origin_from_journal(entry, self.clock.timebase, HostClocks.now())
+        except OriginRefused as exc:  # kept in the journal: only a person can tell the right time now
+            report.refused.append(f"clock (original {entry['plc']} at host time {entry['host']:.3f}): its origin is "
+                                  f"refused — {exc}; not set. Set the PLC's clock by hand, then remove the "
+                                  f"\"clock\" entry from {journal.path}")
+            return
         self.clock_due = True
-        self.clock_origin = ClockOrigin(dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]),
-                                        float(entry["scale"]), virtual=False)
-        origin = self.clock_origin
+        self.clock_origin = origin
         self._replaying = True
         try:
             failures = self._put_clock(exact=True)
@@ -379,4 +468,5 @@ class Guard(ABC):
         return None
 
 
-__all__ = ["Clock", "ClockOrigin", "Guard", "Recovery", "RecoveryStep"]
+__all__ = ["Clock", "ClockOrigin", "Guard", "ORIGIN_MAX_AGE", "OriginRefused", "Recovery", "RecoveryStep",
+           "origin_from_journal"]

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import datetime as dt
 import time
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Protocol
 
 from hil.core.errors import InvalidValue
@@ -80,6 +82,31 @@ class HostTimebase:
             done = min(seconds, done + piece)
             for listener in listeners:
                 listener(done, seconds)
+
+
+@dataclass(frozen=True)
+class HostClocks:
+    """The host's clocks read together: the wall clock (UTC seconds since the epoch) and, where the OS has them,
+    the time since boot (suspend included: a PLC's clock runs on while the host sleeps) and the boot's id.
+
+    A bench keeps a clock's offset on its monotonic :meth:`Timebase.now` within a session; these are only for
+    carrying an origin across sessions (a dead run's journal), where the boot clock tells a host clock that was
+    stepped in between."""
+
+    wall: float
+    since_boot: float | None
+    boot: str | None
+
+    @classmethod
+    def now(cls) -> "HostClocks":
+        # time.time() looked up at each call: the one place hil reads the host's wall clock for a clock's origin
+        since_boot = time.clock_gettime(time.CLOCK_BOOTTIME) if hasattr(time, "CLOCK_BOOTTIME") else None
+        wall = time.time()
+        try:
+            boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip() or None
+        except OSError:
+            boot = None
+        return cls(wall, since_boot, boot)
 
 
 def next_whole_second(when: dt.datetime) -> dt.datetime:

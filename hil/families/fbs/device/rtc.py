@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import random
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Callable
 
@@ -191,7 +192,29 @@ class Rtc:
             result = self.sync_to(when) if exact else self.set(nearest_whole_second(when()))
             if not result.accepted:
                 raise HilError(f"the PLC refused the restored time {result.sent} (M1955 = 1)")
-        return Clock(TOUCHES, read, put, self.plc.time)
+        return Clock(TOUCHES, read, put, self.plc.time, self.time_transition)
+
+    def time_transition(self, timeout: float = 3.0) -> tuple[dt.datetime, float, float]:
+        """The clock's next second transition, timed as the drift measurement times them
+        (:meth:`Drift._transition`): (the time it shows from then on, the bench time it happened, the width of the
+        bracket that time is the middle of)."""
+        # Polls come back to back, so on a PLC that answers at the ends of its scans they would meet the scans at
+        # the same phase every time, and the clock a set left on the scans' grid would be timed with the same bias
+        # every time (adding up run after run): start after a random fraction of a round trip.
+        # A bracket much wider than a read (a busy host, a retried request) is timed again, up to twice.
+        best: tuple[float, int, float] | None = None
+        for _ in range(3):
+            started = self.plc.time.now()
+            self.read()
+            trip = self.plc.time.now() - started
+            self.plc.time.wait(random.uniform(0, trip))
+            edge, seconds, width = Drift(self.plc, self)._transition(timeout)
+            if best is None or width < best[2]:
+                best = (edge, seconds, width)
+            if width <= 3 * trip:
+                break
+        edge, seconds, width = best
+        return EPOCH + dt.timedelta(seconds=seconds), edge, width
 
     def sync_to_host(self) -> SetResult:
         """Set the clock to the bench's calendar time at the next whole second.
@@ -209,8 +232,20 @@ class Rtc:
         target = next_whole_second(clock())
         value = RtcTime.from_datetime(target)
         self._begin_set(value)
-        wait_until(self.plc.time, clock, target)
-        return self._finish_set(value)
+        self.plc.settle_before_request()  # the 1 seen by a whole scan now, not between ``target`` and the edge
+        # The chip takes the registers when the PLC services the write of M1952 := 0: taken to be half a round
+        # trip after it is sent, as the transitions are timed (Drift._poll) — a read like theirs is timed for it,
+        # so that where the PLC really answers within a round trip cancels between the origin and this set.
+        started = self.plc.time.now()
+        if not self.plc.io.read(reg.RTC_HOLD):
+            raise RtcError("M1952 does not read 1 while the restored time is loaded: the set would not take")
+        lead = dt.timedelta(seconds=(self.plc.time.now() - started) / 2)
+        while clock() + lead > target:  # the set-up took us past it: load the next second instead
+            target += dt.timedelta(seconds=1)
+            value = RtcTime.from_datetime(target)
+            self.plc.io.write_words(reg.RTC_SECOND, value.to_registers())  # M1952 = 1: the read-out stays frozen
+        wait_until(self.plc.time, clock, target - lead)
+        return self._finish_set(value, settled=True)
 
     def _begin_set(self, value: RtcTime) -> None:
         """M1952 := 1 and R4128–R4134 := ``value`` in one mixed write (one FATEK 49 frame; in this order)."""
@@ -226,13 +261,15 @@ class Rtc:
     #: how far past the time sent the read-out may be right after an accepted set (the clock runs meanwhile)
     set_tolerance = 3.0
 
-    def _finish_set(self, value: RtcTime) -> SetResult:
-        """M1952 := 0 once the PLC has held the 1 across a whole scan, then M1955 and the read-out.
+    def _finish_set(self, value: RtcTime, settled: bool = False) -> SetResult:
+        """M1952 := 0 once the PLC has held the 1 across a whole scan (``settled``: it has), then M1955 and the
+        read-out.
 
         An accepted set is read back: the PLC's read-out, copied from the chip by a scan after the set (proved by
         the scan counter where the bench declares one, by port 0's rule otherwise), must show the time sent —
         a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`."""
-        self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
+        if not settled:
+            self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
         started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
         # the read of M1955 ends a scan too (with a scan counter, read in the same frame as the counter)
@@ -356,15 +393,17 @@ class Drift:
         """The next second transition: (reference time, PLC seconds since 2000 just after it, bracket width).
 
         The reference time is the middle of the bracket between the last poll that showed the old second and
-        the first that showed the new one.  Once one transition is timed the next is expected a whole number of
-        seconds later: the wait until just before it is one sleep, and the polls around it come back to back,
-        so a bracket is about one round trip (not a polling interval) and few requests are spent per second.
+        the first that showed the new one, each poll placed at the middle of its round trip (where the PLC
+        answered it, as far as one can tell from here — the guard's exact clock restore takes the moment of a set
+        the same way, so that where a PLC really answers within a round trip cancels between the two).
+        Once one transition is timed the next is expected a whole number of seconds later: the wait until just
+        before it is one sleep, and the polls around it come back to back, so a bracket is about one round trip
+        (not a polling interval) and few requests are spent per second.
         """
         clock = self.plc.time
         if phase > 0:
             clock.wait(phase)
-        old = self.rtc.read()
-        before = clock.now()  # the read above saw the old second at (or before) this reference time
+        old, before = self._poll()
         deadline = before + timeout
         if self._edge is not None:
             since = before - self._edge
@@ -372,13 +411,12 @@ class Drift:
             upcoming = self._edge + math.ceil(since + lead)  # the first expected transition not yet too close
             if upcoming - lead > before:
                 clock.wait(upcoming - lead - before)
-                old = self.rtc.read()  # a transition earlier than expected is simply not this one: time the next
-                before = clock.now()
+                # a transition earlier than expected is simply not this one: time the next
+                old, before = self._poll()
                 deadline = before + timeout
         while True:
             clock.wait(self.rtc.poll_interval)
-            current = self.rtc.read()
-            after = clock.now()
+            current, after = self._poll()
             if current.second != old.second:
                 self._edge = (before + after) / 2
                 return self._edge, _seconds(current), after - before
@@ -386,6 +424,12 @@ class Drift:
                 raise RtcError(f"R4128 stayed at {old.second} for {after - before:.2f} s of bench time: the RTC "
                                f"is not running (chip missing, M1952 left at 1?)")
             before = after
+
+    def _poll(self) -> tuple[RtcTime, float]:
+        """R4128–R4134 and the reference time at the middle of the read's round trip."""
+        started = self.plc.time.now()
+        shown = self.rtc.read()
+        return shown, (started + self.plc.time.now()) / 2
 
 
 def _seconds(t: RtcTime) -> int:

@@ -66,7 +66,9 @@ class GuardedTransport(Guard, Transport):
         self.emulator = inner.emulator
         self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
         self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
-        self.disabled: set[Address] = set()  # bits a test disabled with command 42: re-enabled on restore
+        # bit → disabled (forced) before a test's first command 42 enable/disable of it, read with command 43:
+        # put back exactly (an operator's forced bit stays forced), read back with 43
+        self.enable_original: dict[Address, bool] = {}
 
     # -- the guard's address model -------------------------------------------------------------------------------
     def split(self, name: NameLike) -> list[Address]:
@@ -98,37 +100,65 @@ class GuardedTransport(Guard, Transport):
             inner_call(bool(run))
 
     def bit_action(self, name: NameLike, action: int) -> None:
-        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit; a disabled bit is re-enabled and
-        its value restored when the test ends."""
+        """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit.  Before a bit is first enabled or
+        disabled its enable state is read (command 43) and journaled, durable first; it is put back when the test
+        ends, the bit's value with the other originals."""
         inner_call = getattr(self.inner, "bit_action", None)
-        if inner_call is None:
+        read_state = getattr(self.inner, "read_disabled", None)
+        if inner_call is None or read_state is None:
             raise WriteRefused(f"bit actions (FATEK command 42) are not offered by {self.inner.description}")
 
         def act() -> None:
             base = self.split(name)
-            if action == 1:
+            fresh = [a for a in base if a not in self.enable_original] if action in (1, 2) else []
+            if fresh:
+                states = {a: bool(read_state(a, 1)[0]) for a in fresh}
                 if self.durable is not None:  # on disk before it is kept (and before the command goes out)
-                    self.durable.set_extra("disabled", sorted({*self.durable.extra("disabled", []),
-                                                               *(str(a) for a in base)}))
-                self.disabled.update(base)
+                    self.durable.add_enable_states({str(a): v for a, v in states.items()})
+                self.enable_original.update(states)
             inner_call(base[0], action)
         base = self.split(name)
         wrote = {base[0]: 1 if action == 3 else 0} if action in (3, 4) else None
         self.guarded([name], act, wrote)
 
     def _restore_actions(self) -> None:
-        """Re-enable the bits a test disabled and put RUN/STOP back (before the values are restored), each read
-        back (command 43, command 40) before it leaves the journal."""
-        if self.disabled:
-            self._reenable(sorted(self.disabled, key=str))
-            self.disabled.clear()
+        """The bits' enable states back and RUN/STOP back (before the values are restored), each read back
+        (command 43, command 40) before it leaves the journal."""
+        try:
+            if self.enable_original:
+                self._restore_enable_states()
+        finally:  # RUN/STOP back even when an enable state could not be
+            if self.run_original is not None:
+                self._put_running(self.run_original)
+                self.run_original = None
+                if self.durable is not None:
+                    self.durable.set_extra("run", None)
+
+    def _restore_enable_states(self) -> None:
+        wrong = []
+        for address, disabled in sorted(self.enable_original.items(), key=lambda item: str(item[0])):
+            try:
+                self._put_enable_state(address, disabled)
+            except HilError as exc:
+                wrong.append(f"{address} (original {'disabled' if disabled else 'enabled'}): {exc}")
+                continue
+            del self.enable_original[address]
             if self.durable is not None:
-                self.durable.set_extra("disabled", [])
-        if self.run_original is not None:
-            self._put_running(self.run_original)
-            self.run_original = None
-            if self.durable is not None:
-                self.durable.set_extra("run", None)
+                self.durable.drop_enable_states([str(address)])
+        if wrong:
+            raise HilError(f"enable states not put back: {'; '.join(wrong)}")
+
+    def _put_enable_state(self, bit: Address, disabled: bool) -> None:
+        """``bit`` disabled (forced) or enabled as ``disabled`` says — command 42 only if it is not — read back
+        with command 43; WriteRefused when it does not read back so."""
+        act, read = getattr(self.inner, "bit_action", None), getattr(self.inner, "read_disabled", None)
+        if act is None or read is None:
+            raise WriteRefused(f"{self.inner.description} has no commands 42/43")
+        state = "disabled" if disabled else "enabled"
+        if bool(read(bit, 1)[0]) != disabled:
+            act(bit, 1 if disabled else 2)
+            if bool(read(bit, 1)[0]) != disabled:
+                raise WriteRefused(f"command 43 does not read back {state}")
 
     def _reenable(self, bits: list[Address]) -> None:
         """Command 42 "enable" for each bit, then read back with command 43; HilError naming what stays disabled."""
@@ -220,10 +250,7 @@ class GuardedTransport(Guard, Transport):
                 continue
             state = "disabled" if entry["disabled"] else "enabled"
             try:
-                if bool(read(bit, 1)[0]) != entry["disabled"]:
-                    act(bit, 1 if entry["disabled"] else 2)
-                if bool(read(bit, 1)[0]) != entry["disabled"]:
-                    raise WriteRefused(f"command 43 does not read back {state}")
+                self._put_enable_state(bit, entry["disabled"])
             except HilError as exc:
                 report.failures.append(f"enable state of {name} (original {state}): {exc}")
                 continue
