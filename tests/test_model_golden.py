@@ -37,6 +37,7 @@ def profile(modules=None, plant=None, pid=None, **temperature):  # noqa: ANN001,
     area = dict(base.areas["temperature"], **temperature)
     if modules is not None:
         area["modules"] = modules
+        area.pop("reference", None)  # the bench's reference points are points of its own table
     return profile_from_dict({"bench": {"name": "kernel"}, "rtc": {"chip": 3, "crystal_ppm": 12.5},
                               "temperature": area, "pid": pid if pid is not None else base.areas["pid"],
                               "plant": plant if plant is not None else {}})

@@ -121,7 +121,7 @@ def test_the_s7_suites_pass_against_hil_emulate_in_another_process(tmp_path):
                               str(profile), "-q", "-rs", "-p", "no:cacheprovider"], cwd=tmp_path,
                              capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-2000:]
-    summary = run.stdout.strip().splitlines()[-1]
+    summary = next(line for line in reversed(run.stdout.splitlines()) if re.search(r" in [\d.]+s", line))  # pytest's
     assert re.search(r"\d+ passed", summary) and "failed" not in summary, summary
     skips = [line for line in run.stdout.splitlines() if line.startswith("SKIPPED")]
     assert all("needs power_cycle" in line for line in skips), skips  # a bench cannot cut the power on demand
