@@ -6,6 +6,7 @@ import argparse
 import logging
 import sys
 import traceback
+from pathlib import Path
 
 from rich.console import Console
 from rich.markup import escape
@@ -213,6 +214,15 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
                          help="then write the compensating code to D4054 (S-35390A; not over the default Modbus map)")
     measure.add_argument("--bench", metavar="FILE", help=bench_help)
 
+    spec = sub.add_parser("spec", help="the requirement matrix: each manual statement, its tests or why none",
+                          formatter_class=raw,
+                          epilog="examples:\n  hil spec\n  hil spec -v            (statements and test names)\n"
+                                 "Exit 1 when a statement has neither a test nor a reason; 4 when a test names an ID "
+                                 "not in hil/requirements.toml.\n")
+    spec.add_argument("--suites", metavar="DIR", help="the suites to read the spec() markers of (default: suites/ "
+                                                      "here, else the bundled suites)")
+    spec.add_argument("-v", "--verbose", action="store_true", help="each statement and the tests that name it")
+
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -312,6 +322,10 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "restore":
         from hil.cli.restore import restore
         return restore(args.url, args.bench, console, show=args.show)
+    if args.command == "spec":
+        from hil.cli.spec import spec
+        from hil.core.paths import project_dir
+        return spec(Path(args.suites) if args.suites else project_dir("suites"), console, verbose=args.verbose)
     if args.command == "drift":
         from hil.cli import rtc
         if args.drift_command == "code":

@@ -19,8 +19,8 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 
-# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab"]
+# round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "

@@ -16,6 +16,7 @@ from typing import Iterable
 
 from hil.plugin.reporting.console import plural, shown_outcomes
 from hil.plugin.reporting.model import Series, TestRecord
+from hil.plugin.reporting.requirements import requirements_section
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
 
@@ -167,6 +168,7 @@ def _section(records: list[TestRecord], properties: list[tuple[str, str]]) -> st
                               f'<th>test</th><th>s</th><th>reason</th></tr>{rows}</table>', level=3)
     return (_collapsible("Bench and PLC", f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
             + _collapsible("Summary by area", _summary(records))
+            + (_collapsible("Requirements", table) if (table := requirements_section(records)) else "")
             + _collapsible("Tests", tests or "<p>no tests ran</p>"))
 
 

@@ -71,6 +71,7 @@ class TestRecord:
     trace: str = ""  # formatted wire trace, when kept
     trace_file: str = ""
     attachments: list[str] = field(default_factory=list)  # files saved with report.attach_file
+    requirements: list[str] = field(default_factory=list)  # the IDs its spec() marker names (hil.requirements)
 
 
 def records_to_json(records: list[TestRecord], properties: list[tuple[str, str]]) -> str:

@@ -1,0 +1,113 @@
+"""``hil spec``: the requirement matrix — every statement of the catalogue, the suite tests that name it, or why none.
+
+The tests come from the suites' own ``spec(...)`` markers: pytest collects the suites (nothing runs, no bench is
+opened) and each collected test's IDs are read.  Exit status 1 when a statement has neither a test nor a reason,
+or says no test checks it while a test names it; a test naming an ID the catalogue does not hold is a collection
+error (status 4, pytest's usage error, with the test and the ID).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+from rich.markup import escape
+
+from hil.plugin.requirements import REQUIREMENTS_FILE, Requirement, item_ids, load
+
+
+@dataclass
+class Matrix:
+    requirements: dict[str, Requirement]
+    tests: dict[str, list[str]] = field(default_factory=dict)  # requirement ID → test node IDs
+
+    def missing(self) -> list[Requirement]:
+        """Statements with neither a test nor a reason."""
+        return [r for r in self.requirements.values() if not r.untested and not self.tests.get(r.id)]
+
+    def contradicted(self) -> list[Requirement]:
+        """Statements whose reason says no test can or should check them, while a test names them."""
+        return [r for r in self.requirements.values()
+                if r.untested and r.untested_kind != "pending" and self.tests.get(r.id)]
+
+    def stale(self) -> list[Requirement]:
+        """Statements still marked pending that a test now names (the catalogue's note is out of date)."""
+        return [r for r in self.requirements.values() if r.untested_kind == "pending" and self.tests.get(r.id)]
+
+    @property
+    def ok(self) -> bool:
+        return not self.missing() and not self.contradicted()
+
+
+class _Collector:
+    def __init__(self) -> None:
+        self.by_test: dict[str, tuple[str, ...]] = {}
+
+    @pytest.hookimpl(trylast=True)
+    def pytest_collection_modifyitems(self, items: list[pytest.Item]) -> None:
+        self.by_test = {item.nodeid: item_ids(item) for item in items}
+
+
+def collect(suites: Path) -> tuple[int, dict[str, tuple[str, ...]], str]:
+    """Collect ``suites`` without the bench plugin: (pytest's exit code, test → IDs, pytest's output)."""
+    collector = _Collector()
+    args = ["--collect-only", "-q", "-p", "no:cacheprovider", "-p", "no:hil", "-p", "no:hil-report",
+            "-p", "hil.plugin.requirements", "-W", "ignore::pytest.PytestUnknownMarkWarning",
+            str(suites)]
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        code = pytest.main(args, plugins=[collector])
+    return int(code), collector.by_test, out.getvalue()
+
+
+def build(suites: Path, catalogue: Path = REQUIREMENTS_FILE) -> tuple[int, Matrix, str]:
+    code, by_test, output = collect(suites)
+    matrix = Matrix(load(catalogue))
+    for test, ids in by_test.items():
+        for rid in ids:
+            matrix.tests.setdefault(rid, []).append(test)
+    return code, matrix, output
+
+
+def spec(suites: Path, console: Console, *, verbose: bool = False) -> int:
+    code, matrix, output = build(suites)
+    if code not in (0, 5):  # 5: nothing collected (an empty suites directory still lists the catalogue)
+        console.print(escape(output.rstrip()), highlight=False)
+        console.print(f"[bold red]hil spec:[/] collecting {escape(str(suites))} failed (pytest exit {code})",
+                      highlight=False)
+        return code
+    for req in matrix.requirements.values():
+        tests = matrix.tests.get(req.id, [])
+        tag = " [our choice]" if req.choice else ""
+        if tests:
+            status = f"{len(tests)} test{'s' if len(tests) != 1 else ''}"
+        elif req.untested:
+            status = f"no test: {req.untested_kind} — {req.untested_reason}"
+        else:
+            status = "MISSING: neither a test nor a reason"
+        console.print(f"{escape(req.id):<14} {escape(req.manual)}{escape(tag)}: {escape(status)}", highlight=False,
+                      soft_wrap=True)
+        if verbose:
+            console.print(f"    {escape(req.statement)}", highlight=False, soft_wrap=True)
+            for test in tests:
+                console.print(f"    - {escape(test)}", highlight=False, soft_wrap=True)
+        if req.gap and tests:
+            console.print(f"    gap: {escape(req.gap)}", highlight=False, soft_wrap=True)
+    tested = sum(1 for r in matrix.requirements.values() if matrix.tests.get(r.id))
+    untested = sum(1 for r in matrix.requirements.values() if r.untested and not matrix.tests.get(r.id))
+    console.print(f"{len(matrix.requirements)} requirements: {tested} with tests, {untested} with a reason, "
+                  f"{len(matrix.missing())} with neither ({sum(len(t) for t in matrix.tests.values())} test marks "
+                  f"in {suites})", highlight=False)
+    for req in matrix.stale():
+        console.print(f"note: {req.id} is still 'pending' in the catalogue but tests name it: "
+                      f"{', '.join(matrix.tests[req.id])}", highlight=False, soft_wrap=True)
+    for req in matrix.contradicted():
+        console.print(f"[bold red]hil spec:[/] {req.id} says '{req.untested_kind}' (no test) but tests name it: "
+                      f"{escape(', '.join(matrix.tests[req.id]))}", highlight=False, soft_wrap=True)
+    for req in matrix.missing():
+        console.print(f"[bold red]hil spec:[/] {req.id} has neither a test nor a reason", highlight=False)
+    return 0 if matrix.ok else 1

@@ -1,0 +1,70 @@
+"""The HTML report's requirement table: requirement → tests → outcome → measurements (what a lab files).
+
+Built from the records' ``requirements`` (the IDs of each test's ``spec()`` marker) and the catalogue's statements.
+A requirement's verdict is ``failed`` when any of its tests failed or errored, ``passed`` when at least one passed
+and none failed, ``skipped`` when every one of its tests was skipped: a skip never counts as evidence.
+"""
+
+from __future__ import annotations
+
+import html
+from typing import Iterable
+
+from hil.plugin.reporting.model import TestRecord
+
+
+def _e(text: object) -> str:
+    return html.escape(str(text), quote=True)
+
+
+def verdict(outcomes: Iterable[str]) -> str:
+    seen = set(outcomes)
+    if seen & {"failed", "error"}:
+        return "failed"
+    return "passed" if "passed" in seen else "skipped"
+
+
+def requirement_rows(records: Iterable[TestRecord]) -> dict[str, list[TestRecord]]:
+    """Requirement ID → the records of the tests that name it, in the catalogue's order (unknown IDs last)."""
+    from hil.plugin.requirements import load
+    by_id: dict[str, list[TestRecord]] = {}
+    for record in records:
+        for rid in record.requirements:
+            by_id.setdefault(rid, []).append(record)
+    order = {rid: n for n, rid in enumerate(load())}
+    return dict(sorted(by_id.items(), key=lambda kv: (order.get(kv[0], len(order)), kv[0])))
+
+
+def requirements_section(records: list[TestRecord]) -> str:
+    """The table's HTML (empty when no test of the run names a requirement)."""
+    rows = requirement_rows(records)
+    if not rows:
+        return ""
+    from hil.plugin.requirements import load
+    catalogue = load()
+    body = []
+    for rid, tests in rows.items():
+        req = catalogue.get(rid)
+        outcome = verdict(r.outcome for r in tests)
+        statement = _e(req.statement) if req else "<em>not in the catalogue</em>"
+        source = _e(f"{req.manual} · {req.spec}") if req else ""
+        cells = "".join(
+            f'<div><span class="badge {r.outcome}">{r.outcome}</span> <code>{_e(r.nodeid)}</code>'
+            + "".join(f'<br><span class="{m.outcome.name}">{_e(m.name)} = {_e(m.value)} {_e(m.unit)}'
+                      f'{_e(_limits(m))} {m.outcome.name}</span>' for m in r.measurements)
+            + "</div>" for r in tests)
+        body.append(f'<tr class="{outcome}-row"><td><code>{_e(rid)}</code></td>'
+                    f'<td><span class="badge {outcome}">{outcome}</span></td>'
+                    f'<td>{statement}<br><small>{source}</small></td><td>{cells}</td></tr>')
+    total = len(catalogue)
+    head = (f"<p>{len(rows)} of the catalogue's {total} requirements named by this run's tests; "
+            f"<code>hil spec</code> lists every one and why the rest have no test.</p>")
+    return head + ("<table class=\"requirements\"><tr><th>requirement</th><th>verdict</th><th>statement</th>"
+                   f"<th>tests · measurements</th></tr>{''.join(body)}</table>")
+
+
+def _limits(m) -> str:  # noqa: ANN001 - a hil.core.measurement.Measurement
+    low, high = getattr(m, "low", None), getattr(m, "high", None)
+    if low is None and high is None:
+        return ""
+    return f" [{'' if low is None else low} … {'' if high is None else high}]"
