@@ -38,6 +38,7 @@ def _one_second_on(registers: list[int]) -> list[int]:
     return [second + 1, minute, *rest] if second < 59 else [0, minute + 1, *rest]
 
 
+@pytest.mark.spec("RTC-SET-1", "RTC-SET-3", "RTC-REG-1", "RTC-REG-3")
 def test_set_then_read_round_trip_of_every_field_edge_and_weekday(rtc, io):
     wrong = []
     for when, registers in ROUND_TRIPS:
@@ -78,6 +79,7 @@ MIDNIGHTS = [
 ]
 
 
+@pytest.mark.spec("RTC-RUN-1", "RTC-READ-1", "RTC-SET-2")
 def test_clock_runs_over_every_month_end_and_midnight(bench, rtc, io):
     """One bench second per case: the set restarts the chip's second, so one second after it the clock must have
     ticked into the next day — and not further than the time the procedure took."""
@@ -123,6 +125,7 @@ def test_read_out_overwrites_registers_while_m1952_is_0(bench, rtc, io):
     assert io.read("R4133") == 24  # … is overwritten by the clock's year on the next scan
 
 
+@pytest.mark.spec("RTC-READ-2", "RTC-SET-1", "RTC-SET-2")
 def test_registers_freeze_while_m1952_is_1_and_follow_again_after(bench, rtc, io):
     assert rtc.set(at("2024-05-10 08:00:00")).accepted
     io.write("M1952", 1)
@@ -164,6 +167,7 @@ def no_chip(bench):
     return bench
 
 
+@pytest.mark.spec("RTC-FLAG-1", "RTC-FLAG-2", "RTC-CHIP-1")
 def test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated(no_chip, io):
     """D4053 = 0: no RTC chip.  M1954 = 0, and no scan copies a clock into R4128–R4135: what is there stays
     there, ticking nowhere, and what a program writes into R4128–R4134 while M1952 = 0 is not overwritten."""

@@ -7,20 +7,19 @@ import datetime as dt
 
 import pytest
 
-OUR_CHOICE_WRAP = pytest.mark.needs("spec_choices",
-    reason="the 2099 → 2000 wrap of a ±30 s carry is the spec's [our choice], not a manual statement")
 
-
-#: start → the time right after the M1953 edge.  The window's every edge (00, 29 | 30, 59), a minute's carry into
-#: the hour and the day, and the day's into every month (each month's last day, the 30th of a 31-day month, 28
-#: and 29 February in a leap year, 28 February in a common year and in 2000) and into the year.
-CORRECTIONS = [
+#: start → the time right after the M1953 edge: the window's every edge (00, 29 | 30, 59) within the minute.
+WINDOWS = [
     ("2024-03-05 10:20:00", "2024-03-05 10:20:00"),  # first second of the "drop" window
     ("2024-03-05 10:20:10", "2024-03-05 10:20:00"),
     ("2024-03-05 10:20:29", "2024-03-05 10:20:00"),  # last second of the "drop" window
     ("2024-03-05 10:20:30", "2024-03-05 10:21:00"),  # first second of the "round up" window
     ("2024-03-05 10:20:45", "2024-03-05 10:21:00"),
     ("2024-03-05 10:20:59", "2024-03-05 10:21:00"),  # last second of the "round up" window
+]
+#: the added minute's carry into the hour and the day, and the day's into every month (each month's last day, the
+#: 30th of a 31-day month, 28 and 29 February in a leap year, 28 February in a common year and in 2000) and year.
+CARRIES = [
     ("2024-03-05 10:59:45", "2024-03-05 11:00:00"),  # minute → hour
     ("2024-03-05 23:59:45", "2024-03-06 00:00:00"),  # hour → day
     ("2024-01-30 23:59:30", "2024-01-31 00:00:00"),  # the 30th of a 31-day month → the 31st
@@ -75,8 +74,8 @@ def _check(bench, rtc, io, start: str, after: str) -> str | None:
     return None
 
 
-def test_adjust_30s_over_both_windows_and_every_carry(bench, rtc, io):
-    found = [_check(bench, rtc, io, start, after) for start, after in CORRECTIONS]
+def _check_all(bench, rtc, io, cases: list[tuple[str, str]]) -> None:
+    found = [_check(bench, rtc, io, start, after) for start, after in cases]
     wrong = [f for f in found if f and not f.startswith("not tried")]
     assert not wrong, "\n".join(wrong)
     untried = [f for f in found if f]
@@ -84,7 +83,17 @@ def test_adjust_30s_over_both_windows_and_every_carry(bench, rtc, io):
         pytest.skip("\n".join(untried) + ": lower [bench] time_scale on this host")
 
 
-@OUR_CHOICE_WRAP
+@pytest.mark.spec("RTC-ADJ-1", "RTC-ADJ-2")
+def test_adjust_30s_over_both_windows_and_their_edges(bench, rtc, io):
+    _check_all(bench, rtc, io, WINDOWS)
+
+
+@pytest.mark.spec("RTC-ADJ-2", "RTC-ADJ-4")
+def test_adjust_30s_carries_into_hour_day_every_month_and_year(bench, rtc, io):
+    _check_all(bench, rtc, io, CARRIES)
+
+
+@pytest.mark.spec("RTC-ADJ-5")
 def test_adjust_30s_carry_from_2099_wraps_to_2000(bench, rtc, io):
     problem = _check(bench, rtc, io, "2099-12-31 23:59:30", "2000-01-01 00:00:00")
     if problem and problem.startswith("not tried"):
