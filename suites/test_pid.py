@@ -99,6 +99,7 @@ def settable(bench, pid):
     return inst
 
 
+@pytest.mark.spec("PID-OP-3")
 @pytest.mark.parametrize("sn,zn", BAD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in BAD_SN_ZN])
 def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
     pid.set_sn_zn(settable, sn, zn)
@@ -107,6 +108,7 @@ def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
     assert pid.err(settable), f"Sn = {sn}, Zn = {zn} is out of range: FUN86 must not execute and set ERR"
 
 
+@pytest.mark.spec("PID-OP-3")
 @pytest.mark.parametrize("sn,zn", GOOD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in GOOD_SN_ZN])
 def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
     pid.set_sn_zn(settable, sn, zn)
@@ -117,6 +119,7 @@ def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
 
 # -- defaults ------------------------------------------------------------------------------------------------------
 @pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-R4006-1", "PID-R4007-1", "PID-R4008-1")
 def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
     r4005, r4006, r4007, r4008 = bench.plc.io.read_words("R4005", 4)
     assert r4005 == 0x0102, f"R4005 = {r4005:04X}H; default: PID every 4 s (low byte 2), PWM period 2 s (high byte 1)"
@@ -125,6 +128,7 @@ def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
 
 @pytest.mark.needs("power_on_state", reason="only a PLC whose FUN86 has just executed for the first time shows "
                                              "110/17/50; a bench's gains may have been tuned since")
+@pytest.mark.spec("PID-DEF-1")
 def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
     for inst in _instances(pid):
         _start(bench, pid, inst)
@@ -134,7 +138,11 @@ def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
 
 # -- normal bits and ALM ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("edge", ["low", "high"])
-@pytest.mark.parametrize("beyond", [0, 1], ids=["at-edge", "one-tenth-beyond"])
+# at the edge every point is normal and ALM = 0 is expected: with a point disabled in R4012/R4013 that is the
+# spec's [our choice] PID-DIS-1 (disabled points report normal = 0, raise no ALM), so that case needs spec_choices
+@pytest.mark.parametrize("beyond", [pytest.param(0, marks=pytest.mark.spec("PID-ALM-2", "PID-DIS-1"), id="at-edge"),
+                                    pytest.param(1, marks=pytest.mark.spec("PID-ALM-1"), id="one-tenth-beyond")])
+@pytest.mark.spec("PID-NORM-1", "PID-OP-4", "PID-EXEC-2", "PID-PV-2")
 def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
     """PV = SV ∓ Os is normal; PV one 0.1 ° further is not, and then ALM = 1."""
     inst = _instances(pid)[0]
@@ -166,6 +174,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
         assert alm, "a point out of its band sets ALM"
 
 
+@pytest.mark.spec("PID-WR-1", "PID-EXEC-4")
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_normal_bit_positions_count_from_sn(bench, pid, which):
     """WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b (an instance with Sn ≠ 0 or points ≥ 16)."""
@@ -179,6 +188,7 @@ def test_normal_bit_positions_count_from_sn(bench, pid, which):
 
 
 # -- warnings ---------------------------------------------------------------------------------------------------------
+@pytest.mark.spec("PID-PRE-1", "PID-WR-2", "PID-ALM-2", "PID-R4008-1", "PID-EXEC-4")
 @pytest.mark.parametrize("which", [0, 1], ids=["first-instance", "second-instance"])
 def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     """Bench-safe: lower R4008 under the PVs instead of heating; every point then warns on WR+2/WR+3, ALM = 1."""
@@ -221,6 +231,7 @@ def _write_bracketed(bench, name, value):
 
 
 @pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
+@pytest.mark.spec("PID-PRE-1")
 @pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
 def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
@@ -282,6 +293,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
     assert not decided[9] and decided[10]
 
 
+@pytest.mark.spec("PID-ALM-2", "PID-PRE-1")
 def test_alm_follows_a_warning_alone(bench, pid):
     inst = _instances(pid)[0]
     _need(bench, "R4008")
@@ -333,6 +345,7 @@ def _heated_point(bench, pid, heat_by=None):
     return inst, point
 
 
+@pytest.mark.spec("PID-LAW-2", "PID-PWM-1", "PID-OP-2", "PID-OP-5", "PID-EXEC-2", "PID-EN-1")
 def test_output_on_below_sv_and_off_far_above(bench, pid):
     inst, point = _heated_point(bench, pid)
     interval, pwm = _timing(bench.plc.io)
@@ -346,6 +359,7 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
 
 
+@pytest.mark.spec("PID-EN-2", "PID-EN-1")
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
     disable (proved by the scan counter where the bench declares one), not from the next PID step on."""

@@ -81,6 +81,7 @@ def _wait_for_output(bench, pid, point, at_least, timeout):
 
 
 @pytest.mark.slow
+@pytest.mark.spec("PID-LOOP-1", "PID-R4007-1", "PID-ALM-2", "PID-WR-2")
 @pytest.mark.bench_time(3 * 32 + LOOP_S + 3 + 60, reason="the output's rise, R4007 and its ±3 s, settling")
 def test_heater_loop_warning_after_r4007_seconds_and_not_before(bench, pid, heater_open):
     inst, point = _controlled_point(bench, pid)
@@ -105,6 +106,7 @@ def test_heater_loop_warning_after_r4007_seconds_and_not_before(bench, pid, heat
 
 
 @pytest.mark.slow
+@pytest.mark.spec("PID-LOOP-1", "PID-R4006-1")
 @pytest.mark.bench_time(2 * 32 + 1 + LOOP_S + 5 + 60, reason="two PID intervals, R4007 + 5 s, settling")
 @pytest.mark.parametrize("r4006,warns", [(80, True), (95, False)], ids=["R4006-80-warns", "R4006-95-silent"])
 def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
@@ -134,6 +136,7 @@ def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
 
 
 @pytest.mark.slow
+@pytest.mark.spec("PID-EXEC-2", "PID-LAW-2", "PID-NORM-1")
 @pytest.mark.bench_time(SETTLE_S + HOLD_S + 60, reason="the closed loop's settling time and hold")
 @pytest.mark.measures("pid_settle_time", unit="s", low=0, high=SETTLE_S)
 def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, measure, report):

@@ -53,6 +53,7 @@ def test_d4054_write_read_back_of_every_table_1_code(s35390a, io):
     assert not wrong, ", ".join(wrong)
 
 
+@pytest.mark.spec("RTC-DRIFT-3")
 def test_table_codes_of_the_manuals_worked_examples():
     assert code_for_rate(3.38) == 0x56E5  # "runs fast by 3.38 s/day"
     assert code_for_rate(-5.62) == 0x5603  # "runs slow by 5.62 s/day"
@@ -70,6 +71,7 @@ def _planned(profile) -> float:
 
 @pytest.mark.slow
 @pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-2", "RTC-DRIFT-4")
 @pytest.mark.measures("drift_uncompensated", unit="s/day")
 @pytest.mark.measures("drift_residual", unit="s/day", low=-FINE_STEP, high=FINE_STEP)
 def test_drift_measured_compensated_and_remeasured(bench, s35390a, io, measure, report):
@@ -116,6 +118,7 @@ DIRECTION_RESOLUTION = 4.0
 
 @pytest.mark.slow
 @pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4")
 @pytest.mark.measures("d4054_largest_correction", unit="s/day", low=LARGEST_CORRECTION - 2 * DIRECTION_RESOLUTION,
                       high=LARGEST_CORRECTION + 2 * DIRECTION_RESOLUTION)
 def test_d4054_largest_code_slows_the_clock_by_table_1s_amount(bench, s35390a, io, measure):

@@ -35,11 +35,11 @@ INVALID = {
     "31 April": RtcTime(0, 0, 9, 31, 4, 24, 3),
     "31 June": RtcTime(0, 0, 9, 31, 6, 24, 1),
     "31 September": RtcTime(0, 0, 9, 31, 9, 24, 2),
-    "31 November": RtcTime(0, 0, 9, 31, 11, 24, 0),
+    "31 November": RtcTime(0, 0, 9, 31, 11, 24, 1),
     "30 February 2024 (leap)": RtcTime(0, 0, 9, 30, 2, 24, 5),
     "29 February 2023": RtcTime(0, 0, 9, 29, 2, 23, 3),
     "29 February 2001": RtcTime(0, 0, 9, 29, 2, 1, 4),
-    "29 February 2099": RtcTime(0, 0, 9, 29, 2, 99, 0),
+    "29 February 2099": RtcTime(0, 0, 9, 29, 2, 99, 1),
     "month 0": RtcTime(0, 0, 9, 20, 0, 24, 4),
     "month 13": RtcTime(0, 0, 9, 20, 13, 24, 4),
     "month 0106H (low byte 6)": RtcTime(0, 0, 9, 20, 0x0106, 24, 4),
@@ -92,6 +92,7 @@ def test_weekday_out_of_range_is_refused_with_m1955_and_the_clock_runs_on(bench,
     _refuse_each(bench, rtc, io, INVALID_WEEKDAY)
 
 
+@pytest.mark.spec("RTC-VAL-4", "RTC-VAL-3")  # an accepted set clearing M1955 is [our choice]
 def test_valid_set_after_a_refused_one_clears_m1955(rtc, io):
     assert rtc.set(INVALID["31 April"]).refused  # M1955 = 1
     assert rtc.set(dt.datetime(2024, 4, 30, 12, 0, 0)).accepted  # M1955 = 0 again
@@ -100,12 +101,26 @@ def test_valid_set_after_a_refused_one_clears_m1955(rtc, io):
     assert snapshot.time.to_registers()[1:6] == [0, 12, 30, 4, 24]  # R4129–R4133
 
 
-@pytest.mark.spec("RTC-VAL-3", "RTC-REG-3")
-def test_leap_day_accepted_in_every_leap_year_2000_to_2096(rtc, io):
+#: 29 February of every leap year 2000–2096, those that are Sundays apart (weekday 0: [our choice], RTC-REG-4)
+LEAP_YEARS = [y for y in range(0, 100, 4) if dt.date(2000 + y, 2, 29).isoweekday() != 7]
+SUNDAY_LEAP_YEARS = [y for y in range(0, 100, 4) if dt.date(2000 + y, 2, 29).isoweekday() == 7]
+
+
+def _leap_days(rtc, io, years: list[int]) -> None:
     wrong = []
-    for year in range(0, 100, 4):
+    for year in years:
         result = rtc.set(dt.datetime(2000 + year, 2, 29, 6, 30, 0))
         shown = io.read_words("R4129", 5)
         if not result.accepted or shown != [30, 6, 29, 2, year]:
             wrong.append(f"29 February {2000 + year}: M1955 = {int(result.refused)}, R4129–R4133 = {shown}")
     assert not wrong, "\n".join(wrong)
+
+
+@pytest.mark.spec("RTC-VAL-3", "RTC-REG-3")
+def test_leap_day_accepted_in_every_leap_year_2000_to_2096(rtc, io):
+    _leap_days(rtc, io, LEAP_YEARS)
+
+
+@pytest.mark.spec("RTC-VAL-3", "RTC-REG-4")
+def test_leap_day_accepted_in_the_leap_years_it_is_a_sunday(rtc, io):
+    _leap_days(rtc, io, SUNDAY_LEAP_YEARS)

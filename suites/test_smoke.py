@@ -29,30 +29,35 @@ def _scratch(bench, kinds, need):
 
 
 
+@pytest.mark.spec("FATEK-STAT-1")
 def test_plc_answers_status(bench):
     status = bench.plc.status()
     # The suites need a PLC in RUN; None means the wire has no status command (Modbus) but the PLC answered.
     assert status.running in (True, None), f"PLC reports {status.summary()}"
 
 
+@pytest.mark.spec("FATEK-REG-1")
 def test_user_register_round_trip(bench):
     first = _scratch(bench, WORDS, 3)[0]
     bench.plc.io.write_words(first, [0x1234, 0xFFFF, 0])
     assert bench.plc.io.read_words(first, 3) == [0x1234, 0xFFFF, 0]
 
 
+@pytest.mark.spec("FATEK-BIT-1")
 def test_user_relay_round_trip(bench):
     first = _scratch(bench, BITS, 4)[0]
     bench.plc.io.write_bits(first, [1, 0, 1, 1])
     assert bench.plc.io.read_bits(first, 4) == [1, 0, 1, 1]
 
 
+@pytest.mark.spec("FATEK-MIX-1")
 def test_mixed_read_and_write(bench):
     word, bit = _scratch(bench, WORDS, 11)[10], _scratch(bench, BITS, 9)[8]
     bench.plc.io.write_many({word: 4321, bit: 1})
     assert bench.plc.io.read_many([word, bit]) == [4321, 1]
 
 
+@pytest.mark.spec("HIL-GUARD-1")
 def test_write_outside_allow_list_is_refused(bench):
     from hil.core.errors import WriteRefused
     with pytest.raises(WriteRefused, match="R2000"):

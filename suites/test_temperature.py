@@ -73,6 +73,8 @@ def _ensure_installed(bench, point):
         _set_mask_bit(bench, point, True)
 
 
+@pytest.mark.spec("TEMP-MOD-1", "TEMP-TBL-1", "TEMP-TBL-2", "TEMP-TBL-3", "TEMP-WORK-1", "TEMP-WORK-2",
+                  "TEMP-WORK-4", "TEMP-WORK-6")
 def test_table_is_recognised_and_measuring(bench, temp):
     modules = temp.config.modules
     table = temp.read_table()
@@ -85,6 +87,8 @@ def test_table_is_recognised_and_measuring(bench, temp):
     assert work.total_points == sum(POINTS[m.type.name] for m in modules)
 
 
+@pytest.mark.spec("TEMP-SENS-1", "TEMP-SENS-2", "TEMP-UNIT-1", "TEMP-UNIT-2", "TEMP-RATE-1", "TEMP-MASK-1",
+                  "TEMP-BREAK-2", "TEMP-WORK-5")
 def test_readings_are_in_range_and_units(bench, temp, measure):
     config = temp.config
     readings = temp.readings()
@@ -115,6 +119,7 @@ def test_readings_are_in_range_and_units(bench, temp, measure):
 UNMASKED_STILL_BROKEN = {"first-low", "last-high"}
 
 
+@pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3")
 @pytest.mark.parametrize("point", BREAK_POINTS)
 def test_a_sensor_broken_masked_unmasked_and_repaired(bench, temp, breaker, point, measure):
     """One sensor through the manual's states, each checked as the PLC shows it: open → 28767 with only its

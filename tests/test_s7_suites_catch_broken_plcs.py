@@ -195,7 +195,7 @@ class RunningMonthsAlternate(_CalendarClock):
 CAUGHT_BY = {
     BcdUncheckedInHourMonthSecond: "test_illegal_bytes_are_not_written",
     NonBcdHourMonthSecondGives0006: "test_illegal_bytes_end_with_eno_0_and_0007",
-    DayRangeOffByOne: "test_illegal_bytes_are_not_written",
+    DayRangeOffByOne: "test_invalid_dates_refused_with_0007_and_the_clock_unchanged",
     ValidatesMonthsAlternate: "test_invalid_dates_refused_with_0007_and_the_clock_unchanged",
     RunningFebruaryHas28: "test_clock_runs_over_every_month_end_and_leap_day",
     RunningYear2000Common: "test_clock_runs_over_every_month_end_and_leap_day",

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,6 +25,7 @@ from hil.plugin.requirements import REQUIREMENTS_FILE, Requirement, item_ids, lo
 class Matrix:
     requirements: dict[str, Requirement]
     tests: dict[str, list[str]] = field(default_factory=dict)  # requirement ID → test node IDs
+    unmarked: list[str] = field(default_factory=list)  # collected tests that name no requirement
 
     def missing(self) -> list[Requirement]:
         """Statements with neither a test nor a reason."""
@@ -59,14 +61,26 @@ def collect(suites: Path) -> tuple[int, dict[str, tuple[str, ...]], str]:
             "-p", "hil.plugin.requirements", "-W", "ignore::pytest.PytestUnknownMarkWarning",
             str(suites)]
     out = io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-        code = pytest.main(args, plugins=[collector])
+    path = list(sys.path)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+            code = pytest.main(args, plugins=[collector])
+    finally:
+        # in process (a test calling main()), the suites' modules ("conftest", "test_rtc" …) must not stay
+        # imported under those names for a later pytest run of other files in the same process
+        root = suites.resolve()
+        for name, module in list(sys.modules.items()):
+            file = getattr(module, "__file__", None)
+            if file and Path(file).resolve().is_relative_to(root):
+                del sys.modules[name]
+        sys.path[:] = path
     return int(code), collector.by_test, out.getvalue()
 
 
 def build(suites: Path, catalogue: Path = REQUIREMENTS_FILE) -> tuple[int, Matrix, str]:
     code, by_test, output = collect(suites)
     matrix = Matrix(load(catalogue))
+    matrix.unmarked = [test for test, ids in by_test.items() if not ids]
     for test, ids in by_test.items():
         for rid in ids:
             matrix.tests.setdefault(rid, []).append(test)
@@ -101,7 +115,11 @@ def spec(suites: Path, console: Console, *, verbose: bool = False) -> int:
     untested = sum(1 for r in matrix.requirements.values() if r.untested and not matrix.tests.get(r.id))
     console.print(f"{len(matrix.requirements)} requirements: {tested} with tests, {untested} with a reason, "
                   f"{len(matrix.missing())} with neither ({sum(len(t) for t in matrix.tests.values())} test marks "
-                  f"in {suites})", highlight=False)
+                  f"in {suites})", highlight=False, soft_wrap=True)
+    if matrix.unmarked:
+        console.print(f"{len(matrix.unmarked)} collected tests name no requirement"
+                      + (": " + ", ".join(matrix.unmarked) if verbose else " (-v lists them)"), highlight=False,
+                      soft_wrap=True)
     for req in matrix.stale():
         console.print(f"note: {req.id} is still 'pending' in the catalogue but tests name it: "
                       f"{', '.join(matrix.tests[req.id])}", highlight=False, soft_wrap=True)

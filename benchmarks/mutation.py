@@ -1,0 +1,250 @@
+"""Mutation testing of the emulator's models with cosmic-ray 8.7: do the suites notice when a model is wrong?
+
+    python benchmarks/mutation.py --quick        # a fixed sample of 100 mutants (≤ 10 min on two cores)
+    python benchmarks/mutation.py --sample 400   # a larger fixed sample
+    python benchmarks/mutation.py                # every mutant (≈ 5000: hours; not in CI)
+
+Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 SMART clock model
+(hil/families/s7smart/emulator.py).  The test command is the suites against the in-process emulator, exactly as
+``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
+suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
+temperatures; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile).  cosmic-ray writes each
+mutant into the files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the
+suites at it); the checkout is never touched.
+
+Every surviving mutant is looked up in ``benchmarks/mutation-survivors.toml`` (keyed by file, operator and the
+mutated line's text, so the classification survives unrelated edits): *equivalent*, *choice* (an [our choice] the
+suites rightly leave open), *not_observable* (no bench's wire can show it), or *gap* (a suite should catch it).
+The score is killed / (mutants run − equivalent); an unclassified survivor is listed and counted as a gap.
+The report goes to reports/mutation/: score.json and survivors.md (each survivor's diff and classification).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+MODELS = "hil/families/fbs/sim/models/"
+RTC_SUITES = "suites/test_rtc.py suites/test_rtc_adjust.py suites/test_rtc_validity.py suites/test_rtc_drift.py"
+PID_SUITES = "suites/test_pid.py suites/test_pid_control.py"
+PYTEST = "{python} -m pytest -x -q -p no:cacheprovider "
+#: session → (the mutated file, the suites that judge it: every suite that can see the model; FUN86 reads the
+#: temperatures, so the temperature model is judged by the PID suites too)
+SESSIONS = {
+    "rtc": (MODELS + "rtc.py", PYTEST + RTC_SUITES),
+    "temperature": (MODELS + "temperature.py", PYTEST + "suites/test_temperature.py " + PID_SUITES),
+    "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
+    "s7": ("hil/families/s7smart/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
+}
+#: the sample is drawn per group (in this order), over the group's mutants sorted by file, operator, occurrence
+GROUPS = {"fbs": ("rtc", "temperature", "fun86"), "s7": ("s7",)}
+SURVIVORS = ROOT / "benchmarks" / "mutation-survivors.toml"
+KINDS = ("equivalent", "choice", "not_observable", "gap")
+QUICK = 100
+SEED = 26  # the sample is fixed: the same mutants every run of the same code (issue 26)
+
+
+def _copy_tree(dest: Path) -> None:
+    """The working tree as it is (uncommitted edits included), without caches, venvs and reports."""
+    ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "reports", "mutants", "*.sqlite", ".hypothesis")
+    shutil.copytree(ROOT, dest, symlinks=True, ignore=ignore)
+
+
+def _config(work: Path, name: str, timeout: float) -> Path:
+    module, command = SESSIONS[name]
+    path = work / f"cosmic-ray-{name}.toml"
+    path.write_text(
+        "[cosmic-ray]\n"
+        f"module-path = {json.dumps(module)}\n"
+        f"timeout = {timeout}\n"
+        "excluded-modules = []\n"
+        f"test-command = {json.dumps(command.format(python=sys.executable))}\n\n"
+        "[cosmic-ray.distributor]\nname = \"local\"\n", encoding="utf-8")
+    return path
+
+
+def _cosmic_ray(work: Path, *args: str) -> None:
+    exe = Path(sys.executable).with_name("cosmic-ray")
+    env = {**os.environ, "PYTHONPATH": str(work), "HIL_STATE_DIR": str(work / ".hil-state"),
+           "HIL_LOCK_DIR": str(work / ".hil-locks")}
+    subprocess.run([str(exe), "--verbosity", "WARNING", *args], cwd=work, env=env, check=True)
+
+
+def _key(item) -> tuple:  # noqa: ANN001 - a cosmic_ray WorkItem
+    m = item.mutations[0]
+    return str(m.module_path), m.operator_name, m.occurrence
+
+
+def _sample(db_paths: list[Path], keep: int | None, rng: random.Random) -> int:
+    """Mark all but ``keep`` of the sessions' mutants together (a fixed random sample) as skipped; how many are left."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome, WorkResult
+    items = []
+    for path in db_paths:
+        with use_db(str(path), WorkDB.Mode.open) as db:
+            items += [(path, w) for w in db.work_items]
+    items.sort(key=lambda pw: _key(pw[1]))
+    if keep is None or keep >= len(items):
+        return len(items)
+    chosen = {w.job_id for _, w in rng.sample(items, keep)}
+    for path in db_paths:
+        with use_db(str(path), WorkDB.Mode.open) as db:
+            db.set_multiple_results([w.job_id for p, w in items if p == path and w.job_id not in chosen],
+                                    WorkResult(worker_outcome=WorkerOutcome.SKIPPED))
+    return keep
+
+
+def _results(db_path: Path, work: Path) -> list[dict]:
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import WorkerOutcome
+    rows = []
+    with use_db(str(db_path), WorkDB.Mode.open) as db:
+        for item, result in db.completed_work_items:
+            if result.worker_outcome == WorkerOutcome.SKIPPED:
+                continue
+            spec = item.mutations[0]
+            lines = (work / spec.module_path).read_text(encoding="utf-8").splitlines()
+            rows.append({
+                "file": str(spec.module_path), "operator": spec.operator_name.removeprefix("core/"),
+                "occurrence": spec.occurrence, "line": spec.start_pos[0],
+                "source": lines[spec.start_pos[0] - 1].strip(), "function": spec.definition_name or "",
+                "worker": result.worker_outcome.value,
+                "outcome": result.test_outcome.value if result.test_outcome is not None else "",
+                "timeout": result.output == "timeout",  # cosmic-ray counts a suite that hangs as killed
+                "diff": result.diff or "",
+            })
+    return rows
+
+
+def _classifications() -> list[dict]:
+    if not SURVIVORS.is_file():
+        return []
+    entries = tomllib.loads(SURVIVORS.read_text(encoding="utf-8")).get("survivor", [])
+    for e in entries:
+        if e.get("kind") not in KINDS or not e.get("reason"):
+            raise SystemExit(f"{SURVIVORS}: {e}: kind must be one of {KINDS}, with a reason")
+    return entries
+
+
+def _classify(row: dict, entries: list[dict]) -> dict | None:
+    for e in entries:
+        if e["file"] == row["file"] and e["operator"] == row["operator"] and e["source"] == row["source"]:
+            return e
+    return None
+
+
+def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C901 - one straight pipeline
+    started = time.monotonic()
+    out_dir = ROOT / "reports" / "mutation"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix="hil-mutation-"))
+    try:
+        _copy_tree(work / "tree")
+        tree = work / "tree"
+        rng = random.Random(SEED)
+        rows: list[dict] = []
+        dbs = {}
+        for name in SESSIONS:
+            config = _config(tree, name, timeout)
+            db = tree / f"session-{name}.sqlite"
+            _cosmic_ray(tree, "init", str(config), str(db))
+            # the unmutated tree must pass, or every mutant would count as killed
+            _cosmic_ray(tree, "baseline", str(config))
+            dbs[name] = (config, db)
+        totals = {name: _count(db) for name, (_, db) in dbs.items()}
+        everything = sum(totals.values())
+        for group, names in GROUPS.items():  # the sample is split over the groups in proportion to their mutants
+            size = sum(totals[n] for n in names)
+            share = None if sample is None else max(1, round(sample * size / everything))
+            left = _sample([dbs[n][1] for n in names], share, rng)
+            print(f"{group}: {left} of {size} mutants to run", flush=True)
+        for name, (config, db) in dbs.items():
+            _cosmic_ray(tree, "exec", str(config), str(db))
+            rows += _results(db, tree)
+        seconds = time.monotonic() - started
+        (work / "run.json").write_text(json.dumps({"totals": totals, "sample": sample, "seconds": seconds}))
+        return _report(rows, totals, sample, seconds, out_dir)
+    finally:
+        if keep_work:
+            print(f"scratch copy kept: {work}")
+        else:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def _count(db_path: Path) -> int:
+    from cosmic_ray.work_db import WorkDB, use_db
+    with use_db(str(db_path), WorkDB.Mode.open) as db:
+        return db.num_work_items
+
+
+def _report(rows: list[dict], totals: dict[str, int], sample: int | None, seconds: float, out_dir: Path) -> int:
+    entries = _classifications()
+    killed = [r for r in rows if r["outcome"] == "killed"]
+    survived = [r for r in rows if r["outcome"] == "survived"]
+    incompetent = [r for r in rows if r["outcome"] not in ("killed", "survived")]
+    kinds: Counter = Counter()
+    lines = ["# Surviving mutants", "", f"{len(rows)} mutants run ({'all' if sample is None else f'sample of {sample}'}"
+             f", seed {SEED}) of {sum(totals.values())}; {len(killed)} killed, {len(survived)} survived, "
+             f"{len(incompetent)} incompetent (the mutant does not even import / run)", ""]
+    for r in survived:
+        entry = _classify(r, entries)
+        kind = entry["kind"] if entry else "unclassified"
+        kinds[kind] += 1
+        lines += [f"## {r['file']}:{r['line']} {r['operator']} ({r['function']}) — {kind}", "",
+                  f"{entry['reason'] if entry else 'NOT CLASSIFIED: add it to benchmarks/mutation-survivors.toml'}",
+                  "", "```diff", r["diff"].strip(), "```", ""]
+    judged = len(killed) + len(survived) - kinds["equivalent"]
+    score = 100.0 * len(killed) / judged if judged else 100.0
+    # and of what a bench could show at all (without the [our choice] and the not-observable survivors)
+    showable = judged - kinds["choice"] - kinds["not_observable"]
+    observable_score = 100.0 * len(killed) / showable if showable else 100.0
+    summary = {"tool": "cosmic-ray 8.7", "sample": sample, "seed": SEED, "mutants_total": totals, "run": len(rows),
+               "killed": len(killed), "survived": len(survived), "incompetent": len(incompetent),
+               "survivors_by_kind": dict(kinds), "score_percent": round(score, 1),
+               "score_observable_percent": round(observable_score, 1), "seconds": round(seconds)}
+    (out_dir / "score.json").write_text(json.dumps({**summary, "mutants": rows}, indent=1), encoding="utf-8")
+    (out_dir / "survivors.md").write_text("\n".join(lines), encoding="utf-8")
+    print(json.dumps(summary))
+    print(f"mutation score: {score:.1f} % (killed / non-equivalent mutants run); {observable_score:.1f} % of those a "
+          f"bench could show (without [our choice] and not-observable survivors); report in {out_dir}")
+    if kinds["unclassified"]:
+        print(f"{kinds['unclassified']} surviving mutants are not classified yet (see {out_dir / 'survivors.md'})")
+    return 0
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help=f"a fixed sample of {QUICK} mutants (≤ 10 min)")
+    parser.add_argument("--sample", type=int, metavar="N", help="a fixed sample of N mutants")
+    parser.add_argument("--timeout", type=float, default=45.0, help="seconds per mutant's suite run (default 45; the suites take ≈ 5)")
+    parser.add_argument("--keep", action="store_true", help="keep the scratch copy (the cosmic-ray sessions)")
+    parser.add_argument("--report-from", metavar="DIR", type=Path,
+                        help="only write the report again from a kept scratch copy (after classifying survivors)")
+    args = parser.parse_args()
+    sample = QUICK if args.quick else args.sample
+    if args.report_from is not None:
+        return report_again(args.report_from)
+    return run(sample, args.timeout, args.keep)
+
+
+def report_again(work: Path) -> int:
+    tree = work / "tree"
+    meta = json.loads((work / "run.json").read_text(encoding="utf-8"))
+    rows = [row for name in SESSIONS for row in _results(tree / f"session-{name}.sqlite", tree)]
+    return _report(rows, meta["totals"], meta["sample"], meta["seconds"], ROOT / "reports" / "mutation")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
