@@ -274,7 +274,7 @@ CAUGHT_BY = {
     RunningYear2000Common: "test_clock_runs_over_every_month_end_and_midnight",
     RunningMonthsAlternate: "test_clock_runs_over_every_month_end_and_midnight",
     SetTakesLowBytesOnly: "test_every_invalid_field_is_refused_with_m1955_and_the_clock_runs_on",
-    LeapDayRefusedIn2000: "test_leap_day_accepted_in_every_leap_year_2000_to_2096",
+    LeapDayRefusedIn2000: "test_leap_day_accepted_in_leap_years_2000_to_2096",
     ValidatesMonthsAlternate: "test_every_invalid_field_is_refused_with_m1955_and_the_clock_runs_on",
     AdjustCarryIgnoresLeapYears: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     AdjustCarrySkipsThe31st: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
