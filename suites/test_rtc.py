@@ -115,11 +115,13 @@ def test_clock_runs_into_and_out_of_a_sunday(bench, rtc, io):
 
 @pytest.mark.spec("RTC-RUN-1", "RTC-SET-2")
 def test_clock_keeps_running_after_a_set(bench, rtc, io):
+    """The rate to ±20 % over 5 s (the month-end test sees every bench second bring exactly one tick; the slow
+    drift tests measure the rate to 0.088 s/day)."""
     assert rtc.set(at("2024-03-05 10:00:00")).accepted
-    bench.wait(10)
+    bench.wait(5)
     second, minute, hour = io.read_words("R4128", 3)
     assert (hour, minute) == (10, 0)
-    assert second in (10, 11)
+    assert second in (5, 6)
 
 
 @pytest.mark.spec("RTC-RUN-2")  # [our choice]: needs spec_choices

@@ -21,8 +21,7 @@ WINDOWS = [
 #: 30th of a 31-day month, 28 and 29 February in a leap year, 28 February in a common year and in 2000) and year.
 CARRIES = [
     ("2024-03-05 10:59:45", "2024-03-05 11:00:00"),  # minute → hour
-    ("2024-03-05 23:59:45", "2024-03-06 00:00:00"),  # hour → day
-    ("2024-01-30 23:59:30", "2024-01-31 00:00:00"),  # the 30th of a 31-day month → the 31st
+    ("2024-01-30 23:59:30", "2024-01-31 00:00:00"),  # hour → day: the 30th of a 31-day month → the 31st
     ("2024-01-31 23:59:40", "2024-02-01 00:00:00"),
     ("2024-02-28 23:59:30", "2024-02-29 00:00:00"),  # leap year: 28 → 29 February
     ("2024-02-29 23:59:30", "2024-03-01 00:00:00"),  # leap day → March
