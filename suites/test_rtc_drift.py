@@ -11,6 +11,24 @@ import pytest
 from hil.families.fbs.d4054 import code_for_rate, rate_for_code
 
 FINE_STEP = 0.088  # s/day, the manual's fine-mode resolution
+#: One code of Table 1 per kind of row, each end of each kind: coarse and fine mode, both signs, the fastest and
+#: slowest of each, no correction, the misprinted rows' codes and the codes consistent with their rates.
+TABLE_1_CODES = {
+    0x56FC: "+16.61 s/day: coarse, the largest",
+    0x56A8: "+5.56: coarse, the smallest positive",
+    0x56FD: "+5.54: fine, the largest",
+    0x56E5: "+3.38: fine, the manual's worked example",
+    0x5681: "+0.09: fine, the smallest positive",
+    0x0000: "0: no correction",
+    0x56FF: "-0.09: fine, the smallest negative",
+    0x5603: "-5.62: fine, the most negative, the manual's worked example",
+    0x5656: "-5.83: coarse, the smallest negative",
+    0x5602: "-16.88: coarse, the most negative",
+    0x5618: "+2.05 as printed (a misprint: 5618H is also the +6.36 row)",
+    0x5619: "+2.05: the code consistent with its rate",
+    0x56C8: "+1.63 as printed (a misprint)",
+    0x56C9: "+1.63: the code consistent with its rate",
+}
 
 
 @pytest.fixture
@@ -24,11 +42,15 @@ def s35390a(bench):
     return bench.plc.rtc
 
 
-@pytest.mark.spec("RTC-DRIFT-7")
-@pytest.mark.parametrize("code", [0x56E5, 0x5603, 0x56FC, 0x5602, 0x0000])
-def test_d4054_write_read_back(s35390a, io, code):
-    io.write("D4054", code)
-    assert io.read("D4054") == code
+@pytest.mark.spec("RTC-DRIFT-7", "RTC-DRIFT-3")
+def test_d4054_write_read_back_of_every_table_1_code(s35390a, io):
+    """Every kind of Table 1 code, written and read back one after the other."""
+    wrong = []
+    for code, row in TABLE_1_CODES.items():
+        io.write("D4054", code)
+        if (got := io.read("D4054")) != code:
+            wrong.append(f"{code:04X}H ({row}) read back as {got:04X}H")
+    assert not wrong, ", ".join(wrong)
 
 
 @pytest.mark.spec("RTC-DRIFT-3")

@@ -27,11 +27,11 @@ class BrokenEmulator:
 
 
 def run_suites(pytester: pytest.Pytester, files: list[str], plugin: object | None = None,
-               *extra: str) -> tuple[list[str], list[str]]:
-    """Run suite ``files`` in-process on the emulator bench; return (passed, failed) test ids."""
+               *extra: str, bench: Path = EMULATOR_BENCH) -> tuple[list[str], list[str]]:
+    """Run suite ``files`` in-process on the emulator bench (or ``bench``); return (passed, failed) test ids."""
     paths = [str(SUITES / f) for f in files]
     # no:hypothesispytest: pytester restores sys.modules after each run, so every inner run would re-import it
-    recorder = pytester.inline_run(*paths, "--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider",
+    recorder = pytester.inline_run(*paths, "--bench", str(bench), "-p", "no:cacheprovider",
                                    "-p", "no:hypothesispytest", *extra,
                                    plugins=[plugin] if plugin else [])
     passed, _skipped, failed = recorder.listoutcomes()

@@ -52,7 +52,7 @@ def test_smoke_and_rtc_suites_pass_over_rfc2217(tmp_path, protocol):
     counts = outcome_counts(out)
     print(f"{protocol}+rfc2217 via {server.kind}: {counts}")
     assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
-    assert counts.get("passed", 0) >= 45, out[-3000:]
+    assert counts.get("passed", 0) >= 25, out[-3000:]  # the RTC suites fold cases that share a wait
     assert f"hil target: {protocol}+rfc2217://" in out, out[:3000]  # the session header names the target
     for line in out.splitlines():
         if line.startswith("SKIPPED"):

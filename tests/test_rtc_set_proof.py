@@ -34,8 +34,13 @@ def hil_rtc_set(url: str, when: str) -> subprocess.CompletedProcess:
                           text=True, cwd=REPO, timeout=60)
 
 
-@pytest.mark.parametrize("broken", [None, "tests.test_rtc_set_proof:with_rtc:DropsTheSet"], ids=["correct", "drops"])
-def test_hil_rtc_set_reads_back(tmp_path, broken):
+@pytest.mark.parametrize("broken, lost", [
+    (None, None),
+    ("tests.test_rtc_set_proof:with_rtc:DropsTheSet", "the set was lost"),
+    # date and time loaded, the weekday cleared to 0: a Friday (5) reads back as Sunday
+    ("tests.test_rtc_suites_catch_broken_plcs:with_rtc:SetClearsTheWeekday", "the weekday sent (5) was lost"),
+], ids=["correct", "drops", "clears-weekday"])
+def test_hil_rtc_set_reads_back(tmp_path, broken, lost):
     profile = tmp_path / "bench.toml"
     profile.write_text(EMULATOR_BENCH.read_text())
     with hil_emulate(profile, 1.0, modbus=True, broken=broken) as where:
@@ -46,5 +51,5 @@ def test_hil_rtc_set_reads_back(tmp_path, broken):
                 assert "accepted" in done.stdout
             else:
                 assert done.returncode != 0, done.stdout + done.stderr
-                assert "the set was lost" in done.stdout + done.stderr, done.stdout + done.stderr
+                assert lost in done.stdout + done.stderr, done.stdout + done.stderr
                 assert "Traceback" not in done.stderr

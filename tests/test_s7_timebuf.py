@@ -108,3 +108,13 @@ RTC = {"set_trigger": "V100.0", "read_trigger": "V100.1", "set_buffer": "VB110",
 def test_bad_s7_profiles_name_the_key(data, message):
     with pytest.raises(ProfileError, match=message):
         profile_from_dict(data)
+
+
+def test_the_emulated_clock_keeps_two_digit_years_past_2099():
+    """The manual: the clock keeps only the year's last two digits — one second after 2099-12-31 23:59:59 it reads
+    00-01-01 00:00:00 (the emulator's clock must not stop at a year READ_RTC cannot encode)."""
+    from hil.families.s7smart.emulator import S7Clock
+    clock = S7Clock()
+    clock.load(10.0, dt.datetime(2099, 12, 31, 23, 59, 59))
+    assert clock.read_rtc(10.5) == (bytes.fromhex("99 12 31 23 59 59 00 05"), 0)
+    assert clock.read_rtc(11.0) == (bytes.fromhex("00 01 01 00 00 00 00 07"), 0)

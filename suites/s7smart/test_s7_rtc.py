@@ -79,49 +79,146 @@ def test_weekday_advances_at_midnight(bench, clock):
 
 
 # -- refused buffers: ENO = 0, 0007H, clock unchanged ---------------------------------------------------------
-INVALID = {
+#: dates that do not exist — "an invalid date (e.g. 30 February) is not accepted: ENO = 0, 0007H" (the manual):
+#: every 30-day month's 31st, 30 February, 29 February of a common year, month and day one past each end
+INVALID_DATES = {
     "30 February 2024": T("24 02 30 09 00 00 00 06"),
     "29 February 2023": T("23 02 29 09 00 00 00 04"),
     "31 April": T("24 04 31 09 00 00 00 04"),
+    "31 June": T("24 06 31 09 00 00 00 02"),
+    "31 September": T("24 09 31 09 00 00 00 03"),
+    "31 November": T("24 11 31 09 00 00 00 07"),
     "month 13": T("24 13 01 09 00 00 00 04"),
     "month 00": T("24 00 01 09 00 00 00 04"),
     "day 00": T("24 06 00 09 00 00 00 04"),
+    "day 32": T("24 01 32 09 00 00 00 04"),
+}
+#: the time one past its end in each byte, and a non-zero reserved byte: "illegal data is not written" (the
+#: manual); that it ends with 0007H is the spec's reading
+OUT_OF_RANGE = {
     "hour 24": T("24 06 20 24 00 00 00 05"),
     "minute 60": T("24 06 20 09 60 00 00 05"),
     "second 60": T("24 06 20 09 00 60 00 05"),
-    "non-BCD minute 16#1A": T("24 06 20 09 1A 00 00 05"),
-    "non-BCD year 16#A4": T("A4 06 20 09 00 00 00 05"),
-    "non-BCD day 16#0F": T("24 06 0F 09 00 00 00 05"),
     "reserved byte 01": T("24 06 20 09 00 00 01 05"),
     "reserved byte 80": T("24 06 20 09 00 00 80 05"),
+    "reserved byte 0A": T("24 06 20 09 00 00 0A 05"),
+}
+#: a non-BCD nibble (A–F) in each nibble of each date and time byte of a valid buffer (20 June 2024 09:00:00)
+VALID_BASE = T("24 06 20 09 00 00 00 05")
+NON_BCD = {
+    f"non-BCD {field} 16#{value:02X}": VALID_BASE[:i] + bytes([value]) + VALID_BASE[i + 1:]
+    for i, field in enumerate(("year", "month", "day", "hour", "minute", "second"))
+    for value in [(nibble << 4) | (VALID_BASE[i] & 0x0F) for nibble in range(0xA, 0x10)]
+    + [(VALID_BASE[i] & 0xF0) | nibble for nibble in range(0xA, 0x10)]
 }
 
 
-#: what each case checks beyond S7-RTC-4 (ENO = 0, 0007H, the clock unchanged); S7-RTC-6 is the spec's reading
-#: (needs spec_choices)
-CHECKS = {"29 February 2023": ("S7-RTC-8",), "hour 24": ("S7-RTC-3", "S7-RTC-6"),
-          "minute 60": ("S7-RTC-3", "S7-RTC-6"), "second 60": ("S7-RTC-3", "S7-RTC-6"),
-          "non-BCD minute 16#1A": ("S7-RTC-5", "S7-RTC-6"),
-          "non-BCD year 16#A4": ("S7-RTC-5", "S7-RTC-6"), "non-BCD day 16#0F": ("S7-RTC-5", "S7-RTC-6"),
-          "reserved byte 01": ("S7-RTC-3", "S7-RTC-5", "S7-RTC-6"),
-          "reserved byte 80": ("S7-RTC-3", "S7-RTC-5", "S7-RTC-6")}
+def _decode(buffer: bytes) -> dt.datetime | None:
+    """The date and time in a BCD buffer READ_RTC left; None when it holds no legal date and time."""
+    if any(b >> 4 > 9 or b & 0xF > 9 for b in buffer[:6]):
+        return None
+    y, mo, d, h, mi, s = (int(f"{b:02X}") for b in buffer[:6])
+    try:
+        return dt.datetime(2000 + y, mo, d, h, mi, s)
+    except ValueError:
+        return None
 
 
-@pytest.mark.spec("S7-RTC-4")
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.spec(*CHECKS.get(c, ("S7-RTC-3",))), id=c)
-                                  for c in INVALID])
-def test_invalid_buffer_refused_with_0007(bench, clock, case):
+def _refuse_each(bench, clock, cases: dict[str, bytes], *, error_code: bool) -> None:
+    """The clock set to SATURDAY_15_JUNE_2024, then every buffer of ``cases`` back to back: the clock must not be
+    changed by any (READ_RTC right after each shows 15 June 2024 08:30, run on by the time since the set); with
+    ``error_code`` each must also end with ENO = 0 and 0007H.  One wait at the end: the clock runs on."""
+    began = bench.time.now()
     assert clock.set(SATURDAY_15_JUNE_2024).accepted
-    result = clock.set(INVALID[case])
-    assert result.eno == 0, f"{case}: SET_RTC ended with ENO = 1 ({result})"
-    assert result.error == T_DATA_ERROR, f"{case}: error {result.error:04X}H, expected 0007H"
+    start = _decode(SATURDAY_15_JUNE_2024)
+    wrong = []
+    for case, buffer in cases.items():
+        result = clock.set(buffer)
+        if error_code and (result.eno, result.error) != (0, T_DATA_ERROR):
+            wrong.append(f"{case}: SET_RTC ended with ENO = {result.eno}, error {result.error:04X}H")
+        read = clock.read().buffer
+        ran = bench.time.now() - began
+        shown = _decode(read)
+        if shown is None or not start <= shown <= start + dt.timedelta(seconds=ran + 1) or read[7] != 7:
+            wrong.append(f"{case}: the clock was changed: READ_RTC = {read.hex(' ').upper()}")
+    assert not wrong, "\n".join(wrong)
     bench.wait(2)
-    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(2, 5), f"{case}: ")
+    shown = _decode(clock.read().buffer)
+    assert shown is not None and start + dt.timedelta(seconds=2) <= shown <= start + dt.timedelta(seconds=bench.time.now() - began + 1), (
+        f"the clock did not run on after the refusals: {shown}")
+
+
+@pytest.mark.spec("S7-RTC-4", "S7-RTC-8", "S7-RTC-3")
+def test_invalid_dates_refused_with_0007_and_the_clock_unchanged(bench, clock):
+    _refuse_each(bench, clock, INVALID_DATES, error_code=True)
+
+
+@pytest.mark.spec("S7-RTC-5", "S7-RTC-3", "S7-RTC-1")
+def test_illegal_bytes_are_not_written(bench, clock):
+    """The time one past its end, a non-BCD nibble in every nibble of every date and time byte, a non-zero
+    reserved byte: the manual says illegal data is not written."""
+    _refuse_each(bench, clock, {**OUT_OF_RANGE, **NON_BCD}, error_code=False)
+
+
+@pytest.mark.spec("S7-RTC-6", "S7-RTC-5")
+def test_illegal_bytes_end_with_eno_0_and_0007(bench, clock):
+    _refuse_each(bench, clock, {**OUT_OF_RANGE, **NON_BCD}, error_code=True)
+
+
+# -- the running clock ---------------------------------------------------------------------------------------------
+#: the last second of a day → READ_RTC one second later: every month's end of a leap year, the 30th of every
+#: 31-day month, 28 February in a leap year, a common year and 2000, 29 February 2000, the end of a year; the
+#: weekday (1 = Sunday) advancing through every day of the week
+MIDNIGHTS = [
+    (T("24 01 30 23 59 59 00 03"), T("24 01 31 00 00 00 00 04")),
+    (T("24 01 31 23 59 59 00 04"), T("24 02 01 00 00 00 00 05")),
+    (T("24 02 28 23 59 59 00 04"), T("24 02 29 00 00 00 00 05")),
+    (T("24 02 29 23 59 59 00 05"), T("24 03 01 00 00 00 00 06")),
+    (T("23 02 28 23 59 59 00 03"), T("23 03 01 00 00 00 00 04")),
+    (T("00 02 28 23 59 59 00 02"), T("00 02 29 00 00 00 00 03")),
+    (T("00 02 29 23 59 59 00 03"), T("00 03 01 00 00 00 00 04")),
+    (T("24 03 30 23 59 59 00 07"), T("24 03 31 00 00 00 00 01")),
+    (T("24 03 31 23 59 59 00 01"), T("24 04 01 00 00 00 00 02")),
+    (T("24 04 30 23 59 59 00 03"), T("24 05 01 00 00 00 00 04")),
+    (T("24 05 30 23 59 59 00 05"), T("24 05 31 00 00 00 00 06")),
+    (T("24 05 31 23 59 59 00 06"), T("24 06 01 00 00 00 00 07")),
+    (T("24 06 30 23 59 59 00 01"), T("24 07 01 00 00 00 00 02")),
+    (T("24 07 30 23 59 59 00 03"), T("24 07 31 00 00 00 00 04")),
+    (T("24 07 31 23 59 59 00 04"), T("24 08 01 00 00 00 00 05")),
+    (T("24 08 30 23 59 59 00 06"), T("24 08 31 00 00 00 00 07")),
+    (T("24 08 31 23 59 59 00 07"), T("24 09 01 00 00 00 00 01")),
+    (T("24 09 30 23 59 59 00 02"), T("24 10 01 00 00 00 00 03")),
+    (T("24 10 30 23 59 59 00 04"), T("24 10 31 00 00 00 00 05")),
+    (T("24 10 31 23 59 59 00 05"), T("24 11 01 00 00 00 00 06")),
+    (T("24 11 30 23 59 59 00 07"), T("24 12 01 00 00 00 00 01")),
+    (T("24 12 30 23 59 59 00 02"), T("24 12 31 00 00 00 00 03")),
+    (T("24 12 31 23 59 59 00 03"), T("25 01 01 00 00 00 00 04")),
+]
+
+
+@pytest.mark.spec("S7-RTC-9", "S7-RTC-8", "S7-RTC-7")
+def test_clock_runs_over_every_month_end_and_leap_day(bench, clock):
+    """One bench second per case: one second after SET_RTC the clock must have ticked into the next day, and not
+    further than the time since the set."""
+    wrong = []
+    for buffer, after in MIDNIGHTS:
+        began = bench.time.now()
+        result = clock.set(buffer)
+        if not result.accepted:
+            wrong.append(f"{buffer.hex(' ').upper()}: SET_RTC refused it ({result})")
+            continue
+        bench.wait(1.0)
+        read = clock.read().buffer
+        most = int(bench.time.now() - began) - 1
+        if read[:5] != after[:5] or read[6:] != after[6:] or read[5] not in [bcd(s) for s in range(max(most, 0) + 1)]:
+            wrong.append(f"{buffer.hex(' ').upper()} + 1 s: READ_RTC = {read.hex(' ').upper()}, expected "
+                         f"{after.hex(' ').upper()}")
+    assert not wrong, "\n".join(wrong)
 
 
 @pytest.mark.spec("S7-RTC-4")
 def test_valid_set_after_a_refused_one(clock):
-    assert clock.set(INVALID["30 February 2024"]).error == T_DATA_ERROR
+    assert clock.set(INVALID_DATES["30 February 2024"]).error == T_DATA_ERROR
     result = clock.set(T("24 02 29 09 00 00 00 01"))
     assert result.accepted, f"valid set after a refused one: {result}"
     assert_reads(clock, T("24 02 29 09 00 00 00 00")[:5], 5, range(0, 3))  # 29 Feb 2024 was a Thursday

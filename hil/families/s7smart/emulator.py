@@ -108,7 +108,11 @@ class S7Clock(Model):
             self._anchor, self._anchor_now = timebuf.POWER_LOSS_TIME, emu.now
 
     def time(self, now: float) -> dt.datetime:
-        return self._anchor + dt.timedelta(seconds=math.floor(now - self._anchor_now + 1e-9))
+        """The clock's time at ``now``.  It keeps only the year's last two digits (the manual): one second after
+        2099-12-31 23:59:59 it shows 2000-01-01 00:00:00, and a century of its seconds is the 25 leap years of
+        2000–2099 (no 2100, which READ_RTC could not encode)."""
+        since = (self._anchor - timebuf.POWER_LOSS_TIME).total_seconds() + math.floor(now - self._anchor_now + 1e-9)
+        return timebuf.POWER_LOSS_TIME + dt.timedelta(seconds=since % timebuf.CENTURY_SECONDS)
 
     def load(self, now: float, when: dt.datetime) -> None:
         self._anchor, self._anchor_now = when, now

@@ -31,6 +31,9 @@ def start_s7_server(emulator: S7Emulator, host: str = "127.0.0.1", port: int = 0
     """Serve ``emulator`` on ``host:port`` (0: the OS picks); the handle's ``address`` is ``host:port``."""
     snap7 = snap7_module()
     logging.getLogger("snap7").setLevel(logging.WARNING)  # its per-request INFO lines are not ours to print
+    # … nor its server's per-request warning about the address fallback of a request this server answers itself
+    # (one line every few requests: a long run fills the pipe of whoever reads `hil emulate`'s stderr, and blocks)
+    logging.getLogger("snap7.server").setLevel(logging.ERROR)
     server = _server_class(snap7)(emulator)
     server.start_to(host, port)
     bound = server.server_socket.getsockname()[1]

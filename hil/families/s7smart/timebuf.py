@@ -20,6 +20,8 @@ ERROR_T_DATA = 0x0007  # "T data error": an invalid time buffer (or a colliding 
 
 #: Where the clock starts after the back-up time ran out (and always at power-on on a CR40/CR60).
 POWER_LOSS_TIME = dt.datetime(2000, 1, 1, 0, 0, 0)  # a Saturday: weekday 7
+#: Seconds from 2000-01-01 to 2100-01-01: the clock's two-digit years come round again after them.
+CENTURY_SECONDS = int((dt.datetime(2100, 1, 1) - POWER_LOSS_TIME).total_seconds())
 
 FIELDS = ("year", "month", "day", "hour", "minute", "second", "reserved", "weekday")
 _RANGES = {"year": (0, 99), "month": (1, 12), "day": (1, 31), "hour": (0, 23), "minute": (0, 59),

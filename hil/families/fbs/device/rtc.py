@@ -282,6 +282,10 @@ class Rtc:
             if ahead is None or not 0 <= ahead <= slack:
                 raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows {shown} after it, not "
                                  f"{value} (sent): the set was lost (M1952 edge not seen by a scan?)")
+            weekday = _weekday_after(value, shown)
+            if weekday is not None and shown.weekday != weekday:
+                raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows weekday {shown.weekday} "
+                                 f"({shown}) after it, not {weekday}: the weekday sent ({value.weekday}) was lost")
         return result
 
     def adjust_30s(self) -> None:
@@ -430,6 +434,16 @@ class Drift:
         started = self.plc.time.now()
         shown = self.rtc.read()
         return shown, (started + self.plc.time.now()) / 2
+
+
+def _weekday_after(sent: RtcTime, shown: RtcTime) -> int | None:
+    """The weekday R4134 must show at ``shown`` after a set of ``sent``: the one sent, advanced by the days the
+    clock has run into since.  None when ``sent`` carried a weekday its date does not have: the manual does not say
+    whether the PLC keeps such a weekday or derives it from the date, so nothing is expected of it."""
+    if sent.weekday != sent.with_weekday_from_date().weekday:
+        return None
+    days = (shown.to_datetime().date() - sent.to_datetime().date()).days
+    return (sent.weekday + days) % 7
 
 
 def _seconds(t: RtcTime) -> int:
