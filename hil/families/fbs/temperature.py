@@ -238,14 +238,21 @@ def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> Temp
                              rate, sources, reference, float(tolerance))
 
 
+def _point_table(raw: Any, points: int, fail, name: str, shape: str) -> list[tuple[str, Any]]:  # noqa: ANN001
+    """A profile table keyed by configured point ("0" … points − 1): its (key, value) pairs, or the key that is not
+    one, named."""
+    if not isinstance(raw, dict):
+        raise fail(name, f"must be a table of point → {shape}")
+    for key in raw:
+        if not str(key).isdigit() or int(key) >= points:
+            raise fail(f"{name}.{key}", f"is not a configured point (0–{points - 1})")
+    return list(raw.items())
+
+
 def _parse_reference(raw: Any, points: int, fail) -> dict[int, float]:  # noqa: ANN001
     """``reference = {"10" = 28.0, "11" = 28.3}``: point → °C."""
-    if not isinstance(raw, dict):
-        raise fail("reference", "must be a table of point → °C, like {\"10\" = 25.0}")
     out = {}
-    for key, celsius in raw.items():
-        if not str(key).isdigit() or int(key) >= points:
-            raise fail(f"reference.{key}", f"is not a configured point (0–{points - 1})")
+    for key, celsius in _point_table(raw, points, fail, "reference", "°C, like {\"10\" = 25.0}"):
         if isinstance(celsius, bool) or not isinstance(celsius, (int, float)):
             raise fail(f"reference.{key}", f"must be a temperature in °C, not {celsius!r}")
         out[int(key)] = float(celsius)
@@ -259,12 +266,8 @@ def _bank_size(kind: str) -> int:
 
 def _parse_sources(raw: Any, points: int, fail) -> dict[int, dict[str, Any]]:  # noqa: ANN001
     """``sources = {"0" = {kind = "fixed", celsius = 25.0}, "3" = {kind = "ramp", start = 20, per_s = 0.5}}``."""
-    if not isinstance(raw, dict):
-        raise fail("sources", "must be a table of point → {kind = \"fixed\" | \"ramp\", …}")
     out = {}
-    for key, spec in raw.items():
-        if not str(key).isdigit() or int(key) >= points:
-            raise fail(f"sources.{key}", f"is not a configured point (0–{points - 1})")
+    for key, spec in _point_table(raw, points, fail, "sources", "{kind = \"fixed\" | \"ramp\", …}"):
         if not isinstance(spec, dict) or spec.get("kind") not in ("fixed", "ramp"):
             raise fail(f"sources.{key}", "must be {kind = \"fixed\", celsius = …} or "
                                          "{kind = \"ramp\", start = …, per_s = …}")
