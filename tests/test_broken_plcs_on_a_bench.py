@@ -76,8 +76,24 @@ def _defects() -> list[tuple[str, list[str], list[str], float]]:
     return found
 
 
+#: a real-time defect whose catching tests all skipped (a busy host stretched requests past the scans they must
+#: pin down: the suite said "cannot decide here", not "passed") is run again, at most this many times
+INCONCLUSIVE_RETRIES = 2
+
+
 def _run(spec: str, files: list[str], extra: list[str], scale: float, tmp_path) -> tuple[str, dict[str, int], str]:
     name = spec.rsplit(":", 1)[1]
+    for attempt in range(INCONCLUSIVE_RETRIES + 1):
+        counts, out = _run_once(spec, files, extra, scale, tmp_path / f"{name}-{attempt}")
+        inconclusive = not counts.get("failed") and not counts.get("passed") and counts.get("skipped")
+        if not (inconclusive and scale == 1.0):
+            break
+    return name, counts, out
+
+
+def _run_once(spec: str, files: list[str], extra: list[str], scale: float, tmp_path) -> tuple[dict[str, int], str]:
+    name = spec.rsplit(":", 1)[1]
+    tmp_path.mkdir()
     emulated = tmp_path / f"{name}-emulated.toml"
     profile = bench_like(EMULATOR_BENCH.read_text())
     transform = getattr(importlib.import_module(spec.split(":")[0]), "PROFILE_FOR", {}).get(name)
@@ -98,7 +114,7 @@ def _run(spec: str, files: list[str], extra: list[str], scale: float, tmp_path) 
     out = done.stdout + done.stderr
     lines = [line for line in out.splitlines() if re.search(r"\d+ (passed|failed|skipped|deselected)", line)]
     counts = {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error)", lines[-1] if lines else "")}
-    return name, counts, out
+    return counts, out
 
 
 @pytest.mark.timeout(600)

@@ -65,6 +65,11 @@ def test_a_written_value_is_recorded_before_each_write_and_the_first_original_ke
     data = json.loads(journal.path.read_text())
     assert data["version"] == jmod.VERSION == 2 and data["plc"] == {"serial": "01"}
     assert data["elements"]["R1"]["original"] == 7 and data["elements"]["R1"]["wrote"] == 10
+    # a run killed after journaling 10 but before sending it leaves 8 on the PLC: kept as what the run may have left
+    assert data["elements"]["R1"]["earlier"] == 8 and jmod.run_left(data["elements"]["R1"]) == [10, 8]
+    journal.add_coil("rig", "modbus+tcp://127.0.0.1:5020", 3, 1, False, True)
+    journal.add_coil("rig", "modbus+tcp://127.0.0.1:5020", 3, 1, True, False)
+    assert jmod.run_left(journal.coils()["rig"]) == [False, True]
 
 
 def test_enable_states_keep_the_first_and_leave_only_when_dropped(tmp_path):

@@ -237,6 +237,33 @@ def test_disk_full_twice_in_a_row_leaves_nothing_unjournaled(plc, tmp_path, monk
 
 
 # -- item 3: what happened since --------------------------------------------------------------------------------
+def test_a_run_killed_between_journaling_a_write_and_sending_it_is_still_put_back(plc, tmp_path):
+    """The journal records what is about to be written before it goes out: a run killed in between leaves the PLC
+    holding what its previous write left — the run's own value, restored, not an operator's change kept."""
+    url = _url(plc)
+    died = _session(tmp_path, _profile(tmp_path, plc, "first"),
+                    "bench.plc.io.write('R1000', 1111)\n"
+                    "import gc\nfrom hil.families.fbs.transport.guard import GuardedTransport\n"
+                    "guard = next(o for o in gc.get_objects() if isinstance(o, GuardedTransport))\n"
+                    f"guard.inner._write_words = lambda *a: {KILL}  # dies once 2222 is journaled, before it is sent\n"
+                    "bench.plc.io.write('R1000', 2222)")
+    assert died.returncode == -signal.SIGKILL, died.stdout
+    entry = Journal(lock_key(url)).data["elements"]["R1000"]
+    assert (entry["original"], entry["wrote"], entry["earlier"]) == (0, 2222, 1111)
+    with _plc(plc) as t:
+        assert t.read("R1000") == 1111
+    try:
+        nxt = _session(tmp_path, _profile(tmp_path, plc, "second"), "pass", "next")
+        assert nxt.returncode == 0, nxt.stdout
+        with _plc(plc) as t:
+            assert t.read("R1000") == 0
+        assert not Journal(lock_key(url)).pending
+    finally:
+        with _plc(plc) as t:
+            t.write("R1000", 0)
+        journal_path(lock_key(url)).unlink(missing_ok=True)
+
+
 def test_an_operators_change_after_a_crash_is_kept_and_reported(plc, tmp_path):
     """A run writes R1000, R1001 and STOPs the PLC, then dies; an operator writes R1000 = 5555.  The next run
     (allow_destructive off) leaves R1000 at 5555 and the PLC in STOP, lists both, puts R1001 back, fails."""

@@ -19,7 +19,7 @@ import datetime as dt
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from hil.core.journal import ELEMENTS, Journal
+from hil.core.journal import ELEMENTS, Journal, run_left
 
 if TYPE_CHECKING:  # the guard imports this module
     from hil.bench.guard import Guard
@@ -137,8 +137,8 @@ def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Ve
         if element in guard.volatile:
             out.append(Verdict(name, "drop", "volatile in the profile: the PLC rewrites it itself"))
             continue
-        bad = guard.value_problem(element, entry["original"]) or (
-            entry["wrote"] is not None and guard.value_problem(element, entry["wrote"]))
+        bad = next(filter(None, (guard.value_problem(element, v) for v in [entry["original"], *run_left(entry)])),
+                   None)
         if bad:
             out.append(Verdict(name, "refuse", f"malformed: {bad}"))
             continue
@@ -185,10 +185,11 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
         original, wrote = verdict.entry["original"], verdict.entry["wrote"]
         if value == original:
             back.append(verdict)
-        elif wrote is None or value == wrote:  # wrote None: the PLC rewrote it itself after a write of the run
+        elif wrote is None or value in run_left(verdict.entry):  # wrote None: the PLC's own, after a run's write
             restore.append(verdict)
         else:
-            report.changed.append(f"{verdict.name} reads {value}, the run wrote {wrote} (original {original})")
+            report.changed.append(f"{verdict.name} reads {value}, the run wrote "
+                                  f"{' or '.join(map(str, run_left(verdict.entry)))} (original {original})")
     bad = {str(name): why for name, _, why in guard._put_back([(v.element, v.entry["original"]) for v in restore])} \
         if restore else {}
     for verdict in restore:

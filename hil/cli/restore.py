@@ -99,6 +99,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
 def _verdicts(journal: Journal, profile: object) -> list[str]:
     """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
     from hil.bench.replay import age_problem
+    from hil.core.journal import run_left
     writable = volatile = None
     if profile is not None:
         plugin = profile.plugin  # type: ignore[attr-defined]
@@ -125,8 +126,7 @@ def _verdicts(journal: Journal, profile: object) -> list[str]:
                 problem = "not in the profile's [safety] writable"
             check = getattr(profile.plugin, "value_problem", None)  # type: ignore[attr-defined]
             if problem is None and not dropped and check is not None:
-                bad = check(element, entry["original"]) or (entry["wrote"] is not None
-                                                             and check(element, entry["wrote"]))
+                bad = next(filter(None, (check(element, v) for v in [entry["original"], *run_left(entry)])), None)
                 problem = f"malformed: {bad}" if bad else None
         if problem is None and kind.section == "run" and profile is not None \
                 and not profile.safety.allow_destructive:  # type: ignore[attr-defined]
@@ -139,8 +139,8 @@ def _verdicts(journal: Journal, profile: object) -> list[str]:
             out.append(f"{what}: next run restores it only if the PLC rewrites it after a write the profile allows "
                        f"(a FUN86 box's gains after its EN), else refuses it")
         elif kind.keyed and entry.get("wrote") is not None:
-            out.append(f"{what}: next run restores it if it still reads {int(entry['wrote'])}, else leaves it "
-                       f"and says so")
+            out.append(f"{what}: next run restores it if it still reads "
+                       f"{' or '.join(str(int(v)) for v in run_left(entry))}, else leaves it and says so")
         else:
             out.append(f"{what}: next run restores it (read back)")
     return out

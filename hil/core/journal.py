@@ -23,12 +23,17 @@ The schema (version 2), one JSON object::
      "plc": {…} | null,           # the PLC's identity as the wire read it (FATEK command 53, the S7 identity)
      "created": ISO-8601 UTC,
      # one section per registered entry kind (:data:`KINDS`); each entry carries test, pid and at (ISO-8601 UTC)
-     "elements": {NAME: {"original": int, "wrote": int | null, …}},    # wrote null: the PLC changed it itself
-     "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null, …}},
+     "elements": {NAME: {"original": int, "wrote": int | null, "earlier"?: int, …}},  # wrote null: the PLC's own
+     "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null,
+                         "earlier"?: bool, …}},
      "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float, …},
      "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
      "disabled": [NAME, …],                                             # bits command 42 disabled
      "enable":   {NAME: {"disabled": bool, …}}}                         # enable state (command 43) before 42
+
+"wrote" is written (fsync'd) before the write goes out, so a run killed between the two leaves the PLC holding
+what its previous write left: that value is kept as "earlier" (absent until an element is written twice), and
+recovery treats either as the run's.
 
 Each section is checked entry by entry by its kind's validator (:func:`register_kind`): a malformed entry is
 named and kept, the others still replayed.  A kind may carry fields beyond those its validator checks (they are
@@ -174,9 +179,24 @@ def _bool(v: Any) -> bool:
     return isinstance(v, bool)
 
 
+def _earlier_problem(entry: dict, ok: Callable[[Any], bool], want: str) -> str | None:
+    if "earlier" in entry and not ok(entry["earlier"]):
+        return f"its earlier is {json.dumps(entry['earlier'])} (want {want})"
+    return None
+
+
+def run_left(entry: dict) -> list:
+    """The values the run may have left an element (or coil) holding: what it last wrote, or — when it died with
+    that write journaled but not yet sent — what its write before left.  Empty when the PLC rewrote it itself."""
+    if entry.get("wrote") is None:
+        return []
+    return [entry["wrote"]] + ([entry["earlier"]] if entry.get("earlier") is not None else [])
+
+
 def _check_element(entry: Any) -> str | None:
     return _fields(entry, {"original": _integer, "wrote": lambda v: v is None or _integer(v)},
-                   {"original": "an integer 0…0xFFFFFFFF", "wrote": "an integer 0…0xFFFFFFFF or null"})
+                   {"original": "an integer 0…0xFFFFFFFF", "wrote": "an integer 0…0xFFFFFFFF or null"}) \
+        or _earlier_problem(entry, _integer, "an integer 0…0xFFFFFFFF")
 
 
 def _check_coil(entry: Any) -> str | None:
@@ -184,7 +204,7 @@ def _check_coil(entry: Any) -> str | None:
                            "unit": lambda v: _integer(v, 255), "original": _bool,
                            "wrote": lambda v: v is None or _bool(v)},
                    {"target": "a Modbus URL", "coil": "0…65535", "unit": "0…255", "original": "true or false",
-                    "wrote": "true, false or null"})
+                    "wrote": "true, false or null"}) or _earlier_problem(entry, _bool, "true or false")
 
 
 def _finite(v: Any) -> bool:
@@ -217,8 +237,9 @@ def _who(entry: Any) -> str:
 
 def _show_element(name: str, e: Any) -> str:
     wrote = e.get("wrote")
+    earlier = f" (before it: {e['earlier']})" if wrote is not None and e.get("earlier") is not None else ""
     return (f"{name} = {e['original']} (0x{e['original']:04X}), the run wrote "
-            f"{'(the PLC itself)' if wrote is None else wrote}{_who(e)}")
+            f"{'(the PLC itself)' if wrote is None else wrote}{earlier}{_who(e)}")
 
 
 def _show_coil(name: str, e: Any) -> str:
@@ -250,6 +271,11 @@ RUN = register_kind(EntryKind("run", False, _check_run, _show_run))
 DISABLED = register_kind(EntryKind("disabled", False, _check_disabled, _show_disabled, []))
 #: a bit's enable state (FATEK command 43: disabled = forced) before a test first enabled or disabled it
 ENABLE = register_kind(EntryKind("enable", True, _check_enable, _show_enable, {}))
+
+
+def _earlier(old: dict) -> dict[str, Any]:
+    """The field that keeps what the previous write left, for an entry about to record a new ``wrote``."""
+    return {"earlier": old["wrote"]} if old.get("wrote") is not None else {}
 
 
 def entry_id(section: str, name: str | None = None) -> str:
@@ -454,8 +480,9 @@ class Journal:
                     entries[name] = {"original": int(value), "wrote": wrote.get(name), **stamp}
                     changed = True
             for name, value in wrote.items():
-                if name in entries and value is not None and entries[name].get("wrote") != value:
-                    entries[name] = {**entries[name], "wrote": int(value)}
+                old = entries.get(name)
+                if old is not None and value is not None and old.get("wrote") != value:
+                    entries[name] = {**old, "wrote": int(value), **_earlier(old)}
                     changed = True
             return changed
         self._change(apply)
@@ -522,7 +549,7 @@ class Journal:
                 return True
             if wrote is None or old.get("wrote") == wrote:
                 return False
-            data["coils"][key] = {**old, "wrote": bool(wrote)}
+            data["coils"][key] = {**old, "wrote": bool(wrote), **_earlier(old)}
             return True
         self._change(apply)
 
@@ -568,4 +595,5 @@ class Journal:
 
 
 __all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
-           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "parse", "register_kind", "state_dir"]
+           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "parse", "register_kind", "run_left",
+           "state_dir"]

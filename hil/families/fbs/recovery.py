@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterable
 from hil.bench.guard import Recovery, RecoveryStep
 from hil.bench.replay import age_problem
 from hil.core.errors import HilError
-from hil.core.journal import COILS, Journal
+from hil.core.journal import COILS, Journal, run_left
 
 
 def rig_targets(profile: Any) -> frozenset[str]:
@@ -56,7 +56,7 @@ def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False,
         rig = ModbusCoilSensorBreak(entry["target"], 0)
         try:
             now = rig._read(entry["coil"])
-            if now != original and wrote is not None and now != wrote:
+            if now != original and wrote is not None and now not in run_left(entry):
                 report.changed.append(f"rig coil {key} reads {int(now)}, the run wrote {int(wrote)} (original "
                                       f"{int(original)})")
                 continue
