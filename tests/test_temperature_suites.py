@@ -135,6 +135,15 @@ class MismatchBitsNeverSet(TemperatureModel):
         return (0, *rest)
 
 
+class AnyModuleNameMatches(TemperatureModel):
+    """A table entry naming any module kind is taken as the module fitted: only an unknown name (FFH) is flagged
+    in TW+0's low byte (mutant temperature.py:246)."""
+
+    def _plan(self, codes, table_modules, readings_word):
+        named = [self.fitted[k] if tm is not None and k < len(self.fitted) else tm for k, tm in enumerate(table_modules)]
+        return super()._plan(codes, named, readings_word)
+
+
 class EveryEntryStartsAtSR2(TemperatureModel):
     """The per-module entries all give the table's readings start (TW+6+4k = SR+2)."""
 
@@ -202,6 +211,7 @@ CAUGHT_BY = {
     NoFEHForCountZero: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     NoFFHForTooManyPoints: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     MismatchBitsNeverSet: ["test_work_block_codes_for_a_table_that_does_not_fit"],
+    AnyModuleNameMatches: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     EveryEntryStartsAtSR2: ["test_table_is_recognised_and_measuring"],
     BreakWordsHoldOnePoint: [BREAK_TEST],
     R4011DefaultsTo0000: ["test_installed_mask_defaults_to_ffffh"],
