@@ -269,6 +269,39 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
                     periods=config.averaging + 1.5)
 
 
+@pytest.mark.spec("TEMP-TBL-2")
+def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
+    """20.3.1: the table is valid only with SR+0 = A556H.  With any other marker — one above (A557H) and one below
+    (56A5H, A556H byte-swapped), one update time and the margin each — the PLC measures nothing: sensors opened
+    meanwhile (every one the rig can open) show neither 28767 nor a break bit.  A556H put back, measuring resumes
+    (the sensors are repaired by the fixture).  Needs SR+0 in [safety] writable; the guard restores it."""
+    config = temp.config
+    sr = config.table
+    _need(bench, str(sr))
+    points = breaker.openable(list(range(config.points)))
+    if not points:
+        pytest.skip("the sensor-break rig can open none of the fitted points")
+    io = bench.plc.io
+    update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
+    io.write(str(sr), 0xA557)  # (the marker first: a valid table must not get to measure an open sensor)
+    bench.settle()
+    before, words_before = temp.readings(), temp.read_work().break_words
+    for p in points:
+        breaker.open(p)
+    for marker in (0xA557, 0x56A5):
+        io.write(str(sr), marker)
+        bench.plc.time.wait(update + UPDATE_MARGIN_S)  # every point measured in that time, were it measuring
+        bench.settle()
+        readings = temp.readings()
+        shown = [p for p in points if readings[p] == BREAK != before[p]]
+        assert not shown, (f"SR+0 = {marker:04X}H (not A556H: no table), yet the open sensors of points {shown} "
+                           f"read 28767: the PLC measured")
+        words = temp.read_work().break_words
+        assert words == words_before, (f"SR+0 = {marker:04X}H (no table), yet TW+1 TW+2 went from "
+                                       f"{_bits(words_before)} to {_bits(words)}: the PLC measured")
+    io.write(str(sr), 0xA556)
+
+
 def _another_module(name, headroom):
     """A module kind other than ``name`` whose points fit ``headroom`` more than its own (the same count first)."""
     fits = [m for m in POINTS if m != name and POINTS[m] <= POINTS[name] + headroom]
