@@ -8,7 +8,8 @@ Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 S
 (hil/families/s7smart/emulator.py).  The test command is the suites against the in-process emulator, exactly as
 ``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
-temperatures; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile).  cosmic-ray writes each
+temperatures, and the temperature suite once more on the
+profile with averaging and the fast rate; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile).  cosmic-ray writes each
 mutant into the files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the
 suites at it); the checkout is never touched.
 
@@ -25,6 +26,7 @@ import argparse
 import json
 import os
 import random
+import shlex
 import shutil
 import subprocess
 import sys
@@ -43,7 +45,12 @@ PYTEST = "{python} -m pytest -x -q -p no:cacheprovider "
 #: temperatures, so the temperature model is judged by the PID suites too)
 SESSIONS = {
     "rtc": (MODELS + "rtc.py", PYTEST + RTC_SUITES),
-    "temperature": (MODELS + "temperature.py", PYTEST + "suites/test_temperature.py " + PID_SUITES),
+    # (and the temperature suite again on CI's other temperature profile — 8 modules of the other kinds, °F, the fast
+    # rate, 4-sample averaging: tests/test_temperature_suites.py's mixed_profile —, where averaging and the fast
+    # rate's resolution run at all; the default profile has neither)
+    "temperature": (MODELS + "temperature.py", "sh -c " + shlex.quote(
+        PYTEST + "suites/test_temperature.py " + PID_SUITES + " && " + PYTEST + "suites/test_temperature.py --bench "
+        + "mixed-temperature.toml")),
     "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
     "s7": ("hil/families/s7smart/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
 }
@@ -59,6 +66,13 @@ def _copy_tree(dest: Path) -> None:
     """The working tree as it is (uncommitted edits included), without caches, venvs and reports."""
     ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "reports", "mutants", "*.sqlite", ".hypothesis")
     shutil.copytree(ROOT, dest, symlinks=True, ignore=ignore)
+
+
+def _mixed_profile(dest: Path) -> None:
+    sys.path.insert(0, str(ROOT))
+    from tests.conftest import EMULATOR_BENCH
+    from tests.test_temperature_suites import mixed_profile
+    dest.write_text(mixed_profile(EMULATOR_BENCH.read_text(encoding="utf-8")), encoding="utf-8")
 
 
 def _config(work: Path, name: str, timeout: float) -> Path:
@@ -152,6 +166,7 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C9
     try:
         _copy_tree(work / "tree")
         tree = work / "tree"
+        _mixed_profile(tree / "mixed-temperature.toml")
         rng = random.Random(SEED)
         rows: list[dict] = []
         dbs = {}

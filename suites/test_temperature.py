@@ -12,6 +12,10 @@ known temperature; [faults.sensor_break] says how this bench opens a sensor.
 
 import pytest
 
+# the table's module name codes are the harness's [our choice] (the manual gives none): the ones the
+# bench's own table uses
+from hil.families.fbs.temperature import MODULES
+
 # Manual 20.1: points per module, and each sensor's measuring range in °C.
 POINTS = {"2TC": 2, "6TC": 6, "16TC": 16, "6RTD": 6, "16RTD": 16, "6NTC": 6}
 RANGE_C = {"J": (-200, 900), "K": (-190, 1300), "T": (-190, 380), "E": (-190, 1000), "N": (-200, 1000),
@@ -193,7 +197,8 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
     """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8, FFH for more
     than 32 points, and bit k of TW+0's low byte flags table module k + 1 not matching the module fitted — tried
     with every module, the even ones and then the odd ones (each bit seen set and clear), the entry's module name
-    replaced by FFH (no module).  The harness then puts the table back, and the code returns to 56H.  Needs the
+    replaced by FFH (no module) and by another module kind (its code in the harness's code table, which the bench's
+    own table uses).  The harness then puts the table back, and the code returns to 56H.  Needs the
     table (SR … SR+11) in [safety] writable; the guard restores it whatever happens."""
     config = temp.config
     sr = config.table
@@ -221,25 +226,91 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
         _retable(bench, temp, {1: n, **{4 + k: table[4 + k] for k in range(many) if 4 + k < len(table)}},
                  lambda w: w.execution_code == MEASURING)
 
-    for parity in (0, 1):
-        wrong = [k for k in range(n) if k % 2 == parity]
-        if not wrong:
+    # Bit k: table module k + 1 names no module (FFH) or another module than the one fitted (TEMP-WORK-4) — each
+    # kind on the even and on the odd modules, each step flagging other modules than the one before (a bit seen set
+    # while the others are clear, and a PLC that keeps the last step's bits fails); "another module" keeps the
+    # total at most 32 points (else FFH), so a module with no such other kind is tried with FFH only.
+    headroom = 32 - sum(POINTS[m.type.name] for m in config.modules)
+
+    def no_module(k):
+        return (table[4 + k] & 0xFF00) | 0xFF
+
+    def another_module(k):
+        other = _another_module(config.modules[k].type.name, headroom)
+        return None if other is None else (table[4 + k] & 0xFF00) | MODULES[other].code
+
+    even, odd = [k for k in range(n) if k % 2 == 0], [k for k in range(n) if k % 2 == 1]
+    flagged: dict[int, int] = {}  # module → the word the table now names for it
+    for modules, name_of in ((even, no_module), (odd, another_module), (even, another_module), (odd, no_module)):
+        words = {k: name_of(k) for k in modules if name_of(k) is not None}
+        if not words:
             continue
-        want = sum(1 << k for k in wrong)
-        items = {4 + k: (table[4 + k] & 0xFF00) | 0xFF for k in wrong}
+        want = sum(1 << k for k in words)
+        if want == sum(1 << k for k in flagged):  # (the same bits as now: clear them first, so the step shows)
+            _retable(bench, temp, {4 + k: table[4 + k] for k in flagged}, lambda w: w.mismatch_bits == 0)
+            flagged = {}
+        items = {**{4 + k: table[4 + k] for k in flagged}, **{4 + k: v for k, v in words.items()}}
         work = _retable(bench, temp, items, lambda w: w.mismatch_bits == want)
+        what = ", ".join(f"{k + 1}: {'FFH (no module)' if v & 0xFF == 0xFF else _module_name(v)}"
+                         for k, v in words.items())
         assert work.mismatch_bits == want, (
-            f"table modules {[k + 1 for k in wrong]} name no fitted module: TW+0 low byte {work.mismatch_bits:08b}, "
+            f"table modules {what} do not match the modules fitted "
+            f"({', '.join(m.type.name for m in config.modules)}): TW+0 low byte {work.mismatch_bits:08b}, "
             f"expected {want:08b}")
-        work = _retable(bench, temp, {4 + k: table[4 + k] for k in wrong},
-                        lambda w: w.mismatch_bits == 0 and w.execution_code == MEASURING)
-        assert work.mismatch_bits == 0 and work.execution_code == MEASURING, (
-            f"the table put back: TW+0 = {work.words[0]:04X}H, expected 5600H")
+        flagged = words
+    work = _retable(bench, temp, {4 + k: table[4 + k] for k in flagged},
+                    lambda w: w.mismatch_bits == 0 and w.execution_code == MEASURING)
+    assert work.mismatch_bits == 0 and work.execution_code == MEASURING, (
+        f"the table put back: TW+0 = {work.words[0]:04X}H, expected 5600H")
     # Left as found: a module the PLC stopped measuring (or measured elsewhere) averages its way back over as many
     # updates as it averages samples; the next test must not see those readings.
     bench.plc.io.write_words(str(sr), table)
     temp.wait_until(lambda: all(_close(a, b) for a, b in zip(temp.readings(), before)),
                     periods=config.averaging + 1.5)
+
+
+@pytest.mark.spec("TEMP-TBL-2")
+def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
+    """20.3.1: the table is valid only with SR+0 = A556H.  With any other marker — one above (A557H) and one below
+    (56A5H, A556H byte-swapped), one update time and the margin each — the PLC measures nothing: sensors opened
+    meanwhile (every one the rig can open) show neither 28767 nor a break bit.  A556H put back, measuring resumes
+    (the sensors are repaired by the fixture).  Needs SR+0 in [safety] writable; the guard restores it."""
+    config = temp.config
+    sr = config.table
+    _need(bench, str(sr))
+    points = breaker.openable(list(range(config.points)))
+    if not points:
+        pytest.skip("the sensor-break rig can open none of the fitted points")
+    io = bench.plc.io
+    update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
+    io.write(str(sr), 0xA557)  # (the marker first: a valid table must not get to measure an open sensor)
+    bench.settle()
+    before, words_before = temp.readings(), temp.read_work().break_words
+    for p in points:
+        breaker.open(p)
+    for marker in (0xA557, 0x56A5):
+        io.write(str(sr), marker)
+        bench.plc.time.wait(update + UPDATE_MARGIN_S)  # every point measured in that time, were it measuring
+        bench.settle()
+        readings = temp.readings()
+        shown = [p for p in points if readings[p] == BREAK != before[p]]
+        assert not shown, (f"SR+0 = {marker:04X}H (not A556H: no table), yet the open sensors of points {shown} "
+                           f"read 28767: the PLC measured")
+        words = temp.read_work().break_words
+        assert words == words_before, (f"SR+0 = {marker:04X}H (no table), yet TW+1 TW+2 went from "
+                                       f"{_bits(words_before)} to {_bits(words)}: the PLC measured")
+    io.write(str(sr), 0xA556)
+
+
+def _another_module(name, headroom):
+    """A module kind other than ``name`` whose points fit ``headroom`` more than its own (the same count first)."""
+    fits = [m for m in POINTS if m != name and POINTS[m] <= POINTS[name] + headroom]
+    return min(fits, key=lambda m: (POINTS[m] != POINTS[name], -POINTS[m]), default=None)
+
+
+def _module_name(word):
+    return next((f"{name} ({word & 0xFF:02X}H)" for name, m in MODULES.items() if m.code == word & 0xFF),
+                f"{word & 0xFF:02X}H")
 
 
 def _close(after, before):

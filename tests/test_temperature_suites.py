@@ -22,12 +22,12 @@ import hil.families.fbs.transport.local  # noqa: F401
 import hil.families.fbs.transport.modbus  # noqa: F401
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.temperature import TemperatureModel
-from hil.families.fbs.temperature import EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING
+from hil.families.fbs.temperature import EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING, TABLE_MARKER
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITE = str(REPO / "suites" / "test_temperature.py")
-SUITE_TESTS = 5
+SUITE_TESTS = 6
 # The inner runs need no hypothesis; loading its plugin re-imports (and rewrites) ~70 modules per run.
 INNER = ("-p", "no:hypothesispytest")
 
@@ -135,6 +135,43 @@ class MismatchBitsNeverSet(TemperatureModel):
         return (0, *rest)
 
 
+class AnyModuleNameMatches(TemperatureModel):
+    """A table entry naming any module kind is taken as the module fitted: only an unknown name (FFH) is flagged
+    in TW+0's low byte (mutant temperature.py:246)."""
+
+    def _plan(self, codes, table_modules, readings_word):
+        named = [self.fitted[k] if tm is not None and k < len(self.fitted) else tm for k, tm in enumerate(table_modules)]
+        return super()._plan(codes, named, readings_word)
+
+
+class _MarkerAlsoAccepted(TemperatureModel):
+    """Takes the table as valid with SR+0 = ``also`` too (not only A556H)."""
+
+    also = 0
+
+    def scan(self, emu):
+        words, sr = emu.memory.words[self.config.table.kind], self.config.table.index
+        marker = words[sr]
+        if marker == self.also:
+            words[sr] = TABLE_MARKER
+        try:
+            super().scan(emu)
+        finally:
+            words[sr] = marker
+
+
+class MarkerAboveA556HAccepted(_MarkerAlsoAccepted):
+    """A table with SR+0 = A557H is measured (the marker compared with ≥, mutant temperature.py:275)."""
+
+    also = 0xA557
+
+
+class ByteSwappedMarkerAccepted(_MarkerAlsoAccepted):
+    """A table with SR+0 = 56A5H (A556H byte-swapped) is measured."""
+
+    also = 0x56A5
+
+
 class EveryEntryStartsAtSR2(TemperatureModel):
     """The per-module entries all give the table's readings start (TW+6+4k = SR+2)."""
 
@@ -202,6 +239,9 @@ CAUGHT_BY = {
     NoFEHForCountZero: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     NoFFHForTooManyPoints: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     MismatchBitsNeverSet: ["test_work_block_codes_for_a_table_that_does_not_fit"],
+    AnyModuleNameMatches: ["test_work_block_codes_for_a_table_that_does_not_fit"],
+    MarkerAboveA556HAccepted: ["test_nothing_is_measured_while_sr0_is_not_a556h"],
+    ByteSwappedMarkerAccepted: ["test_nothing_is_measured_while_sr0_is_not_a556h"],
     EveryEntryStartsAtSR2: ["test_table_is_recognised_and_measuring"],
     BreakWordsHoldOnePoint: [BREAK_TEST],
     R4011DefaultsTo0000: ["test_installed_mask_defaults_to_ffffh"],

@@ -117,6 +117,10 @@ class Rtc:
     def __init__(self, plc: "FbsPlc") -> None:
         self.plc = plc
         self.drift = Drift(plc, self)
+        #: M1955 as last read here (None: not yet).  "An accepted set clears M1955" is the spec's [our choice]
+        #: (RTC-VAL-4), so a 1 an earlier refusal left is no verdict on the next set: that one is judged by the
+        #: clock read back (:meth:`_finish_set`).
+        self._set_error: bool | None = None
 
     # -- reading --------------------------------------------------------------------------------------------
     def read(self) -> RtcTime:
@@ -132,6 +136,7 @@ class Rtc:
         20 for four bit names).  Over Modbus the map coalesces it into one FC03 and one FC01."""
         *fields, hour_minute, packed = self.plc.io.read_many(_SNAPSHOT_NAMES)
         flags = RtcFlags(*(bool(packed >> b & 1) for b in range(4)))
+        self._set_error = flags.set_error
         return RtcSnapshot(RtcTime.from_registers(fields), hour_minute, flags)
 
     def read_hour_minute(self) -> int:
@@ -140,6 +145,7 @@ class Rtc:
 
     def read_flags(self) -> RtcFlags:
         hold, adjust, installed, error = self.plc.io.read_bits(reg.RTC_HOLD, 4)
+        self._set_error = bool(error)
         return RtcFlags(bool(hold), bool(adjust), bool(installed), bool(error))
 
     @property
@@ -252,6 +258,8 @@ class Rtc:
         io = self.plc.io
         items = [(reg.RTC_HOLD, 1)] + list(zip(reg.RTC_FIELDS, value.to_registers()))
         io.require([name for name, _ in items], "set the RTC", RtcError)  # rather than strand M1952 at 1
+        if self._set_error is None:  # (once: whether M1955 is already 1 before this harness sets anything)
+            self._set_error = bool(io.read(reg.RTC_SET_ERROR))
         try:
             io.write_many(items)
         except HilError as exc:
@@ -267,19 +275,24 @@ class Rtc:
 
         An accepted set is read back: the PLC's read-out, copied from the chip by a scan after the set (proved by
         the scan counter where the bench declares one, by port 0's rule otherwise), must show the time sent —
-        a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`."""
+        a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`.  Where M1955 was already 1 (an
+        earlier refusal) and still is, that read-back is the verdict on a valid time: whether an accepted set clears
+        M1955 is the spec's [our choice] (RTC-VAL-4), so the 1 may be the earlier refusal's."""
         if not settled:
             self.plc.settle_before_request()  # the 1 seen by a whole scan before the falling edge
         started = self.plc.time.now()
         self.plc.io.write(reg.RTC_HOLD, 0)
         # the read of M1955 ends a scan too (with a scan counter, read in the same frame as the counter)
         refused, *fields = self.plc.read_settled([reg.RTC_SET_ERROR, *reg.RTC_FIELDS])
-        result = SetResult(value, not refused, tuple(value.validate()))
+        shown = RtcTime.from_registers(fields)
+        ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds()
+                 if shown.is_valid and value.is_valid else None)
+        slack = self.set_tolerance + (self.plc.time.now() - started)
+        shows_sent = ahead is not None and 0 <= ahead <= slack
+        earlier, self._set_error = self._set_error, bool(refused)
+        result = SetResult(value, not refused or bool(earlier and shows_sent), tuple(value.validate()))
         if result.accepted and value.is_valid:
-            shown = RtcTime.from_registers(fields)
-            ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds() if shown.is_valid else None)
-            slack = self.set_tolerance + (self.plc.time.now() - started)
-            if ahead is None or not 0 <= ahead <= slack:
+            if not shows_sent:
                 raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows {shown} after it, not "
                                  f"{value} (sent): the set was lost (M1952 edge not seen by a scan?)")
             weekday = _weekday_after(value, shown)
