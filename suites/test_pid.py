@@ -143,22 +143,40 @@ def _pv_source(bench, bank=None):
     return bank, index
 
 
-def _write_pvs(bench, block, pvs):
-    """PVs (point → 0.1 °) into the block, one write per run of consecutive points."""
+#: characters a FATEK write frame and its reply cost beyond 4 a word, a round trip's scan included: a gap of
+#: unchanged words shorter than this goes along in the same frame
+_FRAME_CHARS = 34
+
+
+def _write_runs(bench, bank, index, words, held=None):
+    """``words`` (offset → value) from ``bank`` ``index`` on, one write per run of consecutive offsets; with
+    ``held`` (register → the value this test last wrote there) only the words that change, runs closer than a
+    frame's cost written together."""
+    offsets = sorted(o for o in words if held is None or held.get(f"{bank}{index + o}") != words[o] & 0xFFFF)
+    while offsets:
+        run = [offsets.pop(0)]
+        while offsets:
+            gap = range(run[-1] + 1, offsets[0])
+            if len(gap) * 4 >= _FRAME_CHARS or any(o not in words for o in gap):
+                break
+            run += [*gap, offsets.pop(0)]
+        bench.plc.io.write_words(f"{bank}{index + run[0]}", [words[o] & 0xFFFF for o in run])
+        if held is not None:
+            held.update({f"{bank}{index + o}": words[o] & 0xFFFF for o in run})
+
+
+def _write_pvs(bench, block, pvs, held=None):
+    """PVs (point → 0.1 °) into the block, one write per run of consecutive points (``held``: see _write_runs)."""
     bank, index = block
-    points = sorted(pvs)
-    while points:
-        run = [points.pop(0)]
-        while points and points[0] == run[-1] + 1:
-            run.append(points.pop(0))
-        bench.plc.io.write_words(f"{bank}{index + run[0]}", [pvs[p] & 0xFFFF for p in run])
+    _write_runs(bench, bank, index, pvs, held)
 
 
-def _set_band(bench, inst, sv, os):
-    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), one block write each."""
-    io = bench.plc.io
-    io.write_words(str(inst.sv), [sv[p] & 0xFFFF for p in inst.points])
-    io.write_words(str(inst.os), [os[p] & 0xFFFF for p in inst.points])
+def _set_band(bench, inst, sv, os, held=None):
+    """SV and Os of every point of ``inst`` (dicts point → 0.1 °), one block write each (with ``held``, only the
+    words that change: see _write_runs)."""
+    for key, values in (("sv", sv), ("os", os)):
+        first = getattr(inst, key)
+        _write_runs(bench, first.kind, first.index, {p - inst.sn: values[p] for p in inst.points}, held)
 
 
 def _low_gains(bench, inst):
@@ -354,16 +372,17 @@ EDGES = [("SV − Os", lambda sv, os: sv - os, True), ("SV − Os − 0.1 °", l
          ("SV + Os", lambda sv, os: sv + os, True), ("SV + Os + 0.1 °", lambda sv, os: sv + os + 1, False)]
 
 
-def _band_round(bench, pid, instances, block, case):
-    """Put every point of every box at the PV ``case(inst, b)`` → (SV, Os, PV) says; {point: (what, normal)}."""
+def _band_round(bench, pid, instances, block, case, held):
+    """Put every point of every box at the PV ``case(inst, b)`` → (SV, Os, PV) says; {point: (what, normal)}.
+    ``held``: what this test last wrote where (only what changes goes on the wire)."""
     pvs, sv, os, cases = {}, {}, {}, {}
     for inst in instances:
         for p in inst.points:
             s, o, pv, what, inside = case(inst, p - inst.sn)
             sv[p], os[p], pvs[p], cases[p] = s, o, pv, (f"{what} (SV {s}, Os {o}, PV {pv})", inside)
-    _write_pvs(bench, block, pvs)
+    _write_pvs(bench, block, pvs, held)
     for inst in instances:
-        _set_band(bench, inst, sv, os)
+        _set_band(bench, inst, sv, os, held)
     bench.settle()
     return cases
 
@@ -392,12 +411,13 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
     its band, only the last of WR+0 (b = 15), only the first of WR+1 (b = 16), only the box's last point.  The
     ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+0 and WR+1 to the test."""
     instances, block = _fake_instances(bench, pid, whole=True)
+    held = {}
     for r in range(2):
         def case(inst, b, r=r):
             s, o = BANDS[b % len(BANDS)]
             what, at, inside = EDGES[(b + r) % len(EDGES)]
             return s, o, at(s, o), what, inside
-        cases = _band_round(bench, pid, instances, block, case)
+        cases = _band_round(bench, pid, instances, block, case, held)
         for inst in instances:
             enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}")
             if any(not cases[p][1] for p in enabled):
@@ -409,7 +429,7 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
             if out is not None and b == (last if out == -1 else out):
                 return s, o, s + o + 1, "the one point out of band", False
             return s, o, s - o, "in band", True
-        cases = _band_round(bench, pid, instances, block, case)
+        cases = _band_round(bench, pid, instances, block, case, held)
         for inst in instances:
             enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out")
             outside = [p for p in enabled if not cases[p][1]]
@@ -521,11 +541,12 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
         _latched(pid, inst)
     instances, block = _fake_instances(bench, pid, whole=True)
     limit = 1000
+    held = {}
 
     def warn_round(pvs, r4008=None):
-        _write_pvs(bench, block, pvs)
+        _write_pvs(bench, block, pvs, held)
         for inst in instances:
-            _set_band(bench, inst, pvs, {p: 0 for p in inst.points})
+            _set_band(bench, inst, pvs, {p: 0 for p in inst.points}, held)
         if r4008 is not None:
             bench.plc.io.write("R4008", r4008)
         _ten_scans(bench)
@@ -568,6 +589,12 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
 
 # -- the manual's scan counts: the ladder's scan counter brackets them (the emulator's profile declares one too) ----
 BENCH_ATTEMPTS = 40
+#: after this many attempts, give up when no bracket came within HOPELESS_WIDTH scans of exact: a bracket's width is
+#: how many scans the requests around it spanned beyond one each, which the line (its bytes at its baud rate
+#: against the PLC's scan time) decides, not the phase the attempts shift — on port 0 at 9600 bit/s a read spans a
+#: few 10 ms scans, so the 40 attempts would only ever see the same widths
+HOPELESS_AFTER = 3
+HOPELESS_WIDTH = 2
 
 
 def _scans(bench):
@@ -642,9 +669,12 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
                 break
         if 9 in decided and 10 in decided:
             break
+        if attempt + 1 >= HOPELESS_AFTER and min(widths, default=0) > HOPELESS_WIDTH:
+            break  # the brackets do not narrow on this line: inconclusive, said below
     if not (9 in decided and 10 in decided):
         pytest.skip(f"the scan counter's brackets were too wide to decide 9 vs 10 consecutive scans on this bench "
-                    f"(counts pinned down exactly: {sorted(decided)}; bracket widths seen: {sorted(set(widths))[:8]})")
+                    f"(after {attempt + 1} attempts; counts pinned down exactly: {sorted(decided)}; bracket widths "
+                    f"seen: {sorted(set(widths))[:8]})")
     assert not decided[9] and decided[10]
 
 
