@@ -128,6 +128,7 @@ class Guard(ABC):
         self.volatile = frozenset(volatile)
         self.journal: dict[Any, int] = {}  # element → its value before the first write (until verified restored)
         self.touched: set = set()  # every element written since the test started
+        self.effects: set = set()  # every element journaled as a side effect of those writes (``side_effects``)
         self.reopened = 0  # reconnections made to restore
         # On disk before each write goes out (None for an in-process emulator: nothing outlives the run).
         self.durable: Journal | None = None
@@ -206,7 +207,9 @@ class Guard(ABC):
             self._note_clock()
         wanted = list(covered)
         if self.side_effects is not None:
-            wanted += list(self.side_effects(list(covered)))
+            effects = list(self.side_effects(list(covered)))
+            wanted += effects
+            self.effects.update(self.keys(effects))
         fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
         originals = dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
         # on disk (fsync'd) before the write goes out: the original and what is written — except the guard's own
@@ -285,6 +288,7 @@ class Guard(ABC):
         """The next test starts: forget which elements were touched.  Originals whose restore failed stay in the
         journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
         self.touched.clear()
+        self.effects.clear()
 
     @property
     def unrestored(self) -> list[tuple[Any, Any]]:
@@ -390,9 +394,7 @@ class Guard(ABC):
     def _effects_of_this_test(self) -> set:
         """Journaled elements the PLC rewrites only because of this test's writes (e.g. OR, WR, Yn of a FUN86 box
         whose EN the test switched), never written by the test itself."""
-        if not self.read_effects_first or self.side_effects is None or not self.touched:
-            return set()
-        return set(self.keys(list(self.side_effects(list(self.touched))))) - self.touched
+        return self.effects - self.touched if self.read_effects_first and self.touched else set()
 
     def _put_back_once(self, items: list[tuple[Any, int]]) -> tuple[list[Failure], bool]:
         # What the test wrote goes back first, in order (an EN back at 0 stops FUN86 rewriting its outputs); what
