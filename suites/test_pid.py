@@ -247,8 +247,8 @@ def test_first_execution_loads_kc_ki_td_110_17_50(bench, pid):
         _fun86_waits_for_the_measurements(bench, pid, first, temperature)
     for inst in _instances(pid):
         _start(bench, pid, inst)
-        for p in inst.points:
-            assert pid.gains(p) == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {pid.gains(p)}"
+        for p, gains in pid.gains_of(inst).items():
+            assert gains == (110, 17, 50), f"{inst.name} point {p}: (Kc, Ki, Td) = {gains}"
 
 
 def _fun86_waits_for_the_measurements(bench, pid, inst, temperature):
@@ -260,7 +260,7 @@ def _fun86_waits_for_the_measurements(bench, pid, inst, temperature):
     pid.enable(inst, True, heating=True)
     bench.settle()
     outputs, words = io.read_words(str(inst.or_), inst.zn), io.read_words(str(inst.wr), 4)
-    ys = [pid.output_bit(p) for p in inst.points]
+    ys = pid.output_bits(inst.points)
     if temperature.read_work().execution_code != 0x56:  # (else every point got measured meanwhile: no decision)
         assert (outputs, words) == before and not any(ys), (
             f"FUN86 acted before every point was measured (TW+0 ≠ 56H): OR {before[0]} → {outputs}, WR+0…3 "
@@ -705,8 +705,8 @@ def _steps(bench, pid, point, seconds):
     last, steps, polls = pid.output(point), [], []
     while clock.now() < end:
         bench.wait(0.1)
-        value = pid.output(point)
-        polls.append((value, pid.output_bit(point), clock.now()))
+        value, y = pid.output_and_bit(point)  # one request: OR and Y of the same scan
+        polls.append((value, y, clock.now()))
         if value != last:
             steps.append(clock.now())
             last = value
@@ -871,7 +871,7 @@ def test_disabled_point_output_is_forced_off(bench, pid):
     for inst in {pid.of(p) for p in points}:
         pid.restart(inst)  # EN 0 → 1: the PID step at the rising edge already sees SV 50.0 ° above PV
     interval, pwm = _timing(bench.plc.io)
-    assert _comes_true(bench, lambda: all(pid.output_bit(p) for p in points), 2 * interval + 2 * pwm), \
+    assert _comes_true(bench, lambda: all(pid.output_bits(points)), 2 * interval + 2 * pwm), \
         f"precondition: the enabled points' outputs {points} switch on"
     outputs = [pid.output(p) for p in points]
     assert outputs == [16383] * len(points), (
@@ -881,7 +881,7 @@ def test_disabled_point_output_is_forced_off(bench, pid):
     bench.settle()
     seen = []
     for _ in range(int(2 * pwm / 0.2) + 1):
-        seen.append(tuple(pid.output_bit(p) for p in points))
+        seen.append(tuple(pid.output_bits(points)))
         bench.wait(0.2)
     for i, p in enumerate(points):
         register = "R4012" if p < 16 else "R4013"

@@ -200,8 +200,13 @@ class Pid:
         self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
 
     def gains(self, point: int) -> tuple[int, int, int]:
-        """(Kc, Ki, Td) from PR/IR/DR."""
-        return tuple(self.plc.io.read(self._reg(k, point)) for k in ("pr", "ir", "dr"))  # type: ignore[return-value]
+        """(Kc, Ki, Td) from PR/IR/DR, in one request."""
+        return tuple(self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")]))  # type: ignore[return-value]
+
+    def gains_of(self, inst: PidInstance) -> dict[int, tuple[int, int, int]]:
+        """(Kc, Ki, Td) of every point of ``inst``: PR, IR and DR each read as one block."""
+        blocks = [self.plc.io.read_words(str(getattr(inst, k)), inst.zn) for k in ("pr", "ir", "dr")]
+        return {p: (blocks[0][i], blocks[1][i], blocks[2][i]) for i, p in enumerate(inst.points)}
 
     def set_gains(self, point: int, kc: int, ki: int, td: int) -> None:
         self.plc.io.write_many({self._reg("pr", point): kc, self._reg("ir", point): ki, self._reg("dr", point): td})
@@ -213,6 +218,15 @@ class Pid:
     def output_bit(self, point: int) -> int:
         """The point's PWM output Yn + (point − Sn)."""
         return self.plc.io.read(self._reg("yn", point))
+
+    def output_and_bit(self, point: int) -> tuple[int, int]:
+        """(OR, Yn) of the point, in one request (one scan)."""
+        value, bit = self.plc.io.read_many([self._reg("or_", point), self._reg("yn", point)])
+        return value, bit
+
+    def output_bits(self, points: Iterable[int]) -> list[int]:
+        """The PWM outputs of ``points``, in one request (one scan)."""
+        return self.plc.io.read_many([self._reg("yn", p) for p in points])
 
     def readings_start(self) -> str:
         """Where FUN86 takes PVs: R4004 when R4003 = A55AH and R4004 names R0–R3839/D0–D3999, else the table's."""
