@@ -4,9 +4,14 @@ where it differs — a block that still holds its originals costs one read inste
 port 0 both cost alike).  And a box that takes Sn/Zn from registers rewrites only the points they give (none for an
 invalid Sn/Zn), any of its 32 once Sn/Zn are written while EN is on."""
 
+import pytest
+
+from hil.bench.profile import load_profile
 from hil.families.fbs.address import parse
+from hil.families.fbs.bench import Bench
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.families.fbs.transport.local import LocalTransport
+from tests.conftest import EMULATOR_BENCH
 
 
 def _guarded(emulator):
@@ -59,56 +64,49 @@ def test_a_side_effect_the_test_wrote_itself_is_written_back_like_any_write(emul
 
 
 # -- what FUN86 rewrites: a box that takes Sn/Zn from registers reaches the points they give --------------------------
-def _err_box_bench():
-    from hil.bench.profile import load_profile
-    from hil.families.fbs.bench import Bench
-    from tests.conftest import EMULATOR_BENCH
+@pytest.fixture
+def err_box():
+    """The emulator bench's box with Sn/Zn registers, every point's gains tuned away from FUN86's defaults:
+    (bench, box, the tuned PR/IR/DR)."""
     bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
     box = next(i for i in bench.plc.pid.config.instances if i.settable)
-    return bench, box
-
-
-def _tune(bench, box, points):
-    tuned = {str(getattr(box, k).offset(i)): v for i in range(points) for k, v in (("pr", 250), ("ir", 20), ("dr", 40))}
+    tuned = {str(getattr(box, k).offset(i)): v for i in range(32) for k, v in (("pr", 250), ("ir", 20), ("dr", 40))}
     bench.raw.write_many(tuned)
-    return tuned
+    yield bench, box, tuned
+    bench.close()
 
 
-def test_en_on_a_box_of_registered_sn_zn_journals_only_the_points_they_give():
-    bench, box = _err_box_bench()
-    try:
-        pid = bench.plc.pid
-        tuned = _tune(bench, box, 32)
-        bench.begin_test("test_switches_a_4_point_box_on")
-        pid.set_sn_zn(box, 8, 4)
-        pid.enable(box, True, heating=True)
-        bench.wait(5)
-        assert [pid.plc.io.read(str(box.pr.offset(i))) for i in range(5)] == [110] * 4 + [250], \
-            "precondition: FUN86's first execution loaded its defaults into the 4 points' PR only"
-        journaled = {str(e) for e in bench.io.journal}
-        assert str(box.pr.offset(3)) in journaled and str(box.pr.offset(4)) not in journaled
-        bench.end_test()
-        assert bench.raw.read_many(list(tuned)) == list(tuned.values())
-    finally:
-        bench.close()
+def _journaled(bench):
+    return {str(e) for e in bench.io.journal}
 
 
-def test_an_invalid_sn_zn_journals_nothing_of_the_box_until_a_valid_one_is_written_while_en_is_on():
-    bench, box = _err_box_bench()
-    try:
-        pid = bench.plc.pid
-        tuned = _tune(bench, box, 32)
-        bench.begin_test("test_makes_sn_zn_valid_while_en_is_on")
-        pid.set_sn_zn(box, 0, 33)
-        pid.enable(box, True, heating=True)
-        bench.settle()
-        assert pid.err(box), "precondition: Zn 33 is refused with ERR"
-        assert str(box.pr) not in {str(e) for e in bench.io.journal}, "an invalid Sn/Zn: FUN86 rewrites nothing"
-        pid.set_sn_zn(box, 0, 32)  # while EN is on: FUN86 may now act on any point
-        bench.wait(5)
-        assert bench.raw.read_words(str(box.pr), 32) == [110] * 32, \
-            "precondition: FUN86 executed for the first time once Sn/Zn were valid: every point's defaults"
-        bench.end_test()
-        assert bench.raw.read_many(list(tuned)) == list(tuned.values()), "every point's tuned gains are back"
-    finally:
-        bench.close()
+def _switch_on(bench, box, sn, zn):
+    """A test starts, gives the box Sn/Zn (EN off), then switches EN on (heating)."""
+    bench.begin_test(f"test_switches_the_box_on_at_sn_{sn}_zn_{zn}")
+    bench.plc.pid.set_sn_zn(box, sn, zn)
+    bench.plc.pid.enable(box, True, heating=True)
+
+
+def test_en_on_a_box_of_registered_sn_zn_journals_only_the_points_they_give(err_box):
+    bench, box, tuned = err_box
+    _switch_on(bench, box, 8, 4)
+    bench.wait(5)
+    assert bench.raw.read_words(str(box.pr), 5) == [110] * 4 + [250], \
+        "precondition: FUN86's first execution loaded its defaults into the 4 points' PR only"
+    assert str(box.pr.offset(3)) in _journaled(bench) and str(box.pr.offset(4)) not in _journaled(bench)
+    bench.end_test()
+    assert bench.raw.read_many(list(tuned)) == list(tuned.values())
+
+
+def test_an_invalid_sn_zn_journals_nothing_of_the_box_until_a_valid_one_is_written_while_en_is_on(err_box):
+    bench, box, tuned = err_box
+    _switch_on(bench, box, 0, 33)
+    bench.settle()
+    assert bench.plc.pid.err(box), "precondition: Zn 33 is refused with ERR"
+    assert str(box.pr) not in _journaled(bench), "an invalid Sn/Zn: FUN86 rewrites nothing"
+    bench.plc.pid.set_sn_zn(box, 0, 32)  # while EN is on: FUN86 may now act on any point
+    bench.wait(5)
+    assert bench.raw.read_words(str(box.pr), 32) == [110] * 32, \
+        "precondition: FUN86 executed for the first time once Sn/Zn were valid: every point's defaults"
+    bench.end_test()
+    assert bench.raw.read_many(list(tuned)) == list(tuned.values()), "every point's tuned gains are back"
