@@ -384,8 +384,9 @@ def _band_round(bench, pid, instances, block, case, held):
     return cases
 
 
-def _check_normal(bench, pid, inst, cases, label):
-    enabled = _enabled_points(bench, inst)
+def _check_normal(bench, pid, inst, cases, label, enabled):
+    """WR+0/WR+1 of ``inst`` against ``cases`` on its ``enabled`` points (R4012/R4013, read once by the test:
+    nothing here writes them)."""
     alarm = pid.alarm_words(inst)
     want = _expected_words(inst, [p for p in enabled if cases[p][1]])
     wrong = [f"point {p}: {cases[p][0]}" for p in enabled if alarm.normal(p) != cases[p][1]]
@@ -409,6 +410,7 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
     ERR box, run as Sn 0, Zn 32 where the bench lets it, puts every bit of WR+0 and WR+1 to the test."""
     instances, block = _fake_instances(bench, pid, whole=True)
     held = {}
+    enabled_of = {inst.name: _enabled_points(bench, inst) for inst in instances}
     for r in range(2):
         def case(inst, b, r=r):
             s, o = BANDS[b % len(BANDS)]
@@ -416,7 +418,7 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
             return s, o, at(s, o), what, inside
         cases = _band_round(bench, pid, instances, block, case, held)
         for inst in instances:
-            enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}")
+            enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}", enabled_of[inst.name])
             if any(not cases[p][1] for p in enabled):
                 assert pid.alm(inst), f"{inst.name}: points out of their band, ALM must be 1"
     for out in (None, 0, 15, 16, -1):
@@ -428,7 +430,7 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
             return s, o, s - o, "in band", True
         cases = _band_round(bench, pid, instances, block, case, held)
         for inst in instances:
-            enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out")
+            enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out", enabled_of[inst.name])
             outside = [p for p in enabled if not cases[p][1]]
             if outside:
                 assert pid.alm(inst), f"{inst.name}: only point {outside[0]} is out of its band: ALM must be 1"
