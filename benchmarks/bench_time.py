@@ -63,6 +63,11 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
                           for c in slowest[:8]}
         out["per_test"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
                            for c in slowest}
+        # what each test put on the wire (hil.plugin.perf's JUnit properties): round trips and bytes
+        out["per_test_wire"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": {
+            p.get("name"): p.get("value") for p in c.iter("property") if p.get("name") in ("hil_requests",
+                                                                                           "hil_wire_bytes")}
+            for c in slowest}
         for case in cases:
             name = Path(case.get("file") or case.get("classname", "").replace(".", "/") + ".py").name
             row = out["per_suite"].setdefault(name, {"tests": 0, "failures": 0, "skipped": 0, "test_time_s": 0.0})

@@ -146,3 +146,15 @@ def test_a_profile_sets_the_pace_and_a_bad_one_is_refused_naming_the_key():
     assert profile_from_dict(base).emulator.line is None  # unpaced unless asked
     with pytest.raises(ProfileError, match=r"\[emulator\] line"):
         profile_from_dict({**base, "emulator": {"line": "9600 baud"}})
+
+
+def test_every_fatek_device_operation_on_port_0_costs_at_most_1_3_times_its_fewest_bytes():
+    """benchmarks/run.py's per-operation table, on a paced 9600 7E1 line as port 0 is wired (a direct line: fenced
+    only after a timeout or retry, README "Safety" — whatever fences it sends are counted): each procedure's request
+    and reply bytes against the fewest its steps need in the cheapest frames."""
+    from benchmarks.run import _device_operations
+    rows = _device_operations("emulator+fatek-serial?baudrate=9600&bytesize=7&parity=E")
+    assert {r["operation"] for r in rows} >= {"rtc.read()", "rtc.set()", "rtc.adjust_30s()", "temperature.readings()"}
+    over = [f"{r['operation']}: {r['bytes']} bytes for {r['min_bytes']} ({r['ratio']:.2f}×)" for r in rows
+            if r["bytes"] > 1.3 * r["min_bytes"]]
+    assert not over, over

@@ -15,8 +15,8 @@ from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
 from hil.families.fbs.device.waiting import poll_until
-from hil.families.fbs.pid import (OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance,
-                                  timing_seconds)
+from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig,
+                                  PidInstance, timing_seconds, valid_sn_zn)
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
@@ -116,17 +116,35 @@ class Pid:
         """What the PLC rewrites itself because of these writes: on EN's rising edge FUN86 loads its default
         gains into PR/IR/DR of every point of the box (fbs-pid.md), so a test that only switches EN on still
         changes the tuned gains; while EN is on it writes OR, WR and drives Yn, and a later EN = 0 leaves them.
-        The guard journals these as originals."""
+        The guard journals these as originals.  A box that takes Sn/Zn from registers reaches the points its
+        registers give: :meth:`_reach`."""
         if not self.configured:
             return []
         written = set(written)
         out: list = []
         for inst in self.config.instances:
-            if inst.en in written:
-                for key in ("pr", "ir", "dr", "or", "wr", "yn"):
-                    first, count = inst.blocks()[key]
-                    out += [first.offset(i) for i in range(count)]
+            reach = self._reach(inst, written)
+            if not reach:
+                continue
+            for key in ("pr", "ir", "dr", "or", "wr", "yn"):
+                first, count = inst.blocks()[key]
+                out += [first.offset(i) for i in range(count if key == "wr" else min(count, reach))]
         return out
+
+    def _reach(self, inst: PidInstance, written: set) -> int:
+        """How many points (from the box's first operand) ``written`` may make FUN86 act on: a box of constant
+        Sn/Zn its Zn once EN is written.  A box with Sn/Zn registers acts on what they hold while EN is on (an
+        invalid Sn/Zn: not at all, ERR — 20.7): EN written alone, the Sn/Zn the registers hold now (a later write
+        of them while EN is on comes here again); Sn/Zn written while EN is on (or with it), any of the 32."""
+        registers = {inst.sn_register, inst.zn_register} if inst.settable else set()
+        if registers & written:  # EN off: FUN86 does nothing with them until EN is written (journaled then)
+            return MAX_POINTS if inst.en in written or self.plc.io.read(str(inst.en)) else 0
+        if inst.en not in written:
+            return 0
+        if not registers:
+            return inst.zn
+        sn, zn = (signed16(v) for v in self.plc.io.read_many([str(inst.sn_register), str(inst.zn_register)]))
+        return zn if valid_sn_zn(sn, zn) else 0
 
     def instance(self, name: str | None = None) -> PidInstance:
         return self.config.instance(name)
@@ -182,8 +200,13 @@ class Pid:
         self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
 
     def gains(self, point: int) -> tuple[int, int, int]:
-        """(Kc, Ki, Td) from PR/IR/DR."""
-        return tuple(self.plc.io.read(self._reg(k, point)) for k in ("pr", "ir", "dr"))  # type: ignore[return-value]
+        """(Kc, Ki, Td) from PR/IR/DR, in one request."""
+        return tuple(self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")]))  # type: ignore[return-value]
+
+    def gains_of(self, inst: PidInstance) -> dict[int, tuple[int, int, int]]:
+        """(Kc, Ki, Td) of every point of ``inst``: PR, IR and DR each read as one block."""
+        blocks = [self.plc.io.read_words(str(getattr(inst, k)), inst.zn) for k in ("pr", "ir", "dr")]
+        return {p: (blocks[0][i], blocks[1][i], blocks[2][i]) for i, p in enumerate(inst.points)}
 
     def set_gains(self, point: int, kc: int, ki: int, td: int) -> None:
         self.plc.io.write_many({self._reg("pr", point): kc, self._reg("ir", point): ki, self._reg("dr", point): td})
@@ -195,6 +218,15 @@ class Pid:
     def output_bit(self, point: int) -> int:
         """The point's PWM output Yn + (point − Sn)."""
         return self.plc.io.read(self._reg("yn", point))
+
+    def output_and_bit(self, point: int) -> tuple[int, int]:
+        """(OR, Yn) of the point, in one request (one scan)."""
+        value, bit = self.plc.io.read_many([self._reg("or_", point), self._reg("yn", point)])
+        return value, bit
+
+    def output_bits(self, points: Iterable[int]) -> list[int]:
+        """The PWM outputs of ``points``, in one request (one scan)."""
+        return self.plc.io.read_many([self._reg("yn", p) for p in points])
 
     def readings_start(self) -> str:
         """Where FUN86 takes PVs: R4004 when R4003 = A55AH and R4004 names R0–R3839/D0–D3999, else the table's."""

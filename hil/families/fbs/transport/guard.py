@@ -58,6 +58,8 @@ class GuardedTransport(Guard, Transport):
               "status", "unreachable_reason", "require", "budget", "set_running", "bit_action", "description",
               "limits", "requests_per_read")
 
+    read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
+
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
         super().__init__(f"guarded {inner.description}", expand(writable), expand(volatile))
         self.inner = inner

@@ -1,0 +1,112 @@
+"""What the guard journals and restores of FUN86's own rewrites.  The FATEK guard's restore of side effects:
+what the test wrote goes back first, then what the PLC rewrote only because of it is read, and written back only
+where it differs — a block that still holds its originals costs one read instead of a write and a read-back (on
+port 0 both cost alike).  And a box that takes Sn/Zn from registers rewrites only the points they give (none for an
+invalid Sn/Zn), any of its 32 once Sn/Zn are written while EN is on."""
+
+import pytest
+
+from hil.bench.profile import load_profile
+from hil.families.fbs.address import parse
+from hil.families.fbs.bench import Bench
+from hil.families.fbs.transport.guard import GuardedTransport
+from hil.families.fbs.transport.local import LocalTransport
+from tests.conftest import EMULATOR_BENCH
+
+
+def _guarded(emulator):
+    guarded = GuardedTransport(LocalTransport(emulator), writable=["M0", "R100-R109"])
+    effects = [parse(f"R{200 + i}") for i in range(8)]  # as FUN86's OR block rewritten on an EN edge
+    guarded.side_effects = lambda written: effects if parse("M0") in set(written) else []
+    return guarded
+
+
+def _writes_during(guarded, action):
+    """The elements each write-back of ``action`` sent, in order."""
+    writes, write_back = [], guarded.write_back
+    guarded.write_back = lambda items: (writes.extend(str(a) for a, _ in items), write_back(items))
+    action()
+    return writes
+
+
+def test_side_effects_still_at_their_originals_are_read_not_written(emulator):
+    guarded = _guarded(emulator)
+    emulator.memory.write("R200", [5] * 8)
+    guarded.begin()
+    guarded.write("M0", 1)
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0"], "only what the test wrote is written back"
+    assert emulator.memory.get("M0") == 0 and emulator.memory.read("R200", 8) == [5] * 8
+    assert guarded.journal == {}
+
+
+def test_side_effects_the_plc_changed_are_written_back_after_their_cause_and_verified(emulator):
+    guarded = _guarded(emulator)
+    emulator.memory.write("R200", [5] * 8)
+    guarded.begin()
+    guarded.write("M0", 1)
+    emulator.memory.write("R203", [9])  # the PLC's own rewrite while EN was on
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0", "R203"], "the cause first, then only the changed word"
+    assert emulator.memory.read("R200", 8) == [5] * 8
+    assert guarded.journal == {}
+
+
+def test_a_side_effect_the_test_wrote_itself_is_written_back_like_any_write(emulator):
+    guarded = GuardedTransport(LocalTransport(emulator), writable=["M0", "R200-R207"])
+    guarded.side_effects = lambda written: [parse("R200")] if parse("M0") in set(written) else []
+    emulator.memory.write("R200", [5])
+    guarded.begin()
+    guarded.write("M0", 1)
+    guarded.write("R200", 5)  # the same value: still a write of the test, put back whatever it reads
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0", "R200"]
+
+
+# -- what FUN86 rewrites: a box that takes Sn/Zn from registers reaches the points they give --------------------------
+@pytest.fixture
+def err_box():
+    """The emulator bench's box with Sn/Zn registers, every point's gains tuned away from FUN86's defaults:
+    (bench, box, the tuned PR/IR/DR)."""
+    bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
+    box = next(i for i in bench.plc.pid.config.instances if i.settable)
+    tuned = {str(getattr(box, k).offset(i)): v for i in range(32) for k, v in (("pr", 250), ("ir", 20), ("dr", 40))}
+    bench.raw.write_many(tuned)
+    yield bench, box, tuned
+    bench.close()
+
+
+def _journaled(bench):
+    return {str(e) for e in bench.io.journal}
+
+
+def _switch_on(bench, box, sn, zn):
+    """A test starts, gives the box Sn/Zn (EN off), then switches EN on (heating)."""
+    bench.begin_test(f"test_switches_the_box_on_at_sn_{sn}_zn_{zn}")
+    bench.plc.pid.set_sn_zn(box, sn, zn)
+    bench.plc.pid.enable(box, True, heating=True)
+
+
+def test_en_on_a_box_of_registered_sn_zn_journals_only_the_points_they_give(err_box):
+    bench, box, tuned = err_box
+    _switch_on(bench, box, 8, 4)
+    bench.wait(5)
+    assert bench.raw.read_words(str(box.pr), 5) == [110] * 4 + [250], \
+        "precondition: FUN86's first execution loaded its defaults into the 4 points' PR only"
+    assert str(box.pr.offset(3)) in _journaled(bench) and str(box.pr.offset(4)) not in _journaled(bench)
+    bench.end_test()
+    assert bench.raw.read_many(list(tuned)) == list(tuned.values())
+
+
+def test_an_invalid_sn_zn_journals_nothing_of_the_box_until_a_valid_one_is_written_while_en_is_on(err_box):
+    bench, box, tuned = err_box
+    _switch_on(bench, box, 0, 33)
+    bench.settle()
+    assert bench.plc.pid.err(box), "precondition: Zn 33 is refused with ERR"
+    assert str(box.pr) not in _journaled(bench), "an invalid Sn/Zn: FUN86 rewrites nothing"
+    bench.plc.pid.set_sn_zn(box, 0, 32)  # while EN is on: FUN86 may now act on any point
+    bench.wait(5)
+    assert bench.raw.read_words(str(box.pr), 32) == [110] * 32, \
+        "precondition: FUN86 executed for the first time once Sn/Zn were valid: every point's defaults"
+    bench.end_test()
+    assert bench.raw.read_many(list(tuned)) == list(tuned.values()), "every point's tuned gains are back"
