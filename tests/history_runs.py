@@ -45,13 +45,14 @@ def write_tests(where: Path) -> Path:
     return path
 
 
-def bench_profile(where: Path, name: str, source: Path = EMULATOR_BENCH, **replace: str) -> Path:
-    """A copy of the emulator's profile under another [bench] name (and any text replaced)."""
+def bench_profile(where: Path, name: str, source: Path = EMULATOR_BENCH, file: str | None = None,
+                  **replace: str) -> Path:
+    """A copy of the emulator's profile under another [bench] name (and ``replace``'s texts replaced: old=new)."""
     text = source.read_text(encoding="utf-8").replace('name = "emulator"', f'name = "{name}"', 1)
     for old, new in replace.items():
         assert old in text, old
         text = text.replace(old, new, 1)
-    path = where / f"{name}.toml"
+    path = where / (file or f"{name}.toml")
     path.write_text(text, encoding="utf-8")
     return path
 
@@ -83,3 +84,16 @@ def wait_for(check, what: str, timeout: float = 60.0):  # noqa: ANN001, ANN201
 def hil(*args: str, url: str, cwd: Path, **extra: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "hil.cli.main", *args], cwd=cwd, env=env(url, **extra),
                           capture_output=True, text=True, timeout=300)
+
+
+def history(*args: str, url: str) -> tuple[int, str]:
+    """``hil history ARGS --url URL`` in this process (the recording runs are the real processes): exit status and
+    what it printed (plain: not a terminal)."""
+    import contextlib
+    import io
+
+    from hil.cli.main import main
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
+        code = main(["history", *args, "--url", url])
+    return code, out.getvalue()

@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from tests.history_runs import bench_profile, hil, pytest_run, wait_for, write_tests
+from tests.history_runs import bench_profile, hil, history, pytest_run, wait_for, write_tests
 from tests.pg_server import NO_POSTGRES, Cluster
 
 BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.skipif(NO_POSTGRES is not None,
@@ -92,8 +92,8 @@ def test_a_run_killed_with_sigkill_is_marked_not_finished_and_keeps_its_tests(tm
     assert all(t["outcome"] == "passed" for t in done.values())
     assert [(m["name"], m["value"], m["unit"], m["low"], m["high"], m["outcome"])
             for m in done["test_first"]["measurements"]] == [("first_value", 1.5, "V", 1.0, 2.0, "PASS")]
-    listed = hil("history", "list", url=store_url, cwd=tmp_path)
-    assert listed.returncode == 0 and "NOT FINISHED" in listed.stdout, listed.stdout + listed.stderr
+    code, listed = history("list", url=store_url)
+    assert code == 0 and "NOT FINISHED" in listed, listed
 
 
 def _make_unreachable(url, cluster):
@@ -134,14 +134,13 @@ def test_the_store_unreachable_mid_run_leaves_the_verdict_and_warns_once(request
     assert props["hil.verdict"] == "PASSED"
     run, done = _recorded(store_url, "test_first", "test_second")
     assert not run["finished"] and "test_after" not in done  # the rest went to the local spool
-    synced = hil("history", "sync", url=store_url, cwd=tmp_path)
-    assert synced.returncode == 0 and "uploaded 1 run (2 tests)" in synced.stdout, synced.stdout + synced.stderr
+    code, synced = history("sync", url=store_url)
+    assert code == 0 and "uploaded 1 run (2 tests)" in synced, synced
     run, done = _recorded(store_url, "test_after")
     assert run["finished"] and run["verdict"] == "PASSED"
     assert sorted(done) == ["test_after", "test_first", "test_second", "test_waits_for_the_harness"]
     assert [m["value"] for m in done["test_after"]["measurements"]] == [2.5]
-    again = hil("history", "sync", url=store_url, cwd=tmp_path)
-    assert "uploaded 0 runs" in again.stdout, again.stdout + again.stderr
+    assert "uploaded 0 runs" in history("sync", url=store_url)[1]
 
 
 def test_a_store_of_the_previous_schema_is_upgraded_keeping_its_runs(store_url):

@@ -134,10 +134,11 @@ def _emit(console: Console, title: str, columns: Sequence[str], rows: list[Seque
             table.add_row(*(escape(_cell(v)) for v in r))
         console.print(table)
         return
-    console.print(f"# {title}", highlight=False, soft_wrap=True, markup=False)
+    out = console.file  # not console.print: rich expands tabs
+    out.write(f"# {title}\n")
     for line in [columns, *rows]:
-        console.print("\t".join(_cell(v).replace("\t", " ").replace("\n", " ") for v in line), highlight=False,
-                      soft_wrap=True, markup=False)
+        out.write("\t".join(_cell(v).replace("\t", " ").replace("\n", " ") for v in line) + "\n")
+    out.flush()
 
 
 def _say(console: Console, text: str) -> None:
@@ -209,7 +210,11 @@ def _compare(store: Any, args: argparse.Namespace, console: Console) -> int:
               [(t, "A only") for t in c.only_a] + [(t, "B only") for t in c.only_b])
 
     def side(m: dict[str, Any] | None) -> str:
-        return "—" if m is None else f"{_cell(m['value'])} {m['unit'] or ''} {m['outcome']}".replace("  ", " ")
+        if m is None:
+            return "—"
+        if m["value"] is None:
+            return "not measured (UNSET)"
+        return f"{_cell(m['value'])}{' ' + m['unit'] if m['unit'] else ''} {m['outcome']}"
     _emit(console, f"measurements that moved ({len(c.measurements)})", ("test", "measurement", "A", "B", "change"),
           [(n, name, side(x), side(y),
             "" if x is None or y is None or x["value"] is None or y["value"] is None else f"{y['value'] - x['value']:+g}")

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import datetime as dt
 import os
-import shutil
 import socket
 from pathlib import Path
 from typing import Any
@@ -24,6 +23,8 @@ from hil.history import config as history_config
 
 #: the last values shown beside each measurement in the HTML report
 SPARK_RUNS = 10
+#: each run's HTML report is kept in this folder beside the report (the next report links it)
+ARCHIVE = "history"
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -132,7 +133,9 @@ class Recorder:
         if report and written is not None:
             try:
                 Path(report).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copyfile(written, report)
+                page = Path(written).read_text(encoding="utf-8")
+                # the copy sits beside the earlier ones: its link to the previous report is relative to there
+                Path(report).write_text(page.replace(f'href="{ARCHIVE}/', 'href="'), encoding="utf-8")
             except OSError:
                 report = ""  # the run is still recorded; its report is not kept
         from hil.plugin.safety import RECOVERY_NOTES
@@ -159,7 +162,7 @@ class Recorder:
         stamp = dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         bench = "".join(c if c.isalnum() or c in "._-" else "-" for c in dict(reporter.properties).get(
             "hil.bench", "bench"))
-        return str((Path(html).parent / "history" / f"{stamp}-{bench}-{os.getpid()}.html").absolute())
+        return str((Path(html).parent / ARCHIVE / f"{stamp}-{bench}-{os.getpid()}.html").absolute())
 
     def _try(self, action: Any, *args: Any) -> bool:
         """Run a store action; on the first error say so once and carry on in the spool."""
