@@ -147,4 +147,4 @@ def test_each_html_report_shows_the_bench_s_history(recorded):
         link = re.search(r'<a href="([^"]+)">previous report</a>', pages[n]).group(1)
         assert (Path(runs[n]["report"]).parent / link).resolve() == Path(runs[n - 1]["report"]).resolve()
         assert pages[n].count('<svg class="spark"') == measured[n]  # every measurement, with its earlier values
-        assert f"last {n} on this bench" in pages[n]
+        assert f"last {n} run{'s' if n > 1 else ''} on this bench" in pages[n]

@@ -50,7 +50,8 @@ class Annotations:
                                 f"{_e(next(r.outcome for r in records if r.nodeid == c))}</li>" for c in changed)
                 line = f"<details><summary>{line}</summary><ul>{items}</ul></details>"
             header = f"{line} · {_previous_link(last, html)} · {where}"
-        return cls(f"last {runs} on this bench" if runs else "history", header, series)
+        label = f"last {runs} run{'s' if runs != 1 else ''} on this bench" if runs else "earlier runs"
+        return cls(label, header, series)
 
     def header(self) -> str:
         return f'<div class="meta history">{self.header_html}</div>'
@@ -83,7 +84,10 @@ def sparkline(values: list[float | None], low: float | None, high: float | None,
         return "<span class='meta'>—</span>"
     bounds = [*shown, *(x for x in (low, high) if x is not None)]
     lo, hi = min(bounds), max(bounds)
-    span = (hi - lo) or 1.0
+    if hi - lo <= 1e-9 * max(abs(lo), abs(hi)):  # equal but for float noise: a flat line, not noise blown up
+        half = max(abs(lo), 1.0) * 0.1
+        lo, hi = lo - half, hi + half
+    span = hi - lo
     pad = 3
 
     def y(v: float) -> float:

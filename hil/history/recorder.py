@@ -147,7 +147,8 @@ class Recorder:
                                   not_run=verdict.not_run if verdict else 0, plc_restored=verdict.plc if verdict else "",
                                   recovery=notes, report=report or "")
         self._try(finish)
-        self.store.close()
+        if self.store is not None:  # None when the store and the spool both failed
+            self.store.close()
 
     # -- helpers ------------------------------------------------------------------------------------------------------
     def _reporter(self) -> Any:
