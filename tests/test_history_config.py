@@ -5,6 +5,11 @@ from __future__ import annotations
 
 import pytest
 
+# imported before any in-process session (pytester) can import them first: pytester drops what a session imported,
+# and numpy's and SQLAlchemy's compiled parts cannot be loaded twice in one process
+import hil.families.fbs.sim  # noqa: F401,E402
+import hil.history.store  # noqa: F401,E402
+
 from hil.bench.profile import profile_from_dict
 from hil.core.errors import InvalidValue, ProfileError
 from hil.history import config

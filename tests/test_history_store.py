@@ -7,12 +7,22 @@ from __future__ import annotations
 import os
 import signal
 import sqlite3
+import threading
 import xml.etree.ElementTree as ET
 
 import pytest
 
+# imported before any in-process session (pytester) can import them first: pytester drops what a session imported,
+# and numpy's and SQLAlchemy's compiled parts cannot be loaded twice in one process
+import hil.families.fbs.sim  # noqa: F401,E402
+import hil.history.store  # noqa: F401,E402
+
 from tests.history_runs import bench_profile, hil, history, pytest_run, wait_for, write_tests
 from tests.pg_server import NO_POSTGRES, Cluster
+
+if NO_POSTGRES is None:
+    import psycopg  # noqa: F401
+    from sqlalchemy.dialects.postgresql import psycopg as _dialect  # noqa: F401
 
 BACKENDS = ["sqlite", pytest.param("postgresql", marks=pytest.mark.skipif(NO_POSTGRES is not None,
                                                                            reason=str(NO_POSTGRES)))]
@@ -100,7 +110,7 @@ def _make_unreachable(url, cluster):
     """SQLite: another process holds the store's write lock for the rest of the run (writers give up after their
     busy timeout); PostgreSQL: the database refuses connections and its open ones are ended."""
     if url.startswith("sqlite"):
-        holder = sqlite3.connect(url.removeprefix("sqlite:///"), isolation_level=None)
+        holder = sqlite3.connect(url.removeprefix("sqlite:///"), isolation_level=None, check_same_thread=False)
         holder.execute("BEGIN EXCLUSIVE")
         return holder.close
     database = url.rsplit("/", 1)[1]
@@ -108,28 +118,39 @@ def _make_unreachable(url, cluster):
     return lambda: cluster.refuse(database, False)
 
 
-def test_the_store_unreachable_mid_run_leaves_the_verdict_and_warns_once(request, tmp_path, store_url):
+def test_the_store_unreachable_mid_run_leaves_the_verdict_and_warns_once(request, pytester, monkeypatch, tmp_path,
+                                                                         store_url):
+    """In this process (a thread plays the harness while the session runs): once the first two tests are in the
+    store it is made unreachable; the run goes on, says so once, keeps the rest in the spool; sync uploads it."""
     tests = write_tests(tmp_path / "t")
     go = tmp_path / "go"
+    monkeypatch.setenv("HIST_GO", str(go))
+    monkeypatch.setenv("HIL_HISTORY_URL", store_url)
     cluster = request.getfixturevalue("postgres") if store_url.startswith("postgresql") else None
-    proc = pytest_run([str(tests), "--bench", str(bench_profile(tmp_path, "cut-off")), "-k", "not quick",
-                       f"--junitxml={tmp_path / 'junit.xml'}"], store_url, tmp_path, HIST_GO=str(go))
-    restore = None
+    restore = []
+
+    def harness() -> None:
+        try:
+            wait_for(lambda: _recorded(store_url, "test_first", "test_second"), "the first two tests in the store")
+            restore.append(_make_unreachable(store_url, cluster))
+        finally:
+            go.touch()
+    thread = threading.Thread(target=harness)
+    thread.start()
     try:
-        wait_for(lambda: _recorded(store_url, "test_first", "test_second"), "the first two tests in the store")
-        restore = _make_unreachable(store_url, cluster)
-        go.touch()
-        assert proc.wait(timeout=120) == 0
+        result = pytester.runpytest_inprocess(str(tests), "--bench", str(bench_profile(tmp_path, "cut-off")), "-k",
+                                              "not quick", f"--junitxml={tmp_path / 'junit.xml'}", "-p",
+                                              "no:cacheprovider")
     finally:
-        if proc.poll() is None:
-            proc.kill()
-        if restore is not None:
-            restore()
-    out = (tmp_path / "out.txt").read_text()
-    warnings = [line for line in out.splitlines() if "history store" in line]
-    assert len(warnings) == 1, out
+        thread.join()
+        for undo in restore:
+            undo()
+    assert restore, "the store was never made unreachable"
+    result.assert_outcomes(passed=4)
+    warnings = [line for line in result.outlines if "history store" in line]
+    assert len(warnings) == 1, result.outlines
     assert "unreachable" in warnings[0] and "hil history sync" in warnings[0]
-    assert "hil: PASSED" in out
+    assert "hil: PASSED" in result.outlines
     props = {p.get("name"): p.get("value") for p in ET.parse(tmp_path / "junit.xml").getroot().iter("property")}
     assert props["hil.verdict"] == "PASSED"
     run, done = _recorded(store_url, "test_first", "test_second")
