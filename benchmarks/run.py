@@ -15,7 +15,9 @@ Not pass/fail tests (timings are noisy on shared machines): a rich table on the 
    FATEK/TCP and over its pty paced at port 0's 9600 7E1 (``--line``), measured, side by side
    (benchmarks/bench_time.py; target ≤ 3 min; ``--bench-time-only`` runs just this);
 6. RFC 2217: a round trip over ``fatek+rfc2217://`` against a raw ``socket://`` to the same ser2net exporting the
-   same pty (target ≤ 1.5×), and ``modbus+rfc2217://`` against the pty opened directly.
+   same pty (target ≤ 1.5×), and ``modbus+rfc2217://`` against the pty opened directly;
+7. the run history: ``hil run`` on the emulator recording to its default SQLite store against the same run with the
+   history off, in interleaved pairs (target ≤ 1.05×; ``--history-only`` runs just this).
 
 ``--quick`` shortens every timing (a smoke run).
 """
@@ -530,12 +532,58 @@ def hil_run_times() -> list[dict]:
     return rows
 
 
+def history_table(rounds: int) -> dict:
+    h = history_overhead(rounds)
+    console.print(f"hil run on the emulator, run history recording against off, {h['rounds']} interleaved pairs: "
+                  f"median ratio [bold]{h['ratio']:.3f}×[/] (target ≤ 1.05×; pairs "
+                  f"{', '.join(f'{r:.3f}' for r in h['ratios'])}; off {min(h['off_wall_s']):.1f} s, on "
+                  f"{min(h['on_wall_s']):.1f} s at best; {h['runs_recorded']} runs, {h['tests_recorded']} tests "
+                  f"recorded)")
+    return h
+
+
+def history_overhead(rounds: int) -> dict:
+    """``hil run`` on the emulator with the run history recording (SQLite in a fresh state directory, as a new
+    user's) against the same run with it off (``HIL_HISTORY_URL=off``), in interleaved pairs: the median of the
+    paired wall-time ratios (target ≤ 1.05)."""
+    import statistics
+    state = Path(tempfile.mkdtemp(prefix="hil-history-bench-"))
+    walls: dict[str, list[float]] = {"off": [], "on": []}
+    ratios = []
+    for r in range(rounds):
+        pair = {}
+        for mode in (("off", "on") if r % 2 == 0 else ("on", "off")):
+            env = {k: v for k, v in os.environ.items() if k != "HIL_HISTORY_URL"}  # on: the default store
+            env["HIL_STATE_DIR"] = str(state / mode)
+            if mode == "off":
+                env["HIL_HISTORY_URL"] = "off"
+            out = Path(tempfile.mkdtemp())
+            start = time.perf_counter()
+            proc = subprocess.run([sys.executable, "-m", "hil.cli.main", "run", "--junitxml", str(out / "junit.xml"),
+                                   "--html", str(out / "report.html"), "--", "-q"], cwd=ROOT, env=env,
+                                  capture_output=True, text=True)
+            pair[mode] = time.perf_counter() - start
+            walls[mode].append(pair[mode])
+            if proc.returncode not in (0, 1):
+                raise RuntimeError(f"hil run ({mode}) exited {proc.returncode}: {proc.stdout[-800:]}")
+        ratios.append(pair["on"] / pair["off"])
+    from hil.history.store import Store
+    store = Store(f"sqlite:///{state / 'on' / 'history.sqlite'}")
+    recorded = store.runs()
+    tests = sum(sum(r["counts"].values()) for r in recorded)
+    store.close()
+    return {"rounds": rounds, "off_wall_s": walls["off"], "on_wall_s": walls["on"], "ratio": statistics.median(ratios),
+            "ratios": ratios, "runs_recorded": len(recorded), "tests_recorded": tests, "target_ratio": 1.05}
+
+
 # -- report -----------------------------------------------------------------------------------------------------------
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short timings (a smoke run)")
     parser.add_argument("--json", default=str(ROOT / "reports" / "benchmarks.json"), help="where the JSON goes")
     parser.add_argument("--skip-run", action="store_true", help="leave out the `hil run` wall times")
+    parser.add_argument("--history-only", action="store_true",
+                        help="only what recording the run history adds to `hil run` (history on against off)")
     parser.add_argument("--bench-time-only", action="store_true",
                         help="only the bench time of the non-slow FBs suites at time scale 1, over FATEK/TCP and "
                              "over the paced serial line (--line; about 3 + 5 min)")
@@ -548,6 +596,12 @@ def main(argv: list[str] | None = None) -> int:
         out = Path(args.json).with_name("bench_time.json")
         out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(bt, indent=1))
+        return 0
+    if args.history_only:
+        hist = history_table(1 if args.quick else 3)
+        out = Path(args.json).with_name("history_overhead.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(hist, indent=1))
         return 0
     seconds = 0.3 if args.quick else 1.5
     os.chdir(ROOT)
@@ -630,6 +684,7 @@ def main(argv: list[str] | None = None) -> int:
             t.add_row(r["target"], str(r["tests"]), str(r["exit"]), f"{r['wall_s']:.2f}",
                       f"{r['wall_s'] / runs[0]['wall_s']:.2f}×")
         console.print(t)
+        results["history_overhead"] = history_table(1 if args.quick else 3)
 
     out = Path(args.json)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -24,7 +24,7 @@ from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
 
-CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid")
+CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid", "history")
 
 
 @dataclass(frozen=True)
@@ -72,6 +72,8 @@ class Profile:
     #: [bench] plc_id: the PLC's name on this site — one lock and one journal for it whatever wire reaches it
     #: (hil.core.lock.plc_key), and the key recovery trusts where the wire reads no identity (Modbus)
     plc_id: str | None = None
+    #: [history] url: the run-history store this bench records to (hil.history.config), None for the default
+    history_url: str | None = None
 
     @property
     def rtc(self) -> Any:
@@ -213,9 +215,14 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     if faults:
         plugin.check_faults(faults, where)
     wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
+    history_t = reader.table(data, "history")
+    history_url = reader.take(history_t, "history", "url", str, None,
+                              check=lambda v: bool(v.strip()) or "must be a URL (sqlite:///PATH, postgresql://…) or 'off'")
+    reader.done(history_t, "history")
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id)
+                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id,
+                   history_url=history_url)
 
 
 def refuse_default_for_a_plc(target: str | None, bench: str | None, default: Path | str) -> None:

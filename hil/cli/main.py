@@ -157,6 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
     restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
     restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
     restore.add_argument("--show", action="store_true", help="only print what is pending; change nothing")
+    from hil.cli.history import add_parser as add_history
+    add_history(sub)
     return parser
 
 
@@ -343,6 +345,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "restore":
         from hil.cli.restore import restore
         return restore(args.url, args.bench, console, show=args.show)
+    if args.command == "history":
+        from hil.cli.history import history
+        return history(args, console)
     if args.command == "spec":
         from hil.cli.spec import spec
         from hil.core.paths import project_dir

@@ -14,7 +14,7 @@ import os
 import re
 from collections import Counter, defaultdict
 from pathlib import Path
-from typing import Iterable
+from typing import Any, Iterable
 from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes
@@ -130,7 +130,7 @@ def _summary(records: list[TestRecord]) -> str:
     return f"<table><tr><th>area</th>{head}<th>skip reasons</th></tr>{''.join(rows)}</table>"
 
 
-def _test(record: TestRecord, base: Path) -> str:
+def _test(record: TestRecord, base: Path, history: Any = None) -> str:
     opened = " open" if record.outcome in ("failed", "error") or record.series else ""
     parts = [f'<details class="test {record.outcome} {record.outcome}-row" id="{_e(record.nodeid)}"{opened}>',
              f'<summary><h3 style="display:inline"><span class="badge {record.outcome}">{record.outcome}</span> '
@@ -142,9 +142,12 @@ def _test(record: TestRecord, base: Path) -> str:
             f"<td>{_e(m.unit)}</td>"
             f"<td class='n'>{'' if m.low is None else f'{m.low:g}'}</td>"
             f"<td class='n'>{'' if m.high is None else f'{m.high:g}'}</td>"
-            f"<td class='{m.outcome}'>{m.outcome}</td></tr>" for m in record.measurements)
+            f"<td class='{m.outcome}'>{m.outcome}</td>"
+            + (f"<td>{history.beside(record.nodeid, m)}</td>" if history is not None else "") + "</tr>"
+            for m in record.measurements)
+        more = f"<th>{_e(history.label)}</th>" if history is not None else ""  # hil.history.annotate
         parts.append("<table><tr><th>measurement</th><th>value</th><th>unit</th><th>low</th><th>high</th>"
-                     f"<th>outcome</th></tr>{rows}</table>")
+                     f"<th>outcome</th>{more}</tr>{rows}</table>")
     if record.outcome in ("failed", "error") and (record.longrepr or record.message):
         parts.append(f"<pre>{_e(record.longrepr or record.message)}</pre>")
     elif record.outcome in ("skipped", "xfailed") and record.message:
@@ -170,14 +173,14 @@ def _test(record: TestRecord, base: Path) -> str:
     return "\n".join(parts)
 
 
-def _section(records: list[TestRecord], properties: list[tuple[str, str]], base: Path) -> str:
+def _section(records: list[TestRecord], properties: list[tuple[str, str]], base: Path, history: Any = None) -> str:
     """Bench properties, the summary by area, and the tests of one bench."""
     props = "".join(f"<tr><th>{_e(k.removeprefix('hil.'))}</th><td>{_e(v)}</td></tr>" for k, v in properties)
     order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2, "xfailed": 2}
     ranked = sorted(records, key=lambda r: (order.get(r.outcome, 3), not r.series, r.nodeid))
     detailed = [r for r in ranked if r.outcome in ("failed", "error") or r.measurements or r.series or r.trace]
     plain = [r for r in ranked if r not in detailed]
-    tests = "\n".join(_test(r, base) for r in detailed)
+    tests = "\n".join(_test(r, base, history) for r in detailed)
     if plain:
         rows = "".join(f'<tr class="{r.outcome}-row"><td><span class="badge {r.outcome}">{r.outcome}</span></td>'
                        f'<td>{_e(r.area)}</td><td><code>{_id(r.nodeid)}</code></td>'
@@ -215,13 +218,15 @@ def _counts_line(records: list[TestRecord]) -> str:
 
 
 def write_html(path: Path, records: Iterable[TestRecord], properties: list[tuple[str, str]], *,
-               title: str = "hil test report", verdict: Verdict | None = None) -> Path:
-    """One bench's report; ``verdict``: the run's (:mod:`hil.plugin.reporting.verdict`, from pytest's exit status)."""
-    return write_html_sections(path, [("", list(records), properties)], title=title, verdict=verdict)
+               title: str = "hil test report", verdict: Verdict | None = None, history: Any = None) -> Path:
+    """One bench's report; ``verdict``: the run's (:mod:`hil.plugin.reporting.verdict`, from pytest's exit status);
+    ``history``: the bench's earlier runs (:class:`hil.history.annotate.Annotations`), or None."""
+    return write_html_sections(path, [("", list(records), properties)], title=title, verdict=verdict,
+                               history=history)
 
 
 def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], list[tuple[str, str]]]], *,
-                        title: str = "hil test report", verdict: Verdict | None = None) -> Path:
+                        title: str = "hil test report", verdict: Verdict | None = None, history: Any = None) -> Path:
     """One page; with several benches (``hil run --bench a --bench b``) one collapsible section per bench.
 
     The badge is ``verdict``'s; without one (a page made outside a session) it is read from the records."""
@@ -230,7 +235,7 @@ def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], 
     if verdict is None:
         verdict = Verdict("FAILED" if counts.get("failed") or counts.get("error") else "PASSED")
     if len(sections) == 1 and not sections[0][0]:
-        body = _section(sections[0][1], sections[0][2], path.parent)
+        body = _section(sections[0][1], sections[0][2], path.parent, history)
     else:
         body = "".join(f'<details class="section bench" open><summary><h2>bench {_e(name)} — '
                        f"{_e(_counts_line(records))}</h2></summary>\n{_section(records, props, path.parent)}"
@@ -246,7 +251,7 @@ def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], 
 <meta name="viewport" content="width=device-width, initial-scale=1"><style>{_CSS}</style></head>
 <body>
 <h1>{_e(title)} — <span class="badge {badge}">{_e(verdict.status)}</span></h1>
-{said}<div class="meta">generated {_e(now)} · {_e(_counts_line(everything))}</div>
+{said}<div class="meta">generated {_e(now)} · {_e(_counts_line(everything))}</div>{history.header() if history else ""}
 <div class="filters">show: {filters}</div>
 {body}
 <script>{_FILTER_JS}</script>

@@ -126,6 +126,7 @@ class Reporter:
         self.stops = Stops(config)  # the report of a test the run stopped in, and what stopped it
         config.pluginmanager.register(self.stops, "hil-stops")
         self.verdict: Verdict | None = None
+        self.annotations: Any = None  # the bench's history for the HTML report, set by hil.history.recorder
         state = self._state()
         if state is not None:
             state.header_panel = True  # the panel below replaces the plugin's "hil PLC: …" line
@@ -334,7 +335,8 @@ class Reporter:
             return
         from hil.plugin.reporting.html import write_html
         try:
-            self.html_written = write_html(self.html_path, self.records.values(), properties, verdict=self.verdict)
+            self.html_written = write_html(self.html_path, self.records.values(), properties, verdict=self.verdict,
+                                           history=self.annotations)
         except OSError as exc:
             reporter = self.config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:
