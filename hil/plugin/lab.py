@@ -20,6 +20,7 @@ from rich.console import Console
 from rich.text import Text
 
 from hil.bench.lab.session import LabSession
+from hil.bench.lab.spec import TAGS_EXAMPLE
 from hil.core.errors import HilError
 
 #: a queued run prints a plain line this often where there is no terminal (CI logs)
@@ -32,7 +33,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="run on this labgrid place: reserve it, wait for it, acquire it, take the target (and the "
                          "fault rig's coils) from its resources, release it at the end")
     group.addoption("--hil-lg-reserve", metavar="TAGS", default=None,
-                    help="run on any labgrid place with these tags, e.g. \"family=fbs rtc=s35390a\"")
+                    help=f"run on any labgrid place with these tags, e.g. \"{TAGS_EXAMPLE}\"")
     group.addoption("--hil-lg-coordinator", metavar="HOST:PORT", default=None,
                     help="the labgrid coordinator (default [labgrid] coordinator, $LG_COORDINATOR, 127.0.0.1:20408)")
     group.addoption("--hil-lg-wait", metavar="SECONDS", type=float, default=None,

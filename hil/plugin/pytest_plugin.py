@@ -13,12 +13,13 @@ from typing import Iterator
 import pytest
 
 from hil.bench.base import BenchBase as Bench
-from hil.bench.family import build_emulator, open_bench
+from hil.bench.family import build_emulator, default_family, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.plugin import bench_time
 from hil.io.url import parse_target
+from hil.core.registry import examples
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection
@@ -37,8 +38,9 @@ MARKERS = {
                 "way); it stays UNSET until measure(name, value) records it, and a test that passes with a "
                 "declared measurement still UNSET fails: no pass without the evidence",
     "bench_time": bench_time.MARKER,
-    "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
-              "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
+    "family": "family(name, …): the controller families a bench test is for (a [bench] family of an installed "
+              "family plug-in); unmarked bench tests are for the default family; deselected when the bench "
+              "profile's [bench] family differs",
 }
 
 
@@ -52,7 +54,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--bench", metavar="FILE", default=None,
                     help=f"bench profile (TOML); default {DEFAULT_BENCH}")
     group.addoption("--target", metavar="URL", default=None,
-                    help="target URL overriding the profile's, e.g. emulator+fatek-tcp, fatek+tcp://10.0.0.5:500")
+                    help="target URL overriding the profile's, e.g. " + examples())
     group.addoption("--hil-allow-destructive", action="store_true", default=False,
                     help="allow tests marked destructive (RUN/STOP, outputs)")
     group.addoption("--hil-run-slow", action="store_true", default=False,
@@ -265,7 +267,7 @@ def _deselect_other_families(config: pytest.Config, items: list[pytest.Item], pr
     kept, dropped = [], []
     for item in items:
         family = item.get_closest_marker("family") if "bench" in getattr(item, "fixturenames", ()) else None
-        wanted = tuple(family.args) if family and family.args else ("fbs",)
+        wanted = tuple(family.args) if family and family.args else (default_family().name,)
         if "bench" in getattr(item, "fixturenames", ()) and profile.family not in wanted:
             label = " or ".join(wanted)
             other[label] = other.get(label, 0) + 1

@@ -66,6 +66,15 @@ class Bench(BenchBase):
     def plc_identity(self) -> dict[str, str] | None:
         return read_identity(self.raw)
 
+    def wire_identity(self) -> dict[str, str] | None:
+        """Unit type, OS version and memory sizes (FATEK command 53) for reports; None on a wire without it."""
+        if not hasattr(self.raw, "identity"):
+            return None
+        from hil.families.fbs.transport.fatek import UNIT_TYPES
+        ident = self.raw.identity()
+        return {"unit type": f"{ident.unit_type:02X}H ({UNIT_TYPES.get(ident.unit_type, 'unknown')})",
+                "os version": ident.os_text, **{f"{name} size": str(n) for name, n in ident.sizes.items()}}
+
     def identity(self) -> dict[str, str]:
         try:
             reason = self.raw.unreachable_reason(reg.RTC_CHIP)

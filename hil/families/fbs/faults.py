@@ -381,6 +381,9 @@ def _ask_terminal(prompt: str) -> str:
 class Faults:
     """The bench's fault injectors, built on first use from the profile's ``[faults.*]``."""
 
+    #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
+    names = KNOWN_FAULTS
+
     def __init__(self, bench: "Bench") -> None:
         self.bench = bench
         self._made: dict[str, SensorBreakInjector] = {}

@@ -7,6 +7,7 @@ from typing import Any, Iterable
 
 from hil.bench.family import check_wire
 from hil.core.errors import InvalidValue
+from hil.families.fbs import report, wires  # noqa: F401 - register its schemes, wires, report areas and plots
 from hil.families.fbs.address import parse_range
 
 
@@ -14,6 +15,7 @@ class FbsFamily:
     name = "fbs"
     title = "FATEK FBs"
     a_title = "a FATEK FBs"
+    default = True  # the harness's first family: a profile naming none, a suite without a family marker
     sections = ("rtc", "temperature", "pid", "plant")
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
     #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal

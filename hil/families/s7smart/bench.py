@@ -26,12 +26,14 @@ from hil.io.url import Target, parse_target
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
 #: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).
 S7_EMULATOR_TARGETS = ("emulator", "emulator+s7-tcp", "emulator+modbus-tcp")
+#: the protocols an S7-200 SMART answers here ("local": the in-process emulator)
+SPEAKS = ("s7", "modbus", "local")
 
 
 def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: float,
                emulator_factory: Callable[[], S7Emulator]) -> S7Io:
     modbus_map = S7ModbusMap(settings.hold_start, settings.max_hold)
-    if target.protocol == "fatek" or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
+    if target.protocol not in SPEAKS or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
         raise TargetError(f"target {target} cannot reach an S7-200 SMART: use s7+tcp://HOST:102?rack=0&slot=1 (its "
                           f"own protocol), one of {', '.join(S7_EMULATOR_TARGETS)}, modbus+tcp://HOST:502?unit=1 "
                           f"or modbus+rtu:///dev/ttyUSB0?unit=1")

@@ -7,12 +7,14 @@ from typing import Any, Iterable
 
 from hil.bench.family import check_wire
 from hil.core.errors import ProfileError
+from hil.families.s7smart import wires  # noqa: F401 - registers the family's schemes and wires (hil.core.registry)
 
 
 class S7SmartFamily:
     name = "s7-200smart"
     title = "S7-200 SMART"
     a_title = "an S7-200 SMART"
+    default = False
     sections = ("s7", "s7rtc")
     default_volatile = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
 

@@ -22,6 +22,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import pytest
 
+from hil.core.registry import REPORT_PLOTS
 from hil.plugin.reporting.model import Measurement, Series, TestRecord, area_of
 from hil.plugin.reporting.verdict import Stops, Verdict, incomplete, status_of
 
@@ -90,20 +91,13 @@ class ReportHandle:
         self._record.series.append(series)
         return series
 
-    def attach_drift(self, measurement: Any, name: str = "drift", title: str = "") -> Series:
-        """A :class:`hil.families.fbs.device.rtc.DriftMeasurement`'s samples: PLC − reference (s) over reference time (h)."""
-        rows = [(t / 3600.0, d) for t, d in measurement.samples]
-        return self.attach_series(name, rows, columns=("reference time", "PLC − reference"),
-                                  title=title or f"clock drift {measurement.s_per_day:+.3f} s/day",
-                                  xlabel="reference time (h)", ylabel="PLC − reference (s)")
-
-    def attach_pid(self, trace: Sequence[Sequence[float]], name: str = "pid", title: str = "PID closed loop",
-                   unit: str = "", output_unit: str = "") -> Series:
-        """A closed-loop trace of ``(t, PV, SV, output)`` rows; the output is drawn on its own axis."""
-        return self.attach_series(name, trace, columns=("t", "PV", "SV", "output"), title=title,
-                                  xlabel="time (s)", ylabel=f"PV, SV{f' ({unit})' if unit else ''}",
-                                  secondary=("output",),
-                                  secondary_label=f"output{f' ({output_unit})' if output_unit else ''}")
+    def __getattr__(self, name: str) -> Callable[..., Series]:
+        """``attach_<plot>``: a plot a family registered (:data:`hil.core.registry.REPORT_PLOTS`), e.g. a clock's
+        drift or a closed loop's trace, drawn through :meth:`attach_series`."""
+        plot = REPORT_PLOTS.get(name.removeprefix("attach_")) if name.startswith("attach_") else None
+        if plot is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return lambda *args, **kwargs: plot(self, *args, **kwargs)
 
 
 class Reporter:

@@ -16,6 +16,8 @@ if TYPE_CHECKING:
     from hil.sim.wire_faults import WireFaults
 
 EmulatorFactory = Callable[[], Emulator]
+#: the protocols an FBs answers ("local": the in-process emulator)
+SPEAKS = ("fatek", "modbus", "local")
 #: A pty has no line rate, but pymodbus's RTU client paces itself by the baud rate it is given (inter-frame
 #: silences of 3.5 characters): at 9600 that is ≈ 9 ms a round trip of pure waiting (110 round trips/s; 390/s at
 #: 115200, and no faster above it).  Only the emulator's own pty client says so; a real line keeps its URL's rate.
@@ -35,12 +37,12 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     emulator's pty wires (a profile's ``[emulator] line``) when the URL gives no ``baudrate`` of its own.
     """
     target = url if isinstance(url, Target) else parse_target(url)
-    if target.protocol == "s7":
-        raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
-                          f"with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// or "
-                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); an S7-200 SMART "
-                          f"needs a profile of its family: --bench s7-200smart (the bundled S7 emulator) or your copy of "
-                          f"example-s7-200smart (hil list shows the bundled profiles)")
+    if target.protocol not in SPEAKS:  # another family's protocol: its own profile reaches it
+        raise TargetError(f"target {target} speaks the {target.protocol} protocol, not one of an FBs; an FBs is "
+                          f"reached with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// "
+                          f"or modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); another PLC "
+                          f"needs a profile of its family, e.g. --bench s7-200smart (the bundled S7 emulator) or your "
+                          f"copy of example-s7-200smart (hil list shows the bundled profiles)")
     if target.in_process:
         return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults, line)
     params = dict(target.params)
