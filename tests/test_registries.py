@@ -65,7 +65,7 @@ def test_every_scheme_speaks_a_registered_protocol_and_every_wire_has_its_target
         assert scheme.protocol in PROTOCOLS or scheme.protocol == "local", name
         assert not scheme.default_port or scheme.network, name
     for name, wire in WIRES.items():
-        assert SCHEMES[f"emulator+{name}"].in_process and wire.kind in ("tcp", "pty")
+        assert SCHEMES[f"emulator+{name}"].in_process and wire.kind in ("tcp", "udp", "pty")
         assert any(name in plugin.wires for plugin in families().values()), f"no family serves {name}"
     assert sum(p.lab_default for p in PROTOCOLS.values()) == 1
     assert default_family().name in families()
@@ -77,3 +77,27 @@ def test_a_name_registered_twice_differently_is_refused() -> None:
     table.register("a", 1)  # two families that speak one wire both register it
     with pytest.raises(ValueError, match="thing 'a' is registered twice"):
         table.register("a", 2)
+
+
+def local_imports_of_hil(root: Path) -> list[str]:
+    """``from hil… import`` / ``import hil…`` inside a function, anywhere in hil/."""
+    found = set()
+    for path in sorted((root / "hil").rglob("*.py")):
+        for fn in ast.walk(ast.parse(path.read_text())):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                for node in ast.walk(fn):
+                    if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("hil"):
+                        found.add(f"{path.relative_to(root)}:{node.lineno} {node.module}")
+                    elif isinstance(node, ast.Import) and any(a.name.startswith("hil") for a in node.names):
+                        found.add(f"{path.relative_to(root)}:{node.lineno} {node.names[0].name}")
+    return sorted(found)
+
+
+def test_hil_modules_are_imported_at_the_top() -> None:
+    """No import closes a cycle at run time, so a module's imports are at its top, where a reader looks.  What
+    stays in a function: the command line's dispatch, which imports one command's modules (``hil --help`` would
+    otherwise import the emulator and pytest: 0.7 s instead of 0.1 s).  The optional dependencies (snap7,
+    matplotlib) are deferred inside the hil modules that use them."""
+    found = local_imports_of_hil(REPO)
+    assert len(found) <= 15, found
+    assert all(entry.startswith("hil/cli/main.py:") for entry in found), found

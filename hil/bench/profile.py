@@ -23,6 +23,9 @@ from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
 from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
+from hil.bench.lab.resolve import Lab
+from hil.sim.wire_faults import KINDS, check_rates
+from hil.sim.pacing import LineRate
 
 CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid")
 
@@ -128,7 +131,6 @@ def lab_request(path: str | Path, *, place: str | None = None, tags: str | None 
 def check_profile(path: str | Path, spec: LabSpec | None) -> Profile:
     """The profile, checked before its labgrid place is reserved (``spec``; stand-in URLs where the place's will
     go), so a bad key costs no wait in the queue; without a place, just the profile."""
-    from hil.bench.lab.resolve import Lab
     return load_profile(path, lab=Lab.pending(spec) if spec is not None else None)
 
 
@@ -245,7 +247,6 @@ def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:
 
     ``seed`` (int), ``delay_seconds`` (how long a "delay" holds a reply) and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
     probability (0–1) per kind (drop = 0.01, corrupt = 0.02 …) — see :mod:`hil.sim.wire_faults`."""
-    from hil.sim.wire_faults import KINDS, check_rates
     table = reader.table(data, "wire_faults")
     out: dict[str, Any] = {
         "seed": reader.take(table, "wire_faults", "seed", int, 0),
@@ -310,7 +311,6 @@ class Reader:
 
 
 def _line_rate(value: str) -> Any:
-    from hil.sim.pacing import LineRate
     return LineRate.parse(value)
 
 

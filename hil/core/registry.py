@@ -23,17 +23,21 @@ from typing import Any, Callable, Generic, Iterator, Mapping, TypeVar
 
 #: the entry-point group families register under (``[project.entry-points."hil.families"]``)
 GROUP = "hil.families"
+#: the light modules that fill these tables, one per family (``[project.entry-points."hil.registers"]``)
+REGISTERS = "hil.registers"
 T = TypeVar("T")
 _loading = {"started": False}
 
 
 def load_plugins() -> None:
-    """Import every installed family once (its plug-in module registers what it brings).  Marked before loading:
-    a plug-in module's own look-ups while it is imported see what is registered so far, not a second load."""
+    """Import what every installed family registers, once: its ``hil.registers`` module (a family's plug-in module
+    imports it too, so an install that predates that group loads the plug-ins instead).  Marked before loading: a
+    module's own look-ups while it is imported see what is registered so far, not a second load."""
     if _loading["started"]:
         return
     _loading["started"] = True
-    for entry in sorted(entry_points(group=GROUP), key=lambda e: e.name):
+    found = entry_points(group=REGISTERS) or entry_points(group=GROUP)
+    for entry in sorted(found, key=lambda e: e.name):
         entry.load()
 
 
@@ -98,6 +102,10 @@ class Scheme:
     in_process: bool = False
     #: what the path names, for the error when it is missing ("serial device", "recording")
     path_names: str = "serial device"
+    #: what a request fence may rely on: the line delivers each reply once and in order (a serial line, a TCP
+    #: stream); False for datagrams (UDP), which may be reordered or repeated — a protocol without transaction
+    #: ids then fences every read (README, Safety)
+    ordered: bool = True
     #: one URL of this form, for help texts and errors
     example: str = ""
 
@@ -121,7 +129,7 @@ class Wire:
 
     name: str
     protocol: str
-    #: "tcp" (served on HOST:PORT) or "pty" (a pseudo-terminal)
+    #: "pty" (a pseudo-terminal), else the transport of its HOST:PORT endpoint ("tcp", "udp")
     kind: str
     #: the ``hil emulate`` flag's help
     help: str

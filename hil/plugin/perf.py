@@ -20,6 +20,7 @@ from typing import Any, Callable
 import pytest
 
 from hil.io.trace import CHAR_BITS
+from hil.plugin.pytest_plugin import BENCH_SESSION
 
 BAUD = 9600
 
@@ -82,7 +83,6 @@ _COUNTER = pytest.StashKey[WireCounter]()
 
 
 def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
-    from hil.plugin.pytest_plugin import BENCH_SESSION  # noqa: PLC0415 - the plugin owns the session state
     state = config.stash.get(BENCH_SESSION, None)
     return None if state is None else state.bench
 

@@ -15,6 +15,8 @@ import pytest
 
 from hil.core.errors import HilError
 from hil.core.registry import examples
+from hil.core import signals
+from hil.plugin.safety import BENCH_STATE
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -26,8 +28,6 @@ def pytest_sessionstart(session: pytest.Session) -> None:
                                 f"to use the bench profile's target")
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
-    from hil.core import signals
-    from hil.plugin.safety import BENCH_STATE  # the session's bench state (hil.plugin.pytest_plugin._State)
     state = config.stash[BENCH_STATE]
     signals.install()  # as hil.plugin.safety does (idempotent): a recovery replayed on opening is shielded
     try:

@@ -97,9 +97,6 @@ class WireFaults:
                 self.injected[kind] += 1
             return kind
 
-    def rand(self) -> random.Random:
-        return self.random
-
 
 def check_rates(rates: dict[str, float]) -> None:
     for kind, p in rates.items():

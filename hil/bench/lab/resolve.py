@@ -23,6 +23,7 @@ from hil.bench.lab.client import LabError, Place, Resource
 from hil.bench.lab.spec import LabSpec
 from hil.core.errors import ProfileError
 from hil.core.registry import PROTOCOLS, SCHEMES, lab_protocol
+from hil.core.lock import lock_key
 
 WIRES = ("NetworkService", "NetworkSerialPort")
 RIG = "ModbusTCPCoil"
@@ -57,13 +58,8 @@ class Lab:
                    rig=f"modbus+tcp://{PENDING_HOST}?unit=1")
 
     @property
-    def is_pending(self) -> bool:
-        return PENDING_HOST in self.target
-
-    @property
     def lock_target(self) -> str:
         """The key of hil's local bench lock for this place (a second guard beside labgrid's own exclusion)."""
-        from hil.core.lock import lock_key
         return f"labgrid://{lock_key('labgrid+tcp://' + self.coordinator).removeprefix('tcp://')}/{self.place}"
 
     def apply(self, data: dict[str, Any], where: str = "<profile>") -> dict[str, Any]:

@@ -15,8 +15,9 @@ from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
 from hil.families.fbs.device.waiting import poll_until
-from hil.families.fbs.pid import (OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig, PidInstance,
+from hil.families.fbs.pid import (OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig, PidInstance,
                                   timing_seconds)
+from hil.families.fbs.address import parse
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
@@ -169,9 +170,6 @@ class Pid:
         inst = inst or self.of(point)
         return str(inst.operand(key, point))
 
-    def set_point(self, point: int) -> int:
-        return signed16(self.plc.io.read(self._reg("sv", point)))
-
     def set_set_point(self, point: int, tenths: int) -> None:
         self.plc.io.write(self._reg("sv", point), tenths & 0xFFFF)
 
@@ -204,11 +202,9 @@ class Pid:
         return str(self.plc.temperature.config.readings)
 
     def pv(self, point: int) -> int:
-        from hil.families.fbs.address import parse
         return signed16(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
 
     def pvs(self, points: Iterable[int]) -> dict[int, int]:
-        from hil.families.fbs.address import parse
         start = parse(self.readings_start())
         points = list(points)
         words = self.plc.io.read_words(str(start), max(points) + 1)
@@ -229,14 +225,6 @@ class Pid:
         return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
 
     # -- timing -----------------------------------------------------------------------------------------------------
-    @staticmethod
-    def timing_word(interval_s: int, pwm_s: int) -> int:
-        """R4005 for a PID interval and PWM period in seconds (each 1, 2, 4, 8, 16 or 32)."""
-        for s in (interval_s, pwm_s):
-            if s not in TIMING_SECONDS:
-                raise InvalidValue(f"{s} s is not one of {TIMING_SECONDS}")
-        return TIMING_SECONDS.index(pwm_s) << 8 | TIMING_SECONDS.index(interval_s)
-
     def timing(self) -> tuple[int, int]:
         """(PID interval, PWM period) in seconds, from R4005 (one read)."""
         word = self.plc.io.read(reg.PID_TIMING)

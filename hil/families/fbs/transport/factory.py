@@ -10,9 +10,15 @@ from hil.sim.runtime import ServerHandle
 from hil.families.fbs.transport.base import Transport
 from hil.core.errors import TargetError
 from hil.io.url import Target, parse_target
+from hil.families.fbs.transport.modbus import ModbusTransport
+from hil.families.fbs.transport.fatek import FatekTransport
+from hil.families.fbs.transport.replay import RecordedPlc, load_recording
+from hil.sim.pacing import LineRate
+from hil.families.fbs.transport.local import LocalTransport
+from hil.families.fbs.sim.serve_fatek import start_fatek_tcp, start_fatek_pty
+from hil.families.fbs.sim.serve_modbus import start_modbus_tcp, start_modbus_rtu_pty
 
 if TYPE_CHECKING:
-    from hil.sim.pacing import LineRate
     from hil.sim.wire_faults import WireFaults
 
 EmulatorFactory = Callable[[], Emulator]
@@ -51,12 +57,10 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     if target.scheme == "replay+fatek":
         return _open_replay(target, params)
     if target.protocol == "fatek":
-        from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
         if target.scheme == "fatek+serial" and "baudrate" in params:
             params["paced"] = True  # a pty with a baud rate of its own is a paced one (hil emulate --line)
         return FatekTransport(port_url, description=str(target), **params)
-    from hil.families.fbs.transport.modbus import ModbusTransport
     if target.scheme == "modbus+tcp":
         return ModbusTransport.tcp(target.host, target.port, **params)
     return ModbusTransport.rtu(target.serial_port, **params)  # a device, or an RFC 2217 server's line
@@ -65,8 +69,6 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
 def _open_replay(target: Target, params: dict) -> Transport:
     """A FATEK client talking to a :class:`~hil.families.fbs.transport.replay.RecordedPlc` serving the recording on loopback; the
     transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport stops it."""
-    from hil.families.fbs.transport.replay import RecordedPlc, load_recording
-    from hil.families.fbs.transport.fatek import FatekTransport
     peer = RecordedPlc(load_recording(target.device))
     try:
         transport = FatekTransport(f"socket://{peer.address}", description=str(target), **params)
@@ -88,7 +90,6 @@ def emulator_line(target: Target, line: "LineRate | None" = None) -> "LineRate |
         if any(k in params for k in ("bytesize", "parity", "stopbits")):
             raise InvalidValue(f"target {target}: a character frame without a baudrate — give baudrate= too")
         return line
-    from hil.sim.pacing import LineRate
     return LineRate(int(params["baudrate"]), int(params.get("bytesize", 7 if "fatek" in target.scheme else 8)),
                     str(params.get("parity", "E")), int(params.get("stopbits", 1)))
 
@@ -97,7 +98,6 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
                    wire_faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> Transport:
     wire = target.scheme.partition("+")[2]
     if not wire:
-        from hil.families.fbs.transport.local import LocalTransport
         return LocalTransport(emulator)
     rate = emulator_line(target, line)
     server = serve(emulator, wire, faults=wire_faults, line=rate)
@@ -121,16 +121,12 @@ def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0,
     wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
     wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
     if wire == "fatek-tcp":
-        from hil.families.fbs.sim.serve_fatek import start_fatek_tcp
         handle = start_fatek_tcp(emulator, host, port, faults=faults)
     elif wire == "fatek-serial":
-        from hil.families.fbs.sim.serve_fatek import start_fatek_pty
         handle = start_fatek_pty(emulator, faults=faults, line=line)
     elif wire == "modbus-tcp":
-        from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
         handle = start_modbus_tcp(emulator, host, port, unit=emulator.station, faults=faults)
     elif wire == "modbus-rtu":
-        from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
         handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults, line=line)
     else:
         raise InvalidValue(f"unknown emulator wire {wire!r}")
@@ -143,11 +139,9 @@ def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, l
     settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
                                             stopbits=line.stopbits)
     if wire.startswith("fatek"):
-        from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
         return FatekTransport(port_url, station=station, timeout=timeout, fence=fence, paced=line is not None,
                               **settings)
-    from hil.families.fbs.transport.modbus import ModbusTransport
     if wire == "modbus-tcp":
         host, _, port = server.address.rpartition(":")
         return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
