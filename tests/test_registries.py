@@ -101,3 +101,20 @@ def test_hil_modules_are_imported_at_the_top() -> None:
     found = local_imports_of_hil(REPO)
     assert len(found) <= 15, found
     assert all(entry.startswith("hil/cli/main.py:") for entry in found), found
+
+
+def test_each_emulator_wire_has_one_name_and_a_flag_of_that_name(capsys: pytest.CaptureFixture[str]) -> None:
+    """``emulator+fatek-serial``, ``hil emulate --fatek-serial``, its endpoint line ``fatek-serial PATH``; the
+    earlier ``--fatek-pty`` is still accepted, not shown."""
+    from hil.cli.main import build_parser
+    parser = build_parser()
+    for name, wire in WIRES.items():
+        given = [wire.option] if wire.kind == "pty" else [wire.option, "127.0.0.1:0"]
+        assert getattr(parser.parse_args(["emulate", *given]), f"wire:{name}")
+        for alias in wire.aliases:
+            assert getattr(parser.parse_args(["emulate", f"--{alias}"]), f"wire:{name}")
+    with pytest.raises(SystemExit):
+        parser.parse_args(["emulate", "--help"])
+    shown = capsys.readouterr().out
+    assert all(wire.option in shown for wire in WIRES.values())
+    assert not any(f"--{alias}" in shown for wire in WIRES.values() for alias in wire.aliases)

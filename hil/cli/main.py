@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
                              epilog="examples:\n  hil emulate --fatek-tcp 127.0.0.1:5000 --modbus-tcp 127.0.0.1:5020\n"
-                                    "  hil emulate --fatek-pty --time-scale 60\n"
+                                    "  hil emulate --fatek-serial --time-scale 60\n"
                                     "  hil emulate --bench fixtures/benches/emulator.toml --fatek-tcp 0.0.0.0:500\n"
                                     "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens; "
                                     "on a terminal a live panel (clock, temperatures, requests) follows. Ctrl-C "
@@ -111,6 +111,9 @@ def build_parser() -> argparse.ArgumentParser:
     for wire in WIRES.values():  # every registered emulator wire: --NAME HOST:PORT, or --NAME for a pty
         if wire.kind == "pty":
             emulate.add_argument(wire.option, action="store_true", dest=f"wire:{wire.name}", help=wire.help)
+            for alias in wire.aliases:
+                emulate.add_argument(f"--{alias}", action="store_true", dest=f"wire:{wire.name}",
+                                     help=argparse.SUPPRESS)
         else:
             emulate.add_argument(wire.option, metavar="HOST:PORT", dest=f"wire:{wire.name}", help=wire.help)
     emulate.add_argument("--line", metavar="'BAUD FRAME'",

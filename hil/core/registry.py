@@ -135,12 +135,13 @@ class Wire:
     help: str
     #: a paced pty's usual character frame (its data bits; even parity, one stop bit)
     bytesize: int = 8
-    #: the ``hil emulate`` flag, when not the wire's name
-    flag: str = ""
+    #: earlier spellings of its ``hil emulate`` flag, still accepted (not shown in the help)
+    aliases: tuple[str, ...] = ()
 
     @property
     def option(self) -> str:
-        return f"--{self.flag or self.name}"
+        """Its ``hil emulate`` flag: the wire's one name."""
+        return f"--{self.name}"
 
 
 SCHEMES: Registry[Scheme] = Registry("target scheme")

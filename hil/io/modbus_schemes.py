@@ -17,7 +17,7 @@ def register_modbus() -> None:
                            example="modbus+rfc2217://HOST:PORT?unit=1"))
     register_wire(Wire("modbus-tcp", "modbus", "tcp", "Modbus/TCP"))
     register_wire(Wire("modbus-rtu", "modbus", "pty", "Modbus RTU on a pseudo-terminal", bytesize=8,
-                       flag="modbus-pty"), {**SERIAL, **FENCE})
+                       aliases=("modbus-pty",)), {**SERIAL, **FENCE})
 
 
 __all__ = ["register_modbus"]

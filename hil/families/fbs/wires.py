@@ -12,7 +12,7 @@ from hil.io.modbus_schemes import register_modbus
 PROTOCOLS.register("fatek", Protocol("fatek", address_param="station", serial_scheme="fatek+serial", lab_default=True))
 register_wire(Wire("fatek-tcp", "fatek", "tcp", "FATEK protocol on TCP (port 0: OS chooses)"))
 register_wire(Wire("fatek-serial", "fatek", "pty", "FATEK protocol on a pseudo-terminal", bytesize=7,
-                   flag="fatek-pty"), {**SERIAL, **FENCE})
+                   aliases=("fatek-pty",)), {**SERIAL, **FENCE})
 register_scheme(Scheme("fatek+tcp", "fatek", {**COMMON, **FENCE, "station": int}, network=True, default_port=500,
                        example="fatek+tcp://HOST:500"))
 register_scheme(Scheme("fatek+serial", "fatek", {**COMMON, **SERIAL, **FENCE, "station": int},

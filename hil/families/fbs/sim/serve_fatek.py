@@ -346,7 +346,7 @@ def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
     async def stop() -> None:
         pty.close()
 
-    handle = ServerHandle("fatek-pty", pty.path, lambda: _run_on_loop(runtime, stop))
+    handle = ServerHandle("fatek-serial", pty.path, lambda: _run_on_loop(runtime, stop))
     handle.line = line  # type: ignore[attr-defined]
     return handle
 
