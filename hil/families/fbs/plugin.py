@@ -58,7 +58,7 @@ class FbsFamily:
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
         return Bench(profile, **kwargs)
 
-    wires = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")
+    wires = ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu")
 
     def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
         check_wire(self, wire)

@@ -17,6 +17,9 @@ from hil.sim.pacing import LineRate
 from hil.families.fbs.transport.local import LocalTransport
 from hil.families.fbs.sim.serve_fatek import start_fatek_tcp, start_fatek_pty
 from hil.families.fbs.sim.serve_modbus import start_modbus_tcp, start_modbus_rtu_pty
+from hil.families.fbs.sim.serve_fatek_udp import start_fatek_udp
+from hil.families.fbs.transport.udp import FatekUdpTransport
+from hil.core.registry import SCHEMES
 
 if TYPE_CHECKING:
     from hil.sim.wire_faults import WireFaults
@@ -45,7 +48,7 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     target = url if isinstance(url, Target) else parse_target(url)
     if target.protocol not in SPEAKS:  # another family's protocol: its own profile reaches it
         raise TargetError(f"target {target} speaks the {target.protocol} protocol, not one of an FBs; an FBs is "
-                          f"reached with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// "
+                          f"reached with fatek+tcp://, fatek+udp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// "
                           f"or modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); another PLC "
                           f"needs a profile of its family, e.g. --bench s7-200smart (the bundled S7 emulator) or your "
                           f"copy of example-s7-200smart (hil list shows the bundled profiles)")
@@ -56,6 +59,10 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
         params.setdefault("timeout", timeout)
     if target.scheme == "replay+fatek":
         return _open_replay(target, params)
+    if not SCHEMES[target.scheme].ordered:  # datagrams may come twice or out of order: fence every read
+        params.setdefault("fence", "reads")
+    if target.scheme == "fatek+udp":
+        return FatekUdpTransport(target.host, target.port, description=str(target), **params)
     if target.protocol == "fatek":
         port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
         if target.scheme == "fatek+serial" and "baudrate" in params:
@@ -117,11 +124,13 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
 
 def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
           faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> ServerHandle:
-    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
     wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
     wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
     if wire == "fatek-tcp":
         handle = start_fatek_tcp(emulator, host, port, faults=faults)
+    elif wire == "fatek-udp":
+        handle = start_fatek_udp(emulator, host, port, faults=faults)
     elif wire == "fatek-serial":
         handle = start_fatek_pty(emulator, faults=faults, line=line)
     elif wire == "modbus-tcp":
@@ -138,6 +147,9 @@ def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, l
                 fence: str) -> Transport:
     settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
                                             stopbits=line.stopbits)
+    if wire == "fatek-udp":  # every read fenced, whatever the target says (hil.families.fbs.transport.udp)
+        host, _, port = server.address.rpartition(":")
+        return FatekUdpTransport(host, int(port), station=station, timeout=timeout)
     if wire.startswith("fatek"):
         port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
         return FatekTransport(port_url, station=station, timeout=timeout, fence=fence, paced=line is not None,

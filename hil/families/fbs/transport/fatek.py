@@ -98,7 +98,12 @@ class FatekTransport(Transport):
         self.resyncs = 0  # loop-back resynchronisations done
         self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
-        self._line: Line = open_line(port_url, **self._settings)
+        self._line: Line = self.new_line()
+
+    def new_line(self) -> Line:
+        """The line this client talks over, opened (a serial port, a pty, TCP or RFC 2217 by its URL; a subclass
+        brings another kind: :class:`~hil.families.fbs.transport.udp.FatekUdpTransport`)."""
+        return open_line(self.port_url, **self._settings)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -298,7 +303,7 @@ class FatekTransport(Transport):
                 self._close()
             except (serial.SerialException, OSError):
                 pass
-            self._line = open_line(self.port_url, **self._settings)
+            self._line = self.new_line()
             self._broken = False
             self.dirty = True  # a late reply may still come on a serial line
             self.reconnects += 1
