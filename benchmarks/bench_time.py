@@ -40,13 +40,13 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
         if line:
             text = text.replace("[emulator]\n", f'[emulator]\nline = "{line}"\n', 1)
         emulated.write_text(text)
-        wires = {"fatek-pty" if line else "fatek-tcp": "--fatek-pty" if line else "--fatek-tcp",
+        wires = {"fatek-serial" if line else "fatek-tcp": "--fatek-serial" if line else "--fatek-tcp",
                  "rig-modbus-tcp": "--rig-modbus-tcp"}
         with emulate_process(emulated, time_scale, wires) as where:
             url = None
             if line:
                 rate = LineRate.parse(line)
-                url = (f"fatek+serial://{where['fatek-pty']}?baudrate={rate.baudrate}&bytesize={rate.bytesize}"
+                url = (f"fatek+serial://{where['fatek-serial']}?baudrate={rate.baudrate}&bytesize={rate.bytesize}"
                        f"&parity={rate.parity}&stopbits={rate.stopbits}&station=1")
             bench = tmp_path / "bench.toml"
             bench.write_text(bench_over_the_wire(emulated.read_text(), where, time_scale, url=url))

@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 from typing import Iterator
 
+from hil.core.registry import WIRES
 from tests.conftest import REPO
 
 #: the rig's banks (hil.families.fbs.sim.rig): the fault → its first coil when the rig starts at coil 0
@@ -54,10 +55,10 @@ def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
 def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
                     broken: str | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
-    loopback port; a ``--…-pty`` option on a pseudo-terminal); yields kind → address (or the pty's path).  Stopped
+    loopback port; a pty wire's option on a pseudo-terminal); yields kind → address (or the pty's path).  Stopped
     with SIGINT; it must exit cleanly."""
-    options = [arg for option in wires.values() for arg in (option, *(() if option.endswith("-pty") else
-                                                                      ("127.0.0.1:0",)))]
+    ptys = {wire.option for wire in WIRES.values() if wire.kind == "pty"}
+    options = [arg for option in wires.values() for arg in (option, *(() if option in ptys else ("127.0.0.1:0",)))]
     proc = subprocess.Popen(
         [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
          "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],

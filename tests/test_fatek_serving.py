@@ -398,7 +398,7 @@ def test_permission_hint():
 
 
 def test_pty_slave_path_looks_like_a_device(pty):
-    assert pty.kind == "fatek-pty" and pty.address.startswith("/dev/") and os.path.exists(pty.address)
+    assert pty.kind == "fatek-serial" and pty.address.startswith("/dev/") and os.path.exists(pty.address)
 
 
 def test_tcp_handle(tcp):

@@ -169,7 +169,7 @@ os.close(fd)
 def test_a_modbus_flood_leaves_another_clients_latency_within_2x(tmp_path, wire):
     profile = tmp_path / "emulated.toml"
     profile.write_text(EMULATOR_BENCH.read_text())
-    wires = {"modbus-tcp": "--modbus-tcp", **({"modbus-rtu": "--modbus-pty"} if wire == "rtu" else {})}
+    wires = {"modbus-tcp": "--modbus-tcp", **({"modbus-rtu": "--modbus-rtu"} if wire == "rtu" else {})}
     with emulate_process(profile, 1, wires) as where:
         host, port = where["modbus-tcp"].rsplit(":", 1)
         sock = socket.create_connection((host, int(port)))

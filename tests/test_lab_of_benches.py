@@ -60,7 +60,7 @@ fbs-bench:
     username: ""
   plc-port0:
     cls: RawSerialPort
-    port: {emulated["fatek-pty"]}
+    port: {emulated["fatek-serial"]}
     speed: 9600
 {{% for coil in range(96) %}}
   relay-{{{{ coil }}}}:
@@ -158,7 +158,7 @@ def test_runs_queue_for_labgrid_places_and_always_let_go(tmp_path):
     emulated = tmp_path / "emulated.toml"
     emulated.write_text(bench_like(EMULATOR_BENCH.read_text()))
     (tmp_path / "lab.toml").write_text(lab_profile(emulated.read_text()))
-    wires = {"fatek-tcp": "--fatek-tcp", "fatek-pty": "--fatek-pty", "rig-modbus-tcp": "--rig-modbus-tcp"}
+    wires = {"fatek-tcp": "--fatek-tcp", "fatek-serial": "--fatek-serial", "rig-modbus-tcp": "--rig-modbus-tcp"}
     started = time.monotonic()
     with emulate_process(emulated, SCALE, wires) as emu, refused_port() as dead, \
             running_lab(tmp_path / "lab", exporter_config(emu, dead), PLACES) as lab:

@@ -16,7 +16,8 @@ from hil.families.fbs.transport.modbus import ModbusTransport
 from hil.sim.runtime import LoopThread
 from hil.sim.wire_faults import WireFaults
 
-WIRES = ["emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]
+WIRES = ["emulator+fatek-tcp", "emulator+fatek-udp", "emulator+fatek-serial", "emulator+modbus-tcp",
+         "emulator+modbus-rtu"]
 ROUNDS = 6
 
 

@@ -24,9 +24,9 @@ SUITES = [str(REPO / "suites" / f) for f in
 TIME_SCALE = 5.0  # the RTC suites keep a real bench's slack on a busy host (and the pty, ser2net and RFC 2217 hops)
 #: protocol → (the endpoint kind hil emulate prints, its option, URL scheme, query)
 WIRES = {
-    "fatek": ("fatek-pty", "--fatek-pty", "fatek+rfc2217", "station=1"),  # 9600 7E1: port 0's factory setting
+    "fatek": ("fatek-serial", "--fatek-serial", "fatek+rfc2217", "station=1"),  # 9600 7E1: port 0's factory setting
     # pymodbus paces an RTU client by the baud rate it is told (3.5 characters of silence): a pty has none
-    "modbus": ("modbus-rtu", "--modbus-pty", "modbus+rfc2217", "unit=1&baudrate=115200&parity=E"),
+    "modbus": ("modbus-rtu", "--modbus-rtu", "modbus+rfc2217", "unit=1&baudrate=115200&parity=E"),
 }
 
 

@@ -28,7 +28,8 @@ from hil.sim.wire_faults import KINDS, WireFaults
 from hil.core.errors import HilError
 from hil.families.fbs.transport.factory import open_transport
 
-WIRES = ("emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu")
+WIRES = ("emulator+fatek-tcp", "emulator+fatek-udp", "emulator+fatek-serial", "emulator+modbus-tcp",
+         "emulator+modbus-rtu")
 RATES = {"drop": 0.006, "delay": 0.004, "corrupt": 0.006, "split": 0.02, "late": 0.006, "duplicate": 0.008,
          "garbage": 0.015, "close": 0.003}
 ECHO = {"echo": 0.03}

@@ -9,6 +9,8 @@ from hil.bench.profile import Profile
 from hil.core.journal import Journal
 from hil.core.timebase import Timebase
 from hil.io.url import Target
+from hil.core.lock import lock_key, plc_key
+from hil.core.signals import shielded
 
 
 class BenchBase:
@@ -58,7 +60,6 @@ class BenchBase:
         and the identity the wire reads (:meth:`plc_identity`), which recovery checks before replaying."""
         if self.target.in_process:
             return None
-        from hil.core.lock import lock_key, plc_key
         self.io.identity_vouched = bool(self.profile.plc_id)
         self.io.durable = Journal(plc_key(str(self.target), self.profile.plc_id), endpoint=lock_key(str(self.target)),
                                   plc=self.plc_identity())
@@ -82,7 +83,6 @@ class BenchBase:
         verified).  Idempotent: a second call finds nothing left to undo.  Shielded, for every caller (the bench
         fixture's teardown, a suite's own fixture, the session's end): a SIGTERM/SIGHUP/Ctrl-C that arrives
         meanwhile waits for the restore to finish, then stops the run."""
-        from hil.core.signals import shielded
         with shielded():
             try:
                 self.undo_faults()

@@ -36,6 +36,8 @@ class Family(Protocol):
     a_title: str
     #: the profile sections this family reads (parsed by :meth:`parse_sections`)
     sections: tuple[str, ...]
+    #: the family of a profile that names none (one installed family says True)
+    default: bool
     #: ``[safety] volatile`` when a profile says nothing: values the PLC rewrites itself
     default_volatile: tuple[str, ...]
 
@@ -72,6 +74,16 @@ def families() -> dict[str, Family]:
         plugin = entry.load()
         found[plugin.name] = plugin
     return found
+
+
+def default_family() -> Family:
+    """The family a profile without ``[bench] family`` and a bench test without a ``family`` marker are for: the
+    one installed family that says ``default = True``."""
+    chosen = [plugin for plugin in families().values() if getattr(plugin, "default", False)]
+    if len(chosen) != 1:
+        raise ProfileError(f"{len(chosen)} installed controller families claim to be the default "
+                           f"({', '.join(p.name for p in chosen) or 'none'}): give [bench] family in the profile")
+    return chosen[0]
 
 
 def open_bench(profile: "Profile", **kwargs: Any) -> "BenchBase":

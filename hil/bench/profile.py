@@ -18,11 +18,14 @@ from pathlib import Path
 from typing import Any, Callable
 
 from hil.bench.capabilities import DECLARABLE
-from hil.bench.family import Family, families, family as family_named
+from hil.bench.family import Family, default_family, families, family as family_named
 from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
 from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError, TargetError
 from hil.io.url import parse_target
+from hil.bench.lab.resolve import Lab
+from hil.sim.wire_faults import KINDS, check_rates
+from hil.sim.pacing import LineRate
 
 CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid", "history")
 
@@ -30,7 +33,7 @@ CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgri
 @dataclass(frozen=True)
 class Safety:
     writable: tuple[str, ...] = ()
-    volatile: tuple[str, ...] = ("R4128-R4135",)  # the FBs family's default (a profile always sets it)
+    volatile: tuple[str, ...] = ()  # a profile always sets it: its family's default_volatile unless it says
     allow_destructive: bool = False
 
 
@@ -58,7 +61,7 @@ class Profile:
     faults: dict[str, dict[str, Any]] = field(default_factory=dict)  # [faults.<name>]
     digest: str = ""  # sha256 of the file, for reports
     wire_faults: dict[str, Any] = field(default_factory=dict)  # [wire_faults]: emulator wires only, see below
-    family: str = "fbs"  # the controller family plug-in: picks the device layer, emulator and suites
+    family: str = ""  # the controller family plug-in: picks the device layer, emulator and suites
     #: the family's sections parsed once into typed records (e.g. "temperature" → TemperatureConfig)
     sections: dict[str, Any] = field(default_factory=dict)
     #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
@@ -130,7 +133,6 @@ def lab_request(path: str | Path, *, place: str | None = None, tags: str | None 
 def check_profile(path: str | Path, spec: LabSpec | None) -> Profile:
     """The profile, checked before its labgrid place is reserved (``spec``; stand-in URLs where the place's will
     go), so a bad key costs no wait in the queue; without a place, just the profile."""
-    from hil.bench.lab.resolve import Lab
     return load_profile(path, lab=Lab.pending(spec) if spec is not None else None)
 
 
@@ -162,20 +164,20 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     time_scale = reader.take(bench, "bench", "time_scale", float, 1.0, check=lambda v: v > 0 or "must be > 0")
     settle = reader.take(bench, "bench", "settle_scans", int, 2, check=lambda v: v >= 1 or "must be ≥ 1")
     timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
-    family = reader.take(bench, "bench", "family", str, "fbs",
+    family = reader.take(bench, "bench", "family", str, default_family().name,
                          check=lambda v: v in installed or f"must be one of {', '.join(sorted(installed))}")
     scan_counter = reader.take(bench, "bench", "scan_counter", str, None,
                                check=lambda v: bool(re.fullmatch(r"[A-Z]+[0-9]+", v))
-                               or 'must name one word register, e.g. "R3999"')
+                               or "must name one word register (letters, then digits)")
     scratch = reader.take(bench, "bench", "scratch", list, [],
                           check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
-                                              for x in v) or 'must be a list of ranges like "R1000-R1099"')
+                                              for x in v) or "must be a list of element ranges (FIRST-LAST)")
     offers = reader.take(bench, "bench", "offers", list, [],
                          check=lambda v: all(x in DECLARABLE for x in v)
                          or f"may list only {', '.join(DECLARABLE)}, not {', '.join(map(str, v))}")
     plc_id = reader.take(bench, "bench", "plc_id", str, None,
                          check=lambda v: bool(re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._:/-]{0,63}", v))
-                         or "must be a name of 1–64 letters, digits and . _ : / - (e.g. \"line-3-fbs\")")
+                         or "must be a name of 1–64 letters, digits and . _ : / - (e.g. \"line-3-plc-2\")")
     reader.done(bench, "bench")
     plugin = installed[family]
 
@@ -252,7 +254,6 @@ def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:
 
     ``seed`` (int), ``delay_seconds`` (how long a "delay" holds a reply) and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
     probability (0–1) per kind (drop = 0.01, corrupt = 0.02 …) — see :mod:`hil.sim.wire_faults`."""
-    from hil.sim.wire_faults import KINDS, check_rates
     table = reader.table(data, "wire_faults")
     out: dict[str, Any] = {
         "seed": reader.take(table, "wire_faults", "seed", int, 0),
@@ -317,7 +318,6 @@ class Reader:
 
 
 def _line_rate(value: str) -> Any:
-    from hil.sim.pacing import LineRate
     return LineRate.parse(value)
 
 

@@ -67,7 +67,7 @@ def faults_view(faults: Any) -> Any:
         injector = faults.get(name)
         return None if injector is None else injector_view(injector)
     members: dict[str, Any] = {"get": get, "unavailable": lambda name: faults.unavailable(name)}
-    for name in ("sensor_break", "heater_open", "ssr_short"):
+    for name in getattr(faults, "names", ()):  # the family's injectors by name
         members[name] = property((lambda n: lambda self: get(n))(name))
     return _view("bench faults", members)
 

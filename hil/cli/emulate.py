@@ -14,6 +14,10 @@ from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
 from hil.bench.profile import load_profile
+from hil.io.hosts import unresolved
+from hil.sim.pacing import LineRate
+from hil.families.fbs.sim.rig import start_rig_modbus_tcp
+from hil.cli.emulate_live import LivePanel
 
 
 def split_host_port(text: str) -> tuple[str, int]:
@@ -32,7 +36,6 @@ def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's s
     try:
         return start()
     except OSError as exc:
-        from hil.io.hosts import unresolved
         host = split_host_port(where)[0] if where else ""
         why = f"the host name {host!r} does not resolve" if unresolved(host) else (exc.strerror or str(exc))
         raise InvalidValue(f"cannot listen on {where or 'a pseudo-terminal'}: {why} — give an address of this host "
@@ -53,7 +56,6 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
     profile = load_profile(bench)
     if line is not None:
-        from hil.sim.pacing import LineRate
         rate = LineRate.parse(line)
         profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
     epoch = dt.datetime.now().replace(microsecond=0)
@@ -67,7 +69,6 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         if rig_modbus_tcp:
-            from hil.families.fbs.sim.rig import start_rig_modbus_tcp
             host, port = split_host_port(rig_modbus_tcp)
             handle = _listening(rig_modbus_tcp,
                                 lambda: start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil))
@@ -80,7 +81,6 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         # The clock starts at host time: catch up the whole second dropped from the epoch and the start-up
         emulator.advance_to(emulator.now + max(0.0, time.time() - epoch.timestamp()))
         if live:  # after the endpoint lines: clients parse those, the panel is for people
-            from hil.cli.emulate_live import LivePanel
             with LivePanel(emulator, profile, servers, time_scale, stop):
                 emulator.run_realtime(stop, time_scale)
         else:

@@ -11,6 +11,7 @@ from rich.markup import escape
 
 from hil.core.errors import HilError
 from hil.core.paths import bundled_benches, bundled_suites
+from hil.bench.profile import load_profile
 
 
 def _summary(path: Path) -> str:
@@ -26,7 +27,6 @@ def _summary(path: Path) -> str:
 
 def list_all(console: Console) -> int:
     """One line per profile and per suite, plain (a pipe or a CI log reads it as a terminal does)."""
-    from hil.bench.profile import load_profile
     benches, suites = bundled_benches(), bundled_suites()
     out = ["bench profiles (hil run --bench NAME; a file path works too):"]
     for name, path in benches.items():

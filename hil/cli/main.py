@@ -13,6 +13,7 @@ from rich.markup import escape
 
 from hil import __version__
 from hil.core.errors import HilError, InvalidValue
+from hil.core.registry import WIRES
 
 # Exit codes: pytest's (``pytest.ExitCode``), so a script or CI job reads ``hil run`` and the other commands alike.
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_INTERNAL, EXIT_USAGE = 0, 1, 2, 3, 4
@@ -100,23 +101,24 @@ def build_parser() -> argparse.ArgumentParser:
     emulate = sub.add_parser("emulate", help="serve the emulator on TCP ports and/or pseudo-terminals",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
                              epilog="examples:\n  hil emulate --fatek-tcp 127.0.0.1:5000 --modbus-tcp 127.0.0.1:5020\n"
-                                    "  hil emulate --fatek-pty --time-scale 60\n"
+                                    "  hil emulate --fatek-serial --time-scale 60\n"
                                     "  hil emulate --bench fixtures/benches/emulator.toml --fatek-tcp 0.0.0.0:500\n"
                                     "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens; "
                                     "on a terminal a live panel (clock, temperatures, requests) follows. Ctrl-C "
                                     "stops.")
     emulate.add_argument("--no-live", action="store_true", help="no live panel, even on a terminal")
     emulate.add_argument("--bench", metavar="FILE", help="bench profile that configures the emulator")
-    emulate.add_argument("--fatek-tcp", metavar="HOST:PORT", help="FATEK protocol on TCP (port 0: OS chooses)")
-    emulate.add_argument("--modbus-tcp", metavar="HOST:PORT", help="Modbus/TCP")
-    emulate.add_argument("--fatek-pty", action="store_true", help="FATEK protocol on a pseudo-terminal")
-    emulate.add_argument("--modbus-pty", action="store_true", help="Modbus RTU on a pseudo-terminal")
+    for wire in WIRES.values():  # every registered emulator wire: --NAME HOST:PORT, or --NAME for a pty
+        if wire.kind == "pty":
+            emulate.add_argument(wire.option, action="store_true", dest=f"wire:{wire.name}", help=wire.help)
+            for alias in wire.aliases:
+                emulate.add_argument(f"--{alias}", action="store_true", dest=f"wire:{wire.name}",
+                                     help=argparse.SUPPRESS)
+        else:
+            emulate.add_argument(wire.option, metavar="HOST:PORT", dest=f"wire:{wire.name}", help=wire.help)
     emulate.add_argument("--line", metavar="'BAUD FRAME'",
                          help="pace the pseudo-terminals' characters at this line rate, e.g. '9600 7E1' (port 0's "
                               "factory setting; default: the profile's [emulator] line, else unpaced)")
-    emulate.add_argument("--s7-tcp", metavar="HOST:PORT",
-                         help="the S7 protocol (ISO-on-TCP; an S7-200 SMART profile, e.g. fixtures/benches/"
-                              "s7-200smart.toml; port 0: OS chooses)")
     emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
                          help="also serve a fault rig, a Modbus/TCP relay module: coil FIRST+point = 1 opens the "
                               "point's sensor, FIRST+32+point its heater circuit, FIRST+64+point shorts its SSR "
@@ -320,13 +322,14 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "emulate":
         from hil.cli.emulate import emulate
         from hil.core.paths import default_bench
-        endpoints = [(w, a) for w, a in (("fatek-tcp", args.fatek_tcp), ("modbus-tcp", args.modbus_tcp),
-                                         ("s7-tcp", args.s7_tcp)) if a]
-        endpoints += [(w, None) for w, on in (("fatek-serial", args.fatek_pty), ("modbus-rtu", args.modbus_pty))
-                      if on]
+        given = {name: getattr(args, f"wire:{name}") for name in WIRES}
+        tcp = [w for w in WIRES.values() if w.kind != "pty"]  # TCP endpoints first, then the ptys (their order)
+        endpoints = [(w.name, given[w.name]) for w in tcp if given[w.name]]
+        endpoints += [(w.name, None) for w in WIRES.values() if w.kind == "pty" and given[w.name]]
         if not endpoints:
-            raise InvalidValue("nothing to serve: give --fatek-tcp HOST:PORT, --modbus-tcp HOST:PORT, --fatek-pty, "
-                               "--modbus-pty or (an S7-200 SMART profile) --s7-tcp HOST:PORT")
+            flags = [w.option + ("" if w.kind == "pty" else " HOST:PORT") for w in WIRES.values()]
+            raise InvalidValue(f"nothing to serve: give {', '.join(flags[:-1])} or {flags[-1]} (the profile's "
+                               f"family serves some of them)")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
                        args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line)
     if args.command == "probe":

@@ -25,6 +25,13 @@ from rich.table import Table
 from rich.text import Text
 
 from hil.core.errors import HilError
+from hil.core.lock import lock_key
+from hil.bench.profile import check_profile, lab_request
+from hil.core import signals
+from hil.plugin.reporting.verdict import status_of, Verdict
+from hil.plugin.reporting.model import records_from_json
+from hil.plugin.reporting.html import write_html_sections
+from hil.plugin.reporting.junit import root_name
 
 
 @dataclass
@@ -57,8 +64,6 @@ def slug(name: str) -> str:
 def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[BenchRun]:
     """Load every profile first (a bad one fails before anything runs); refuse two benches that share a name
     (their reports would collide) or a PLC (their lock would make one wait for or fail against the other)."""
-    from hil.core.lock import lock_key
-    from hil.bench.profile import check_profile, lab_request
     out_dir = Path(junitxml).parent
     runs: list[BenchRun] = []
     names: dict[str, str] = {}
@@ -121,7 +126,6 @@ def _wait_or_stop(console: Console, runs: list[BenchRun]) -> bool:
     """Wait for every bench's run; on SIGINT, SIGTERM or SIGHUP pass SIGINT on to each run still going (a run
     already stopping ignores it: hil.core.signals) and wait for each to restore its PLC and write its reports, so the
     merged ones say INTERRUPTED.  Whether the runs were stopped."""
-    from hil.core import signals
     signals.install()
     try:
         try:
@@ -169,7 +173,6 @@ def _describe(counts: Counter) -> str:
 def _wait_with_counts(console: Console, runs: list[BenchRun], every: float = 10.0) -> None:
     """Wait for every bench, with a line as each ends.  The counts so far: on a terminal one status line updated in
     place; elsewhere (a CI log) a line every ``every`` seconds."""
-    from hil.plugin.reporting.verdict import status_of
     pending = list(runs)
     last = time.monotonic()
     status = console.status("starting") if console.is_terminal else contextlib.nullcontext()
@@ -195,7 +198,6 @@ def _wait_with_counts(console: Console, runs: list[BenchRun], every: float = 10.
 
 def _records(r: BenchRun) -> tuple[list, list[tuple[str, str]]]:
     """A bench run's records and properties (none, and a property saying so, when it left no records file)."""
-    from hil.plugin.reporting.model import records_from_json
     try:
         return records_from_json(r.records.read_text(encoding="utf-8"))
     except (OSError, ValueError, KeyError, TypeError):
@@ -205,7 +207,6 @@ def _records(r: BenchRun) -> tuple[list, list[tuple[str, str]]]:
 def verdict_of(runs: list[BenchRun]):  # noqa: ANN201 - hil.plugin.reporting.verdict.Verdict
     """The benches' verdict together: PASSED when every run passed, else the gravest run's status, and what each
     run that did not pass says stopped it (its own verdict, from its records)."""
-    from hil.plugin.reporting.verdict import Verdict, status_of
     grave = [3, 2, 1, 4, 5]  # internal error, interrupted, failed, usage error, no tests
     bad = [r for r in runs if r.exit != 0]
     if not bad:
@@ -221,7 +222,6 @@ def verdict_of(runs: list[BenchRun]):  # noqa: ANN201 - hil.plugin.reporting.ver
 
 def merge_html(runs: list[BenchRun], out: Path) -> Path:
     """One HTML page with a section per bench, from each run's records (a run that left none: an empty section)."""
-    from hil.plugin.reporting.html import write_html_sections
     sections = [(r.name, *_records(r)) for r in runs]
     return write_html_sections(out, sections, title="hil test report — several benches", verdict=verdict_of(runs))
 
@@ -229,7 +229,6 @@ def merge_html(runs: list[BenchRun], out: Path) -> Path:
 def merge(parts: list[tuple[str, Path, int | None, Path]], out: Path) -> ET.Element:
     """One ``<testsuites>`` holding each bench's ``<testsuite>`` (renamed to the bench); a bench whose run left
     no JUnit file gets a testsuite with one error naming the bench and its log."""
-    from hil.plugin.reporting.junit import root_name
     root = ET.Element("testsuites", name=root_name(name for name, *_ in parts))
     totals = dict.fromkeys(("tests", "failures", "errors", "skipped"), 0)
     for name, path, exit_code, log in parts:
@@ -266,7 +265,6 @@ def _error_suite(name: str, message: str) -> ET.Element:
 def print_summary(console: Console, runs: list[BenchRun], junitxml: str) -> None:
     """Each bench's verdict and files, then every test that failed, by name.  Paths are never cut: on a terminal
     a table folds them, elsewhere (a pipe, a CI log) each bench is one line."""
-    from hil.plugin.reporting.verdict import status_of
     if console.is_terminal:
         table = Table(title="hil run: benches in parallel")
         for col in ("bench", "verdict", "exit", "wall s", "JUnit", "log"):

@@ -17,6 +17,10 @@ from hil.core.timebase import HostTimebase
 from hil.families.fbs.transport.base import Transport
 from hil.cli.status import status_panel
 from hil.cli.target import open_target
+from hil.cli.probe_s7 import probe_s7
+from hil.bench.profile import load_profile
+from hil.cli.rtc import format_time
+from hil.families.fbs.rtc_time import RtcTime
 
 # (label, element) — read only where the wire can reach them.
 PROBE_REGISTERS = [
@@ -28,7 +32,6 @@ _COUNTS = {"R4010": 2, "R4012": 2}
 
 
 def _probe_s7(profile: object, url: str | None, console: Console) -> int:
-    from hil.cli.probe_s7 import probe_s7
     return probe_s7(profile, url, console)
 
 
@@ -39,7 +42,6 @@ _OTHER_FAMILIES = {"s7-200smart": _probe_s7}
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:
     """Print the PLC's status and key registers; with a ``bench`` profile that has [temperature], its points."""
     if bench is not None:
-        from hil.bench.profile import load_profile
         given = load_profile(bench)
         if given.family in _OTHER_FAMILIES:
             return _OTHER_FAMILIES[given.family](given, url, console)
@@ -65,8 +67,6 @@ def probe(url: str | None, console: Console, bench: str | None = None) -> int:
 
 def _rtc_row(transport: Transport) -> str:
     """The clock as ``hil rtc read`` shows it: a date and weekday (invalid fields pointed out)."""
-    from hil.cli.rtc import format_time
-    from hil.families.fbs.rtc_time import RtcTime
     reason = transport.unreachable_reason("R4128")
     if reason:
         return f"[dim]not reachable: {escape(reason)}[/dim]"

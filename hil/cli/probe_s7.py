@@ -13,11 +13,11 @@ from rich.table import Table
 
 from hil.bench.profile import Profile
 from hil.families.s7smart import timebuf
+from hil.cli.status import status_panel
+from hil.families.s7smart.bench import S7Bench
 
 
 def probe_s7(profile: Profile, url: str | None, console: Console) -> int:
-    from hil.cli.status import status_panel
-    from hil.families.s7smart.bench import S7Bench
     bench = S7Bench(profile, target=url)
     try:
         console.print(status_panel(bench.io.status(), bench.raw.description, family="S7-200 SMART"))

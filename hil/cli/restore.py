@@ -16,6 +16,13 @@ from rich.console import Console
 from rich.markup import escape
 
 from hil.core.errors import HilError
+from hil.bench.family import open_bench
+from hil.bench.profile import load_profile
+from hil.core.lock import BenchLock, plc_key
+from hil.core.paths import default_bench
+from hil.io.url import parse_target
+from hil.core.journal import inspect, journal_path, state_dir, run_left
+from hil.bench.replay import age_problem
 
 if TYPE_CHECKING:
     from hil.core.journal import Journal
@@ -24,11 +31,6 @@ if TYPE_CHECKING:
 def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False) -> int:
     if show:
         return _show(url, bench, console)
-    from hil.bench.family import open_bench
-    from hil.bench.profile import load_profile
-    from hil.core.lock import BenchLock, plc_key
-    from hil.core.paths import default_bench
-    from hil.io.url import parse_target
     if url and bench is None and not parse_target(url).in_process:
         raise HilError(f"name the profile of the PLC at {url} (--bench FILE): recovery replays only what that "
                        f"profile's [safety] allows, and the default profile is the emulator's")
@@ -57,13 +59,10 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
 
 def _show(url: str | None, bench: str | None, console: Console) -> int:
     """Each pending journal, entry by entry, with what the next run does with it; one line for a refused file."""
-    from hil.core.journal import inspect, journal_path, state_dir
-    from hil.core.lock import plc_key
     profile = None
     if url is None and bench is None:
         paths = sorted(state_dir().glob("journal-*.json"))
     else:
-        from hil.bench.profile import load_profile
         profile = load_profile(bench) if bench else None
         target = url or profile.target  # type: ignore[union-attr]
         paths = [journal_path(plc_key(target, profile.plc_id if profile else None))]
@@ -98,8 +97,6 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
 
 def _verdicts(journal: Journal, profile: object) -> list[str]:
     """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
-    from hil.bench.replay import age_problem
-    from hil.core.journal import run_left
     writable = volatile = None
     if profile is not None:
         plugin = profile.plugin  # type: ignore[attr-defined]

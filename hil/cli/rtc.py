@@ -26,6 +26,7 @@ from hil.families.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for
 from hil.families.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
 from hil.cli.target import open_target
 from hil.core.timebase import Timebase
+from hil.core.humantime import span
 
 T = TypeVar("T")
 
@@ -95,7 +96,6 @@ def _vs_host(plc: dt.datetime, host: dt.datetime) -> str:
     if -1.0 < diff <= 1e-6:
         return "in step (to the whole second the RTC shows)"
     side = "ahead of" if diff > 0 else "behind"
-    from hil.core.humantime import span
     readable = f"PLC {span(diff)} {side} host time" + (f" ({diff:+.1f} s)" if abs(diff) >= 60 else "")
     return f"{readable}; ±1 s: the RTC shows whole seconds"
 

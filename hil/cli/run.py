@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from hil.core.paths import default_bench, suite_path, suites_dir
+from hil.bench.profile import refuse_default_for_a_plc
 
 #: pytest options whose value is the next argument (so that value is not a test path): ``-k rtc``, ``-m slow``…
 _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
@@ -90,7 +91,6 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
 
 
 def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: object) -> int:
-    from hil.bench.profile import refuse_default_for_a_plc
     refuse_default_for_a_plc(target, bench, default_bench())  # before pytest is given the default by name
     Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
     for own in (junitxml, options.get("html")):  # an earlier run's result must not pass for this one's, even if

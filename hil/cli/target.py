@@ -21,6 +21,11 @@ from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
+from hil.core.paths import default_bench
+from hil.core.lock import BenchLock, plc_key, lock_key
+from hil.core.journal import Journal
+from hil.families.fbs.identity import read_identity
+from hil.families.fbs.recovery import recover
 
 
 @dataclass
@@ -41,7 +46,6 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
     A command that writes (``writing``) holds the bench lock while it runs (keyed by the canonical endpoint:
     a test run on the same PLC, however spelt, makes it refuse) and first replays what a dead run left in the
     bench's journal (:meth:`hil.bench.guard.Guard.recover`)."""
-    from hil.core.paths import default_bench
     given = load_profile(bench) if bench else None
     if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family
         raise HilError(f"bench {given.name!r} ({bench}) is {given.plugin.a_title} (family {given.family!r}); this "
@@ -59,7 +63,6 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
     with contextlib.ExitStack() as stack:
         plc_id = given.plc_id if given is not None else None
         if writing and not target.in_process:
-            from hil.core.lock import BenchLock, plc_key
             stack.enter_context(BenchLock(str(target)).acquire())
             if plc_id:
                 stack.enter_context(BenchLock(str(target), key=plc_key(str(target), plc_id)).acquire())
@@ -74,10 +77,6 @@ def recover_first(target: str, transport: Transport, timebase: Timebase, profile
     """Replay a journal a dead run left for this PLC (under ``profile``'s allow-list; without one nothing is
     replayed), saying so on stderr; refuse to go on if that failed."""
     import sys
-    from hil.core.lock import lock_key, plc_key
-    from hil.core.journal import Journal
-    from hil.families.fbs.identity import read_identity
-    from hil.families.fbs.recovery import recover
     journal = Journal(plc_key(target, profile.plc_id if profile is not None else None), endpoint=lock_key(target),
                       plc=read_identity(transport))
     if not journal.pending:

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 from hil.core.errors import HilError
+from hil.core.registry import SCHEMES
 
 
 class BenchBusy(HilError):
@@ -59,18 +60,19 @@ def lock_key(target: str) -> str:
     if not sep:
         return scheme
     rest = rest.partition("?")[0].partition("#")[0]
-    if scheme.endswith(("serial", "rtu")) or scheme.startswith("replay"):
+    entry = SCHEMES.get(scheme)
+    network = entry.network if entry is not None else scheme.endswith("+tcp")  # also labgrid+tcp:// (a coordinator)
+    if entry is not None and not network:  # a serial device or a recording: keyed by its real path
         device = rest.rstrip("/") or "/"
         if not device.startswith("/"):
             device = "/" + device
         return f"serial://{os.path.realpath(device)}"
-    from hil.core.ports import DEFAULT_PORTS, NETWORK_SCHEMES
-    if scheme.endswith(NETWORK_SCHEMES):  # an RFC 2217 server too: the key is the endpoint it listens on
+    if network:  # an RFC 2217 server too: the key is the endpoint it listens on
         from urllib.parse import urlsplit
         parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
         host = (parts.hostname or "").lower()
         try:
-            port = parts.port or DEFAULT_PORTS.get(scheme, 0)
+            port = parts.port or (entry.default_port if entry is not None else None) or 0
         except ValueError:
             port = 0
         try:

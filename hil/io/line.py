@@ -275,12 +275,12 @@ def open_hint(url: str, exc: BaseException) -> str:
                     "another run?) or the server cannot open its device")
         if "does not seem to support rfc2217" in text or "does not accept parameter" in text:
             return ("something answered at that port but not as an RFC 2217 server — is it ser2net's "
-                    "telnet(rfc2217) accepter (a raw tcp accepter is reached with fatek+tcp:// or socket://)?")
+                    "telnet(rfc2217) accepter (a raw tcp accepter is reached with a …+tcp:// target or socket://)?")
         return ("nothing accepted the connection — is the RFC 2217 server (ser2net, a labgrid exporter) running, "
                 "and is this its port?")
     if url.startswith("socket://"):
-        return ("nothing accepted the connection — check host and port (FATEK Ethernet modules listen on 500) "
-                "and that fewer than 8 clients are connected")
+        return ("nothing accepted the connection — check host and port (the scheme's default port unless the URL "
+                "names one) and that the PLC's Ethernet module has a client connection free")
     return "check the port name and its settings"
 
 

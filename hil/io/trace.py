@@ -20,8 +20,13 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any, Callable
 
-#: frame decoders of the families' own protocols, by trace kind (a family registers its own, e.g. "fatek")
+#: frame decoders of the families' own protocols, by trace kind (a family registers its own)
 DESCRIBERS: dict[str, Callable[..., str]] = {}
+#: trace kinds whose frames are ASCII text (shown beside the hex); a family registers its own
+PRINTABLE: set[str] = set()
+#: bits a character takes on the serial line, by trace kind (start + data + parity + stop), for the time a run's
+#: bytes would take at 9600 bit/s (hil.plugin.perf); Modbus RTU is always 8E1, a family registers its own
+CHAR_BITS: dict[str, int] = {"modbus-rtu": 11}
 MAX_ENTRIES = 20_000  # per test: a virtual day of polling stays bounded; the oldest frames are dropped first
 
 
@@ -71,7 +76,7 @@ class WireTrace:
             return self
         observers = getattr(transport, "observers", None)
         if isinstance(observers, list):
-            self.kind = getattr(transport, "trace_kind", "fatek")
+            self.kind = getattr(transport, "trace_kind", "frames")
             observer = lambda direction, frame: self._record(direction, frame)  # noqa: E731
             observers.append(observer)
             self._detach.append(lambda: observers.remove(observer))
@@ -182,10 +187,10 @@ def format_trace(entries: list[TraceEntry], *, dropped: int = 0, kind: str = "")
         arrow = {"tx": "->", "rx": "<-", "call": "=="}[e.direction]
         hexpart = f" {e.hex}" if e.data else ""
         printable = ""
-        if e.data and kind == "fatek":
+        if e.data and kind in PRINTABLE:
             printable = " " + "".join(chr(b) if 0x20 <= b < 0x7F else "." for b in e.data)
         lines.append(f"{stamp} {arrow}{hexpart}{printable}  | {e.meaning}")
     return "\n".join(lines) + "\n"
 
 
-__all__ = ["TraceEntry", "WireTrace", "describe_modbus", "format_trace"]
+__all__ = ["CHAR_BITS", "DESCRIBERS", "PRINTABLE", "TraceEntry", "WireTrace", "describe_modbus", "format_trace"]

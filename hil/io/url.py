@@ -1,4 +1,5 @@
-"""Target URLs: one string picks the PLC and the wire.
+"""Target URLs: one string picks the PLC and the wire.  Every scheme is registered by the family or wire that speaks
+it (:data:`hil.core.registry.SCHEMES`: its parameters, default port, protocol); the bundled ones:
 
     emulator                                  in-process emulator, no wire
     emulator+fatek-tcp | emulator+fatek-serial | emulator+modbus-tcp | emulator+modbus-rtu
@@ -25,37 +26,23 @@ from dataclasses import dataclass, field
 from urllib.parse import parse_qsl, urlsplit
 
 from hil.core.errors import TargetError
+from hil.core.registry import PROTOCOLS, SCHEMES, Scheme, register_scheme
 from hil.io.line import is_rfc2217
 
-EMULATOR_WIRES = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", "s7-tcp")
-EMULATOR_TARGETS = ("emulator",) + tuple(f"emulator+{w}" for w in EMULATOR_WIRES)
-
-_COMMON = {"timeout": float, "retries": int}
-_SERIAL = {"baudrate": int, "parity": str, "bytesize": int, "stopbits": int}
 #: fence=reads: the line may repeat a reply (a gateway, a protocol converter): every read is fenced; fence=trouble
 #: (the default): a direct line, fenced only after a timeout, a retry or a stray frame (README, Safety)
-_FENCE = {"fence": str}
 FENCES = ("trouble", "reads")
-PARAMS: dict[str, dict[str, type]] = {
-    "fatek+tcp": {**_COMMON, **_FENCE, "station": int},
-    "fatek+serial": {**_COMMON, **_SERIAL, **_FENCE, "station": int},
-    "modbus+tcp": {**_COMMON, "unit": int},
-    "modbus+rtu": {**_COMMON, **_SERIAL, **_FENCE, "unit": int},
-    "fatek+rfc2217": {**_COMMON, **_SERIAL, **_FENCE, "station": int},
-    "modbus+rfc2217": {**_COMMON, **_SERIAL, **_FENCE, "unit": int},
-    "replay+fatek": {**_COMMON, "station": int},
-    # the emulator's serial wires: the pty's line rate (the client opens it with the same settings)
-    "emulator+fatek-serial": {**_SERIAL, **_FENCE},
-    "emulator+modbus-rtu": {**_SERIAL, **_FENCE},
-    "s7+tcp": {**_COMMON, "rack": int, "slot": int},
-}
-from hil.core.ports import DEFAULT_PORTS, NETWORK_SCHEMES  # noqa: E402 - also used to key bench locks (hil.core.lock)
+#: the in-process emulator without a wire; every other scheme is a family's or a wire's (hil.core.registry)
+register_scheme(Scheme("emulator", "local", in_process=True))
 
-FORMS = ("emulator, emulator+fatek-tcp, emulator+fatek-serial, emulator+modbus-tcp, emulator+modbus-rtu, "
-         "fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0?baudrate=9600, modbus+tcp://HOST:502?unit=1, "
-         "modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1, fatek+rfc2217://HOST:PORT?station=1, "
-         "modbus+rfc2217://HOST:PORT?unit=1, s7+tcp://HOST:102?rack=0&slot=1, "
-         "emulator+s7-tcp, replay+fatek:///path/to/trace.txt")
+
+def forms() -> str:
+    """The registered target forms, for the error naming an unknown scheme."""
+    return ", ".join(s.example or s.name for s in SCHEMES.values())
+
+
+def emulator_targets() -> tuple[str, ...]:
+    return tuple(name for name, s in SCHEMES.items() if s.in_process)
 
 
 @dataclass(frozen=True)
@@ -69,23 +56,18 @@ class Target:
     @property
     def in_process(self) -> bool:
         """True for the ``emulator…`` targets: the emulator runs inside this process (virtual time)."""
-        return self.scheme in EMULATOR_TARGETS
+        return SCHEMES[self.scheme].in_process
 
     @property
     def protocol(self) -> str:
-        """"fatek", "modbus", "s7" or "local"."""
-        if self.scheme == "emulator":
-            return "local"
-        for protocol in ("modbus", "s7"):
-            if protocol in self.scheme:
-                return protocol
-        return "fatek"
+        """What the scheme speaks (a registered protocol's name), "local" for the emulator without a wire."""
+        return SCHEMES[self.scheme].protocol
 
     @property
     def serial_port(self) -> str:
         """The pyserial URL of a serial target's line: its device, or ``rfc2217://HOST:PORT`` for a line exported
         by an RFC 2217 server ("" for a TCP target)."""
-        if self.scheme.endswith("rfc2217"):
+        if is_rfc2217_scheme(self.scheme):
             host = f"[{self.host}]" if ":" in self.host else self.host
             return f"rfc2217://{host}:{self.port}"
         return self.device
@@ -98,38 +80,45 @@ class Target:
         return f"{self.scheme}://{where}" + (f"?{query}" if query else "")
 
 
+def is_rfc2217_scheme(scheme: str) -> bool:
+    """A serial line exported by an RFC 2217 server (``<protocol>+rfc2217``): HOST:PORT, a serial line's settings."""
+    return scheme.endswith("+rfc2217")
+
+
 def serial_target(protocol: str, port: str) -> str:
-    """The target URL of ``protocol`` ("fatek", "modbus") on the serial ``port`` a transport opens (a device, or an
-    RFC 2217 server's ``rfc2217://HOST:PORT``), for messages and reports."""
+    """The target URL of ``protocol`` on the serial ``port`` a transport opens (a device, or an RFC 2217 server's
+    ``rfc2217://HOST:PORT``), for messages and reports."""
     if is_rfc2217(port):
         return f"{protocol}+{port}"
-    return f"{protocol}+{'rtu' if protocol == 'modbus' else 'serial'}://{port}"
+    return f"{PROTOCOLS[protocol].serial_scheme}://{port}"
 
 
 def parse_target(url: str) -> Target:
     text = url.strip()
-    if text in EMULATOR_TARGETS:
+    in_process = emulator_targets()
+    if text in in_process:
         return Target(text)
     scheme, mark, query = text.partition("?")
-    if mark and scheme in PARAMS and scheme in EMULATOR_TARGETS:
+    if mark and scheme in in_process:
         return Target(scheme, params=_params(url, scheme, query))
     if text.startswith("emulator"):
-        raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(EMULATOR_TARGETS)}")
+        raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(in_process)}")
     try:
         parts = urlsplit(text)
     except ValueError as exc:  # "Invalid IPv6 URL": an unclosed [
         raise TargetError(f"cannot use target {url!r}: {exc} (an IPv6 host goes in brackets, e.g. "
-                          f"fatek+tcp://[::1]:500)") from None
+                          f"{text.partition('://')[0]}://[::1]:PORT)") from None
     scheme = parts.scheme
-    if scheme not in PARAMS:
-        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {FORMS}")
+    if scheme not in SCHEMES or SCHEMES[scheme].in_process:
+        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {forms()}")
+    entry = SCHEMES[scheme]
     params = _params(url, scheme, parts.query)
-    if scheme.endswith(NETWORK_SCHEMES):
-        example_port = DEFAULT_PORTS.get(scheme, 3001)
+    if entry.network:
+        example_port = entry.default_port or 3001
         if not parts.hostname:
             raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{example_port})")
         try:
-            port = parts.port or DEFAULT_PORTS.get(scheme, 0)
+            port = parts.port or entry.default_port or 0
         except ValueError:
             raise TargetError(f"target {url!r} has an invalid port") from None
         if not port:
@@ -138,14 +127,12 @@ def parse_target(url: str) -> Target:
         return Target(scheme, host=parts.hostname, port=port, params=params)
     device = (parts.netloc + parts.path) if parts.netloc else parts.path
     if not device:
-        example = "/path/to/trace.txt" if scheme.startswith("replay") else "/dev/ttyUSB0"
-        raise TargetError(f"target {url!r} names no {'recording' if scheme.startswith('replay') else 'serial device'} "
-                          f"(e.g. {scheme}://{example})")
+        raise TargetError(f"target {url!r} names no {entry.path_names} (e.g. {entry.example or scheme + '://PATH'})")
     return Target(scheme, device=device, params=params)
 
 
 def _params(url: str, scheme: str, query: str) -> dict[str, object]:
-    allowed = PARAMS[scheme]
+    allowed = SCHEMES[scheme].params
     out: dict[str, object] = {}
     for key, raw in parse_qsl(query, keep_blank_values=True):
         if key not in allowed:

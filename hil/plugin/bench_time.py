@@ -19,7 +19,7 @@ MARGIN = 60.0
 DEFAULT_PLANNED = 60.0
 
 MARKER = ("bench_time(seconds | callable(profile) -> seconds, reason=…): the bench seconds the test plans (waits, "
-          "drift durations, R4007); its timeout is that wall time at the profile's time_scale plus a margin")
+          "measurement durations); its timeout is that wall time at the profile's time_scale plus a margin")
 
 
 def planned_seconds(item: pytest.Item, profile: Any) -> float:

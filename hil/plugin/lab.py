@@ -20,7 +20,11 @@ from rich.console import Console
 from rich.text import Text
 
 from hil.bench.lab.session import LabSession
+from hil.bench.lab.spec import TAGS_EXAMPLE
 from hil.core.errors import HilError
+from hil.bench.profile import check_profile, lab_request, load_profile
+from hil.core import signals
+from hil.core.signals import shielded
 
 #: a queued run prints a plain line this often where there is no terminal (CI logs)
 LOG_EVERY = 30.0
@@ -32,7 +36,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     help="run on this labgrid place: reserve it, wait for it, acquire it, take the target (and the "
                          "fault rig's coils) from its resources, release it at the end")
     group.addoption("--hil-lg-reserve", metavar="TAGS", default=None,
-                    help="run on any labgrid place with these tags, e.g. \"family=fbs rtc=s35390a\"")
+                    help=f"run on any labgrid place with these tags, e.g. \"{TAGS_EXAMPLE}\"")
     group.addoption("--hil-lg-coordinator", metavar="HOST:PORT", default=None,
                     help="the labgrid coordinator (default [labgrid] coordinator, $LG_COORDINATOR, 127.0.0.1:20408)")
     group.addoption("--hil-lg-wait", metavar="SECONDS", type=float, default=None,
@@ -43,8 +47,6 @@ def hold_place(config: pytest.Config, state: Any, bench_path: Callable[[], Path]
     """Reserve, wait for and acquire the place the run asks for, as ``state.lab`` (left None when it asks for
     none).  The whole profile is checked first, so a bad key costs no wait in the queue, and again with the
     place's URLs."""
-    from hil.bench.profile import check_profile, lab_request, load_profile
-    from hil.core import signals
     place, tags = config.getoption("--hil-lg-place"), config.getoption("--hil-lg-reserve")
     if not (place or tags or config.getoption("--bench")):
         return  # the bundled default profile names no place
@@ -71,7 +73,6 @@ def hold_place(config: pytest.Config, state: Any, bench_path: Callable[[], Path]
 
 def let_go(config: pytest.Config, session: LabSession) -> None:
     """Release the place and cancel the reservation; a second signal meanwhile does not cut it short."""
-    from hil.core.signals import shielded
     with shielded():
         failed = session.close()
     if failed:

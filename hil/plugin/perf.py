@@ -19,8 +19,10 @@ from typing import Any, Callable
 
 import pytest
 
+from hil.io.trace import CHAR_BITS
+from hil.plugin.pytest_plugin import BENCH_SESSION
+
 BAUD = 9600
-BITS_PER_CHAR = {"fatek": 10, "modbus-rtu": 11}  # 7E1 + start/stop; Modbus RTU always 8 data bits (8E1)
 
 
 class WireCounter:
@@ -43,7 +45,7 @@ class WireCounter:
             return self
         observers = getattr(transport, "observers", None)  # every frame of a FATEK or Modbus wire
         if isinstance(observers, list):
-            self.kind = getattr(transport, "trace_kind", "fatek")
+            self.kind = getattr(transport, "trace_kind", "frames")
 
             def observe(direction: str, frame: bytes) -> None:
                 self._add(direction == "tx", len(frame))
@@ -72,7 +74,7 @@ class _Mark:
 
 def line_seconds(kind: str, wire_bytes: int, bench_seconds: float) -> float | None:
     """Time on a 9600 bit/s line: the characters plus the bench time (waits, a scan per request)."""
-    bits = BITS_PER_CHAR.get(kind)
+    bits = CHAR_BITS.get(kind)
     return None if bits is None else wire_bytes * bits / BAUD + bench_seconds
 
 
@@ -81,7 +83,6 @@ _COUNTER = pytest.StashKey[WireCounter]()
 
 
 def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
-    from hil.plugin.pytest_plugin import BENCH_SESSION  # noqa: PLC0415 - the plugin owns the session state
     state = config.stash.get(BENCH_SESSION, None)
     return None if state is None else state.bench
 

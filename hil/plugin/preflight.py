@@ -14,6 +14,9 @@ from __future__ import annotations
 import pytest
 
 from hil.core.errors import HilError
+from hil.core.registry import examples
+from hil.core import signals
+from hil.plugin.safety import BENCH_STATE
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -21,12 +24,10 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     config = session.config
     given = config.getoption("--target")
     if given is not None and not given.strip():
-        raise pytest.UsageError("hil: --target is empty: give a target URL (e.g. emulator+fatek-tcp, "
-                                "fatek+tcp://HOST:500), or leave it out to use the bench profile's target")
+        raise pytest.UsageError(f"hil: --target is empty: give a target URL (e.g. {examples()}), or leave it out "
+                                f"to use the bench profile's target")
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
-    from hil.core import signals
-    from hil.plugin.safety import BENCH_STATE  # the session's bench state (hil.plugin.pytest_plugin._State)
     state = config.stash[BENCH_STATE]
     signals.install()  # as hil.plugin.safety does (idempotent): a recovery replayed on opening is shielded
     try:

@@ -13,12 +13,22 @@ from typing import Iterator
 import pytest
 
 from hil.bench.base import BenchBase as Bench
-from hil.bench.family import build_emulator, open_bench
+from hil.bench.family import build_emulator, default_family, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.plugin import bench_time
 from hil.io.url import parse_target
+from hil.core.registry import examples
+from hil.plugin import hookspecs
+from hil.plugin.safety import BENCH_STATE, announce
+from hil.plugin.lab import hold_place, let_go
+from hil.core.paths import default_bench
+from hil.core.lock import describe_holder, BenchLock, plc_key
+from hil.plugin.preflight import unreachable
+from hil.core.signals import shielded
+from hil.bench.view import suite_view
+from hil.bench.profile import refuse_default_for_a_plc
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection
@@ -37,13 +47,13 @@ MARKERS = {
                 "way); it stays UNSET until measure(name, value) records it, and a test that passes with a "
                 "declared measurement still UNSET fails: no pass without the evidence",
     "bench_time": bench_time.MARKER,
-    "family": "family(name, …): the controller families a bench test is for (\"fbs\", \"s7-200smart\"); unmarked "
-              "bench tests are for \"fbs\"; skipped when the bench profile's [bench] family differs",
+    "family": "family(name, …): the controller families a bench test is for (a [bench] family of an installed "
+              "family plug-in); unmarked bench tests are for the default family; deselected when the bench "
+              "profile's [bench] family differs",
 }
 
 
 def pytest_addhooks(pluginmanager: pytest.PytestPluginManager) -> None:
-    from hil.plugin import hookspecs
     pluginmanager.add_hookspecs(hookspecs)
 
 
@@ -52,7 +62,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--bench", metavar="FILE", default=None,
                     help=f"bench profile (TOML); default {DEFAULT_BENCH}")
     group.addoption("--target", metavar="URL", default=None,
-                    help="target URL overriding the profile's, e.g. emulator+fatek-tcp, fatek+tcp://10.0.0.5:500")
+                    help="target URL overriding the profile's, e.g. " + examples())
     group.addoption("--hil-allow-destructive", action="store_true", default=False,
                     help="allow tests marked destructive (RUN/STOP, outputs)")
     group.addoption("--hil-run-slow", action="store_true", default=False,
@@ -66,9 +76,7 @@ def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
     state = config.stash[_STATE] = _State(config)
-    from hil.plugin.safety import BENCH_STATE
     config.stash[BENCH_STATE] = state
-    from hil.plugin.lab import hold_place
     # a labgrid place is held for the whole session: the target comes from it, so before anything is collected
     hold_place(config, state, lambda: resolve_bench_path(config))
 
@@ -122,14 +130,12 @@ class _State:
         self.recovery = self.bench.recover()
         if self.recovery is None or not self.recovery.needed:
             return
-        from hil.plugin.safety import announce
         announce(self.config, self.recovery)
         if not self.recovery.ok:
             self.dead = self.recovery.summary()
 
     def _refuse_default_profile(self) -> None:
         """The bundled profile is the emulator's: never for a PLC named by --target alone."""
-        from hil.bench.profile import refuse_default_for_a_plc
         refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
                                  self.profile.path)
 
@@ -137,13 +143,11 @@ class _State:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
         if self.lock is not None or parse_target(self.target).in_process:
             return
-        from hil.core.lock import BenchLock
         wait = self.config.getoption("--hil-lock-wait") or 0.0
         if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
             self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
         self.lock = BenchLock(self.target).acquire(wait=wait)
         if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
-            from hil.core.lock import plc_key
             self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
 
     def release(self) -> None:
@@ -157,7 +161,6 @@ class _State:
                     lock.release()
             self.lock = self.place_lock = self.plc_lock = None
             if self.lab is not None:
-                from hil.plugin.lab import let_go
                 session, self.lab = self.lab, None
                 let_go(self.config, session)
 
@@ -205,7 +208,6 @@ def resolve_bench_path(config: pytest.Config) -> Path:
     for base in (Path.cwd(), Path(str(config.rootpath))):
         if (base / DEFAULT_BENCH).is_file():
             return base / DEFAULT_BENCH
-    from hil.core.paths import default_bench
     if default_bench().is_file():  # the bundled default (a checkout or an installed wheel)
         return default_bench()
     raise pytest.UsageError(f"no bench profile given and {DEFAULT_BENCH} not found; pass --bench FILE")
@@ -265,7 +267,7 @@ def _deselect_other_families(config: pytest.Config, items: list[pytest.Item], pr
     kept, dropped = [], []
     for item in items:
         family = item.get_closest_marker("family") if "bench" in getattr(item, "fixturenames", ()) else None
-        wanted = tuple(family.args) if family and family.args else ("fbs",)
+        wanted = tuple(family.args) if family and family.args else (default_family().name,)
         if "bench" in getattr(item, "fixturenames", ()) and profile.family not in wanted:
             label = " or ".join(wanted)
             other[label] = other.get(label, 0) + 1
@@ -294,11 +296,9 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         bench = state.open()
         line = f"hil PLC: {bench.plc.status().summary()} via {bench.raw.description}"
         if state.lock is not None and state.lock.stale:
-            from hil.core.lock import describe_holder
             line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
     except (HilError, pytest.fail.Exception) as exc:
         if state.bench is None:  # never opened (not opened before collection either): one line, exit 4
-            from hil.plugin.preflight import unreachable
             raise pytest.UsageError(unreachable(state, exc)) from None
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
@@ -335,12 +335,9 @@ def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
     """The PLC under test, its time, and the guard that restores every write when the test ends."""
     state = request.config.stash[_STATE]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
-    from hil.core.signals import shielded
     with shielded():
         bench.begin_test(request.node.nodeid)  # retries a restore that failed earlier, first
-    from hil.core.signals import shielded
     try:
-        from hil.bench.view import suite_view
         # only the guarded surface: no bench.raw, no .io.inner, no transport's private _write_* (issue 15)
         yield suite_view(bench)  # a test stopped by pytest-timeout (signal method) or SIGTERM/SIGHUP unwinds here
     finally:

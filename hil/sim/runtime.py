@@ -46,7 +46,7 @@ class ServerHandle:
     """A running emulator server: what kind, where a client connects, and how to stop it (idempotent)."""
 
     def __init__(self, kind: str, address: str, stop: "Callable[[], None]") -> None:
-        self.kind = kind  # "fatek-tcp", "fatek-pty", "modbus-tcp", "modbus-rtu"
+        self.kind = kind  # the wire's name: "fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", …
         self.address = address  # "127.0.0.1:40123" or a pty path such as "/dev/pts/7"
         self._stop = stop
         self.stopped = False

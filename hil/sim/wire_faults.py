@@ -97,9 +97,6 @@ class WireFaults:
                 self.injected[kind] += 1
             return kind
 
-    def rand(self) -> random.Random:
-        return self.random
-
 
 def check_rates(rates: dict[str, float]) -> None:
     for kind, p in rates.items():
@@ -111,16 +108,7 @@ def check_rates(rates: dict[str, float]) -> None:
         raise InvalidValue(f"fault probabilities add up to {sum(rates.values()):g}, more than 1")
 
 
-# -- corruption per protocol ----------------------------------------------------------------------------------------
-def corrupt_fatek(reply: bytes, rng: random.Random) -> bytes:
-    """Replace the two checksum characters with another valid-looking pair."""
-    if len(reply) < 4:
-        return reply
-    good = int(reply[-3:-1], 16) if reply[-3:-1].isalnum() else 0
-    bad = (good + rng.randint(1, 255)) % 256
-    return reply[:-3] + b"%02X" % bad + reply[-1:]
-
-
+# -- corruption per protocol (a family's own protocol brings its own: FaultySender's corrupt) ----------------------------------------------------------------------------------------
 def corrupt_crc(reply: bytes, rng: random.Random) -> bytes:
     """Flip bits of the CRC (Modbus RTU)."""
     if len(reply) < 2:
@@ -239,4 +227,4 @@ class FaultySender:
         self.echoes.clear()
 
 
-__all__ = ["KINDS", "WireFaults", "FaultySender", "check_rates", "corrupt_fatek", "corrupt_crc", "corrupt_mbap"]
+__all__ = ["KINDS", "WireFaults", "FaultySender", "check_rates", "corrupt_crc", "corrupt_mbap"]

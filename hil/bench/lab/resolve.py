@@ -22,10 +22,9 @@ from typing import Any
 from hil.bench.lab.client import LabError, Place, Resource
 from hil.bench.lab.spec import LabSpec
 from hil.core.errors import ProfileError
-from hil.core.ports import DEFAULT_PORTS
+from hil.core.registry import PROTOCOLS, SCHEMES, lab_protocol
+from hil.core.lock import lock_key
 
-#: the query parameter that names the PLC on each protocol's wire (an S7 wire names it by rack and slot)
-ADDRESS_PARAM = {"fatek": "station", "modbus": "unit"}
 WIRES = ("NetworkService", "NetworkSerialPort")
 RIG = "ModbusTCPCoil"
 PENDING_HOST = "labgrid.invalid"  # RFC 2606: never resolves — a profile checked before its place is reserved
@@ -54,18 +53,13 @@ class Lab:
     @classmethod
     def pending(cls, spec: LabSpec) -> "Lab":
         """Stand-in URLs to check a profile before its place is reserved (nothing may connect to them)."""
-        protocol = spec.protocol or "fatek"
+        protocol = spec.protocol or lab_protocol()
         return cls(spec.address, spec.place or "", spec.describe(), f"{protocol}+tcp://{PENDING_HOST}",
                    rig=f"modbus+tcp://{PENDING_HOST}?unit=1")
 
     @property
-    def is_pending(self) -> bool:
-        return PENDING_HOST in self.target
-
-    @property
     def lock_target(self) -> str:
         """The key of hil's local bench lock for this place (a second guard beside labgrid's own exclusion)."""
-        from hil.core.lock import lock_key
         return f"labgrid://{lock_key('labgrid+tcp://' + self.coordinator).removeprefix('tcp://')}/{self.place}"
 
     def apply(self, data: dict[str, Any], where: str = "<profile>") -> dict[str, Any]:
@@ -133,7 +127,8 @@ def url_of(resource: Resource, spec: LabSpec, station: int) -> str:
                        f"to resources directly — export it without --isolated")
     if resource.cls == "NetworkService":
         port = int(p.get("port", 0))
-        protocol = spec.protocol or next((s.partition("+")[0] for s, n in DEFAULT_PORTS.items() if n == port), "fatek")
+        protocol = spec.protocol or next((s.protocol for s in SCHEMES.values()
+                                          if s.network and s.default_port == port), lab_protocol())
         scheme, where = f"{protocol}+tcp", _host(str(p.get("address", "")), port)
     elif resource.cls == "NetworkSerialPort":
         if p.get("protocol", "rfc2217") != "rfc2217":
@@ -141,8 +136,8 @@ def url_of(resource: Resource, spec: LabSpec, station: int) -> str:
                            f"as RFC 2217 (a RawSerialPort or USBSerialPort does that)")
         if not p.get("port"):
             raise LabError(f"{resource.path} has no port yet: its exporter starts ser2net when the place is acquired")
-        protocol = spec.protocol or "fatek"
-        if protocol not in ADDRESS_PARAM:
+        protocol = spec.protocol or lab_protocol()
+        if PROTOCOLS[protocol].serial_scheme is None:
             raise LabError(f"{resource.path}: a serial port cannot carry the {protocol} protocol")
         scheme, where = f"{protocol}+rfc2217", _host(str(p.get("host", "")), int(p["port"]))
     else:
@@ -150,8 +145,9 @@ def url_of(resource: Resource, spec: LabSpec, station: int) -> str:
     query: dict[str, Any] = {}
     if resource.cls == "NetworkSerialPort":
         query["baudrate"] = int(p.get("speed", 9600))
-    if protocol in ADDRESS_PARAM:
-        query[ADDRESS_PARAM[protocol]] = station
+    address = PROTOCOLS[protocol].address_param
+    if address is not None:
+        query[address] = station
     query.update(dict(spec.params))
     text = "&".join(f"{k}={v}" for k, v in query.items())
     return f"{scheme}://{where}" + (f"?{text}" if text else "")

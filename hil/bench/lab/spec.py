@@ -24,10 +24,12 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from hil.core.errors import InvalidValue, ProfileError
+from hil.core.registry import PROTOCOLS
 
 #: labgrid's own default when neither -x nor LG_COORDINATOR says
 DEFAULT_COORDINATOR = "127.0.0.1:20408"
-PROTOCOLS = ("fatek", "modbus", "s7")
+#: a lab's tags, for the errors' examples
+TAGS_EXAMPLE = "family=NAME board=ID"
 _TAG_KEY = re.compile(r"[a-z][a-z0-9_]+")  # labgrid's rule for tag keys (labgrid.remote.common.TAG_KEY)
 _TAG_VALUE = re.compile(r"[^\s=,]+")
 
@@ -81,7 +83,7 @@ class LabSpec:
             spec = replace(spec, wait=wait if wait > 0 else None)
         if not spec.place and not spec.tags:
             raise ProfileError("labgrid: name a place (--lg-place NAME, [labgrid] place) or the tags of one "
-                               "(--lg-reserve \"family=fbs rtc=s35390a\", [labgrid] tags)")
+                               f"(--lg-reserve \"{TAGS_EXAMPLE}\", [labgrid] tags)")
         return spec
 
 
@@ -94,10 +96,10 @@ def parse_tags(text: str | dict[str, Any]) -> tuple[tuple[str, str], ...]:
         value = str(value)
         if not _TAG_KEY.fullmatch(key) or not _TAG_VALUE.fullmatch(value):
             raise InvalidValue(f"labgrid tag {key}={value!r}: tags are KEY=VALUE, the key lower-case letters, "
-                               f"digits and _ (e.g. family=fbs rtc=s35390a)")
+                               f"digits and _ (e.g. {TAGS_EXAMPLE})")
         out.append((key, value))
     if not out:
-        raise InvalidValue("labgrid: no tags given (e.g. --lg-reserve \"family=fbs rtc=s35390a\")")
+        raise InvalidValue(f"labgrid: no tags given (e.g. --lg-reserve \"{TAGS_EXAMPLE}\")")
     return tuple(sorted(out))
 
 
@@ -122,4 +124,4 @@ def parse_section(reader: Any, data: dict[str, Any]) -> LabSpec:
     return spec
 
 
-__all__ = ["LabSpec", "parse_tags", "parse_section", "DEFAULT_COORDINATOR", "PROTOCOLS"]
+__all__ = ["LabSpec", "parse_tags", "parse_section", "DEFAULT_COORDINATOR"]

@@ -22,6 +22,10 @@ from hil.families.fbs.recovery import rig_steps, rig_targets
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.bench.view import guarded_io
 from hil.io.url import Target, parse_target
+from hil.families.fbs.faults import Faults
+from hil.families.fbs.sim.build import build_emulator
+from hil.sim.wire_faults import WireFaults
+from hil.families.fbs.transport.fatek import UNIT_TYPES
 
 EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
 
@@ -34,11 +38,9 @@ class Bench(BenchBase):
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
         if emulator_builder is None:
-            from hil.families.fbs.sim.build import build_emulator
             emulator_builder = build_emulator
         wire_faults = None
         if profile.wire_faults and self.target.in_process:
-            from hil.sim.wire_faults import WireFaults
             wire_faults = WireFaults.from_config(profile.wire_faults)  # the emulator wires' servers apply it
         self.raw: Transport = open_transport(self.target, timeout=profile.timeout, wire_faults=wire_faults,
                                              emulator_factory=lambda: emulator_builder(profile, epoch),
@@ -53,7 +55,6 @@ class Bench(BenchBase):
             self.plc.temperature.config = profile.sections["temperature"]
         if "pid" in profile.sections:
             self.plc.pid.config = profile.sections["pid"]
-        from hil.families.fbs.faults import Faults
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
         # Safety (issue 15): the PLC's own side effects journaled too (FUN86's defaults on an EN edge), the RTC
         # restored to its original offset from the bench's time; originals on disk before each first write.
@@ -65,6 +66,14 @@ class Bench(BenchBase):
 
     def plc_identity(self) -> dict[str, str] | None:
         return read_identity(self.raw)
+
+    def wire_identity(self) -> dict[str, str] | None:
+        """Unit type, OS version and memory sizes (FATEK command 53) for reports; None on a wire without it."""
+        if not hasattr(self.raw, "identity"):
+            return None
+        ident = self.raw.identity()
+        return {"unit type": f"{ident.unit_type:02X}H ({UNIT_TYPES.get(ident.unit_type, 'unknown')})",
+                "os version": ident.os_text, **{f"{name} size": str(n) for name, n in ident.sizes.items()}}
 
     def identity(self) -> dict[str, str]:
         try:

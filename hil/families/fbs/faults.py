@@ -34,6 +34,12 @@ from hil.families.fbs.address import parse
 from hil.families.fbs.registers import MAX_POINTS
 from hil.core.errors import AddressError, HilError, InvalidValue, ProfileError, TargetError
 from hil.io.url import parse_target
+from hil.core.lock import lock_key
+from hil.io.modbus_client import SerialClient
+from hil.families.fbs.protocol.modbus_map import to_modbus
+from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import TemperatureModel
 
 if TYPE_CHECKING:
     from hil.families.fbs.bench import Bench
@@ -190,7 +196,6 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         self._client: Any = None
 
     def coil_key(self, point: int) -> str:
-        from hil.core.lock import lock_key
         return f"{lock_key(str(self.target))}#unit{self.unit}/coil{self.first_coil + point}"
 
     def _original(self, point: int) -> None:
@@ -259,7 +264,6 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         if self._client is None:
             from pymodbus.client import ModbusTcpClient
             from pymodbus.framer import FramerType
-            from hil.io.modbus_client import SerialClient
             t = self.target
             if t.scheme == "modbus+tcp":
                 # retries=0: pymodbus re-sends a request that timed out, a coil write included (a write is never
@@ -381,6 +385,9 @@ def _ask_terminal(prompt: str) -> str:
 class Faults:
     """The bench's fault injectors, built on first use from the profile's ``[faults.*]``."""
 
+    #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
+    names = KNOWN_FAULTS
+
     def __init__(self, bench: "Bench") -> None:
         self.bench = bench
         self._made: dict[str, SensorBreakInjector] = {}
@@ -452,9 +459,6 @@ class Faults:
         return cache[target]
 
     def _rig_is_plc(self, target: str) -> str | None:
-        from hil.core.lock import lock_key
-        from hil.families.fbs.protocol.modbus_map import to_modbus
-        from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
         if lock_key(target) == lock_key(str(self.bench.target)):
             return f"{target} is the PLC under test ({self.bench.target})"
         raw = self.bench.raw
@@ -489,12 +493,10 @@ class Faults:
         return self.get("ssr_short")
 
     def _plant(self) -> Any:
-        from hil.families.fbs.sim.models.plant import ThermalPlant
         emulator = self.bench.raw.emulator
         return emulator.model(ThermalPlant) if emulator is not None else None
 
     def _temperature_model(self) -> Any:
-        from hil.families.fbs.sim.models.temperature import TemperatureModel
         emulator = self.bench.raw.emulator
         return emulator.model(TemperatureModel) if emulator is not None else None
 

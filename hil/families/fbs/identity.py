@@ -11,6 +11,7 @@ reads no identity: None.
 from __future__ import annotations
 
 from typing import Any
+from hil.core.errors import HilError
 
 MARK = b"HIL"
 MARK_AT = 28  # STATUS29: the first byte after the sizes
@@ -34,7 +35,6 @@ def identity_of(reply: Any) -> dict[str, str]:
 
 def read_identity(transport: Any) -> dict[str, str] | None:
     """The PLC's identity over ``transport`` (unguarded), or None when the wire has none or the PLC does not say."""
-    from hil.core.errors import HilError
     ask = getattr(transport, "identity", None)
     if ask is None:
         return None

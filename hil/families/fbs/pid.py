@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from hil.families.fbs.address import WORD_BANKS, Address, parse
+from hil.families.fbs.address import Address, parse
 from hil.families.fbs.registers import point_bit
 from hil.core.errors import AddressError, InvalidValue, ProfileError
 
@@ -238,7 +238,3 @@ def _check_overlaps(instances: list[PidInstance], where: str) -> None:
             if common:
                 raise ProfileError(f"{where}: [pid] {a.name} and {b.name} both control points "
                                    f"{min(common)}–{max(common)} (each point belongs to one FUN86)")
-
-
-def bank_size(kind: str) -> int:
-    return WORD_BANKS[kind]

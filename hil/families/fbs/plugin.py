@@ -7,13 +7,25 @@ from typing import Any, Iterable
 
 from hil.bench.family import check_wire
 from hil.core.errors import InvalidValue
+from hil.families.fbs import entries  # noqa: F401 - its schemes, wires, report areas and plots (registered)
 from hil.families.fbs.address import parse_range
+from hil.families.fbs.transport.guard import expand
+from hil.families.fbs.transport.base import value_problem
+from hil.families.fbs.pid import parse_pid
+from hil.families.fbs.sim.models.plant import parse_plant
+from hil.families.fbs.rtc_profile import parse_rtc
+from hil.families.fbs.temperature import parse_temperature
+from hil.families.fbs.faults import check_fault_configs
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.bench import Bench
+from hil.families.fbs.transport.factory import serve
 
 
 class FbsFamily:
     name = "fbs"
     title = "FATEK FBs"
     a_title = "a FATEK FBs"
+    default = True  # the harness's first family: a profile naming none, a suite without a family marker
     sections = ("rtc", "temperature", "pid", "plant")
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
     #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal
@@ -27,38 +39,28 @@ class FbsFamily:
         return True
 
     def elements(self, ranges: Iterable[str]) -> frozenset:
-        from hil.families.fbs.transport.guard import expand
         return expand(ranges)
 
     def value_problem(self, element: Any, value: int) -> str | None:
         """Why ``value`` cannot be held by ``element`` (None when it can)."""
-        from hil.families.fbs.transport.base import value_problem
         return value_problem(element, value)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
-        from hil.families.fbs.pid import parse_pid
-        from hil.families.fbs.sim.models.plant import parse_plant
-        from hil.families.fbs.rtc_profile import parse_rtc
-        from hil.families.fbs.temperature import parse_temperature
         parsers = {"rtc": parse_rtc, "temperature": parse_temperature, "pid": parse_pid, "plant": parse_plant}
         return {name: parsers[name](table, where) for name, table in tables.items()}
 
     def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:
-        from hil.families.fbs.faults import check_fault_configs
         check_fault_configs(faults, where)
 
     def build_emulator(self, profile: Any, epoch: dt.datetime) -> Any:
-        from hil.families.fbs.sim.build import build_emulator
         return build_emulator(profile, epoch)
 
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
-        from hil.families.fbs.bench import Bench
         return Bench(profile, **kwargs)
 
-    wires = ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu")
+    wires = ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu")
 
     def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
-        from hil.families.fbs.transport.factory import serve
         check_wire(self, wire)
         return serve(emulator, wire, host, port, line=profile.emulator.line)  # [emulator] line paces the ptys
 

@@ -16,11 +16,14 @@ from hil.bench.guard import Recovery, RecoveryStep
 from hil.bench.replay import age_problem
 from hil.core.errors import HilError
 from hil.core.journal import COILS, Journal, run_left
+from hil.core.lock import lock_key
+from hil.families.fbs.faults import ModbusCoilSensorBreak
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.transport.guard import GuardedTransport
 
 
 def rig_targets(profile: Any) -> frozenset[str]:
     """The canonical endpoints of the profile's Modbus fault rigs (``[faults.*] kind = "modbus-coil"``)."""
-    from hil.core.lock import lock_key
     if profile is None:
         return frozenset()
     return frozenset(lock_key(str(spec["target"])) for spec in profile.faults.values()
@@ -41,8 +44,6 @@ def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False,
                       not_the_plc: Callable[[str], "str | None"] = lambda target: None) -> None:
     """Each fault-rig coil a dead run switched, back to the state it held before (read back to verify) — only on
     one of the profile's ``rigs``, and only while it still holds what the run switched it to."""
-    from hil.core.lock import lock_key
-    from hil.families.fbs.faults import ModbusCoilSensorBreak
     for key, entry in journal.coils().items():
         why = COILS.check(entry) or age_problem(entry, by_hand)
         if why is None and lock_key(entry["target"]) not in rigs:
@@ -76,8 +77,6 @@ def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False,
 def recover(journal: Journal, transport: Any, timebase: Any, profile: Any = None) -> Recovery:
     """Replay ``journal`` onto the PLC behind ``transport`` (a command's direct transport) through the guard, under
     ``profile``'s allow-list and switches (without one nothing is replayed: everything is refused, by name)."""
-    from hil.families.fbs.device.plc import FbsPlc
-    from hil.families.fbs.transport.guard import GuardedTransport
     safety = profile.safety if profile is not None else None
     guard = GuardedTransport(transport, writable=safety.writable if safety else (),
                              volatile=safety.volatile if safety else ())

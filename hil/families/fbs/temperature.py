@@ -17,6 +17,7 @@ from typing import Any
 from hil.families.fbs.address import Address, parse
 from hil.families.fbs.registers import MAX_POINTS
 from hil.core.errors import AddressError, InvalidValue, ProfileError
+from hil.families.fbs.address import WORD_BANKS
 
 TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
 BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open
@@ -260,7 +261,6 @@ def _parse_reference(raw: Any, points: int, fail) -> dict[int, float]:  # noqa: 
 
 
 def _bank_size(kind: str) -> int:
-    from hil.families.fbs.address import WORD_BANKS
     return WORD_BANKS[kind]
 
 

@@ -22,16 +22,22 @@ from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.modbus_map import S7ModbusMap
 from hil.core.timebase import Timebase, timebase_for
 from hil.io.url import Target, parse_target
+from hil.families.s7smart.serve import start_s7_modbus_tcp
+from hil.families.s7smart.s7wire import DEFAULT_PORT, SnapS7Io
+from hil.families.s7smart.serve_s7 import start_s7_server
+from hil.families.s7smart.emulator import build_s7_emulator
 
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
 #: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).
 S7_EMULATOR_TARGETS = ("emulator", "emulator+s7-tcp", "emulator+modbus-tcp")
+#: the protocols an S7-200 SMART answers here ("local": the in-process emulator)
+SPEAKS = ("s7", "modbus", "local")
 
 
 def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: float,
                emulator_factory: Callable[[], S7Emulator]) -> S7Io:
     modbus_map = S7ModbusMap(settings.hold_start, settings.max_hold)
-    if target.protocol == "fatek" or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
+    if target.protocol not in SPEAKS or (target.in_process and target.scheme not in S7_EMULATOR_TARGETS):
         raise TargetError(f"target {target} cannot reach an S7-200 SMART: use s7+tcp://HOST:102?rack=0&slot=1 (its "
                           f"own protocol), one of {', '.join(S7_EMULATOR_TARGETS)}, modbus+tcp://HOST:502?unit=1 "
                           f"or modbus+rtu:///dev/ttyUSB0?unit=1")
@@ -40,7 +46,6 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
     if target.protocol == "s7":
         return _open_s7_wire(target, timeout, emulator_factory)
     if target.scheme == "emulator+modbus-tcp":
-        from hil.families.s7smart.serve import start_s7_modbus_tcp
         emulator = emulator_factory()
         server = start_s7_modbus_tcp(emulator, modbus_map, unit=station)
         try:
@@ -64,12 +69,10 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
 def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[], S7Emulator]) -> S7Io:
     """``s7+tcp://`` (python-snap7's client), or ``emulator+s7-tcp``: the emulator served over the S7 protocol on
     loopback and reached by that same client."""
-    from hil.families.s7smart.s7wire import DEFAULT_PORT, SnapS7Io
     params = dict(target.params)
     params.setdefault("timeout", timeout)
     if not target.in_process:
         return SnapS7Io(target.host, target.port or DEFAULT_PORT, **params)  # type: ignore[arg-type]
-    from hil.families.s7smart.serve_s7 import start_s7_server
     emulator = emulator_factory()
     server = start_s7_server(emulator)
     try:
@@ -95,7 +98,6 @@ class S7Bench(BenchBase):
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
         if emulator_builder is None:
-            from hil.families.s7smart.emulator import build_s7_emulator
             emulator_builder = build_s7_emulator
         self.raw: S7Io = open_s7_io(self.target, self.settings, station=profile.station, timeout=profile.timeout,
                                     emulator_factory=lambda: _checked(emulator_builder(profile, epoch)))

@@ -7,25 +7,31 @@ from typing import Any, Iterable
 
 from hil.bench.family import check_wire
 from hil.core.errors import ProfileError
+from hil.families.s7smart import wires as registered  # noqa: F401 - registers the family's schemes and wires (hil.core.registry)
+from hil.families.s7smart.layout import check_s7_ranges, parse_s7_settings, parse_s7rtc
+from hil.families.s7smart.address import expand_s7
+from hil.families.s7smart.emulator import build_s7_emulator
+from hil.families.s7smart.bench import S7Bench
+from hil.families.s7smart.modbus_map import S7ModbusMap
+from hil.families.s7smart.serve import start_s7_modbus_tcp
+from hil.families.s7smart.serve_s7 import start_s7_server
 
 
 class S7SmartFamily:
     name = "s7-200smart"
     title = "S7-200 SMART"
     a_title = "an S7-200 SMART"
+    default = False
     sections = ("s7", "s7rtc")
     default_volatile = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
 
     def check_ranges(self, ranges: list) -> bool:
-        from hil.families.s7smart.layout import check_s7_ranges
         return check_s7_ranges(ranges)
 
     def elements(self, ranges: Iterable[str]) -> frozenset:
-        from hil.families.s7smart.address import expand_s7
         return expand_s7(ranges)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
-        from hil.families.s7smart.layout import parse_s7_settings, parse_s7rtc
         out: dict[str, Any] = {"s7": parse_s7_settings(tables.get("s7", {}), where)}  # [s7] has defaults
         if "s7rtc" in tables:
             out["s7rtc"] = parse_s7rtc(tables["s7rtc"], where)
@@ -37,11 +43,9 @@ class S7SmartFamily:
                                f"{', '.join(f'[faults.{name}]' for name in faults)}")
 
     def build_emulator(self, profile: Any, epoch: dt.datetime) -> Any:
-        from hil.families.s7smart.emulator import build_s7_emulator
         return build_s7_emulator(profile, epoch)
 
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
-        from hil.families.s7smart.bench import S7Bench
         return S7Bench(profile, **kwargs)
 
     wires = ("s7-tcp", "modbus-tcp")
@@ -49,10 +53,7 @@ class S7SmartFamily:
     def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
         check_wire(self, wire)
         if wire == "s7-tcp":
-            from hil.families.s7smart.serve_s7 import start_s7_server
             return start_s7_server(emulator, host, port)
-        from hil.families.s7smart.modbus_map import S7ModbusMap
-        from hil.families.s7smart.serve import start_s7_modbus_tcp
         settings = profile.sections["s7"]
         return start_s7_modbus_tcp(emulator, S7ModbusMap(settings.hold_start, settings.max_hold), host, port,
                                    unit=profile.station)

@@ -64,17 +64,14 @@ def operator_and_station(operator: str | None, station: str | None) -> tuple[str
 
 
 def plc_identity(bench: Any) -> dict[str, str]:
-    """Unit type, OS version and memory sizes (FATEK command 53), or the emulator's version and seed, or
-    whatever the wire's status says; plus the RTC chip (D4053) where the wire reaches it."""
+    """What the wire says the PLC is (the family's ``wire_identity``, e.g. an FBs's command 53), or the emulator's
+    version and seed, or whatever the wire's status says; plus what the family adds (``identity``)."""
     out: dict[str, str] = {}
     raw = getattr(bench, "raw", None)
     try:
-        if hasattr(raw, "identity"):
-            ident = raw.identity()
-            from hil.families.fbs.transport.fatek import UNIT_TYPES
-            out["unit type"] = f"{ident.unit_type:02X}H ({UNIT_TYPES.get(ident.unit_type, 'unknown')})"
-            out["os version"] = ident.os_text
-            out.update({f"{name} size": str(n) for name, n in ident.sizes.items()})
+        said = getattr(bench, "wire_identity", lambda: None)()
+        if said is not None:
+            out.update(said)
         else:
             status = bench.io.status()
             out.update({k: str(v) for k, v in status.identity.items() if k not in ("transport", "probe")})

@@ -8,6 +8,7 @@ from pathlib import PurePath
 from typing import Iterable, Mapping, Sequence
 
 from hil.core.measurement import Measurement
+from hil.core.registry import REPORT_AREAS
 
 
 @dataclass
@@ -104,25 +105,20 @@ def records_from_json(text: str) -> tuple[list[TestRecord], list[tuple[str, str]
     return records, [tuple(p) for p in data["properties"]]
 
 
-#: Suite file (stem, or a folder on its path) → report area.  The first match wins.
-AREAS: list[tuple[str, str]] = [
-    ("s7smart", "S7"), ("test_s7", "S7"),
-    ("test_rtc_drift", "drift"), ("drift", "drift"),
-    ("test_rtc", "RTC"),
-    ("test_temperature", "temperature"),
-    ("test_pid", "PID"),
-    ("test_smoke", "smoke"),
-]
+#: Suite file (stem, or a folder on its path) → report area: the families register theirs (hil.core.registry);
+#: the first match wins, a folder before a stem
+REPORT_AREAS.register("test_smoke", "smoke")
 
 
 def area_of(path: str) -> str:
-    """The report area of a test file (``suites/test_rtc_drift.py`` → "drift")."""
+    """The report area of a test file (``suites/test_smoke.py`` → "smoke")."""
     p = PurePath(path.split("::", 1)[0])
+    areas = REPORT_AREAS.items()
     for part in p.parts[:-1]:
-        for key, area in AREAS:
+        for key, area in areas:
             if part == key:
                 return area
-    for key, area in AREAS:
+    for key, area in areas:
         if p.stem.startswith(key):
             return area
     stem = p.stem.removeprefix("test_")

@@ -22,8 +22,18 @@ from typing import Any, Callable, Mapping, Sequence
 
 import pytest
 
+from hil.core.registry import REPORT_PLOTS
 from hil.plugin.reporting.model import Measurement, Series, TestRecord, area_of
 from hil.plugin.reporting.verdict import Stops, Verdict, incomplete, status_of
+from hil.plugin.pytest_plugin import BENCH_SESSION
+from hil.plugin.reporting.identity import suite_properties
+from hil.plugin.reporting.junit import write_incomplete, finish_junit
+from hil.plugin.reporting.html import write_html
+from hil.plugin.reporting.console import header_panel, render, WaitProgress, summary_table
+from hil.io.trace import WireTrace, format_trace
+from hil.plugin.reporting.verdict import describe
+from hil.plugin.safety import AS_FOUND, PLC_LEFT, RECOVERY_NOTES
+from hil.plugin.reporting.model import records_to_json
 
 TRACE_MODES = ("failures", "all", "off")
 
@@ -90,20 +100,13 @@ class ReportHandle:
         self._record.series.append(series)
         return series
 
-    def attach_drift(self, measurement: Any, name: str = "drift", title: str = "") -> Series:
-        """A :class:`hil.families.fbs.device.rtc.DriftMeasurement`'s samples: PLC − reference (s) over reference time (h)."""
-        rows = [(t / 3600.0, d) for t, d in measurement.samples]
-        return self.attach_series(name, rows, columns=("reference time", "PLC − reference"),
-                                  title=title or f"clock drift {measurement.s_per_day:+.3f} s/day",
-                                  xlabel="reference time (h)", ylabel="PLC − reference (s)")
-
-    def attach_pid(self, trace: Sequence[Sequence[float]], name: str = "pid", title: str = "PID closed loop",
-                   unit: str = "", output_unit: str = "") -> Series:
-        """A closed-loop trace of ``(t, PV, SV, output)`` rows; the output is drawn on its own axis."""
-        return self.attach_series(name, trace, columns=("t", "PV", "SV", "output"), title=title,
-                                  xlabel="time (s)", ylabel=f"PV, SV{f' ({unit})' if unit else ''}",
-                                  secondary=("output",),
-                                  secondary_label=f"output{f' ({output_unit})' if output_unit else ''}")
+    def __getattr__(self, name: str) -> Callable[..., Series]:
+        """``attach_<plot>``: a plot a family registered (:data:`hil.core.registry.REPORT_PLOTS`), e.g. a clock's
+        drift or a closed loop's trace, drawn through :meth:`attach_series`."""
+        plot = REPORT_PLOTS.get(name.removeprefix("attach_")) if name.startswith("attach_") else None
+        if plot is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        return lambda *args, **kwargs: plot(self, *args, **kwargs)
 
 
 class Reporter:
@@ -142,7 +145,6 @@ class Reporter:
         return None
 
     def _state(self) -> Any:
-        from hil.plugin.pytest_plugin import BENCH_SESSION
         return self.config.stash.get(BENCH_SESSION, None)
 
     def pytest_sessionstart(self, session: pytest.Session) -> None:
@@ -166,7 +168,6 @@ class Reporter:
         state = self._state()
         if not items or state is None:
             return
-        from hil.plugin.reporting.identity import suite_properties
         suites = Path(str(items[0].path)).parent
         try:
             self.properties = suite_properties(
@@ -188,11 +189,9 @@ class Reporter:
         xmlpath = _path(self.config.getoption("xmlpath", None))
         try:
             if xmlpath is not None:
-                from hil.plugin.reporting.junit import write_incomplete
                 write_incomplete(xmlpath, suite_name=state.profile.name, properties=properties,
                                  message=verdict.stopped)
             if self.html_path is not None:
-                from hil.plugin.reporting.html import write_html
                 write_html(self.html_path, [], properties, verdict=verdict)
         except OSError as exc:
             raise pytest.UsageError(f"cannot write the reports: {exc}") from None
@@ -201,7 +200,6 @@ class Reporter:
         reporter = self.config.pluginmanager.get_plugin("terminalreporter")
         if reporter is None or self.config.get_verbosity() < 0:
             return
-        from hil.plugin.reporting.console import header_panel, render
         plc_line = getattr(state, "plc_line", "")
         shown = [("bench", f"{state.profile.name} ({state.profile.path})")]
         props = dict(self.properties)
@@ -231,12 +229,10 @@ class Reporter:
             return
         self._traced_bench = bench
         if self.trace_mode != "off":
-            from hil.io.trace import WireTrace
             self.trace = WireTrace().attach(bench.raw)
         timebase = getattr(bench, "time", None)
         add_listener = getattr(timebase, "add_wait_listener", None)  # a real bench's host time (public callback)
         if add_listener is not None and self.config.get_verbosity() >= 0:
-            from hil.plugin.reporting.console import WaitProgress
             capman = self.config.pluginmanager.get_plugin("capturemanager")
             suspend = capman.global_and_fixture_disabled if capman is not None else contextlib.nullcontext
             add_listener(WaitProgress(current=lambda: self.current, suspend=suspend))
@@ -271,7 +267,6 @@ class Reporter:
         keep = entries and (self.trace_mode == "all" or record.outcome in ("failed", "error"))
         if not keep:
             return
-        from hil.io.trace import format_trace
         record.trace = format_trace(entries, dropped=self.trace.dropped, kind=self.trace.kind)
         if self.trace_dir is not None:
             try:
@@ -308,8 +303,6 @@ class Reporter:
             self._say_verdict(after_progress=failure is not None)  # then pytest's summary did not end the line
 
     def _verdict(self, session: pytest.Session, failure: BaseException | None) -> Verdict:
-        from hil.plugin.reporting.verdict import describe
-        from hil.plugin.safety import AS_FOUND, PLC_LEFT
         stopped = self.stops.stopped
         if failure is not None:
             stopped = stopped or f"{describe(failure)} at the end of the session"
@@ -328,12 +321,10 @@ class Reporter:
         properties = self.properties + self.verdict.properties()
         records_path = _path(self.config.getoption("--hil-records"))
         if records_path is not None:
-            from hil.plugin.reporting.model import records_to_json
             records_path.parent.mkdir(parents=True, exist_ok=True)
             records_path.write_text(records_to_json(list(self.records.values()), properties), encoding="utf-8")
         if self.html_path is None:
             return
-        from hil.plugin.reporting.html import write_html
         try:
             self.html_written = write_html(self.html_path, self.records.values(), properties, verdict=self.verdict,
                                            history=self.annotations)
@@ -363,14 +354,12 @@ class Reporter:
         xmlpath = _path(config.getoption("xmlpath", None))
         if xmlpath is None or not xmlpath.is_file() or not self.uses_bench:
             return
-        from hil.plugin.reporting.junit import finish_junit
         state = self._state()
         try:
             name = state.profile.name if state is not None else None
         except Exception:  # noqa: BLE001 - an unreadable profile was reported already; keep pytest's name
             name = None
         try:
-            from hil.plugin.safety import RECOVERY_NOTES
             recovery = [("hil_bench_recovery", note) for note in config.stash.get(RECOVERY_NOTES, [])]
             verdict = self.verdict.properties() if self.verdict is not None else []
             finish_junit(xmlpath, suite_name=name, properties=self.properties + verdict + recovery,
@@ -383,7 +372,6 @@ class Reporter:
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
         if not self.uses_bench or self.config.get_verbosity() < -1 or not self.records:
             return
-        from hil.plugin.reporting.console import render, summary_table
         tw = self.config.get_terminal_writer()
         terminalreporter.write(render(summary_table(self.records.values(), color=tw.hasmarkup),
                                       color=tw.hasmarkup, width=tw.fullwidth))

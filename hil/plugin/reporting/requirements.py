@@ -11,6 +11,7 @@ import html
 from typing import Iterable
 
 from hil.plugin.reporting.model import TestRecord
+from hil.plugin.requirements import load
 
 
 def _e(text: object) -> str:
@@ -26,7 +27,6 @@ def verdict(outcomes: Iterable[str]) -> str:
 
 def requirement_rows(records: Iterable[TestRecord]) -> dict[str, list[TestRecord]]:
     """Requirement ID → the records of the tests that name it, in the catalogue's order (unknown IDs last)."""
-    from hil.plugin.requirements import load
     by_id: dict[str, list[TestRecord]] = {}
     for record in records:
         for rid in record.requirements:
@@ -40,7 +40,6 @@ def requirements_section(records: list[TestRecord]) -> str:
     rows = requirement_rows(records)
     if not rows:
         return ""
-    from hil.plugin.requirements import load
     catalogue = load()
     body = []
     for rid, tests in rows.items():

@@ -17,6 +17,7 @@ from hil.families.fbs.registers import signed16
 from hil.families.fbs.device.waiting import poll_until
 from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig,
                                   PidInstance, timing_seconds, valid_sn_zn)
+from hil.families.fbs.address import parse
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
@@ -187,9 +188,6 @@ class Pid:
         inst = inst or self.of(point)
         return str(inst.operand(key, point))
 
-    def set_point(self, point: int) -> int:
-        return signed16(self.plc.io.read(self._reg("sv", point)))
-
     def set_set_point(self, point: int, tenths: int) -> None:
         self.plc.io.write(self._reg("sv", point), tenths & 0xFFFF)
 
@@ -236,11 +234,9 @@ class Pid:
         return str(self.plc.temperature.config.readings)
 
     def pv(self, point: int) -> int:
-        from hil.families.fbs.address import parse
         return signed16(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
 
     def pvs(self, points: Iterable[int]) -> dict[int, int]:
-        from hil.families.fbs.address import parse
         start = parse(self.readings_start())
         points = list(points)
         words = self.plc.io.read_words(str(start), max(points) + 1)
@@ -261,14 +257,6 @@ class Pid:
         return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
 
     # -- timing -----------------------------------------------------------------------------------------------------
-    @staticmethod
-    def timing_word(interval_s: int, pwm_s: int) -> int:
-        """R4005 for a PID interval and PWM period in seconds (each 1, 2, 4, 8, 16 or 32)."""
-        for s in (interval_s, pwm_s):
-            if s not in TIMING_SECONDS:
-                raise InvalidValue(f"{s} s is not one of {TIMING_SECONDS}")
-        return TIMING_SECONDS.index(pwm_s) << 8 | TIMING_SECONDS.index(interval_s)
-
     def timing(self) -> tuple[int, int]:
         """(PID interval, PWM period) in seconds, from R4005 (one read)."""
         word = self.plc.io.read(reg.PID_TIMING)

@@ -5,6 +5,9 @@ from __future__ import annotations
 from hil.core.errors import HilError
 from hil.core.timebase import Timebase
 from hil.families.fbs.transport.base import PlcStatus, Transport
+from hil.families.fbs.device.rtc import Rtc
+from hil.families.fbs.device.temperature import Temperature
+from hil.families.fbs.device.pid import Pid
 
 
 class FbsPlc:
@@ -21,11 +24,8 @@ class FbsPlc:
         self.settle_scans = settle_scans
         #: the bench ladder's scan counter ([bench] scan_counter): a word it adds 1 to every scan
         self.scan_counter = scan_counter
-        from hil.families.fbs.device.rtc import Rtc  # noqa: PLC0415 - areas import FbsPlc's module for typing
         self.rtc = Rtc(self)
-        from hil.families.fbs.device.temperature import Temperature  # noqa: PLC0415
         self.temperature = Temperature(self)  # configured by the bench from the profile's [temperature]
-        from hil.families.fbs.device.pid import Pid  # noqa: PLC0415
         self.pid = Pid(self)  # configured by the bench from the profile's [pid]
 
     def status(self) -> PlcStatus:

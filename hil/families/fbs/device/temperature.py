@@ -122,11 +122,6 @@ class Temperature:
     def installed(self, point: int) -> bool:
         return bool(self.plc.io.read(self.mask_register(point)) >> reg.point_bit(point)[1] & 1)
 
-    def set_installed(self, point: int, installed: bool) -> None:
-        """Set or clear the point's bit in R4010/R4011 (read-modify-write of that one register)."""
-        name = self.mask_register(point)
-        self.plc.io.write(name, reg.with_bit(self.plc.io.read(name), reg.point_bit(point)[1], installed))
-
     # -- time -----------------------------------------------------------------------------------------------------
     def update_period(self) -> float:
         """Bench seconds in which every point is measured once (the slowest module at the configured rate)."""

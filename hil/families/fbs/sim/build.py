@@ -6,6 +6,13 @@ import datetime as dt
 
 from hil.families.fbs.sim.plc import Emulator
 from hil.bench.profile import Profile
+from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.families.fbs.address import parse
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.sim.models.fun86 import Fun86Model
+from hil.families.fbs.sim.models.span import Span
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.pid import PidConfig
 
 
 def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
@@ -13,14 +20,11 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
     emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
                         seed=profile.emulator.seed)
     if profile.scan_counter:
-        from hil.families.fbs.address import parse  # noqa: PLC0415
         emulator.scan_counter = parse(profile.scan_counter)
-    from hil.families.fbs.sim.models.rtc import RtcModel  # noqa: PLC0415 - models import the engine
     rtc = profile.rtc
     emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,
                                 start=(rtc.start if rtc and rtc.start else epoch)))
     if "temperature" in profile.sections:
-        from hil.families.fbs.sim.models.temperature import TemperatureModel  # noqa: PLC0415
         emulator.add_model(TemperatureModel(profile.sections["temperature"]))
     if "pid" in profile.sections or "plant" in profile.sections:
         add_pid_models(emulator, profile)
@@ -29,11 +33,6 @@ def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
 
 def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     """FUN86 (the ladder's PID instances, [pid]) and the thermal plant ([plant]) after the temperature modules."""
-    from hil.families.fbs.sim.models.fun86 import Fun86Model  # noqa: PLC0415
-    from hil.families.fbs.sim.models.span import Span  # noqa: PLC0415
-    from hil.families.fbs.sim.models.plant import ThermalPlant  # noqa: PLC0415
-    from hil.families.fbs.sim.models.temperature import TemperatureModel  # noqa: PLC0415
-    from hil.families.fbs.pid import PidConfig  # noqa: PLC0415
     config = profile.sections.get("pid") or PidConfig(())
     temperature = emulator.model(TemperatureModel)
     fun86 = Fun86Model(config, temperature.config if temperature else None)

@@ -23,6 +23,8 @@ from hil.core.errors import InvalidValue
 from hil.families.fbs.registers import MAX_POINTS
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.runtime import LoopThread, ServerHandle
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import TemperatureModel
 
 POINTS = MAX_POINTS  # one coil per temperature point, in each bank
 #: the rig's banks in coil order, each POINTS coils long: the fault each coil of the bank switches
@@ -31,8 +33,6 @@ _WRITE_COILS = (5, 15)
 
 
 def build_rig_device(emulator: Emulator, first_coil: int = 0) -> SimDevice:
-    from hil.families.fbs.sim.models.plant import ThermalPlant
-    from hil.families.fbs.sim.models.temperature import TemperatureModel
     model = emulator.model(TemperatureModel)
     if model is None:
         raise InvalidValue("the emulator has no temperature modules to break: give hil emulate a --bench profile "

@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import errno
 import os
+import random
 import threading
 import tty
 from typing import Callable
@@ -36,7 +37,7 @@ from hil.families.fbs.identity import emulator_status_tail
 from hil.families.fbs.sim.memory import Memory, Refused
 from hil.sim.pacing import LineRate, PacedSender
 from hil.sim.runtime import LoopThread, ServerHandle
-from hil.sim.wire_faults import FaultySender, WireFaults, corrupt_fatek
+from hil.sim.wire_faults import FaultySender, WireFaults
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, ChecksumError, Command, DetailedStatus, DetailedStatusReply,
                                 FrameAssembler, FrameError, Loopback, MixedRead, MixedWrite, ReadBits,
                                 ReadEnableState, ReadRegisters, RequestError, RunStop, ShortStatus, StatusReply,
@@ -57,6 +58,15 @@ JUNK_SLICE = 65536
 JUNK_PAUSE = 0.001
 _MAX_PENDING_OUTPUT = 64 * 1024  # pty: replies kept for a client that stopped reading, then dropped
 _MAX_PENDING_INPUT = 64 * 1024  # pty in real time: bytes waiting for the end of a scan, then dropped
+
+
+def corrupt_fatek(reply: bytes, rng: random.Random) -> bytes:
+    """Replace the two checksum characters with another valid-looking pair."""
+    if len(reply) < 4:
+        return reply
+    good = int(reply[-3:-1], 16) if reply[-3:-1].isalnum() else 0
+    bad = (good + rng.randint(1, 255)) % 256
+    return reply[:-3] + b"%02X" % bad + reply[-1:]
 
 
 class FatekServerCore:
@@ -336,7 +346,7 @@ def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
     async def stop() -> None:
         pty.close()
 
-    handle = ServerHandle("fatek-pty", pty.path, lambda: _run_on_loop(runtime, stop))
+    handle = ServerHandle("fatek-serial", pty.path, lambda: _run_on_loop(runtime, stop))
     handle.line = line  # type: ignore[attr-defined]
     return handle
 

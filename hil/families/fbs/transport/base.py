@@ -15,6 +15,7 @@ from hil.core.errors import InvalidValue
 from hil.core.link import Link
 from hil.io.status import PlcStatus
 from hil.families.fbs.address import Address, parse, span
+from hil.core.errors import HilError
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -150,7 +151,6 @@ class Transport(Link, ABC):
     def require(self, names: Iterable[NameLike], action: str, error: type[Exception] | None = None) -> None:
         """Refuse ``action`` before anything is sent when this wire cannot reach one of ``names`` — so that a
         procedure never stops half-way (M1952 stranded at 1) on an address the wire could never reach."""
-        from hil.core.errors import HilError
         for name in names:
             reason = self.unreachable_reason(name)
             if reason:

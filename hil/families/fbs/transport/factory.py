@@ -10,12 +10,23 @@ from hil.sim.runtime import ServerHandle
 from hil.families.fbs.transport.base import Transport
 from hil.core.errors import TargetError
 from hil.io.url import Target, parse_target
+from hil.families.fbs.transport.modbus import ModbusTransport
+from hil.families.fbs.transport.fatek import FatekTransport
+from hil.families.fbs.transport.replay import RecordedPlc, load_recording
+from hil.sim.pacing import LineRate
+from hil.families.fbs.transport.local import LocalTransport
+from hil.families.fbs.sim.serve_fatek import start_fatek_tcp, start_fatek_pty
+from hil.families.fbs.sim.serve_modbus import start_modbus_tcp, start_modbus_rtu_pty
+from hil.families.fbs.sim.serve_fatek_udp import start_fatek_udp
+from hil.families.fbs.transport.udp import FatekUdpTransport
+from hil.core.registry import SCHEMES
 
 if TYPE_CHECKING:
-    from hil.sim.pacing import LineRate
     from hil.sim.wire_faults import WireFaults
 
 EmulatorFactory = Callable[[], Emulator]
+#: the protocols an FBs answers ("local": the in-process emulator)
+SPEAKS = ("fatek", "modbus", "local")
 #: A pty has no line rate, but pymodbus's RTU client paces itself by the baud rate it is given (inter-frame
 #: silences of 3.5 characters): at 9600 that is ≈ 9 ms a round trip of pure waiting (110 round trips/s; 390/s at
 #: 115200, and no faster above it).  Only the emulator's own pty client says so; a real line keeps its URL's rate.
@@ -35,12 +46,12 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     emulator's pty wires (a profile's ``[emulator] line``) when the URL gives no ``baudrate`` of its own.
     """
     target = url if isinstance(url, Target) else parse_target(url)
-    if target.protocol == "s7":
-        raise TargetError(f"target {target} speaks the S7 protocol of a Siemens S7-200 SMART; an FBs is reached "
-                          f"with fatek+tcp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// or "
-                          f"modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); an S7-200 SMART "
-                          f"needs a profile of its family: --bench s7-200smart (the bundled S7 emulator) or your copy of "
-                          f"example-s7-200smart (hil list shows the bundled profiles)")
+    if target.protocol not in SPEAKS:  # another family's protocol: its own profile reaches it
+        raise TargetError(f"target {target} speaks the {target.protocol} protocol, not one of an FBs; an FBs is "
+                          f"reached with fatek+tcp://, fatek+udp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// "
+                          f"or modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); another PLC "
+                          f"needs a profile of its family, e.g. --bench s7-200smart (the bundled S7 emulator) or your "
+                          f"copy of example-s7-200smart (hil list shows the bundled profiles)")
     if target.in_process:
         return _open_emulator(target, (emulator_factory or Emulator)(), timeout, wire_faults, line)
     params = dict(target.params)
@@ -48,13 +59,15 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
         params.setdefault("timeout", timeout)
     if target.scheme == "replay+fatek":
         return _open_replay(target, params)
+    if not SCHEMES[target.scheme].ordered:  # datagrams may come twice or out of order: fence every read
+        params.setdefault("fence", "reads")
+    if target.scheme == "fatek+udp":
+        return FatekUdpTransport(target.host, target.port, description=str(target), **params)
     if target.protocol == "fatek":
-        from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
         if target.scheme == "fatek+serial" and "baudrate" in params:
             params["paced"] = True  # a pty with a baud rate of its own is a paced one (hil emulate --line)
         return FatekTransport(port_url, description=str(target), **params)
-    from hil.families.fbs.transport.modbus import ModbusTransport
     if target.scheme == "modbus+tcp":
         return ModbusTransport.tcp(target.host, target.port, **params)
     return ModbusTransport.rtu(target.serial_port, **params)  # a device, or an RFC 2217 server's line
@@ -63,8 +76,6 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
 def _open_replay(target: Target, params: dict) -> Transport:
     """A FATEK client talking to a :class:`~hil.families.fbs.transport.replay.RecordedPlc` serving the recording on loopback; the
     transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport stops it."""
-    from hil.families.fbs.transport.replay import RecordedPlc, load_recording
-    from hil.families.fbs.transport.fatek import FatekTransport
     peer = RecordedPlc(load_recording(target.device))
     try:
         transport = FatekTransport(f"socket://{peer.address}", description=str(target), **params)
@@ -86,7 +97,6 @@ def emulator_line(target: Target, line: "LineRate | None" = None) -> "LineRate |
         if any(k in params for k in ("bytesize", "parity", "stopbits")):
             raise InvalidValue(f"target {target}: a character frame without a baudrate — give baudrate= too")
         return line
-    from hil.sim.pacing import LineRate
     return LineRate(int(params["baudrate"]), int(params.get("bytesize", 7 if "fatek" in target.scheme else 8)),
                     str(params.get("parity", "E")), int(params.get("stopbits", 1)))
 
@@ -95,7 +105,6 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
                    wire_faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> Transport:
     wire = target.scheme.partition("+")[2]
     if not wire:
-        from hil.families.fbs.transport.local import LocalTransport
         return LocalTransport(emulator)
     rate = emulator_line(target, line)
     server = serve(emulator, wire, faults=wire_faults, line=rate)
@@ -115,20 +124,18 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
 
 def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
           faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> ServerHandle:
-    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
     wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
     wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
     if wire == "fatek-tcp":
-        from hil.families.fbs.sim.serve_fatek import start_fatek_tcp
         handle = start_fatek_tcp(emulator, host, port, faults=faults)
+    elif wire == "fatek-udp":
+        handle = start_fatek_udp(emulator, host, port, faults=faults)
     elif wire == "fatek-serial":
-        from hil.families.fbs.sim.serve_fatek import start_fatek_pty
         handle = start_fatek_pty(emulator, faults=faults, line=line)
     elif wire == "modbus-tcp":
-        from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
         handle = start_modbus_tcp(emulator, host, port, unit=emulator.station, faults=faults)
     elif wire == "modbus-rtu":
-        from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
         handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults, line=line)
     else:
         raise InvalidValue(f"unknown emulator wire {wire!r}")
@@ -140,12 +147,13 @@ def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, l
                 fence: str) -> Transport:
     settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
                                             stopbits=line.stopbits)
+    if wire == "fatek-udp":  # every read fenced, whatever the target says (hil.families.fbs.transport.udp)
+        host, _, port = server.address.rpartition(":")
+        return FatekUdpTransport(host, int(port), station=station, timeout=timeout)
     if wire.startswith("fatek"):
-        from hil.families.fbs.transport.fatek import FatekTransport
         port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
         return FatekTransport(port_url, station=station, timeout=timeout, fence=fence, paced=line is not None,
                               **settings)
-    from hil.families.fbs.transport.modbus import ModbusTransport
     if wire == "modbus-tcp":
         host, _, port = server.address.rpartition(":")
         return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)

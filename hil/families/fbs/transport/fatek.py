@@ -36,7 +36,7 @@ from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transpo
 from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
 from hil.io.serial_line import char_bits, is_pty
-from hil.io.trace import DESCRIBERS
+from hil.io.trace import CHAR_BITS, DESCRIBERS, PRINTABLE
 
 #: Commands that only read: safe to repeat after a lost reply.
 READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
@@ -47,6 +47,8 @@ Observer = Callable[[str, bytes], None]
 UNIT_TYPES = {0x01: "MC"}  # [our choice] only the code the spec names; others print as hex
 
 DESCRIBERS["fatek"] = describe_frame  # wire traces of this transport decode FATEK frames
+PRINTABLE.add("fatek")  # its frames are ASCII
+CHAR_BITS["fatek"] = 10  # 7E1 with its start bit
 
 
 class FatekTransport(Transport):
@@ -55,6 +57,7 @@ class FatekTransport(Transport):
 
     # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
+    trace_kind = "fatek"  # how wire traces decode its frames (hil.io.trace.DESCRIBERS)
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
@@ -95,7 +98,12 @@ class FatekTransport(Transport):
         self.resyncs = 0  # loop-back resynchronisations done
         self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
-        self._line: Line = open_line(port_url, **self._settings)
+        self._line: Line = self.new_line()
+
+    def new_line(self) -> Line:
+        """The line this client talks over, opened (a serial port, a pty, TCP or RFC 2217 by its URL; a subclass
+        brings another kind: :class:`~hil.families.fbs.transport.udp.FatekUdpTransport`)."""
+        return open_line(self.port_url, **self._settings)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -295,7 +303,7 @@ class FatekTransport(Transport):
                 self._close()
             except (serial.SerialException, OSError):
                 pass
-            self._line = open_line(self.port_url, **self._settings)
+            self._line = self.new_line()
             self._broken = False
             self.dirty = True  # a late reply may still come on a serial line
             self.reconnects += 1

@@ -40,6 +40,8 @@ import numpy as np
 from hil.families.fbs.address import Address
 from hil.sim.model import Model, scan_grid as grid
 from hil.core.errors import InvalidValue, ProfileError
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.sim.models.fun86 import Fun86Model
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -413,9 +415,7 @@ class ThermalPlant(Model):
         self._last_outputs = None
 
     def power_on(self, emu: "Emulator") -> None:
-        from hil.families.fbs.sim.models.temperature import TemperatureModel
         temperature = emu.model(TemperatureModel)
-        from hil.families.fbs.sim.models.fun86 import Fun86Model
         self._fun86 = emu.model(Fun86Model)
         self._scan_time = emu.scan_time
         if self._fun86 is not None:

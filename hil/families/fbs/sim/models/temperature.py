@@ -591,7 +591,3 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
 SENSOR_LOW, SENSOR_HIGH = np.full(256, -math.inf), np.full(256, math.inf)
 for _code, _sensor in SENSOR_BY_CODE.items():
     SENSOR_LOW[_code], SENSOR_HIGH[_code] = _sensor.low_c, _sensor.high_c
-
-
-def build_temperature_model(config: TemperatureConfig) -> TemperatureModel:
-    return TemperatureModel(config)
