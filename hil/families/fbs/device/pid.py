@@ -15,7 +15,7 @@ from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
 from hil.families.fbs.device.waiting import poll_until
-from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, TIMING_SECONDS, WR_NORMAL, WR_WARNING, PidConfig,
+from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig,
                                   PidInstance, timing_seconds, valid_sn_zn)
 from hil.families.fbs.address import parse
 
