@@ -15,6 +15,8 @@ import hil.api
 from hil.api.reference import render
 from hil.bench.faces import BenchView, FaultInjector, members
 from hil.families.fbs import faces
+# loaded before pytester's inner run, which forgets what it imports (numpy loads once per process)
+from hil.families.fbs.sim import build  # noqa: F401
 from tests.conftest import REPO
 
 #: the public API's own modules, checked strictly; what they import from hil is followed silently (internal)
