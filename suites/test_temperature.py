@@ -34,12 +34,9 @@ RESOLUTION_SAMPLES = 8
 
 
 @pytest.fixture
-def temp(bench):
-    temperature = bench.plc.temperature
-    if not temperature.configured:
-        pytest.skip("the bench profile has no [temperature] section")
-    if temperature.read_work().execution_code != 0x56:
-        temperature.wait_for_update()  # just powered on: let every point be measured once
+def temp(temperature):
+    """The shipped ``temperature`` fixture (hil.families.fbs.fixtures): skips without [temperature], waits for a
+    first measurement of every point just after power-on."""
     return temperature
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Generic, Protocol, TypeVar
 
 from hil.bench.guard import Guard, Recovery, RecoveryStep
 from hil.bench.profile import Profile
@@ -13,16 +13,38 @@ from hil.core.lock import lock_key, plc_key
 from hil.core.signals import shielded
 
 
-class BenchBase:
-    """Subclasses set ``profile``, ``target``, ``raw`` (the unguarded link, with ``.emulator``), ``io`` (the
-    family's guarded link, a :class:`~hil.bench.guard.Guard`), ``time`` and ``plc``."""
+class RawLink(Protocol):
+    """What the bench itself needs of its unguarded link (suites never see it)."""
+
+    emulator: Any  # the in-process emulator (None on a wire): the family's own type
+    description: str
+
+    def reopen(self) -> None: ...
+
+    def unreachable_reason(self, name: Any) -> str | None: ...
+
+
+class SettlingPlc(Protocol):
+    """What the bench itself needs of its family's PLC object."""
+
+    def settle(self) -> None: ...
+
+
+PlcT = TypeVar("PlcT", bound=SettlingPlc)
+LinkT = TypeVar("LinkT", bound=RawLink)
+
+
+class BenchBase(Generic[PlcT, LinkT]):
+    """Subclasses set ``profile``, ``target``, ``raw`` (the unguarded link, with ``.emulator``: ``LinkT``), ``io``
+    (the family's guarded link, a :class:`~hil.bench.guard.Guard`), ``time`` and ``plc`` (the family's PLC
+    object: ``PlcT``).  What a suite sees of it is its ``FACE`` (:mod:`hil.bench.faces`, :mod:`hil.bench.view`)."""
 
     profile: Profile
     target: Target
-    raw: Any
+    raw: LinkT
     io: Guard
     time: Timebase
-    plc: Any
+    plc: PlcT
     journal: Journal | None = None
     #: the family's own recovery steps, run before the guard's (e.g. a fault rig's coils)
     recovery_steps: tuple[RecoveryStep, ...] = ()

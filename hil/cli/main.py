@@ -25,6 +25,7 @@ EXAMPLES = """examples:
   hil run --bench s7-200smart -- s7smart    a bundled profile and suite by short name (hil list shows them)
   hil emulate --fatek-tcp 127.0.0.1:5000    serve the emulator for external clients
   hil probe fatek+serial:///dev/ttyUSB0     status and key registers of a PLC
+  hil init fatek+tcp://192.168.1.5:500      a bench profile and a first test, from what the PLC says
   hil rtc read fatek+tcp://192.168.1.5:500  the PLC's clock against host time
   hil drift code 3.38                       the D4054 code for a clock 3.38 s/day fast
 """
@@ -148,6 +149,7 @@ def build_parser() -> argparse.ArgumentParser:
                    formatter_class=argparse.RawDescriptionHelpFormatter,
                    epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n  hil run -- rtc rtc_adjust\n")
     _add_clock_commands(sub)
+    _add_init_command(sub)
     restore = sub.add_parser("restore", help="put back what a run that died left changed on a PLC (its journal)",
                              formatter_class=argparse.RawDescriptionHelpFormatter,
                              description="Every run journals each value before it first writes it (on disk, "
@@ -237,6 +239,25 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     spec.add_argument("-v", "--verbose", action="store_true", help="each statement and the tests that name it")
 
 
+def _add_init_command(sub: "argparse._SubParsersAction") -> None:
+    init = sub.add_parser("init", help="write a bench profile and a first test for a PLC, from what it reads there",
+                          formatter_class=argparse.RawDescriptionHelpFormatter,
+                          description="Read-only: the PLC's status, identity, RTC chip (D4053) and, with "
+                                      "--temperature-table, its temperature table; writes DIR/bench.toml and "
+                                      "DIR/tests/test_first.py, with commented placeholders for the rest.",
+                          epilog="examples:\n  hil init fatek+tcp://192.168.1.5:500 --temperature-table R3000\n"
+                                 "  hil init fatek+serial:///dev/ttyUSB0 --dir my-bench --name \"line 3\"\n")
+    init.add_argument("url", help="target URL of the PLC (fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0, "
+                                  "modbus+tcp://HOST:502?unit=1 …)")
+    init.add_argument("--dir", metavar="DIR", default=".", help="where to write (default: here)")
+    init.add_argument("--name", help="the bench's name (default: 'bench at URL')")
+    init.add_argument("--temperature-table", metavar="ADDRESS",
+                      help="where the ladder keeps the temperature table (SR, e.g. R3000): read and filled in")
+    init.add_argument("--time-scale", metavar="N", type=float, default=1.0,
+                      help="[bench] time_scale: 1 for a PLC; N for a hil emulate --time-scale N (default 1)")
+    init.add_argument("--force", action="store_true", help="overwrite bench.toml and tests/test_first.py")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
@@ -298,6 +319,10 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     for name in ("url", "target"):
         if hasattr(args, name):
             _given(getattr(args, name), "--target" if name == "target" else "the target URL")
+    if args.command == "init":
+        from hil.cli.init import init
+        return init(args.url, Path(args.dir), console, name=args.name, table=args.temperature_table,
+                    time_scale=args.time_scale, force=args.force)
     if args.command == "run":
         from hil.cli.run import run
         extra = args.pytest_args[1:] if args.pytest_args[:1] == ["--"] else args.pytest_args

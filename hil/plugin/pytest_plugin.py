@@ -13,6 +13,7 @@ from typing import Iterator
 import pytest
 
 from hil.bench.base import BenchBase as Bench
+from hil.bench.faces import BenchView
 from hil.bench.family import build_emulator, default_family, open_bench
 from hil.core.errors import HilError, TransportError
 from hil.bench.profile import Profile, load_profile
@@ -31,9 +32,9 @@ from hil.bench.view import suite_view
 from hil.bench.profile import refuse_default_for_a_plc
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
-# the bench opened before collection
+# the bench opened before collection; the fixtures every bench has (plc, io, faults)
 pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
-                  "hil.plugin.preflight"]
+                  "hil.plugin.preflight", "hil.plugin.fixtures"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -331,8 +332,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa
 
 
 @pytest.fixture
-def bench(request: pytest.FixtureRequest) -> Iterator[Bench]:
-    """The PLC under test, its time, and the guard that restores every write when the test ends."""
+def bench(request: pytest.FixtureRequest) -> Iterator[BenchView]:
+    """The bench (``hil.api.Bench`` on an FBs): ``bench.plc`` the PLC under test behind the guard, ``bench.wait(s)``
+    bench time (virtual on the in-process emulator), ``bench.time.calendar()``, ``bench.cannot_reach(...)`` for a
+    skip's reason, ``bench.faults``, ``bench.profile``.  Opened once per session (``--bench FILE``, ``--target
+    URL``); every write a test makes is put back, and read back, when the test ends, pass or fail."""
     state = request.config.stash[_STATE]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
     with shielded():

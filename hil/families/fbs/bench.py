@@ -8,6 +8,7 @@ from __future__ import annotations
 import datetime as dt
 from typing import Callable
 
+from hil.families.fbs import faces
 from hil.families.fbs.address import parse_range
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.sim.plc import Emulator
@@ -30,7 +31,10 @@ from hil.families.fbs.transport.fatek import UNIT_TYPES
 EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
 
 
-class Bench(BenchBase):
+class Bench(BenchBase[FbsPlc, Transport]):
+    #: what a suite sees of it (hil.bench.view.suite_view)
+    FACE = faces.Bench
+
     def __init__(self, profile: Profile, *, target: str | None = None,
                  emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
         self.profile = profile

@@ -13,6 +13,7 @@ from typing import Callable
 from hil.core.errors import HilError, TargetError
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile
+from hil.families.s7smart import faces
 from hil.families.s7smart.address import parse_s7_range
 from hil.families.s7smart.device import S7Plc
 from hil.families.s7smart.emulator import S7Emulator
@@ -86,7 +87,10 @@ def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[],
     return io
 
 
-class S7Bench(BenchBase):
+class S7Bench(BenchBase[S7Plc, S7Io]):
+    #: what a suite sees of it (hil.bench.view.suite_view)
+    FACE = faces.S7Bench
+
     family = "s7-200smart"
 
     def __init__(self, profile: Profile, *, target: str | None = None,

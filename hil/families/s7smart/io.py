@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Iterable, Sequence
 from hil.bench.guard import Guard
 from hil.core.link import Link
 from hil.core.errors import InvalidValue, TransportError
+from hil.families.s7smart.faces import S7IO
 from hil.families.s7smart.address import S7Address, expand_s7, parse_s7, units
 from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
@@ -253,8 +254,7 @@ class GuardedS7Io(Guard, S7Io):
     (:meth:`hil.families.s7smart.device.S7Plc.clock`)."""
 
     #: what a suite may hold of it (hil.bench.view.guarded_io)
-    PUBLIC = ("read", "read_v", "read_bits", "write", "write_v", "status", "unreachable_reason", "has_cpu_clock",
-              "cpu_clock", "set_cpu_clock", "description")
+    FACE = S7IO
 
     def __init__(self, inner: S7Io, writable: Iterable[str]) -> None:
         super().__init__(f"guarded {inner.description}", expand_s7(writable))

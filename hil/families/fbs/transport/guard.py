@@ -19,6 +19,7 @@ from hil.bench.guard import Guard
 from hil.bench.replay import Recovery, age_problem
 from hil.core.errors import HilError, TransportError, WriteRefused
 from hil.core.journal import DISABLED, ENABLE, RUN, Journal
+from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
 from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value, value_problem
 
@@ -54,9 +55,7 @@ def element_values(pairs: Iterable[tuple[Address, int]]) -> dict[Address, int]:
 
 class GuardedTransport(Guard, Transport):
     #: what a suite may hold of it (hil.bench.view.guarded_io)
-    PUBLIC = ("read", "read_words", "read_bits", "read_many", "write", "write_words", "write_bits", "write_many",
-              "status", "unreachable_reason", "require", "budget", "set_running", "bit_action", "description",
-              "limits", "requests_per_read")
+    FACE = FbsIO
 
     read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
 

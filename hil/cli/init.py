@@ -1,0 +1,191 @@
+"""``hil init TARGET``: a bench profile and a first test for a PLC, filled in from what the PLC says.
+
+Read-only: it asks the PLC its status and identity (FATEK command 53 where the wire has it), the RTC chip (D4053)
+and, at the address given (``--temperature-table R3000``), the temperature table (SR+0 = A556H, the module count,
+where the readings and the work block are, each module's type and sensor: spec/fbs-temperature.md).  What it cannot
+read — scratch registers, FUN86 boxes, fault injectors, the unit WinProladder set — is left as commented
+placeholders saying what to fill in.  Nothing is overwritten unless ``--force``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rich.console import Console
+
+from hil.cli.target import open_target
+from hil.core.errors import HilError, InvalidValue
+from hil.families.fbs import registers as reg
+from hil.families.fbs.address import parse
+from hil.families.fbs.device.temperature import TableView
+from hil.families.fbs.identity import read_identity
+from hil.families.fbs.rtc_time import CHIP_NAMES
+from hil.families.fbs.temperature import MAX_MODULES, MODULE_BY_CODE, SENSOR_BY_CODE, TABLE_MARKER, decode_start
+from hil.families.fbs.transport.base import Transport
+
+
+@dataclass
+class Found:
+    """What the PLC told: each value, or why it is not known (``notes``, written into the profile)."""
+
+    status: str = ""
+    identity: dict[str, str] = field(default_factory=dict)
+    chip: int | None = None
+    rate_code_reachable: bool = False
+    temperature: dict[str, object] | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def read_plc(transport: Transport, table: str | None) -> Found:
+    found = Found(status=transport.status().summary(), identity=read_identity(transport) or {})
+    reason = transport.unreachable_reason(reg.RTC_CHIP)
+    if reason:
+        found.notes.append(f"RTC chip not read: {reason}")
+    else:
+        found.chip = transport.read(reg.RTC_CHIP)
+        found.rate_code_reachable = transport.unreachable_reason(reg.RTC_RATE_CODE) is None
+    if table is not None:
+        found.temperature = _read_table(transport, table, found.notes)
+    return found
+
+
+def _read_table(transport: Transport, at: str, notes: list[str]) -> dict[str, object] | None:
+    start = parse(at)
+    head = TableView(transport.read_words(start, 4))
+    if head.marker != TABLE_MARKER:
+        notes.append(f"no temperature table at {at}: {start} = {head.marker:04X}H, not the marker {TABLE_MARKER:04X}H")
+        return None
+    if not 1 <= head.module_count <= MAX_MODULES:
+        notes.append(f"the temperature table at {at} counts {head.module_count} modules (1–{MAX_MODULES} expected)")
+        return None
+    view = TableView(transport.read_words(start, 4 + head.module_count))
+    readings, work = decode_start(view.words[2]), decode_start(view.words[3])
+    modules = []
+    for k, (sensor, module) in enumerate(view.modules):
+        if module not in MODULE_BY_CODE or sensor not in SENSOR_BY_CODE:
+            notes.append(f"temperature table entry {k} at {start.offset(4 + k)} = {view.words[4 + k]:04X}H names no "
+                         f"known module/sensor")
+            return None
+        modules.append((MODULE_BY_CODE[module].name, SENSOR_BY_CODE[sensor].name))
+    if readings is None or work is None:
+        notes.append(f"the temperature table at {at} names no readings/work registers ({view.words[2]}, "
+                     f"{view.words[3]})")
+        return None
+    return {"table": str(start), "readings": str(readings), "work": str(work), "modules": modules}
+
+
+def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0) -> str:
+    lines = [f"# Bench profile written by `hil init {target}` from what the PLC said; check every line and fill in",
+             "# the commented placeholders (README \"Writing tests for your bench\", fixtures/benches/example-bench.toml).",
+             f"# PLC status: {found.status}"]
+    if found.identity:
+        lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))
+    lines += [f"# {note}" for note in found.notes]
+    lines += ["", "[bench]", f"name = {_q(name)}", f"target = {_q(target)}",
+              f"time_scale = {time_scale:g}" + ("" if time_scale == 1 else "   # an accelerated hil emulate's"),
+              "# scratch = [\"R1000-R1099\", \"M1000-M1015\"]   # registers and relays your ladder leaves alone "
+              "(add them to writable too)",
+              "# scan_counter = \"R3999\"   # a word your ladder adds 1 to every scan (fixtures/ladder.md)",
+              "", "[safety]", "# What the tests may write: journaled, put back and read back after each test.",
+              "writable = ["]
+    has_rtc = found.chip not in (None, 0)
+    if has_rtc:
+        lines += ['    "R4128-R4134",   # RTC set values', '    "M1952-M1953",   # RTC set trigger, ±30 s trigger']
+        if found.rate_code_reachable and found.chip == 3:
+            lines.append('    "D4054",         # S-35390A rate code')
+    lines += ['    # "R1000-R1099", "M1000-M1015",   # your scratch ranges', "]", "allow_destructive = false", ""]
+    if found.chip is not None:
+        lines += ["[rtc]", f"chip = {_q(CHIP_NAMES.get(found.chip, str(found.chip)))}   # D4053 = {found.chip}", ""]
+    else:
+        lines += ["# [rtc]", '# chip = "S-35390A"   # what D4053 says: none, HT1381, ISL1208, S-35390A', ""]
+    if found.temperature is not None:
+        t = found.temperature
+        modules = ", ".join(f"{{type = {_q(m)}, sensor = {_q(s)}}}" for m, s in t["modules"])  # type: ignore[attr-defined]
+        lines += ["[temperature]", f"# read from the table at {t['table']}",
+                  f"table = {_q(str(t['table']))}", f"readings = {_q(str(t['readings']))}", f"work = {_q(str(t['work']))}",
+                  f"modules = [{modules}]",
+                  'unit = "C"           # check: as set in WinProladder (not readable from the PLC)',
+                  "averaging = 1        # check: 1, 2, 4 or 8", 'rate = "normal"      # check: "normal" or "fast"', ""]
+    else:
+        lines += ["# [temperature]   # hil init --temperature-table R3000 reads it from the PLC",
+                  '# table = "R3000"', '# readings = "R3020"', '# work = "R3060"',
+                  '# modules = [{type = "16TC", sensor = "K"}]', ""]
+    lines += ["# Your FUN86 (TPCTL) boxes, one [[pid.instances]] each (fixtures/benches/example-bench.toml):",
+              "# [[pid.instances]]", '# name = "oven"', '# en = "M20"', '# sv = "R2000"', "# sn = 4", "# zn = 2",
+              "# (and add their operands to [safety] writable)", "",
+              "# How this bench injects faults (skipped without): [faults.sensor_break] kind = \"modbus-coil\" …"]
+    return "\n".join(lines) + "\n"
+
+
+FIRST_TEST = '''"""A first test for {name}, written by `hil init`: run it with
+    hil run --bench {profile} -- {test}
+or  pytest --bench {profile} {test}
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from hil.api import Bench, Rtc, Temperature
+
+
+def test_the_plc_answers_and_runs(bench: Bench) -> None:
+    status = bench.plc.status()
+    assert status.running, f"the PLC is not in RUN: {{status.summary()}}"
+
+
+def test_the_clock_keeps_bench_time(bench: Bench, rtc: Rtc) -> None:
+    """Set the clock (put back after the test), let 5 bench seconds pass: it has moved on by as much, to its
+    resolution of a second (bench time: virtual on the emulator, scaled for an accelerated one)."""
+    start = bench.time.calendar().replace(microsecond=0)
+    assert rtc.set(start), f"the PLC refused {{start}} (M1955)"
+    began = bench.time.now()
+    bench.wait(5.0)
+    moved = (rtc.read().to_datetime() - start).total_seconds()
+    elapsed = bench.time.now() - began
+    assert abs(moved - elapsed) <= 1.5, f"the clock moved {{moved}} s in {{elapsed:.1f}} bench seconds"
+
+
+def test_every_point_reads_a_temperature(temperature: Temperature) -> None:
+    readings = temperature.readings()
+    if not readings:
+        pytest.skip("no temperature points configured")
+    assert all(-2000 <= r <= 18000 for r in readings), readings  # 0.1 °: within any sensor's range
+'''
+
+
+def init(target: str, directory: Path, console: Console, *, name: str | None = None, table: str | None = None,
+         time_scale: float = 1.0, force: bool = False) -> int:
+    profile, test = directory / "bench.toml", directory / "tests" / "test_first.py"
+    existing = [p for p in (profile, test) if p.exists()]
+    if existing and not force:
+        raise InvalidValue(f"{', '.join(map(str, existing))} already exist{'s' if len(existing) == 1 else ''}: "
+                           f"pass --force to overwrite")
+    if not time_scale > 0:
+        raise InvalidValue(f"--time-scale {time_scale:g}: must be > 0")
+    if table is not None:
+        try:
+            parse(table)
+        except HilError as exc:
+            raise InvalidValue(f"--temperature-table {table!r}: {exc}") from None
+    with open_target(target) as opened:
+        found = read_plc(opened.transport, table)
+    name = name or f"bench at {target}"
+    test.parent.mkdir(parents=True, exist_ok=True)
+    profile.write_text(render_profile(name, target, found, time_scale))
+    test.write_text(FIRST_TEST.format(name=name, profile=profile.name, test=test.relative_to(directory)))
+    console.print(f"wrote {profile} and {test}")
+    for note in found.notes:
+        console.print(f"  note: {note}")
+    here = "" if directory.resolve() == Path.cwd().resolve() else f"cd {directory} && "
+    console.print(f"next: {here}hil run --bench {profile.name} -- tests; then the bundled suites: "
+                  f"hil run --bench {profile.name}")
+    return 0
+
+
+def _q(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+__all__ = ["Found", "init", "read_plc", "render_profile"]
