@@ -105,10 +105,12 @@ def test_adjust_30s_carry_from_2099_wraps_to_2000(bench, rtc, io):
 @pytest.mark.spec("RTC-ADJ-3", "RTC-ADJ-2")
 def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 20, 40)).accepted
+    began = bench.time.now()
     io.write("M1953", 1)  # rising edge: 10:20:40 → 10:21:00
     bench.settle()
     second, minute, hour = io.read_words("R4128", 3)
-    assert (hour, minute) == (10, 21) and second in (0, 1), f"the edge did not correct: {hour}:{minute}:{second}"
+    most = int(bench.time.now() - began) + 1  # the clock runs on from :00 while the edge and the read take their time
+    assert (hour, minute) == (10, 21) and 0 <= second <= most, f"the edge did not correct: {hour}:{minute}:{second}"
     # M1953 still held at 1 while the clock shows a second in the 30–59 window: a PLC acting on the level
     # rather than the edge would round it up to 10:22:00 at its next scan
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 21, 45)).accepted

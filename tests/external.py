@@ -29,9 +29,14 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
     deadline = time.monotonic() + timeout
     while set(found) != kinds:
         try:
-            line = lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            line = lines.get(timeout=0.2)
         except queue.Empty:
-            raise AssertionError(f"hil emulate printed only {found} within {timeout} s") from None
+            if proc.poll() is not None:
+                raise AssertionError(f"hil emulate exited ({proc.returncode}) after printing {found}: "
+                                     f"{proc.stderr.read()[-2000:]}") from None
+            if time.monotonic() > deadline:
+                raise AssertionError(f"hil emulate printed only {found} within {timeout} s") from None
+            continue
         kind, _, address = line.strip().partition(" ")
         found[kind] = address
     return found
@@ -65,7 +70,7 @@ def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
-        yield _read_endpoints(proc, set(wires), timeout=15)
+        yield _read_endpoints(proc, set(wires), timeout=60)  # start-up: seconds, more on a busy host
     finally:
         proc.send_signal(signal.SIGINT)
         try:

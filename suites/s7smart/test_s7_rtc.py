@@ -30,10 +30,17 @@ def bcd(n: int) -> int:
     return n // 10 << 4 | n % 10
 
 
-def assert_reads(clock, expected_prefix: bytes, weekday: int, seconds: range, what: str = "") -> None:
-    """READ_RTC succeeded and shows year…minute = ``expected_prefix``, a second in ``seconds``, 00, ``weekday``."""
+def assert_reads(clock, expected_prefix: bytes, weekday: int, seconds: range, what: str = "", *,
+                 since: tuple | None = None) -> None:
+    """READ_RTC succeeded and shows year…minute = ``expected_prefix``, a second in ``seconds``, 00, ``weekday``.
+
+    ``since`` = (bench, bench time just before the set, the second set): the window's top is then also the whole
+    seconds since that moment, measured after the read — however long the requests took on this bench."""
     result = clock.read()
     assert result.accepted, f"{what}READ_RTC failed: {result}"
+    if since is not None:
+        bench, began, first = since
+        seconds = range(seconds.start, max(seconds.stop, first + int(bench.time.now() - began) + 2))
     got = result.buffer
     assert got[:5] == expected_prefix, f"{what}clock reads {got.hex(' ').upper()}"
     assert got[5] in [bcd(s) for s in seconds], f"{what}second is {got[5]:02X} (expected {list(seconds)})"
@@ -57,9 +64,10 @@ def test_set_then_read_round_trip(clock, buffer, weekday):
 
 @pytest.mark.spec("S7-RTC-9")
 def test_clock_runs_after_a_set(bench, clock):
+    began = bench.time.now()
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(5)
-    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8))
+    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), since=(bench, began, 0))
 
 
 # -- weekday -----------------------------------------------------------------------------------------------------
@@ -287,11 +295,13 @@ def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
 @pytest.mark.spec("S7-RTC-10")
 def test_held_trigger_sets_once(bench, clock):
     """SET_RTC must run on a one-shot edge: holding the trigger does not keep setting the clock."""
+    began = bench.time.now()
     assert clock.set(T("24 06 15 08 30 00 00 07"), hold=True).accepted
     bench.wait(3)
     clock.write_set_buffer(T("24 01 01 01 01 01 00 02"))  # a new time while the trigger is still held
     bench.wait(2)
-    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), "trigger held 5 s: ")
+    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), "trigger held 5 s: ",
+                 since=(bench, began, 0))
     clock.release()
     assert clock.set(T("24 01 01 01 01 01 00 02")).accepted  # a fresh edge takes the new buffer
     assert_reads(clock, T("24 01 01 01 01 00 00 00")[:5], 2, range(1, 4))  # 1 Jan 2024 was a Monday

@@ -285,7 +285,8 @@ class Rtc:
         # the read of M1955 ends a scan too (with a scan counter, read in the same frame as the counter)
         refused, *fields = self.plc.read_settled([reg.RTC_SET_ERROR, *reg.RTC_FIELDS])
         shown = RtcTime.from_registers(fields)
-        ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds()
+        # modulo the chip's century: a set of 2099-12-31 23:59:59 may read back as 2000-01-01, one second on
+        ahead = ((shown.to_datetime() - value.to_datetime()).total_seconds() % CENTURY_SECONDS
                  if shown.is_valid and value.is_valid else None)
         slack = self.set_tolerance + (self.plc.time.now() - started)
         shows_sent = ahead is not None and 0 <= ahead <= slack
