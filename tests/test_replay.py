@@ -34,14 +34,14 @@ def test_a_procedure_that_sends_other_frames_is_named_with_both_frames():
     with open_transport(f"replay+fatek://{FRAMES}/rtc-read-all.txt?timeout=0.3&retries=0") as transport:
         with pytest.raises(HilError):  # the recorded PLC hangs up on the first wrong request
             run(plc_on(transport))
-        with pytest.raises(ReplayMismatch, match=r"request 1 differs from the recording: sent .*mixed write M1952=1"
+        with pytest.raises(ReplayMismatch, match=r"request 1 differs from the recording: sent .*read 1 from M1955"
                                                  r".*recorded .*mixed read"):
             transport.replay.verify()
 
 
 def test_requests_left_unsent_are_reported():
     with open_transport(f"replay+fatek://{FRAMES}/rtc-set-leap-day.txt?timeout=0.3") as transport:
-        with pytest.raises(ReplayMismatch, match=r"7 recorded request\(s\) never sent, the first .*mixed write"):
+        with pytest.raises(ReplayMismatch, match=r"8 recorded request\(s\) never sent, the first .*read 1 from M1955"):
             transport.replay.verify()
 
 
