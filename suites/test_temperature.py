@@ -270,8 +270,8 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
 def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
     """20.3.1: the table is valid only with SR+0 = A556H.  With any other marker — one above (A557H) and one below
     (56A5H, A556H byte-swapped), one update time and the margin each — the PLC measures nothing: sensors opened
-    meanwhile (every one the rig can open) show neither 28767 nor a break bit.  A556H put back, measuring resumes
-    (the sensors are repaired by the fixture).  Needs SR+0 in [safety] writable; the guard restores it."""
+    meanwhile (every one the rig can open) show neither 28767 nor a break bit.  The sensors repaired, A556H is put
+    back.  Needs SR+0 in [safety] writable; the guard restores it."""
     config = temp.config
     sr = config.table
     _need(bench, str(sr))
@@ -296,6 +296,8 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
         words = temp.read_work().break_words
         assert words == words_before, (f"SR+0 = {marker:04X}H (no table), yet TW+1 TW+2 went from "
                                        f"{_bits(words_before)} to {_bits(words)}: the PLC measured")
+    for p in points:  # (repaired before the table is valid again: no open sensor left to be measured and waited out)
+        breaker.repair(p)
     io.write(str(sr), 0xA556)
 
 
