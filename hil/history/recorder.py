@@ -5,21 +5,34 @@ record with its measurements, the verdict — and writes it as the run goes: the
 after its teardown, the verdict at the end.  Before the HTML report is written it gives the reporter the bench's
 history (:mod:`hil.history.annotate`).
 
-Recording never fails a run: the first error of the store is reported once (one line), and the rest of the run —
-its row and its tests so far included — goes to the local spool, which ``hil history sync`` uploads later.
+The store is written by a process of its own (:mod:`hil.history.writer`, fed JSON lines), so this one never
+imports SQLAlchemy nor waits for a database.  Recording never fails a run: the first error of the store is reported
+once (one line), and the rest of the run — its row and its tests so far included — goes to the local spool, which
+``hil history sync`` uploads later.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
+import json
 import os
+import queue
 import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 from hil.history import config as history_config
+
+#: seconds to wait for the writer's answer (the bench's history) and for its end (as the store waits for a lock)
+WAIT_S = 5.0
 
 #: the last values shown beside each measurement in the HTML report
 SPARK_RUNS = 10
@@ -45,14 +58,13 @@ def pytest_configure(config: pytest.Config) -> None:
 class Recorder:
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
-        self.store: Any = None  # hil.history.store.Store while recording
-        self.url = ""
-        self.run_id: int | None = None
-        self.info: Any = None  # hil.history.store.RunInfo
+        self.writer: subprocess.Popen | None = None  # hil.history.writer, while recording
+        self.bench = ""
+        self.report: str | None = None  # where this run's HTML report is kept
         self.attempts: dict[str, int] = {}
-        self.warned = False
-        self.spooled = False
-        self._unsent: list[Any] = []  # tests written before the store failed: sent again to the spool
+        self.said = False
+        self._replies: queue.Queue = queue.Queue()  # what the writer said, read by a thread
+        self._pending: list[dict] = []  # said while an answer was awaited
 
     # -- the start ----------------------------------------------------------------------------------------------
     @pytest.hookimpl(tryfirst=True)
@@ -70,65 +82,64 @@ class Recorder:
             return
         if url is None:
             return
-        from hil.history.store import RunInfo
-        bench = dict(reporter.properties).get("hil.bench") or getattr(profile, "name", "") or "bench"
-        self.info = RunInfo(bench, list(reporter.properties), host=socket.gethostname(), pid=os.getpid())
-        self.info.report = self._archive_path(reporter)
-        self.url = url
-        self._try(self._open_and_start, url)
-
-    def _open_and_start(self, url: str) -> None:
-        from hil.history.store import Store
-        self.store = Store(url)
-        self.run_id = self.store.start_run(self.info)
+        self.bench = dict(reporter.properties).get("hil.bench") or getattr(profile, "name", "") or "bench"
+        self.report = self._archive_path(reporter)
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}  # this process's hil
+        try:
+            self.writer = subprocess.Popen([sys.executable, "-m", "hil.history.writer"], stdin=subprocess.PIPE,
+                                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True,
+                                           encoding="utf-8", bufsize=1)
+        except OSError as exc:
+            self._warn(f"history off: cannot start its writer ({exc})")
+            return
+        threading.Thread(target=self._read_replies, args=(self.writer.stdout,), daemon=True).start()
+        info = {"bench": self.bench, "properties": list(reporter.properties),
+                "started_at": dt.datetime.now(dt.timezone.utc).replace(tzinfo=None).isoformat(), "uuid": str(uuid.uuid4()), "host": socket.gethostname(),
+                "pid": os.getpid(), "report": self.report}
+        self._send({"op": "start", "url": url, "info": info})
 
     # -- each test ----------------------------------------------------------------------------------------------
     @pytest.hookimpl(trylast=True)  # after the reporter has taken the teardown's report into its record
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        if report.when != "teardown" or self.info is None:
+        if report.when != "teardown" or self.writer is None:
             return
         reporter = self._reporter()
         record = reporter.records.get(report.nodeid) if reporter is not None else None
         if record is None:
             return
-        from hil.history.store import TestResult
         self.attempts[report.nodeid] = attempt = self.attempts.get(report.nodeid, 0) + 1
         skip = ("hil.measure.", "hil.trace_file", "hil.attachment.")
-        extra = {k: v for k, v in report.user_properties if not str(k).startswith(skip)}
-        result = TestResult(record.nodeid, record.outcome, area=record.area, duration=record.duration,
-                            attempt=attempt, requirements=list(record.requirements), message=record.message,
-                            properties=extra, measurements=[m for m in record.measurements])
-        self._unsent.append(result)
-        self._try(self._flush)
-
-    def _flush(self) -> None:
-        """The tests not yet in the store (normally just the one that finished), in one transaction."""
-        with self.store.engine.begin() as conn:
-            for result in self._unsent:
-                self.store.add_test(self.run_id, result, conn)
-        self._unsent.clear()
+        extra = {str(k): v for k, v in report.user_properties if not str(k).startswith(skip)}
+        self._send({"op": "test", "result": {
+            "nodeid": record.nodeid, "outcome": record.outcome, "area": record.area, "duration": record.duration,
+            "attempt": attempt, "requirements": list(record.requirements), "message": record.message,
+            "properties": extra, "measurements": [dataclasses.asdict(m) for m in record.measurements]}})
+        self._say_warnings()
 
     # -- the end ------------------------------------------------------------------------------------------------------
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         """Inside the reporter's wrapper, before it writes the HTML report: the bench's history for that report."""
         reporter = self._reporter()
-        if reporter is None or self.info is None or self.store is None:
+        if reporter is None or self.writer is None:
+            return
+        self._send({"op": "history", "bench": self.bench, "n": SPARK_RUNS})
+        answer = self._reply("history", 2 * WAIT_S + 5)  # behind a write waiting out a lock, and the fail-over
+        self._say_warnings()
+        if answer is None:
             return
         from hil.history.annotate import Annotations
-
-        def read() -> None:
-            last, values = self.store.bench_history(self.info.bench, self.run_id, SPARK_RUNS)
-            reporter.annotations = Annotations.build(last, values, reporter.records.values(),
-                                                     html=reporter.html_path, store=self.store.shown,
-                                                     spooled=self.spooled)
-        self._try(read)
+        last, values = answer["history"]["last"], answer["history"]["values"]
+        for row in ([last] if last else []) + values:
+            row["started_at"] = dt.datetime.fromisoformat(row["started_at"])
+        reporter.annotations = Annotations.build(last, values, reporter.records.values(), html=reporter.html_path,
+                                                 store=answer["store"], spooled=answer["spooled"])
 
     def pytest_unconfigure(self, config: pytest.Config) -> None:
-        reporter = self._reporter()
-        if self.info is None or self.store is None:
+        if self.writer is None:
             return
+        reporter = self._reporter()
         verdict = getattr(reporter, "verdict", None)
-        report = self.info.report
+        report = self.report
         written = getattr(reporter, "html_written", None)
         if report and written is not None:
             try:
@@ -138,19 +149,62 @@ class Recorder:
                 Path(report).write_text(page.replace(f'href="{ARCHIVE}/', 'href="'), encoding="utf-8")
             except OSError:
                 report = ""  # the run is still recorded; its report is not kept
+        else:
+            report = ""
         from hil.plugin.safety import RECOVERY_NOTES
-        notes = list(config.stash.get(RECOVERY_NOTES, []))
-
-        def finish() -> None:
-            self.store.finish_run(self.run_id, verdict=verdict.status if verdict else "INTERNAL ERROR",
-                                  stopped=verdict.stopped if verdict else "the reporting plugin gave no verdict",
-                                  not_run=verdict.not_run if verdict else 0, plc_restored=verdict.plc if verdict else "",
-                                  recovery=notes, report=report or "")
-        self._try(finish)
-        if self.store is not None:  # None when the store and the spool both failed
-            self.store.close()
+        self._send({"op": "finish", "verdict": verdict.status if verdict else "INTERNAL ERROR",
+                    "stopped": verdict.stopped if verdict else "the reporting plugin gave no verdict",
+                    "not_run": verdict.not_run if verdict else 0, "plc_restored": verdict.plc if verdict else "",
+                    "recovery": list(config.stash.get(RECOVERY_NOTES, [])), "report": report})
+        try:
+            assert self.writer.stdin is not None
+            self.writer.stdin.close()
+            self.writer.wait(timeout=2 * WAIT_S + 5)  # the run's end in the store before this process ends
+        except (OSError, subprocess.TimeoutExpired):
+            pass  # a store slower than that: the writer finishes on its own
+        self._say_warnings()
 
     # -- helpers ------------------------------------------------------------------------------------------------------
+    def _send(self, message: dict) -> None:
+        try:
+            assert self.writer is not None and self.writer.stdin is not None
+            self.writer.stdin.write(json.dumps(message, default=str) + "\n")
+        except (OSError, ValueError) as exc:  # the writer died: said once, the run goes on
+            self._warn(f"history: its writer stopped ({exc}); the rest of this run is not recorded")
+            self.writer = None
+
+    def _read_replies(self, stream: Any) -> None:
+        for line in stream:
+            try:
+                self._replies.put(json.loads(line))
+            except ValueError:
+                continue
+
+    def _reply(self, key: str, timeout: float) -> dict | None:
+        """The writer's answer with ``key``; its warnings meanwhile are kept for :meth:`_say_warnings`."""
+        deadline = time.monotonic() + timeout
+        while (left := deadline - time.monotonic()) > 0:
+            try:
+                message = self._replies.get(timeout=left)
+            except queue.Empty:
+                break
+            if key in message:
+                return message
+            self._pending.append(message)
+        return None
+
+    def _say_warnings(self) -> None:
+        messages = list(self._pending)
+        self._pending = []
+        while True:
+            try:
+                messages.append(self._replies.get_nowait())
+            except queue.Empty:
+                break
+        for message in messages:
+            if "warn" in message:
+                self._warn(message["warn"])
+
     def _reporter(self) -> Any:
         return self.config.pluginmanager.get_plugin("hil-reporter")
 
@@ -165,53 +219,15 @@ class Recorder:
             "hil.bench", "bench"))
         return str((Path(html).parent / ARCHIVE / f"{stamp}-{bench}-{os.getpid()}.html").absolute())
 
-    def _try(self, action: Any, *args: Any) -> bool:
-        """Run a store action; on the first error say so once and carry on in the spool."""
-        if self.store is None and self.run_id is None and action != self._open_and_start:
-            return False
-        try:
-            action(*args)
-            return True
-        except Exception as exc:  # noqa: BLE001 - recording never fails a run
-            return self._fail_over(exc, action, args)
-
-    def _fail_over(self, exc: Exception, action: Any, args: tuple) -> bool:
-        from hil.history.store import Store
-        failed = history_config.shown(self.url)
-        spool = history_config.spool_url()
-        if self.spooled or self.url == spool:
-            self._warn(f"history store {failed} failed ({_one_line(exc)}): the rest of this run is not recorded")
-            self.store = self.run_id = None
-            return False
-        try:
-            if self.store is not None:
-                self.store.close()
-            self.store, self.spooled, self.url = Store(spool), True, spool
-            self.run_id = self.store.start_run(self.info)
-            if action != self._open_and_start:
-                action(*args)  # a test's write sends every test the store did not take
-        except Exception as again:  # noqa: BLE001
-            self._warn(f"history store {failed} unreachable ({_one_line(exc)}), and the local spool too "
-                       f"({_one_line(again)}): this run is not recorded")
-            self.store = self.run_id = None
-            return False
-        self._warn(f"history store {failed} unreachable ({_one_line(exc)}): this run is kept in "
-                   f"{history_config.shown(spool)} — `hil history sync` uploads it")
-        return True
-
     def _warn(self, text: str) -> None:
-        if self.warned:
+        if self.said:
             return
-        self.warned = True
+        self.said = True
         reporter = self.config.pluginmanager.get_plugin("terminalreporter")
         if reporter is not None:
             reporter.ensure_newline()
             reporter.write_line(f"hil: {text}", yellow=True)
         else:
-            import sys
             print(f"hil: {text}", file=sys.stderr)
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text.split(" (Background on this error")[0][:300]
