@@ -40,6 +40,7 @@ from pymodbus.pdu import ModbusPDU
 from hil.core.errors import InvalidValue, OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
 from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
+from hil.io.request_policy import RequestPolicy
 from hil.io.modbus_codes import EXCEPTION_NAMES
 from hil.io.url import serial_target
 
@@ -123,6 +124,7 @@ class ModbusWire:
         self.timeout = timeout
         self.retries = retries
         self.backoff = backoff
+        self.policy = RequestPolicy(retries, float(backoff))  # one rule for every wire (hil.io.request_policy)
         self.probe = probe
         self.hint = hint
         self.describe = describe or (lambda table, address, count: f"{table} {address}×{count}")
@@ -197,11 +199,11 @@ class ModbusWire:
     def budget(self, write: bool = False) -> float:
         """The longest one Modbus request can take, retries, backoff and recovery included."""
         tries = 1 + self.retries
-        recover = tries * self.timeout + sum(self._backoff(a) for a in range(1, tries)) + 0.5
+        recover = tries * self.timeout + self.policy.pauses(tries) + 0.5
         if write:
             return recover + self.timeout
         fence = self.timeout if self.serial and self.fence_every_read else 0.0
-        return tries * (recover + self.timeout + fence) + sum(self._backoff(a) for a in range(1, tries))
+        return tries * (recover + self.timeout + fence) + self.policy.pauses(tries)
 
     def reopen(self) -> None:
         """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
@@ -235,9 +237,6 @@ class ModbusWire:
                            + sum(len(held) for held in earlier if not last.startswith(held)))
         return pdu
 
-    def _backoff(self, attempt: int) -> float:
-        return self.backoff * min(2 ** (attempt - 1), 8)
-
     def _recover(self, what: str) -> None:
         """After a fault: on TCP a new connection (transaction ids guard the rest, but a stream with junk in
         it never re-frames); on RTU, which has no transaction id, a read whose reply has a quantity no
@@ -268,7 +267,7 @@ class ModbusWire:
                 return
             self._abandoned.add((3, count))
             if attempt < tries:
-                time.sleep(self._backoff(attempt))
+                time.sleep(self.policy.pause(attempt))
         raise ReplyTimeout(f"{what} not sent to {self.description}: the line could not be resynchronised after "
                            f"an earlier fault ({last})")
 
@@ -378,7 +377,7 @@ class ModbusWire:
                         fault += (f"; {attempts} tries of {self.timeout:g} s ({attempts * self.timeout:g} s), "
                                   f"{time.monotonic() - started:.2f} s in all")
                     raise (ReplyTimeout if isinstance(exc, ModbusIOException) else TransportError)(fault) from None
-            time.sleep(self._backoff(attempt))
+            time.sleep(self.policy.pause(attempt))
         raise AssertionError("unreachable")
 
     def _fault(self, exc: Exception, what: str, attempt: int, attempts: int) -> str:

@@ -12,18 +12,22 @@ and the S7 error.  python-snap7 is an optional extra (``pip install 'hil[s7]'``)
 from __future__ import annotations
 
 import datetime as dt
-import time
 from typing import Any, Callable, TypeVar
 
-from hil.core.errors import HilError, OutcomeUnknown, ReplyTimeout, TransportError
+from hil.core.errors import HilError, TransportError
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
 from hil.families.s7smart.io import S7Io
+from hil.io.request_policy import RequestPolicy
 from hil.io.status import PlcStatus
 
 T = TypeVar("T")
 V_DB = 1  # V memory as S7 clients see it
 DEFAULT_PORT = 102
 INSTALL_HINT = "the S7 protocol needs python-snap7: pip install 'hil[s7]' (or pip install python-snap7)"
+
+
+class _Lost(Exception):
+    """A request whose reply never came (a timeout, a broken connection): the policy's to retry or report."""
 
 
 def snap7_module() -> Any:
@@ -48,6 +52,7 @@ class SnapS7Io(S7Io):
         self.host, self.port, self.rack, self.slot = host, port, rack, slot
         self.timeout = timeout
         self.retries = retries
+        self.policy = RequestPolicy(retries)
         self.reconnects = 0
         self.client = self._snap7.client.Client()
         self._connect()
@@ -75,41 +80,32 @@ class SnapS7Io(S7Io):
         self.client.disconnect()
 
     def _call(self, what: str, send: Callable[[], T], *, write: bool = False) -> T:
-        """One S7 request with the harness's rules (see the module's docstring)."""
+        """One S7 request under the harness's request policy (:mod:`hil.io.request_policy`): snap7 supplies the
+        try, a timeout or a broken connection is a lost request (reads: a fresh connection, then again), an S7
+        error from the CPU is a refusal."""
         error = self._snap7.error
-        tries = 1 if write else 1 + self.retries
-        last = ""
-        for attempt in range(1, tries + 1):
+
+        def attempt(_n: int, _tries: int) -> T:
+            if not self.client.get_connected():
+                self.reopen()
+            self.requests += 1
             try:
-                if not self.client.get_connected():
-                    self.reopen()
-                self.requests += 1
                 return send()
             except error.S7TimeoutError as exc:
-                if write:
-                    raise OutcomeUnknown(f"no reply to {what} from {self.description} within {self.timeout:g} s: "
-                                         f"the write may or may not have been applied (not repeated) [S7: {exc}]"
-                                         ) from None
-                last = f"no reply within {self.timeout:g} s [S7: {exc}]"
+                raise _Lost(f"no reply within {self.timeout:g} s [S7: {exc}]") from None
             except error.S7ConnectionError as exc:
-                if write:
-                    raise OutcomeUnknown(f"the connection to {self.description} failed during {what}: the write "
-                                         f"may or may not have been applied (not repeated) [S7: {exc}]") from None
-                last = f"connection failed [S7: {exc}]"
+                raise _Lost(f"connection failed [S7: {exc}]") from None
             except error.S7Error as exc:  # the CPU answered with an error: the request was refused, not lost
                 raise TransportError(f"{what} on {self.description} refused: {exc}") from None
             except OSError as exc:
-                if write:
-                    raise OutcomeUnknown(f"{what} on {self.description}: {exc} (the write may or may not have "
-                                         f"been applied; not repeated)") from None
-                last = str(exc)
-            try:  # reads: a fresh connection, then again
+                raise _Lost(str(exc)) from None
+
+        def recover() -> None:
+            try:
                 self.client.disconnect()
             except Exception:  # noqa: BLE001 - already broken
                 pass
-            if attempt < tries:
-                time.sleep(0.05 * attempt)
-        raise ReplyTimeout(f"{what} on {self.description}: {last}; {tries} tries of {self.timeout:g} s")
+        return self.policy.run(f"{what} on {self.description}", attempt, write=write, lost=(_Lost,), recover=recover)
 
     # -- primitives -------------------------------------------------------------------------------------------
     def _read_v(self, first: int, count: int) -> bytes:

@@ -35,6 +35,7 @@ from hil.families.fbs.address import parse
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
 from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
+from hil.io.request_policy import RequestPolicy
 from hil.io.serial_line import char_bits, is_pty
 from hil.io.trace import CHAR_BITS, DESCRIBERS, PRINTABLE
 
@@ -92,6 +93,7 @@ class FatekTransport(Transport):
         self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
                               timeout=self.timeout, write_timeout=self.timeout + 1.0)
         self.backoff = float(backoff)
+        self.policy = RequestPolicy(retries, float(backoff))  # one rule for every wire (hil.io.request_policy)
         self.dirty = False  # True: the line may hold a late reply; resynchronise before the next request
         self._broken = False  # True: the connection is gone; reopen before the next request
         self._nonce = 0
@@ -249,12 +251,8 @@ class FatekTransport(Transport):
                     text = errors[-1] if attempts == 1 else (
                         f"{errors[-1]}; {attempts} attempts, {time.monotonic() - started:.2f} s in all")
                     raise (ReplyTimeout if timeout else TransportError)(text) from None
-                time.sleep(self._backoff(attempt))
+                time.sleep(self.policy.pause(attempt))
         raise AssertionError("unreachable")
-
-    def _backoff(self, attempt: int) -> float:
-        """Pause before retry ``attempt + 1``: doubling from ``backoff``, at most 8× it."""
-        return self.backoff * min(2 ** (attempt - 1), 8)
 
     def budget(self, write: bool = False) -> float:
         """The longest one request (one protocol frame) can take, retries, backoff and resynchronising
@@ -262,9 +260,9 @@ class FatekTransport(Transport):
         wait = self.timeout + self._wire_time(len(encode_request(1, Loopback("X" * 12))))
         tries = 1 + self.retries
         if write:
-            return tries * wait + sum(self._backoff(a) for a in range(1, tries)) + wait + self.timeout
+            return tries * wait + self.policy.pauses(tries) + wait + self.timeout
         # each try of a read: a resynchronising loop-back, the read, its fence
-        return tries * (3 * wait + self.timeout) + sum(self._backoff(a) for a in range(1, tries))
+        return tries * (3 * wait + self.timeout) + self.policy.pauses(tries)
 
     def _prepare(self, command: Command, *, write: bool) -> None:
         """Before a request: reconnect a lost connection, and after anything odd on the line resynchronise.
@@ -292,7 +290,7 @@ class FatekTransport(Transport):
                 last = str(exc)
                 self.reopen()
             if attempt < tries:
-                time.sleep(self._backoff(attempt))
+                time.sleep(self.policy.pause(attempt))
         raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the request before it went "
                            f"unanswered (or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
 
