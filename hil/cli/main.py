@@ -13,6 +13,8 @@ from rich.markup import escape
 
 from hil import __version__
 from hil.core.errors import HilError, InvalidValue
+from hil.cli.history_parser import add_parser as add_history
+from hil.core.paths import default_bench, project_dir
 from hil.core.registry import WIRES
 
 # Exit codes: pytest's (``pytest.ExitCode``), so a script or CI job reads ``hil run`` and the other commands alike.
@@ -161,7 +163,6 @@ def build_parser() -> argparse.ArgumentParser:
     restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
     restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
     restore.add_argument("--show", action="store_true", help="only print what is pending; change nothing")
-    from hil.cli.history import add_parser as add_history
     add_history(sub)
     return parser
 
@@ -336,7 +337,6 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             return run_many(args.bench, args.target, args.junitxml, extra, console, html=args.html)
         args.bench = args.bench[0] if args.bench else None
         from hil.bench.profile import check_profile, lab_request
-        from hil.core.paths import default_bench
         spec = lab_request(args.bench or default_bench(), place=args.lg_place, tags=args.lg_reserve,
                            coordinator=args.lg_coordinator, wait=args.lg_wait)
         if args.bench or spec is not None:  # a bad profile: one line here, before pytest starts (and before a queue)
@@ -346,7 +346,6 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
                    lab=lab)
     if args.command == "emulate":
         from hil.cli.emulate import emulate
-        from hil.core.paths import default_bench
         given = {name: getattr(args, f"wire:{name}") for name in WIRES}
         tcp = [w for w in WIRES.values() if w.kind != "pty"]  # TCP endpoints first, then the ptys (their order)
         endpoints = [(w.name, given[w.name]) for w in tcp if given[w.name]]
@@ -378,7 +377,6 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         return history(args, console)
     if args.command == "spec":
         from hil.cli.spec import spec
-        from hil.core.paths import project_dir
         return spec(Path(args.suites) if args.suites else project_dir("suites"), console, verbose=args.verbose)
     if args.command == "drift":
         from hil.cli import rtc

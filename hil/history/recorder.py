@@ -30,6 +30,8 @@ from typing import Any
 import pytest
 
 from hil.history import config as history_config
+from hil.history.annotate import Annotations
+from hil.plugin.safety import RECOVERY_NOTES
 
 #: seconds to wait for the writer's answer (the bench's history) and for its end (as the store waits for a lock)
 WAIT_S = 5.0
@@ -127,7 +129,6 @@ class Recorder:
         self._say_warnings()
         if answer is None:
             return
-        from hil.history.annotate import Annotations
         last, values = answer["history"]["last"], answer["history"]["values"]
         for row in ([last] if last else []) + values:
             row["started_at"] = dt.datetime.fromisoformat(row["started_at"])
@@ -151,7 +152,6 @@ class Recorder:
                 report = ""  # the run is still recorded; its report is not kept
         else:
             report = ""
-        from hil.plugin.safety import RECOVERY_NOTES
         self._send({"op": "finish", "verdict": verdict.status if verdict else "INTERNAL ERROR",
                     "stopped": verdict.stopped if verdict else "the reporting plugin gave no verdict",
                     "not_run": verdict.not_run if verdict else 0, "plc_restored": verdict.plc if verdict else "",

@@ -18,7 +18,9 @@ from typing import Any, Iterable, Sequence
 from sqlalchemy import Engine, and_, create_engine, event, func, insert, select, text, update
 from sqlalchemy.engine import make_url
 
+from hil.core.errors import InvalidValue
 from hil.core.measurement import Measurement
+from hil.history.config import shown
 from hil.history.schema import HEAD, measurements, metadata, recoveries, runs, tests
 
 #: seconds a writer waits for another's lock (SQLite) or for the server to answer a connection (PostgreSQL)
@@ -223,7 +225,6 @@ class Store:
 
     def run(self, ref: str) -> dict[str, Any]:
         """A run by its number, its UUID (or a unique prefix of it), ``last`` or ``last~N`` (the Nth before)."""
-        from hil.core.errors import InvalidValue
         ref = ref.strip()
         with self.engine.connect() as conn:
             if ref == "last" or ref.startswith("last~"):
@@ -245,7 +246,6 @@ class Store:
 
     @property
     def shown(self) -> str:
-        from hil.history.config import shown
         return shown(self.url)
 
     def tests_of(self, run_id: int) -> list[dict[str, Any]]:
