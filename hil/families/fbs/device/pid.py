@@ -16,7 +16,7 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.registers import signed16
 from hil.families.fbs.device.waiting import poll_until
 from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig,
-                                  PidInstance, timing_seconds, valid_sn_zn)
+                                  PidInstance, timing_seconds)
 from hil.families.fbs.address import parse
 
 if TYPE_CHECKING:
@@ -134,18 +134,15 @@ class Pid:
 
     def _reach(self, inst: PidInstance, written: set) -> int:
         """How many points (from the box's first operand) ``written`` may make FUN86 act on: a box of constant
-        Sn/Zn its Zn once EN is written.  A box with Sn/Zn registers acts on what they hold while EN is on (an
-        invalid Sn/Zn: not at all, ERR — 20.7): EN written alone, the Sn/Zn the registers hold now (a later write
-        of them while EN is on comes here again); Sn/Zn written while EN is on (or with it), any of the 32."""
+        Sn/Zn its Zn once EN is written; a box with Sn/Zn registers any of the 32 once EN or a register is written.
+
+        Decided from the names alone, never from what the PLC holds now: recovery asks the same question of the
+        profile's whole allow-list after a crash (hil.bench.replay), when EN and the registers may read anything —
+        an answer that depended on them refused side effects a dead run had left (WR of a box at all-ones)."""
         registers = {inst.sn_register, inst.zn_register} if inst.settable else set()
-        if registers & written:  # EN off: FUN86 does nothing with them until EN is written (journaled then)
-            return MAX_POINTS if inst.en in written or self.plc.io.read(str(inst.en)) else 0
-        if inst.en not in written:
+        if not (registers | {inst.en}) & written:
             return 0
-        if not registers:
-            return inst.zn
-        sn, zn = (signed16(v) for v in self.plc.io.read_many([str(inst.sn_register), str(inst.zn_register)]))
-        return zn if valid_sn_zn(sn, zn) else 0
+        return MAX_POINTS if registers else inst.zn
 
     def instance(self, name: str | None = None) -> PidInstance:
         return self.config.instance(name)
