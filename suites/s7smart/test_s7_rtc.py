@@ -34,13 +34,13 @@ def assert_reads(clock, expected_prefix: bytes, weekday: int, seconds: range, wh
                  since: tuple | None = None) -> None:
     """READ_RTC succeeded and shows year…minute = ``expected_prefix``, a second in ``seconds``, 00, ``weekday``.
 
-    ``since`` = (bench, bench time just before the set, the second set): the window's top is then also the whole
-    seconds since that moment, measured after the read — however long the requests took on this bench."""
+    ``since`` = (bench, bench time just before a set of second 00): the window's top is then also the whole seconds
+    since that moment, measured after the read — however long the requests took on this bench."""
     result = clock.read()
     assert result.accepted, f"{what}READ_RTC failed: {result}"
     if since is not None:
-        bench, began, first = since
-        seconds = range(seconds.start, max(seconds.stop, first + int(bench.time.now() - began) + 2))
+        bench, began = since
+        seconds = range(seconds.start, max(seconds.stop, int(bench.time.now() - began) + 2))
     got = result.buffer
     assert got[:5] == expected_prefix, f"{what}clock reads {got.hex(' ').upper()}"
     assert got[5] in [bcd(s) for s in seconds], f"{what}second is {got[5]:02X} (expected {list(seconds)})"
@@ -67,7 +67,7 @@ def test_clock_runs_after_a_set(bench, clock):
     began = bench.time.now()
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(5)
-    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), since=(bench, began, 0))
+    assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), since=(bench, began))
 
 
 # -- weekday -----------------------------------------------------------------------------------------------------
@@ -301,7 +301,7 @@ def test_held_trigger_sets_once(bench, clock):
     clock.write_set_buffer(T("24 01 01 01 01 01 00 02"))  # a new time while the trigger is still held
     bench.wait(2)
     assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), "trigger held 5 s: ",
-                 since=(bench, began, 0))
+                 since=(bench, began))
     clock.release()
     assert clock.set(T("24 01 01 01 01 01 00 02")).accepted  # a fresh edge takes the new buffer
     assert_reads(clock, T("24 01 01 01 01 00 00 00")[:5], 2, range(1, 4))  # 1 Jan 2024 was a Monday
