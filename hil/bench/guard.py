@@ -355,7 +355,7 @@ class Guard(ABC):
     def _put_exactly(self, origin: ClockOrigin) -> None:
         """The clock back at its origin's offset, read back where its second transitions can be timed: the error
         at the next one, against the origin timed the same way (so a bias of the timing cancels).  Over the two
-        timings' half-brackets (what they can tell apart), set again with the error taken off, up to
+        timings' brackets, set again with the error taken off, up to
         :attr:`CLOCK_SETS` sets (a busy host spoils a timing now and then); then an error within :attr:`CLOCK_ROUGH` is kept (:attr:`clock_error` says it),
         one beyond it is a HilError saying by how much."""
         clock, timebase = self.clock, self.clock.timebase
@@ -368,7 +368,7 @@ class Guard(ABC):
             shown, at, width = clock.transition()
             error = (shown - (origin.plc + dt.timedelta(seconds=at - origin.at))).total_seconds()
             self.clock_error = error
-            if abs(error) <= (origin.width + width) / 2:  # within what the two timings can tell apart
+            if abs(error) <= origin.width + width:
                 return
             shift += dt.timedelta(seconds=error)
         if abs(error) > self.CLOCK_ROUGH:
