@@ -150,6 +150,10 @@ class ModbusWire:
         self._inflight: tuple[int, int] | None = None
         self.resyncs = 0
         self.reconnects = 0
+        self._what = ""  # the request in hand (what a resync failure names)
+        self._resync = Resync(needed=lambda: self.dirty, probe=lambda n, tries: self._probe(self._what),
+                              failed=lambda last: (f"{self._what} not sent to {self.description}: the line could "
+                                                   f"not be resynchronised after an earlier fault ({last})"))
         if not self.client.connect():
             self.client.close()
             nameless = None if self.serial else unresolved(getattr(self.client.comm_params, "host", None))
@@ -242,15 +246,10 @@ class ModbusWire:
                            + sum(len(held) for held in earlier if not last.startswith(held)))
         return pdu
 
-    def _resync(self, what: str) -> Resync:
+    def _probe(self, what: str) -> None:
         """After a fault, before the next request: on TCP a new connection (transaction ids guard the rest, but a
         stream with junk in it never re-frames); on RTU, which has no transaction id, a probe read whose reply has
         a quantity no abandoned request had — every reply before it is stale, and the line is in step again."""
-        return Resync(needed=lambda: self.dirty, probe=lambda n, tries: self._probe(what),
-                      failed=lambda last: (f"{what} not sent to {self.description}: the line could not be "
-                                           f"resynchronised after an earlier fault ({last})"))
-
-    def _probe(self, what: str) -> None:
         if not self.serial:
             try:
                 self.reopen()
@@ -335,7 +334,7 @@ class ModbusWire:
     def _exchange(self, fc: int, address: int, count: int, send: Callable[[], ModbusPDU]) -> ModbusPDU:
         """One Modbus request under the request policy (:mod:`hil.io.request_policy`): this wire supplies one try
         (pymodbus's client sends and receives; :meth:`_check` and the fence judge the reply) and the probe
-        (:meth:`_resync`).  Every failure becomes a harness error naming the request, the target and the fault."""
+        (:meth:`_probe`).  Every failure becomes a harness error naming the request, the target and the fault."""
         table = {1: COILS, 2: DISCRETE_INPUTS, 3: HOLDING, 15: COILS, 16: HOLDING}[fc]
         what = f"{FC_NAMES[fc]} at {address} ×{count} ({self.describe(table, address, count)})"
         write = fc in (15, 16)
@@ -359,8 +358,9 @@ class ModbusWire:
                 raise (_NoReply if isinstance(exc, ModbusIOException) else _Lost)(fault) from None
             self.dirty, self._inflight = self._extra > 0, None  # more than the reply came: resync first
             return rr
+        self._what = what
         return self.policy.run("", attempt, write=write, lost=(_Lost,), timeouts=(_NoReply,),
-                               resync=self._resync(what), one_try=self.timeout)
+                               resync=self._resync, one_try=self.timeout)
 
     def _fault(self, exc: Exception, what: str, attempt: int, attempts: int) -> str:
         where = f"{what} on {self.description} (attempt {attempt} of {attempts})"

@@ -104,6 +104,9 @@ class FatekTransport(Transport):
         self.resyncs = 0  # loop-back resynchronisations done
         self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
+        # before a request, after a fault: reconnect a lost connection, resynchronise with a loop-back (_probe)
+        self._resync = Resync(needed=lambda: self._broken or self.dirty, probe=self._probe, failed=self._not_sent)
+        self._command: Command = Loopback("")  # the request in hand (what a resync failure names)
         self._line: Line = self.new_line()
 
     def new_line(self) -> Line:
@@ -227,8 +230,9 @@ class FatekTransport(Transport):
             if is_read:
                 raise TransportError(f"{command.describe()} to station 00 (broadcast): a broadcast is never "
                                      f"answered, so nothing can be read")
+            self._command = command
             return self.policy.run("", lambda n, tries: self._send(frame), write=True, lost=_LOST,
-                                   resync=self._resync(command))
+                                   resync=self._resync)
 
         def attempt(n: int, tries: int):  # noqa: ANN202 - what the command decodes
             result = self._once(command, frame, n, tries)
@@ -237,8 +241,9 @@ class FatekTransport(Transport):
                              f"the reply (a late or repeated reply to an earlier request, or no loop-back "
                              f"echo in time), so the value was not trusted (attempt {n} of {tries})")
             return result
+        self._command = command
         return self.policy.run("", attempt, write=not is_read, lost=_LOST, timeouts=(ReplyTimeout,),
-                               resync=self._resync(command), one_try=self.timeout)
+                               resync=self._resync, one_try=self.timeout)
 
     def budget(self, write: bool = False) -> float:
         """The longest one request (one protocol frame) can take, retries, backoff and resynchronising
@@ -247,18 +252,16 @@ class FatekTransport(Transport):
         # a try: the request (and a read's fence), and the flush and send's own timeout
         return self.policy.budget(wait + self.timeout + (0 if write else wait), write, probe=wait)
 
-    def _resync(self, command: Command) -> Resync:
-        """Before a request: reconnect a lost connection, and after anything odd on the line resynchronise.
+    def _not_sent(self, last: str) -> str:
+        """Why the request in hand was not sent: the line could not be resynchronised (:meth:`_probe`).
 
         FATEK replies carry no transaction id, so a reply that comes late (after we gave up on it) looks
         exactly like the answer to our next request of the same shape.  A slave answers in order, so after a
         timeout or a stray frame we send a loop-back with a fresh nonce and discard everything until its echo:
         from then on the next reply is the answer to the next request.
         """
-        return Resync(needed=lambda: self._broken or self.dirty, probe=self._probe,
-                      failed=lambda last: (f"{command.describe()} not sent to {self._where()}: the request before "
-                                           f"it went unanswered (or was answered garbled) and so did a loop-back — "
-                                           f"{_CHECK} ({last})"))
+        return (f"{self._command.describe()} not sent to {self._where()}: the request before it went unanswered "
+                f"(or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
 
     def _probe(self, attempt: int, attempts: int) -> None:
         """One resynchronising loop-back (the connection reopened first when it is gone)."""
