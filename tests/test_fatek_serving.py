@@ -329,7 +329,7 @@ def test_read_timeout_names_request_station_and_wait(tcp):
 def test_reads_are_retried_and_writes_are_not(tcp):
     with FatekTransport(f"socket://{tcp.address}", station=5, timeout=0.2, retries=2) as client:
         started = time.monotonic()
-        with pytest.raises(ReplyTimeout, match="3 attempts"):
+        with pytest.raises(ReplyTimeout, match="3 tries of 0.2 s"):
             client.read("R0")
         assert 0.55 <= time.monotonic() - started < 1.4
         # The line is suspect now (a late reply may come): a write is not sent until a loop-back resynchronises.

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any, Generic, Protocol, TypeVar
 
-from hil.bench.guard import Guard, Recovery, RecoveryStep
+from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
 from hil.bench.profile import Profile
 from hil.core.journal import Journal
 from hil.core.timebase import Timebase
@@ -36,13 +36,13 @@ LinkT = TypeVar("LinkT", bound=RawLink)
 
 class BenchBase(Generic[PlcT, LinkT]):
     """Subclasses set ``profile``, ``target``, ``raw`` (the unguarded link, with ``.emulator``: ``LinkT``), ``io``
-    (the family's guarded link, a :class:`~hil.bench.guard.Guard`), ``time`` and ``plc`` (the family's PLC
+    (the family's guarded link, a :class:`~hil.bench.guard.GuardedLink`), ``time`` and ``plc`` (the family's PLC
     object: ``PlcT``).  What a suite sees of it is its ``FACE`` (:mod:`hil.bench.faces`, :mod:`hil.bench.view`)."""
 
     profile: Profile
     target: Target
     raw: LinkT
-    io: Guard
+    io: GuardedLink
     time: Timebase
     plc: PlcT
     journal: Journal | None = None
@@ -121,12 +121,12 @@ class BenchBase(Generic[PlcT, LinkT]):
     def alive(self) -> str | None:
         """None when the PLC answers (reconnecting once if needed), else why not."""
         try:
-            self.io.status()  # type: ignore[attr-defined]  # every family's link has it
+            self.io.status()
             return None
         except Exception as first:  # noqa: BLE001 - any failure here means "not answering"
             try:
                 self.raw.reopen()
-                self.io.status()  # type: ignore[attr-defined]
+                self.io.status()
                 return None
             except Exception as exc:  # noqa: BLE001
                 return f"{first}; reconnecting: {exc}"

@@ -22,8 +22,8 @@ A real PLC is somebody's machine.  The guard
 
 Elements the PLC itself rewrites every scan (``volatile``) are allowed but not journaled.
 
-The guard knows no family: it is mixed into a family's guarded link (a :class:`hil.core.link.Link`), which
-implements its address model — :meth:`Guard.split` (an address → the elements it covers, the journal's keys),
+The guard knows no family: a family's guarded link is a :class:`GuardedLink` — the guard wrapped round the
+family's link, reached through its public API only — which implements its address model — :meth:`Guard.split` (an address → the elements it covers, the journal's keys),
 :meth:`Guard.read_originals` and :meth:`Guard.write_back` — and passes the writes it guards to
 :meth:`Guard.guarded`.  ``str(element)`` is an element's name in the journal; ``split(name)`` reads it back.
 """
@@ -33,9 +33,11 @@ from __future__ import annotations
 import datetime as dt
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Sequence, TypeVar
+from typing import Any, Callable, Iterable, Protocol, Sequence, TypeVar
 
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
+from hil.core.link import Link
+from hil.io.status import PlcStatus
 from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
 from hil.core.journal import CLOCK, Journal, JournalError
 from hil.core.timebase import HostClocks, Timebase
@@ -496,5 +498,57 @@ class Guard(ABC):
         return None
 
 
-__all__ = ["Clock", "ClockOrigin", "Guard", "ORIGIN_MAX_AGE", "OriginRefused", "Recovery", "RecoveryStep",
-           "origin_from_journal"]
+class PublicLink(Protocol):
+    """What the guard uses of the link it wraps: its public API, nothing private."""
+
+    @property
+    def description(self) -> str: ...
+
+    @property
+    def requests(self) -> int: ...
+
+    @property
+    def emulator(self) -> Any: ...
+
+    def status(self) -> PlcStatus: ...
+
+    def unreachable_reason(self, name: Any) -> str | None: ...
+
+    def budget(self, write: bool = False) -> float | None: ...
+
+    def reopen(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class GuardedLink(Guard, Link):
+    """The guard wrapped round a link (composition): it holds the link as ``inner`` and reaches it only through
+    its public API — reads pass straight through, writes go through :meth:`Guard.guarded`.  A family's guarded
+    link adds its address model and the writes of its face."""
+
+    def __init__(self, inner: PublicLink, writable: Iterable, volatile: Iterable = ()) -> None:
+        super().__init__(f"guarded {inner.description}", writable, volatile)
+        self.inner = inner
+
+    # requests are counted by the link that sends them (Link.__init__'s 0 is ignored)
+    requests = property(lambda self: self.inner.requests, lambda self, value: None)
+    emulator = property(lambda self: self.inner.emulator)
+
+    def status(self) -> PlcStatus:
+        return self.inner.status()
+
+    def unreachable_reason(self, name: Any) -> str | None:
+        return self.inner.unreachable_reason(name)
+
+    def budget(self, write: bool = False) -> float | None:
+        return self.inner.budget(write)
+
+    def reopen(self) -> None:
+        self.inner.reopen()
+
+    def _close(self) -> None:
+        self.inner.close()
+
+
+__all__ = ["Clock", "ClockOrigin", "Guard", "GuardedLink", "ORIGIN_MAX_AGE", "OriginRefused", "PublicLink", "Recovery",
+           "RecoveryStep", "origin_from_journal"]

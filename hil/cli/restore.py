@@ -17,7 +17,7 @@ from rich.markup import escape
 
 from hil.core.errors import HilError
 from hil.bench.family import open_bench
-from hil.bench.profile import load_profile
+from hil.bench.profile import Profile, load_profile
 from hil.core.lock import BenchLock, plc_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
@@ -95,13 +95,13 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
     return 0
 
 
-def _verdicts(journal: Journal, profile: object) -> list[str]:
+def _verdicts(journal: Journal, profile: Profile | None) -> list[str]:
     """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
-    writable = volatile = None
+    writable = volatile = plugin = None
     if profile is not None:
-        plugin = profile.plugin  # type: ignore[attr-defined]
-        writable = plugin.elements(profile.safety.writable)  # type: ignore[attr-defined]
-        volatile = plugin.elements(profile.safety.volatile)  # type: ignore[attr-defined]
+        plugin = profile.plugin
+        writable = plugin.elements(profile.safety.writable)
+        volatile = plugin.elements(profile.safety.volatile)
     out = []
     for kind, name, entry in journal.entries():
         problem = kind.check(entry)
@@ -111,9 +111,10 @@ def _verdicts(journal: Journal, profile: object) -> list[str]:
             if problem:
                 problem += " — not replayed by a run"
         dropped = False
-        if problem is None and kind.section == "elements" and writable is not None:
+        if problem is None and kind.section == "elements" and plugin is not None and writable is not None \
+                and volatile is not None:
             try:
-                element = next(iter(profile.plugin.elements([name])), None)  # type: ignore[attr-defined]
+                element = next(iter(plugin.elements([str(name)])), None)
             except (HilError, ValueError):
                 element = None
             dropped = element in volatile
@@ -121,12 +122,12 @@ def _verdicts(journal: Journal, profile: object) -> list[str]:
                 problem = "not an element of this PLC"
             elif not dropped and element not in writable and entry.get("wrote") is not None:
                 problem = "not in the profile's [safety] writable"
-            check = getattr(profile.plugin, "value_problem", None)  # type: ignore[attr-defined]
+            check = getattr(plugin, "value_problem", None)
             if problem is None and not dropped and check is not None:
                 bad = next(filter(None, (check(element, v) for v in [entry["original"], *run_left(entry)])), None)
                 problem = f"malformed: {bad}" if bad else None
         if problem is None and kind.section == "run" and profile is not None \
-                and not profile.safety.allow_destructive:  # type: ignore[attr-defined]
+                and not profile.safety.allow_destructive:
             problem = "RUN/STOP needs [safety] allow_destructive"
         if problem is not None:
             out.append(f"{what}: next run refuses it ({problem}); kept")

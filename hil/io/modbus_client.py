@@ -2,8 +2,9 @@
 
 It owns the rules a Modbus request lives by, in one place:
 
-* reads are retried (with backoff) by us — pymodbus's own retries are off, since they would repeat writes too;
-  a write whose reply never came raises OutcomeUnknown and is never sent again;
+* requests live by the one request policy (:mod:`hil.io.request_policy`) — pymodbus's own retries are off, since
+  they would repeat writes too: reads are retried with its backoff, a write whose reply never came raises
+  OutcomeUnknown and is never sent again;
 * every reply must answer exactly the request sent (function, unit, quantity, write echo), else it is a fault;
 * a late or repeated reply to an earlier request is never taken for the answer (README, Safety).  On TCP the
   transaction id tells: pymodbus skips a frame with another non-zero id and keeps waiting for ours, and refuses
@@ -26,21 +27,20 @@ the client when it is built.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
 import serial
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 from pymodbus.pdu import ModbusPDU
 
-from hil.core.errors import InvalidValue, OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
+from hil.core.errors import InvalidValue, PlcErrorReply, TransportError
 from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
-from hil.io.request_policy import RequestPolicy
+from hil.io.request_policy import RequestPolicy, Resync
 from hil.io.modbus_codes import EXCEPTION_NAMES
 from hil.io.url import serial_target
 
@@ -107,6 +107,14 @@ class _Stale(Exception):
     """A read's reply on RTU that could be a late or repeated reply to an earlier request (the fence failed)."""
 
 
+class _Lost(TransportError):
+    """A request whose reply never came or did not answer it (the request policy's to repeat or report)."""
+
+
+class _NoReply(_Lost):
+    """No reply within the timeout."""
+
+
 Hooks = tuple[Callable[[bool, bytes], bytes], Callable[[bool, ModbusPDU], ModbusPDU]]  # trace_packet, trace_pdu
 
 
@@ -142,6 +150,10 @@ class ModbusWire:
         self._inflight: tuple[int, int] | None = None
         self.resyncs = 0
         self.reconnects = 0
+        self._what = ""  # the request in hand (what a resync failure names)
+        self._resync = Resync(needed=lambda: self.dirty, probe=lambda n, tries: self._probe(self._what),
+                              failed=lambda last: (f"{self._what} not sent to {self.description}: the line could "
+                                                   f"not be resynchronised after an earlier fault ({last})"))
         if not self.client.connect():
             self.client.close()
             nameless = None if self.serial else unresolved(getattr(self.client.comm_params, "host", None))
@@ -198,12 +210,9 @@ class ModbusWire:
 
     def budget(self, write: bool = False) -> float:
         """The longest one Modbus request can take, retries, backoff and recovery included."""
-        tries = 1 + self.retries
-        recover = tries * self.timeout + self.policy.pauses(tries) + 0.5
-        if write:
-            return recover + self.timeout
-        fence = self.timeout if self.serial and self.fence_every_read else 0.0
-        return tries * (recover + self.timeout + fence) + self.policy.pauses(tries)
+        fence = self.timeout if self.serial and self.fence_every_read and not write else 0.0
+        # a probe: a probe read, or a new connection (0.5 s for pymodbus to close and connect)
+        return self.policy.budget(self.timeout + fence, write, probe=self.timeout + 0.5)
 
     def reopen(self) -> None:
         """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
@@ -237,14 +246,14 @@ class ModbusWire:
                            + sum(len(held) for held in earlier if not last.startswith(held)))
         return pdu
 
-    def _recover(self, what: str) -> None:
-        """After a fault: on TCP a new connection (transaction ids guard the rest, but a stream with junk in
-        it never re-frames); on RTU, which has no transaction id, a read whose reply has a quantity no
-        abandoned request had — every reply before it is stale, and the line is in step again."""
+    def _probe(self, what: str) -> None:
+        """After a fault, before the next request: on TCP a new connection (transaction ids guard the rest, but a
+        stream with junk in it never re-frames); on RTU, which has no transaction id, a probe read whose reply has
+        a quantity no abandoned request had — every reply before it is stale, and the line is in step again."""
         if not self.serial:
             try:
                 self.reopen()
-            except TransportError as exc:
+            except TransportError as exc:  # not a lost request: nothing can be sent at all
                 raise TransportError(f"{what} not sent: {exc}") from None
             self.dirty = False
             return
@@ -253,23 +262,15 @@ class ModbusWire:
             # be reopened rather than "no reply"
             raise TransportError(f"{what} not sent to {self.description}: cannot reopen the port: "
                                  f"{self._open_error() or self.hint}")
-        tries = 1 + self.retries
-        last = ""
-        for attempt in range(1, tries + 1):
-            used = {count for fc, count in self._abandoned | ({self._inflight} if self._inflight else set())
-                    if fc == 3}
-            self._flush()
-            count, last = self._probe_read(used)
-            if not last:
-                self.dirty = False
-                self._abandoned.clear()
-                self.resyncs += 1
-                return
+        used = {count for fc, count in self._abandoned | ({self._inflight} if self._inflight else set()) if fc == 3}
+        self._flush()
+        count, why = self._probe_read(used)
+        if why:
             self._abandoned.add((3, count))
-            if attempt < tries:
-                time.sleep(self.policy.pause(attempt))
-        raise ReplyTimeout(f"{what} not sent to {self.description}: the line could not be resynchronised after "
-                           f"an earlier fault ({last})")
+            raise _Lost(why)
+        self.dirty = False
+        self._abandoned.clear()
+        self.resyncs += 1
 
     def _open_error(self) -> str:
         """Why the serial port did not open, with what to check (hil.io.line.open_line's message); "" for TCP."""
@@ -331,54 +332,35 @@ class ModbusWire:
         return count, ""
 
     def _exchange(self, fc: int, address: int, count: int, send: Callable[[], ModbusPDU]) -> ModbusPDU:
-        """One Modbus request; reads are retried with backoff, writes never are.  Every failure becomes a harness
-        error naming the request, the target and the fault seen."""
+        """One Modbus request under the request policy (:mod:`hil.io.request_policy`): this wire supplies one try
+        (pymodbus's client sends and receives; :meth:`_check` and the fence judge the reply) and the probe
+        (:meth:`_probe`).  Every failure becomes a harness error naming the request, the target and the fault."""
         table = {1: COILS, 2: DISCRETE_INPUTS, 3: HOLDING, 15: COILS, 16: HOLDING}[fc]
         what = f"{FC_NAMES[fc]} at {address} ×{count} ({self.describe(table, address, count)})"
         write = fc in (15, 16)
-        attempts = 1 if write else 1 + self.retries
-        started = time.monotonic()
-        faults: list[str] = []
-        for attempt in range(1, attempts + 1):
+
+        def attempt(n: int, tries: int) -> ModbusPDU:
+            self._flush()
+            self.requests += 1
+            # Suspect until the reply is in: an exchange cut short (pytest-timeout's signal, Ctrl-C) leaves its
+            # reply on the way.
+            self.dirty, self._inflight = True, (fc, count)
             try:
-                if self.dirty:
-                    self._recover(what)  # raises before anything is sent
-                self._flush()
-                self.requests += 1
-                # Suspect until the reply is in: an exchange cut short (pytest-timeout's signal, Ctrl-C)
-                # leaves its reply on the way.
-                self.dirty, self._inflight = True, (fc, count)
                 rr = self._check(fc, address, count, what, send())
                 if not write:
                     self._fence(fc, count)
-                self.dirty, self._inflight = self._extra > 0, None  # more than the reply came: resync first
-                return rr
             except PlcErrorReply:
                 self.dirty, self._inflight = False, None  # an exception reply is still our reply
                 raise
-            except ReplyTimeout as exc:  # the recovery failed: nothing was sent
-                if write:
-                    raise
-                faults.append(str(exc))
-                if attempt == attempts:
-                    raise ReplyTimeout(f"{faults[0]}; then {exc}; {attempts} tries of {self.timeout:g} s "
-                                       f"({attempts * self.timeout:g} s), {time.monotonic() - started:.2f} s "
-                                       f"in all") from None
             except (ModbusException, _Shape, _Stale) as exc:
-                self.dirty = True
                 self._abandoned.add((fc, count))
-                fault = self._fault(exc, what, attempt, attempts)
-                if write:
-                    raise OutcomeUnknown(f"{fault}; outcome unknown: the write may or may not have been applied "
-                                         f"(writes are not retried)") from None
-                faults.append(fault)
-                if attempt == attempts:
-                    if attempts > 1:
-                        fault += (f"; {attempts} tries of {self.timeout:g} s ({attempts * self.timeout:g} s), "
-                                  f"{time.monotonic() - started:.2f} s in all")
-                    raise (ReplyTimeout if isinstance(exc, ModbusIOException) else TransportError)(fault) from None
-            time.sleep(self.policy.pause(attempt))
-        raise AssertionError("unreachable")
+                fault = self._fault(exc, what, n, tries)
+                raise (_NoReply if isinstance(exc, ModbusIOException) else _Lost)(fault) from None
+            self.dirty, self._inflight = self._extra > 0, None  # more than the reply came: resync first
+            return rr
+        self._what = what
+        return self.policy.run("", attempt, write=write, lost=(_Lost,), timeouts=(_NoReply,),
+                               resync=self._resync, one_try=self.timeout)
 
     def _fault(self, exc: Exception, what: str, attempt: int, attempts: int) -> str:
         where = f"{what} on {self.description} (attempt {attempt} of {attempts})"
@@ -422,6 +404,7 @@ class OverModbusWire:
     what it counts, what observes its frames, how it reconnects and closes are the wire's."""
 
     wire: ModbusWire
+    _lock: Any  # the Link's: one request on the wire at a time
 
     def _use_wire(self, wire: ModbusWire) -> None:
         self.wire = wire
@@ -446,7 +429,7 @@ class OverModbusWire:
 
     def reopen(self) -> None:
         """Close and reconnect the client (a new TCP connection, the serial port opened again)."""
-        with self._lock:  # type: ignore[attr-defined]  # the Link's
+        with self._lock:
             self.wire.reopen()
 
     def _close(self) -> None:

@@ -34,6 +34,7 @@ class WireCounter:
         self.rx = 0
         self.frames = 0
         self.kind = "none"
+        self.transport: Any = None  # what it counts on (a reopened bench's raw link is a new one: count anew)
         self._detach: list[Callable[[], None]] = []
 
     @property
@@ -43,6 +44,7 @@ class WireCounter:
     def attach(self, transport: Any) -> "WireCounter":
         if self._detach:
             return self
+        self.transport = transport
         observers = getattr(transport, "observers", None)  # every frame of a FATEK or Modbus wire
         if isinstance(observers, list):
             self.kind = getattr(transport, "trace_kind", "frames")
@@ -90,9 +92,8 @@ def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
 def _mark(config: pytest.Config, bench) -> _Mark:  # noqa: ANN001
     raw = bench.raw
     counter = config.stash.get(_COUNTER, None)
-    if counter is None or getattr(counter, "_transport", None) is not raw:
+    if counter is None or counter.transport is not raw:  # re-attach if the bench was reopened
         counter = WireCounter().attach(raw)
-        counter._transport = raw  # type: ignore[attr-defined]  # re-attach if the bench was reopened
         config.stash[_COUNTER] = counter
     emulator = raw.emulator
     return _Mark(raw.requests, counter.total, emulator.now if emulator is not None else None)

@@ -45,6 +45,11 @@ class LoopThread:
 class ServerHandle:
     """A running emulator server: what kind, where a client connects, and how to stop it (idempotent)."""
 
+    #: the wire-fault plan its replies go through (a :class:`~hil.sim.wire_faults.WireFaults`), or None
+    faults: Any = None
+    line: Any = None  # a pty wire's served line (its pace and byte counts), else None
+    ptys: Any = None  # a pty wire's pair (byte counters for tests), else None
+
     def __init__(self, kind: str, address: str, stop: "Callable[[], None]") -> None:
         self.kind = kind  # the wire's name: "fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", …
         self.address = address  # "127.0.0.1:40123" or a pty path such as "/dev/pts/7"

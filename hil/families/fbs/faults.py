@@ -19,9 +19,9 @@ test injected is undone by the bench when the test ends, pass or fail.  ``[fault
 ``[faults.ssr_short]`` take the same kinds and act on a point's heater circuit (``bench.faults.heater_open
 .inject(point)`` / ``.clear(point)``; with kind = "emulator" the emulator's thermal plant, ``[plant]``).
 
-The relay module is reached with pymodbus's client directly, not through :class:`~hil.families.fbs.transport.modbus.
-ModbusTransport`: that transport speaks *FBs names* mapped onto Modbus tables, whereas a relay module has plain
-coil numbers with no FBs meaning.
+The relay module is reached through the one Modbus client (:class:`~hil.io.modbus_client.ModbusWire`, under the
+request policy) with plain coil numbers, not through :class:`~hil.families.fbs.transport.modbus.ModbusTransport`:
+that transport speaks *FBs names* mapped onto Modbus tables, whereas a relay module's coils have no FBs meaning.
 """
 
 from __future__ import annotations
@@ -32,10 +32,11 @@ from typing import TYPE_CHECKING, Any, Callable
 
 from hil.families.fbs.address import parse
 from hil.families.fbs.registers import MAX_POINTS
-from hil.core.errors import AddressError, HilError, InvalidValue, ProfileError, TargetError
+from hil.core.errors import (AddressError, HilError, InvalidValue, PlcErrorReply, ProfileError, TargetError,
+                             TransportError)
 from hil.io.url import parse_target
 from hil.core.lock import lock_key
-from hil.io.modbus_client import SerialClient
+from hil.families.fbs.rig import GuardedRig, RigLink, rig_wire
 from hil.families.fbs.protocol.modbus_map import to_modbus
 from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
 from hil.families.fbs.sim.models.plant import ThermalPlant
@@ -179,57 +180,49 @@ class EmulatorPlantFault(SensorBreakInjector):
 
 
 class ModbusCoilSensorBreak(SensorBreakInjector):
-    """A relay module on Modbus: coil ``first_coil + point`` = 1 opens the point's circuit."""
+    """A relay module on Modbus: coil ``first_coil + point`` = 1 opens the point's circuit.  The coils are switched
+    through the guard (:class:`~hil.families.fbs.rig.GuardedRig`: each coil's original journaled, on disk first,
+    before its first switch; :meth:`undo` restores them, read back) over the one Modbus client."""
 
     kind = "modbus-coil"
 
     def __init__(self, target: str, first_coil: int = 0, timeout: float = 2.0, *, journal: Any = None,
-                 coils: str | None = None) -> None:
+                 coils: str | None = None, retries: int = 2) -> None:
         super().__init__()
         self.target = parse_target(target)
         self.first_coil = first_coil
         self.unit = int(self.target.params.get("unit", 1))
         self.timeout = timeout
+        self.retries = retries
         self.journal = journal  # hil.core.journal.Journal: each coil's original is on disk before it is switched
         self.allowed = parse_coils(coils) if coils is not None else None  # the rig's own allow-list
-        self.originals: dict[int, bool] = {}  # point → what its coil held before the first injection
-        self._client: Any = None
+        self._guard: GuardedRig | None = None
 
     def coil_key(self, point: int) -> str:
         return f"{lock_key(str(self.target))}#unit{self.unit}/coil{self.first_coil + point}"
 
-    def _original(self, point: int) -> None:
-        """Read and journal the coil's state before the first switch (restore writes back *that*, not 0)."""
-        if point in self.originals:
-            return
-        coil = self.first_coil + point
-        value = self._read(coil)
-        if self.journal is not None:
-            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, value)
-        self.originals[point] = value
+    @property
+    def originals(self) -> dict[int, bool]:
+        """point → what its coil held before the first switch (until restored)."""
+        if self._guard is None:
+            return {}
+        return {e.coil - self.first_coil: bool(v) for e, v in self._guard.journal.items()}
 
-    def _read(self, coil: int) -> bool:
-        from pymodbus.exceptions import ModbusException
-        try:
-            reply = self._connect().read_coils(coil, count=1, device_id=self.unit)
-        except ModbusException as exc:
-            self.close()
-            raise FaultError(f"relay module {self.target}: reading coil {coil} failed: {exc}") from None
-        if reply.isError():
-            raise FaultError(f"relay module {self.target} refused to read coil {coil}")
-        return bool(reply.bits[0])
+    def guard(self) -> GuardedRig:
+        """The guard round the rig's coils, over the one Modbus client; connected on first use."""
+        if self._guard is None:
+            try:
+                wire = rig_wire(self.target, self.timeout, self.retries)
+            except TransportError as exc:
+                raise FaultError(f"cannot reach the sensor-break relay module at {self.target}: is it powered and "
+                                 f"wired, and is the URL in [faults.sensor_break] target right? ({exc})") from None
+            coils = [self.first_coil + p for p in range(MAX_POINTS)]
+            self._guard = GuardedRig(self.target, RigLink(wire), coils, self.journal)
+        return self._guard
 
-    def open(self, point: int) -> None:
-        self._check(point)
-        self._allowed(point)
-        self._original(point)
-        super().open(point)
-
-    def repair(self, point: int) -> None:
-        self._check(point)
-        self._allowed(point)
-        self._original(point)
-        super().repair(point)
+    def read_registers(self, address: int, count: int) -> list[int]:
+        """Holding registers of the module (a HilError when it has none there)."""
+        return self.guard().inner.read_registers(address, count)
 
     def openable(self, points: list[int]) -> list[int]:
         """The points whose coils are in the rig's allow-list (all, without one)."""
@@ -241,69 +234,39 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
             raise FaultError(f"coil {coil} of the rig {self.target} is not in [faults] coils — refused before "
                              f"anything was sent")
 
-    def undo(self) -> None:
-        """Put every coil this injector switched back to what it held before (read back to verify)."""
-        errors = []
-        for point, value in sorted(self.originals.items()):
-            coil = self.first_coil + point
-            try:
-                self._write(point, value)
-                if self._read(coil) != value:
-                    raise FaultError(f"coil {coil} does not read back {int(value)}")
-            except Exception as exc:  # noqa: BLE001 - try every coil, then report them all
-                errors.append(f"coil {coil} (original {int(value)}): {exc}")
-                continue
-            self.opened.discard(point)
-            del self.originals[point]
-            if self.journal is not None:
-                self.journal.drop_coil(self.coil_key(point))
-        if errors:
-            raise FaultError(f"relay module {self.target}: could not restore {'; '.join(errors)}")
-
-    def _connect(self) -> Any:
-        if self._client is None:
-            from pymodbus.client import ModbusTcpClient
-            from pymodbus.framer import FramerType
-            t = self.target
-            if t.scheme == "modbus+tcp":
-                # retries=0: pymodbus re-sends a request that timed out, a coil write included (a write is never
-                # repeated: its first copy may have landed)
-                client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=0)
-            else:
-                p = t.params
-                client = SerialClient(t.serial_port, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
-                                      parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
-                                      stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=0)
-            if not client.connect():
-                raise FaultError(f"cannot reach the sensor-break relay module at {t}: is it powered and wired, "
-                                 f"and is the URL in [faults.sensor_break] target right?")
-            self._client = client
-        return self._client
-
     def _set(self, point: int, open_circuit: bool) -> None:
-        if self.journal is not None:  # what the coil is about to hold, on disk before it is switched
-            coil = self.first_coil + point
-            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, self.originals[point],
-                                  wrote=bool(open_circuit))
-        self._write(point, open_circuit)
-
-    def _write(self, point: int, open_circuit: bool) -> None:
-        from pymodbus.exceptions import ModbusException
+        self._allowed(point)
         coil = self.first_coil + point
         try:
-            reply = self._connect().write_coil(coil, open_circuit, device_id=self.unit)
-        except ModbusException as exc:
-            self.close()
-            raise FaultError(f"relay module {self.target}: writing coil {coil} (point {point}) failed: {exc}") \
+            self.guard().switch(coil, open_circuit)
+        except PlcErrorReply as exc:
+            raise FaultError(f"relay module {self.target} refused coil {coil} (point {point}): exception {exc.code} "
+                             f"— check first_coil and the module's size") from None
+        except TransportError as exc:
+            raise FaultError(f"relay module {self.target}: switching coil {coil} (point {point}) failed: {exc}") \
                 from None
-        if reply.isError():
-            raise FaultError(f"relay module {self.target} refused coil {coil} (point {point}): exception "
-                             f"{getattr(reply, 'exception_code', '?')} — check first_coil and the module's size")
+
+    def open(self, point: int) -> None:
+        self._check(point)
+        self._allowed(point)
+        self.guard()  # the rig answers before the point counts as opened
+        super().open(point)
+
+    def undo(self) -> None:
+        """Put every coil this injector switched back to what it held before (read back to verify)."""
+        if self._guard is None:
+            return
+        try:
+            self._guard.end()
+        except HilError as exc:
+            raise FaultError(f"relay module {self.target}: {exc}") from None
+        finally:
+            self.opened = {e.coil - self.first_coil for e in self._guard.journal}
 
     def close(self) -> None:
-        if self._client is not None:
-            self._client.close()
-            self._client = None
+        if self._guard is not None:
+            self._guard.close()
+            self._guard = None
 
 
 def parse_coils(text: str) -> frozenset[int]:
@@ -465,19 +428,19 @@ class Faults:
         if raw.unreachable_reason(RTC_READ_FIRST):
             return None
         ref = to_modbus(RTC_READ_FIRST)
-        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout))
+        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout), retries=0)
         try:
             before = raw.read_words(RTC_READ_FIRST, 7)
             try:
-                reply = rig._connect().read_holding_registers(ref.pdu, count=7, device_id=rig.unit)
+                there = rig.read_registers(ref.pdu, 7)
             except Exception:  # noqa: BLE001 - a rig that cannot answer as an FBs is not this FBs
                 return None
             after = raw.read_words(RTC_READ_FIRST, 7)
         finally:
             rig.close()
-        if reply.isError() or not any(before):
+        if not any(before):
             return None
-        if list(reply.registers[:7]) in (before, after):
+        if there in (before, after):
             return (f"{target} serves the PLC's own memory (its RTC read-out {RTC_READ_FIRST}… reads there as over "
                     f"{self.bench.target}): it is the PLC's own Modbus port")
         return None

@@ -14,8 +14,7 @@ from typing import Any, Callable, Iterable
 
 from hil.bench.guard import Recovery, RecoveryStep
 from hil.bench.replay import age_problem
-from hil.core.errors import HilError
-from hil.core.journal import COILS, Journal, run_left
+from hil.core.journal import COILS, Journal
 from hil.core.lock import lock_key
 from hil.families.fbs.faults import ModbusCoilSensorBreak
 from hil.families.fbs.device.plc import FbsPlc
@@ -43,7 +42,9 @@ def rig_steps(rigs: Iterable[str], not_the_plc: Callable[[str], "str | None"]) -
 def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False, rigs: frozenset[str] = frozenset(),
                       not_the_plc: Callable[[str], "str | None"] = lambda target: None) -> None:
     """Each fault-rig coil a dead run switched, back to the state it held before (read back to verify) — only on
-    one of the profile's ``rigs``, and only while it still holds what the run switched it to."""
+    one of the profile's ``rigs``, and only while it still holds what the run switched it to — through the rig's
+    guard (:meth:`hil.families.fbs.rig.GuardedRig.replay`)."""
+    by_target: dict[str, dict[str, dict[str, Any]]] = {}
     for key, entry in journal.coils().items():
         why = COILS.check(entry) or age_problem(entry, by_hand)
         if why is None and lock_key(entry["target"]) not in rigs:
@@ -53,25 +54,15 @@ def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool = False,
         if why:
             report.refused.append(f"rig coil {key}: {why}")
             continue
-        original, wrote = entry["original"], entry["wrote"]
-        rig = ModbusCoilSensorBreak(entry["target"], 0)
+        by_target.setdefault(entry["target"], {})[key] = entry
+    for target, entries in by_target.items():
+        rig = ModbusCoilSensorBreak(target, 0, journal=journal)
         try:
-            now = rig._read(entry["coil"])
-            if now != original and wrote is not None and now not in run_left(entry):
-                report.changed.append(f"rig coil {key} reads {int(now)}, the run wrote {int(wrote)} (original "
-                                      f"{int(original)})")
-                continue
-            if now != original:
-                rig._write(entry["coil"], original)
-                if rig._read(entry["coil"]) != original:
-                    raise HilError("does not read back")
-        except Exception as exc:  # noqa: BLE001 - every entry is tried; failures are listed
-            report.failures.append(f"rig coil {key} (original {int(original)}): {exc}")
-            continue
+            rig.guard().replay(entries, report)
+        except Exception as exc:  # noqa: BLE001 - every rig is tried; failures are listed
+            report.failures += [f"rig coil {key} (original {int(e['original'])}): {exc}" for key, e in entries.items()]
         finally:
             rig.close()
-        report.verified.append(f"rig coil {key} = {int(original)}")
-        journal.drop_coil(key)
 
 
 def recover(journal: Journal, transport: Any, timebase: Any, profile: Any = None) -> Recovery:

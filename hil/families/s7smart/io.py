@@ -15,10 +15,11 @@ keep trigger bits in a word of their own (the shipped layouts do).
 
 from __future__ import annotations
 
+import datetime as dt
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkable
 
-from hil.bench.guard import Guard
+from hil.bench.guard import GuardedLink
 from hil.core.link import Link
 from hil.core.errors import InvalidValue, TransportError
 from hil.families.s7smart.faces import S7IO
@@ -91,6 +92,10 @@ class S7Io(Link, ABC):
         parse_s7(name)
         return None
 
+    def budget(self, write: bool = False) -> float | None:
+        """The longest one request may take, retries included (seconds), or None when unbounded."""
+        return None
+
     # -- primitives ---------------------------------------------------------------------------------------------
     @abstractmethod
     def _read_v(self, first: int, count: int) -> bytes: ...
@@ -106,6 +111,17 @@ class S7Io(Link, ABC):
 
     @abstractmethod
     def _status(self) -> PlcStatus: ...
+
+
+@runtime_checkable
+class ClockedS7Io(Protocol):
+    """A link with the S7 protocol's clock functions (:class:`~hil.families.s7smart.s7wire.SnapS7Io`)."""
+
+    description: str
+
+    def cpu_clock(self) -> dt.datetime: ...
+
+    def set_cpu_clock(self, when: dt.datetime) -> None: ...
 
 
 # -- in process -----------------------------------------------------------------------------------------------------
@@ -247,7 +263,7 @@ def _names(modbus_map: S7ModbusMap):  # noqa: ANN202 - a hil.io.modbus_client.De
 
 
 # -- the guard ------------------------------------------------------------------------------------------------------
-class GuardedS7Io(Guard, S7Io):
+class GuardedS7Io(GuardedLink):
     """The guard (:mod:`hil.bench.guard`) over S7 operands: every write checked against the profile's ``[safety]
     writable`` (S7 ranges) before a byte is sent, originals journaled (on disk first on a real bench) and
     restored, read back, after each test; the CPU clock kept as the family declares it
@@ -256,10 +272,10 @@ class GuardedS7Io(Guard, S7Io):
     #: what a suite may hold of it (hil.bench.view.guarded_io)
     FACE = S7IO
 
+    inner: S7Io
+
     def __init__(self, inner: S7Io, writable: Iterable[str]) -> None:
-        super().__init__(f"guarded {inner.description}", expand_s7(writable))
-        self.inner = inner
-        self.emulator = inner.emulator
+        super().__init__(inner, expand_s7(writable))
 
     # -- the guard's address model: bytes, and Q/I bits ---------------------------------------------------------
     def split(self, name: "str | S7Address") -> list[S7Address]:
@@ -284,9 +300,6 @@ class GuardedS7Io(Guard, S7Io):
             if e.area != "V" or e.is_bit:
                 self.inner.write(e, value)
 
-    def reopen(self) -> None:
-        self.inner.reopen()
-
     def value_problem(self, element: S7Address, value: int) -> str | None:
         top = 1 if element.is_bit else 0xFF  # the guard's elements: bits and bytes
         return None if 0 <= value <= top else f"value {value} for {element} is outside 0–{top}"
@@ -308,36 +321,30 @@ class GuardedS7Io(Guard, S7Io):
     # -- the CPU's own clock (a wire that has clock functions: the S7 protocol) ------------------------------
     @property
     def has_cpu_clock(self) -> bool:
-        return hasattr(self.inner, "cpu_clock")
+        return isinstance(self.inner, ClockedS7Io)
 
-    def cpu_clock(self):  # noqa: ANN201 - a datetime
-        return self.inner.cpu_clock()  # type: ignore[attr-defined]
+    def cpu_clock(self) -> dt.datetime:
+        return self._clocked().cpu_clock()
 
-    def set_cpu_clock(self, when) -> None:  # noqa: ANN001 - a datetime
+    def set_cpu_clock(self, when: dt.datetime) -> None:
         """Set the clock with the protocol's function, its time journaled first (the restore keeps its offset)."""
-        self.setting_clock(lambda: self.inner.set_cpu_clock(when))  # type: ignore[attr-defined]
+        clocked = self._clocked()
+        self.setting_clock(lambda: clocked.set_cpu_clock(when))
 
-    # primitives: reads straight through (writes above are the only way in)
-    def _read_v(self, first: int, count: int) -> bytes:
+    def _clocked(self) -> "ClockedS7Io":
+        if not isinstance(self.inner, ClockedS7Io):
+            raise TransportError(f"{self.inner.description} has no clock functions (the S7 protocol has them)")
+        return self.inner
+
+    # -- reads: straight through (writes above are the only way in) -------------------------------------------
+    def read_v(self, first: int, count: int) -> bytes:
         return self.inner.read_v(first, count)
 
-    def _write_v(self, first: int, data: bytes) -> None:
-        raise AssertionError("unreachable: write_v is overridden")
+    def read(self, name: "str | S7Address") -> int:
+        return self.inner.read(name)
 
-    def _read_bits(self, area: str, first: int, count: int) -> list[int]:
-        return self.inner._read_bits(area, first, count)
-
-    def _write_bits(self, area: str, first: int, values: list[int]) -> None:
-        raise AssertionError("unreachable: write is overridden")
-
-    def _status(self) -> PlcStatus:
-        return self.inner.status()
-
-    def unreachable_reason(self, name: "str | S7Address") -> str | None:
-        return self.inner.unreachable_reason(name)
-
-    def _close(self) -> None:
-        self.inner.close()
+    def read_bits(self, name: "str | S7Address", count: int = 1) -> list[int]:
+        return self.inner.read_bits(name, count)
 
 
 def _runs(numbers: list[int]) -> list[tuple[int, int]]:

@@ -105,7 +105,13 @@ class SnapS7Io(S7Io):
                 self.client.disconnect()
             except Exception:  # noqa: BLE001 - already broken
                 pass
-        return self.policy.run(f"{what} on {self.description}", attempt, write=write, lost=(_Lost,), recover=recover)
+        return self.policy.run(f"{what} on {self.description}", attempt, write=write, lost=(_Lost,), recover=recover,
+                               one_try=self.timeout)
+
+    def budget(self, write: bool = False) -> float:
+        """The longest one S7 request can take, retries, backoff and reconnecting included (a try: the request and
+        a reconnect, each within the timeout)."""
+        return self.policy.budget(2 * self.timeout, write)
 
     # -- primitives -------------------------------------------------------------------------------------------
     def _read_v(self, first: int, count: int) -> bytes:

@@ -19,6 +19,7 @@ from hil.core.errors import HilError
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
+    from hil.sim.runtime import ServerHandle
 
 NameLike = str | Address
 
@@ -67,6 +68,8 @@ class Transport(Link, ABC):
     requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: "Emulator | None" = None
+    #: The emulator's server this transport talks to (an ``emulator+<wire>`` target), else None.
+    server: "ServerHandle | None" = None
 
     # -- public API -------------------------------------------------------------------------------------------
     def read_words(self, address: NameLike, count: int = 1) -> list[int]:

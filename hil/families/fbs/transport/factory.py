@@ -82,7 +82,7 @@ def _open_replay(target: Target, params: dict) -> Transport:
     except BaseException:
         peer.close()
         raise
-    transport.replay = peer  # type: ignore[attr-defined]
+    transport.replay = peer
     transport.on_close(peer.close)
     return transport
 
@@ -116,7 +116,7 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
         server.stop()
         raise
     transport.emulator = emulator
-    transport.server = server  # type: ignore[attr-defined]
+    transport.server = server
     transport.description = f"{target.scheme} ({transport.description})"
     transport.on_close(server.stop)
     return transport
@@ -139,7 +139,7 @@ def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0,
         handle = start_modbus_rtu_pty(emulator, unit=emulator.station, faults=faults, line=line)
     else:
         raise InvalidValue(f"unknown emulator wire {wire!r}")
-    handle.faults = faults  # type: ignore[attr-defined]
+    handle.faults = faults
     return handle
 
 

@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Callable, Iterable, Mapping
 
 import serial
 
 from hil.families.fbs.address import Address
-from hil.core.errors import (InvalidValue, OutcomeUnknown, PlcErrorReply, ProtocolError, ReplyTimeout,
-                             TransportError)
+from hil.core.errors import InvalidValue, PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
 from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
                                 FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
                                 ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
@@ -35,9 +34,12 @@ from hil.families.fbs.address import parse
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
 from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
-from hil.io.request_policy import RequestPolicy
+from hil.io.request_policy import RequestPolicy, Resync
 from hil.io.serial_line import char_bits, is_pty
 from hil.io.trace import CHAR_BITS, DESCRIBERS, PRINTABLE
+
+if TYPE_CHECKING:
+    from hil.families.fbs.transport.replay import RecordedPlc
 
 #: Commands that only read: safe to repeat after a lost reply.
 READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
@@ -59,6 +61,8 @@ class FatekTransport(Transport):
     # 46/47: 64 words (the base halves it for 32-bit names); 44/45: 256 bits; 48: 64 words; 49: 32 words.
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
     trace_kind = "fatek"  # how wire traces decode its frames (hil.io.trace.DESCRIBERS)
+    #: the recorded PLC a ``replay+fatek://`` target talks to (``.replay.verify()`` after use), else None
+    replay: "RecordedPlc | None" = None
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
@@ -100,6 +104,9 @@ class FatekTransport(Transport):
         self.resyncs = 0  # loop-back resynchronisations done
         self.fenced_out = 0  # of which found a stale frame before the read's reply: the read was repeated
         self.reconnects = 0
+        # before a request, after a fault: reconnect a lost connection, resynchronise with a loop-back (_probe)
+        self._resync = Resync(needed=lambda: self._broken or self.dirty, probe=self._probe, failed=self._not_sent)
+        self._command: Command = Loopback("")  # the request in hand (what a resync failure names)
         self._line: Line = self.new_line()
 
     def new_line(self) -> Line:
@@ -214,85 +221,59 @@ class FatekTransport(Transport):
         return fields
 
     def _exchange(self, command: Command):  # noqa: ANN202
+        """One command under the request policy (:mod:`hil.io.request_policy`): this wire supplies one try
+        (:meth:`_once`, and for a read its fence), what counts as lost (a timeout, a broken connection, a reply
+        that cannot be trusted) and the resynchronising loop-back (:meth:`_probe`)."""
         frame = encode_request(self.station, command)
+        is_read = isinstance(command, READ_COMMANDS)
         if self.station == BROADCAST:
-            if isinstance(command, READ_COMMANDS):
+            if is_read:
                 raise TransportError(f"{command.describe()} to station 00 (broadcast): a broadcast is never "
                                      f"answered, so nothing can be read")
-            self._prepare(command, write=True)
-            self._send(frame)
-            return None
-        is_read = isinstance(command, READ_COMMANDS)
-        if not is_read:
-            self._prepare(command, write=True)  # nothing sent yet: a failure here leaves the PLC unchanged
-            try:
-                return self._once(command, frame, 1, 1)
-            except ReplyTimeout as exc:
-                raise OutcomeUnknown(str(exc)) from None
-            except _Lost as exc:
-                raise OutcomeUnknown(f"{exc}; outcome unknown: the write was sent and may or may not have been "
-                                     f"applied (writes are not retried)") from None
-        attempts = 1 + self.retries
-        started = time.monotonic()
-        errors: list[str] = []
-        for attempt in range(1, attempts + 1):
-            try:
-                self._prepare(command, write=False)
-                result = self._once(command, frame, attempt, attempts)
-                if self._trusted():  # nothing stale came before the reply: it is the answer to this request
-                    return result
+            self._command = command
+            return self.policy.run("", lambda n, tries: self._send(frame), write=True, lost=_LOST,
+                                   resync=self._resync)
+
+        def attempt(n: int, tries: int):  # noqa: ANN202 - what the command decodes
+            result = self._once(command, frame, n, tries)
+            if is_read and not self._trusted():  # something stale came with the reply: not this request's answer
                 raise _Stale(f"{command.describe()} to {self._where()}: something else came before or right after "
                              f"the reply (a late or repeated reply to an earlier request, or no loop-back "
-                             f"echo in time), so the value was not trusted (attempt {attempt} of {attempts})")
-            except (ReplyTimeout, _Lost, _Stale) as exc:
-                errors.append(str(exc))
-                if attempt == attempts:
-                    timeout = isinstance(exc, ReplyTimeout)
-                    text = errors[-1] if attempts == 1 else (
-                        f"{errors[-1]}; {attempts} attempts, {time.monotonic() - started:.2f} s in all")
-                    raise (ReplyTimeout if timeout else TransportError)(text) from None
-                time.sleep(self.policy.pause(attempt))
-        raise AssertionError("unreachable")
+                             f"echo in time), so the value was not trusted (attempt {n} of {tries})")
+            return result
+        self._command = command
+        return self.policy.run("", attempt, write=not is_read, lost=_LOST, timeouts=(ReplyTimeout,),
+                               resync=self._resync, one_try=self.timeout)
 
     def budget(self, write: bool = False) -> float:
         """The longest one request (one protocol frame) can take, retries, backoff and resynchronising
         included — a call that runs longer is a harness bug."""
         wait = self.timeout + self._wire_time(len(encode_request(1, Loopback("X" * 12))))
-        tries = 1 + self.retries
-        if write:
-            return tries * wait + self.policy.pauses(tries) + wait + self.timeout
-        # each try of a read: a resynchronising loop-back, the read, its fence
-        return tries * (3 * wait + self.timeout) + self.policy.pauses(tries)
+        # a try: the request (and a read's fence), and the flush and send's own timeout
+        return self.policy.budget(wait + self.timeout + (0 if write else wait), write, probe=wait)
 
-    def _prepare(self, command: Command, *, write: bool) -> None:
-        """Before a request: reconnect a lost connection, and after anything odd on the line resynchronise.
+    def _not_sent(self, last: str) -> str:
+        """Why the request in hand was not sent: the line could not be resynchronised (:meth:`_probe`).
 
         FATEK replies carry no transaction id, so a reply that comes late (after we gave up on it) looks
         exactly like the answer to our next request of the same shape.  A slave answers in order, so after a
         timeout or a stray frame we send a loop-back with a fresh nonce and discard everything until its echo:
         from then on the next reply is the answer to the next request.
         """
+        return (f"{self._command.describe()} not sent to {self._where()}: the request before it went unanswered "
+                f"(or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
+
+    def _probe(self, attempt: int, attempts: int) -> None:
+        """One resynchronising loop-back (the connection reopened first when it is gone)."""
         if self._broken:
             self.reopen()
-        if not self.dirty:
-            return
-        tries = (1 + self.retries) if write else 1
-        last = ""
-        for attempt in range(1, tries + 1):
-            probe = self._loopback()
-            try:
-                self._once(probe, encode_request(self.station, probe), attempt, tries)
-                self.resyncs += 1
-                return
-            except ReplyTimeout as exc:
-                last = str(exc)
-            except _Lost as exc:
-                last = str(exc)
-                self.reopen()
-            if attempt < tries:
-                time.sleep(self.policy.pause(attempt))
-        raise ReplyTimeout(f"{command.describe()} not sent to {self._where()}: the request before it went "
-                           f"unanswered (or was answered garbled) and so did a loop-back — {_CHECK} ({last})")
+        probe = self._loopback()
+        try:
+            self._once(probe, encode_request(self.station, probe), attempt, attempts)
+        except _Lost:
+            self.reopen()
+            raise
+        self.resyncs += 1
 
     def reopen(self) -> None:
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
@@ -437,8 +418,6 @@ class FatekTransport(Transport):
         if assembler.dropped or assembler.pending:
             parts.append(f"ignored {assembler.dropped} stray byte(s), {assembler.pending} byte(s) of an "
                          f"unfinished frame")
-        if not isinstance(command, READ_COMMANDS):
-            parts.append("outcome unknown: the write may or may not have been applied (writes are not retried)")
         return "; ".join(parts) + f" — {_CHECK}"
 
     def _notify(self, direction: str, frame: bytes) -> None:
@@ -459,6 +438,10 @@ class _Lost(TransportError):
 
 class _Stale(TransportError):
     """A read's reply could not be told from a late or repeated reply to an earlier request (repeated)."""
+
+
+#: what the request policy counts as a request whose reply never came (or could not be trusted)
+_LOST = (ReplyTimeout, _Lost, _Stale)
 
 
 __all__ = ["FatekTransport", "READ_COMMANDS"]

@@ -13,15 +13,15 @@ not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.R
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from typing import Iterable, Mapping, Sequence
 
-from hil.bench.guard import Guard
+from hil.bench.guard import GuardedLink
 from hil.bench.replay import Recovery, age_problem
 from hil.core.errors import HilError, TransportError, WriteRefused
 from hil.core.journal import DISABLED, ENABLE, RUN, Journal
 from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
-from hil.families.fbs.transport.base import NameLike, PlcStatus, Transport, check_value, value_problem
+from hil.families.fbs.transport.base import NameLike, Transport, check_value, value_problem
 
 
 def expand(ranges: Iterable[str]) -> frozenset[Address]:
@@ -53,18 +53,18 @@ def element_values(pairs: Iterable[tuple[Address, int]]) -> dict[Address, int]:
     return out
 
 
-class GuardedTransport(Guard, Transport):
+class GuardedTransport(GuardedLink):
+    """The guard round an FBs transport, through the transport's public API: reads pass straight through (its
+    own frames, fenced where the wire needs it), writes are checked and journaled first."""
+
     #: what a suite may hold of it (hil.bench.view.guarded_io)
     FACE = FbsIO
 
     read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
+    inner: Transport
 
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
-        super().__init__(f"guarded {inner.description}", expand(writable), expand(volatile))
-        self.inner = inner
-        self.limits = inner.limits
-        self.requests_per_read = inner.requests_per_read
-        self.emulator = inner.emulator
+        super().__init__(inner, expand(writable), expand(volatile))
         self.allow_destructive = False  # FATEK command 41 (RUN/STOP) only with the explicit opt-in
         self.run_original: bool | None = None  # RUN/STOP before a test's first command 41
         # bit → disabled (forced) before a test's first command 42 enable/disable of it, read with command 43:
@@ -261,60 +261,42 @@ class GuardedTransport(Guard, Transport):
     def value_problem(self, element: Address, value: int) -> str | None:
         return value_problem(element, value)
 
-    # -- writes: check, journal, then pass on --------------------------------------------------------------
-    def write_words(self, address: NameLike, values: Sequence[int]) -> None:
-        first = parse(address)
-        names = [first.offset(i) for i in range(len(values))] if values else []
-        self.guarded(names, lambda: super(GuardedTransport, self).write_words(first, values),
-                     element_values(zip(names, values)))
+    # -- reads: straight through ----------------------------------------------------------------------------
+    limits = property(lambda self: self.inner.limits)
+    requests_per_read = property(lambda self: self.inner.requests_per_read)
 
-    def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
-        first = parse(address)
-        names = [first.offset(i) for i in range(len(values))] if values else []
-        self.guarded(names, lambda: super(GuardedTransport, self).write_bits(first, values),
-                     element_values(zip(names, values)))
+    def read(self, name: NameLike) -> int:
+        return self.inner.read(name)
+
+    def read_words(self, address: NameLike, count: int = 1) -> list[int]:
+        return self.inner.read_words(address, count)
+
+    def read_bits(self, address: NameLike, count: int = 1) -> list[int]:
+        return self.inner.read_bits(address, count)
 
     def read_many(self, names: Iterable[NameLike], *, one_scan: bool = True) -> list[int]:
         return self.inner.read_many(names, one_scan=one_scan)  # the wire's own frames (FATEK: planned)
 
-    def write_many(self, items, *, one_scan: bool = True) -> None:  # noqa: ANN001 - as Transport.write_many
-        pairs = list(items.items()) if hasattr(items, "items") else list(items)
+    def require(self, names: Iterable[NameLike], action: str, error: type[Exception] | None = None) -> None:
+        self.inner.require(names, action, error)
+
+    # -- writes: check, journal, then pass on --------------------------------------------------------------
+    def write(self, name: NameLike, value: int) -> None:
+        address = parse(name)
+        (self.write_bits if address.is_bit else self.write_words)(address, [value])
+
+    def write_words(self, address: NameLike, values: Sequence[int]) -> None:
+        first = parse(address)
+        names = [first.offset(i) for i in range(len(values))] if values else []
+        self.guarded(names, lambda: self.inner.write_words(first, values), element_values(zip(names, values)))
+
+    def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
+        first = parse(address)
+        names = [first.offset(i) for i in range(len(values))] if values else []
+        self.guarded(names, lambda: self.inner.write_bits(first, values), element_values(zip(names, values)))
+
+    def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
+                   one_scan: bool = True) -> None:
+        pairs = list(items.items()) if isinstance(items, Mapping) else list(items)
         self.guarded([a for a, _ in pairs], lambda: self.inner.write_many(pairs, one_scan=one_scan),
                      element_values((parse(a), v) for a, v in pairs))
-
-    # -- primitives: straight to the inner transport ------------------------------------------------------------
-    def _count(self, result):  # noqa: ANN001, ANN202 - each request is counted once, where it is sent
-        return self.inner._count(result)
-
-    def _read_words(self, first: Address, count: int) -> list[int]:
-        return self.inner._read_words(first, count)
-
-    def _write_words(self, first: Address, values: list[int]) -> None:
-        self.inner._write_words(first, values)
-
-    def _read_bits(self, first: Address, count: int) -> list[int]:
-        return self.inner._read_bits(first, count)
-
-    def _write_bits(self, first: Address, values: list[int]) -> None:
-        self.inner._write_bits(first, values)
-
-    def _read_many(self, addresses: list[Address]) -> list[int]:
-        return self.inner._read_many(addresses)
-
-    def _write_many(self, items: list[tuple[Address, int]]) -> None:
-        self.inner._write_many(items)
-
-    def _status(self) -> PlcStatus:
-        return self.inner._status()
-
-    def unreachable_reason(self, address: NameLike) -> str | None:
-        return self.inner.unreachable_reason(address)
-
-    def reopen(self) -> None:
-        self.inner.reopen()
-
-    def budget(self, write: bool = False) -> float | None:
-        return self.inner.budget(write)
-
-    def _close(self) -> None:
-        self.inner.close()

@@ -1,0 +1,210 @@
+"""A fault rig's coils (a Modbus relay module, ``[faults.*] kind = "modbus-coil"``): reached through the one Modbus
+client, switched only through the guard.
+
+:class:`GuardedRig` is the guard (:class:`hil.bench.guard.GuardedLink`) round the rig's
+:class:`~hil.io.modbus_client.ModbusWire`, with plain coil numbers for elements: a coil's original is read and
+journaled (on disk first, in the journal's ``coils`` section, :class:`CoilJournal`) before its first switch, and
+:meth:`~hil.bench.guard.Guard.restore` writes every original back and reads it back — an entry leaves the journal
+only once verified, a failed one stays for the next restore.  Recovery (:meth:`GuardedRig.replay`) puts back what a
+dead run left switched, through the same restore, only while a coil still holds what the run switched it to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+from hil.bench.guard import GuardedLink
+from hil.bench.replay import Recovery
+from hil.core.errors import RestoreError
+from hil.core.journal import Journal, run_left
+from hil.core.lock import lock_key
+from hil.io.modbus_client import COILS, HOLDING, ModbusWire, Probe
+from hil.io.status import PlcStatus
+from hil.io.url import Target
+
+#: what proves a relay module answers and resynchronises its RTU line: holding register 0 ([our choice]: the
+#: emulator's rig serves it; on TCP a new connection resynchronises and no probe is read)
+RIG_PROBE = Probe(0, 1)
+MAX_COILS = 2000  # coils one FC01 read may ask for
+
+
+def rig_wire(target: Target, timeout: float, retries: int = 2) -> ModbusWire:
+    """The one Modbus client to a fault rig at ``target`` (``modbus+tcp://…``, ``modbus+rtu://…``, RFC 2217)."""
+    unit = int(str(target.params.get("unit", 1)))
+    hint = "is the relay module powered and wired, and are its unit id and address right?"
+    if target.scheme == "modbus+tcp":
+        return ModbusWire.tcp(target.host, target.port, unit=unit, timeout=timeout, retries=retries, hint=hint,
+                              probe=RIG_PROBE, description=f"{target} (fault rig)", describe=_coils)
+    p = target.params
+    return ModbusWire.rtu(target.serial_port, baudrate=int(str(p.get("baudrate", 9600))), parity=str(p.get("parity", "E")),
+                          bytesize=int(str(p.get("bytesize", 8))), stopbits=int(str(p.get("stopbits", 1))), unit=unit,
+                          timeout=timeout, retries=retries, hint=hint, probe=RIG_PROBE, label="fault rig",
+                          describe=_coils)
+
+
+def _coils(table: str, address: int, count: int) -> str:
+    return f"{table} {address}" + (f"–{address + count - 1}" if count > 1 else "")
+
+
+@dataclass(frozen=True)
+class RigCoil:
+    """One coil of one rig: its number, and its name in the journal (``<endpoint>#unit<u>/coil<n>``)."""
+
+    key: str
+    coil: int
+
+    def __str__(self) -> str:
+        return self.key
+
+
+class RigLink:
+    """A relay module's coils over the one Modbus client, by coil number: the public link the guard wraps."""
+
+    emulator = None
+
+    def __init__(self, wire: ModbusWire) -> None:
+        self.wire = wire
+        self.description = wire.description
+
+    @property
+    def requests(self) -> int:
+        return self.wire.requests
+
+    def read_coils(self, coils: list[int]) -> list[int]:
+        """Each coil's state (0/1), in one request from the lowest to the highest (a rig's coils are few)."""
+        if not coils:
+            return []
+        low = min(coils)
+        if max(coils) - low >= MAX_COILS:  # far apart (another injector's bank): one request each
+            return [self.wire.read(COILS, c, 1)[0] for c in coils]
+        states = self.wire.read(COILS, low, max(coils) - low + 1)
+        return [states[c - low] for c in coils]
+
+    def write_coils(self, items: list[tuple[int, int]]) -> None:
+        """Switch coils, in order (each never repeated when its reply is lost: the request policy's rule)."""
+        for coil, value in items:
+            self.wire.write(COILS, coil, [int(value)])
+
+    def read_registers(self, address: int, count: int) -> list[int]:
+        return self.wire.read(HOLDING, address, count)
+
+    def status(self) -> PlcStatus:
+        return PlcStatus(running=None, via="modbus", identity={"transport": self.description})
+
+    def unreachable_reason(self, name: Any) -> str | None:
+        return None
+
+    def budget(self, write: bool = False) -> float | None:
+        return self.wire.budget(write)
+
+    def reopen(self) -> None:
+        self.wire.reopen()
+
+    def close(self) -> None:
+        self.wire.close()
+
+
+class CoilJournal:
+    """The journal's ``coils`` section for one rig, as the guard's durable journal (``add_elements`` /
+    ``drop_elements`` with coil keys; coil originals and states as booleans)."""
+
+    def __init__(self, journal: Journal, target: Target, unit: int, guard: "GuardedRig") -> None:
+        self.journal, self.target, self.unit, self.guard = journal, target, unit, guard
+
+    @property
+    def failed(self) -> str | None:
+        return self.journal.failed
+
+    def add_elements(self, originals: dict[str, int], wrote: dict[str, int | None] | None = None) -> None:
+        wrote = wrote or {}
+        for key in dict.fromkeys([*originals, *wrote]):
+            coil = self.guard.coil(key)
+            original = originals[key] if key in originals else self.guard.journal.get(coil)
+            state = wrote.get(key)
+            self.journal.add_coil(key, str(self.target), coil.coil, self.unit, bool(original),
+                                  wrote=None if state is None else bool(state))
+
+    def drop_elements(self, names: Iterable[str]) -> None:
+        for key in names:
+            self.journal.drop_coil(key)
+
+
+class GuardedRig(GuardedLink):
+    """The guard round a rig's coils: ``writable`` coil numbers only, originals journaled before the first switch,
+    restored and read back."""
+
+    inner: RigLink
+
+    def __init__(self, target: Target, link: RigLink, writable: Iterable[int], journal: Journal | None = None) -> None:
+        self.target = target
+        self.unit = int(str(target.params.get("unit", 1)))
+        self._prefix = f"{lock_key(str(target))}#unit{self.unit}/coil"
+        super().__init__(link, [self.coil(c) for c in writable])
+        if journal is not None:
+            self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]
+
+    def coil(self, name: "int | str | RigCoil") -> RigCoil:
+        """The element for a coil number, its journal key, or itself."""
+        if isinstance(name, RigCoil):
+            return name
+        if isinstance(name, str):  # a journal key, kept as written (a dead run's may name its URL otherwise)
+            return RigCoil(name, int(name.rpartition("/coil")[2]))
+        return RigCoil(f"{self._prefix}{int(name)}", int(name))
+
+    # -- the guard's address model --------------------------------------------------------------------------
+    def split(self, name: Any) -> list[RigCoil]:
+        return [self.coil(name)]
+
+    def read_originals(self, elements: list[RigCoil]) -> list[int]:
+        return self.inner.read_coils([e.coil for e in elements])
+
+    def write_back(self, items: list[tuple[RigCoil, int]]) -> None:
+        self.inner.write_coils([(e.coil, v) for e, v in items])
+
+    # -- switching ----------------------------------------------------------------------------------------------
+    def switch(self, coil: int, on: bool) -> None:
+        """Coil ``coil`` on or off, its original journaled first."""
+        element = self.coil(coil)
+        self.guarded([element], lambda: self.inner.write_coils([(coil, int(on))]), {element: int(on)})
+
+    def read(self, coil: int) -> int:
+        return self.inner.read_coils([coil])[0]
+
+    # -- recovery -----------------------------------------------------------------------------------------------
+    def replay(self, entries: dict[str, dict[str, Any]], report: Recovery) -> None:
+        """A dead run's coil ``entries`` (checked by the caller): each back to its original through the restore,
+        only while it still holds what the run switched it to (or its original: then it is only dropped)."""
+        elements = [self.coil(key) for key in entries]
+        try:
+            now = self.read_originals(elements)
+        except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
+            report.failures += [f"rig coil {e} (original {int(entries[e.key]['original'])}): {exc}" for e in elements]
+            return
+        back, again = [], []
+        for element, value in zip(elements, now):
+            entry = entries[element.key]
+            original, wrote = bool(entry["original"]), entry["wrote"]
+            if bool(value) == original:
+                back.append(element)
+            elif wrote is not None and bool(value) not in run_left(entry):
+                report.changed.append(f"rig coil {element} reads {int(value)}, the run wrote {int(wrote)} (original "
+                                      f"{int(original)})")
+            else:
+                self.journal[element] = int(original)
+                again.append(element)
+        failed: set[str] = set()
+        if again:
+            try:
+                self.restore()
+            except RestoreError as exc:
+                for name, value, why in exc.failures:
+                    failed.add(str(name))
+                    report.failures.append(f"rig coil {name} (original {int(value)}): {why}")
+        back += [e for e in again if e.key not in failed]
+        if self.durable is not None:  # what read back as its original (a restored one is dropped already)
+            self.durable.drop_elements(e.key for e in back)
+        report.verified += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in back]
+
+
+__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "rig_wire"]
