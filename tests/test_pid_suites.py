@@ -25,7 +25,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 33  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 34  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -68,7 +68,7 @@ def test_heater_loop_suites_against_hil_emulate_with_a_modbus_coil_rig(pytester,
         bench_file.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, EXTERNAL_TIME_SCALE))
         result = pytester.runpytest_inprocess(SUITES[1], *INNER, "--bench", str(bench_file), "--hil-run-slow",
                                               "-k", "heater_loop", "-rs")
-        result.assert_outcomes(passed=3)
+        result.assert_outcomes(passed=4)
 
 
 # -- broken FUN86 models -------------------------------------------------------------------------------------------
@@ -119,6 +119,20 @@ class HeaterLoopIgnoresR4006(Fun86Model):
 
     def loop_threshold(self, mem):
         return 90
+
+
+class HeaterLoopOnePercentEarly(Fun86Model):
+    """Counts an output from R4006 − 1 % as high: one just under R4006 warns."""
+
+    def loop_threshold(self, mem):
+        return super().loop_threshold(mem) - 1
+
+
+class HeaterLoopOnePercentLate(Fun86Model):
+    """Counts an output as high only from R4006 + 1 %: one just at or above R4006 never warns."""
+
+    def loop_threshold(self, mem):
+        return super().loop_threshold(mem) + 1
 
 
 class NoErrForSnPlusZn33(Fun86Model):
@@ -334,6 +348,8 @@ CAUGHT_BY = {
     HeaterLoopTimerTwiceAsFast: ["test_heater_loop_warning_after_r4007_seconds_and_not_before"],
     HeaterLoopTimerHalfSpeed: ["test_heater_loop_warning_after_r4007_seconds_and_not_before"],
     HeaterLoopIgnoresR4006: ["test_heater_loop_threshold_is_r4006[R4006-80-warns]"],
+    HeaterLoopOnePercentEarly: ["test_heater_loop_warns_from_exactly_r4006"],
+    HeaterLoopOnePercentLate: ["test_heater_loop_warns_from_exactly_r4006"],
     NoErrForSnPlusZn33: ["test_err_for_invalid_sn_zn[Sn31-Zn2]", "test_err_for_invalid_sn_zn[Sn20-Zn13]"],
     DisabledPointStillDriven: ["test_disabled_point_output_is_forced_off"],
     R4004Ignored: ["test_pvs_come_from_where_r4003_and_r4004_say", "test_prealarm_of_every_point_at_r4008"],

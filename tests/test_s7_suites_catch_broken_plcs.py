@@ -104,6 +104,13 @@ class SetRtcIWithoutConversion(S7Clock):
         return self.set_rtc(now, buffer)
 
 
+class SetRtcITakesBytesModulo100(S7Clock):
+    """SET_RTC_I converts each integer modulo 100: a byte above 99 becomes a valid one (minute 100 → 00)."""
+
+    def set_rtc_i(self, now, buffer):  # noqa: ANN001, ANN201
+        return self.set_rtc(now, bytes(timebuf.to_bcd(b % 100) for b in bytes(buffer)))
+
+
 class PowerLossKeepsTime(S7Clock):
     """After the back-up ran out the clock restarts at its build time instead of 2000-01-01."""
 
@@ -200,6 +207,7 @@ CAUGHT_BY = {
     RunningFebruaryHas28: "test_clock_runs_over_every_month_end_and_leap_day",
     RunningYear2000Common: "test_clock_runs_over_every_month_end_and_leap_day",
     RunningMonthsAlternate: "test_clock_runs_over_every_month_end_and_leap_day",
+    SetRtcITakesBytesModulo100: "test_set_rtc_i_refuses_what_set_rtc_refuses",
 }
 EMULATE_TIME_SCALE = 20.0
 

@@ -69,6 +69,22 @@ class R4011Ignored(TemperatureModel):
         return super().installed(mem, point % 16)
 
 
+class MaskHidesOnlyOpenSensors(TemperatureModel):
+    """A masked point reads 0 only while its sensor is open; a healthy masked one shows its live reading."""
+
+    def point_result(self, point, installed, broken, live):
+        reading, flag = super().point_result(point, installed, broken, live)
+        return np.where(~installed & ~broken, live, reading), flag
+
+
+class Point16MaskedByR4010(TemperatureModel):
+    """Point 16's installed bit read from R4010 bit 0 (point // 17 for the word): it follows point 0's."""
+
+    def installed(self, mem, point):
+        mask = np.array(mem.words["R"][4010:4012])
+        return (mask[point // 17] >> (point % 16) & 1).astype(bool)
+
+
 class BreakBitsOfHighPointsInTW1(TemperatureModel):
     def break_position(self, point):
         return 1, point % 16
@@ -246,6 +262,8 @@ CAUGHT_BY = {
     BreakWordsHoldOnePoint: [BREAK_TEST],
     R4011DefaultsTo0000: ["test_installed_mask_defaults_to_ffffh"],
     UpdateTimeOneAndAHalf: [BREAK_TEST],
+    MaskHidesOnlyOpenSensors: [BREAK_TEST],
+    Point16MaskedByR4010: [BREAK_TEST],
 }
 
 

@@ -283,7 +283,8 @@ def test_set_rtc_i_equals_set_rtc_with_bcd(set_i, integers, bcd_buffer, weekday)
 @pytest.mark.parametrize("integers", [[24, 2, 30, 9, 0, 0, 0, 0], [23, 2, 29, 9, 0, 0, 0, 0],
                                       [24, 13, 1, 9, 0, 0, 0, 0],
                                       pytest.param([24, 6, 20, 24, 0, 0, 0, 0], marks=pytest.mark.spec("S7-RTC-6")),
-                                      pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6"))])
+                                      pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6")),
+                                      [24, 6, 20, 9, 100, 0, 0, 0]])  # (minute 100: no two-digit number at all)
 def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
     assert set_i.set(SATURDAY_15_JUNE_2024).accepted
     result = set_i.set_int(integers)
