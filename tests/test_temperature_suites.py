@@ -72,9 +72,8 @@ class R4011Ignored(TemperatureModel):
 class MaskHidesOnlyOpenSensors(TemperatureModel):
     """A masked point reads 0 only while its sensor is open; a healthy masked one shows its live reading."""
 
-    def point_result(self, point, installed, broken, live):
-        reading, flag = super().point_result(point, installed, broken, live)
-        return np.where(~installed & ~broken, live, reading), flag
+    def installed(self, mem, point):
+        return super().installed(mem, point) | ~np.isin(point, list(self.broken))
 
 
 class Point16MaskedByR4010(TemperatureModel):
