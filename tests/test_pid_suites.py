@@ -3,6 +3,8 @@ the suites must catch (a suite that passes on a faulty PLC is the worst bug this
 
 from __future__ import annotations
 
+import dataclasses
+
 import time
 
 import numpy as np
@@ -25,7 +27,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 34  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 35  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -133,6 +135,14 @@ class HeaterLoopOnePercentLate(Fun86Model):
 
     def loop_threshold(self, mem):
         return super().loop_threshold(mem) + 1
+
+
+class NoDerivativeAction(Fun86Model):
+    """The law without its D term: Td has no effect."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        law = super().law(inst, kc, ki, td, heating, ts)
+        return dataclasses.replace(law, derivative=law.derivative * 0)
 
 
 class NoErrForSnPlusZn33(Fun86Model):
@@ -350,6 +360,7 @@ CAUGHT_BY = {
     HeaterLoopIgnoresR4006: ["test_heater_loop_threshold_is_r4006[R4006-80-warns]"],
     HeaterLoopOnePercentEarly: ["test_heater_loop_warns_from_exactly_r4006"],
     HeaterLoopOnePercentLate: ["test_heater_loop_warns_from_exactly_r4006"],
+    NoDerivativeAction: ["test_derivative_acts_on_a_pv_change_and_td_0_has_none"],
     NoErrForSnPlusZn33: ["test_err_for_invalid_sn_zn[Sn31-Zn2]", "test_err_for_invalid_sn_zn[Sn20-Zn13]"],
     DisabledPointStillDriven: ["test_disabled_point_output_is_forced_off"],
     R4004Ignored: ["test_pvs_come_from_where_r4003_and_r4004_say", "test_prealarm_of_every_point_at_r4008"],
