@@ -617,19 +617,26 @@ def _write_bracketed(bench, name, value):
 
 @pytest.mark.spec("PID-PRE-1")
 @pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
-@pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
-def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
+@pytest.mark.parametrize("dip,at_r4008", [(False, False), (True, False), (False, True)],
+                         ids=["steady", "dip", "at-r4008"])
+def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r4008):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
     count the counter pins down exactly: the words are read between two counter reads (R in c_a + r … c_b − r, a
     read spanning r scans), so with PV ≥ R4008 first seen by scan F (c1 + r + 1 … c2) the words show R − F + 1
     counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
-    pins down both 9 and 10 the test skips with the widths it saw."""
+    pins down both 9 and 10 the test skips with the widths it saw.  ``at-r4008``: every PV exactly at R4008 (the
+    manual's "≥": equal counts from the first scan), PVs put through R4003/R4004."""
     inst = _instances(pid)[0]
     _need(bench, "R4008")
     _start(bench, pid, inst)
+    limit = 100
+    if at_r4008:
+        block = _pv_source(bench)
+        limit = 1000  # 100.0 °
+        _write_pvs(bench, block, {p: limit for p in inst.points})
     _all_in_band(bench, pid, inst)
     points = _enabled_points(bench, inst)
-    assert min(pid.pvs(points).values()) >= 100, "the points must read ≥ 10.0 ° for R4008 = 100 to be under PV"
+    assert min(pid.pvs(points).values()) >= limit, f"the points must read ≥ {limit / 10} ° for R4008 = {limit}"
     want = _expected_words(inst, points)
     wr = inst.wr.offset(2)
     io = bench.plc.io
@@ -646,19 +653,19 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
         bench.settle()
         if any(io.read_words(str(wr), 2)):
             pytest.skip("the warnings stay set with PV below R4008 on this PLC: no fresh count to bracket")
-        c1, c2 = _write_bracketed(bench, "R4008", 100)
+        c1, c2 = _write_bracketed(bench, "R4008", limit)
         if dip:
             # a dip after a few (1 … 8) counted scans: the count must start again from zero after it
             _, c3 = _write_bracketed(bench, "R4008", 65535)
             dips.append(c3 - (c1 + r + 1))
             if dips[-1] > 8:
                 continue  # the first run may have reached 10 scans before the dip: not the case under test
-            c1, c2 = _write_bracketed(bench, "R4008", 100)
+            c1, c2 = _write_bracketed(bench, "R4008", limit)
         first_low, first_high = c1 + r + 1, c2  # the first scan that sees PV ≥ R4008
         # Shift the phase from attempt to attempt, one scan at a time (a write of the value R4008 holds: only scans
         # pass), over the 3 r scans the loop below advances by, so that every count gets its chance to be exact.
         for _ in range(attempt % (3 * r)):
-            io.write("R4008", 100)
+            io.write("R4008", limit)
         while True:
             ca = _scans(bench)
             words = tuple(io.read_words(str(wr), 2))
