@@ -18,15 +18,12 @@ from hil.families.fbs.rtc_time import CENTURY_SECONDS, EPOCH, RtcTime
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
 
-_FIRST = parse(reg.RTC_SECOND).index  # R4128
-_HOUR_MINUTE = parse(reg.RTC_HOUR_MINUTE).index  # R4135
-_HOLD = parse(reg.RTC_HOLD).index  # M1952
-_ADJUST = parse(reg.RTC_ADJUST_30S).index  # M1953
-_INSTALLED = parse(reg.RTC_INSTALLED).index  # M1954
-_SET_ERROR = parse(reg.RTC_SET_ERROR).index  # M1955
-_CHIP = parse(reg.RTC_CHIP).index  # D4053
-_RATE_CODE = parse(reg.RTC_RATE_CODE).index  # D4054
-
+#: R4128–R4135, the read-out's words
+_CLOCK = slice(parse(reg.RTC_SECOND).index, parse(reg.RTC_HOUR_MINUTE).index + 1)
+#: every element the clock reads or writes at a scan (its footprint)
+_TOUCHED = frozenset([("R", i) for i in range(_CLOCK.start, _CLOCK.stop)] + [
+    (a.kind, a.index) for a in map(parse, (reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_INSTALLED, reg.RTC_SET_ERROR,
+                                           reg.RTC_CHIP, reg.RTC_RATE_CODE))])
 
 def rolled_over_seconds(t: RtcTime) -> int:
     """An invalid time's seconds since 2000-01-01, taken arithmetically (31 April = 1 May, second 60 = the next
@@ -56,10 +53,10 @@ class RtcShortcuts:
         # chip_seconds(emu.now), inlined
         second = math.floor((self._anchor_s + (emu.now - self._anchor_t) * self._rate) % CENTURY_SECONDS)
         words = emu.memory.words["R"]
-        if second == self._shown_second and words[_FIRST:_HOUR_MINUTE + 1] == self._shown:
+        if second == self._shown_second and words[_CLOCK] == self._shown:
             return
         self.copy_out(emu, self.read_chip(emu.now))
-        self._shown_second, self._shown = second, words[_FIRST:_HOUR_MINUTE + 1]
+        self._shown_second, self._shown = second, words[_CLOCK]
 
     def next_event(self, now: float) -> float:
         """Never: the chip's time is a formula of virtual time, and the engine always runs the scan after a
@@ -72,6 +69,4 @@ class RtcShortcuts:
         variant with a scan of its own (a deliberately broken clock): what it touches is not known here."""
         if type(self).scan is not self.plain.scan:
             return None
-        return frozenset([("R", i) for i in range(_FIRST, _HOUR_MINUTE + 1)]
-                         + [("M", i) for i in (_HOLD, _ADJUST, _INSTALLED, _SET_ERROR)]
-                         + [("D", _CHIP), ("D", _RATE_CODE)])
+        return _TOUCHED
