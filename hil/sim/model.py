@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, ClassVar, TypeVar
 
 import numpy as np
 
@@ -57,6 +57,14 @@ class Model:
     """
 
     name = "model"
+    #: the model's scans may be computed in batches, and its seams read as this class's own code reads them: the
+    #: batchers (a family's ``span``) and caches rely on exactly this code.  Declared by each class for itself,
+    #: never inherited: a subclass that overrides a seam (a broken variant) runs scan by scan unless it says so.
+    batchable: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.batchable = bool(cls.__dict__.get("batchable", False))
 
     def power_on(self, emu: "Engine") -> None:
         pass

@@ -154,6 +154,7 @@ class Law:
 
 class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
     name = "fun86"
+    batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: PidConfig, temperature: TemperatureConfig | None) -> None:
         self.config = config

@@ -297,6 +297,7 @@ class PlantSource:
 
 class ThermalPlant(Model):
     name = "plant"
+    batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: PlantConfig, heaters: dict[int, Address], seed: int = 0) -> None:
         """``heaters``: temperature point → the output (Y…) that switches its heater."""

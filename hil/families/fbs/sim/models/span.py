@@ -82,6 +82,78 @@ class _Loop:
     dark: np.ndarray  # … and off (the plant's faults)
 
 
+@dataclass
+class _Ready:
+    """What a batch needs, as it holds between two requests (:meth:`Span._ready`)."""
+
+    tm: TemperatureModel
+    plant: ThermalPlant
+    table: MeasuringTable
+    loops: list[_Loop]
+    limit: int  # R4008
+    loop_seconds: int  # R4007
+    high_at: float  # the output (of OUTPUT_FULL) from which a heater-loop timer runs: R4006
+
+
+@dataclass
+class _Measured:
+    """A block's measurements (:meth:`_Batch._measurements`): per measurement, in the order the scans take them."""
+
+    times: np.ndarray
+    points: np.ndarray
+    codes: np.ndarray  # its sensor's code
+    scan: np.ndarray  # the block's scan it lands in …
+    col: np.ndarray  # … its column in that scan's row
+    rank: np.ndarray  # the how-many-th reading of its point at that scan
+    per_scan: np.ndarray  # measurements per scan
+    width: int  # the widest scan's
+    cell: np.ndarray  # scans × width: the measurement in each cell (−1: none)
+    slot: np.ndarray  # the plant slot heating its point (−1: none)
+    good: np.ndarray  # installed and not broken
+    heated: np.ndarray
+    bad_reading: np.ndarray | None = None  # (only when some are not good) what those read …
+    bad_flag: np.ndarray | None = None  # … and their break bits
+    pre: np.ndarray | None = None  # (only when some good points have sources of their own) their values
+
+    def rows(self, flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
+        """A value per measurement as the block's rows (``fill`` where a scan has fewer)."""
+        return np.where(self.cell >= 0, flat[self.cell], fill)
+
+
+@dataclass
+class _Columns:
+    """The plant's columns of a block's scans (:meth:`_Batch._columns`): what of their solution does not depend on
+    the loop, scans × cycles × columns."""
+
+    c_slot: np.ndarray  # each column's slot
+    raw: np.ndarray  # each cycle's start, off the scan grid
+    s3: np.ndarray
+    t3: np.ndarray  # each column's time
+    r3: np.ndarray  # each column's rate
+    c_lift: np.ndarray
+    decay: np.ndarray
+    base: np.ndarray
+
+
+@dataclass
+class _Stepped:
+    """What the scans of a block computed (:meth:`_Batch._steps`)."""
+
+    values: np.ndarray  # scans × width: each measurement's value
+    temps_at: np.ndarray  # scans × slots: T of each slot at each scan
+    outputs_at: list[np.ndarray]  # per instance, scans × points: OR
+    updates: np.ndarray  # scans × points: the column of each point's last reading at the scan (−1: none)
+    readings: np.ndarray  # scans × width: each measurement's reading word
+
+
+@dataclass
+class _Seen:
+    """A block's readings as the scans' PVs saw them (:meth:`_Batch._readings`)."""
+
+    flat: np.ndarray  # per measurement, its reading
+    pv_at: np.ndarray  # scans × points: each point's PV register at each scan
+
+
 class _Step:
     """A running instance's PID state through a batch (its points' arrays: the enabled ones)."""
 
@@ -116,7 +188,7 @@ class Span:
         saved = self._save(engine, ready)
         while True:
             start = engine.now
-            times, due = self._plan(engine, target, ready["loops"], bound)
+            times, due = self._plan(engine, target, ready.loops, bound)
             if not times:
                 return False
             batch = _Batch(self.fun86, engine, ready, np.array([start, *times]), due)
@@ -129,18 +201,17 @@ class Span:
             bound = deadline
 
     # -- what may be batched ---------------------------------------------------------------------------------
-    def _ready(self, engine: "Engine") -> dict[str, Any] | None:
+    def _ready(self, engine: "Engine") -> _Ready | None:
         """Everything a batch needs, or None when the coming scans are not FUN86's PID steps alone."""
         fun86 = self.fun86
         tm = fun86.temperature_model
-        if (type(fun86) is not Fun86Model or not fun86.pwm_exact or type(tm) is not TemperatureModel
-                or tm.log is None):
+        if not fun86.batchable or not fun86.pwm_exact or tm is None or not tm.batchable or tm.log is None:
             return None
         states = fun86.states
         if any(st.waiting for st in states) or not any(st.running for st in states):
             return None
         models = engine.models
-        plant = next((m for m in models if type(m) is ThermalPlant), None)
+        plant = next((m for m in models if isinstance(m, ThermalPlant) and m.batchable), None)
         if plant is None or not plant.waved or plant.driver is not fun86:
             return None
         at = [next((i for i, m in enumerate(models) if m is model), -1) for model in (tm, fun86, plant)]
@@ -179,8 +250,7 @@ class Span:
         # the next scan is a PID step's (not a heater-loop deadline's: those later are checked after the batch)
         if fun86.next_event(now) < fun86.scan_for(min(loop.st.next_pid for loop in loops), now):
             return None
-        return {"tm": tm, "plant": plant, "table": table, "loops": loops, "limit": limit,
-                "loop_seconds": loop_seconds, "high_at": fun86.loop_threshold(mem) * OUTPUT_FULL}
+        return _Ready(tm, plant, table, loops, limit, loop_seconds, fun86.loop_threshold(mem) * OUTPUT_FULL)
 
     def _loop(self, mem: "Memory", inst: PidInstance, st: InstanceState, enabled: np.ndarray,
               plant: ThermalPlant) -> _Loop:
@@ -270,32 +340,28 @@ class Span:
         return times, due
 
     @staticmethod
-    def _save(engine: "Engine", ready: dict[str, Any]) -> tuple:
+    def _save(engine: "Engine", ready: _Ready) -> tuple:
         """What planning and computing a batch change before it is committed (to try a shorter one instead)."""
-        tm = ready["tm"]
         return ((engine.now, engine.scans, engine.skipped_time), [(loop.st.next_pid, loop.st.loop_since.copy())
-                                                                   for loop in ready["loops"]],
-                tm.schedule_state())
+                                                                   for loop in ready.loops],
+                ready.tm.schedule_state())
 
     @staticmethod
-    def _restore(engine: "Engine", ready: dict[str, Any], saved: tuple) -> None:
+    def _restore(engine: "Engine", ready: _Ready, saved: tuple) -> None:
         clock, loops, temperature = saved
         engine.now, engine.scans, engine.skipped_time = clock
-        for loop, (next_pid, loop_since) in zip(ready["loops"], loops):
+        for loop, (next_pid, loop_since) in zip(ready.loops, loops):
             loop.st.next_pid, loop.st.loop_since = next_pid, loop_since.copy()
-        ready["tm"].restore_schedule(temperature)
+        ready.tm.restore_schedule(temperature)
 
 
 class _Batch:
     """A batch's scans, computed block after block of scans (see the module docstring), and what they leave."""
 
-    def __init__(self, fun86: Fun86Model, engine: "Engine", ready: dict[str, Any], scans: np.ndarray,
+    def __init__(self, fun86: Fun86Model, engine: "Engine", ready: _Ready, scans: np.ndarray,
                  due: list[list[bool]]) -> None:
         self.fun86, self.engine, self.ready = fun86, engine, ready
-        self.tm: TemperatureModel = ready["tm"]
-        self.plant: ThermalPlant = ready["plant"]
-        self.table: MeasuringTable = ready["table"]
-        self.loops: list[_Loop] = ready["loops"]
+        self.tm, self.plant, self.table, self.loops = ready.tm, ready.plant, ready.table, ready.loops
         self.scans, self.due = scans, due
         self.st_time = engine.scan_time
         self.n_scans = n_scans = len(scans) - 1
@@ -379,17 +445,16 @@ class _Batch:
         between two of them (the batch is then to be planned again, up to it)."""
         for b0 in range(0, self.n_scans, BLOCK):
             b1 = min(b0 + BLOCK, self.n_scans)
-            block = self._measurements(b0, b1)
-            self._columns(block, b0, b1)
-            self._steps(block, b0, b1)
-            self._readings(block, b0, b1)
-            deadline = self._alarms(block, b0, b1)
+            measured = self._measurements(b0, b1)
+            stepped = self._steps(measured, self._columns(measured, b0, b1), b0, b1)
+            seen = self._readings(measured, stepped, b0, b1)
+            deadline = self._alarms(measured, stepped, seen, b0, b1)
             if deadline is not None:
                 return deadline
-            self._anchors(block, b0, b1)
+            self._anchors(stepped, b0, b1)
         return None
 
-    def _measurements(self, b0: int, b1: int) -> dict[str, Any]:
+    def _measurements(self, b0: int, b1: int) -> _Measured:
         """The measurements of scans b0…b1 − 1: each module's in time order (its points in turn), module after
         module (as each scan takes them), each with its column in its scan's row; and what each needs but the
         plant."""
@@ -410,36 +475,29 @@ class _Batch:
         cell[scan, col] = np.arange(len(times))
         slot = self.slot_of[points]
         good = self.installed[points] & ~self.broken[points]
-        block = {"times": times, "points": points, "codes": codes, "scan": scan, "col": col, "rank": rank,
-                 "per_scan": filled, "width": width, "cell": cell, "slot": slot, "good": good, "heated": slot >= 0}
+        block = _Measured(times, points, codes, scan, col, rank, filled, width, cell, slot, good, slot >= 0)
         if not good.all():
             reading, flag = tm.point_result(points, self.installed[points], self.broken[points],
                                             np.zeros(len(points), dtype=np.int64))
-            block["bad_reading"] = np.broadcast_to(np.asarray(reading, dtype=np.int64), points.shape)
-            block["bad_flag"] = np.broadcast_to(np.asarray(flag, dtype=bool), points.shape)
-        if not (block["heated"] | ~good).all():  # sources of their own: their values known beforehand
-            other = good & ~block["heated"]
-            block["pre"] = np.zeros(len(points))
-            block["pre"][other] = tm.values(times[other], points[other])
+            block.bad_reading = np.broadcast_to(np.asarray(reading, dtype=np.int64), points.shape)
+            block.bad_flag = np.broadcast_to(np.asarray(flag, dtype=bool), points.shape)
+        if not (block.heated | ~good).all():  # sources of their own: their values known beforehand
+            other = good & ~block.heated
+            block.pre = np.zeros(len(points))
+            block.pre[other] = tm.values(times[other], points[other])
         return block
 
-    @staticmethod
-    def rows(block: dict[str, Any], flat: np.ndarray, fill: Any) -> np.ndarray:  # noqa: ANN401
-        """A value per measurement of a block as its rows (``fill`` where a scan has fewer)."""
-        cell = block["cell"]
-        return np.where(cell >= 0, flat[cell], fill)
-
-    def _columns(self, block: dict[str, Any], b0: int, b1: int) -> None:
+    def _columns(self, block: _Measured, b0: int, b1: int) -> _Columns:
         """The plant's columns of the block's scans — the measurements, then every slot at the scan — and what of
         their solution does not depend on the loop: the cycles of the PWM each scan's interval meets, the decays and
         the heater-off part (:func:`cycle_terms`)."""
-        plant, st_time, width = self.plant, self.st_time, block["width"]
+        plant, st_time, width = self.plant, self.st_time, block.width
         scans = self.scans[b0:b1 + 1]
         n, n_slots = b1 - b0, len(plant.order)
-        cell = block["cell"]
+        cell = block.cell
         a = scans[:-1, None]
-        m_slot = self.rows(block, np.where(block["heated"], block["slot"], 0), 0)
-        m_time = np.where(cell >= 0, block["times"][cell], a)  # (padding: nothing elapsed)
+        m_slot = block.rows(np.where(block.heated, block.slot, 0), 0)
+        m_time = np.where(cell >= 0, block.times[cell], a)  # (padding: nothing elapsed)
         c_slot = np.hstack((m_slot, np.broadcast_to(np.arange(n_slots), (n, n_slots))))
         c_time = np.hstack((m_time, np.broadcast_to(scans[1:, None], (n, n_slots))))
         started, period = self.wave_started, self.wave_period  # (each distinct waveform's)
@@ -471,17 +529,17 @@ class _Batch:
         decay, base = cycle_terms(a, t3.transpose(1, 0, 2), starts.transpose(1, 0, 2), self.t_off[c_slot], c_lift,
                                   r3.transpose(1, 0, 2))
         if plant.normals is not None:  # (a measurement is T plus its noise: here, the columns come out measured)
-            heated = block["heated"]
-            noise = plant.measurement_noise(np.where(heated, block["slot"], 0), block["points"], block["times"])
-            base[:, :width] += self.rows(block, np.where(heated, noise, 0.0), 0.0)
-        block.update(c_slot=c_slot, raw=raw, s3=s3, t3=t3, r3=r3, c_lift=c_lift, decay=decay, base=base)
+            heated = block.heated
+            noise = plant.measurement_noise(np.where(heated, block.slot, 0), block.points, block.times)
+            base[:, :width] += block.rows(np.where(heated, noise, 0.0), 0.0)
+        return _Columns(c_slot, raw, s3, t3, r3, c_lift, decay, base)
 
-    def _steps(self, block: dict[str, Any], b0: int, b1: int) -> None:
+    def _steps(self, block: _Measured, columns: _Columns, b0: int, b1: int) -> _Stepped:
         """Scan after scan: the plant through the last interval's waveforms, the readings, the PID steps due."""
         fun86, tm, loops, due, st_time = self.fun86, self.tm, self.loops, self.due, self.st_time
-        n, width, n_slots = b1 - b0, block["width"], len(self.plant.order)
+        n, width, n_slots = b1 - b0, block.width, len(self.plant.order)
         averaging = tm.config.averaging
-        mixed, bad = "pre" in block, "bad_reading" in block
+        mixed, bad = block.pre is not None, block.bad_reading is not None
         plain = not (mixed or self.clamps or tm.config.unit != "C" or averaging > 1 or bad or self.wraps)
         solved = np.zeros((n, width + n_slots))  # each scan's plant columns: measured values, then T of each slot
         values, temps_at = solved[:, :width], solved[:, width:]
@@ -492,22 +550,21 @@ class _Batch:
         control, in_unit, resolution, on_times = fun86.control, tm.in_unit, tm.resolution, fun86.on_times
         # the column of each point's last reading at each scan (its PV register's new value; −1: none)
         updates = np.full((n, len(self.pv)), -1, dtype=np.intp)
-        last = last_of_each(block["scan"] * 64 + block["points"])
-        updates[block["scan"][last], block["points"][last]] = block["col"][last]
+        last = last_of_each(block.scan * 64 + block.points)
+        updates[block.scan[last], block.points[last]] = block.col[last]
         whole = (updates >= 0).all(axis=1).tolist()  # every PV read anew at the scan
-        if mixed:
-            heated, pre = self.rows(block, block["heated"] | ~block["good"], True), self.rows(block, block["pre"], 0.0)
+        if block.pre is not None:
+            heated, pre = block.rows(block.heated | ~block.good, True), block.rows(block.pre, 0.0)
         if self.clamps:
-            low, high = self.rows(block, SENSOR_LOW[block["codes"]], -math.inf), \
-                self.rows(block, SENSOR_HIGH[block["codes"]], math.inf)
-        if bad:
-            good, bad_reading = self.rows(block, block["good"], True), self.rows(block, block["bad_reading"], 0)
+            low, high = block.rows(SENSOR_LOW[block.codes], -math.inf), block.rows(SENSOR_HIGH[block.codes], math.inf)
+        if block.bad_reading is not None:
+            good, bad_reading = block.rows(block.good, True), block.rows(block.bad_reading, 0)
         if averaging > 1:
-            cell_points = self.rows(block, block["points"], 0)
+            cell_points = block.rows(block.points, 0)
         pv, temps, on = self.pv, self.temps, self.on
         starts = self.scans[b0:b1].tolist()
-        c_slot, raw, s3, t3, r3, c_lift, decay, base = (block[name] for name in (
-            "c_slot", "raw", "s3", "t3", "r3", "c_lift", "decay", "base"))
+        c_slot, raw, s3, t3, r3, c_lift = columns.c_slot, columns.raw, columns.s3, columns.t3, columns.r3, columns.c_lift
+        decay, base = columns.decay, columns.base
         for j in range(n):
             i = b0 + j
             slots = c_slot[j]
@@ -523,7 +580,7 @@ class _Batch:
                     value = np.where(heated[j], value, pre[j])
                 value = values[j] = in_unit(value, *((low[j], high[j]) if self.clamps else (None, None)))
                 if averaging > 1:
-                    count = block["per_scan"][j]
+                    count = block.per_scan[j]
                     mean = value.copy()
                     mean[:count] = tm.average(cell_points[j, :count], value[:count])
                 else:
@@ -558,64 +615,65 @@ class _Batch:
                         on[loop.slots] = on_times(loop.st, run.output[loop.driven])
                 outs[j] = run.output
         self.pv, self.temps, self.on = pv, temps, on
-        block.update(values=values, temps_at=temps_at, outputs_at=outputs_at, updates=updates,
-                     readings=(resolution(values) if readings is None else readings).astype(np.int64))
+        return _Stepped(values, temps_at, outputs_at, updates,
+                        (resolution(values) if readings is None else readings).astype(np.int64))
 
-    def _readings(self, block: dict[str, Any], b0: int, b1: int) -> None:
+    def _readings(self, block: _Measured, stepped: _Stepped, b0: int, b1: int) -> _Seen:
         """The block's readings as each scan's PVs saw them, and each point's last reading so far."""
-        readings, updates, width = block["readings"], block["updates"], block["width"]
-        scan, col, points = block["scan"], block["col"], block["points"]
-        block["flat_readings"] = flat = readings[scan, col]
+        readings, updates, width = stepped.readings, stepped.updates, block.width
+        scan, col, points = block.scan, block.col, block.points
+        flat = readings[scan, col]
         # each scan's PVs: each point's last reading so far (the register's value before the block until one)
         cell = np.where(updates >= 0, np.arange(b1 - b0)[:, None] * width + updates, -1)
         cell = np.maximum.accumulate(cell, axis=0)
         fresh = signed16(readings.ravel()[np.maximum(cell, 0)] & 0xFFFF) if readings.size else 0
-        block["pv_at"] = pv_at = np.where(cell >= 0, fresh, self.pv_register)
+        pv_at = np.where(cell >= 0, fresh, self.pv_register)
         self.pv_register = pv_at[-1]
         last = last_of_each(points)
         pts = points[last]
         self.last_word[pts] = flat[last] & 0xFFFF
-        self.last_value[pts] = block["values"][scan, col][last]
-        self.last_flag[pts] = block["bad_flag"][last] & ~block["good"][last] if "bad_flag" in block else False
+        self.last_value[pts] = stepped.values[scan, col][last]
+        self.last_flag[pts] = block.bad_flag[last] & ~block.good[last] if block.bad_flag is not None else False
         if self.kept is not None:
             for j in range(b1 - b0):
                 fresh = np.flatnonzero(updates[j] >= 0)
                 self.kept.append([fresh, readings[j][updates[j][fresh]] & 0xFFFF])
+        return _Seen(flat, pv_at)
 
-    def _alarms(self, block: dict[str, Any], b0: int, b1: int) -> float | None:
+    def _alarms(self, block: _Measured, stepped: _Stepped, seen: _Seen, b0: int, b1: int) -> float | None:
         """Each instance's heater-loop starts through the block, and each scan's normal and warning words and ALM;
         the first heater-loop deadline the engine would have scanned at between two scans, if any."""
         fun86, ready, scans, st_time = self.fun86, self.ready, self.scans, self.st_time
-        high_at, n = ready["high_at"], b1 - b0
+        high_at, n = ready.high_at, b1 - b0
         first, limit = math.inf, None
-        for k, (loop, outputs) in enumerate(zip(self.loops, block["outputs_at"])):
+        for k, (loop, outputs) in enumerate(zip(self.loops, stepped.outputs_at)):
             st = loop.st
             n_on = len(loop.idx)
             column = np.full(st.zn, -1)
             column[loop.idx] = np.arange(n_on)
-            b = block["points"] - st.sn
+            b = block.points - st.sn
             mine = (b >= 0) & (b < st.zn)
             mine[mine] = loop.enabled[b[mine]]
             mine = np.flatnonzero(mine)
             # (a reading landed at its very scan is that scan's PV)
-            landed, skipped = seen_at_skipped_scans(block["times"][mine], scans[b0:b1][block["scan"][mine]],
-                                                    scans[b0 + 1:b1 + 1][block["scan"][mine]], st_time)
+            landed, skipped = seen_at_skipped_scans(block.times[mine], scans[b0:b1][block.scan[mine]],
+                                                    scans[b0 + 1:b1 + 1][block.scan[mine]], st_time)
             mine, landed = mine[skipped], landed[skipped]
-            rep_scan, rep_col, rep_row = block["scan"][mine], column[b[mine]], block["rank"][mine]
+            rep_scan, rep_col, rep_row = block.scan[mine], column[b[mine]], block.rank[mine]
             per = int(rep_row.max()) + 2 if len(rep_row) else 1  # rows per scan: its readings replayed, then it
             # every row of a scan starts as the scan itself (a reading seen twice changes nothing), then the replays
-            pv_at = block["pv_at"]
+            pv_at = seen.pv_at
             pv = np.repeat(pv_at[:, loop.points[loop.idx]], per, axis=0)
             at = np.repeat(np.broadcast_to(scans[b0 + 1:b1 + 1, None], (n, n_on)), per, axis=0)
             high = np.repeat(outputs[:, loop.idx] * 100 >= high_at, per, axis=0)
             where = rep_scan * per + rep_row
-            pv[where, rep_col] = signed16(block["flat_readings"][mine] & 0xFFFF)
+            pv[where, rep_col] = signed16(seen.flat[mine] & 0xFFFF)
             at[where, rep_col] = landed
             before = np.vstack((self.outputs[k][None], outputs[:-1]))  # the outputs each scan's replays saw
             high[where, rep_col] = before[rep_scan, loop.idx[rep_col]] * 100 >= high_at
             since = fun86.track(st, loop.idx, pv, at, high, None, loop.sv[loop.idx], loop.os[loop.idx],
-                                ready["limit"], count=False)[per - 1::per]
-            loop_open = np.asarray(fun86.loop_elapsed(since, scans[b0 + 1:b1 + 1, None]) >= ready["loop_seconds"],
+                                ready.limit, count=False)[per - 1::per]
+            loop_open = np.asarray(fun86.loop_elapsed(since, scans[b0 + 1:b1 + 1, None]) >= ready.loop_seconds,
                                    dtype=bool)
             normal = loop.enabled & np.asarray(fun86.in_band(pv_at[:, loop.points], loop.sv, loop.os), dtype=bool)
             warning = np.zeros((n, st.zn), dtype=bool)
@@ -628,7 +686,7 @@ class _Batch:
             # a deadline pending after a scan and due before the next one (scan i is at scans[i + 1])
             pairs = min(b1, self.n_scans - 1) - b0
             if pairs > 0:
-                deadlines = since[:pairs] + ready["loop_seconds"]
+                deadlines = since[:pairs] + ready.loop_seconds
                 after, until = scans[b0 + 1:b0 + 1 + pairs, None], scans[b0 + 2:b0 + 2 + pairs, None]
                 ahead = (deadlines > after + 1e-9) & (scan_grid(deadlines, st_time) < until - st_time / 2)
                 hit = np.flatnonzero(np.count_nonzero(ahead, axis=1))
@@ -637,13 +695,11 @@ class _Batch:
                     if at_scan < first or (at_scan == first and soonest < limit):
                         first, limit = at_scan, soonest
             self.outputs[k] = outputs[-1]
-            if self.kept is not None:
-                block.setdefault("kept_outputs", []).append(outputs)
         return limit
 
-    def _anchors(self, block: dict[str, Any], b0: int, b1: int) -> None:
+    def _anchors(self, stepped: _Stepped, b0: int, b1: int) -> None:
         """Each heated slot's last waveform change so far (the plant re-anchors there: the time, and T then)."""
-        for k, (loop, outputs) in enumerate(zip(self.loops, block["outputs_at"])):
+        for k, (loop, outputs) in enumerate(zip(self.loops, stepped.outputs_at)):
             if not len(loop.slots):
                 continue
             key = self._key(loop, outputs)[0]
@@ -652,12 +708,11 @@ class _Batch:
             if moved.any():
                 last = len(key) - 1 - np.argmax(changed[::-1], axis=0)
                 self.changed[k][moved] = b0 + last[moved]
-                self.changed_temp[k][moved] = block["temps_at"][last[moved], loop.slots[moved]]
+                self.changed_temp[k][moved] = stepped.temps_at[last[moved], loop.slots[moved]]
             self.keys[k] = key[-1]
         if self.kept is not None:
-            outputs = block["kept_outputs"]
             for j in range(b1 - b0):
-                self.kept[b0 + j].append([out[j] for out in outputs])
+                self.kept[b0 + j].append([out[j] for out in stepped.outputs_at])
 
     # -- the end ---------------------------------------------------------------------------------------------------
     def commit(self) -> None:

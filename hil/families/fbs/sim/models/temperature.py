@@ -51,6 +51,7 @@ _TEN = np.array(10.0)  # (a 0-d array: cheaper as a numpy operand than a Python 
 
 class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
     name = "temperature"
+    batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: TemperatureConfig, *, fitted: Sequence[ModuleType] | None = None,
                  write_table: bool = True) -> None:
@@ -283,7 +284,7 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
         """Measure ``points`` at ``times`` (each point's in time order) with the sensors of ``codes``: the reading
         words, the samples, break bits and measured points updated as one measurement after the other would.
         Returns the words and the index of each point's last measurement."""
-        plain = type(self) is TemperatureModel  # (seams of its own may read more than R4010/R4011)
+        plain = self.batchable  # (a variant's seams may read more than R4010/R4011)
         if plain:  # every point's installed bit, for these R4010/R4011
             mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
             if self._installed[0] != mask:
