@@ -42,7 +42,7 @@ def test_without_a_scan_counter_the_scan_counts_skip_saying_how_to_declare_one(p
     bench.write_text(EMULATOR_BENCH.read_text().replace('scan_counter = "R3999"', "", 1))
     result = pytester.runpytest_inprocess(SUITES[0], *INNER, "--bench", str(bench), "-k", "consecutive_scans",
                                           "-rs")
-    result.assert_outcomes(skipped=2)
+    result.assert_outcomes(skipped=3)
     result.stdout.fnmatch_lines(["*needs scan_counter*[[]bench[]] scan_counter = *"])
 
 
