@@ -5,11 +5,11 @@
     python benchmarks/mutation.py                # every mutant (≈ 5000: hours; not in CI)
 
 Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 SMART clock model
-(hil/families/s7smart/emulator.py).  The test command is the suites against the in-process emulator, exactly as
+(hil/families/s7smart/clock.py).  The test command is the suites against the in-process emulator, exactly as
 ``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
-temperatures, and the temperature suite once more on the
-profile with averaging and the fast rate; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile).  cosmic-ray writes each
+temperatures, and the temperature suite once more on the profile with averaging and the fast rate and once on the
+default profile with 2-sample averaging; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile, as an ST40 and as a CR40).  cosmic-ray writes each
 mutant into the files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the
 suites at it); the checkout is never touched.
 
@@ -48,11 +48,16 @@ SESSIONS = {
     # (and the temperature suite again on CI's other temperature profile — 8 modules of the other kinds, °F, the fast
     # rate, 4-sample averaging: tests/test_temperature_suites.py's mixed_profile —, where averaging and the fast
     # rate's resolution run at all; the default profile has neither)
+    # (and once more on the default profile with 2-sample averaging at the normal rate — 0.1 ° resolution with
+    # averaging: averaged-temperature.toml)
     "temperature": (MODELS + "temperature.py", "sh -c " + shlex.quote(
         PYTEST + "suites/test_temperature.py " + PID_SUITES + " && " + PYTEST + "suites/test_temperature.py --bench "
-        + "mixed-temperature.toml")),
+        + "mixed-temperature.toml && " + PYTEST + "suites/test_temperature.py --bench averaged-temperature.toml")),
     "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
-    "s7": ("hil/families/s7smart/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
+    # (and once more as a CR40, a CPU without a clock: cr40.toml)
+    "s7": ("hil/families/s7smart/clock.py", "sh -c " + shlex.quote(
+        PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml && " + PYTEST
+        + "suites/s7smart --bench cr40.toml")),
 }
 #: the sample is drawn per group (in this order), over the group's mutants sorted by file, operator, occurrence
 GROUPS = {"fbs": ("rtc", "temperature", "fun86"), "s7": ("s7",)}
@@ -73,6 +78,23 @@ def _mixed_profile(dest: Path) -> None:
     from tests.conftest import EMULATOR_BENCH
     from tests.test_temperature_suites import mixed_profile
     dest.write_text(mixed_profile(EMULATOR_BENCH.read_text(encoding="utf-8")), encoding="utf-8")
+
+
+def _averaged_profile(dest: Path) -> None:
+    """The emulator's profile with 2-sample averaging at the normal rate (0.1 ° resolution): averaging where the
+    resolution check can see its arithmetic (the mixed profile averages at the fast rate's 1 °)."""
+    text = (ROOT / "fixtures" / "benches" / "emulator.toml").read_text(encoding="utf-8")
+    out = text.replace("averaging = 1\n", "averaging = 2\n", 1)
+    assert out != text and 'rate = "normal"' in out
+    dest.write_text(out, encoding="utf-8")
+
+
+def _cr40_profile(dest: Path) -> None:
+    """The S7-200 SMART profile as a CR40: a CPU without a real-time clock."""
+    text = (ROOT / "fixtures" / "benches" / "s7-200smart.toml").read_text(encoding="utf-8")
+    out = text.replace('cpu = "ST40"', 'cpu = "CR40"', 1)
+    assert out != text
+    dest.write_text(out, encoding="utf-8")
 
 
 def _config(work: Path, name: str, timeout: float) -> Path:
@@ -167,6 +189,8 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C9
         _copy_tree(work / "tree")
         tree = work / "tree"
         _mixed_profile(tree / "mixed-temperature.toml")
+        _averaged_profile(tree / "averaged-temperature.toml")
+        _cr40_profile(tree / "cr40.toml")
         rng = random.Random(SEED)
         rows: list[dict] = []
         dbs = {}

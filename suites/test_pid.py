@@ -617,19 +617,26 @@ def _write_bracketed(bench, name, value):
 
 @pytest.mark.spec("PID-PRE-1")
 @pytest.mark.needs("scan_counter", reason="brackets PLC scans with the bench ladder's scan counter")
-@pytest.mark.parametrize("dip", [False, True], ids=["steady", "dip"])
-def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
+@pytest.mark.parametrize("dip,at_r4008", [(False, False), (True, False), (False, True)],
+                         ids=["steady", "dip", "at-r4008"])
+def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r4008):
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
     count the counter pins down exactly: the words are read between two counter reads (R in c_a + r … c_b − r, a
     read spanning r scans), so with PV ≥ R4008 first seen by scan F (c1 + r + 1 … c2) the words show R − F + 1
     counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
-    pins down both 9 and 10 the test skips with the widths it saw."""
+    pins down both 9 and 10 the test skips with the widths it saw.  ``at-r4008``: every PV exactly at R4008 (the
+    manual's "≥": equal counts from the first scan), PVs put through R4003/R4004."""
     inst = _instances(pid)[0]
     _need(bench, "R4008")
     _start(bench, pid, inst)
+    limit = 100
+    if at_r4008:
+        block = _pv_source(bench)
+        limit = 1000  # 100.0 °
+        _write_pvs(bench, block, {p: limit for p in inst.points})
     _all_in_band(bench, pid, inst)
     points = _enabled_points(bench, inst)
-    assert min(pid.pvs(points).values()) >= 100, "the points must read ≥ 10.0 ° for R4008 = 100 to be under PV"
+    assert min(pid.pvs(points).values()) >= limit, f"the points must read ≥ {limit / 10} ° for R4008 = {limit}"
     want = _expected_words(inst, points)
     wr = inst.wr.offset(2)
     io = bench.plc.io
@@ -646,19 +653,19 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip):
         bench.settle()
         if any(io.read_words(str(wr), 2)):
             pytest.skip("the warnings stay set with PV below R4008 on this PLC: no fresh count to bracket")
-        c1, c2 = _write_bracketed(bench, "R4008", 100)
+        c1, c2 = _write_bracketed(bench, "R4008", limit)
         if dip:
             # a dip after a few (1 … 8) counted scans: the count must start again from zero after it
             _, c3 = _write_bracketed(bench, "R4008", 65535)
             dips.append(c3 - (c1 + r + 1))
             if dips[-1] > 8:
                 continue  # the first run may have reached 10 scans before the dip: not the case under test
-            c1, c2 = _write_bracketed(bench, "R4008", 100)
+            c1, c2 = _write_bracketed(bench, "R4008", limit)
         first_low, first_high = c1 + r + 1, c2  # the first scan that sees PV ≥ R4008
         # Shift the phase from attempt to attempt, one scan at a time (a write of the value R4008 holds: only scans
         # pass), over the 3 r scans the loop below advances by, so that every count gets its chance to be exact.
         for _ in range(attempt % (3 * r)):
-            io.write("R4008", 100)
+            io.write("R4008", limit)
         while True:
             ca = _scans(bench)
             words = tuple(io.read_words(str(wr), 2))
@@ -768,6 +775,55 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     gaps = [round(b - a, 2) for a, b in zip(fresh, fresh[1:])]
     assert len(fresh) >= 3 and max(gaps) < 2.5, (
         f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
+
+
+@pytest.mark.spec("PID-LAW-1", "PID-LAW-3")
+def test_derivative_acts_on_a_pv_change_and_td_0_has_none(bench, pid):
+    """20.7's law: Mn = Kc·En + Σ Kc·Ki·Ts·En + Kc·Td·(PVn − PVn−1)/Ts.  Two points at the same Kc (10), Ki 0, SV
+    and PV (PVs through R4003/R4004), one with Td = 1.00 min, the other Td = 0, PID every 1 s: with PV steady they
+    show the same OR (the D term is 0 when PVn = PVn−1); at the PID step after both PVs rise 1.0 ° the Td point's
+    OR differs from the other's (whatever its sign or size: exact values are not the bench's); one step later, PV
+    steady again, they are equal again.  (Td = 0: no derivative, PID-LAW-3.)"""
+    instances, block = _fake_instances(bench, pid)
+    inst = instances[0]
+    _need(bench, "R4005")
+    points = _enabled_points(bench, inst)
+    pair = next(((a, b) for a, b in zip(points, points[1:]) if b == a + 1), None)
+    if pair is None:
+        pytest.skip(f"{inst.name} has no two neighbouring enabled points (OR of both in one read)")
+    d_point, plain = pair
+    io = bench.plc.io
+    for p, td in ((d_point, 100), (plain, 0)):
+        io.write_many({str(inst.operand("sv", p)): 1500, str(inst.operand("os", p)): 0})
+        pid.set_gains(p, 10, 0, td)
+    _write_pvs(bench, block, {d_point: 1000, plain: 1000})
+    io.write("R4005", 0x0100)  # PID every 1 s (in force from the EN edge below)
+    pid.restart(inst)
+    first = str(inst.operand("or_", d_point))
+
+    def outputs_after_a_step(before):
+        """Both ORs (one read) once the plain point's OR has left ``before`` or, PV steady, after 2.5 s (two PID
+        steps at least)."""
+        clock = bench.plc.time
+        end = clock.now() + 2.5
+        while True:
+            values = tuple(io.read_words(first, 2))
+            if (before is not None and values[1] != before) or clock.now() >= end:
+                return values
+            bench.wait(0.1)
+
+    steady = outputs_after_a_step(None)  # PV steady over at least one PID step after the edge's
+    assert steady[0] == steady[1], (f"points {d_point} (Td 1.00 min) and {plain} (Td 0) at the same Kc, Ki 0, SV and "
+                                    f"steady PV: OR {steady[0]} and {steady[1]}, the D term is 0 with PVn = PVn−1")
+    _write_pvs(bench, block, {d_point: 1010, plain: 1010})  # +1.0 °
+    moved = outputs_after_a_step(steady[1])
+    assert moved[1] != steady[1], f"point {plain}: PV 1.0 ° nearer SV at Kc 10, yet OR stayed {steady[1]}"
+    assert moved[0] != moved[1], (f"at the PID step after PV rose 1.0 °, point {d_point} (Td 1.00 min) shows OR "
+                                  f"{moved[0]}, the same as point {plain} (Td 0): no derivative action")
+    bench.wait(1.5)  # the next step, PV steady again
+    again = tuple(io.read_words(first, 2))
+    assert again[0] == again[1], (f"PV steady again: points {d_point} (Td 1.00 min) and {plain} (Td 0) show OR "
+                                  f"{again[0]} and {again[1]}: the D term is 0 with PVn = PVn−1")
 
 
 # -- outputs ----------------------------------------------------------------------------------------------------------

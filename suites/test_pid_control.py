@@ -7,6 +7,8 @@ run in virtual time.  The open heater comes from the bench's [faults.heater_open
 heater line, or the emulator's thermal plant).
 """
 
+import math
+
 import pytest
 
 INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}  # R4005 low byte → PID interval (≥ 5 → 32 s)
@@ -145,6 +147,67 @@ def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
         f"output left 80–95 % while SV − PV was held at {error / 10} °: {lowest:.1f}–{highest:.1f} %")
     assert pid.alarm_words(inst).warning(point) is warns, (
         f"output {outputs:.1f} % for {LOOP_S + 5} s with R4006 = {r4006} %: warning expected {warns}")
+
+
+def _hold_errors(bench, pid, errors, seconds, every=1.0):
+    """:func:`_hold_error` for several points at once (``errors``: point → 0.1 °): each point's lowest and highest
+    output (%) seen."""
+    clock = bench.plc.time
+    end = clock.now() + seconds
+    seen = {p: [] for p in errors}
+    while True:
+        for p, error in errors.items():
+            pid.set_set_point(p, pid.pv(p) + error)
+        for p in errors:
+            seen[p].append(pid.output(p) * 100 / FULL)
+        left = end - clock.now()
+        if left <= 0:
+            break
+        bench.wait(min(every, left))
+    return {p: (min(v), max(v)) for p, v in seen.items()}
+
+
+@pytest.mark.slow
+@pytest.mark.spec("PID-LOOP-1", "PID-R4006-1")
+@pytest.mark.bench_time(2 * 32 + 1 + LOOP_S + 5 + 60, reason="two PID intervals, R4007 + 5 s, settling")
+def test_heater_loop_warns_from_exactly_r4006(bench, pid, heater_open):
+    """The edge of "output ≥ R4006 %", two points in one wait: their outputs held just either side of a whole
+    percent (proportional only, Kc 14 × 100.0 ° and × 99.0 °: ≈ 85.5 % and ≈ 84.6 % — as the PLC shows them, OR ×
+    100 / 16383), R4006 then set to that percent: the point at or above it (by less than 1 %) warns after R4007 s
+    without reaching the band, the one under it (by less than 1 %) never does."""
+    inst, point = _controlled_point(bench, pid)
+    r4012, r4013 = bench.plc.io.read_words("R4012", 2)
+    others = [p for p in inst.points if (r4013 << 16 | r4012) >> p & 1 and p != point]
+    if not others:
+        pytest.skip(f"{inst.name} has no second enabled point")
+    other = others[-1]
+    reason = bench.cannot_reach("R4006-R4007", *(str(inst.operand(k, other)) for k in ("sv", "os", "pr", "ir", "dr")))
+    if reason:
+        pytest.skip(reason)
+    io = bench.plc.io
+    io.write_many({"R4006": 100, "R4007": LOOP_S})  # (no output ≈ 85 % is ≥ 100 % until R4006 is set below)
+    errors = {point: 1000, other: 990}  # 100.0 ° and 99.0 °
+    for p in errors:
+        heater_open.inject(p)
+        pid.set_deviation(p, 50)
+        pid.set_gains(p, 14, 0, 0)
+    _hold_errors(bench, pid, errors, 2 * _interval(io) + 1)
+    above, below = (pid.output(p) * 100 / FULL for p in errors)
+    edge = math.floor(above)
+    if not 80 <= below < edge <= above < 95:
+        pytest.skip(f"this PLC's outputs for Kc 14 × 100.0 ° and × 99.0 ° are {above:.2f} % and {below:.2f} %: "
+                    f"not either side of a whole percent in 80–95 %")
+    io.write("R4006", edge)
+    held = _hold_errors(bench, pid, errors, LOOP_S + 5)
+    (a_low, a_high), (b_low, b_high) = held[point], held[other]
+    if a_low < edge or b_high >= edge:
+        pytest.skip(f"inconclusive: with SV − PV held the outputs moved over {a_low:.2f}–{a_high:.2f} % and "
+                    f"{b_low:.2f}–{b_high:.2f} %, across R4006 = {edge} %")
+    words = pid.alarm_words(inst)
+    assert words.warning(point), (f"point {point}: output {a_low:.2f}–{a_high:.2f} % ≥ R4006 = {edge} % for "
+                                  f"{LOOP_S + 5} s (R4007 {LOOP_S} s) without reaching the band: warning expected")
+    assert not words.warning(other), (f"point {other}: output {b_low:.2f}–{b_high:.2f} %, under R4006 = {edge} %, "
+                                      f"yet its heater-loop warning is set")
 
 
 @pytest.mark.slow

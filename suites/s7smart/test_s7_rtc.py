@@ -283,7 +283,8 @@ def test_set_rtc_i_equals_set_rtc_with_bcd(set_i, integers, bcd_buffer, weekday)
 @pytest.mark.parametrize("integers", [[24, 2, 30, 9, 0, 0, 0, 0], [23, 2, 29, 9, 0, 0, 0, 0],
                                       [24, 13, 1, 9, 0, 0, 0, 0],
                                       pytest.param([24, 6, 20, 24, 0, 0, 0, 0], marks=pytest.mark.spec("S7-RTC-6")),
-                                      pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6"))])
+                                      pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6")),
+                                      [24, 6, 20, 9, 100, 0, 0, 0]])  # (minute 100: no two-digit number at all)
 def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
     assert set_i.set(SATURDAY_15_JUNE_2024).accepted
     result = set_i.set_int(integers)
@@ -326,6 +327,20 @@ def test_power_cycle_keeps_the_time_only_with_an_rtc(bench, clock):
         assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), f"{bench.settings.cpu}: ")
     else:
         assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(2, 5), f"{bench.settings.cpu}: ")
+
+
+@pytest.mark.needs("power_on_state", reason="only a CPU straight from power-on shows where its clock started")
+@pytest.mark.spec("S7-RTC-14", "S7-RTC-13")
+def test_a_cpu_without_a_clock_starts_at_2000_01_01(bench, clock):
+    """CR40 and CR60 have no RTC: powered on, the clock starts at 2000-01-01 00:00:00 (as after a power loss) and
+    runs on from there — read now (less than a day after power-on), it shows 1 January 2000."""
+    if bench.settings.cpu not in ("CR40", "CR60"):
+        pytest.skip(f"a {bench.settings.cpu} has a real-time clock: it starts where it was last set")
+    result = clock.read()
+    assert result.eno == 1, f"READ_RTC: {result}"
+    assert result.buffer[:3] == bytes([0x00, 0x01, 0x01]), (
+        f"{bench.settings.cpu} (no RTC) straight from power-on: READ_RTC reads {result.buffer.hex(' ')}, expected "
+        f"00 01 01 … (2000-01-01, the clock counting from power-on)")
 
 
 # -- the CPU's own clock functions (S7 protocol: read/set the time of day) -----------------------------------------

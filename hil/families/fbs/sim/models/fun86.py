@@ -19,7 +19,8 @@ Every decision a faulty PLC could get wrong is one small method (the "seams" bel
 build broken PLCs as tiny subclasses.  The per-point ones take and return arrays over an instance's points: the
 points' state is kept in arrays (:class:`InstanceState`), stepped all at once.
 
-Time: the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
+Time (the wake-up hints, the replay and the plant's waveforms are in models/fun86_wakeup.py, fun86_replay.py and
+fun86_waveforms.py: they model no manual statement): the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
 pre-alarm count is running; otherwise the engine jumps.  In between:
 
 * PWM edges need no scan when the thermal plant integrates the published :attr:`Fun86Model.waveforms` exactly
@@ -42,14 +43,18 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from hil.families.fbs.address import Address, parse
-from hil.sim.columns import occurrence, signed16 as signed
-from hil.sim.model import Model, scan_grid, seen_at_skipped_scans
+from hil.sim.columns import signed16 as signed
+from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
+# (what only the emulator needs — the plant's waveforms, the replay of readings between scans, the engine's
+# wake-up hints — models no manual statement: in modules of their own)
+from hil.families.fbs.sim.models.fun86_replay import ReadingsReplay
+from hil.families.fbs.sim.models.fun86_wakeup import WakeUps
+from hil.families.fbs.sim.models.fun86_waveforms import PublishedWaveforms
 
 if TYPE_CHECKING:
-    from hil.sim.engine import Engine
     from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
 
@@ -147,7 +152,7 @@ class Law:
     ts: float
 
 
-class Fun86Model(Model):
+class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
     name = "fun86"
     batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
@@ -160,17 +165,12 @@ class Fun86Model(Model):
         self.next_measurement: Callable[[], float] | None = None
         #: the temperature model itself (set by build_emulator): its log of readings between scans, its bounds
         self.temperature_model = None
-        #: set by the thermal plant when it integrates the PWM waveforms below exactly: no scans at PWM edges
+        #: set by the thermal plant when it integrates the PWM waveforms exactly: no scans at PWM edges
         self.pwm_exact = False
-        #: (bit kind, index) of each output Yn… driven now → (started, PWM period, ON seconds, Y when on, Y when off)
-        self.waveforms: dict[tuple[str, int], tuple] = {}
-        #: bumped whenever :attr:`waveforms` changes (the plant skips its per-point work while it has not)
-        self.waveforms_version = 0
+        self.init_waveforms()
+        self.init_replay()
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
-        self._log: tuple | None = None
-        self._last_scan = -math.inf  # when this model last scanned (the readings logged since came after it)
-        self._output_keys: dict[tuple, frozenset] = {}
         #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
         self.batcher = None
 
@@ -296,13 +296,7 @@ class Fun86Model(Model):
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
         tm = self.temperature_model
-        self._log = None  # the readings logged for scans skipped since the last: (landed, points, PVs) (_replayed)
-        if tm is not None and tm.log:
-            times, points, pvs = (np.concatenate(parts) for parts in zip(*tm.log))
-            previous, now, st = self._last_scan, emu.now, emu.scan_time
-            if seen_at_skipped_scans(float(times.min()), previous, now, st)[1]:  # (most scans: none at all)
-                landed, skipped = seen_at_skipped_scans(times, previous, now, st)
-                self._log = (landed[skipped], points[skipped], pvs[skipped])
+        self.collect_log(emu, tm)
         if self._scan_at_rest(mem):
             if tm is not None:
                 tm.log = None
@@ -336,36 +330,6 @@ class Fun86Model(Model):
             err_bank[err_index] = 0
             alm_bank[alm_index] = 0
         return True
-
-    def _drop_waveforms(self, inst: PidInstance, st: InstanceState) -> None:
-        st.published = None
-        if self.waveforms and st.zn > 0:
-            keys = self._output_keys.get((inst.yn, st.zn))
-            if keys is None:
-                keys = self._output_keys[(inst.yn, st.zn)] = frozenset((inst.yn.kind, inst.yn.index + b)
-                                                                       for b in range(st.zn))
-            for key in self.waveforms.keys() & keys:
-                del self.waveforms[key]
-                self.waveforms_version += 1
-
-    def _replayed(self, points: np.ndarray, enabled: np.ndarray) -> tuple | None:
-        """The readings of ``points`` (enabled ones) the temperature model logged for the scans skipped since the
-        last one — those read at this very scan left out: (rows of PV, rows of the scan each landed at, valid),
-        rows in time order, a column per point (None: no such reading).  Where a point has fewer readings than
-        others its row is not valid (to be filled with its reading at this scan)."""
-        landed, logged, pvs = self._log
-        first, n = int(points[0]), len(points)
-        b = logged - first
-        mine = (b >= 0) & (b < n)
-        mine[mine] = enabled[b[mine]]
-        if not mine.any():
-            return None
-        b, landed, pv_cells = b[mine], landed[mine], pvs[mine]
-        row = occurrence(b)
-        rows = int(row.max()) + 1
-        pv, at, valid = np.zeros((rows, n), dtype=np.int64), np.zeros((rows, n)), np.zeros((rows, n), dtype=bool)
-        pv[row, b], at[row, b], valid[row, b] = pv_cells, landed, True
-        return pv, at, valid
 
     def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
               valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True,
@@ -456,9 +420,7 @@ class Fun86Model(Model):
         new = view.normal is None
         # (PVs come from the table's readings, which the temperature model logs; else from registers of the ladder's
         # choosing (R4003/R4004), which change only at requests)
-        replayed = None
-        if self._log is not None and (start.kind, start.index) == self.temperature_model.log_start:
-            replayed = self._replayed(st.sn + np.arange(zn), view.enabled)
+        replayed = self.replayed_for(start, st.sn, zn, view.enabled)
         pv, sv, os, enabled, idx, before = view.pv, view.sv, view.os, view.enabled, view.idx, view.output
         after = before
         if pid_due:
@@ -555,9 +517,7 @@ class Fun86Model(Model):
                 view.waves = waves
         ys = mem.bits[inst.yn.kind]
         ys[inst.yn.index:inst.yn.index + st.zn] = self.outputs_at(st, now, *waves)
-        last = st.published
-        if last is None or last[0] != (st.started, st.pwm, self.waveforms_version) or last[1] is not waves[0]:
-            self.publish(inst, st, *waves)
+        self.republish(inst, st, waves)
 
     def waves(self, st: InstanceState, enabled: np.ndarray, output: np.ndarray) -> tuple[np.ndarray, ...]:
         """(ON seconds of each PWM period, Y when on, Y when off) of the instance's outputs."""
@@ -588,33 +548,6 @@ class Fun86Model(Model):
         start that lands a rounding error early is in that cycle (outputs_at and next_event agree on it)."""
         return st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
 
-    @staticmethod
-    def counting(st: InstanceState) -> bool:
-        """Is a pre-alarm count running (then every scan matters, and none may be jumped over or batched)?  A
-        count past 4 × 10 scans has long set its warning: it can run on unwatched."""
-        return bool(np.count_nonzero(st.prealarm)  # (a quick no first: most scans count nothing)
-                    and np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)))
-
-    def publish(self, inst: PidInstance, st: InstanceState, on_time: np.ndarray, y_on: np.ndarray,
-                y_off: np.ndarray) -> None:
-        """The waveforms of the instance's outputs (for the plant): (started, PWM period, ON seconds, Y when on,
-        Y when off), rewritten where they changed."""
-        last = st.published
-        bs: range | list = range(st.zn)
-        if last is not None and last[0] == (st.started, st.pwm, self.waveforms_version):
-            changed = (on_time != last[1]) | (y_on != last[2]) | (y_off != last[3])
-            bs = np.flatnonzero(changed).tolist()
-        waveforms, kind, base = self.waveforms, inst.yn.kind, inst.yn.index
-        if bs:
-            ons, lits, darks = on_time.tolist(), y_on.tolist(), y_off.tolist()
-            for b in bs:
-                wave = (st.started, st.pwm, ons[b], lits[b], darks[b])
-                if waveforms.get((kind, base + b)) != wave:
-                    waveforms[(kind, base + b)] = wave
-                    self.waveforms_version += 1
-        # (the version as left here: another instance writing the same outputs shows as a newer one)
-        st.published = ((st.started, st.pwm, self.waveforms_version), on_time, y_on, y_off)
-
     def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
@@ -622,82 +555,6 @@ class Fun86Model(Model):
         st.prealarm.fill(0)
         st.loop_since.fill(math.nan)
 
-    def readings_replayed(self, last_scan: float) -> None:
-        """The temperature model's log of readings was consumed elsewhere, by a batch of scans whose last was at
-        ``last_scan``: nothing to replay."""
-        self._log = None
-        self._last_scan = last_scan
 
-    def _log_off(self) -> bool:
-        """Without the temperature model's log of readings, every measurement needs its scan."""
-        return self.temperature_model is None or self.temperature_model.log is None
-
-    def prealarm_possible(self, mem: "Memory", st: InstanceState) -> bool:
-        """Could a reading of an enabled point reach R4008 (then every measurement needs its scan)?"""
-        if type(self).prealarm_count is not Fun86Model.prealarm_count or self.temperature_model is None:
-            return True
-        limit = mem.words["R"][_R[reg.PREALARM_LIMIT]]
-        view = st.view  # (its enabled points, while R4012/R4013 are as it read them)
-        if view is not None and view.key[3] == self.enable_words(mem, st.sn, st.zn) and \
-                type(self).enabled is Fun86Model.enabled:
-            points = st.sn + view.idx
-        else:
-            points = st.sn + np.flatnonzero(np.asarray(self.enabled(mem, st.sn + np.arange(st.zn)), dtype=bool))
-        return bool(len(points)) and self.temperature_model.readings_upper(mem, points) >= limit
-
-    def next_event(self, now: float) -> float:
-        mem = self._emu.memory if self._emu is not None else None
-        if mem is None:
-            return math.inf
-        loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
-        due = math.inf
-        measurements = False  # a scan at every measurement (a PV could reach R4008)
-        for inst, st in zip(self.config.instances, self.states):
-            if st.waiting and self.next_measurement is not None:
-                due = min(due, self.next_measurement())
-            if not st.running:
-                continue
-            if self.counting(st):
-                return now  # counting consecutive scans: every scan matters
-            if np.count_nonzero(st.loop_since == st.loop_since):  # (a heater-loop start not NaN)
-                deadlines = st.loop_since + loop_seconds
-                pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
-                if np.count_nonzero(pending):
-                    due = min(due, float(deadlines[pending].min()))
-            due = min(due, st.next_pid)
-            if not measurements:
-                measurements = self.prealarm_possible(mem, st)
-            if self.pwm_exact:
-                continue  # the plant integrates the PWM between scans; the outputs are recomputed at each scan
-            # PWM: every cycle start, and the end of each point's ON time within the current cycle
-            cycle = self.cycle_start(st, now)
-            due = min(due, cycle + st.pwm)
-            edges = cycle + self.on_times(st, np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]))
-            later = edges > now + 1e-9
-            if np.count_nonzero(later):
-                due = min(due, float(edges[later].min()))
-        if due < math.inf and self.next_measurement is not None and (measurements or self._log_off()):
-            due = min(due, self.next_measurement())  # PV may cross R4008 or the band there
-        if due == math.inf:
-            return due
-        return self.scan_for(due, now)
-
-    def scan_for(self, due: float, now: float) -> float:
-        """The first scan at or after an event at ``due``, on the scan grid: a jump then takes the very scan that
-        stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
-        return max(now, float(scan_grid(due, self._emu.scan_time)))
-
-    def span(self, engine: "Engine", target: float) -> bool:
-        """The scans at PID intervals between requests in batches (models/span.py), when nothing else needs one."""
-        if not self.pwm_exact or self.temperature_model is None or self.temperature_model.log is None:
-            return False  # (scans at PWM edges or at every measurement: none to batch)
-        if self.batcher is None or not any(st.running for st in self.states):
-            return False
-        if not engine.leaves_a_scan(engine.landing(self.next_pid_scan(engine.now), target), target):
-            return False  # (no PID scan before the last one, which is the engine's: nothing to batch)
-        return self.batcher.run(self, engine, target)
-
-    def next_pid_scan(self, now: float) -> float:
-        """The scan of the next PID step of any running instance."""
-        return self.scan_for(min(st.next_pid for st in self.states if st.running), now)
-
+Fun86Model.plain = Fun86Model  # (the seams the wake-up hints assume: see WakeUps)
+Fun86Model.prealarm_scans = PREALARM_SCANS

@@ -21,6 +21,9 @@ from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import rate_for_code
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime, weekday_of
+# (the emulator's speed-ups — the read-out skipped while the second is unchanged, the footprint a batch of scans
+# relies on — and the broken variants' invalid times model no manual statement: in a module of their own)
+from hil.families.fbs.sim.models.rtc_shortcuts import RtcShortcuts, rolled_over_seconds
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -47,13 +50,10 @@ def seconds_of(t: RtcTime) -> int:
     """
     if t.is_valid:
         return int((t.to_datetime() - EPOCH).total_seconds())
-    month = min(max(t.month, 1), 12)
-    first = dt.date(2000 + t.year % 100, month, 1)
-    days = (first - EPOCH.date()).days + t.day - 1
-    return (days * 86400 + t.hour * 3600 + t.minute * 60 + t.second) % CENTURY_SECONDS
+    return rolled_over_seconds(t)
 
 
-class RtcModel(Model):
+class RtcModel(RtcShortcuts, Model):
     """An RTC chip behind R4128–R4135, M1952–M1955, D4053, D4054.
 
     ``chip``: 0 none, 1 HT1381, 2 ISL1208, 3 S-35390A.  ``crystal_ppm``: positive = the chip runs fast.
@@ -86,8 +86,7 @@ class RtcModel(Model):
         self._rate = self.chip_rate(self._code)
         self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
         self._adjust = 0
-        self._shown_second: int | None = None  # the chip second last copied out, and R4128–R4135 as written
-        self._shown: list[int] = []
+        self.init_read_out()
 
     # -- the engine's hooks ---------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
@@ -119,35 +118,6 @@ class RtcModel(Model):
             if not hold:
                 self._read_out(emu)
         self._hold, self._adjust = hold, adjust
-
-    def _read_out(self, emu: "Emulator") -> None:
-        """copy_out(read_chip(now)), skipped when the chip still shows the second already in R4128–R4135 (the
-        unmodified model only: a variant overriding a step always takes the full path)."""
-        if not self._plain:
-            self.copy_out(emu, self.read_chip(emu.now))
-            return
-        # chip_seconds(emu.now), inlined
-        second = math.floor((self._anchor_s + (emu.now - self._anchor_t) * self._rate) % CENTURY_SECONDS)
-        words = emu.memory.words["R"]
-        if second == self._shown_second and words[_FIRST:_HOUR_MINUTE + 1] == self._shown:
-            return
-        self.copy_out(emu, self.read_chip(emu.now))
-        self._shown_second, self._shown = second, words[_FIRST:_HOUR_MINUTE + 1]
-
-    def next_event(self, now: float) -> float:
-        """Never: the chip's time is a formula of virtual time, and the engine always runs the scan after a
-        request before it jumps, so edges and new D4054 codes are seen on time."""
-        return math.inf
-
-    def footprint(self) -> frozenset[tuple[str, int]]:
-        """R4128–R4135, M1952–M1955, D4053, D4054: a scan that skips the clock loses nothing but its read-out,
-        which the next scan writes whole (skipping it is safe when nothing else touches these).  None for a
-        variant with a scan of its own (a deliberately broken clock): what it touches is not known here."""
-        if type(self).scan is not RtcModel.scan:
-            return None
-        return frozenset([("R", i) for i in range(_FIRST, _HOUR_MINUTE + 1)]
-                         + [("M", i) for i in (_HOLD, _ADJUST, _INSTALLED, _SET_ERROR)]
-                         + [("D", _CHIP), ("D", _RATE_CODE)])
 
     # -- the chip -------------------------------------------------------------------------------------------
     def chip_seconds(self, now: float) -> float:
@@ -237,3 +207,6 @@ class RtcModel(Model):
     def __repr__(self) -> str:
         return (f"<RtcModel {CHIP_NAMES[self.chip]} {self.crystal_ppm:+g} ppm "
                 f"D4054={self._code:04X}H>")
+
+
+RtcModel.plain = RtcModel  # (the steps the shortcuts assume: see RtcShortcuts)

@@ -10,8 +10,9 @@ What the model does every scan, as the FBs OS does:
   reading and its break bit (TW+1/TW+2);
 * writes the execution code 56H once every point has been measured once.
 
-Each point's true temperature comes from a *source*: any callable ``source(t) -> °C`` of virtual time
-(:class:`Fixed`, :class:`Ramp`, or a thermal plant later), set with :meth:`TemperatureModel.set_source`.
+Each point's true temperature comes from a *source* (models/sensor_inputs.py: the simulated world, with the
+faults a rig injects on a sensor); the emulator's speed-ups (batches of scans, the readings' upper bound, cycles
+a long jump skips unseen) are in models/temperature_batching.py.  This file holds the manual's behaviour only.
 
 The decisions a broken PLC could get wrong are small methods (``installed``, ``point_result``,
 ``break_position``, ``execution_code``) so the harness's tests can build broken variants as tiny subclasses.
@@ -23,16 +24,18 @@ On a real PLC the ladder/WinProladder writes the table; here :meth:`power_on` pl
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
-from hil.core.errors import InvalidValue
 from hil.sim.columns import last_of_each, occurrence, signed16
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
+# (the simulated world the sensors see, and the emulator's speed-ups: no manual statement, so not here; the sources
+# are re-exported for the profile builder and the tests)
+from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, SensorInputs, Source, source_from_spec  # noqa: F401
+from hil.families.fbs.sim.models.temperature_batching import BatchingShortcuts, MeasuringTable  # noqa: F401
 from hil.families.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
                                  EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
                                  TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
@@ -41,52 +44,12 @@ if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
 
-Source = Callable[[float], float]  # virtual seconds since power-on → true temperature, °C
 
 _MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
 _TEN = np.array(10.0)  # (a 0-d array: cheaper as a numpy operand than a Python number)
 
 
-@dataclass(frozen=True)
-class Fixed:
-    celsius: float
-
-    def __call__(self, t: float) -> float:
-        return self.celsius
-
-
-@dataclass(frozen=True)
-class Ramp:
-    start: float
-    per_s: float
-    low: float = -math.inf
-    high: float = math.inf
-
-    def __call__(self, t: float) -> float:
-        return min(max(self.start + self.per_s * t, self.low), self.high)
-
-
-def source_from_spec(spec: dict) -> Source:
-    if spec["kind"] == "fixed":
-        return Fixed(float(spec["celsius"]))
-    return Ramp(float(spec["start"]), float(spec["per_s"]), float(spec.get("low", -math.inf)),
-                float(spec.get("high", math.inf)))
-
-
-
-@dataclass(frozen=True)
-class MeasuringTable:
-    """The temperature table as the model reads it while measuring, every point measured once."""
-
-    readings: Address
-    work: Address
-    measured: tuple  # (module k, first point, table code) of the modules measured
-    header: tuple[int, ...]
-    count: int  # modules in the table
-    total: int  # points in the table
-
-
-class TemperatureModel(Model):
+class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
     name = "temperature"
     batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
@@ -96,23 +59,13 @@ class TemperatureModel(Model):
         #: The modules physically plugged in, in expansion order (default: those the profile names).
         self.fitted: list[ModuleType] = list(fitted if fitted is not None else (m.type for m in config.modules))
         self.write_table = write_table
-        self.sources: dict[int, Source] = {}
-        for point in range(config.points):
-            _, module = config.point_module(point)
-            low, high = module.sensor.low_c, module.sensor.high_c
-            base = 25.0 if low <= 25.0 <= high else low + 50.0
-            self.sources[point] = Fixed(round(base + 0.3 * point, 1))
-        for point, celsius in config.reference.items():  # (a bench's calibrator holds these points there)
-            self.sources[point] = Fixed(celsius)
-        for point, spec in config.sources.items():
-            self.sources[point] = source_from_spec(spec)
-        self.broken: set[int] = set()
+        self.init_inputs(config)
+        self.init_shortcuts()
         self.state = "idle"
         #: the last ``averaging`` samples of each point (in the unit), oldest first and right-aligned: the valid
         #: ones are the last _count[point] of its row (the others 0.0, so adding the row in order is their sum)
         self._ring = np.zeros((MAX_POINTS, config.averaging))
         self._count = np.zeros(MAX_POINTS, dtype=np.int64)
-        self._top = np.full(MAX_POINTS, -math.inf)  # each point's highest sample (−inf: none)
         self._measured: set[int] = set()
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         #: the fitted modules the table had measured at the last full scan (a mismatched or unlisted module's
@@ -131,44 +84,13 @@ class TemperatureModel(Model):
         #: (times, points, readings as signed words), and where those readings are (kind, first index)
         self.log: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
         self.log_start: tuple[str, int] | None = None
-        self._upper_cache: dict[int, tuple] = {}
         self._installed: tuple = (None, None)  # (R4010/R4011, every point's installed bit)
-        self._sources_version = 0  # bumped by set_source (readings_upper and values cache what the sources are)
-        self._slots: tuple = (-1, None, None)  # (sources version, plant, slot per point): see _plant_slots
-        #: (points, sources version, R4010/R4011) → the highest of their sources' bounds, all installed
-        self._bounds: tuple = ((), None, False)
-
-    # -- faults and sources (fault injectors, plants) ---------------------------------------------------------
-    def set_source(self, point: int, source: Source) -> None:
-        self._check_point(point)
-        self.sources[point] = source
-        self._sources_version += 1
-        self._forget(np.array([point]))
-
-    def open(self, point: int) -> None:
-        """Open point's sensor circuit (a broken thermocouple); seen at the point's next measurement."""
-        self._check_point(point)
-        self.broken.add(point)
-
-    def repair(self, point: int) -> None:
-        self._check_point(point)
-        self.broken.discard(point)
-
-    @staticmethod
-    def _check_point(point: int) -> None:
-        if not 0 <= point < MAX_POINTS:
-            raise InvalidValue(f"temperature point {point} is outside 0–{MAX_POINTS - 1}")
-
-    def samples(self) -> dict[int, list[float]]:
-        """Each point's samples (oldest first) of the averaging, for the points that have any."""
-        n = self.config.averaging
-        return {p: self._ring[p, n - c:].tolist() for p, c in enumerate(self._count.tolist()) if c}
 
     def _forget(self, points: np.ndarray) -> None:
         """Drop points' samples ([our choice] a repaired or re-sourced sensor reads its live value at once)."""
         self._count[points] = 0
         self._ring[points] = 0.0
-        self._top[points] = -math.inf
+        self.forget_top(points)
 
     # -- the seams broken variants override (arrays over measurements) ----------------------------------------------
     def installed(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
@@ -333,11 +255,7 @@ class TemperatureModel(Model):
         module = self.fitted[k]
         step = self._step(module)
         cycle = module.update_s[self.config.rate]
-        # After a long jump only the last `averaging` cycles can still show in a reading: skip whole cycles
-        # before them (the multiplexer ends each cycle where it began, so the schedule is unchanged).
-        keep = (self.config.averaging + 1) * cycle
-        if now - self._next[k] > keep and self.log is None:  # (a FUN86 replaying the readings needs them all)
-            self._next[k] += math.floor((now - self._next[k] - keep) / cycle) * cycle
+        self._next[k] = self.skip_unseen(self._next[k], now, cycle, self.config.averaging, self.log is not None)
         times, self._next[k] = schedule(self._next[k], step, now + 1e-9)
         points = first + (self._mux[k] + np.arange(len(times))) % module.points
         self._mux[k] = (self._mux[k] + len(times)) % module.points
@@ -407,121 +325,6 @@ class TemperatureModel(Model):
         self._breaks = breaks
         self._measured.update(points)
 
-    # -- what a batch of scans run elsewhere (FUN86's spans, models/span.py) reads and leaves ----------------------
-    def measuring_table(self, mem: "Memory") -> MeasuringTable | None:
-        """The table as this model's scan reads it, if it is measuring and every point was measured."""
-        words = mem.words[self.config.table.kind]
-        sr = self.config.table.index
-        if words[sr] != TABLE_MARKER:
-            return None
-        count = words[sr + 1]
-        header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
-        state, readings, work, codes, table_modules, total = self._layout(header)
-        if state != "measuring" or readings is None or work is None or work.kind not in mem.words:
-            return None
-        _mismatch, expected, _entries, measured = self._plan(codes, table_modules, words[sr + 2])
-        if not expected or not expected <= self._measured:
-            return None
-        return MeasuringTable(readings, work, measured, header, min(count, MAX_MODULES), total)
-
-    def schedule_state(self) -> tuple:
-        """The measurement schedule and samples, to be put back by :meth:`restore_schedule` (a batch computed and
-        then dropped for a shorter one moves them)."""
-        return list(self._next), list(self._mux), self._ring.copy(), self._count.copy(), self._top.copy()
-
-    def restore_schedule(self, state: tuple) -> None:
-        next_due, mux, ring, count, top = state
-        self._next, self._mux = list(next_due), list(mux)
-        self._ring, self._count, self._top = ring.copy(), count.copy(), top.copy()
-
-    def batch_measured(self, points: np.ndarray, good: np.ndarray, values: np.ndarray, flagged: np.ndarray) -> None:
-        """Samples, break bits and measured points as after a batch whose last measurement of each of ``points``
-        was ``values`` (in the unit; used where ``good``) with break bits ``flagged``."""
-        if self.config.averaging == 1:
-            self.average(points[good], values[good])
-        if not good.all():
-            self._forget(points[~good])
-        self._record_results(points.tolist(), flagged.tolist())
-        self._quiet = None
-
-    def readings_upper(self, mem: "Memory", points) -> float:  # noqa: ANN001
-        """The highest reading any of ``points`` can show from now on (``inf`` when the model cannot tell)."""
-        points = np.asarray(list(points), dtype=np.intp)
-        key = (tuple(points.tolist()), self._sources_version, tuple(mem.words["R"][_MASK_LOW:_MASK_LOW + 2]))
-        if self._bounds[0] != key:  # (the sources' bounds, and whether every point is installed)
-            cache = self._upper_cache
-            bounds = []
-            for point in key[0]:
-                source = self.sources.get(point)
-                hit = cache.get(point)
-                if hit is None or hit[0] is not source:
-                    hit = cache[point] = (source, self._source_upper(source))
-                bounds.append(hit[1])
-            self._bounds = (key, max(bounds, default=-math.inf), bool(np.all(self.installed(mem, points))))
-        _key, top, installed = self._bounds
-        if len(points):
-            top = max(top, float(self._top[points].max()))
-        if (type(self).point_result is not TemperatureModel.point_result or type(self)._live is not TemperatureModel._live
-                or math.isinf(top) or not installed or any(p in self.broken for p in key[0])):
-            return math.inf
-        return (math.ceil(top) + 1) * 10 if self.config.rate == "fast" else math.ceil(top * 10) + 1
-
-    def _source_upper(self, source) -> float:  # noqa: ANN001
-        """A source's highest value, in the configured unit (``inf`` when unknown)."""
-        if isinstance(source, Fixed):
-            celsius = source.celsius
-        elif isinstance(source, Ramp):  # falling: never above where it started
-            celsius = source.high if source.per_s > 0 else min(max(source.start, source.low), source.high)
-        elif hasattr(source, "upper_bound"):
-            celsius = source.upper_bound()
-        else:
-            return math.inf
-        return math.inf if math.isinf(celsius) else to_unit(celsius, self.config.unit)
-
-    def values(self, times: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """Each point's source at its time, °C.  Sources of one group (a source with ``group`` and ``slot``, e.g.
-        a thermal plant's points) are measured together: ``group.measured(slots, points, times)``."""
-        plant, slots = self._plant_slots()
-        if plant is not None:
-            slot = slots[points]
-            if (slot >= 0).all():
-                return plant.measured(slot, points, times)
-        out = np.empty(len(points))
-        sources = [self.sources[p] for p in points.tolist()]
-        plants: dict[int, list[int]] = {}
-        for i, source in enumerate(sources):
-            if getattr(source, "group", None) is not None:
-                plants.setdefault(id(source.group), []).append(i)
-            else:
-                out[i] = source(float(times[i]))
-        for columns in plants.values():
-            cols = np.array(columns)
-            group = sources[columns[0]].group
-            out[cols] = group.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
-        return out
-
-    def _plant_slots(self) -> tuple:
-        """(a group of sources — a plant —, the slot of each point in it — −1 for a point with another source), for
-        the group with the most points."""
-        if self._slots[0] != self._sources_version:
-            counts: dict[int, list] = {}
-            for source in self.sources.values():
-                group = getattr(source, "group", None)
-                if group is not None:
-                    counts.setdefault(id(group), [group, 0])[1] += 1
-            plant = max(counts.values(), key=lambda entry: entry[1])[0] if counts else None
-            self._slots = (self._sources_version, plant, self.plant_slots(plant))
-        return self._slots[1], self._slots[2]
-
-    def plant_slots(self, group: object) -> np.ndarray:
-        """Each point's slot in ``group`` (a plant its sources are measured through), −1 for a point with another
-        source."""
-        slots = np.full(MAX_POINTS, -1)
-        for point, source in self.sources.items():
-            if group is not None and getattr(source, "group", None) is group:
-                slots[point] = source.slot
-        return slots
-
     def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray,
               last: np.ndarray | None = None) -> np.ndarray:
         """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°
@@ -551,8 +354,9 @@ class TemperatureModel(Model):
         ring, count, n = self._ring, self._count, self.config.averaging
         if n == 1:
             last = last_of_each(points) if last is None else last
-            ring[points[last], 0] = self._top[points[last]] = value[last]
+            ring[points[last], 0] = value[last]
             count[points[last]] = 1
+            self.note_only_sample(points[last], value[last])
             return value
         mean = np.empty(len(points))
         rounds = occurrence(points)
@@ -566,8 +370,7 @@ class TemperatureModel(Model):
             for c in range(n):
                 total = total + ring[pts, c]
             mean[cols] = total / count[pts]
-        pts = np.unique(points)
-        self._top[pts] = np.where(np.arange(n) >= n - count[pts][:, None], ring[pts], -math.inf).max(axis=1)
+        self.note_top(np.unique(points), ring, count, n)
         return mean
 
 
@@ -592,3 +395,6 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
 SENSOR_LOW, SENSOR_HIGH = np.full(256, -math.inf), np.full(256, math.inf)
 for _code, _sensor in SENSOR_BY_CODE.items():
     SENSOR_LOW[_code], SENSOR_HIGH[_code] = _sensor.low_c, _sensor.high_c
+
+
+TemperatureModel.plain = TemperatureModel  # (the seams the speed-ups assume: see BatchingShortcuts)
