@@ -1,54 +1,51 @@
-"""Serve an S7 emulator over Modbus/TCP with the S7-200 SMART map, on pymodbus's server.
+"""Serve an S7 emulator over Modbus/TCP: the S7-200 SMART map for the one engine-over-Modbus server
+(:mod:`hil.sim.modbus_engine`).
 
-Same pattern as :mod:`hil.families.fbs.sim.serve_modbus` (a SimDevice whose async ``action`` forwards every request into
-:meth:`hil.sim.engine.Engine.service`, so it is handled at a scan boundary), but with the S7 tables: holding registers = V
-words from HoldStart (MaxHold of them), coils = Q0.0–Q31.7, discrete inputs = I0.0–I31.7, input registers =
-AIW0–AIW110 (read as 0: the emulator has no analog inputs).  Only the function codes MBUS_SLAVE supports are
-answered (01, 02, 03, 04, 05, 06, 15, 16); pymodbus answers ILLEGAL_ADDRESS outside the tables itself.
+The tables are the MBUS_SLAVE library's: holding registers = V words from HoldStart (MaxHold of them), coils =
+Q0.0–Q31.7, discrete inputs = I0.0–I31.7, input registers = AIW0–AIW110 (read as 0: the emulator has no analog
+inputs); only the function codes MBUS_SLAVE supports are answered (01, 02, 03, 04, 05, 06, 15, 16).  Requests at
+scan boundaries, the request gate (exceptions 1, 2, 3, unit ids), in-order TCP, strict quantities and wire
+faults are the one server's, as for the FBs.
 """
 
 from __future__ import annotations
 
-import asyncio
-import concurrent.futures
-
 from pymodbus.constants import ExcCodes
-from pymodbus.server import ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.simulator import SimDevice
 
-from hil.sim.runtime import LoopThread, ServerHandle
+from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
+from hil.sim.runtime import ServerHandle
+from hil.sim.wire_faults import WireFaults
 from hil.families.s7smart.emulator import S7Emulator, S7Memory
 from hil.families.s7smart.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
 
-_POOL = concurrent.futures.ThreadPoolExecutor(max_workers=4, thread_name_prefix="hil-s7-modbus-service")
 _BIT_FCS = {1: "Q", 2: "I", 5: "Q", 15: "Q"}
 _REGISTER_FCS = (3, 6, 16)
 
 
-def build_s7_device(emulator: S7Emulator, unit: int, modbus_map: S7ModbusMap) -> SimDevice:
-    coils = [SimData(0, values=[False] * BITS, datatype=DataType.BITS)]
-    discrete = [SimData(0, values=[False] * BITS, datatype=DataType.BITS)]
-    holding = [SimData(0, count=modbus_map.max_hold, values=0, datatype=DataType.REGISTERS)]
-    inputs = [SimData(0, count=INPUT_REGISTERS, values=0, datatype=DataType.REGISTERS)]
-    return SimDevice(id=unit, simdata=(coils, discrete, holding, inputs),
-                     action=_make_action(emulator, modbus_map))
+class S7ServedMap:
+    """The S7-200 SMART Modbus slave map ``modbus_map`` (its HoldStart and MaxHold), for the one server."""
 
+    functions = frozenset({1, 2, 3, 4, 5, 6, 15, 16})
 
-def _make_action(emulator: S7Emulator, modbus_map: S7ModbusMap):  # noqa: ANN202 - a pymodbus SimAction
-    async def action(function_code: int, start_address: int, address: int, count: int,
-                     registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
+    def __init__(self, modbus_map: S7ModbusMap) -> None:
+        self.modbus_map = modbus_map
+        self.tables = Tables(coils=((0, BITS),), discrete=((0, BITS),), holding=((0, modbus_map.max_hold),),
+                             inputs=((0, INPUT_REGISTERS),))
+
+    def request(self, function_code: int, start_address: int, address: int, count: int, registers: list[int],
+                set_values: Values) -> Request | ExcCodes | None:
         if function_code in _BIT_FCS:
-            request = _bits(_BIT_FCS[function_code], start_address, address, count, registers, set_values)
-        elif function_code in _REGISTER_FCS:
-            request = _holding(modbus_map, start_address, address, count, registers, set_values)
-        elif function_code == 4:
+            return _bits(_BIT_FCS[function_code], start_address, address, count, registers, set_values)
+        if function_code in _REGISTER_FCS:
+            return _holding(self.modbus_map, start_address, address, count, registers, set_values)
+        if function_code == 4:
             return None  # AIW: zeros from the staging table
-        else:
-            return ExcCodes.ILLEGAL_FUNCTION
-        fill = await asyncio.get_running_loop().run_in_executor(_POOL, emulator.service, request)
-        fill()  # after the await: no other request can interleave before pymodbus copies the reply
-        return None
-    return action
+        return ExcCodes.ILLEGAL_FUNCTION
+
+
+def build_s7_device(emulator: S7Emulator, unit: int, modbus_map: S7ModbusMap) -> SimDevice:
+    return build_device(emulator, S7ServedMap(modbus_map), unit)
 
 
 def _bits(area: str, start_address: int, address: int, count: int, registers: list[int], set_values):  # noqa: ANN001, ANN202
@@ -59,7 +56,7 @@ def _bits(area: str, start_address: int, address: int, count: int, registers: li
             bank = mem.areas[area]
             for n, v in enumerate(values, address):
                 bank[n // 8] = bank[n // 8] | 1 << n % 8 if v else bank[n // 8] & ~(1 << n % 8)
-            return lambda: None
+            return nothing
         return write
     first_reg = address // 16  # pymodbus hands bit tables to the action as packed 16-bit registers
     offset = first_reg - start_address
@@ -87,7 +84,7 @@ def _holding(modbus_map: S7ModbusMap, start_address: int, address: int, count: i
 
         def write(mem: S7Memory):  # noqa: ANN202
             mem.write_bytes("V", first_byte, data)
-            return lambda: None
+            return nothing
         return write
     offset = address - start_address
 
@@ -101,24 +98,7 @@ def _holding(modbus_map: S7ModbusMap, start_address: int, address: int, count: i
 
 
 def start_s7_modbus_tcp(emulator: S7Emulator, modbus_map: S7ModbusMap, host: str = "127.0.0.1", port: int = 0,
-                        unit: int = 1) -> ServerHandle:
-    """Serve ``emulator`` as Modbus/TCP unit ``unit`` with the S7-200 SMART map; port 0 picks a free port."""
-    runtime = LoopThread.shared()
-
-    async def start() -> ModbusTcpServer:
-        server = ModbusTcpServer(build_s7_device(emulator, unit, modbus_map), address=(host, port))
-        await server.serve_forever(background=True)
-        return server
-
-    server = runtime.run(start())
-    actual = server.transport.sockets[0].getsockname()[1]
-
-    def stop() -> None:
-        if runtime.loop.is_closed() or not runtime.loop.is_running():
-            return
-
-        async def shutdown() -> None:
-            await server.shutdown()
-        runtime.run(shutdown())
-
-    return ServerHandle("s7-modbus-tcp", f"{host}:{actual}", stop)
+                        unit: int = 1, *, faults: WireFaults | None = None) -> ServerHandle:
+    """Serve ``emulator`` as Modbus/TCP unit ``unit`` with the S7-200 SMART map; port 0 picks a free port;
+    ``faults``: the wire-fault plan every reply goes through."""
+    return start_tcp(emulator, S7ServedMap(modbus_map), host, port, unit, faults=faults, kind="s7-modbus-tcp")
