@@ -5,7 +5,7 @@
     python benchmarks/mutation.py                # every mutant (≈ 5000: hours; not in CI)
 
 Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 SMART clock model
-(hil/families/s7smart/emulator.py).  The test command is the suites against the in-process emulator, exactly as
+(hil/families/s7smart/sim/emulator.py).  The test command is the suites against the in-process emulator, exactly as
 ``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
 temperatures, and the temperature suite once more on the
@@ -52,7 +52,7 @@ SESSIONS = {
         PYTEST + "suites/test_temperature.py " + PID_SUITES + " && " + PYTEST + "suites/test_temperature.py --bench "
         + "mixed-temperature.toml")),
     "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
-    "s7": ("hil/families/s7smart/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
+    "s7": ("hil/families/s7smart/sim/emulator.py", PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml"),
 }
 #: the sample is drawn per group (in this order), over the group's mutants sorted by file, operator, occurrence
 GROUPS = {"fbs": ("rtc", "temperature", "fun86"), "s7": ("s7",)}

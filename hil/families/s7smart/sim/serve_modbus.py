@@ -16,8 +16,8 @@ from pymodbus.simulator import SimDevice
 from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults
-from hil.families.s7smart.emulator import S7Emulator, S7Memory
-from hil.families.s7smart.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
+from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
+from hil.families.s7smart.protocol.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
 
 _BIT_FCS = {1: "Q", 2: "I", 5: "Q", 15: "Q"}
 _REGISTER_FCS = (3, 6, 16)

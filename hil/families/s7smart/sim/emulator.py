@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from hil.sim.engine import Engine
 from hil.sim.model import Model
-from hil.families.s7smart import timebuf
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 

@@ -16,7 +16,7 @@ from typing import Any, Callable, TypeVar
 
 from hil.core.errors import HilError, TransportError
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
-from hil.families.s7smart.io import S7Io
+from hil.families.s7smart.transport.io import S7Io
 from hil.io.request_policy import RequestPolicy
 from hil.io.status import PlcStatus
 
