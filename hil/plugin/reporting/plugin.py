@@ -306,14 +306,22 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
     """Record a measurement — ``measure("drift", 0.03, unit="s/day", low=-0.088, high=0.088)`` — as JUnit
     testcase properties and in the HTML report; fail the test at once when it is outside its limits.
 
-    ``note``: context added to the failure message (what an out-of-limits value usually means)."""
+    ``note``: context added to the failure message (what an out-of-limits value usually means).  Limits are declared
+    once: a measurement its test declares (``@pytest.mark.measures``) takes its unit and limits from there, and a
+    call that gives one the declaration gave too is refused (two statements of a limit could differ)."""
     record = _record(request)
 
     def measure(name: str, value: float, *, unit: str = "", low: float | None = None,
                 high: float | None = None, note: str = "") -> Measurement:
         _check_name(name)
         declared = next((m for m in record.measurements if m.name == name and m.value is None), None)
-        if declared is not None:  # what the declaration says, unless the call says otherwise
+        if declared is not None:
+            given = {"unit": unit or None, "low": low, "high": high}
+            twice = [k for k, v in given.items() if v is not None and getattr(declared, k) not in (None, "")]
+            if twice:
+                raise ValueError(f"measurement {name!r}: {', '.join(twice)} declared by @pytest.mark.measures "
+                                 f"already; give each limit once (there, or in the call when the declaration "
+                                 f"leaves it out)")
             unit = unit or declared.unit
             low = declared.low if low is None else low
             high = declared.high if high is None else high
