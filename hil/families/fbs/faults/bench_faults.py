@@ -1,0 +1,156 @@
+"""The bench's fault injectors (``bench.faults``), built on first use from the profile's ``[faults.*]``."""
+
+from __future__ import annotations
+
+import sys
+from typing import TYPE_CHECKING, Any
+
+from hil.core.lock import lock_key
+from hil.families.fbs.address import parse
+from hil.families.fbs.faults.config import KNOWN_FAULTS, PLANT_FAULTS
+from hil.families.fbs.faults.emulator import EmulatorPlantFault, EmulatorSensorBreak
+from hil.families.fbs.faults.injector import FaultError, SensorBreakInjector
+from hil.families.fbs.faults.manual import ManualSensorBreak
+from hil.families.fbs.faults.modbus_coil import ModbusCoilSensorBreak
+from hil.families.fbs.faults.plc_bit import PlcBitSensorBreak
+from hil.families.fbs.protocol.modbus_map import to_modbus
+from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+
+if TYPE_CHECKING:
+    from hil.families.fbs.bench import Bench
+
+
+class Faults:
+    """The bench's fault injectors, built on first use from the profile's ``[faults.*]``."""
+
+    #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
+    names = KNOWN_FAULTS
+
+    def __init__(self, bench: "Bench") -> None:
+        self.bench = bench
+        self._made: dict[str, SensorBreakInjector] = {}
+
+    def unavailable(self, name: str) -> str | None:
+        """Why this bench cannot inject fault ``name`` (a reason for a skip), or None."""
+        spec = self.bench.profile.faults.get(name)
+        if spec is None:
+            return f"the bench profile has no [faults.{name}] injector"
+        kind = spec["kind"]
+        if kind == "emulator":
+            if not self.bench.is_emulator:
+                return (f"[faults.{name}] kind = \"emulator\" needs the in-process emulator, not target "
+                        f"{self.bench.target}; use a relay (modbus-coil / plc-bit) or manual injector")
+            if name in PLANT_FAULTS:
+                if self._plant() is None:
+                    return "the emulator has no thermal plant (no [plant] section in the profile)"
+            elif self._temperature_model() is None:
+                return "the emulator has no temperature modules (no [temperature] section in the profile)"
+        if kind == "manual" and not sys.stdin.isatty():
+            return f"[faults.{name}] kind = \"manual\" needs an operator, and stdin is not a terminal"
+        if kind == "plc-bit":
+            first = parse(spec["first"])
+            if first.kind == "Y" and not self.bench.allow_destructive:
+                # DESIGN: driving outputs of somebody's machine needs an explicit opt-in.
+                return (f"[faults.{name}] drives outputs from {first}: pass --hil-allow-destructive (or set "
+                        f"[safety] allow_destructive) to let the harness switch them")
+            return self.bench.cannot_reach(str(first))
+        return None
+
+    @property
+    def sensor_break(self) -> SensorBreakInjector | None:
+        return self.get("sensor_break")
+
+    def get(self, name: str) -> SensorBreakInjector | None:
+        """The injector for ``name``, or None when the bench cannot provide it (see :meth:`unavailable`)."""
+        if name in self._made:
+            return self._made[name]
+        if self.unavailable(name):
+            return None
+        spec = self.bench.profile.faults[name]
+        kind = spec["kind"]
+        if kind == "emulator":
+            injector: SensorBreakInjector = (
+                EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
+                else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
+        elif kind == "modbus-coil":
+            why = self.not_the_plc(str(spec["target"]))
+            if why:
+                raise FaultError(f"[faults.{name}] target {why}: a fault rig must be a separate device — refused")
+            injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
+                                             float(spec.get("timeout", self.bench.profile.timeout)),
+                                             journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
+        elif kind == "plc-bit":
+            injector = PlcBitSensorBreak(self.bench.plc.io, spec["first"])  # the guarded I/O
+        else:
+            injector = ManualSensorBreak(fault=name)
+        self._made[name] = injector
+        return injector
+
+    def not_the_plc(self, target: str) -> str | None:
+        """Why the rig at ``target`` is the PLC under test (None when it is a separate device, as far as can be
+        told): the same endpoint, or a Modbus port that serves the PLC's own memory — its RTC read-out
+        R4128–R4134 reads there as it does over the bench's wire (the PLC's own Modbus port on another port
+        number).  Asked once per target."""
+        cache = self.__dict__.setdefault("_not_the_plc", {})
+        if target not in cache:
+            cache[target] = self._rig_is_plc(target)
+        return cache[target]
+
+    def _rig_is_plc(self, target: str) -> str | None:
+        if lock_key(target) == lock_key(str(self.bench.target)):
+            return f"{target} is the PLC under test ({self.bench.target})"
+        raw = self.bench.raw
+        if raw.unreachable_reason(RTC_READ_FIRST):
+            return None
+        ref = to_modbus(RTC_READ_FIRST)
+        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout))
+        try:
+            before = raw.read_words(RTC_READ_FIRST, 7)
+            try:
+                reply = rig._connect().read_holding_registers(ref.pdu, count=7, device_id=rig.unit)
+            except Exception:  # noqa: BLE001 - a rig that cannot answer as an FBs is not this FBs
+                return None
+            after = raw.read_words(RTC_READ_FIRST, 7)
+        finally:
+            rig.close()
+        if reply.isError() or not any(before):
+            return None
+        if list(reply.registers[:7]) in (before, after):
+            return (f"{target} serves the PLC's own memory (its RTC read-out {RTC_READ_FIRST}… reads there as over "
+                    f"{self.bench.target}): it is the PLC's own Modbus port")
+        return None
+
+    @property
+    def heater_open(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` opens the point's heater circuit (no heating); ``.clear(point)`` closes it."""
+        return self.get("heater_open")
+
+    @property
+    def ssr_short(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` shorts the point's SSR (full heating); ``.clear(point)`` removes the short."""
+        return self.get("ssr_short")
+
+    def _plant(self) -> Any:
+        emulator = self.bench.raw.emulator
+        return emulator.model(ThermalPlant) if emulator is not None else None
+
+    def _temperature_model(self) -> Any:
+        emulator = self.bench.raw.emulator
+        return emulator.model(TemperatureModel) if emulator is not None else None
+
+    def undo_all(self) -> None:
+        """Undo every injected fault; raises FaultError listing what could not be undone."""
+        errors = []
+        for injector in self._made.values():
+            try:
+                injector.undo()
+            except Exception as exc:  # noqa: BLE001
+                errors.append(str(exc))
+        if errors:
+            raise FaultError("; ".join(errors))
+
+    def close(self) -> None:
+        for injector in self._made.values():
+            injector.close()
