@@ -22,7 +22,7 @@ from typing import Any, Callable
 import pytest
 
 from hil.core.registry import Registry
-from hil.plugin.pytest_plugin import BENCH_SESSION
+from hil.plugin.stash import BENCH_SESSION
 from hil.plugin.reporting.model import TestRecord
 from hil.plugin.reporting.verdict import Verdict
 
