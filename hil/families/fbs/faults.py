@@ -1,0 +1,516 @@
+"""Fault injectors: how a bench breaks a sensor on purpose, and puts it right after the test.
+
+A profile names one injector per fault, e.g. ``[faults.sensor_break]``:
+
+=================  ==============================================================================================
+``kind``           what opens point *p*'s sensor circuit
+=================  ==============================================================================================
+``"emulator"``     a direct call into the in-process emulator (every ``emulator…`` target)
+``"modbus-coil"``  a relay module on a Modbus target: coil ``first_coil + p`` = 1 opens the circuit, 0 closes it
+                   (``target = "modbus+tcp://10.0.0.9:502?unit=1"``; also what ``hil emulate --rig-modbus-tcp``
+                   serves)
+``"plc-bit"``      a bit on the PLC itself, ``first = "Y40"``, one per point, written through the bench's guard
+                   (so the bits must be in ``[safety] writable``)
+``"manual"``       the operator is asked to open/close the circuit; unavailable when stdin is not a terminal
+=================  ==============================================================================================
+
+Suites reach injectors as ``bench.faults.sensor_break`` (``.open(point)``, ``.repair(point)``); every fault a
+test injected is undone by the bench when the test ends, pass or fail.  ``[faults.heater_open]`` and
+``[faults.ssr_short]`` take the same kinds and act on a point's heater circuit (``bench.faults.heater_open
+.inject(point)`` / ``.clear(point)``; with kind = "emulator" the emulator's thermal plant, ``[plant]``).
+
+The relay module is reached with pymodbus's client directly, not through :class:`~hil.families.fbs.transport.modbus.
+ModbusTransport`: that transport speaks *FBs names* mapped onto Modbus tables, whereas a relay module has plain
+coil numbers with no FBs meaning.
+"""
+
+from __future__ import annotations
+
+import sys
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING, Any, Callable
+
+from hil.families.fbs.address import parse
+from hil.families.fbs.registers import MAX_POINTS
+from hil.core.errors import AddressError, HilError, InvalidValue, ProfileError, TargetError
+from hil.io.url import parse_target
+from hil.core.lock import lock_key
+from hil.io.modbus_client import SerialClient
+from hil.families.fbs.protocol.modbus_map import to_modbus
+from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+
+if TYPE_CHECKING:
+    from hil.families.fbs.bench import Bench
+
+KINDS = ("emulator", "modbus-coil", "plc-bit", "manual")
+KNOWN_FAULTS = ("sensor_break", "heater_open", "ssr_short")
+# What each fault does to point p, for the operator's prompt and the docs.  heater_open / ssr_short act on the
+# heater circuit of a FUN86-controlled point (the emulator's thermal plant, or a relay/contactor on a bench).
+FAULT_ACTIONS = {"sensor_break": ("DISCONNECT the sensor", "RECONNECT the sensor"),
+                 "heater_open": ("OPEN the heater circuit", "CLOSE the heater circuit"),
+                 "ssr_short": ("BRIDGE the SSR (heater full on)", "REMOVE the SSR bridge")}
+PLANT_FAULTS = ("heater_open", "ssr_short")
+_KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout", "coils"},
+         "plc-bit": {"kind", "first"}, "manual": {"kind"}}
+
+
+class FaultError(HilError):
+    """A fault could not be injected or undone."""
+
+
+def check_fault_configs(faults: dict[str, dict[str, Any]], where: str = "<profile>") -> None:
+    """Validate every ``[faults.<name>]`` table; ProfileError names the key and what is wrong."""
+    for name, table in faults.items():
+        label = f"{where}: [faults.{name}]"
+        if name not in KNOWN_FAULTS:
+            raise ProfileError(f"{label}: unknown fault (known: {', '.join(KNOWN_FAULTS)})")
+        kind = table.get("kind")
+        if kind not in KINDS:
+            raise ProfileError(f"{label} kind: must be one of {', '.join(KINDS)}, not {kind!r}")
+        unknown = set(table) - _KEYS[kind]
+        if unknown:
+            raise ProfileError(f"{label}: unknown key(s) for kind = {kind!r}: {', '.join(sorted(unknown))} "
+                               f"(known: {', '.join(sorted(_KEYS[kind]))})")
+        if kind == "modbus-coil":
+            try:
+                target = parse_target(str(table.get("target", "")))
+            except TargetError as exc:
+                raise ProfileError(f"{label} target: {exc}") from None
+            if target.protocol != "modbus" or target.in_process:
+                raise ProfileError(f"{label} target: {target} is not a Modbus URL (modbus+tcp://HOST:PORT?unit=1 "
+                                   f"or modbus+rtu:///dev/ttyUSB0?unit=1, modbus+rfc2217://HOST:PORT?unit=1)")
+            first = table.get("first_coil", 0)
+            if not isinstance(first, int) or isinstance(first, bool) or not 0 <= first <= 65535 - 32:
+                raise ProfileError(f"{label} first_coil: must be 0–65503, not {first!r}")
+        if kind == "plc-bit":
+            try:
+                first = parse(str(table.get("first", "")))
+            except AddressError as exc:
+                raise ProfileError(f"{label} first: {exc} (e.g. first = \"Y40\")") from None
+            if not first.is_bit:
+                raise ProfileError(f"{label} first: {first} is not a bit (e.g. first = \"Y40\")")
+
+
+class SensorBreakInjector(ABC):
+    """Opens and closes sensor circuits; remembers what it opened so that :meth:`undo` can close it."""
+
+    kind = ""
+
+    def __init__(self) -> None:
+        self.opened: set[int] = set()
+
+    def inject(self, point: int) -> None:
+        """Put the fault on ``point`` (for a sensor break: open its circuit)."""
+        self.open(point)
+
+    def clear(self, point: int) -> None:
+        """Take the fault off ``point`` again."""
+        self.repair(point)
+
+    def open(self, point: int) -> None:
+        """Open ``point``'s sensor circuit (the PLC sees it at the point's next measurement)."""
+        self._check(point)
+        self.opened.add(point)  # before the attempt: a half-done open must still be undone
+        self._set(point, True)
+
+    def repair(self, point: int) -> None:
+        """Close ``point``'s sensor circuit again."""
+        self._check(point)
+        self._set(point, False)
+        self.opened.discard(point)
+
+    def undo(self) -> None:
+        """Close every circuit this injector opened (the bench calls this when a test ends)."""
+        errors = []
+        for point in sorted(self.opened):
+            try:
+                self.repair(point)
+            except Exception as exc:  # noqa: BLE001 - try every point, then report them all
+                errors.append(f"point {point}: {exc}")
+        if errors:
+            raise FaultError(f"{self.kind} sensor-break injector could not repair: {'; '.join(errors)}")
+
+    def close(self) -> None:
+        pass
+
+    def openable(self, points: list[int]) -> list[int]:
+        """Which of ``points`` this injector can open (all of them, unless a rig's allow-list or a person's hands
+        say fewer)."""
+        return list(points)
+
+    @staticmethod
+    def _check(point: int) -> None:
+        if not isinstance(point, int) or not 0 <= point < MAX_POINTS:
+            raise InvalidValue(f"temperature point {point!r} is outside 0–{MAX_POINTS - 1}")
+
+    @abstractmethod
+    def _set(self, point: int, open_circuit: bool) -> None: ...
+
+
+class EmulatorSensorBreak(SensorBreakInjector):
+    kind = "emulator"
+
+    def __init__(self, emulator: Any, model: Any) -> None:  # an Emulator and its TemperatureModel
+        super().__init__()
+        self.emulator = emulator
+        self.model = model
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        with self.emulator.lock:  # the emulator may be serving a wire from another thread
+            (self.model.open if open_circuit else self.model.repair)(point)
+
+
+class EmulatorPlantFault(SensorBreakInjector):
+    """heater_open / ssr_short inside the in-process emulator's thermal plant (seen from the next scan)."""
+
+    kind = "emulator"
+
+    def __init__(self, emulator: Any, plant: Any, fault: str) -> None:  # an Emulator and its ThermalPlant
+        super().__init__()
+        self.emulator = emulator
+        self.plant = plant
+        self.fault = fault
+
+    def _set(self, point: int, on: bool) -> None:
+        with self.emulator.lock:
+            self.plant.set_fault(self.fault, point, on)
+
+
+class ModbusCoilSensorBreak(SensorBreakInjector):
+    """A relay module on Modbus: coil ``first_coil + point`` = 1 opens the point's circuit."""
+
+    kind = "modbus-coil"
+
+    def __init__(self, target: str, first_coil: int = 0, timeout: float = 2.0, *, journal: Any = None,
+                 coils: str | None = None) -> None:
+        super().__init__()
+        self.target = parse_target(target)
+        self.first_coil = first_coil
+        self.unit = int(self.target.params.get("unit", 1))
+        self.timeout = timeout
+        self.journal = journal  # hil.core.journal.Journal: each coil's original is on disk before it is switched
+        self.allowed = parse_coils(coils) if coils is not None else None  # the rig's own allow-list
+        self.originals: dict[int, bool] = {}  # point → what its coil held before the first injection
+        self._client: Any = None
+
+    def coil_key(self, point: int) -> str:
+        return f"{lock_key(str(self.target))}#unit{self.unit}/coil{self.first_coil + point}"
+
+    def _original(self, point: int) -> None:
+        """Read and journal the coil's state before the first switch (restore writes back *that*, not 0)."""
+        if point in self.originals:
+            return
+        coil = self.first_coil + point
+        value = self._read(coil)
+        if self.journal is not None:
+            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, value)
+        self.originals[point] = value
+
+    def _read(self, coil: int) -> bool:
+        from pymodbus.exceptions import ModbusException
+        try:
+            reply = self._connect().read_coils(coil, count=1, device_id=self.unit)
+        except ModbusException as exc:
+            self.close()
+            raise FaultError(f"relay module {self.target}: reading coil {coil} failed: {exc}") from None
+        if reply.isError():
+            raise FaultError(f"relay module {self.target} refused to read coil {coil}")
+        return bool(reply.bits[0])
+
+    def open(self, point: int) -> None:
+        self._check(point)
+        self._allowed(point)
+        self._original(point)
+        super().open(point)
+
+    def repair(self, point: int) -> None:
+        self._check(point)
+        self._allowed(point)
+        self._original(point)
+        super().repair(point)
+
+    def openable(self, points: list[int]) -> list[int]:
+        """The points whose coils are in the rig's allow-list (all, without one)."""
+        return [p for p in points if self.allowed is None or self.first_coil + p in self.allowed]
+
+    def _allowed(self, point: int) -> None:
+        coil = self.first_coil + point
+        if self.allowed is not None and coil not in self.allowed:
+            raise FaultError(f"coil {coil} of the rig {self.target} is not in [faults] coils — refused before "
+                             f"anything was sent")
+
+    def undo(self) -> None:
+        """Put every coil this injector switched back to what it held before (read back to verify)."""
+        errors = []
+        for point, value in sorted(self.originals.items()):
+            coil = self.first_coil + point
+            try:
+                self._write(point, value)
+                if self._read(coil) != value:
+                    raise FaultError(f"coil {coil} does not read back {int(value)}")
+            except Exception as exc:  # noqa: BLE001 - try every coil, then report them all
+                errors.append(f"coil {coil} (original {int(value)}): {exc}")
+                continue
+            self.opened.discard(point)
+            del self.originals[point]
+            if self.journal is not None:
+                self.journal.drop_coil(self.coil_key(point))
+        if errors:
+            raise FaultError(f"relay module {self.target}: could not restore {'; '.join(errors)}")
+
+    def _connect(self) -> Any:
+        if self._client is None:
+            from pymodbus.client import ModbusTcpClient
+            from pymodbus.framer import FramerType
+            t = self.target
+            if t.scheme == "modbus+tcp":
+                # retries=0: pymodbus re-sends a request that timed out, a coil write included (a write is never
+                # repeated: its first copy may have landed)
+                client = ModbusTcpClient(t.host, port=t.port, timeout=self.timeout, retries=0)
+            else:
+                p = t.params
+                client = SerialClient(t.serial_port, framer=FramerType.RTU, baudrate=int(p.get("baudrate", 9600)),
+                                      parity=str(p.get("parity", "E")), bytesize=int(p.get("bytesize", 8)),
+                                      stopbits=int(p.get("stopbits", 1)), timeout=self.timeout, retries=0)
+            if not client.connect():
+                raise FaultError(f"cannot reach the sensor-break relay module at {t}: is it powered and wired, "
+                                 f"and is the URL in [faults.sensor_break] target right?")
+            self._client = client
+        return self._client
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        if self.journal is not None:  # what the coil is about to hold, on disk before it is switched
+            coil = self.first_coil + point
+            self.journal.add_coil(self.coil_key(point), str(self.target), coil, self.unit, self.originals[point],
+                                  wrote=bool(open_circuit))
+        self._write(point, open_circuit)
+
+    def _write(self, point: int, open_circuit: bool) -> None:
+        from pymodbus.exceptions import ModbusException
+        coil = self.first_coil + point
+        try:
+            reply = self._connect().write_coil(coil, open_circuit, device_id=self.unit)
+        except ModbusException as exc:
+            self.close()
+            raise FaultError(f"relay module {self.target}: writing coil {coil} (point {point}) failed: {exc}") \
+                from None
+        if reply.isError():
+            raise FaultError(f"relay module {self.target} refused coil {coil} (point {point}): exception "
+                             f"{getattr(reply, 'exception_code', '?')} — check first_coil and the module's size")
+
+    def close(self) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+
+
+def parse_coils(text: str) -> frozenset[int]:
+    """``"0-15, 20"`` → the coil numbers a rig's injector may switch."""
+    out: set[int] = set()
+    for part in str(text).split(","):
+        part = part.strip()
+        if not part:
+            continue
+        low, _, high = part.partition("-")
+        try:
+            first, last = int(low), int(high or low)
+        except ValueError:
+            raise ProfileError(f"[faults] coils: {part!r} is not a coil number or range like 0-15") from None
+        out.update(range(first, last + 1))
+    return frozenset(out)
+
+
+class PlcBitSensorBreak(SensorBreakInjector):
+    """A bit on the PLC itself (e.g. Y40 + point drives a relay in the sensor line), through the bench's guard."""
+
+    kind = "plc-bit"
+
+    def __init__(self, io: Any, first: str) -> None:  # io: the bench's GuardedTransport
+        super().__init__()
+        self.io = io
+        self.first = parse(first)
+
+    def bit(self, point: int) -> str:
+        return str(self.first.offset(point))
+
+    def openable(self, points: list[int]) -> list[int]:
+        """The points whose bit the bench's [safety] writable list lets the harness switch."""
+        writable = getattr(self.io, "writable", None)
+        return [p for p in points if writable is None or self.first.offset(p) in writable]
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        self.io.write(self.bit(point), 1 if open_circuit else 0)
+
+
+class ManualSensorBreak(SensorBreakInjector):
+    """Asks the operator at the bench to open or close a circuit, and waits for Enter."""
+
+    kind = "manual"
+
+    def __init__(self, ask: Callable[[str], str] | None = None, fault: str = "sensor_break") -> None:
+        super().__init__()
+        self.ask = ask or _ask_terminal
+        self.fault = fault
+
+    def openable(self, points: list[int]) -> list[int]:
+        """A person opens each circuit by hand: the first and last of points 0–15 and of 16–31 (the ends of R4010/TW+1
+        and of R4011/TW+2), not every point."""
+        ends = []
+        for half in ([p for p in points if p < 16], [p for p in points if p >= 16]):
+            ends += sorted({half[0], half[-1]}) if half else []
+        return ends
+
+    def _set(self, point: int, open_circuit: bool) -> None:
+        if self.fault == "sensor_break":
+            action = "DISCONNECT" if open_circuit else "RECONNECT"
+            self.ask(f"{action} the sensor of temperature point {point}, then press Enter: ")
+            return
+        action = FAULT_ACTIONS[self.fault][0 if open_circuit else 1]
+        self.ask(f"{action} of temperature point {point}, then press Enter: ")
+
+
+def _ask_terminal(prompt: str) -> str:
+    # pytest captures stdin/stdout; the terminal itself still reaches the operator.
+    try:
+        with open("/dev/tty", "r+") as tty:
+            tty.write("\n" + prompt)
+            tty.flush()
+            return tty.readline()
+    except OSError:
+        return input(prompt)
+
+
+class Faults:
+    """The bench's fault injectors, built on first use from the profile's ``[faults.*]``."""
+
+    #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
+    names = KNOWN_FAULTS
+
+    def __init__(self, bench: "Bench") -> None:
+        self.bench = bench
+        self._made: dict[str, SensorBreakInjector] = {}
+
+    def unavailable(self, name: str) -> str | None:
+        """Why this bench cannot inject fault ``name`` (a reason for a skip), or None."""
+        spec = self.bench.profile.faults.get(name)
+        if spec is None:
+            return f"the bench profile has no [faults.{name}] injector"
+        kind = spec["kind"]
+        if kind == "emulator":
+            if not self.bench.is_emulator:
+                return (f"[faults.{name}] kind = \"emulator\" needs the in-process emulator, not target "
+                        f"{self.bench.target}; use a relay (modbus-coil / plc-bit) or manual injector")
+            if name in PLANT_FAULTS:
+                if self._plant() is None:
+                    return "the emulator has no thermal plant (no [plant] section in the profile)"
+            elif self._temperature_model() is None:
+                return "the emulator has no temperature modules (no [temperature] section in the profile)"
+        if kind == "manual" and not sys.stdin.isatty():
+            return f"[faults.{name}] kind = \"manual\" needs an operator, and stdin is not a terminal"
+        if kind == "plc-bit":
+            first = parse(spec["first"])
+            if first.kind == "Y" and not self.bench.allow_destructive:
+                # DESIGN: driving outputs of somebody's machine needs an explicit opt-in.
+                return (f"[faults.{name}] drives outputs from {first}: pass --hil-allow-destructive (or set "
+                        f"[safety] allow_destructive) to let the harness switch them")
+            return self.bench.cannot_reach(str(first))
+        return None
+
+    @property
+    def sensor_break(self) -> SensorBreakInjector | None:
+        return self.get("sensor_break")
+
+    def get(self, name: str) -> SensorBreakInjector | None:
+        """The injector for ``name``, or None when the bench cannot provide it (see :meth:`unavailable`)."""
+        if name in self._made:
+            return self._made[name]
+        if self.unavailable(name):
+            return None
+        spec = self.bench.profile.faults[name]
+        kind = spec["kind"]
+        if kind == "emulator":
+            injector: SensorBreakInjector = (
+                EmulatorPlantFault(self.bench.raw.emulator, self._plant(), name) if name in PLANT_FAULTS
+                else EmulatorSensorBreak(self.bench.raw.emulator, self._temperature_model()))
+        elif kind == "modbus-coil":
+            why = self.not_the_plc(str(spec["target"]))
+            if why:
+                raise FaultError(f"[faults.{name}] target {why}: a fault rig must be a separate device — refused")
+            injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
+                                             float(spec.get("timeout", self.bench.profile.timeout)),
+                                             journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
+        elif kind == "plc-bit":
+            injector = PlcBitSensorBreak(self.bench.plc.io, spec["first"])  # the guarded I/O
+        else:
+            injector = ManualSensorBreak(fault=name)
+        self._made[name] = injector
+        return injector
+
+    def not_the_plc(self, target: str) -> str | None:
+        """Why the rig at ``target`` is the PLC under test (None when it is a separate device, as far as can be
+        told): the same endpoint, or a Modbus port that serves the PLC's own memory — its RTC read-out
+        R4128–R4134 reads there as it does over the bench's wire (the PLC's own Modbus port on another port
+        number).  Asked once per target."""
+        cache = self.__dict__.setdefault("_not_the_plc", {})
+        if target not in cache:
+            cache[target] = self._rig_is_plc(target)
+        return cache[target]
+
+    def _rig_is_plc(self, target: str) -> str | None:
+        if lock_key(target) == lock_key(str(self.bench.target)):
+            return f"{target} is the PLC under test ({self.bench.target})"
+        raw = self.bench.raw
+        if raw.unreachable_reason(RTC_READ_FIRST):
+            return None
+        ref = to_modbus(RTC_READ_FIRST)
+        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout))
+        try:
+            before = raw.read_words(RTC_READ_FIRST, 7)
+            try:
+                reply = rig._connect().read_holding_registers(ref.pdu, count=7, device_id=rig.unit)
+            except Exception:  # noqa: BLE001 - a rig that cannot answer as an FBs is not this FBs
+                return None
+            after = raw.read_words(RTC_READ_FIRST, 7)
+        finally:
+            rig.close()
+        if reply.isError() or not any(before):
+            return None
+        if list(reply.registers[:7]) in (before, after):
+            return (f"{target} serves the PLC's own memory (its RTC read-out {RTC_READ_FIRST}… reads there as over "
+                    f"{self.bench.target}): it is the PLC's own Modbus port")
+        return None
+
+    @property
+    def heater_open(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` opens the point's heater circuit (no heating); ``.clear(point)`` closes it."""
+        return self.get("heater_open")
+
+    @property
+    def ssr_short(self) -> SensorBreakInjector | None:
+        """``.inject(point)`` shorts the point's SSR (full heating); ``.clear(point)`` removes the short."""
+        return self.get("ssr_short")
+
+    def _plant(self) -> Any:
+        emulator = self.bench.raw.emulator
+        return emulator.model(ThermalPlant) if emulator is not None else None
+
+    def _temperature_model(self) -> Any:
+        emulator = self.bench.raw.emulator
+        return emulator.model(TemperatureModel) if emulator is not None else None
+
+    def undo_all(self) -> None:
+        """Undo every injected fault; raises FaultError listing what could not be undone."""
+        errors = []
+        for injector in self._made.values():
+            try:
+                injector.undo()
+            except Exception as exc:  # noqa: BLE001
+                errors.append(str(exc))
+        if errors:
+            raise FaultError("; ".join(errors))
+
+    def close(self) -> None:
+        for injector in self._made.values():
+            injector.close()
