@@ -40,11 +40,10 @@ from hil.families.fbs.protocol.modbus_map import to_modbus
 from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import TemperatureModel
-# the injector kinds and the profile's tables, one module each (hil.families.fbs.injectors), named here too.
+# the injector kinds and the profile's tables, one module each (hil.families.fbs.injectors).
 # ABC, abstractmethod, MAX_POINTS, InvalidValue, AddressError, TargetError and Callable above moved out with them:
 # their lines stay until the policy branch (which rewrites this module's imports) is merged, to merge cleanly
-from hil.families.fbs.injectors.config import (FAULT_ACTIONS, KINDS, KNOWN_FAULTS, PLANT_FAULTS,  # noqa: F401
-                                               check_fault_configs)
+from hil.families.fbs.injectors.config import KNOWN_FAULTS, PLANT_FAULTS
 from hil.families.fbs.injectors.emulator import EmulatorPlantFault, EmulatorSensorBreak
 from hil.families.fbs.injectors.injector import FaultError, SensorBreakInjector
 from hil.families.fbs.injectors.manual import ManualSensorBreak
