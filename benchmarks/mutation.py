@@ -5,7 +5,7 @@
     python benchmarks/mutation.py                # every mutant (≈ 5000: hours; not in CI)
 
 Mutated: hil/families/fbs/sim/models/{rtc,temperature,fun86}.py and the S7-200 SMART clock model
-(hil/families/s7smart/clock.py).  The test command is the suites against the in-process emulator, exactly as
+(hil/families/s7smart/sim/clock.py).  The test command is the suites against the in-process emulator, exactly as
 ``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
 temperatures, and the temperature suite once more on the profile with averaging and the fast rate and once on the
@@ -55,7 +55,7 @@ SESSIONS = {
         + "mixed-temperature.toml && " + PYTEST + "suites/test_temperature.py --bench averaged-temperature.toml")),
     "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
     # (and once more as a CR40, a CPU without a clock: cr40.toml)
-    "s7": ("hil/families/s7smart/clock.py", "sh -c " + shlex.quote(
+    "s7": ("hil/families/s7smart/sim/clock.py", "sh -c " + shlex.quote(
         PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml && " + PYTEST
         + "suites/s7smart --bench cr40.toml")),
 }

@@ -9,7 +9,7 @@ from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.device.rtc import Rtc as RtcImpl
 from hil.families.fbs.device.temperature import Temperature as TemperatureImpl
 from hil.families.fbs.faces import FbsIO, Pid, Rtc, Temperature
-from hil.families.fbs.faults import SensorBreakInjector
+from hil.families.fbs.injectors.injector import SensorBreakInjector
 from hil.families.fbs.transport.guard import GuardedTransport
 
 

@@ -100,6 +100,8 @@ def test_requirement_verdict_never_counts_a_skip_as_evidence():
     assert verdict(["skipped", "skipped"]) == "skipped"
     assert verdict(["passed", "failed"]) == "failed"
     assert verdict(["error"]) == "failed"
+    assert verdict(["passed", "aborted"]) == "aborted"  # a test cut short is no evidence either
+    assert verdict(["passed", "incomplete"]) == "aborted" and verdict(["aborted", "failed"]) == "failed"
     assert requirements_section([model.TestRecord("t::a", "x")]) == ""
 
 

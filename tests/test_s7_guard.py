@@ -10,9 +10,9 @@ import pytest
 from hil.bench.family import open_bench
 from hil.bench.profile import load_profile
 from hil.core.errors import WriteRefused
-from hil.families.s7smart import timebuf
-from hil.families.s7smart.emulator import build_s7_emulator
-from hil.families.s7smart.io import GuardedS7Io, LocalS7Io
+from hil.families.s7smart.protocol import timebuf
+from hil.families.s7smart.sim.emulator import build_s7_emulator
+from hil.families.s7smart.transport.io import GuardedS7Io, LocalS7Io
 from tests.conftest import REPO
 
 S7_BENCH = REPO / "fixtures" / "benches" / "s7-200smart.toml"

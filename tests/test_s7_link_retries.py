@@ -9,7 +9,7 @@ import threading
 import pytest
 
 from hil.core.errors import OutcomeUnknown, ReplyTimeout
-from hil.families.s7smart.io import ModbusS7Io
+from hil.families.s7smart.transport.io import ModbusS7Io
 
 
 class SilentServer:

@@ -12,8 +12,8 @@ import sys
 
 import pytest
 
-from hil.families.s7smart import timebuf
-from hil.families.s7smart.emulator import RtcTestProgram, S7Clock, build_s7_emulator
+from hil.families.s7smart.protocol import timebuf
+from hil.families.s7smart.sim.emulator import RtcTestProgram, S7Clock, build_s7_emulator
 from tests import broken_calendar as cal
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import emulate_process

@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 
 from hil.core.errors import AddressError, ProfileError, UnreachableAddress
 from hil.bench.profile import load_profile, profile_from_dict
-from hil.families.s7smart import timebuf
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import parse_s7, parse_s7_range
-from hil.families.s7smart.modbus_map import S7ModbusMap
+from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
 from tests.conftest import REPO
 
 
@@ -113,7 +113,7 @@ def test_bad_s7_profiles_name_the_key(data, message):
 def test_the_emulated_clock_keeps_two_digit_years_past_2099():
     """The manual: the clock keeps only the year's last two digits — one second after 2099-12-31 23:59:59 it reads
     00-01-01 00:00:00 (the emulator's clock must not stop at a year READ_RTC cannot encode)."""
-    from hil.families.s7smart.emulator import S7Clock
+    from hil.families.s7smart.sim.emulator import S7Clock
     clock = S7Clock()
     clock.load(10.0, dt.datetime(2099, 12, 31, 23, 59, 59))
     assert clock.read_rtc(10.5) == (bytes.fromhex("99 12 31 23 59 59 00 05"), 0)

@@ -13,9 +13,10 @@ import pytest
 from hil.bench.family import open_bench
 from hil.bench.profile import load_profile
 from hil.core.errors import HilError, TargetError
-from hil.families.s7smart import s7wire, timebuf
-from hil.families.s7smart.emulator import build_s7_emulator
-from hil.families.s7smart.serve_s7 import start_s7_server
+from hil.families.s7smart.protocol import timebuf
+from hil.families.s7smart.transport import s7wire
+from hil.families.s7smart.sim.emulator import build_s7_emulator
+from hil.families.s7smart.sim.serve_s7 import start_s7_server
 from hil.io.url import parse_target
 from tests.conftest import REPO
 from tests.external import emulate_process

@@ -259,7 +259,7 @@ def test_missing_and_manual_injectors_explain_themselves(monkeypatch):
 
 
 def test_manual_injector_asks_the_operator():
-    from hil.families.fbs.faults import ManualSensorBreak
+    from hil.families.fbs.injectors.manual import ManualSensorBreak
     asked = []
     injector = ManualSensorBreak(ask=asked.append)
     injector.open(4)
@@ -269,7 +269,8 @@ def test_manual_injector_asks_the_operator():
 
 
 def test_unreachable_relay_module_is_reported():
-    from hil.families.fbs.faults import FaultError, ModbusCoilSensorBreak
+    from hil.families.fbs.faults import ModbusCoilSensorBreak
+    from hil.families.fbs.injectors.injector import FaultError
     injector = ModbusCoilSensorBreak("modbus+tcp://127.0.0.1:9?unit=1", timeout=0.2)
     with pytest.raises(FaultError, match="cannot reach the sensor-break relay module"):
         injector.open(0)

@@ -36,7 +36,8 @@ class Measure(Protocol):
     """The ``measure`` fixture: ``measure("settle_time", 212.0, unit="s", low=0, high=600)`` records a measurement
     as JUnit testcase properties (``hil.measure.<name>``) and in the HTML report, and fails the test at once when
     the value is outside its limits (inclusive).  A ``@pytest.mark.measures(name, unit=…, low=…, high=…)``
-    declaration gives the defaults; a test that passes with a declared measurement still unset fails."""
+    declaration states them once: the call then gives only the value (and what the declaration left out); a test
+    that passes with a declared measurement still unset fails."""
 
     def __call__(self, name: str, value: float, *, unit: str = "", low: float | None = None,
                  high: float | None = None, note: str = "") -> Measurement:

@@ -278,9 +278,9 @@ def print_summary(console: Console, runs: list[BenchRun], junitxml: str) -> None
         for r in runs:
             console.print(Text(f"bench {r.name}: {status_of(r.exit)} (exit {r.exit}), {r.wall:.1f} s, JUnit "
                                f"{r.junit}, log {r.log}"), soft_wrap=True)
-    failed = [(r.name, rec) for r in runs for rec in _records(r)[0] if rec.outcome in ("failed", "error")]
+    failed = [(r.name, rec) for r in runs for rec in _records(r)[0] if rec.outcome.bad]
     if failed:
-        console.print(Text(f"failed tests ({len(failed)}):", style="bold red"), soft_wrap=True)
+        console.print(Text(f"tests that did not pass ({len(failed)}):", style="bold red"), soft_wrap=True)
         for name, rec in failed:
             why = rec.message.splitlines()[-1] if rec.message else ""
             console.print(Text(f"  {name}: {rec.outcome.upper()} {rec.nodeid}" + (f" — {why}" if why else "")),

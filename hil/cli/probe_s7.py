@@ -12,7 +12,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from hil.bench.profile import Profile
-from hil.families.s7smart import timebuf
+from hil.families.s7smart.protocol import timebuf
 from hil.cli.status import status_panel
 from hil.families.s7smart.bench import S7Bench
 

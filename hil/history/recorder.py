@@ -32,6 +32,7 @@ import pytest
 from hil.history import config as history_config
 from hil.history.annotate import Annotations
 from hil.plugin.safety import RECOVERY_NOTES
+from hil.plugin.reporting.outputs import RUN, RunRecord
 
 #: seconds to wait for the writer's answer (the bench's history) and for its end (as the store waits for a lock)
 WAIT_S = 5.0
@@ -74,7 +75,7 @@ class Recorder:
         reporter = self._reporter()
         if reporter is None or not reporter.uses_bench or self.config.option.collectonly:
             return
-        state = reporter._state()
+        state = reporter.state
         profile = getattr(state, "profile", None)
         try:
             url = history_config.resolve(self.config.getoption("--hil-history"),
@@ -205,11 +206,12 @@ class Recorder:
             if "warn" in message:
                 self._warn(message["warn"])
 
-    def _reporter(self) -> Any:
-        return self.config.pluginmanager.get_plugin("hil-reporter")
+    def _reporter(self) -> RunRecord | None:
+        """The run's record (the reporter's), where it writes the reports from."""
+        return self.config.stash.get(RUN, None)
 
     @staticmethod
-    def _archive_path(reporter: Any) -> str | None:
+    def _archive_path(reporter: RunRecord) -> str | None:
         """Where this run's HTML report is kept once written (the next run's report links it)."""
         html = reporter.html_path
         if html is None:

@@ -16,7 +16,7 @@ import pytest
 from hil.core.errors import HilError
 from hil.core.registry import examples
 from hil.core import signals
-from hil.plugin.safety import BENCH_STATE
+from hil.plugin.stash import BENCH_SESSION
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -28,7 +28,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
                                 f"to use the bench profile's target")
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
-    state = config.stash[BENCH_STATE]
+    state = config.stash[BENCH_SESSION]
     signals.install()  # as hil.plugin.safety does (idempotent): a recovery replayed on opening is shielded
     try:
         target = state.target

@@ -22,7 +22,8 @@ from hil.plugin import bench_time
 from hil.io.url import parse_target
 from hil.core.registry import examples
 from hil.plugin import hookspecs
-from hil.plugin.safety import BENCH_STATE, announce
+from hil.plugin.safety import announce
+from hil.plugin.stash import BENCH_SESSION
 from hil.plugin.lab import hold_place, let_go
 from hil.core.paths import default_bench
 from hil.core.lock import describe_holder, BenchLock, plc_key
@@ -76,13 +77,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     for text in MARKERS.values():
         config.addinivalue_line("markers", text)
-    state = config.stash[_STATE] = _State(config)
-    config.stash[BENCH_STATE] = state
+    state = config.stash[BENCH_SESSION] = BenchSession(config)
     # a labgrid place is held for the whole session: the target comes from it, so before anything is collected
     hold_place(config, state, lambda: resolve_bench_path(config))
 
 
-class _State:
+class BenchSession:
     """Per-session state: the profile (read at once, so a bad profile fails early) and the bench (lazily)."""
 
     def __init__(self, config: pytest.Config) -> None:
@@ -191,10 +191,6 @@ def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench o
     return alive() if alive is not None else None
 
 
-_STATE = pytest.StashKey[_State]()
-#: Public: the session's bench state (``profile``, ``target``, ``bench`` once open, ``error``) in ``config.stash``,
-#: for the plugins beside this one (reporting, wire statistics) and anyone else's.
-BENCH_SESSION = _STATE
 _WIRE_FAILURE = pytest.StashKey[str]()
 
 
@@ -217,7 +213,7 @@ def resolve_bench_path(config: pytest.Config) -> Path:
 def pytest_report_header(config: pytest.Config) -> list[str] | None:
     if not (config.getoption("--bench") or config.getoption("--target")):
         return None
-    state = config.stash[_STATE]
+    state = config.stash[BENCH_SESSION]
     try:
         profile = state.profile
     except HilError as exc:
@@ -228,7 +224,7 @@ def pytest_report_header(config: pytest.Config) -> list[str] | None:
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     if not any("bench" in getattr(item, "fixturenames", ()) for item in items):
         return
-    state = config.stash[_STATE]
+    state = config.stash[BENCH_SESSION]
     try:
         target = parse_target(state.target)
         profile = state.profile
@@ -292,7 +288,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
     if not any("bench" in getattr(item, "fixturenames", ()) for item in session.items):
         return
     reporter = session.config.pluginmanager.get_plugin("terminalreporter")
-    state = session.config.stash[_STATE]
+    state = session.config.stash[BENCH_SESSION]
     try:
         bench = state.open()
         line = f"hil PLC: {bench.plc.status().summary()} via {bench.raw.description}"
@@ -310,7 +306,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 
 @pytest.hookimpl(tryfirst=True)  # while hil.core.signals still defers a signal (the safety plugin uninstalls it)
 def pytest_unconfigure(config: pytest.Config) -> None:
-    state = config.stash.get(_STATE, None)
+    state = config.stash.get(BENCH_SESSION, None)
     if state is not None:
         state.release()
 
@@ -320,7 +316,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa
     """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
     report = yield
     if call.when == "setup" and report.failed and "bench" in getattr(item, "fixturenames", ()):
-        state = item.config.stash[_STATE]
+        state = item.config.stash[BENCH_SESSION]
         if state.bench is None and state.error:
             # The bench never opened: this test's error says why, and the session stops here — every other
             # bench test would repeat the same line (exit status 1, as for a failed test)
@@ -337,7 +333,7 @@ def bench(request: pytest.FixtureRequest) -> Iterator[BenchView]:
     bench time (virtual on the in-process emulator), ``bench.time.calendar()``, ``bench.cannot_reach(...)`` for a
     skip's reason, ``bench.faults``, ``bench.profile``.  Opened once per session (``--bench FILE``, ``--target
     URL``); every write a test makes is put back, and read back, when the test ends, pass or fail."""
-    state = request.config.stash[_STATE]
+    state = request.config.stash[BENCH_SESSION]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
     with shielded():
         bench.begin_test(request.node.nodeid)  # retries a restore that failed earlier, first

@@ -122,7 +122,6 @@ def item_ids(item: pytest.Item) -> tuple[str, ...]:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", MARKER)
-    config.pluginmanager.register(_ToReport(config), "hil-requirements-report")
 
 
 @pytest.hookimpl(tryfirst=True)  # before the bench plugin decides its needs() skips
@@ -148,18 +147,3 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.needs(
                 "spec_choices", reason=f"relies on {', '.join(choices)}, an [our choice] of the spec where the "
                                        f"manual is silent"))
-
-
-class _ToReport:
-    """Hands each test's IDs to its record in the report (the HTML requirement table is built from them)."""
-
-    def __init__(self, config: pytest.Config) -> None:
-        self.config = config
-
-    @pytest.hookimpl(trylast=True)  # after the reporter made the test's record
-    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        ids = next((v for k, v in report.user_properties if k == PROPERTY), None)
-        reporter = self.config.pluginmanager.get_plugin("hil-reporter")
-        record = getattr(reporter, "records", {}).get(report.nodeid) if reporter is not None else None
-        if ids is not None and record is not None:
-            record.requirements = ids.split()

@@ -1,7 +1,7 @@
 """Bench safety in a pytest session (issue 15): recovery said loudly, signals that unwind, and a session that
 ends non-zero naming every element it could not put back.
 
-* A journal a dead run left is replayed when the bench opens (``_State._recover``); :func:`announce` prints
+* A journal a dead run left is replayed when the bench opens (``BenchSession._recover``); :func:`announce` prints
   that on the console whatever the verbosity, records it as the JUnit testsuite property ``hil_bench_recovery``,
   and a ``bench_recovery`` testcase runs first and fails if the recovery failed.
 * SIGTERM and SIGHUP unwind like Ctrl-C; a signal during a restore waits for it (:mod:`hil.core.signals`).
@@ -16,11 +16,10 @@ import sys
 import pytest
 
 from hil.core import signals
+from hil.plugin.stash import BENCH_SESSION
 
 #: what recovery said this session, for the reports (the JUnit testsuite property hil_bench_recovery)
 RECOVERY_NOTES = pytest.StashKey[list]()
-#: the hil plugin's per-session state (hil.plugin.pytest_plugin._State), put here by that plugin
-BENCH_STATE = pytest.StashKey[object]()
 #: whether the PLC is as it was found once the session ended (set only when a bench was opened): the verdict
 #: (hil.plugin.reporting.verdict) says it after a run that was stopped
 PLC_LEFT = pytest.StashKey[str]()
@@ -67,7 +66,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_finish(session: pytest.Session) -> None:
-    state = session.config.stash.get(BENCH_STATE, None)
+    state = session.config.stash.get(BENCH_SESSION, None)
     recovery = getattr(state, "recovery", None)
     if recovery is not None and recovery.needed:
         # nodeid "hil.bench::bench_recovery": JUnit's classname hil.bench (a bare name gives an empty classname)
@@ -78,7 +77,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
 @pytest.hookimpl(trylast=True)
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     """After every fixture's teardown: retry what is still unrestored; list what stays, and fail the session."""
-    state = session.config.stash.get(BENCH_STATE, None)
+    state = session.config.stash.get(BENCH_SESSION, None)
     bench = getattr(state, "bench", None)
     if bench is None or not hasattr(bench, "io"):
         return

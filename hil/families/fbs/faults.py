@@ -41,142 +41,17 @@ from hil.families.fbs.protocol.modbus_map import to_modbus
 from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import TemperatureModel
+# the injector kinds and the profile's tables, one module each (hil.families.fbs.injectors).
+# ABC, abstractmethod, MAX_POINTS, InvalidValue, AddressError, TargetError and Callable above moved out with them:
+# their lines stay until the policy branch (which rewrites this module's imports) is merged, to merge cleanly
+from hil.families.fbs.injectors.config import KNOWN_FAULTS, PLANT_FAULTS
+from hil.families.fbs.injectors.emulator import EmulatorPlantFault, EmulatorSensorBreak
+from hil.families.fbs.injectors.injector import FaultError, SensorBreakInjector
+from hil.families.fbs.injectors.manual import ManualSensorBreak
+from hil.families.fbs.injectors.plc_bit import PlcBitSensorBreak
 
 if TYPE_CHECKING:
     from hil.families.fbs.bench import Bench
-
-KINDS = ("emulator", "modbus-coil", "plc-bit", "manual")
-KNOWN_FAULTS = ("sensor_break", "heater_open", "ssr_short")
-# What each fault does to point p, for the operator's prompt and the docs.  heater_open / ssr_short act on the
-# heater circuit of a FUN86-controlled point (the emulator's thermal plant, or a relay/contactor on a bench).
-FAULT_ACTIONS = {"sensor_break": ("DISCONNECT the sensor", "RECONNECT the sensor"),
-                 "heater_open": ("OPEN the heater circuit", "CLOSE the heater circuit"),
-                 "ssr_short": ("BRIDGE the SSR (heater full on)", "REMOVE the SSR bridge")}
-PLANT_FAULTS = ("heater_open", "ssr_short")
-_KEYS = {"emulator": {"kind"}, "modbus-coil": {"kind", "target", "first_coil", "timeout", "coils"},
-         "plc-bit": {"kind", "first"}, "manual": {"kind"}}
-
-
-class FaultError(HilError):
-    """A fault could not be injected or undone."""
-
-
-def check_fault_configs(faults: dict[str, dict[str, Any]], where: str = "<profile>") -> None:
-    """Validate every ``[faults.<name>]`` table; ProfileError names the key and what is wrong."""
-    for name, table in faults.items():
-        label = f"{where}: [faults.{name}]"
-        if name not in KNOWN_FAULTS:
-            raise ProfileError(f"{label}: unknown fault (known: {', '.join(KNOWN_FAULTS)})")
-        kind = table.get("kind")
-        if kind not in KINDS:
-            raise ProfileError(f"{label} kind: must be one of {', '.join(KINDS)}, not {kind!r}")
-        unknown = set(table) - _KEYS[kind]
-        if unknown:
-            raise ProfileError(f"{label}: unknown key(s) for kind = {kind!r}: {', '.join(sorted(unknown))} "
-                               f"(known: {', '.join(sorted(_KEYS[kind]))})")
-        if kind == "modbus-coil":
-            try:
-                target = parse_target(str(table.get("target", "")))
-            except TargetError as exc:
-                raise ProfileError(f"{label} target: {exc}") from None
-            if target.protocol != "modbus" or target.in_process:
-                raise ProfileError(f"{label} target: {target} is not a Modbus URL (modbus+tcp://HOST:PORT?unit=1 "
-                                   f"or modbus+rtu:///dev/ttyUSB0?unit=1, modbus+rfc2217://HOST:PORT?unit=1)")
-            first = table.get("first_coil", 0)
-            if not isinstance(first, int) or isinstance(first, bool) or not 0 <= first <= 65535 - 32:
-                raise ProfileError(f"{label} first_coil: must be 0–65503, not {first!r}")
-        if kind == "plc-bit":
-            try:
-                first = parse(str(table.get("first", "")))
-            except AddressError as exc:
-                raise ProfileError(f"{label} first: {exc} (e.g. first = \"Y40\")") from None
-            if not first.is_bit:
-                raise ProfileError(f"{label} first: {first} is not a bit (e.g. first = \"Y40\")")
-
-
-class SensorBreakInjector(ABC):
-    """Opens and closes sensor circuits; remembers what it opened so that :meth:`undo` can close it."""
-
-    kind = ""
-
-    def __init__(self) -> None:
-        self.opened: set[int] = set()
-
-    def inject(self, point: int) -> None:
-        """Put the fault on ``point`` (for a sensor break: open its circuit)."""
-        self.open(point)
-
-    def clear(self, point: int) -> None:
-        """Take the fault off ``point`` again."""
-        self.repair(point)
-
-    def open(self, point: int) -> None:
-        """Open ``point``'s sensor circuit (the PLC sees it at the point's next measurement)."""
-        self._check(point)
-        self.opened.add(point)  # before the attempt: a half-done open must still be undone
-        self._set(point, True)
-
-    def repair(self, point: int) -> None:
-        """Close ``point``'s sensor circuit again."""
-        self._check(point)
-        self._set(point, False)
-        self.opened.discard(point)
-
-    def undo(self) -> None:
-        """Close every circuit this injector opened (the bench calls this when a test ends)."""
-        errors = []
-        for point in sorted(self.opened):
-            try:
-                self.repair(point)
-            except Exception as exc:  # noqa: BLE001 - try every point, then report them all
-                errors.append(f"point {point}: {exc}")
-        if errors:
-            raise FaultError(f"{self.kind} sensor-break injector could not repair: {'; '.join(errors)}")
-
-    def close(self) -> None:
-        pass
-
-    def openable(self, points: list[int]) -> list[int]:
-        """Which of ``points`` this injector can open (all of them, unless a rig's allow-list or a person's hands
-        say fewer)."""
-        return list(points)
-
-    @staticmethod
-    def _check(point: int) -> None:
-        if not isinstance(point, int) or not 0 <= point < MAX_POINTS:
-            raise InvalidValue(f"temperature point {point!r} is outside 0–{MAX_POINTS - 1}")
-
-    @abstractmethod
-    def _set(self, point: int, open_circuit: bool) -> None: ...
-
-
-class EmulatorSensorBreak(SensorBreakInjector):
-    kind = "emulator"
-
-    def __init__(self, emulator: Any, model: Any) -> None:  # an Emulator and its TemperatureModel
-        super().__init__()
-        self.emulator = emulator
-        self.model = model
-
-    def _set(self, point: int, open_circuit: bool) -> None:
-        with self.emulator.lock:  # the emulator may be serving a wire from another thread
-            (self.model.open if open_circuit else self.model.repair)(point)
-
-
-class EmulatorPlantFault(SensorBreakInjector):
-    """heater_open / ssr_short inside the in-process emulator's thermal plant (seen from the next scan)."""
-
-    kind = "emulator"
-
-    def __init__(self, emulator: Any, plant: Any, fault: str) -> None:  # an Emulator and its ThermalPlant
-        super().__init__()
-        self.emulator = emulator
-        self.plant = plant
-        self.fault = fault
-
-    def _set(self, point: int, on: bool) -> None:
-        with self.emulator.lock:
-            self.plant.set_fault(self.fault, point, on)
 
 
 class ModbusCoilSensorBreak(SensorBreakInjector):
@@ -283,66 +158,6 @@ def parse_coils(text: str) -> frozenset[int]:
             raise ProfileError(f"[faults] coils: {part!r} is not a coil number or range like 0-15") from None
         out.update(range(first, last + 1))
     return frozenset(out)
-
-
-class PlcBitSensorBreak(SensorBreakInjector):
-    """A bit on the PLC itself (e.g. Y40 + point drives a relay in the sensor line), through the bench's guard."""
-
-    kind = "plc-bit"
-
-    def __init__(self, io: Any, first: str) -> None:  # io: the bench's GuardedTransport
-        super().__init__()
-        self.io = io
-        self.first = parse(first)
-
-    def bit(self, point: int) -> str:
-        return str(self.first.offset(point))
-
-    def openable(self, points: list[int]) -> list[int]:
-        """The points whose bit the bench's [safety] writable list lets the harness switch."""
-        writable = getattr(self.io, "writable", None)
-        return [p for p in points if writable is None or self.first.offset(p) in writable]
-
-    def _set(self, point: int, open_circuit: bool) -> None:
-        self.io.write(self.bit(point), 1 if open_circuit else 0)
-
-
-class ManualSensorBreak(SensorBreakInjector):
-    """Asks the operator at the bench to open or close a circuit, and waits for Enter."""
-
-    kind = "manual"
-
-    def __init__(self, ask: Callable[[str], str] | None = None, fault: str = "sensor_break") -> None:
-        super().__init__()
-        self.ask = ask or _ask_terminal
-        self.fault = fault
-
-    def openable(self, points: list[int]) -> list[int]:
-        """A person opens each circuit by hand: the first and last of points 0–15 and of 16–31 (the ends of R4010/TW+1
-        and of R4011/TW+2), not every point."""
-        ends = []
-        for half in ([p for p in points if p < 16], [p for p in points if p >= 16]):
-            ends += sorted({half[0], half[-1]}) if half else []
-        return ends
-
-    def _set(self, point: int, open_circuit: bool) -> None:
-        if self.fault == "sensor_break":
-            action = "DISCONNECT" if open_circuit else "RECONNECT"
-            self.ask(f"{action} the sensor of temperature point {point}, then press Enter: ")
-            return
-        action = FAULT_ACTIONS[self.fault][0 if open_circuit else 1]
-        self.ask(f"{action} of temperature point {point}, then press Enter: ")
-
-
-def _ask_terminal(prompt: str) -> str:
-    # pytest captures stdin/stdout; the terminal itself still reaches the operator.
-    try:
-        with open("/dev/tty", "r+") as tty:
-            tty.write("\n" + prompt)
-            tty.flush()
-            return tty.readline()
-    except OSError:
-        return input(prompt)
 
 
 class Faults:

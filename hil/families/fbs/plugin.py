@@ -15,7 +15,7 @@ from hil.families.fbs.pid import parse_pid
 from hil.families.fbs.sim.models.plant import parse_plant
 from hil.families.fbs.rtc_profile import parse_rtc
 from hil.families.fbs.temperature import parse_temperature
-from hil.families.fbs.faults import check_fault_configs
+from hil.families.fbs.injectors.config import check_fault_configs
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.transport.factory import serve

@@ -15,18 +15,18 @@ from hil.bench.base import BenchBase
 from hil.bench.profile import Profile
 from hil.families.s7smart import faces
 from hil.families.s7smart.address import parse_s7_range
-from hil.families.s7smart.device import S7Plc
-from hil.families.s7smart.emulator import S7Emulator
-from hil.families.s7smart.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
+from hil.families.s7smart.device.plc import S7Plc
+from hil.families.s7smart.sim.emulator import S7Emulator
+from hil.families.s7smart.transport.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
 from hil.bench.view import guarded_io
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
-from hil.families.s7smart.modbus_map import S7ModbusMap
+from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
 from hil.core.timebase import Timebase, timebase_for
 from hil.io.url import Target, parse_target
-from hil.families.s7smart.serve import start_s7_modbus_tcp
-from hil.families.s7smart.s7wire import DEFAULT_PORT, SnapS7Io
-from hil.families.s7smart.serve_s7 import start_s7_server
-from hil.families.s7smart.emulator import build_s7_emulator
+from hil.families.s7smart.sim.serve_modbus import start_s7_modbus_tcp
+from hil.families.s7smart.transport.s7wire import DEFAULT_PORT, SnapS7Io
+from hil.families.s7smart.sim.serve_s7 import start_s7_server
+from hil.families.s7smart.sim.emulator import build_s7_emulator
 
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
 #: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).

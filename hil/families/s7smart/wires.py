@@ -1,5 +1,5 @@
 """What the S7-200 SMART family registers for its wires (:mod:`hil.core.registry`): the S7 protocol
-(ISO-on-TCP, port 102) and its emulator wire, and Modbus (the CPU's V memory on Modbus, :mod:`.modbus_map`)."""
+(ISO-on-TCP, port 102) and its emulator wire, and Modbus (the CPU's V memory on Modbus, :mod:`.protocol.modbus_map`)."""
 
 from __future__ import annotations
 

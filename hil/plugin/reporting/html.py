@@ -38,16 +38,19 @@ th{background:#f1f3f5}
 td.n{text-align:right;font-variant-numeric:tabular-nums}
 .badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
 .passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped,.xfailed{background:#9a6700}
+.aborted,.incomplete{background:#6639ba}
 .FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}.UNSET{color:#9a6700;font-weight:600}
 .test{background:#fff;border:1px solid #d8dee4;border-radius:6px;padding:10px 14px;margin:10px 0}
 .test.failed,.test.error{border-left:5px solid #cf222e}.test.passed{border-left:5px solid #1a7f37}
 .test.skipped,.test.xfailed{border-left:5px solid #9a6700}
+.test.aborted,.test.incomplete{border-left:5px solid #6639ba}
 details.section>summary{list-style:none} details.section>summary :is(h2,h3){display:inline-block;margin:8px 0}
 details.section>summary::before{content:"▸ ";color:#57606a} details.section[open]>summary::before{content:"▾ "}
 .test>summary{list-style:none}
 .filters label{margin-right:14px;font-size:14px;cursor:pointer}
 body.hide-passed .passed-row,body.hide-failed .failed-row,body.hide-error .error-row,
-body.hide-skipped .skipped-row,body.hide-xfailed .xfailed-row{display:none}
+body.hide-skipped .skipped-row,body.hide-xfailed .xfailed-row,body.hide-failed .aborted-row,
+body.hide-failed .incomplete-row{display:none}
 .test h3{margin:0 0 6px;font-size:15px;font-family:ui-monospace,SFMono-Regular,Menlo,monospace;overflow-wrap:anywhere}
 .verdict{font-weight:600;margin-bottom:8px}.verdict.bad{color:#cf222e}
 pre{background:#f6f8fa;border:1px solid #d8dee4;padding:8px;overflow-x:auto;font-size:12px;white-space:pre-wrap}
@@ -131,7 +134,7 @@ def _summary(records: list[TestRecord]) -> str:
 
 
 def _test(record: TestRecord, base: Path, history: Any = None) -> str:
-    opened = " open" if record.outcome in ("failed", "error") or record.series else ""
+    opened = " open" if record.outcome.bad or record.series else ""
     parts = [f'<details class="test {record.outcome} {record.outcome}-row" id="{_e(record.nodeid)}"{opened}>',
              f'<summary><h3 style="display:inline"><span class="badge {record.outcome}">{record.outcome}</span> '
              f'{_id(record.nodeid)}</h3></summary>',
@@ -148,7 +151,7 @@ def _test(record: TestRecord, base: Path, history: Any = None) -> str:
         more = f"<th>{_e(history.label)}</th>" if history is not None else ""  # hil.history.annotate
         parts.append("<table><tr><th>measurement</th><th>value</th><th>unit</th><th>low</th><th>high</th>"
                      f"<th>outcome</th>{more}</tr>{rows}</table>")
-    if record.outcome in ("failed", "error") and (record.longrepr or record.message):
+    if record.outcome.bad and (record.longrepr or record.message):
         parts.append(f"<pre>{_e(record.longrepr or record.message)}</pre>")
     elif record.outcome in ("skipped", "xfailed") and record.message:
         parts.append(f"<div>{record.outcome}: {_e(record.message)}</div>")
@@ -167,7 +170,7 @@ def _test(record: TestRecord, base: Path, history: Any = None) -> str:
                 if len(lines) > MAX_TRACE_LINES else "")
         where = f" — {_e(record.trace_file)}" if record.trace_file else ""
         unit = "calls" if "(calls)" in lines[0] else "frames"  # the in-process target records calls, not frames
-        parts.append(f"<details{' open' if record.outcome in ('failed', 'error') else ''}><summary>wire trace "
+        parts.append(f"<details{' open' if record.outcome.bad else ''}><summary>wire trace "
                      f"({plural(len(lines) - 1, unit[:-1])}){where}</summary><pre>{_e(shown + more)}</pre></details>")
     parts.append("</details>")
     return "\n".join(parts)
@@ -176,9 +179,9 @@ def _test(record: TestRecord, base: Path, history: Any = None) -> str:
 def _section(records: list[TestRecord], properties: list[tuple[str, str]], base: Path, history: Any = None) -> str:
     """Bench properties, the summary by area, and the tests of one bench."""
     props = "".join(f"<tr><th>{_e(k.removeprefix('hil.'))}</th><td>{_e(v)}</td></tr>" for k, v in properties)
-    order = {"failed": 0, "error": 0, "passed": 1, "skipped": 2, "xfailed": 2}
+    order = {"failed": 0, "error": 0, "aborted": 0, "incomplete": 0, "passed": 1, "skipped": 2, "xfailed": 2}
     ranked = sorted(records, key=lambda r: (order.get(r.outcome, 3), not r.series, r.nodeid))
-    detailed = [r for r in ranked if r.outcome in ("failed", "error") or r.measurements or r.series or r.trace]
+    detailed = [r for r in ranked if r.outcome.bad or r.measurements or r.series or r.trace]
     plain = [r for r in ranked if r not in detailed]
     tests = "\n".join(_test(r, base, history) for r in detailed)
     if plain:
@@ -233,7 +236,7 @@ def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], 
     everything = [r for _, records, _ in sections for r in records]
     counts = Counter(r.outcome for r in everything)
     if verdict is None:
-        verdict = Verdict("FAILED" if counts.get("failed") or counts.get("error") else "PASSED")
+        verdict = Verdict("FAILED" if any(r.outcome.bad for r in everything) else "PASSED")
     if len(sections) == 1 and not sections[0][0]:
         body = _section(sections[0][1], sections[0][2], path.parent, history)
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import enum
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import PurePath
@@ -58,13 +59,35 @@ class Series:
         return len(self.columns[self.x])
 
 
+class TestOutcome(enum.StrEnum):
+    """What one test showed, as OpenHTF's test outcomes: never more than its reports did.  The values are the words
+    every output shows (and the history keeps); a test has no result until a report gives it one."""
+
+    __test__ = False  # not a test class, whatever pytest's name pattern says
+
+    PASS = "passed"
+    FAIL = "failed"
+    ERROR = "error"  # its setup or teardown failed (the fixture, the bench's restore)
+    SKIP = "skipped"
+    XFAIL = "xfailed"
+    ABORTED = "aborted"  # the run stopped inside it (a signal, an internal error): it has no result
+    INCOMPLETE = "incomplete"  # started and not finished: a run still under way, or one that died
+
+    @property
+    def bad(self) -> bool:
+        """A test that did not pass and was not skipped: what a report opens, keeps the wire trace of, lists."""
+        return self in (TestOutcome.FAIL, TestOutcome.ERROR, TestOutcome.ABORTED, TestOutcome.INCOMPLETE)
+
+
 @dataclass
 class TestRecord:
     """What the report keeps of one test."""
 
+    __test__ = False  # not a test class, whatever pytest's name pattern says
+
     nodeid: str
     area: str
-    outcome: str = "passed"  # passed, failed, skipped, error
+    outcome: TestOutcome = TestOutcome.INCOMPLETE
     duration: float = 0.0
     message: str = ""  # failure text or skip reason
     longrepr: str = ""
@@ -77,6 +100,9 @@ class TestRecord:
     #: pytest's own count of this test's reports (its ``pytest_report_teststatus`` categories): a failed call and a
     #: failed teardown are one failure and one error, as pytest's summary line and its JUnit file count them
     counted: dict[str, int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.outcome = TestOutcome(self.outcome)  # a record read back (JSON) or made by hand names it as a word
 
 
 def outcome_counts(records: Iterable[TestRecord]) -> Counter:

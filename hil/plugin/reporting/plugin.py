@@ -16,24 +16,22 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import re
-import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import pytest
 
 from hil.core.registry import REPORT_PLOTS
-from hil.plugin.reporting.model import Measurement, Series, TestRecord, area_of
+from hil.plugin.reporting import builtin_outputs  # noqa: F401 - registers JUnit, HTML, records and the console
+from hil.plugin.reporting.model import Measurement, Series, TestOutcome, TestRecord, area_of
+from hil.plugin.reporting.outputs import RUN, Moment, RunRecord, emit
 from hil.plugin.reporting.verdict import Stops, Verdict, incomplete, status_of
-from hil.plugin.pytest_plugin import BENCH_SESSION
 from hil.plugin.reporting.identity import suite_properties
-from hil.plugin.reporting.junit import write_incomplete, finish_junit
-from hil.plugin.reporting.html import write_html
-from hil.plugin.reporting.console import header_panel, render, WaitProgress, summary_table
+from hil.plugin.reporting.console import WaitProgress
 from hil.io.trace import WireTrace, format_trace
 from hil.plugin.reporting.verdict import describe
-from hil.plugin.safety import AS_FOUND, PLC_LEFT, RECOVERY_NOTES
-from hil.plugin.reporting.model import records_to_json
+from hil.plugin.requirements import PROPERTY as REQUIREMENTS
+from hil.plugin.safety import AS_FOUND, PLC_LEFT
 
 TRACE_MODES = ("failures", "all", "off")
 
@@ -110,42 +108,37 @@ class ReportHandle:
 
 
 class Reporter:
-    """Per-session: one record per test, the suite properties, the wire trace recorder."""
+    """Per-session: one record per test (the run's record, :data:`~hil.plugin.reporting.outputs.RUN`), the suite
+    properties, the wire trace recorder; the registered outputs are called at each moment of the run."""
 
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
-        self.records: dict[str, TestRecord] = {}
-        self.properties: list[tuple[str, str]] = []
-        self.header: list[tuple[str, str]] = []
-        self.uses_bench = False
+        self.run = config.stash[RUN] = RunRecord(config, html_path=_path(config.getoption("--hil-html")))
         self.current = ""
         self.trace_mode: str = config.getoption("--hil-trace")
         self.trace = None  # hil.io.trace.WireTrace once a bench is open
         self._traced_bench: Any = None
-        self.html_path = _path(config.getoption("--hil-html"))
         self.trace_dir = self._trace_dir()
-        self.html_written: Path | None = None
-        self.junit_traces: dict[str, str] = {}  # hil.trace_file property → the trace for that testcase's system-out
+        if self.trace_dir is not None:
+            self.run.attachments_dir = self.attachments_dir
         self.stops = Stops(config)  # the report of a test the run stopped in, and what stopped it
         config.pluginmanager.register(self.stops, "hil-stops")
-        self.verdict: Verdict | None = None
-        self.annotations: Any = None  # the bench's history for the HTML report, set by hil.history.recorder
-        state = self._state()
+        state = self.run.state
         if state is not None:
-            state.header_panel = True  # the panel below replaces the plugin's "hil PLC: …" line
+            state.header_panel = True  # the console output's panel replaces the plugin's "hil PLC: …" line
+
+    @property
+    def records(self) -> dict[str, TestRecord]:
+        return self.run.records
 
     def _trace_dir(self) -> Path | None:
         given = _path(self.config.getoption("--hil-trace-dir"))
         if given is not None:
             return given
-        xmlpath = _path(self.config.getoption("xmlpath", None))
-        for base in (xmlpath, self.html_path):
+        for base in (self.run.xmlpath, self.run.html_path):
             if base is not None:
                 return base.parent / "traces"
         return None
-
-    def _state(self) -> Any:
-        return self.config.stash.get(BENCH_SESSION, None)
 
     def pytest_sessionstart(self, session: pytest.Session) -> None:
         """Traces and attachments beside a report belong to that report: drop the previous run's (an explicit
@@ -164,63 +157,24 @@ class Reporter:
     @pytest.hookimpl(trylast=True)
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         items = [i for i in session.items if "bench" in getattr(i, "fixturenames", ())]
-        self.uses_bench = bool(items)
-        state = self._state()
+        self.run.uses_bench = bool(items)
+        state = self.run.state
         if not items or state is None:
             return
         suites = Path(str(items[0].path)).parent
         try:
-            self.properties = suite_properties(
+            self.run.properties = suite_properties(
                 profile=state.profile, target=state.target, bench=state.bench, bench_error=state.error,
                 suites=suites, operator=self.config.getoption("--operator"),
                 station=self.config.getoption("--station"))
         except Exception as exc:  # noqa: BLE001 - the report says what it could not find; tests still run
-            self.properties = [("hil.properties", f"unavailable: {exc}")]
-        self._write_header(state)
+            self.run.properties = [("hil.properties", f"unavailable: {exc}")]
         self._attach(state)
-        self._write_incomplete(state)
-
-    def _write_incomplete(self, state: Any) -> None:
-        """Both report files say INCOMPLETE until the session's end replaces them."""
-        if self.config.option.collectonly:
-            return
-        verdict = incomplete(dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z"))
-        properties = self.properties + verdict.properties()
-        xmlpath = _path(self.config.getoption("xmlpath", None))
+        self.run.verdict = incomplete(dt.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M:%S %Z"))
         try:
-            if xmlpath is not None:
-                write_incomplete(xmlpath, suite_name=state.profile.name, properties=properties,
-                                 message=verdict.stopped)
-            if self.html_path is not None:
-                write_html(self.html_path, [], properties, verdict=verdict)
+            emit(Moment.STARTED, self.run)  # the report files say INCOMPLETE until the session's end replaces them
         except OSError as exc:
             raise pytest.UsageError(f"cannot write the reports: {exc}") from None
-
-    def _write_header(self, state: Any) -> None:
-        reporter = self.config.pluginmanager.get_plugin("terminalreporter")
-        if reporter is None or self.config.get_verbosity() < 0:
-            return
-        plc_line = getattr(state, "plc_line", "")
-        shown = [("bench", f"{state.profile.name} ({state.profile.path})")]
-        props = dict(self.properties)
-        if "hil.lab.place" in props:
-            shown.append(("labgrid", f"place {props['hil.lab.place']} ({props.get('hil.lab.tags', '')}) on "
-                                     f"{props.get('hil.lab.exporter', '')}, coordinator "
-                                     f"{props.get('hil.lab.coordinator', '')}"))
-        wire = props.get("hil.wire", "-")
-        plc = plc_line.removeprefix("hil PLC: ").removesuffix(f" via {wire}")  # the wire has its own row
-        shown += [("target", props.get("hil.target", "")), ("wire", wire), ("PLC", plc or "-")]
-        plc_rows = [(k.removeprefix("hil.plc.").replace("_", " "), v) for k, v in self.properties
-                    if k.startswith("hil.plc.")]
-        sizes = [(k.removesuffix(" size"), v) for k, v in plc_rows if k.endswith(" size")]
-        shown += [row for row in plc_rows if not row[0].endswith(" size")]
-        if sizes:  # FATEK command 53's memory sizes: one row, not one per memory (JUnit keeps each)
-            shown.append(("memory", ", ".join(f"{k} {v}" for k, v in sizes)))
-        shown += [("operator", f"{props.get('hil.operator', '')} at {props.get('hil.station', '')}"),
-                  ("suites", props.get("hil.suites_commit", "")),
-                  ("harness", f"hil {props.get('hil.harness_version', '')}")]
-        tw = self.config.get_terminal_writer()
-        reporter.write(render(header_panel(shown, color=tw.hasmarkup), color=tw.hasmarkup, width=tw.fullwidth))
 
     def _attach(self, state: Any) -> None:
         """Hook the trace recorder (and, on a real bench's terminal, the wait bar) into the open bench."""
@@ -241,7 +195,7 @@ class Reporter:
     def pytest_runtest_logstart(self, nodeid: str, location: tuple) -> None:
         self.current = nodeid
         self.records[nodeid] = TestRecord(nodeid, area_of(nodeid))
-        state = self._state()
+        state = self.run.state
         if state is not None:
             self._attach(state)
         if self.trace is not None:
@@ -249,11 +203,12 @@ class Reporter:
 
     @pytest.hookimpl(tryfirst=True)
     def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
-        record = self.records.get(report.nodeid)
-        if record is None:
-            record = self.records[report.nodeid] = TestRecord(report.nodeid, area_of(report.nodeid))
+        record = self.run.record(report.nodeid, area_of(report.nodeid))
         record.duration += getattr(report, "duration", 0.0)
-        _outcome(record, report)
+        _outcome(record, report, aborted=self.stops.aborted(report))
+        ids = next((v for k, v in report.user_properties if k == REQUIREMENTS), None)
+        if ids is not None:  # the IDs of its spec() marker: the HTML requirement table is built from them
+            record.requirements = ids.split()
         category = self.config.hook.pytest_report_teststatus(report=report, config=self.config)[0]
         if category:  # what pytest's summary counts this report as ("" for a passed setup or teardown)
             record.counted[category] = record.counted.get(category, 0) + 1
@@ -264,7 +219,7 @@ class Reporter:
         if self.trace is None:
             return
         entries = self.trace.stop()
-        keep = entries and (self.trace_mode == "all" or record.outcome in ("failed", "error"))
+        keep = entries and (self.trace_mode == "all" or record.outcome.bad)
         if not keep:
             return
         record.trace = format_trace(entries, dropped=self.trace.dropped, kind=self.trace.kind)
@@ -277,16 +232,16 @@ class Reporter:
             except OSError as exc:
                 record.trace_file = f"not saved: {exc}"
         # The testcase's property (pytest's public user_properties, read by --junitxml after this hook); the trace
-        # itself goes into its system-out when the JUnit file is finished (pytest_unconfigure)
+        # itself goes into its system-out when the JUnit file is finished (the JUnit output, Moment.CLOSED)
         key = record.trace_file or f"{record.nodeid} (not saved)"
         report.user_properties.append(("hil.trace_file", key))
-        self.junit_traces[key] = record.trace
+        self.run.junit_traces[key] = record.trace
 
     # -- the end ---------------------------------------------------------------------------------------------------
     @pytest.hookimpl(wrapper=True, tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> Any:
         """Around everything else at the session's end (the last restores, pytest's JUnit file, its summary): then
-        the verdict, from the session's final exit status, into the HTML and the console's last lines."""
+        the verdict, from the session's final exit status, to every output."""
         failure: BaseException | None = None
         try:
             return (yield)
@@ -298,9 +253,9 @@ class Reporter:
             failure = exc
             raise
         finally:
-            self.verdict = self._verdict(session, failure)
-            self._write_reports()
-            self._say_verdict(after_progress=failure is not None)  # then pytest's summary did not end the line
+            self.run.verdict = self._verdict(session, failure)
+            self.run.after_progress = failure is not None  # then pytest's summary did not end the line
+            emit(Moment.FINISHED, self.run)
 
     def _verdict(self, session: pytest.Session, failure: BaseException | None) -> Verdict:
         stopped = self.stops.stopped
@@ -316,65 +271,13 @@ class Reporter:
             plc = ""  # said only when the run was stopped, or left something changed
         return Verdict(status, stopped, self.stops.not_run(session.items) if stopped else 0, plc)
 
-    def _write_reports(self) -> None:
-        assert self.verdict is not None
-        properties = self.properties + self.verdict.properties()
-        records_path = _path(self.config.getoption("--hil-records"))
-        if records_path is not None:
-            records_path.parent.mkdir(parents=True, exist_ok=True)
-            records_path.write_text(records_to_json(list(self.records.values()), properties), encoding="utf-8")
-        if self.html_path is None:
-            return
-        try:
-            self.html_written = write_html(self.html_path, self.records.values(), properties, verdict=self.verdict,
-                                           history=self.annotations)
-        except OSError as exc:
-            reporter = self.config.pluginmanager.get_plugin("terminalreporter")
-            if reporter is not None:
-                reporter.write_line(f"hil: could not write the HTML report {self.html_path}: {exc}", red=True)
-
-    def _say_verdict(self, *, after_progress: bool = False) -> None:
-        """The console's last lines, at every verbosity (-qq too): the verdict, then where the reports are."""
-        reporter = self.config.pluginmanager.get_plugin("terminalreporter")
-        if reporter is None or self.verdict is None or not self.uses_bench or self.config.option.collectonly:
-            return
-        good = self.verdict.passed
-        reporter.ensure_newline()
-        if after_progress:
-            reporter.write("\n")
-        reporter.write_line(f"hil: {self.verdict.line()}", green=good, red=not good, bold=not good)
-        written = [p for p in (_path(self.config.getoption("xmlpath", None)), self.html_written) if p is not None]
-        if written:
-            reporter.write_line("hil: reports " + ", ".join(str(p) for p in written))
-
     @pytest.hookimpl(trylast=True)
     def pytest_unconfigure(self, config: pytest.Config) -> None:
-        """After --junitxml wrote its file (pytest_sessionfinish): the bench's name, properties, the verdict and
-        traces."""
-        xmlpath = _path(config.getoption("xmlpath", None))
-        if xmlpath is None or not xmlpath.is_file() or not self.uses_bench:
-            return
-        state = self._state()
-        try:
-            name = state.profile.name if state is not None else None
-        except Exception:  # noqa: BLE001 - an unreadable profile was reported already; keep pytest's name
-            name = None
-        try:
-            recovery = [("hil_bench_recovery", note) for note in config.stash.get(RECOVERY_NOTES, [])]
-            verdict = self.verdict.properties() if self.verdict is not None else []
-            finish_junit(xmlpath, suite_name=name, properties=self.properties + verdict + recovery,
-                         traces=self.junit_traces)
-        except (OSError, ET.ParseError) as exc:
-            reporter = config.pluginmanager.get_plugin("terminalreporter")
-            if reporter is not None:
-                reporter.write_line(f"hil: could not add the bench to {xmlpath}: {exc}", red=True)
+        """After --junitxml wrote its file (pytest_sessionfinish)."""
+        emit(Moment.CLOSED, self.run)
 
     def pytest_terminal_summary(self, terminalreporter: Any) -> None:
-        if not self.uses_bench or self.config.get_verbosity() < -1 or not self.records:
-            return
-        tw = self.config.get_terminal_writer()
-        terminalreporter.write(render(summary_table(self.records.values(), color=tw.hasmarkup),
-                                      color=tw.hasmarkup, width=tw.fullwidth))
+        emit(Moment.SUMMARY, self.run)
 
 
 # -- fixtures ---------------------------------------------------------------------------------------------------------
@@ -386,11 +289,11 @@ def _record(request: pytest.FixtureRequest) -> TestRecord:
 
 
 def _record_of(item: pytest.Item) -> TestRecord:
-    plugin = item.config.pluginmanager.get_plugin("hil-reporter")
+    run = item.config.stash.get(RUN, None)
     nodeid = item.nodeid
-    if plugin is None:  # an xdist worker or the plugin disabled: keep the data on the node
+    if run is None:  # an xdist worker or the plugin disabled: keep the data on the node
         return item.stash.setdefault(_NODE_RECORD, TestRecord(nodeid, area_of(nodeid)))
-    return plugin.records.setdefault(nodeid, TestRecord(nodeid, area_of(nodeid)))
+    return run.record(nodeid, area_of(nodeid))
 
 
 def _check_name(name: str) -> None:
@@ -403,14 +306,22 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
     """Record a measurement — ``measure("drift", 0.03, unit="s/day", low=-0.088, high=0.088)`` — as JUnit
     testcase properties and in the HTML report; fail the test at once when it is outside its limits.
 
-    ``note``: context added to the failure message (what an out-of-limits value usually means)."""
+    ``note``: context added to the failure message (what an out-of-limits value usually means).  Limits are declared
+    once: a measurement its test declares (``@pytest.mark.measures``) takes its unit and limits from there, and a
+    call that gives one the declaration gave too is refused (two statements of a limit could differ)."""
     record = _record(request)
 
     def measure(name: str, value: float, *, unit: str = "", low: float | None = None,
                 high: float | None = None, note: str = "") -> Measurement:
         _check_name(name)
         declared = next((m for m in record.measurements if m.name == name and m.value is None), None)
-        if declared is not None:  # what the declaration says, unless the call says otherwise
+        if declared is not None:
+            given = {"unit": unit or None, "low": low, "high": high}
+            twice = [k for k, v in given.items() if v is not None and getattr(declared, k) not in (None, "")]
+            if twice:
+                raise ValueError(f"measurement {name!r}: {', '.join(twice)} declared by @pytest.mark.measures "
+                                 f"already; give each limit once (there, or in the call when the declaration "
+                                 f"leaves it out)")
             unit = unit or declared.unit
             low = declared.low if low is None else low
             high = declared.high if high is None else high
@@ -429,8 +340,8 @@ def measure(request: pytest.FixtureRequest) -> Callable[..., Measurement]:
 @pytest.fixture
 def report(request: pytest.FixtureRequest) -> ReportHandle:
     """Attach plot-ready series to this test's entry in the HTML report (``report.attach_series(...)``)."""
-    plugin = request.config.pluginmanager.get_plugin("hil-reporter")
-    directory = plugin.attachments_dir if plugin is not None and plugin.trace_dir else None
+    run = request.config.stash.get(RUN, None)
+    directory = run.attachments_dir if run is not None else None
     return ReportHandle(_record(request), request.node, directory)
 
 
@@ -485,13 +396,18 @@ def _safe_name(nodeid: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.\-]+", "_", nodeid).strip("_")[:180]
 
 
-def _outcome(record: TestRecord, report: pytest.TestReport) -> None:
+def _outcome(record: TestRecord, report: pytest.TestReport, *, aborted: bool = False) -> None:
+    """What ``report`` shows of its test, never more: a pass only from a passing call, ABORTED for the report
+    :class:`~hil.plugin.reporting.verdict.Stops` gave a test the run stopped inside (unless it had failed already:
+    that was shown)."""
     if report.passed:
+        if report.when == "call" and record.outcome is TestOutcome.INCOMPLETE:
+            record.outcome = TestOutcome.PASS
         return
     if report.skipped:
-        if record.outcome == "passed":
+        if record.outcome in (TestOutcome.INCOMPLETE, TestOutcome.PASS):
             reason = getattr(report, "wasxfail", None)
-            record.outcome = "skipped" if reason is None else "xfailed"  # as pytest counts them
+            record.outcome = TestOutcome.SKIP if reason is None else TestOutcome.XFAIL  # as pytest counts them
             if reason is not None:
                 record.message = f"xfail: {reason}" if reason else "xfail"
             elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
@@ -502,10 +418,13 @@ def _outcome(record: TestRecord, report: pytest.TestReport) -> None:
     crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
     text = report.longreprtext.strip()
     message = crash.message if crash is not None else (text.splitlines()[-1] if text else "failed")
-    if report.when == "call":
-        record.outcome = "failed"
-    elif record.outcome != "failed":
-        record.outcome = "error"
+    if aborted:
+        if record.outcome not in (TestOutcome.FAIL, TestOutcome.ERROR):
+            record.outcome = TestOutcome.ABORTED
+    elif report.when == "call":
+        record.outcome = TestOutcome.FAIL
+    elif record.outcome not in (TestOutcome.FAIL, TestOutcome.ABORTED):
+        record.outcome = TestOutcome.ERROR
     line = f"{report.when}: {message}"
     record.message = f"{record.message}\n{line}" if record.message else line
     record.longrepr = f"{record.longrepr}\n\n{report.longreprtext}" if record.longrepr else report.longreprtext

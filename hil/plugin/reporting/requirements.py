@@ -1,8 +1,10 @@
 """The HTML report's requirement table: requirement → tests → outcome → measurements (what a lab files).
 
 Built from the records' ``requirements`` (the IDs of each test's ``spec()`` marker) and the catalogue's statements.
-A requirement's verdict is ``failed`` when any of its tests failed or errored, ``passed`` when at least one passed
-and none failed, ``skipped`` when every one of its tests was skipped: a skip never counts as evidence.
+A requirement's verdict is ``failed`` when any of its tests failed or errored, else ``aborted`` when one of them
+has no result (the run stopped inside it, or it never finished), ``passed`` when at least one passed and none of
+those, ``skipped`` when every one of its tests was skipped: a skip never counts as evidence, nor does a test cut
+short.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from __future__ import annotations
 import html
 from typing import Iterable
 
-from hil.plugin.reporting.model import TestRecord
+from hil.plugin.reporting.model import TestOutcome, TestRecord
 from hil.plugin.requirements import load
 
 
@@ -18,11 +20,13 @@ def _e(text: object) -> str:
     return html.escape(str(text), quote=True)
 
 
-def verdict(outcomes: Iterable[str]) -> str:
-    seen = set(outcomes)
-    if seen & {"failed", "error"}:
-        return "failed"
-    return "passed" if "passed" in seen else "skipped"
+def verdict(outcomes: Iterable[str]) -> TestOutcome:
+    seen = {TestOutcome(o) for o in outcomes}
+    if seen & {TestOutcome.FAIL, TestOutcome.ERROR}:
+        return TestOutcome.FAIL
+    if seen & {TestOutcome.ABORTED, TestOutcome.INCOMPLETE}:
+        return TestOutcome.ABORTED
+    return TestOutcome.PASS if TestOutcome.PASS in seen else TestOutcome.SKIP
 
 
 def requirement_rows(records: Iterable[TestRecord]) -> dict[str, list[TestRecord]]:

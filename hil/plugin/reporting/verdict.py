@@ -99,6 +99,11 @@ class Stops:
         self._phase: tuple[str, str, float] | None = None  # (nodeid, phase, started) of the phase under way
         self._reported: set[tuple[str, str]] = set()
         self._ran: set[str] = set()
+        self._made: set[tuple[str, str]] = set()  # (nodeid, phase) of the reports given to stopped tests
+
+    def aborted(self, report: pytest.TestReport) -> bool:
+        """Whether ``report`` is the one given to a test the run stopped inside (it has no result)."""
+        return (report.nodeid, report.when) in self._made
 
     def not_run(self, items: list[pytest.Item]) -> int:
         return sum(1 for item in items if item.nodeid not in self._ran)
@@ -165,6 +170,7 @@ class Stops:
         report = pytest.TestReport(nodeid, item.location, {k: 1 for k in item.keywords}, "failed", text, when,
                                    duration=now - started, start=started, stop=now,
                                    user_properties=list(item.user_properties))
+        self._made.add((nodeid, when))
         item.ihook.pytest_runtest_logreport(report=report)
         if when != "teardown":
             self._teardown(item)

@@ -10,76 +10,74 @@ real bench with a relay module uses.  Three banks of 32 coils, one coil per temp
 
 The heater banks need the emulator's thermal plant (``[plant]``); a coil of a point the plant does not heat is
 refused with ILLEGAL_ADDRESS, as is any heater coil when there is no plant.  Coils read back as written.
-Unit ids: any (pymodbus device id 0 answers for all).
+The rig answers coil functions only (01, 05, 15: a relay module has nothing else); any unit id (a module alone on
+its wire).  It is served by the one engine-over-Modbus server (:mod:`hil.sim.modbus_engine`), so its requests are
+handled at scan boundaries, in order, with strict quantities, and its replies can go through a wire-fault plan.
 """
 
 from __future__ import annotations
 
+from typing import Callable
+
 from pymodbus.constants import ExcCodes
-from pymodbus.server import ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.simulator import SimDevice
 
 from hil.core.errors import InvalidValue
 from hil.families.fbs.registers import MAX_POINTS
 from hil.families.fbs.sim.plc import Emulator
-from hil.sim.runtime import LoopThread, ServerHandle
+from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
+from hil.sim.runtime import ServerHandle
+from hil.sim.wire_faults import WireFaults
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 
 POINTS = MAX_POINTS  # one coil per temperature point, in each bank
 #: the rig's banks in coil order, each POINTS coils long: the fault each coil of the bank switches
 BANKS = ("sensor_break", "heater_open", "ssr_short")
-_WRITE_COILS = (5, 15)
+
+
+class RigMap:
+    """The rig's coils from ``first_coil``, switching faults in ``emulator``'s temperature model and plant."""
+
+    functions = frozenset({1, 5, 15})
+
+    def __init__(self, emulator: Emulator, first_coil: int = 0) -> None:
+        model = emulator.model(TemperatureModel)
+        if model is None:
+            raise InvalidValue("the emulator has no temperature modules to break: give hil emulate a --bench "
+                               "profile with a [temperature] section")
+        self.model, self.plant = model, emulator.model(ThermalPlant)
+        self.first_coil = first_coil
+        self.tables = Tables(coils=((first_coil, first_coil + POINTS * len(BANKS)),))
+
+    def request(self, function_code: int, start_address: int, address: int, count: int, registers: list[int],
+                set_values: Values) -> Request | ExcCodes | None:
+        if set_values is None:
+            return None  # a read: the coils as last written, from the staging table
+        changes = []
+        for n, value in enumerate(set_values):
+            bank, point = divmod(address + n - self.first_coil, POINTS)
+            if BANKS[bank] != "sensor_break" and (self.plant is None or point not in self.plant.heaters):
+                return ExcCodes.ILLEGAL_ADDRESS  # no heater to open or short there: nothing is switched
+            changes.append((BANKS[bank], point, bool(value)))
+
+        def switch(_memory: object) -> Callable[[], None]:
+            for bank, point, on in changes:
+                if bank == "sensor_break":
+                    (self.model.open if on else self.model.repair)(point)
+                else:
+                    self.plant.set_fault(bank, point, on)  # type: ignore[union-attr]  # checked above
+            return nothing
+        return switch
 
 
 def build_rig_device(emulator: Emulator, first_coil: int = 0) -> SimDevice:
-    model = emulator.model(TemperatureModel)
-    if model is None:
-        raise InvalidValue("the emulator has no temperature modules to break: give hil emulate a --bench profile "
-                         "with a [temperature] section")
-    plant = emulator.model(ThermalPlant)
-
-    def switch(bank: str, point: int, on: bool) -> None:
-        if bank == "sensor_break":
-            (model.open if on else model.repair)(point)
-        else:
-            plant.set_fault(bank, point, on)
-
-    async def action(function_code: int, start_address: int, address: int, count: int,
-                     current_registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
-        if function_code not in _WRITE_COILS or set_values is None:
-            return None
-        changes = []
-        for n, value in enumerate(set_values):
-            bank, point = divmod(address + n - first_coil, POINTS)
-            if BANKS[bank] != "sensor_break" and (plant is None or point not in plant.heaters):
-                return ExcCodes.ILLEGAL_ADDRESS  # no heater to open or short there: nothing is switched
-            changes.append((BANKS[bank], point, bool(value)))
-        with emulator.lock:
-            for bank, point, on in changes:
-                switch(bank, point, on)
-        return None
-
-    coils = [SimData(first_coil, count=POINTS * len(BANKS), values=False, datatype=DataType.BITS)]
-    unused = [SimData(0, count=1, values=False, datatype=DataType.BITS)]
-    return SimDevice(0, simdata=(coils, unused, [SimData(0, count=1)], [SimData(0, count=1)]), action=action)
+    return build_device(emulator, RigMap(emulator, first_coil), None)
 
 
-def start_rig_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0,
-                         first_coil: int = 0) -> ServerHandle:
-    runtime = LoopThread.shared()
-    device = build_rig_device(emulator, first_coil)
-
-    async def start() -> ModbusTcpServer:
-        server = ModbusTcpServer(device, address=(host, port))
-        await server.serve_forever(background=True)
-        return server
-
-    server = runtime.run(start())
-    actual = server.transport.sockets[0].getsockname()[1]
-
-    def stop() -> None:
-        if runtime.loop.is_running():
-            runtime.run(server.shutdown())
-
-    return ServerHandle("rig-modbus-tcp", f"{host}:{actual}", stop)
+def start_rig_modbus_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, first_coil: int = 0, *,
+                         faults: WireFaults | None = None) -> ServerHandle:
+    """Serve the rig of ``emulator`` on Modbus/TCP; port 0 picks a free port; ``faults``: the wire-fault plan
+    every reply goes through."""
+    return start_tcp(emulator, RigMap(emulator, first_coil), host, port, None, faults=faults,
+                     kind="rig-modbus-tcp", stats="rig_modbus")

@@ -10,12 +10,12 @@ import math
 from typing import TYPE_CHECKING
 
 from hil.sim.model import Model
-from hil.families.s7smart import timebuf
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import S7Address, parse_s7
 from hil.families.s7smart.layout import S7RtcLayout
 
 if TYPE_CHECKING:
-    from hil.families.s7smart.emulator import S7Emulator, S7Memory
+    from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
 
 SM4_3 = parse_s7("SM4.3")  # set when READ_RTC/SET_RTC collide (main program vs interrupt)
 

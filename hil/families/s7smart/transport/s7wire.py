@@ -16,30 +16,16 @@ from typing import Any, Callable, TypeVar
 
 from hil.core.errors import HilError, TransportError
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
-from hil.families.s7smart.io import S7Io
+from hil.families.s7smart.protocol.s7 import DEFAULT_PORT, V_DB, snap7_module
+from hil.families.s7smart.transport.io import S7Io
 from hil.io.request_policy import RequestPolicy
 from hil.io.status import PlcStatus
 
 T = TypeVar("T")
-V_DB = 1  # V memory as S7 clients see it
-DEFAULT_PORT = 102
-INSTALL_HINT = "the S7 protocol needs python-snap7: pip install 'hil[s7]' (or pip install python-snap7)"
 
 
 class _Lost(Exception):
     """A request whose reply never came (a timeout, a broken connection): the policy's to retry or report."""
-
-
-def snap7_module() -> Any:
-    """python-snap7, or a HilError saying what to install."""
-    try:
-        import snap7
-        import snap7.client  # noqa: F401 - the submodules are what we use
-        import snap7.error  # noqa: F401
-        import snap7.type  # noqa: F401
-    except ImportError:
-        raise HilError(INSTALL_HINT) from None
-    return snap7
 
 
 class SnapS7Io(S7Io):

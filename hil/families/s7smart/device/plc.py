@@ -14,9 +14,9 @@ from typing import Callable, Iterable
 
 from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
-from hil.families.s7smart import timebuf
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import S7Address, units
-from hil.families.s7smart.io import S7Io
+from hil.families.s7smart.transport.io import S7Io
 from hil.families.s7smart.layout import S7RtcLayout
 from hil.core.timebase import Timebase, nearest_whole_second, next_whole_second, wait_until
 from hil.io.status import PlcStatus

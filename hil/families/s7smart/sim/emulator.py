@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from hil.sim.engine import Engine
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
 # the clock model (what mutation testing judges: benchmarks/mutation.py), re-exported
-from hil.families.s7smart.clock import RtcTestProgram, S7Clock  # noqa: F401
+from hil.families.s7smart.sim.clock import RtcTestProgram, S7Clock  # noqa: F401
 from hil.families.s7smart.layout import S7Settings
 
 if TYPE_CHECKING:

@@ -5,7 +5,7 @@ value checks, request splitting, the guard's allow-list and the Modbus map decod
 (VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small:
 byte-run primitives plus name helpers, with the same error types, the same guard (:class:`hil.bench.guard.Guard`,
 given the S7 address model here) and the same "an address the wire cannot reach is an error naming both" rule.
-Over Modbus it maps operands to register/coil runs through :class:`~hil.families.s7smart.modbus_map.S7ModbusMap`
+Over Modbus it maps operands to register/coil runs through :class:`~hil.families.s7smart.protocol.modbus_map.S7ModbusMap`
 and sends them through the one Modbus client, :class:`~hil.io.modbus_client.ModbusWire`.
 
 Over Modbus, V is reached in 16-bit holding registers: writing one byte (or one V bit) reads the register and
@@ -24,13 +24,13 @@ from hil.core.link import Link
 from hil.core.errors import InvalidValue, TransportError
 from hil.families.s7smart.faces import S7IO
 from hil.families.s7smart.address import S7Address, expand_s7, parse_s7, units
-from hil.families.s7smart.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
+from hil.families.s7smart.protocol.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
                                     from_words, to_words)
 from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, OverModbusWire, Probe
 from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
-    from hil.families.s7smart.emulator import S7Emulator
+    from hil.families.s7smart.sim.emulator import S7Emulator
 
 
 class S7Io(Link, ABC):
@@ -115,7 +115,7 @@ class S7Io(Link, ABC):
 
 @runtime_checkable
 class ClockedS7Io(Protocol):
-    """A link with the S7 protocol's clock functions (:class:`~hil.families.s7smart.s7wire.SnapS7Io`)."""
+    """A link with the S7 protocol's clock functions (:class:`~hil.families.s7smart.transport.s7wire.SnapS7Io`)."""
 
     description: str
 
@@ -267,7 +267,7 @@ class GuardedS7Io(GuardedLink):
     """The guard (:mod:`hil.bench.guard`) over S7 operands: every write checked against the profile's ``[safety]
     writable`` (S7 ranges) before a byte is sent, originals journaled (on disk first on a real bench) and
     restored, read back, after each test; the CPU clock kept as the family declares it
-    (:meth:`hil.families.s7smart.device.S7Plc.clock`)."""
+    (:meth:`hil.families.s7smart.device.plc.S7Plc.clock`)."""
 
     #: what a suite may hold of it (hil.bench.view.guarded_io)
     FACE = S7IO
