@@ -12,7 +12,7 @@ from hil.bench.profile import load_profile
 from hil.bench.replay import Recovery
 from hil.core.journal import Journal
 from hil.core.lock import lock_key
-from hil.families.fbs.faults import ModbusCoilSensorBreak
+from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.recovery import restore_rig_coils
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp

@@ -269,7 +269,7 @@ def test_manual_injector_asks_the_operator():
 
 
 def test_unreachable_relay_module_is_reported():
-    from hil.families.fbs.faults import ModbusCoilSensorBreak
+    from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
     from hil.families.fbs.injectors.injector import FaultError
     injector = ModbusCoilSensorBreak("modbus+tcp://127.0.0.1:9?unit=1", timeout=0.2)
     with pytest.raises(FaultError, match="cannot reach the sensor-break relay module"):

@@ -16,7 +16,7 @@ from hil.bench.guard import Recovery, RecoveryStep
 from hil.bench.replay import age_problem
 from hil.core.journal import COILS, Journal
 from hil.core.lock import lock_key
-from hil.families.fbs.faults import ModbusCoilSensorBreak
+from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.transport.guard import GuardedTransport
 
