@@ -58,6 +58,7 @@ class GuardedTransport(Guard, Transport):
     FACE = FbsIO
 
     read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
+    reuse_verified = True  # …and an original a restore has just read back is not read again (Guard._originals)
 
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
         super().__init__(f"guarded {inner.description}", expand(writable), expand(volatile))
