@@ -129,6 +129,7 @@ class Guard(ABC):
         self.journal: dict[Any, int] = {}  # element → its value before the first write (until verified restored)
         self.touched: set = set()  # every element written since the test started
         self.effects: set = set()  # every element journaled as a side effect of those writes (``side_effects``)
+        self.last_wrote: dict[Any, int] = {}  # element → what the test last wrote to it, where the family knows
         self.reopened = 0  # reconnections made to restore
         # On disk before each write goes out (None for an in-process emulator: nothing outlives the run).
         self.durable: Journal | None = None
@@ -224,6 +225,11 @@ class Guard(ABC):
                                       {str(e): v for e, v in wrote.items() if e not in self.volatile})
         self.journal.update(originals)
         self.touched.update(covered)
+        for element in covered:
+            if element in wrote:
+                self.last_wrote[element] = wrote[element]
+            else:
+                self.last_wrote.pop(element, None)
 
     #: a family that reads back every restore (and whose writable elements only the tests change, or the PLC as a
     #: declared side effect of their writes) takes an original from the last restore that read it back instead of
@@ -309,6 +315,7 @@ class Guard(ABC):
         journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
         self.touched.clear()
         self.effects.clear()
+        self.last_wrote.clear()
 
     @property
     def unrestored(self) -> list[tuple[Any, Any]]:
@@ -418,31 +425,44 @@ class Guard(ABC):
         whose EN the test switched), never written by the test itself."""
         return self.effects - self.touched if self.read_effects_first and self.touched else set()
 
+    def _read_first(self, items: list[tuple[Any, int]]) -> set:
+        """Journaled elements checked by a read before anything is written to them (written back only where they
+        differ): the side effects of this test (:meth:`_effects_of_this_test`); a family may add more."""
+        return self._effects_of_this_test()
+
     def _put_back_once(self, items: list[tuple[Any, int]]) -> tuple[list[Failure], bool]:
-        # What the test wrote goes back first, in order (an EN back at 0 stops FUN86 rewriting its outputs); what
-        # the PLC rewrote only because of those writes is then read — stable now that its cause is undone — and
-        # written back only where it differs: that read is its verification (on port 0 a read of a block costs
-        # what writing it does, so an untouched block costs one read instead of a write and a read-back).
-        effects = self._effects_of_this_test()
-        first = [(a, v) for a, v in items if a not in effects]
-        later = [(a, v) for a, v in items if a in effects]
-        written = list(first)
+        # What the test wrote goes back first, in order (an EN back at 0 stops FUN86 rewriting its outputs).  Then
+        # one read is both that write's read-back and the check of what is read first (_read_first: what the PLC
+        # rewrote only because of the test's writes, stable now that its cause is undone): those are written back,
+        # and read back again, only where they differ — on port 0 a read of a block costs what writing it does, so
+        # an untouched block costs one read instead of a write and a read-back.
+        checked = self._read_first(items)
+        first = [(a, v) for a, v in items if a not in checked]
+        later = [(a, v) for a, v in items if a in checked]
         try:
             if first:
                 self.write_back(first)
-            if later:
-                now = self.read_originals([a for a, _ in later])
-                differ = [(a, v) for (a, v), got in zip(later, now) if got != v]
-                if differ:
-                    self.write_back(differ)
-                written += differ
         except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
             return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         try:
-            now = self.read_originals([a for a, _ in written]) if written else []
+            now = self.read_originals([a for a, _ in first + later])
         except Exception as exc:  # noqa: BLE001
             return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
-        return [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(written, now) if got != v], False
+        wrong = [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(first, now) if got != v]
+        differ = [(a, v) for (a, v), got in zip(later, now[len(first):]) if got != v]
+        if not differ:
+            return wrong, False
+        try:
+            self.write_back(differ)
+        except Exception as exc:  # noqa: BLE001
+            return wrong + [(str(a), v, f"write failed: {exc}") for a, v in differ], isinstance(exc, TransportError)
+        try:
+            again = self.read_originals([a for a, _ in differ])
+        except Exception as exc:  # noqa: BLE001
+            return wrong + [(str(a), v, f"read-back failed: {exc}") for a, v in differ], \
+                isinstance(exc, TransportError)
+        return wrong + [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(differ, again)
+                        if got != v], False
 
     # -- recovery first ----------------------------------------------------------------------------------------
     def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:

@@ -259,6 +259,23 @@ class GuardedTransport(Guard, Transport):
             report.verified.append(f"{name} {state} (read back, command 43)")
             journal.drop_enable_states([name])
 
+    def _read_first(self, items: list[tuple[Address, int]]) -> set:
+        """Besides FUN86's side effects, each run of adjacent elements the test last wrote back to their originals
+        (a block of Ki = 0 over Ki = 0): read, and written only where they differ — the PLC may have changed them
+        since, the read says.  Whole runs only: one left out of the middle of a run would split its write frame."""
+        checked = super()._read_first(items)
+        same = {a for a, v in items if a in self.last_wrote and self.last_wrote[a] == v}
+        rest = sorted((a for a, _ in items if a not in checked), key=lambda a: (a.kind, a.index))
+        run: list[Address] = []
+        for address in [*rest, None]:
+            if address is not None and run and run[-1].kind == address.kind and run[-1].index + 1 == address.index:
+                run.append(address)
+                continue
+            if run and all(a in same for a in run):
+                checked |= set(run)
+            run = [address] if address is not None else []
+        return checked
+
     def value_problem(self, element: Address, value: int) -> str | None:
         return value_problem(element, value)
 
