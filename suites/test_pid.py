@@ -41,7 +41,7 @@ def _start(bench, pid, inst):
     if reason:
         pytest.skip(f"cannot switch FUN86 {inst.name} on: {reason}")
     pid.enable(inst, True, heating=True)
-    if bench.plc.temperature.configured and bench.plc.temperature.read_work().execution_code != 0x56:
+    if bench.plc.temperature.configured and bench.plc.temperature.execution_code() != 0x56:
         bench.plc.temperature.wait_for_update()
     bench.settle()
 
