@@ -261,10 +261,14 @@ class GuardedTransport(Guard, Transport):
 
     def _read_first(self, items: list[tuple[Address, int]]) -> set:
         """Besides FUN86's side effects, each run of adjacent elements the test last wrote back to their originals
-        (a block of Ki = 0 over Ki = 0): read, and written only where they differ — the PLC may have changed them
-        since, the read says.  Whole runs only: one left out of the middle of a run would split its write frame."""
+        (a block of Ki = 0 over Ki = 0), causes of side effects apart: read, and written only where they differ —
+        the PLC may have changed them since, the read says.  Whole runs only: one left out of the middle of a run
+        would split its write frame."""
         checked = super()._read_first(items)
-        same = {a for a, v in items if a in self.last_wrote and self.last_wrote[a] == v}
+        # never a cause of side effects (an EN, FUN86's Sn/Zn registers): those go back first, always, so that
+        # what they make the PLC rewrite is read only once they are undone (even after a write of unknown outcome)
+        same = {a for a, v in items if a in self.last_wrote and self.last_wrote[a] == v
+                and not (self.side_effects is not None and list(self.side_effects([a])))}
         rest = sorted((a for a, _ in items if a not in checked), key=lambda a: (a.kind, a.index))
         run: list[Address] = []
         for address in [*rest, None]:
