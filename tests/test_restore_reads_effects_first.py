@@ -159,3 +159,14 @@ def test_an_invalid_sn_zn_then_a_valid_one_while_en_is_on_leaves_every_point_as_
         "precondition: FUN86 executed for the first time once Sn/Zn were valid: every point's defaults"
     bench.end_test()
     assert bench.raw.read_many(list(tuned)) == list(tuned.values()), "every point's tuned gains are back"
+
+
+def test_a_cause_of_side_effects_written_back_to_its_original_by_the_test_is_still_written_back_first(emulator):
+    """EN 1 then 0 (its original): still written back before its side effects are read — after a write of unknown
+    outcome it may hold 1, and what it makes the PLC rewrite is stable only once it is undone."""
+    guarded = _guarded(emulator)
+    guarded.begin()
+    guarded.write("M0", 1)
+    guarded.write("M0", 0)
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0"]
