@@ -70,11 +70,20 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
             for c in slowest}
         for case in cases:
             name = Path(case.get("file") or case.get("classname", "").replace(".", "/") + ".py").name
-            row = out["per_suite"].setdefault(name, {"tests": 0, "failures": 0, "skipped": 0, "test_time_s": 0.0})
+            row = out["per_suite"].setdefault(name, {"tests": 0, "failures": 0, "skipped": 0, "test_time_s": 0.0,
+                                                     "wire_bytes": 0, "requests": 0})
             row["tests"] += 1
             row["failures"] += case.find("failure") is not None or case.find("error") is not None
             row["skipped"] += case.find("skipped") is not None
             row["test_time_s"] = round(row["test_time_s"] + float(case.get("time", 0)), 1)
+            wire = {p.get("name"): p.get("value") for p in case.iter("property")}
+            row["wire_bytes"] += int(wire.get("hil_wire_bytes") or 0)  # both directions, every frame
+            row["requests"] += int(wire.get("hil_requests") or 0)
+        if line:  # what the characters alone cost on that line: the part of the time no poll plan can save
+            rate = LineRate.parse(line)
+            per_char = rate.bits / rate.baudrate
+            for row in out["per_suite"].values():
+                row["characters_s"] = round(row["wire_bytes"] * per_char, 1)
     return out
 
 

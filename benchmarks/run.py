@@ -441,7 +441,8 @@ def bench_time_table(line: str) -> dict:
     runs = {"FATEK/TCP": bench_times(1.0)}
     if line:
         runs[f"pty at {line}"] = bench_times(1.0, line=line)
-    t = Table(title="Bench time at time scale 1 (hil emulate in real time), per suite: tests' time s")
+    t = Table(title="Bench time at time scale 1 (hil emulate in real time), per suite: tests' time s [bytes on the "
+                    "wire, both ways; round trips; on a paced line what its characters alone take]")
     t.add_column("suite")
     for wire in runs:
         t.add_column(wire, justify="right")
@@ -451,6 +452,8 @@ def bench_time_table(line: str) -> dict:
         for r in runs.values():
             row = r["per_suite"].get(name)
             cells.append("" if row is None else f"{row['test_time_s']:.1f}"
+                         + f" [{row.get('wire_bytes', 0) / 1000:.1f} KB, {row.get('requests', 0)} round trips"
+                         + (f", characters {row['characters_s']:.0f} s]" if "characters_s" in row else "]")
                          + (f" ({row['skipped']} skipped)" if row["skipped"] else "")
                          + (f" [red]{row['failures']} failed[/]" if row["failures"] else ""))
         t.add_row(name, *cells)

@@ -41,7 +41,7 @@ def _start(bench, pid, inst):
     if reason:
         pytest.skip(f"cannot switch FUN86 {inst.name} on: {reason}")
     pid.enable(inst, True, heating=True)
-    if bench.plc.temperature.configured and bench.plc.temperature.read_work().execution_code != 0x56:
+    if bench.plc.temperature.configured and bench.plc.temperature.execution_code() != 0x56:
         bench.plc.temperature.wait_for_update()
     bench.settle()
 
@@ -68,12 +68,9 @@ def _all_in_band(bench, pid, inst, os=WIDE):
           _registers(inst, "dr"))
     pvs = pid.pvs(inst.points)
     items = {}
-    for p in inst.points:
-        items[str(inst.operand("sv", p))] = pvs[p] & 0xFFFF
-        items[str(inst.operand("os", p))] = os
-        items[str(inst.operand("pr", p))] = 1
-        items[str(inst.operand("ir", p))] = 0
-        items[str(inst.operand("dr", p))] = 0
+    for key, value in (("sv", None), ("os", os), ("pr", 1), ("ir", 0), ("dr", 0)):  # block by block: range frames
+        for p in inst.points:
+            items[str(inst.operand(key, p))] = pvs[p] & 0xFFFF if value is None else value
     bench.plc.io.write_many(items)
     bench.settle()
 

@@ -68,3 +68,16 @@ def test_duplicates_and_values_come_back_in_the_callers_order(plc):
     plc.write_words("R100", list(range(70)))
     names = [f"R{100 + i}" for i in range(70)] + ["R105", "R100"]
     assert plc.read_many(names) == list(range(70)) + [5, 0]
+
+
+def test_a_read_that_need_not_be_one_scan_finds_its_runs_in_address_order_and_answers_in_the_callers(plc):
+    """The guard's restores name a test's blocks, then FUN86's: read in address order, they share range frames;
+    each value still comes back at its caller's position."""
+    plc.write_words("R3000", list(range(100, 107)))
+    names = ["R3001", "R3004", "R3005", "R3006", "R3000", "R3002", "R3003"]
+    assert plc.read_many(names, one_scan=False) == [100 + int(n[1:]) - 3000 for n in names]
+    assert _codes(plc) == ["47", "46"]
+    plc.frames.clear()
+    names = ["M5", "R3004", "M4", "R3003", "Y3", "R3002"]
+    assert plc.read_many(names, one_scan=False)[1::2] == [104, 103, 102]
+    assert len(plc.frames) <= 2

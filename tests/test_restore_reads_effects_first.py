@@ -58,9 +58,55 @@ def test_a_side_effect_the_test_wrote_itself_is_written_back_like_any_write(emul
     emulator.memory.write("R200", [5])
     guarded.begin()
     guarded.write("M0", 1)
-    guarded.write("R200", 5)  # the same value: still a write of the test, put back whatever it reads
+    guarded.write("R200", 7)  # a write of the test: put back in the first write, whatever the PLC did after it
     writes = _writes_during(guarded, guarded.restore)
     assert writes == ["M0", "R200"]
+    assert emulator.memory.read("R200", 1) == [5]
+
+
+def test_a_run_the_test_wrote_back_to_its_originals_is_read_and_written_only_where_the_plc_changed_it(emulator):
+    """Ki = 0 over Ki = 0: what reads its original after the restore's first write is as found (that read is its
+    verification); what the PLC changed since the test's last write is written back and read back."""
+    guarded = GuardedTransport(LocalTransport(emulator), writable=["M0", "R100-R109"])
+    emulator.memory.write("R100", [0] * 10)
+    guarded.begin()
+    guarded.write("M0", 1)
+    guarded.write_words("R100", [0] * 10)
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0"], "the block still holds its originals: read, not written"
+    guarded.begin()
+    guarded.write_words("R100", [3] * 10)
+    guarded.write_words("R100", [0] * 10)
+    emulator.memory.write("R104", [9])  # the PLC changed one word after the test's last write
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["R104"]
+    assert emulator.memory.read("R100", 10) == [0] * 10 and guarded.journal == {}
+    guarded.begin()
+    guarded.write_words("R100", [0, 0, 0, 4, 0, 0, 0, 0, 0, 0])  # one word of the run changed: the run is written
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == [f"R{100 + i}" for i in range(10)]
+
+
+def test_an_original_a_restore_read_back_is_not_read_again_and_is_on_disk_before_the_write(emulator, tmp_path):
+    """The next test's first write journals the value the last restore read back (nothing was written since),
+    durable first as a read original would be."""
+    from hil.core.journal import Journal
+    guarded = GuardedTransport(LocalTransport(emulator), writable=["R100-R109"])
+    guarded.durable = Journal("plc", tmp_path)
+    emulator.memory.write("R100", [5, 6])
+    guarded.begin()
+    guarded.write_words("R100", [1, 1])
+    guarded.end()
+    reads = []
+    read_originals = guarded.read_originals
+    guarded.read_originals = lambda elements: (reads.extend(map(str, elements)), read_originals(elements))[1]
+    guarded.begin()
+    guarded.write_words("R100", [2, 2])
+    assert reads == [], "R100/R101 were read back equal to their originals by the last restore"
+    assert guarded.journal == {parse("R100"): 5, parse("R101"): 6}
+    assert Journal("plc", tmp_path).elements() == {"R100": 5, "R101": 6}
+    guarded.end()
+    assert emulator.memory.read("R100", 2) == [5, 6]
 
 
 # -- what FUN86 rewrites: a box that takes Sn/Zn from registers reaches the points they give --------------------------
@@ -113,3 +159,14 @@ def test_an_invalid_sn_zn_then_a_valid_one_while_en_is_on_leaves_every_point_as_
         "precondition: FUN86 executed for the first time once Sn/Zn were valid: every point's defaults"
     bench.end_test()
     assert bench.raw.read_many(list(tuned)) == list(tuned.values()), "every point's tuned gains are back"
+
+
+def test_a_cause_of_side_effects_written_back_to_its_original_by_the_test_is_still_written_back_first(emulator):
+    """EN 1 then 0 (its original): still written back before its side effects are read — after a write of unknown
+    outcome it may hold 1, and what it makes the PLC rewrite is stable only once it is undone."""
+    guarded = _guarded(emulator)
+    guarded.begin()
+    guarded.write("M0", 1)
+    guarded.write("M0", 0)
+    writes = _writes_during(guarded, guarded.restore)
+    assert writes == ["M0"]

@@ -131,6 +131,7 @@ class Guard(ABC):
         self.journal: dict[Any, int] = {}  # element → its value before the first write (until verified restored)
         self.touched: set = set()  # every element written since the test started
         self.effects: set = set()  # every element journaled as a side effect of those writes (``side_effects``)
+        self.last_wrote: dict[Any, int] = {}  # element → what the test last wrote to it, where the family knows
         self.reopened = 0  # reconnections made to restore
         # On disk before each write goes out (None for an in-process emulator: nothing outlives the run).
         self.durable: Journal | None = None
@@ -147,6 +148,9 @@ class Guard(ABC):
         # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
         self.identity_vouched = False
         self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
+        # element → the value a restore last read back equal to its original (``reuse_verified``); an element
+        # leaves it when it is journaled again (written, or rewritten by the PLC as a side effect)
+        self.verified: dict[Any, int] = {}
 
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
@@ -204,6 +208,8 @@ class Guard(ABC):
     def _remember(self, covered: Sequence, wrote: dict) -> None:
         if self._replaying:  # recovery's own writes (the clock's set procedure) put back, they journal nothing
             self.touched.update(covered)
+            for element in covered:
+                self.verified.pop(element, None)
             return
         if self.clock is not None and self.clock.touches.intersection(covered):
             self._note_clock()
@@ -213,7 +219,7 @@ class Guard(ABC):
             wanted += effects
             self.effects.update(self.keys(effects))
         fresh = [e for e in dict.fromkeys(self.keys(wanted)) if e not in self.journal and e not in self.volatile]
-        originals = dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
+        originals = self._originals(fresh)
         # on disk (fsync'd) before the write goes out: the original and what is written — except the guard's own
         # clock restore once the journal has failed (a restore is never refused; it puts the PLC back)
         if self.durable is not None and not (self._clock_busy and self.durable.failed):
@@ -221,6 +227,26 @@ class Guard(ABC):
                                       {str(e): v for e, v in wrote.items() if e not in self.volatile})
         self.journal.update(originals)
         self.touched.update(covered)
+        for element in covered:
+            if element in wrote:
+                self.last_wrote[element] = wrote[element]
+            else:
+                self.last_wrote.pop(element, None)
+
+    #: a family that reads back every restore (and whose writable elements only the tests change, or the PLC as a
+    #: declared side effect of their writes) takes an original from the last restore that read it back instead of
+    #: reading it again (on port 0 a read costs what the write does): the same value, proven by that read-back
+    reuse_verified = False
+
+    def _originals(self, fresh: list) -> dict:
+        """The originals of ``fresh`` elements, about to be journaled: read, or — ``reuse_verified`` — as the last
+        restore read them back, where nothing has been written to them since (an element leaves ``verified``
+        whenever it is journaled, and a restore puts it back only once read back equal).  After a crash the disk
+        holds the same values either way: they go on disk before the write, as a read would."""
+        known = {e: self.verified.pop(e) for e in fresh if e in self.verified} if self.reuse_verified else {}
+        unknown = [e for e in fresh if e not in known]
+        read = dict(zip(unknown, self.read_originals(unknown))) if unknown else {}
+        return {e: known[e] if e in known else read[e] for e in fresh}
 
     def _note_clock(self) -> None:
         """Before the first write that may set the clock: its origin, durable first."""
@@ -291,6 +317,7 @@ class Guard(ABC):
         journal (and on disk) until a restore succeeds — :meth:`restore` retries them."""
         self.touched.clear()
         self.effects.clear()
+        self.last_wrote.clear()
 
     @property
     def unrestored(self) -> list[tuple[Any, Any]]:
@@ -324,6 +351,8 @@ class Guard(ABC):
             good = [(e, v) for e, v in items if str(e) not in failed]
             for element, _ in good:
                 del self.journal[element]
+            if self.reuse_verified:
+                self.verified.update(good)  # read back equal just now
             if self.durable is not None and good:  # verified: only now may the originals leave the disk
                 self.durable.drop_elements(str(e) for e, _ in good)
             if failures or bad:
@@ -398,31 +427,44 @@ class Guard(ABC):
         whose EN the test switched), never written by the test itself."""
         return self.effects - self.touched if self.read_effects_first and self.touched else set()
 
+    def _read_first(self, items: list[tuple[Any, int]]) -> set:
+        """Journaled elements checked by a read before anything is written to them (written back only where they
+        differ): the side effects of this test (:meth:`_effects_of_this_test`); a family may add more."""
+        return self._effects_of_this_test()
+
     def _put_back_once(self, items: list[tuple[Any, int]]) -> tuple[list[Failure], bool]:
-        # What the test wrote goes back first, in order (an EN back at 0 stops FUN86 rewriting its outputs); what
-        # the PLC rewrote only because of those writes is then read — stable now that its cause is undone — and
-        # written back only where it differs: that read is its verification (on port 0 a read of a block costs
-        # what writing it does, so an untouched block costs one read instead of a write and a read-back).
-        effects = self._effects_of_this_test()
-        first = [(a, v) for a, v in items if a not in effects]
-        later = [(a, v) for a, v in items if a in effects]
-        written = list(first)
+        # What the test wrote goes back first, in order (an EN back at 0 stops FUN86 rewriting its outputs).  Then
+        # one read is both that write's read-back and the check of what is read first (_read_first: what the PLC
+        # rewrote only because of the test's writes, stable now that its cause is undone): those are written back,
+        # and read back again, only where they differ — on port 0 a read of a block costs what writing it does, so
+        # an untouched block costs one read instead of a write and a read-back.
+        checked = self._read_first(items)
+        first = [(a, v) for a, v in items if a not in checked]
+        later = [(a, v) for a, v in items if a in checked]
         try:
             if first:
                 self.write_back(first)
-            if later:
-                now = self.read_originals([a for a, _ in later])
-                differ = [(a, v) for (a, v), got in zip(later, now) if got != v]
-                if differ:
-                    self.write_back(differ)
-                written += differ
         except Exception as exc:  # noqa: BLE001 - any failure must end up in the list, not hide the rest
             return [(str(a), v, f"write failed: {exc}") for a, v in items], isinstance(exc, TransportError)
         try:
-            now = self.read_originals([a for a, _ in written]) if written else []
+            now = self.read_originals([a for a, _ in first + later])
         except Exception as exc:  # noqa: BLE001
             return [(str(a), v, f"read-back failed: {exc}") for a, v in items], isinstance(exc, TransportError)
-        return [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(written, now) if got != v], False
+        wrong = [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(first, now) if got != v]
+        differ = [(a, v) for (a, v), got in zip(later, now[len(first):]) if got != v]
+        if not differ:
+            return wrong, False
+        try:
+            self.write_back(differ)
+        except Exception as exc:  # noqa: BLE001
+            return wrong + [(str(a), v, f"write failed: {exc}") for a, v in differ], isinstance(exc, TransportError)
+        try:
+            again = self.read_originals([a for a, _ in differ])
+        except Exception as exc:  # noqa: BLE001
+            return wrong + [(str(a), v, f"read-back failed: {exc}") for a, v in differ], \
+                isinstance(exc, TransportError)
+        return wrong + [(str(a), v, f"reads {got} after restore") for (a, v), got in zip(differ, again)
+                        if got != v], False
 
     # -- recovery first ----------------------------------------------------------------------------------------
     def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:

@@ -106,6 +106,10 @@ class Temperature:
     def read_work(self) -> WorkView:
         return WorkView(self.plc.io.read_words(self.config.work, 4 + 4 * len(self.config.modules)))
 
+    def execution_code(self) -> int:
+        """TW+0's high byte alone (one word read: all a check of "56H: measuring" needs)."""
+        return self.plc.io.read(str(self.config.work)) >> 8
+
     def readings(self) -> list[int]:
         """Every configured point's reading, signed, in 0.1° of the configured unit."""
         return [signed(w) for w in self.plc.io.read_words(self.config.readings, self.config.points)]

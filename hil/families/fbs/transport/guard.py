@@ -61,6 +61,7 @@ class GuardedTransport(GuardedLink):
     FACE = FbsIO
 
     read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
+    reuse_verified = True  # …and an original a restore has just read back is not read again (Guard._originals)
     inner: Transport
 
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
@@ -257,6 +258,27 @@ class GuardedTransport(GuardedLink):
                 continue
             report.verified.append(f"{name} {state} (read back, command 43)")
             journal.drop_enable_states([name])
+
+    def _read_first(self, items: list[tuple[Address, int]]) -> set:
+        """Besides FUN86's side effects, each run of adjacent elements the test last wrote back to their originals
+        (a block of Ki = 0 over Ki = 0), causes of side effects apart: read, and written only where they differ —
+        the PLC may have changed them since, the read says.  Whole runs only: one left out of the middle of a run
+        would split its write frame."""
+        checked = super()._read_first(items)
+        # never a cause of side effects (an EN, FUN86's Sn/Zn registers): those go back first, always, so that
+        # what they make the PLC rewrite is read only once they are undone (even after a write of unknown outcome)
+        same = {a for a, v in items if a in self.last_wrote and self.last_wrote[a] == v
+                and not (self.side_effects is not None and list(self.side_effects([a])))}
+        rest = sorted((a for a, _ in items if a not in checked), key=lambda a: (a.kind, a.index))
+        run: list[Address] = []
+        for address in [*rest, None]:
+            if address is not None and run and run[-1].kind == address.kind and run[-1].index + 1 == address.index:
+                run.append(address)
+                continue
+            if run and all(a in same for a in run):
+                checked |= set(run)
+            run = [address] if address is not None else []
+        return checked
 
     def value_problem(self, element: Address, value: int) -> str | None:
         return value_problem(element, value)

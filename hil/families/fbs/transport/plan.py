@@ -91,9 +91,14 @@ def plan(addresses: Sequence[Address], limits: Limits, values: Sequence[int] | N
         return []
     mixed_limit = limits.mixed_read_words if values is None else limits.mixed_write_words
     runs = _runs(addresses)
+    if values is None and not one_scan and len(runs) > 1:
+        # a read that need not be one scan (the guard's originals, restores, read-backs) comes back by position:
+        # its runs are found in address order, so blocks named apart (a test's own, then FUN86's) share frames
+        order = sorted(range(len(addresses)), key=lambda i: (addresses[i].kind, addresses[i].index))
+        runs = [[order[i] for i in run] for run in _runs([addresses[i] for i in order])]
     everything = tuple(range(len(addresses)))
-    if len(runs) == 1 and len(addresses) <= _range_limit(addresses[0], limits):
-        return [Piece(everything, True)]  # one run: one range frame, never dearer than naming its elements
+    if len(runs) == 1 and len(addresses) <= _range_limit(addresses[runs[0][0]], limits):
+        return [Piece(tuple(runs[0]), True)]  # one run: one range frame, never dearer than naming its elements
     if one_scan and sum(a.words for a in addresses) <= mixed_limit:
         return [Piece(everything, False)]  # one frame: one scan
     pieces: list[Piece] = []
