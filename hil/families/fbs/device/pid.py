@@ -236,9 +236,8 @@ class Pid:
     def pvs(self, points: Iterable[int]) -> dict[int, int]:
         start = parse(self.readings_start())
         points = list(points)
-        low = min(points)  # only the words from the first point asked to the last (one range read)
-        words = self.plc.io.read_words(str(start.offset(low)), max(points) - low + 1)
-        return {p: signed16(words[p - low]) for p in points}
+        words = self.plc.io.read_words(str(start), max(points) + 1)
+        return {p: signed16(words[p]) for p in points}
 
     @staticmethod
     def enable_register(point: int) -> str:
