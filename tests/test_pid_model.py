@@ -322,7 +322,7 @@ def test_the_plant_under_a_fixed_pwm_is_solved_in_closed_form_over_whole_periods
 
     import numpy as np
 
-    from hil.families.fbs.sim.models.plant import waved_temperature
+    from hil.families.fbs.sim.models.plant_solution import waved_temperature
     started, period, on, st, tau = 0.12, 2.0, 0.6543, 0.01, 250.0
 
     def closed_form(t: float) -> float:  # anchored at 40 °C at 0.37 s, heater 320 °C on, 20 °C off

@@ -12,7 +12,7 @@ from hil.families.fbs.address import parse_range
 from hil.families.fbs.transport.guard import expand
 from hil.families.fbs.transport.base import value_problem
 from hil.families.fbs.pid import parse_pid
-from hil.families.fbs.sim.models.plant import parse_plant
+from hil.families.fbs.sim.models.plant_config import parse_plant
 from hil.families.fbs.rtc_profile import parse_rtc
 from hil.families.fbs.temperature import parse_temperature
 from hil.families.fbs.injectors.config import check_fault_configs

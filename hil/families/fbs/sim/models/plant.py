@@ -31,15 +31,17 @@ Heaters: the point controlled by a FUN86 instance (``[pid]``) is heated by that 
 from __future__ import annotations
 
 import math
-import random
-from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hil.families.fbs.address import Address
-from hil.sim.model import Model, scan_grid as grid
-from hil.core.errors import InvalidValue, ProfileError
+from hil.sim.model import Model
+from hil.core.errors import InvalidValue
+# one concept a module: the [plant] section, the noise and the closed form each have their own
+from hil.families.fbs.sim.models.plant_config import PlantConfig, PlantPoint
+from hil.families.fbs.sim.models.plant_noise import NOISE_CLIP, noise_index, normals
+from hil.families.fbs.sim.models.plant_solution import waved_temperature
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 
@@ -47,59 +49,6 @@ if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
 
 FAULTS = ("heater_open", "ssr_short")
-
-
-@dataclass(frozen=True)
-class PlantPoint:
-    ambient: float = 25.0
-    gain: float = 300.0
-    tau: float = 300.0
-    dead_time: float = 0.0
-    noise: float = 0.05
-    initial: float | None = None
-
-
-@dataclass(frozen=True)
-class PlantConfig:
-    default: PlantPoint = PlantPoint()
-    points: dict[int, PlantPoint] | None = None
-
-    def point(self, p: int) -> PlantPoint:
-        return (self.points or {}).get(p, self.default)
-
-
-_LIMITS = {"ambient": (-200.0, 1000.0), "gain": (0.0, 2000.0), "tau": (0.1, 1e6), "dead_time": (0.0, 3600.0),
-           "noise": (0.0, 50.0), "initial": (-200.0, 2000.0)}
-
-
-def parse_plant(section: dict[str, Any], where: str = "<profile>") -> PlantConfig:
-    """Validate ``[plant]``; ProfileError names the key."""
-    def values(table: dict[str, Any], label: str, base: PlantPoint) -> PlantPoint:
-        out = {}
-        for key, value in table.items():
-            if key not in _LIMITS:
-                raise ProfileError(f"{where}: [{label}] unknown key {key!r} (known: {', '.join(_LIMITS)})")
-            low, high = _LIMITS[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value <= high:
-                raise ProfileError(f"{where}: [{label}] {key}: must be a number {low:g}–{high:g}, not {value!r}")
-            out[key] = float(value)
-        return replace(base, **out)
-
-    if not isinstance(section, dict):
-        raise ProfileError(f"{where}: [plant] must be a table")
-    top = {k: v for k, v in section.items() if k != "points"}
-    default = values(top, "plant", PlantPoint())
-    raw = section.get("points", {})
-    if not isinstance(raw, dict):
-        raise ProfileError(f"{where}: [plant] points must be a table of point → overrides ([plant.points.3])")
-    points = {}
-    for key, table in raw.items():
-        if not str(key).isdigit() or not 0 <= int(key) <= 31:
-            raise ProfileError(f"{where}: [plant.points.{key}] is not a temperature point 0–31")
-        if not isinstance(table, dict):
-            raise ProfileError(f"{where}: [plant.points.{key}] must be a table")
-        points[int(key)] = values(table, f"plant.points.{key}", default)
-    return PlantConfig(default, points)
 
 
 class _Heated:
@@ -144,134 +93,6 @@ class _Heated:
         cut = self.t0 - self.p.dead_time
         while len(self.history) > 1 and self.history[1][0] <= cut:
             self.history.pop(0)
-
-
-#: measurement noise is clipped at this many standard deviations (so a reading has a hard bound: the FUN86 model
-#: can then skip the scans at measurements that can never reach the pre-alarm limit)
-NOISE_CLIP = 6.0
-
-
-_NORMALS: dict[int, np.ndarray] = {}
-
-
-def normals(seed: int) -> np.ndarray:
-    """65536 standard normal values, clipped at ±NOISE_CLIP, drawn once per seed."""
-    table = _NORMALS.get(seed)
-    if table is None:
-        rng = random.Random(seed)
-        table = _NORMALS[seed] = np.array([min(max(rng.gauss(0.0, 1.0), -NOISE_CLIP), NOISE_CLIP)
-                                           for _ in range(65536)])
-    return table
-
-
-_MASK64 = (1 << 64) - 1
-_U = np.uint64
-_MIX1, _MIX2, _MIX3 = _U(0x9E3779B97F4A7C15), _U(0xBF58476D1CE4E5B9), _U(0x94D049BB133111EB)
-_S30, _S27, _S31, _LOW16 = _U(30), _U(27), _U(31), _U(0xFFFF)
-
-
-def noise_index(seed: int, points: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """Which of the 65536 normals a measurement of ``points`` at ``times`` draws: splitmix64's finaliser over
-    (t in µs, point, seed), modulo 2^64 (exact for any seed: the seed's term is taken as a Python int)."""
-    terms = _POINT_TERMS.get(seed)
-    if terms is None:  # point × K2 + seed × K3 for each point
-        terms = _POINT_TERMS[seed] = np.arange(64, dtype=np.uint64) * _MIX2 + _U(seed * 0x94D049BB133111EB & _MASK64)
-    x = np.rint(np.asarray(times, dtype=float) * 1000000.0).astype(np.uint64) * _MIX1 + terms[points]  # (t ≥ 0)
-    x = (x ^ (x >> _S30)) * _MIX2
-    x = (x ^ (x >> _S27)) * _MIX3
-    return (x ^ (x >> _S31)) & _LOW16
-
-
-_POINT_TERMS: dict[int, np.ndarray] = {}
-#: 0 as a 0-d array: numpy takes a Python number as an operand at a cost several times that of a 0-d array (and
-#: this runs once per point group and PID interval)
-_ZERO = np.array(0.0)
-
-
-def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
-    """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
-    (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
-    clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0), or one row for every
-    cycle."""
-    decay = np.exp((a - t[0]) * rate[0])
-    begins = np.exp(np.minimum((np.maximum(starts, a) - t) * rate, _ZERO))
-    return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
-
-
-def cycles_temperature(temp_a, a, t, offs, lift, rate, terms, out=None):  # noqa: ANN001, ANN201
-    """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
-    each: ``offs``; ``t`` and ``rate`` (1/τ) too, or one row for all; ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
-    cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
-    plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
-
-    A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
-    [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
-    decay, base = terms
-    ends = np.minimum((np.maximum(offs, a) - t) * rate, _ZERO)
-    return np.add(temp_a * decay + base, lift * _cycles_sum(np.exp(ends, out=ends)), out=out)
-
-
-def _cycles_sum(rows: np.ndarray) -> np.ndarray:
-    """The sum of a few rows, in order (cheaper than a reduction for two or three)."""
-    total = rows[0]
-    for row in rows[1:]:
-        total = total + row
-    return total
-
-
-#: cycles solved one by one around a span's ends (the span's start falls in the first two, its end in the last
-#: three); the whole cycles between them in closed form
-_HEAD, _TAIL = 2, 3
-
-
-def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, st: float):  # noqa: ANN001, ANN201
-    """T at ``t`` (≥ t0) of points anchored at (t0, temp0) whose heater follows a waveform on the scan grid: ``pwm``
-    False — constant, at T_off; True — on from grid(started + k·period) to grid(started + k·period + on), off for
-    the rest of each cycle.  All arguments are arrays over the points (or broadcast), solved at once.
-
-    The partial cycles at either end are solved cycle by cycle (:func:`cycles_temperature`), the whole cycles
-    between them in closed form: under one PWM period T → A·T + B (A = e^(−period/τ)), so over n identical periods
-    T → T* + (T − T*)·Aⁿ, T* = B / (1 − A) its fixed point."""
-    t0, temp0, t = np.asarray(t0, dtype=float), np.asarray(temp0, dtype=float), np.asarray(t, dtype=float)
-    later = t > t0
-    out = np.where(later, t_off + (temp0 - t_off) * np.exp(-(t - t0) / tau), temp0)
-    pulsed = later & pwm
-    if not pulsed.any():
-        return out
-    a, temp, t = t0[pulsed], temp0[pulsed], t[pulsed]
-    started, period, on, t_on, t_off, tau = (np.broadcast_to(x, pulsed.shape)[pulsed] if np.ndim(x) == 0 else
-                                             x[pulsed] for x in (started, period, on, t_on, t_off, tau))
-    k = np.floor((a - started) / period) - 1  # the cycle before the one a falls in (the grid rounds up)
-    free = k + np.where(grid(started + (k + 1) * period, st) >= a, 1, 2)  # the first cycle starting at or after a
-    free_start = grid(started + free * period, st)
-    whole = np.floor((t - free_start) / period) - 1  # whole cycles from there on, the last one left out
-    jump = (whole >= 1) & (free_start < t)
-    head_end = np.where(jump, free_start, t)
-    cyc = k + np.arange(_HEAD + _TAIL)[:, None]
-    raw = started + cyc * period
-    rate, lift = np.broadcast_to(1.0 / tau, raw.shape), t_on - t_off
-    ends = np.broadcast_to(head_end, raw.shape)
-    temp = cycles_temperature(temp, a, ends, grid(raw + on, st), lift, rate,
-                              cycle_terms(a, ends, grid(raw, st), t_off, lift, rate))
-    if jump.any():
-        j = jump
-        raw0 = started[j] + free[j] * period[j]
-        start0, off0, nxt0 = grid(raw0, st), grid(raw0 + on[j], st), grid(started[j] + (free[j] + 1) * period[j], st)
-        on_decay, off_decay = np.exp(-(off0 - start0) / tau[j]), np.exp(-(nxt0 - off0) / tau[j])
-        gain = on_decay * off_decay
-        offset = (t_on[j] - t_on[j] * on_decay) * off_decay + t_off[j] - t_off[j] * off_decay
-        with np.errstate(divide="ignore", invalid="ignore"):
-            fixed = offset / (1.0 - gain)
-            jumped = np.where(gain < 1.0, fixed + (temp[j] - fixed) * gain ** whole[j], temp[j])
-        landed = free[j] + whole[j]
-        cyc = landed + np.arange(_TAIL)[:, None]
-        raw = started[j] + cyc * period[j]
-        at = grid(started[j] + landed * period[j], st)
-        ends, rates = np.broadcast_to(t[j], raw.shape), np.broadcast_to(rate[0][j], raw.shape)
-        temp[j] = cycles_temperature(jumped, at, ends, grid(raw + on[j], st), lift[j], rates,
-                                     cycle_terms(at, ends, grid(raw, st), t_off[j], lift[j], rates))
-    out[pulsed] = temp
-    return out
 
 
 class PlantSource:

@@ -9,7 +9,7 @@ together, the state of every point in arrays:
 2. block after block of scans: the block's measurements are scheduled at once (the temperature model's schedule)
    and whatever does not depend on the loop's state — their noise, the decays, the PWM cycles' starts — is computed
    for all of them; then scan after scan only what does: the plant through the last interval's waveforms (its closed
-   form for every measurement and every point's anchor, :func:`~hil.families.fbs.sim.models.plant.cycles_temperature`),
+   form for every measurement and every point's anchor, :func:`~hil.families.fbs.sim.models.plant_solution.cycles_temperature`),
    the readings (the temperature model's ``in_unit``, ``average``, ``resolution``), the PID step of the instances
    due (:meth:`Fun86Model.control`) and the new waveforms; then the rest of the block at once: the readings
    replayed for the heater-loop timer, each scan's normal and warning words and ALM (:meth:`Fun86Model.track`,
@@ -39,7 +39,8 @@ from hil.families.fbs.address import Address
 from hil.families.fbs.pid import OUTPUT_FULL, PidInstance
 from hil.families.fbs.address import parse
 from hil.families.fbs.sim.models.fun86 import Fun86Model, InstanceState, Law
-from hil.families.fbs.sim.models.plant import ThermalPlant, cycle_terms, cycles_temperature
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.plant_solution import cycle_terms, cycles_temperature
 from hil.families.fbs.sim.models.temperature import SENSOR_HIGH, SENSOR_LOW, MeasuringTable, TemperatureModel
 from hil.families.fbs.temperature import MAX_POINTS
 from hil.sim.columns import last_of_each, signed16
