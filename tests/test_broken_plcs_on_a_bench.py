@@ -1,7 +1,7 @@
 """The broken-PLC defects (RTC, temperature, FUN86) against ``hil emulate`` as a separate real-time process with a
 bench-like profile (scan counter declared), reached only over FATEK/TCP and the Modbus relay rig: each defect must
 fail at least one suite test there too, as it would on a bench.  Each defect gets its own ``hil emulate``
-(tests/broken_emulate.py); several run in parallel.  Only the suite tests the in-process broken-PLC tests name as
+(tests/broken_emulate.py); several run in parallel, in three tests that pytest-xdist spreads over its workers.  Only the suite tests the in-process broken-PLC tests name as
 catching a defect run (RTC: the RTC suites, stopping at the first failure), to keep CI short.
 """
 
@@ -117,11 +117,17 @@ def _run_once(spec: str, files: list[str], extra: list[str], scale: float, tmp_p
     return counts, out
 
 
+#: the defects in this many tests (each its own pool): pytest-xdist runs them on different workers at once, so the
+#: longest test of the harness's CI is a third of what it was
+PARTS = 3
+
+
 @pytest.mark.timeout(600)
-def test_every_defect_fails_a_suite_test_against_hil_emulate(tmp_path):
-    defects = _defects()
+@pytest.mark.parametrize("part", range(PARTS), ids=[f"part{k + 1}of{PARTS}" for k in range(PARTS)])
+def test_every_defect_fails_a_suite_test_against_hil_emulate(tmp_path, part):
+    defects = _defects()[part::PARTS]
     started = time.monotonic()
-    with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
         results = list(pool.map(lambda d: _run(*d, tmp_path), defects))
     print(f"{len(defects)} broken PLCs against hil emulate in {time.monotonic() - started:.1f} s")
     uncaught = []
