@@ -34,9 +34,6 @@ def oven(bench: Bench, pid: Pid, temperature: Temperature) -> int:
     """The oven box switched on (heating) with its commissioned gains; its first point's number.  Everything
     written here is put back when the test ends."""
     box = pid.instance("oven")
-    # a point reads 0 until its module has measured it once (and FUN86 waits for that too): a step from a PV read
-    # before then would be a step from 0 °C, not from the oven's temperature
-    temperature.wait_for_update()
     pid.enable(box, True, heating=True)
     pid.set_gains(OVEN_POINT, *OVEN_GAINS)
     pid.set_deviation(OVEN_POINT, BAND)
