@@ -7,10 +7,12 @@ invalid Sn/Zn), any of its 32 once Sn/Zn are written while EN is on."""
 import pytest
 
 from hil.bench.profile import load_profile
+from hil.core.journal import Journal
 from hil.families.fbs.address import parse
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.families.fbs.transport.local import LocalTransport
+from hil.sim.model import Model
 from tests.conftest import EMULATOR_BENCH
 
 
@@ -90,7 +92,6 @@ def test_a_run_the_test_wrote_back_to_its_originals_is_read_and_written_only_whe
 def test_an_original_a_restore_read_back_is_not_read_again_and_is_on_disk_before_the_write(emulator, tmp_path):
     """The next test's first write journals the value the last restore read back (nothing was written since),
     durable first as a read original would be."""
-    from hil.core.journal import Journal
     guarded = GuardedTransport(LocalTransport(emulator), writable=["R100-R109"])
     guarded.reuse_verified = True  # (off on every bench for now: see GuardedTransport.reuse_verified)
     guarded.durable = Journal("plc", tmp_path)
@@ -171,3 +172,45 @@ def test_a_cause_of_side_effects_written_back_to_its_original_by_the_test_is_sti
     guarded.write("M0", 0)
     writes = _writes_during(guarded, guarded.restore)
     assert writes == ["M0"]
+
+
+# -- recovery after a kill: the causes first, then what the PLC rewrites --------------------------------------------
+class _RewritesAtItsNextInterval(Model):
+    """As FUN86 at its next PID interval: while M1010 is on, its second scan writes R1050–R1057 (the outputs the
+    test's settings give) — a rewrite that may land between a recovery's read and the write that stops it."""
+
+    def __init__(self) -> None:
+        self.scans_on = 0
+
+    def scan(self, emu) -> None:  # noqa: ANN001
+        self.scans_on = self.scans_on + 1 if emu.memory.get("M1010") else 0
+        if self.scans_on == 2:
+            emu.memory.write("R1050", [7] * 8)
+
+
+def test_recovery_reads_what_the_plc_rewrites_only_once_its_cause_is_undone(emulator, tmp_path):
+    """A run dies with EN on while the outputs it makes the PLC rewrite happen to hold their originals; the PLC
+    rewrites them a scan later.  Recovery puts EN back first and only then reads the outputs: the rewrite is
+    found and undone (read before EN, they would have been taken as back and the rewrite left)."""
+    emulator.add_model(_RewritesAtItsNextInterval())
+    outputs = [parse(f"R{1050 + i}") for i in range(8)]
+
+    def guard():
+        g = GuardedTransport(LocalTransport(emulator), writable=["M1010", "R1000-R1009"])
+        g.side_effects = lambda written: outputs if parse("M1010") in set(written) else []
+        g.durable = Journal("plc", tmp_path)
+        g.identity_vouched = True
+        return g
+
+    dead = guard()
+    dead.begin("test_killed")
+    dead.write_words("R1000", [3, 4])
+    dead.write("M1010", 1)
+    emulator.memory.write("R1050", [0] * 8)  # the outputs at their originals at the moment of the kill…
+    emulator.models[-1].scans_on = 0  # …and the PLC's next rewrite of them two scans away
+    report = guard().recover()
+    assert report is not None and report.ok, report.summary()
+    assert emulator.memory.get("M1010") == 0
+    assert emulator.memory.read("R1050", 8) == [0] * 8, "the PLC's rewrite after the kill was put back"
+    assert emulator.memory.read("R1000", 2) == [0, 0]
+    assert not Journal("plc", tmp_path).pending

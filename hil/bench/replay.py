@@ -162,8 +162,13 @@ def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Ve
 
 
 def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand: bool) -> None:
-    """Put back each element that still holds what the run wrote, read back; list the rest."""
-    checks = []
+    """Put back each element that still holds what the run wrote, read back; list the rest.
+
+    In two passes: first the causes of the PLC's own rewrites (an EN, FUN86's Sn/Zn registers: what
+    :attr:`Guard.side_effects` answers for), then everything else.  What the PLC rewrites (a box's WR while its EN
+    is on) may change between a read and the write that stops it; read before its cause is undone, a WR that
+    happened to hold its original would be taken as back, and the PLC's next rewrite would stay."""
+    checks, causes = [], []
     for verdict in element_verdicts(guard, journal, by_hand):
         label = f"{verdict.name}"
         if verdict.action == "refuse":
@@ -171,10 +176,17 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
         elif verdict.action == "drop":
             report.notes.append(f"{label}: {verdict.why}")
             journal.drop_elements([verdict.name])
+        elif guard.side_effects is not None and list(guard.side_effects([verdict.element])):
+            causes.append(verdict)
         else:
             checks.append(verdict)
-    if not checks:
-        return
+    for stage in (causes, checks):
+        if stage:
+            _replay(guard, journal, report, stage)
+
+
+def _replay(guard: "Guard", journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
+    """One pass of :func:`replay_elements`: read ``checks``, put back those that still hold what the run wrote."""
     try:
         now = guard.read_originals([v.element for v in checks])
     except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
