@@ -148,9 +148,6 @@ class Guard(ABC):
         # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
         self.identity_vouched = False
         self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
-        # element → the value a restore last read back equal to its original (``reuse_verified``); an element
-        # leaves it when it is journaled again (written, or rewritten by the PLC as a side effect)
-        self.verified: dict[Any, int] = {}
 
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
@@ -208,8 +205,6 @@ class Guard(ABC):
     def _remember(self, covered: Sequence, wrote: dict) -> None:
         if self._replaying:  # recovery's own writes (the clock's set procedure) put back, they journal nothing
             self.touched.update(covered)
-            for element in covered:
-                self.verified.pop(element, None)
             return
         if self.clock is not None and self.clock.touches.intersection(covered):
             self._note_clock()
@@ -233,20 +228,11 @@ class Guard(ABC):
             else:
                 self.last_wrote.pop(element, None)
 
-    #: a family that reads back every restore (and whose writable elements only the tests change, or the PLC as a
-    #: declared side effect of their writes) takes an original from the last restore that read it back instead of
-    #: reading it again (on port 0 a read costs what the write does): the same value, proven by that read-back
-    reuse_verified = False
-
     def _originals(self, fresh: list) -> dict:
-        """The originals of ``fresh`` elements, about to be journaled: read, or — ``reuse_verified`` — as the last
-        restore read them back, where nothing has been written to them since (an element leaves ``verified``
-        whenever it is journaled, and a restore puts it back only once read back equal).  After a crash the disk
-        holds the same values either way: they go on disk before the write, as a read would."""
-        known = {e: self.verified.pop(e) for e in fresh if e in self.verified} if self.reuse_verified else {}
-        unknown = [e for e in fresh if e not in known]
-        read = dict(zip(unknown, self.read_originals(unknown))) if unknown else {}
-        return {e: known[e] if e in known else read[e] for e in fresh}
+        """The originals of ``fresh`` elements, about to be journaled: read from the PLC, always — a value an
+        earlier restore read back is no proof of what the element holds now (a ladder or an operator may have
+        written it since)."""
+        return dict(zip(fresh, self.read_originals(fresh))) if fresh else {}
 
     def _note_clock(self) -> None:
         """Before the first write that may set the clock: its origin, durable first."""
@@ -351,8 +337,6 @@ class Guard(ABC):
             good = [(e, v) for e, v in items if str(e) not in failed]
             for element, _ in good:
                 del self.journal[element]
-            if self.reuse_verified:
-                self.verified.update(good)  # read back equal just now
             if self.durable is not None and good:  # verified: only now may the originals leave the disk
                 self.durable.drop_elements(str(e) for e, _ in good)
             if failures or bad:

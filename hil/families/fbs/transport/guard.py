@@ -61,9 +61,6 @@ class GuardedTransport(GuardedLink):
     FACE = FbsIO
 
     read_effects_first = True  # a FATEK range read costs what the range write does: FUN86's outputs read first
-    # Off: with it on, test_kill_recovery left FUN86's WR changed after a SIGKILL in the PID suite (2 of 5 runs on
-    # the paced branch; main passed the same run) — the cause is not found yet (issue 27, report of 2026-12-02)
-    reuse_verified = False
     inner: Transport
 
     def __init__(self, inner: Transport, writable: Iterable[str], volatile: Iterable[str] = ()) -> None:
