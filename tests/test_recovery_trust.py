@@ -264,6 +264,34 @@ def test_a_run_killed_between_journaling_a_write_and_sending_it_is_still_put_bac
         journal_path(lock_key(url)).unlink(missing_ok=True)
 
 
+@pytest.mark.parametrize("command", [("restore",), ("rtc", "sync")], ids=["hil-restore", "direct-command"])
+def test_a_dead_runs_fun86_rewrites_are_put_back_by_every_recovery(plc, tmp_path, capsys, command):
+    """WR is no element the profile lets a test write, but FUN86 rewrites it because of one (EN).  Every recovery —
+    `hil restore` (the bench's) and the one a direct command (`hil rtc sync`) runs first — knows the profile's FUN86
+    boxes as the run's bench did: it puts a dead run's WR back after EN and reads it back, instead of refusing it."""
+    url = _url(plc)
+    key = lock_key(url)
+    data = _journal(key, plc, elements={"M0": _stamp({"original": 0, "wrote": 0, "earlier": 1}),
+                                        "R300": _stamp({"original": 0, "wrote": None})})
+    path = journal_path(key)
+    path.write_text(json.dumps(data))
+    os.chmod(path, 0o600)
+    with _plc(plc) as t:
+        t.write("R300", 0x03FF)  # what FUN86 left in WR+0 while the run had EN on (every point normal)
+    try:
+        code, lines = _restore_like(capsys, *command, url, "--bench", str(_profile(tmp_path, plc)))
+        text = " ".join(lines)
+        assert code == 0, lines
+        assert "R300 = 0" in text and "M0 = 0" in text, text
+        with _plc(plc) as t:
+            assert (t.read("R300"), t.read("M0")) == (0, 0)
+        assert not Journal(key).pending
+    finally:
+        with _plc(plc) as t:
+            t.write("R300", 0)
+        path.unlink(missing_ok=True)
+
+
 def test_an_operators_change_after_a_crash_is_kept_and_reported(plc, tmp_path):
     """A run writes R1000, R1001 and STOPs the PLC, then dies; an operator writes R1000 = 5555.  The next run
     (allow_destructive off) leaves R1000 at 5555 and the PLC in STOP, lists both, puts R1001 back, fails."""

@@ -149,6 +149,11 @@ class Guard(ABC):
         self.identity_vouched = False
         self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
 
+    def causes_side_effects(self, element: Any) -> bool:
+        """Whether a write of ``element`` alone makes the PLC rewrite something itself (an EN, FUN86's Sn/Zn
+        registers): such causes are put back before what they make the PLC rewrite is read."""
+        return self.side_effects is not None and bool(list(self.side_effects([element])))
+
     # -- the family's address model ---------------------------------------------------------------------------
     @abstractmethod
     def split(self, name: Any) -> list:

@@ -176,7 +176,7 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
         elif verdict.action == "drop":
             report.notes.append(f"{label}: {verdict.why}")
             journal.drop_elements([verdict.name])
-        elif guard.side_effects is not None and list(guard.side_effects([verdict.element])):
+        elif guard.causes_side_effects(verdict.element):
             causes.append(verdict)
         else:
             checks.append(verdict)

@@ -55,10 +55,7 @@ class Bench(BenchBase[FbsPlc, Transport]):
         # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
         self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans,
                           scan_counter=profile.scan_counter)
-        if "temperature" in profile.sections:
-            self.plc.temperature.config = profile.sections["temperature"]
-        if "pid" in profile.sections:
-            self.plc.pid.config = profile.sections["pid"]
+        self.plc.configure(profile.sections)
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
         # Safety (issue 15): the PLC's own side effects journaled too (FUN86's defaults on an EN edge), the RTC
         # restored to its original offset from the bench's time; originals on disk before each first write.

@@ -75,10 +75,10 @@ def recover(journal: Journal, transport: Any, timebase: Any, profile: Any = None
     guard.identity_vouched = bool(profile is not None and getattr(profile, "plc_id", None))
     guard.durable = journal
     plc = FbsPlc(transport, timebase)
-    if profile is not None and "pid" in getattr(profile, "sections", {}):
-        plc.pid.config = profile.sections["pid"]
-    # what the PLC rewrites itself (FUN86's outputs) and what causes it, as a run's bench knows them: replayed
-    # causes first (hil.bench.replay.replay_elements)
+    if profile is not None:
+        plc.configure(profile.sections)
+    # what the PLC rewrites itself (FUN86's outputs) and what causes it, as a run's bench knows it (bench.py):
+    # causes are replayed first (hil.bench.replay.replay_elements)
     guard.side_effects = plc.pid.side_effects
     guard.clock = plc.rtc.clock()
     report = guard.recover(rig_steps(rig_targets(profile), lambda target: None))

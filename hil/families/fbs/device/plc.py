@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any, Mapping
+
 from hil.core.errors import HilError
 from hil.core.timebase import Timebase
 from hil.families.fbs.transport.base import PlcStatus, Transport
@@ -27,6 +29,14 @@ class FbsPlc:
         self.rtc = Rtc(self)
         self.temperature = Temperature(self)  # configured by the bench from the profile's [temperature]
         self.pid = Pid(self)  # configured by the bench from the profile's [pid]
+
+    def configure(self, sections: Mapping[str, Any]) -> None:
+        """The areas a profile describes (its parsed ``[temperature]`` and ``[pid]`` sections) — for the bench a
+        suite holds and for recovery, which must know what FUN86 rewrites as the run's bench knew it."""
+        if "temperature" in sections:
+            self.temperature.config = sections["temperature"]
+        if "pid" in sections:
+            self.pid.config = sections["pid"]
 
     def status(self) -> PlcStatus:
         return self.io.status()

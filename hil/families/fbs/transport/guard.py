@@ -267,7 +267,7 @@ class GuardedTransport(GuardedLink):
         # never a cause of side effects (an EN, FUN86's Sn/Zn registers): those go back first, always, so that
         # what they make the PLC rewrite is read only once they are undone (even after a write of unknown outcome)
         same = {a for a, v in items if a in self.last_wrote and self.last_wrote[a] == v
-                and not (self.side_effects is not None and list(self.side_effects([a])))}
+                and not self.causes_side_effects(a)}
         rest = sorted((a for a, _ in items if a not in checked), key=lambda a: (a.kind, a.index))
         run: list[Address] = []
         for address in [*rest, None]:
