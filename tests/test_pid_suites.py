@@ -24,7 +24,6 @@ from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.temperature import decode_start
 from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
-from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
 SUITE_TESTS = 36  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
@@ -56,21 +55,8 @@ def test_the_heater_loop_test_takes_under_2_s_on_the_emulator(pytester):
     assert call.duration < 2.0
 
 
-# -- an external emulator, reached only over the wire, heaters opened through the fault rig ----------------------
-EXTERNAL_TIME_SCALE = 5  # the heater-loop checks hold ±2 s of virtual time around R4007: 400 ms of wall time here
-
-
-@pytest.mark.timeout(240)
-def test_heater_loop_suites_against_hil_emulate_with_a_modbus_coil_rig(pytester, tmp_path):
-    """The bench path of [faults.heater_open] kind = "modbus-coil": a relay module's coil opens the heater of a
-    PLC reached only over FATEK/TCP (the closed-loop test is left out: 35 virtual minutes)."""
-    (tmp_path / "emulated.toml").write_text(EMULATOR_BENCH.read_text())
-    with hil_emulate(tmp_path / "emulated.toml", EXTERNAL_TIME_SCALE) as where:
-        bench_file = tmp_path / "client.toml"
-        bench_file.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, EXTERNAL_TIME_SCALE))
-        result = pytester.runpytest_inprocess(SUITES[1], *INNER, "--bench", str(bench_file), "--hil-run-slow",
-                                              "-k", "heater_loop", "-rs")
-        result.assert_outcomes(passed=4)
+# The heater-loop checks against hil emulate reached only over the wire, heaters opened through the Modbus
+# coil rig: tests/test_bench_mode.py (its heater-loop runs, over FATEK/TCP and Modbus/TCP).
 
 
 # -- broken FUN86 models -------------------------------------------------------------------------------------------
