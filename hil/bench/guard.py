@@ -122,7 +122,6 @@ class Guard(ABC):
     _lock: Any  # the Link's: one request on the wire at a time
     CLOCK_SETS = 3  # exact clock restores tried before settling for CLOCK_ROUGH
     CLOCK_ROUGH = 0.5  # bench seconds: what the per-test restore promises, and all an exact one falls back to
-    CLOCK_KEPT = 0.001  # bench seconds: a first exact restore's error kept without a second set (_put_exactly)
 
 
     def __init__(self, description: str, writable: Iterable, volatile: Iterable = ()) -> None:
@@ -377,13 +376,15 @@ class Guard(ABC):
         """The clock back at its origin's offset, read back where its second transitions can be timed: the error
         at the next one, against the origin timed the same way (so a bias of the timing cancels).
 
-        A set lands a PLC-specific latency after it is sent (the scan that services the write, the next that the
-        chip takes it in), which only the read-back shows, and shows as the same sign run after run: within the
-        brackets it is still the best estimate there is, and kept it would add up over runs (ten runs on a 2 ms
-        scan: −25 to −35 ms, every error negative).  So the first error beyond :attr:`CLOCK_KEPT` is taken off by
-        a second set, whatever the brackets; later ones only when they exceed the two timings' brackets, up to
-        :attr:`CLOCK_SETS` sets (a busy host spoils a timing now and then); then an error within
-        :attr:`CLOCK_ROUGH` is kept (:attr:`clock_error` says it), one beyond it is a HilError saying by how much."""
+        A set lands a PLC-specific latency after it is sent (the scans that service the write and take it into the
+        chip), which only the read-back shows, with the same sign run after run: kept because it is within the
+        brackets, it adds up over runs (ten runs on 2 ms scans: −25 to −35 ms, every error negative).  The first
+        error is known to ± half the two brackets (each timing is its bracket's middle; the difference of two such
+        uniform errors is triangular): taken off by a second set once it exceeds half of that — the second set's
+        own error is then smaller on average than the one kept, while the rarer noise beyond it (a busy host's
+        wide brackets) is not "corrected" into the clock.  Later errors only when they exceed the two timings'
+        brackets, up to :attr:`CLOCK_SETS` sets; then an error within :attr:`CLOCK_ROUGH` is kept
+        (:attr:`clock_error` says it), one beyond it is a HilError saying by how much."""
         clock, timebase = self.clock, self.clock.timebase
         assert clock is not None
         shift = dt.timedelta(0)
@@ -394,7 +395,7 @@ class Guard(ABC):
             shown, at, width = clock.transition()
             error = (shown - (origin.plc + dt.timedelta(seconds=at - origin.at))).total_seconds()
             self.clock_error = error
-            if abs(error) <= (self.CLOCK_KEPT if attempt == 0 else origin.width + width):
+            if abs(error) <= ((origin.width + width) / 4 if attempt == 0 else origin.width + width):
                 return
             shift += dt.timedelta(seconds=error)
         if abs(error) > self.CLOCK_ROUGH:
