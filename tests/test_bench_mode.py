@@ -31,6 +31,8 @@ PID_CONTROL = ["test_pid_control.py"]
 #: made them inconclusive run after run; 400 ms at 5); the rest plans a few bench minutes
 RUNS = {"main": (MAIN_SET, None, 5.0), "heater-loop": (PID_CONTROL, "heater_loop", 5.0),
         "closed-loop": (PID_CONTROL, "not heater_loop", 50.0)}
+#: runs whose every test must pass (the heater-loop checks: 3 tests, one in two parametrizations)
+PASSES_ALL = {"heater-loop": 4}
 #: what may be skipped against a separate process, and why a bench may skip it too
 ALLOWED_SKIPS = [
     r"D4054 tests need D4054: D4054 cannot be reached over the default FBs Modbus map",  # a user map removes it
@@ -81,6 +83,7 @@ def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path):
         print(f"{name} over {wire}: {counts}")
         assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
         assert counts.get("passed", 0) > 0, out[-3000:]
+        assert counts.get("passed", 0) == PASSES_ALL.get(name, counts.get("passed")), f"{name}/{wire}: {counts}"
         for line in out.splitlines():
             if line.startswith("SKIPPED"):
                 assert any(re.search(allowed, line) for allowed in ALLOWED_SKIPS), f"{name}/{wire}: {line}"
