@@ -280,22 +280,34 @@ def settable(bench, pid):
     return inst
 
 
-@pytest.mark.spec("PID-OP-3")
-@pytest.mark.parametrize("sn,zn", BAD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in BAD_SN_ZN])
-def test_err_for_invalid_sn_zn(bench, pid, settable, sn, zn):
-    pid.set_sn_zn(settable, sn, zn)
-    pid.enable(settable, True, heating=True)
-    bench.settle()
-    assert pid.err(settable), f"Sn = {sn}, Zn = {zn} is out of range: FUN86 must not execute and set ERR"
+def _err_cases():
+    """Every invalid Sn/Zn, each right after a valid one (cycling through them), then the valid ones not yet used:
+    ERR is seen to rise from 0 for every invalid pair — a PLC that latched ERR, or set it for only some invalid
+    pairs, shows — and to fall back for every valid one."""
+    cases = []
+    for n, bad in enumerate(BAD_SN_ZN):
+        cases += [(GOOD_SN_ZN[n % len(GOOD_SN_ZN)], False), (bad, True)]
+    return cases + [(good, False) for good in GOOD_SN_ZN[len(BAD_SN_ZN):]]
 
 
 @pytest.mark.spec("PID-OP-3")
-@pytest.mark.parametrize("sn,zn", GOOD_SN_ZN, ids=[f"Sn{s}-Zn{z}" for s, z in GOOD_SN_ZN])
-def test_no_err_for_valid_sn_zn(bench, pid, settable, sn, zn):
-    pid.set_sn_zn(settable, sn, zn)
-    pid.enable(settable, True, heating=True)
-    bench.settle()
-    assert not pid.err(settable), f"Sn = {sn}, Zn = {zn} is valid (0 ≤ Sn ≤ 31, 1 ≤ Zn, Sn + Zn ≤ 32): ERR must be 0"
+def test_err_exactly_for_invalid_sn_zn(bench, pid, settable):
+    """20.7: FUN86 sets ERR (and does not execute) for Sn > 31, Zn < 1, Zn > 32 or Sn + Zn > 32 — every such class,
+    each at its edge (Sn 32, Zn 0, Zn 33, Sn + Zn 33, and Sn −1 as FFFFH) — and not for a valid pair (Zn 1 at both
+    ends of Sn, Sn + Zn = 32 from the middle, Zn 32 at its largest).  One box, EN 0 → 1 around each new pair, so
+    every pair is FUN86's first execution with it, as a separate test's would be; the box is put back once."""
+    wrong = []
+    for (sn, zn), invalid in _err_cases():
+        pid.enable(settable, False, heating=None)
+        bench.settle()  # EN 0 held across whole scans before the new pair
+        pid.set_sn_zn(settable, sn, zn)
+        pid.enable(settable, True, heating=True)
+        err = bool(bench.plc.read_settled([str(settable.err)])[0])  # ERR from a scan after EN = 1 (settled)
+        if err != invalid:
+            wrong.append(f"Sn = {sn}, Zn = {zn}: ERR = {int(not invalid)}, expected {int(invalid)} ("
+                         + ("out of range: FUN86 must not execute and set ERR)" if invalid else
+                            "valid: 0 ≤ Sn ≤ 31, 1 ≤ Zn, Sn + Zn ≤ 32)"))
+    assert not wrong, "; ".join(wrong)
 
 
 # -- defaults ------------------------------------------------------------------------------------------------------
@@ -309,22 +321,40 @@ def test_power_on_defaults_of_r4005_to_r4008(bench, pid):
 
 # -- normal bits and ALM ---------------------------------------------------------------------------------------------
 @pytest.mark.spec("PID-NORM-1", "PID-OP-4", "PID-EXEC-2", "PID-PV-2")
-@pytest.mark.parametrize("edge", ["low", "high"])
 # at the edge every point is normal and ALM = 0 is expected: with a point disabled in R4012/R4013 that is the
 # spec's [our choice] PID-DIS-1 (disabled points report normal = 0, raise no ALM), so that case needs spec_choices
 @pytest.mark.parametrize("beyond", [pytest.param(0, marks=pytest.mark.spec("PID-ALM-2", "PID-DIS-1"), id="at-edge"),
                                     pytest.param(1, marks=pytest.mark.spec("PID-ALM-1"), id="one-tenth-beyond")])
-def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
-    """PV = SV ∓ Os is normal; PV one 0.1 ° further is not, and then ALM = 1."""
+def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
+    """PV = SV − Os and PV = SV + Os (both edges, one after the other on one point) are normal; PV one 0.1 ° further
+    is not, and then ALM = 1."""
     inst = _instances(pid)[0]
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
     point = _enabled_points(bench, inst)[0]
     os = 50
     bench.plc.io.write(str(inst.operand("os", point)), os)
-    for _attempt in range(20):  # PV moves by noise: aim SV at the PV just read, and check only a PV that held still
+    for edge in ("low", "high"):
+        pv, sv, words, alm = _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv=(
+            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond))
+        normal = words.normal(point)
+        if beyond == 0:
+            assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
+            assert words.normal_points() == list(_enabled_points(bench, inst)), \
+                f"{edge} edge: every other point is in its wide band"
+            assert not alm, (f"{edge} edge: every point is normal and no warning: ALM must be 0 (WR+0..3 = "
+                             f"{words.words})")
+        else:
+            assert not normal, f"PV {pv} is 0.1 ° outside SV {sv} ± Os {os} ({edge} edge): not normal"
+            assert alm, f"a point out of its band ({edge} edge) sets ALM"
+
+
+def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv):
+    """SV aimed at the PV just read (``sv_from_pv``), then the alarm words and ALM read while PV held still: (PV,
+    SV, words, ALM).  PV moves by noise: only a PV seen the same before and after the reads counts."""
+    for _attempt in range(20):
         pv = pid.pv(point)
-        sv = pv + os + beyond if edge == "low" else pv - os - beyond
+        sv = sv_from_pv(pv)
         pid.set_set_point(point, sv)
         bench.settle()
         before = pid.pv(point)
@@ -332,17 +362,8 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, edge, beyond):
         alm = pid.alm(inst)
         after = pid.pv(point)
         if before == after == pv:
-            break
-    else:
-        pytest.fail(f"point {point}'s PV never held still for three reads; cannot aim SV at it")
-    normal = words.normal(point)
-    if beyond == 0:
-        assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
-        assert words.normal_points() == list(_enabled_points(bench, inst)), "every other point is in its wide band"
-        assert not alm, f"every point is normal and no warning: ALM must be 0 (WR+0..3 = {words.words})"
-    else:
-        assert not normal, f"PV {pv} is 0.1 ° outside SV {sv} ± Os {os}: not normal"
-        assert alm, "a point out of its band sets ALM"
+            return pv, sv, words, alm
+    pytest.fail(f"point {point}'s PV never held still for three reads; cannot aim SV at it")
 
 
 @pytest.mark.spec("PID-WR-1", "PID-EXEC-4")

@@ -324,10 +324,10 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     them all), in three groups: open → 28767 with exactly the open points' break bits (TW+1 for 0–15, TW+2 for
     16–31); groups A and B masked off in R4010/R4011 → 0 and no break bit, while group C, still broken and still
     fitted, keeps 28767 and its bits; B repaired while masked and A still broken, then both unmasked → A reads
-    28767 with its bits again, B its live reading; all repaired → every point its live reading, no break bit; then,
-    no sensor open, every fitted point masked in a checkerboard over R4010/R4011 (p masked, p ± 16 and p ± 1 not) →
-    the masked read 0 with no break bit, the others live.  Points the rig cannot open keep their readings throughout
-    (but for the checkerboard's mask)."""
+    28767 with its bits again, B its live reading; all repaired and, in the same update, every fitted point masked in
+    a checkerboard over R4010/R4011 (p masked, p ± 16 and p ± 1 not) → the masked read 0 and no break bit is left,
+    the others live; unmasked → every point its live reading, no break bit.  Points the rig cannot open keep their
+    readings throughout (but for the checkerboard's mask)."""
     config = temp.config
     fitted = list(range(config.points))
     points = breaker.openable(fitted)
@@ -422,36 +422,40 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     check("B repaired while masked, then A and B unmasked", sorted(group_a + group_c), [], group_b,
           " (unmasked while still broken)")
 
+    # All repaired, and in the same update every fitted point masked in a checkerboard over R4010/R4011 — p masked
+    # and p ± 16 not, neighbours opposite — so a PLC reading a point's bit from the other word or the next bit shows,
+    # as does one that masks only open sensors (no sensor is open now: the masked read 0 with their sensors healthy,
+    # those just repaired among them).  One update shows both: the repairs on the unmasked half, the healthy mask on
+    # the other; unmasked again, every point must read live with no break bit.
+    checker = [p for p in fitted if (p // 16 + p) % 2 == 0]
+    off = _words(checker)
     for p in group_a + group_c:
         breaker.repair(p)
-    temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and healthy(temp.readings()))
+    io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})
+    took = within_an_update("mask_healthy", lambda: temp.read_work().break_words == (0, 0) and reading_all(
+        [(p, lambda v: v == 0) for p in checker] +
+        [(p, lambda v: v not in (0, BREAK)) for p in points if p not in checker]))
+    readings, words = temp.readings(), temp.read_work().break_words
+    wrong = [p for p in checker if readings[p] != 0]
+    assert not wrong, (f"no sensor open, points {wrong} masked off in R4010/R4011 ({_bits(_words(checker))} cleared) "
+                       f"read {[readings[p] for p in wrong]}, expected 0")
+    stray = [p for p in fitted if p not in checker and readings[p] in (0, BREAK)]
+    assert not stray, (f"points {stray}, repaired or never open and still fitted in R4010/R4011 (their neighbours "
+                       f"and p ± 16 masked off), read {[readings[p] for p in stray]}, expected live readings: each "
+                       f"point has its own bit")
+    assert words == (0, 0), f"all repaired, points masked: TW+1 TW+2 = {_bits(words)}, expected no break bit"
+    assert took <= update + UPDATE_MARGIN_S, (
+        f"the masked healthy points did not all read 0 {took:.1f} s after the mask was written: the mask acts at "
+        f"each point's next measurement, within the update time, {update} s")
+
+    io.write_many({"R4010": mask[0], "R4011": mask[1]})
+    temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and reading_all(
+        [(p, lambda v: v not in (0, BREAK)) for p in points] + [(p, lambda v: v != 0) for p in checker]))
     bench.settle()
-    after = check("all repaired", [], [], points)
+    after = check("all repaired, unmasked", [], [], points)
     for p in points:
         tolerance = 2 * (abs(before[p]) / 100 + 10) + 10
         measure(f"point{p}_repair_change", abs(after[p] - before[p]) / 10, unit=f"°{config.unit}", low=0,
                 high=tolerance / 10, note=f"read {before[p] / 10} before the break, {after[p] / 10} after")
         assert _close(after[p], before[p]), (
             f"point {p} read {before[p]} before the break, {after[p]} after being repaired")
-
-    # A masked point reads 0 with its sensor healthy too (no sensor open now), and each point's bit is its own: every
-    # fitted point in a checkerboard over R4010/R4011 — p masked and p ± 16 not, neighbours opposite — so a PLC
-    # reading a point's bit from the other word or the next bit shows, as does one that masks only open sensors.
-    checker = [p for p in fitted if (p // 16 + p) % 2 == 0]
-    off = _words(checker)
-    io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})
-    took = within_an_update("mask_healthy", lambda: reading_all([(p, lambda v: v == 0) for p in checker]))
-    readings, words = temp.readings(), temp.read_work().break_words
-    wrong = [p for p in checker if readings[p] != 0]
-    assert not wrong, (f"no sensor open, points {wrong} masked off in R4010/R4011 ({_bits(_words(checker))} cleared) "
-                       f"read {[readings[p] for p in wrong]}, expected 0")
-    stray = [p for p in fitted if p not in checker and readings[p] in (0, BREAK)]
-    assert not stray, (f"points {stray}, still fitted in R4010/R4011 (their neighbours and p ± 16 masked off), read "
-                       f"{[readings[p] for p in stray]}, expected live readings: each point has its own bit")
-    assert words == (0, 0), f"no sensor open, points masked: TW+1 TW+2 = {_bits(words)}, expected no break bit"
-    assert took <= update + UPDATE_MARGIN_S, (
-        f"the masked healthy points did not all read 0 {took:.1f} s after the mask was written: the mask acts at "
-        f"each point's next measurement, within the update time, {update} s")
-    io.write_many({"R4010": mask[0], "R4011": mask[1]})
-    temp.wait_until(lambda: healthy(temp.readings()) and 0 not in [temp.readings()[p] for p in checker])
-    bench.settle()
