@@ -42,8 +42,9 @@ def _one_second_on(registers: list[int]) -> list[int]:
 def _round_trips(rtc, io, cases: list[tuple[str, list[int]]]) -> None:
     wrong = []
     for when, registers in cases:
-        assert rtc.set(at(when)).accepted, f"{when}: refused (M1955 = 1)"
-        read = io.read_words("R4128", 7)
+        result = rtc.set(at(when))
+        assert result.accepted, f"{when}: refused (M1955 = 1)"
+        read = result.shown.to_registers()  # R4128–R4134, read with M1955 from a scan after the set
         if read not in (registers, _one_second_on(registers)):
             wrong.append(f"{when}: R4128–R4134 = {read}, expected {registers}")
     assert not wrong, "\n".join(wrong)

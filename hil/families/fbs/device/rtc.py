@@ -57,6 +57,9 @@ class SetResult:
     sent: RtcTime
     accepted: bool
     problems: tuple[str, ...]  # the fields *we* find invalid in ``sent`` (the PLC's verdict is ``accepted``)
+    #: R4128–R4134 as read with M1955, in the same frame, from a scan after the set's falling edge: what the clock
+    #: shows right after the set (a suite's read-back without another round trip); None where not read
+    shown: RtcTime | None = None
 
     @property
     def refused(self) -> bool:
@@ -291,7 +294,7 @@ class Rtc:
         slack = self.set_tolerance + (self.plc.time.now() - started)
         shows_sent = ahead is not None and 0 <= ahead <= slack
         earlier, self._set_error = self._set_error, bool(refused)
-        result = SetResult(value, not refused or bool(earlier and shows_sent), tuple(value.validate()))
+        result = SetResult(value, not refused or bool(earlier and shows_sent), tuple(value.validate()), shown)
         if result.accepted and value.is_valid:
             if not shows_sent:
                 raise RtcSetLost(f"the PLC took the set (M1955 = 0) but its clock shows {shown} after it, not "
