@@ -358,8 +358,8 @@ def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv):
         pid.set_set_point(point, sv)
         bench.settle()
         before = pid.pv(point)
-        words = pid.alarm_words(inst)
-        alm = pid.alm(inst)
+        words = pid.alarms([inst])[inst.name]  # WR+0…3 and ALM in one frame
+        alm = words.alm
         after = pid.pv(point)
         if before == after == pv:
             return pv, sv, words, alm
@@ -402,10 +402,9 @@ def _band_round(bench, pid, instances, block, case, held):
     return cases
 
 
-def _check_normal(bench, pid, inst, cases, label, enabled):
-    """WR+0/WR+1 of ``inst`` against ``cases`` on its ``enabled`` points (R4012/R4013, read once by the test:
-    nothing here writes them)."""
-    alarm = pid.alarm_words(inst)
+def _check_normal(inst, alarm, cases, label, enabled):
+    """WR+0/WR+1 of ``inst`` (``alarm``, read with every box's in one frame: ``pid.alarms``) against ``cases`` on its
+    ``enabled`` points (R4012/R4013, read once by the test: nothing here writes them)."""
     want = _expected_words(inst, [p for p in enabled if cases[p][1]])
     wrong = [f"point {p}: {cases[p][0]}" for p in enabled if alarm.normal(p) != cases[p][1]]
     assert _only(alarm.words[:2], inst, enabled) == want, (
@@ -435,10 +434,11 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
             what, at, inside = EDGES[(b + r) % len(EDGES)]
             return s, o, at(s, o), what, inside
         cases = _band_round(bench, pid, instances, block, case, held)
+        alarms = pid.alarms(instances)
         for inst in instances:
-            enabled = _check_normal(bench, pid, inst, cases, f"round {r + 1}", enabled_of[inst.name])
+            enabled = _check_normal(inst, alarms[inst.name], cases, f"round {r + 1}", enabled_of[inst.name])
             if any(not cases[p][1] for p in enabled):
-                assert pid.alm(inst), f"{inst.name}: points out of their band, ALM must be 1"
+                assert alarms[inst.name].alm, f"{inst.name}: points out of their band, ALM must be 1"
     for out in (None, 0, 15, 16, -1):
         def case(inst, b, out=out):
             s, o = BANDS[b % len(BANDS)]
@@ -447,13 +447,15 @@ def test_normal_bits_of_every_point_at_both_edges_and_alm(bench, pid):
                 return s, o, s + o + 1, "the one point out of band", False
             return s, o, s - o, "in band", True
         cases = _band_round(bench, pid, instances, block, case, held)
+        alarms = pid.alarms(instances)
         for inst in instances:
-            enabled = _check_normal(bench, pid, inst, cases, f"only b = {out} out", enabled_of[inst.name])
+            enabled = _check_normal(inst, alarms[inst.name], cases, f"only b = {out} out", enabled_of[inst.name])
             outside = [p for p in enabled if not cases[p][1]]
             if outside:
-                assert pid.alm(inst), f"{inst.name}: only point {outside[0]} is out of its band: ALM must be 1"
+                assert alarms[inst.name].alm, \
+                    f"{inst.name}: only point {outside[0]} is out of its band: ALM must be 1"
             elif enabled == list(inst.points):  # (a disabled point's bits are [our choice]: decide nothing then)
-                assert not pid.alm(inst), f"{inst.name}: every point normal and no warning: ALM must be 0"
+                assert not alarms[inst.name].alm, f"{inst.name}: every point normal and no warning: ALM must be 0"
 
 
 @pytest.mark.spec("PID-PV-1", "PID-PV-2")
@@ -539,13 +541,14 @@ def test_prealarm_when_r4008_is_below_pv(bench, pid, which):
     pvs = pid.pvs(inst.points)
     enabled = _enabled_points(bench, inst)
     warned = [p for p in enabled if pvs[p] >= limit]
-    words = pid.alarm_words(inst).words
+    alarm = pid.alarms([inst])[inst.name]
+    words = alarm.words
     want = _expected_words(inst, warned)
     assert _only(words[2:], inst, enabled) == want, (
         f"R4008 = {limit} ≤ PV of points {warned}: WR+2/WR+3 = {words[2]:016b} {words[3]:016b}, expected "
         f"{want[0]:016b} {want[1]:016b}")
     assert _only(words[:2], inst, enabled) == _expected_words(inst, enabled), "the points are still normal"
-    assert pid.alm(inst), "a warning sets ALM even with every point normal"
+    assert alarm.alm, "a warning sets ALM even with every point normal"
 
 
 @pytest.mark.spec("PID-PRE-1", "PID-WR-2", "PID-ALM-2", "PID-R4008-1", "PID-PV-1")
@@ -572,12 +575,14 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
         _ten_scans(bench)
 
     every = [p for inst in instances for p in inst.points]
+    enabled_of = {inst.name: _enabled_points(bench, inst) for inst in instances}  # nothing here writes R4012/R4013
     warn_round({p: 32767 for p in every}, 40000)
+    alarms = pid.alarms(instances)
     for inst in instances:
-        words = _only(pid.alarm_words(inst).words[2:], inst, _enabled_points(bench, inst))
+        words = _only(alarms[inst.name].words[2:], inst, enabled_of[inst.name])
         assert words == (0, 0), f"R4008 = 40000 (4000.0 °) above every PV: {inst.name} WR+2/3 = {_bits(words)}"
-        if _all_enabled(bench, inst):
-            assert not pid.alm(inst), f"{inst.name}: every point normal, no PV ≥ R4008: ALM must be 0"
+        if enabled_of[inst.name] == list(inst.points):
+            assert not alarms[inst.name].alm, f"{inst.name}: every point normal, no PV ≥ R4008: ALM must be 0"
     wide = next((i for i in instances if i.zn > 16), instances[0])
     lone = wide.sn + 16 if wide.zn > 16 else wide.sn + wide.zn - 1
     below = {p: (limit - 1 if (p - inst.sn) % 2 else -1000) for inst in instances for p in inst.points}
@@ -591,10 +596,11 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
                         pvs[p] = limit if (p - inst.sn) // 2 % 2 else 32767
                         warned.add(p)
         warn_round(pvs, limit if step == 1 else None)
+        alarms = pid.alarms(instances)
         for inst in instances:
-            enabled = _enabled_points(bench, inst)
+            enabled = enabled_of[inst.name]
             mine = [p for p in enabled if p in warned]
-            words = pid.alarm_words(inst).words
+            words = alarms[inst.name].words
             want = _expected_words(inst, mine)
             assert _only(words[2:], inst, enabled) == want, (
                 f"R4008 = {limit}, {inst.name}: PVs {[pvs[p] for p in inst.points]}: WR+2/WR+3 = {_bits(words[2:])}, "
@@ -602,9 +608,9 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
             assert _only(words[:2], inst, enabled) == _expected_words(inst, enabled), \
                 f"{inst.name}: every point is in its band (SV = PV)"
             if mine:
-                assert pid.alm(inst), f"{inst.name}: points {mine} warn: ALM must be 1"
-            elif _all_enabled(bench, inst):
-                assert not pid.alm(inst), f"{inst.name}: every point normal and none warns: ALM must be 0"
+                assert alarms[inst.name].alm, f"{inst.name}: points {mine} warn: ALM must be 1"
+            elif enabled == list(inst.points):
+                assert not alarms[inst.name].alm, f"{inst.name}: every point normal and none warns: ALM must be 0"
 
 
 # -- the manual's scan counts: the ladder's scan counter brackets them (the emulator's profile declares one too) ----

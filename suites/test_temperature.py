@@ -320,22 +320,21 @@ def _close(after, before):
 @pytest.mark.spec("TEMP-BREAK-1", "TEMP-BREAK-2", "TEMP-BREAK-3", "TEMP-WORK-5", "TEMP-MASK-1", "TEMP-MASK-3",
                   "TEMP-RATE-2")
 def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measure):
-    """Every fitted point the rig can open goes through the manual's states at once (one module update shows
-    them all), in three groups: open → 28767 with exactly the open points' break bits (TW+1 for 0–15, TW+2 for
-    16–31); groups A and B masked off in R4010/R4011 → 0 and no break bit, while group C, still broken and still
-    fitted, keeps 28767 and its bits; B repaired while masked and A still broken, then both unmasked → A reads
-    28767 with its bits again, B its live reading; all repaired and, in the same update, every fitted point masked in
-    a checkerboard over R4010/R4011 (p masked, p ± 16 and p ± 1 not) → the masked read 0 and no break bit is left,
-    the others live; unmasked → every point its live reading, no break bit.  Points the rig cannot open keep their
-    readings throughout (but for the checkerboard's mask)."""
+    """Every fitted point the rig can open goes through the manual's states, in four groups changing together (one
+    module update shows each step whole): A masked off in R4010/R4011 and every sensor opened → A reads 0 with no
+    break bit, B, C and D 28767 with exactly their break bits (TW+1 for 0–15, TW+2 for 16–31); A unmasked, B and D
+    masked → A, still broken, reads 28767 with its bits, B and D (seen broken) 0 and no bit, C keeps 28767 and its
+    bits; B repaired while masked, A, C and D repaired, and every fitted point masked in a checkerboard over
+    R4010/R4011 (p masked, p ± 16 and p ± 1 not) → the masked read 0, the others their live readings (B's unmasked
+    half among them), no break bit; all unmasked → every point its live reading, no break bit.  Points the rig
+    cannot open keep their readings throughout (but for the checkerboard's mask)."""
     config = temp.config
     fitted = list(range(config.points))
     points = breaker.openable(fitted)
     if not points:
         pytest.skip("the sensor-break rig can open none of the fitted points")
     # groups alternate along the points, so that each half (R4010/TW+1, R4011/TW+2) has points of each
-    group_a, group_b, group_c = points[0::3], points[1::3], points[2::3]
-    masked = group_a + group_b
+    group_a, group_b, group_c, group_d = points[0::4], points[1::4], points[2::4], points[3::4]
     io = bench.plc.io
     _need(bench, "R4010-R4011")
     mask = io.read_words("R4010", 2)
@@ -395,32 +394,31 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
         readings = temp.readings()
         return all(ok(readings[p]) for p, ok in want)
 
+    def mask_off(group):
+        off = _words(group)
+        io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})  # R4010: 0–15, R4011: 16–31
+
+    def in_time(took, what):
+        assert took <= update + UPDATE_MARGIN_S, (
+            f"{what} {took:.1f} s after the change: each point is measured within the update time, {update} s")
+
+    mask_off(group_a)  # (before the sensors open: A never gets measured open and unmasked)
     for p in points:
         breaker.open(p)
-    took = within_an_update("open", lambda: temp.read_work().break_words == _words(points) and
-                            reading_all([(p, lambda v: v == BREAK) for p in points]))
-    check("sensors open", points, [], [])
-    assert took <= update + UPDATE_MARGIN_S, (
-        f"the open sensors were not all showing {took:.1f} s after the last was opened: every point is measured within the update time, {update} s")
+    shown = sorted(group_b + group_c + group_d)
+    took = within_an_update("open", lambda: temp.read_work().break_words == _words(shown) and
+                            reading_all([(p, lambda v: v == BREAK) for p in shown] +
+                                        [(p, lambda v: v == 0) for p in group_a]))
+    check("every sensor open, A masked off as they opened", shown, group_a, [])
+    in_time(took, "the open sensors (and A masked off) were not all showing")
 
-    off = _words(masked)
-    io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})  # R4010 for 0–15, R4011 for 16–31
-    took = within_an_update("mask", lambda: temp.read_work().break_words == _words(group_c) and
-                            reading_all([(p, lambda v: v == 0) for p in masked]))
-    check("A and B masked off, C still open", group_c, masked, [])
-    assert took <= update + UPDATE_MARGIN_S, (
-        f"the masked points did not all read 0 {took:.1f} s after the mask was written: the mask acts at each point's next measurement, "
-        f"within the update time, {update} s")
-
-    for p in group_b:
-        breaker.repair(p)
-    io.write_many({"R4010": mask[0], "R4011": mask[1]})
-    temp.wait_until(lambda: temp.read_work().break_words == _words(group_a + group_c) and
-                    reading_all([(p, lambda v: v not in (0, BREAK)) for p in group_b] +
-                                [(p, lambda v: v == BREAK) for p in group_a]))
-    bench.settle()
-    check("B repaired while masked, then A and B unmasked", sorted(group_a + group_c), [], group_b,
-          " (unmasked while still broken)")
+    mask_off(group_b + group_d)  # A unmasked, still broken; B and D, seen broken, masked off
+    shown = sorted(group_a + group_c)
+    took = within_an_update("mask", lambda: temp.read_work().break_words == _words(shown) and
+                            reading_all([(p, lambda v: v == 0) for p in group_b + group_d] +
+                                        [(p, lambda v: v == BREAK) for p in group_a]))
+    check("A unmasked while still broken, B and D masked off, C still open", shown, group_b + group_d, [])
+    in_time(took, "the masked points did not all read 0 (and A 28767 again)")
 
     # All repaired, and in the same update every fitted point masked in a checkerboard over R4010/R4011 — p masked
     # and p ± 16 not, neighbours opposite — so a PLC reading a point's bit from the other word or the next bit shows,
@@ -428,10 +426,9 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     # those just repaired among them).  One update shows both: the repairs on the unmasked half, the healthy mask on
     # the other; unmasked again, every point must read live with no break bit.
     checker = [p for p in fitted if (p // 16 + p) % 2 == 0]
-    off = _words(checker)
-    for p in group_a + group_c:
+    for p in group_b + group_a + group_c + group_d:  # B first, while still masked off
         breaker.repair(p)
-    io.write_many({"R4010": mask[0] & ~off[0], "R4011": mask[1] & ~off[1]})
+    mask_off(checker)
     took = within_an_update("mask_healthy", lambda: temp.read_work().break_words == (0, 0) and reading_all(
         [(p, lambda v: v == 0) for p in checker] +
         [(p, lambda v: v not in (0, BREAK)) for p in points if p not in checker]))
@@ -444,9 +441,7 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
                        f"and p ± 16 masked off), read {[readings[p] for p in stray]}, expected live readings: each "
                        f"point has its own bit")
     assert words == (0, 0), f"all repaired, points masked: TW+1 TW+2 = {_bits(words)}, expected no break bit"
-    assert took <= update + UPDATE_MARGIN_S, (
-        f"the masked healthy points did not all read 0 {took:.1f} s after the mask was written: the mask acts at "
-        f"each point's next measurement, within the update time, {update} s")
+    in_time(took, "the masked healthy points did not all read 0 (and the repaired ones their live value)")
 
     io.write_many({"R4010": mask[0], "R4011": mask[1]})
     temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and reading_all(

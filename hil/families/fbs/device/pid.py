@@ -31,6 +31,7 @@ class AlarmWords:
     instance: PidInstance
     words: tuple[int, int, int, int]
     sn: int
+    alm: bool | None = None  # the box's ALM, where it was read in the same frame (:meth:`Pid.alarms`)
 
     def _flag(self, pair: tuple[int, int], point: int) -> bool:
         b = point - self.sn
@@ -252,6 +253,19 @@ class Pid:
     def alarm_words(self, inst: PidInstance, sn: int | None = None) -> AlarmWords:
         words = tuple(self.plc.io.read_words(str(inst.wr), 4))
         return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
+
+    def alarms(self, instances: Iterable[PidInstance]) -> dict[str, AlarmWords]:
+        """WR+0 … WR+3 and ALM of every box in ``instances``, by name, in one planned read — the fewest frames
+        (:mod:`hil.families.fbs.transport.plan`), one scan's values where they fit one frame — rather than a
+        request per box and another per ALM."""
+        instances = list(instances)
+        names = [n for inst in instances for n in ([str(inst.wr.offset(i)) for i in range(4)] + [str(inst.alm)])]
+        values = self.plc.io.read_many(names)
+        out = {}
+        for k, inst in enumerate(instances):
+            *words, alm = values[5 * k:5 * k + 5]
+            out[inst.name] = AlarmWords(inst, tuple(words), inst.sn, bool(alm))  # type: ignore[arg-type]
+        return out
 
     # -- timing -----------------------------------------------------------------------------------------------------
     def timing(self) -> tuple[int, int]:
