@@ -622,6 +622,23 @@ BENCH_ATTEMPTS = 40
 #: few 10 ms scans, so the 40 attempts would only ever see the same widths
 HOPELESS_AFTER = 5
 HOPELESS_WIDTH = 4
+#: already after this many attempts, give up when every bracket (or every dip) is further from usable than a phase
+#: shift can move it — each of its two reads spans one scan more or less with the phase: PHASE_SPREAD scans in all
+#: (port 0 at 9600 bit/s: widths of 12–13 scans, so the three scan-count tests skip after two attempts, not five)
+HOPELESS_EARLY_AFTER = 2
+PHASE_SPREAD = 2
+
+
+def _hopeless(attempt, widths, dips):
+    """Whether more attempts could pin down a count: not when none came near exact after HOPELESS_AFTER attempts,
+    nor when every one is beyond a phase shift's reach of it after HOPELESS_EARLY_AFTER."""
+    if attempt >= HOPELESS_AFTER and min(widths, default=HOPELESS_WIDTH + 1) > HOPELESS_WIDTH:
+        return True
+    if attempt < HOPELESS_EARLY_AFTER:
+        return False
+    if widths:
+        return min(widths) > HOPELESS_WIDTH + PHASE_SPREAD
+    return bool(dips) and min(dips) > 8 + PHASE_SPREAD  # no dip came after few enough counted scans
 
 
 def _scans(bench):
@@ -670,7 +687,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
     dips = []  # per dip attempt: the most scans its first run may have counted before the dip
     made = 0
     for attempt in range(BENCH_ATTEMPTS):
-        if attempt >= HOPELESS_AFTER and min(widths, default=HOPELESS_WIDTH + 1) > HOPELESS_WIDTH:
+        if _hopeless(attempt, widths, dips):
             break  # no bracket came near exact, or no dip was short enough to give one: the line decides that
         made += 1
         io.write("R4008", 65535)
