@@ -285,6 +285,11 @@ class Pid(Protocol):
         (high-temperature pre-alarm PV ≥ R4008 for 10 scans, or the heater-loop warning), ``normal_points()`` …"""
         ...
 
+    def alarms(self, instances: Iterable[PidInstance]) -> dict[str, AlarmWords]:
+        """WR+0 … WR+3 and ALM (``.alm``) of every box in ``instances``, by name, in one planned read (one scan's
+        values where they fit one frame)."""
+        ...
+
     def timing(self) -> tuple[int, int]:
         """(PID interval, PWM period) in seconds, from R4005."""
         ...
@@ -335,6 +340,12 @@ class Plc(Protocol):
     def settle(self, scans: int | None = None) -> None:
         """Wait for whole scans after the last write (the profile's ``settle_scans``; proved by the ladder's
         scan counter when ``[bench] scan_counter`` names one)."""
+        ...
+
+    def read_settled(self, names: list[str]) -> list[int]:
+        """Settle, then read ``names`` — in one round trip fewer than :meth:`settle` and a read: with a scan
+        counter it is read in the same frame as ``names``, until that frame shows a whole scan after the last
+        write."""
         ...
 
 
