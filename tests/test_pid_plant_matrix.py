@@ -33,7 +33,7 @@ def _bench(tmp_path, plant: dict) -> str:
 
 #: what runs on each plant: the fast-cooling point is not at rest when a test starts (it cools whatever the
 #: output), which is the heater-open case the heater-loop tests meet; the others run both suites whole (25 tests
-#: since the ERR pairs, the band edges' sides and the R4135 cases became one test each; the same 8 kept in hand)
+#: since the ERR pairs and each band edge's two sides became one test each; the same margin of 8 kept)
 RUNS = {"fast-cooling": (SUITES[1:], ("-k", "heater_loop"), 3), "slow-sluggish": (SUITES, (), 17),
         "dead-time": (SUITES, (), 17)}
 
