@@ -306,10 +306,16 @@ class Rtc:
         return result
 
     def adjust_30s(self) -> None:
-        """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0."""
+        """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0.
+
+        The PLC must see a 0 before the 1.  A read of M1953 that shows 0 proves it: a request is serviced at the end
+        of a scan, so the scan before that end ran with the 0 read, and the 1 can land at that end at the earliest
+        (only this harness writes M1953, and every adjust leaves it 0, seen by a scan).  Only a 1 read — left by
+        someone else — costs a write of 0 and a whole scan holding it."""
         io = self.plc.io
-        io.write(reg.RTC_ADJUST_30S, 0)  # make sure the PLC sees a 0 before the 1
-        self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
+        if io.read(reg.RTC_ADJUST_30S):
+            io.write(reg.RTC_ADJUST_30S, 0)
+            self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
         io.write(reg.RTC_ADJUST_30S, 1)
         self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
         io.write(reg.RTC_ADJUST_30S, 0)
