@@ -170,6 +170,23 @@ def test_adjust_30s_fires_on_the_rising_edge_only(rig: SimpleNamespace) -> None:
     assert rig.rtc.read() == rt(2024, 5, 1, 10, 21, 40)
 
 
+def test_adjust_30s_fires_when_m1953_was_left_at_1(rig: SimpleNamespace) -> None:
+    """The procedure reads M1953 first; left at 1 by someone else, it is put to 0 and held a scan before the 1 —
+    and when it reads 0, no write of 0 goes out (one round trip: the read)."""
+    rig.plc.io.write(reg.RTC_ADJUST_30S, 1)
+    rig.plc.settle()
+    assert rig.rtc.set(dt.datetime(2024, 5, 1, 10, 20, 40))
+    rig.rtc.adjust_30s()
+    assert rig.rtc.read() == rt(2024, 5, 1, 10, 21, 0)
+    assert not rig.rtc.read_flags().adjust_30s
+    assert rig.rtc.set(dt.datetime(2024, 5, 1, 10, 20, 10))
+    before = rig.plc.io.requests
+    rig.rtc.adjust_30s()
+    # the read of M1953, the 1, a scan (port 0's rule: one status request), the 0, a scan
+    assert rig.plc.io.requests - before == 5
+    assert rig.rtc.read() == rt(2024, 5, 1, 10, 20, 0)
+
+
 # -- chip identity, D4054 ----------------------------------------------------------------------------------------
 @pytest.mark.parametrize(("chip", "name"), [(0, "none"), (1, "HT1381"), (2, "ISL1208"), (3, "S-35390A")])
 def test_m1954_matches_d4053(chip: int, name: str) -> None:
