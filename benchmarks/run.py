@@ -216,14 +216,15 @@ def _device_operations(url: str) -> list[dict]:
         "rtc.read_all()": len(encode_request(1, MixedRead([f"R{4128 + i}" for i in range(8)] + ["WM1952"])))
         + reply_len(36),
         "rtc.set()": set_frame + settle * status + bit_action + settle * status + read_back,
-        # M1953 read as 0 (a scan saw it), then the 1 held a scan and the 0 back, seen by a scan
-        "rtc.adjust_30s()": len(encode_request(1, ReadBits("M1953", 1))) + reply_len(1)
+        # M1953 read as 0 a whole scan after the last request (a scan saw it), then the 1 held a scan and the 0
+        # back, seen by a scan
+        "rtc.adjust_30s()": settle * status + len(encode_request(1, ReadBits("M1953", 1))) + reply_len(1)
         + 2 * (bit_action + settle * status),
         "temperature.readings()": len(encode_request(1, ReadRegisters(plc_readings(profile), 32)))
         + reply_len(32 * 4),
     }
     round_trips = {"rtc.read()": 1, "rtc.read_all()": 1, "rtc.set()": 3 + 2 * settle,
-                   "rtc.adjust_30s()": 3 + 2 * settle,
+                   "rtc.adjust_30s()": 3 + 3 * settle,
                    "temperature.readings()": 1}
     from hil.families.fbs.temperature import parse_temperature
     plc.temperature.config = parse_temperature(profile.areas["temperature"], str(BENCH))

@@ -622,23 +622,17 @@ BENCH_ATTEMPTS = 40
 #: few 10 ms scans, so the 40 attempts would only ever see the same widths
 HOPELESS_AFTER = 5
 HOPELESS_WIDTH = 4
-#: already after this many attempts, give up when every bracket (or every dip) is further from usable than a phase
-#: shift can move it — each of its two reads spans one scan more or less with the phase: PHASE_SPREAD scans in all
-#: (port 0 at 9600 bit/s: widths of 12–13 scans, so the three scan-count tests skip after two attempts, not five)
-HOPELESS_EARLY_AFTER = 2
+#: a dry bracket (:func:`_dry_widths`) wider than this by every measure skips the test before anything is set up:
+#: each of the bracket's two reads spans one scan more or less with the phase the attempts would shift, PHASE_SPREAD
+#: scans in all, so no attempt could come within HOPELESS_WIDTH of exact (port 0 at 9600 bit/s: 12 scans wide)
 PHASE_SPREAD = 2
 
 
-def _hopeless(attempt, widths, dips):
-    """Whether more attempts could pin down a count: not when none came near exact after HOPELESS_AFTER attempts,
-    nor when every one is beyond a phase shift's reach of it after HOPELESS_EARLY_AFTER."""
-    if attempt >= HOPELESS_AFTER and min(widths, default=HOPELESS_WIDTH + 1) > HOPELESS_WIDTH:
-        return True
-    if attempt < HOPELESS_EARLY_AFTER:
-        return False
-    if widths:
-        return min(widths) > HOPELESS_WIDTH + PHASE_SPREAD
-    return bool(dips) and min(dips) > 8 + PHASE_SPREAD  # no dip came after few enough counted scans
+def _counted(c1, c2, ca, cb, r):
+    """(fewest, most) consecutive scans with PV ≥ R4008 that words read between counter reads ``ca`` and ``cb``
+    can show, when R4008 was written between ``c1`` and ``c2`` (:func:`_write_bracketed`): the first scan to see it
+    is one of c1 + r + 1 … c2, the words are from one of ca + r … cb − r."""
+    return (ca + r) - c2 + 1, (cb - r) - (c1 + r + 1) + 1
 
 
 def _scans(bench):
@@ -670,7 +664,8 @@ def _dry_widths(bench, wr, tries=2):
         ca = _scans(bench)
         io.read_words(str(wr), 2)
         cb = _scans(bench)
-        widths.append(((cb - r) - (c1 + r + 1) + 1) - ((ca + r) - c2 + 1))  # high − low, as the attempts count
+        low, high = _counted(c1, c2, ca, cb, r)
+        widths.append(high - low)
     return widths
 
 
@@ -709,7 +704,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
     dips = []  # per dip attempt: the most scans its first run may have counted before the dip
     made = 0
     for attempt in range(BENCH_ATTEMPTS):
-        if _hopeless(attempt, widths, dips):
+        if attempt >= HOPELESS_AFTER and min(widths, default=HOPELESS_WIDTH + 1) > HOPELESS_WIDTH:
             break  # no bracket came near exact, or no dip was short enough to give one: the line decides that
         made += 1
         io.write("R4008", 65535)
@@ -732,7 +727,6 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
             if dips[-1] > 8:
                 continue  # the first run may have reached 10 scans before the dip: not the case under test
             c1, c2 = _write_bracketed(bench, "R4008", limit)
-        first_low, first_high = c1 + r + 1, c2  # the first scan that sees PV ≥ R4008
         # Shift the phase from attempt to attempt, one scan at a time (a write of the value R4008 holds: only scans
         # pass), over the 3 r scans the loop below advances by, so that every count gets its chance to be exact.
         for _ in range(attempt % (3 * r)):
@@ -741,8 +735,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
             ca = _scans(bench)
             words = tuple(io.read_words(str(wr), 2))
             cb = _scans(bench)
-            low = (ca + r) - first_high + 1  # fewest counted scans the words can show
-            high = (cb - r) - first_low + 1  # most
+            low, high = _counted(c1, c2, ca, cb, r)
             widths.append(high - low)
             if high <= 9:
                 assert words == (0, 0), (f"a warning after at most {high} consecutive scans with PV ≥ R4008 "

@@ -171,8 +171,8 @@ def test_adjust_30s_fires_on_the_rising_edge_only(rig: SimpleNamespace) -> None:
 
 
 def test_adjust_30s_fires_when_m1953_was_left_at_1(rig: SimpleNamespace) -> None:
-    """The procedure reads M1953 first; left at 1 by someone else, it is put to 0 and held a scan before the 1 —
-    and when it reads 0, no write of 0 goes out (one round trip: the read)."""
+    """The procedure reads M1953 first, settled; left at 1 by someone else, it is put to 0 and held a scan before
+    the 1 — and when it reads 0, no write of 0 goes out."""
     rig.plc.io.write(reg.RTC_ADJUST_30S, 1)
     rig.plc.settle()
     assert rig.rtc.set(dt.datetime(2024, 5, 1, 10, 20, 40))
@@ -182,8 +182,8 @@ def test_adjust_30s_fires_when_m1953_was_left_at_1(rig: SimpleNamespace) -> None
     assert rig.rtc.set(dt.datetime(2024, 5, 1, 10, 20, 10))
     before = rig.plc.io.requests
     rig.rtc.adjust_30s()
-    # the read of M1953, the 1, a scan (port 0's rule: one status request), the 0, a scan
-    assert rig.plc.io.requests - before == 5
+    # a scan (port 0's rule: one status request) and the read of M1953, the 1, a scan, the 0, a scan
+    assert rig.plc.io.requests - before == 6
     assert rig.rtc.read() == rt(2024, 5, 1, 10, 20, 0)
 
 

@@ -58,8 +58,8 @@ class SetResult:
     accepted: bool
     problems: tuple[str, ...]  # the fields *we* find invalid in ``sent`` (the PLC's verdict is ``accepted``)
     #: R4128–R4134 as read with M1955, in the same frame, from a scan after the set's falling edge: what the clock
-    #: shows right after the set (a suite's read-back without another round trip); None where not read
-    shown: RtcTime | None = None
+    #: shows right after the set (a suite's read-back without another round trip)
+    shown: RtcTime
 
     @property
     def refused(self) -> bool:
@@ -308,12 +308,12 @@ class Rtc:
     def adjust_30s(self) -> None:
         """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0.
 
-        The PLC must see a 0 before the 1.  A read of M1953 that shows 0 proves it: a request is serviced at the end
-        of a scan, so the scan before that end ran with the 0 read, and the 1 can land at that end at the earliest
-        (only this harness writes M1953, and every adjust leaves it 0, seen by a scan).  Only a 1 read — left by
-        someone else — costs a write of 0 and a whole scan holding it."""
+        The PLC must see a 0 before the 1.  A settled read of M1953 that shows 0 proves it: the read is from a frame
+        a whole scan after every earlier request (the scan counter in the same frame, where the bench declares one;
+        port 0's rule otherwise), so that scan ran with the 0 read, whoever wrote it last, and the 1 lands at the
+        frame's scan end at the earliest.  Only a 1 read costs a write of 0 and a whole scan holding it."""
         io = self.plc.io
-        if io.read(reg.RTC_ADJUST_30S):
+        if self.plc.read_settled([reg.RTC_ADJUST_30S])[0]:
             io.write(reg.RTC_ADJUST_30S, 0)
             self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
         io.write(reg.RTC_ADJUST_30S, 1)
