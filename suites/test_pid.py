@@ -15,6 +15,10 @@ import re
 
 import pytest
 
+#: every test sets the SV, Os, gains and PVs it relies on before it switches a box on: those words (of boxes that are
+#: off) and the scratch PV blocks go back once, after the last test here, not after each (hil.plugin.working_state)
+pytestmark = pytest.mark.working_state("pid", "scratch")
+
 # R4005 low byte → PID interval in seconds (20.7; ≥ 5 → 32 s)
 INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}
 PWM_S = INTERVAL_S  # high byte → PWM period, same table
@@ -921,10 +925,11 @@ def _heated_point(bench, pid, heat_by=None):
     _need(bench, *(str(inst.operand(k, point)) for k in ("sv", "pr", "ir", "dr")))
     if heat_by is not None:
         pid.set_set_point(point, pid.pv(point) + heat_by)
-    _start(bench, pid, inst)
-    # The manual's default gains (fbs-pid.md: Kc 110, Ki 17, Td 50), what these expectations assume; the bench's
-    # own (tuned) gains are journaled and put back after the test.
+    # The manual's default gains (fbs-pid.md: Kc 110, Ki 17, Td 50), what these expectations assume, before the EN
+    # edge: FUN86's first step after it already uses them, whatever the bench's own (tuned) gains are — those are
+    # journaled and put back.
     pid.set_gains(point, 110, 17, 50)
+    _start(bench, pid, inst)
     return inst, point
 
 
@@ -937,9 +942,9 @@ def _cooled_point(bench, pid):
                                              *(str(inst.operand(k, points[0])) for k in ("sv", "pr", "ir", "dr"))):
             point = points[-1]
             pid.set_set_point(point, pid.pv(point) - 500)
+            pid.set_gains(point, 110, 17, 50)  # before the EN edge, as _heated_point
             pid.enable(inst, True, heating=False)
             bench.settle()
-            pid.set_gains(point, 110, 17, 50)
             return point
     return None
 

@@ -12,6 +12,10 @@ import datetime as dt
 
 import pytest
 
+#: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
+#: after the last test here, not after each (hil.plugin.working_state)
+pytestmark = pytest.mark.working_state("clock")
+
 
 def at(text: str) -> dt.datetime:
     return dt.datetime.fromisoformat(text)

@@ -7,6 +7,10 @@ import datetime as dt
 
 import pytest
 
+#: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
+#: after the last test here, not after each (hil.plugin.working_state)
+pytestmark = pytest.mark.working_state("clock")
+
 
 #: start → the time right after the M1953 edge: the window's every edge (00, 29 | 30, 59) within the minute.
 WINDOWS = [

@@ -15,6 +15,10 @@ import pytest
 
 from hil.families.fbs.rtc_time import RtcTime
 
+#: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
+#: after the last test here, not after each (hil.plugin.working_state)
+pytestmark = pytest.mark.working_state("clock")
+
 START = dt.datetime(2024, 6, 15, 8, 0, 0)
 #: R4129–R4134 of START: minute, hour, day, month, year, weekday (a Saturday)
 START_REST = [0, 8, 15, 6, 24, 6]

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, Sequence, TypeVar
 
 from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
+from hil.core.errors import HilError
 from hil.bench.profile import Profile
 from hil.core.journal import Journal
 from hil.core.timebase import Timebase
@@ -94,6 +95,34 @@ class BenchBase(Generic[PlcT, LinkT]):
     def recover(self, *, by_hand: bool = False) -> Recovery | None:
         """Replay what a dead run left in this PLC's journal — before anything else, with the lock held."""
         return self.io.recover(self.recovery_steps, by_hand=by_hand)
+
+    # -- a suite's working state (hil.plugin.working_state) ---------------------------------------------------
+    #: (module, kinds) of the hold in force (None: none); kept by hil.plugin.working_state
+    held_scope: Any = None
+
+    def working_state(self, kinds: Sequence[str]) -> tuple[list, bool]:
+        """The elements ``kinds`` name on this bench, and whether the clock is among them: ``"clock"`` here, the
+        rest the family's (:meth:`working_elements`).  HilError for a kind the family does not know."""
+        elements: list = []
+        for kind in kinds:
+            if kind != "clock":
+                elements += self.working_elements(kind)
+        return elements, "clock" in kinds
+
+    def working_elements(self, kind: str) -> list:
+        """The elements a working-state kind names (the family's); HilError for one it does not know."""
+        raise HilError(f"working_state({kind!r}): this bench's family knows no such working state (only 'clock')")
+
+    def hold(self, kinds: Sequence[str]) -> None:
+        """Put back what ``kinds`` name when :meth:`release` comes, not after each test
+        (:meth:`hil.bench.guard.Guard.hold`)."""
+        elements, clock = self.working_state(kinds)
+        self.io.hold(elements, clock)
+
+    def release(self) -> None:
+        """End the hold: what it kept goes back now, verified (shielded, as :meth:`end_test`)."""
+        with shielded():
+            self.io.release()
 
     def begin_test(self, test_id: str = "") -> None:
         """A test starts: first retry any restore that failed before, then start its journal."""

@@ -16,6 +16,8 @@ A real PLC is somebody's machine.  The guard
 * :meth:`Guard.restore`: the clock, then every original written back and read back equal; an entry leaves the
   journal only once verified, a failed one stays and is retried by the next restore (reconnecting once when the
   wire failed);
+* :meth:`Guard.hold`: a suite's working state — words each of its tests sets before relying on them, and the
+  clock — journaled the same way but put back once, when the suite's last test ends, not after every test;
 * :meth:`Guard.recover`: replays what a dead run left in the durable journal, through the same restore (the
   clock exactly, from its journaled wall-clock origin — refused, and said so, when that origin is older than
   :data:`ORIGIN_MAX_AGE` or the host clock was stepped since: :func:`origin_from_journal`).
@@ -148,6 +150,10 @@ class Guard(ABC):
         # the journal's key is the profile's [bench] plc_id: a wire that reads no PLC identity may replay it
         self.identity_vouched = False
         self._replaying = False  # recovery is writing a dead run's originals back (not a test writing)
+        # A suite's working state (:meth:`hold`): elements every test of it sets before relying on them, journaled
+        # as usual but put back when the hold ends, not after each test; ``clock_held`` the same for the clock.
+        self.held: frozenset = frozenset()
+        self.clock_held = False
 
     def causes_side_effects(self, element: Any) -> bool:
         """Whether a write of ``element`` alone makes the PLC rewrite something itself (an EN, FUN86's Sn/Zn
@@ -284,9 +290,34 @@ class Guard(ABC):
         not as it was found), then forget what was touched."""
         if self.durable is not None:
             self.durable.test = test_id
-        if self.unrestored:
+        if self._due_items() or self._clock_due_now(False):
             self.restore()
         self.start_journal()
+
+    # -- a suite's working state ---------------------------------------------------------------------------------
+    def hold(self, elements: Iterable[Any], clock: bool = False) -> None:
+        """From now until :meth:`release`, put ``elements`` (and, with ``clock``, the clock) back when the hold
+        ends instead of after each test: a suite's working state — words every one of its tests sets before it
+        relies on them (a FUN86 box's operand blocks, the bench's scratch), whose values between its tests are as
+        arbitrary as a bench's originals are.  Nothing else changes: each is journaled (on disk first) before its
+        first write, its original kept, and put back and read back equal when the hold ends, by :meth:`finish`
+        at the latest, or by recovery after a crash.  Saves, per test, the read of their originals, the write back
+        and the read back (on port 0 at 9600 bit/s, most of a PID test's traffic)."""
+        self.held = frozenset(self.keys(list(elements)))
+        self.clock_held = clock
+
+    def release(self) -> list[tuple[Any, int]]:
+        """End the hold: everything journaled goes back now (:meth:`restore`), the clock too when a test set it."""
+        with self._lock:
+            self.held, self.clock_held = frozenset(), False
+            return self.restore()
+
+    def _due_items(self) -> list[tuple[Any, int]]:
+        """The journaled originals to put back now: every one outside the hold."""
+        return [(e, v) for e, v in self.journal.items() if e not in self.held]
+
+    def _clock_due_now(self, exact: bool) -> bool:
+        return (self.clock_due and not self.clock_held) or (exact and self.clock_origin is not None)
 
     def end(self) -> None:
         """A test ended, pass or fail: put the PLC back.  Idempotent."""
@@ -296,8 +327,9 @@ class Guard(ABC):
             self.start_journal()
 
     def finish(self) -> None:
-        """The session ends: the clock back exactly at its original offset, its journal entry cleared, and
-        whatever is still unrestored retried."""
+        """The session ends: any hold ends, the clock back exactly at its original offset, its journal entry
+        cleared, and whatever is still unrestored put back or retried."""
+        self.held, self.clock_held = frozenset(), False
         try:
             self.restore(exact=True)
         finally:
@@ -322,9 +354,10 @@ class Guard(ABC):
 
     # -- restore -----------------------------------------------------------------------------------------------
     def restore(self, exact: bool = False) -> list[tuple[Any, int]]:
-        """The family's own undo, the clock, then every journaled original written back and read back equal.
+        """The family's own undo, the clock, then every journaled original written back and read back equal
+        (outside a hold: :meth:`hold`).
 
-        The clock is put back when a test may have set it — to within half a second, or ``exact``ly (then also
+        The clock is put back when a test may have set it (and it is not held) — to within half a second, or ``exact``ly (then also
         when it is only approximately back), which ends its journal entry.  Returns the elements restored.
         Raises RestoreError listing what could not be put back, each with its original value; that stays in the
         journal for the next restore."""
@@ -334,9 +367,9 @@ class Guard(ABC):
                 self._restore_actions()
             except HilError as exc:
                 failures.append(("RUN/STOP and disabled bits", "as before", str(exc)))
-            if self.clock_due or (exact and self.clock_origin is not None):
+            if self._clock_due_now(exact):
                 failures += self._put_clock(exact)
-            items = list(self.journal.items())
+            items = self._due_items()
             bad = self._put_back(items) if items else []
             failed = {str(name) for name, _, _ in bad}
             good = [(e, v) for e, v in items if str(e) not in failed]

@@ -21,7 +21,7 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 from hil.core.registry import examples
-from hil.plugin import hookspecs
+from hil.plugin import hookspecs, working_state
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
 from hil.plugin.lab import hold_place, let_go
@@ -35,7 +35,7 @@ from hil.bench.profile import refuse_default_for_a_plc
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
 pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
-                  "hil.plugin.preflight", "hil.plugin.fixtures"]
+                  "hil.plugin.preflight", "hil.plugin.fixtures", "hil.plugin.working_state"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -170,6 +170,7 @@ class BenchSession:
         a dead wire marks the bench dead so the remaining tests error at once with the reason."""
         try:
             bench.end_test()
+            working_state.end_if_last(bench, request.node)  # the module's last test: its working state back too
         except HilError as exc:
             failures = getattr(exc, "failures", None)
             if failures is not None:
@@ -336,6 +337,7 @@ def bench(request: pytest.FixtureRequest) -> Iterator[BenchView]:
     state = request.config.stash[BENCH_SESSION]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
     with shielded():
+        working_state.begin(bench, request.node)  # the module's working state held (another module's put back)
         bench.begin_test(request.node.nodeid)  # retries a restore that failed earlier, first
     try:
         # only the guarded surface: no bench.raw, no .io.inner, no transport's private _write_* (issue 15)

@@ -104,6 +104,15 @@ class Bench(BenchBase[FbsPlc, Transport]):
         """Why this wire cannot reach ``name`` (None when it can)."""
         return self.raw.unreachable_reason(name)
 
+    def working_elements(self, kind: str) -> list:
+        """``"pid"``: the operand words of every FUN86 box that is off (:meth:`Pid.idle_operands`);
+        ``"scratch"``: every word and bit of the profile's [bench] scratch ranges."""
+        if kind == "pid":
+            return self.plc.pid.idle_operands()
+        if kind == "scratch":
+            return [e for span in self.profile.scratch for e in parse_range(span)]
+        return super().working_elements(kind)
+
     # -- per-test bookkeeping --------------------------------------------------------------------------------
     def undo_faults(self) -> None:
         self.faults.undo_all()

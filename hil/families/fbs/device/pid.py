@@ -133,6 +133,29 @@ class Pid:
                 out += [first.offset(i) for i in range(count if key == "wr" else min(count, reach))]
         return out
 
+    #: the operand blocks FUN86 only reads while its EN is 1 — its inputs — (a suite's working state:
+    #: idle_operands).  Not OR and WR, its outputs: a test judges what FUN86 writes there, so a value an earlier
+    #: test left (an output above 0, a latched warning) must not be what it finds.  (PR, IR and DR it also writes
+    #: on its first execution, which only a PLC just powered on shows: that test runs first, before any sets them.)
+    WORKING_BLOCKS = ("sv", "os", "pr", "ir", "dr")
+
+    def idle_operands(self) -> list["Address"]:
+        """The words of :attr:`WORKING_BLOCKS` of every box whose EN reads 0 now (one read of every EN): FUN86
+        reads none of them while EN stays 0, and a test sets the ones it relies on before switching EN on, so
+        a suite may keep them as working state between its tests (hil.plugin.working_state).  A box the ladder
+        runs (EN 1) is left out: its words go back after every test."""
+        if not self.configured:
+            return []
+        instances = list(self.config.instances)
+        ens = self.plc.io.read_many([str(inst.en) for inst in instances])
+        out: list = []
+        for inst, en in zip(instances, ens):
+            if not en:
+                blocks = inst.blocks()
+                out += [first.offset(i) for key in self.WORKING_BLOCKS for first, count in [blocks[key]]
+                        for i in range(count)]
+        return out
+
     def _reach(self, inst: PidInstance, written: set) -> int:
         """How many points (from the box's first operand) ``written`` may make FUN86 act on: a box of constant
         Sn/Zn its Zn once EN is written; a box with Sn/Zn registers any of the 32 once EN or a register is written.

@@ -1,0 +1,137 @@
+"""A suite's working state (``pytest.mark.working_state``, :meth:`hil.bench.guard.Guard.hold`): journaled as every
+write is, put back once when the suite's last test ends — not after each test — and never at the cost of what the
+PLC is left as: a crash, the session's end or another module's first test puts it back all the same."""
+
+from __future__ import annotations
+
+from hil.families.fbs.address import parse
+from hil.families.fbs.transport.guard import GuardedTransport
+from hil.families.fbs.transport.local import LocalTransport
+from tests.conftest import EMULATOR_BENCH
+from tests.test_plugin import KeepEmulator
+
+
+def _guarded(emulator):
+    return GuardedTransport(LocalTransport(emulator), writable=["R100-R109"])
+
+
+def test_held_words_stay_between_tests_journaled_and_go_back_verified_when_the_hold_ends(emulator):
+    emulator.memory.write("R100", [7, 8, 9])
+    guard = _guarded(emulator)
+    guard.hold([parse("R100"), parse("R101")])
+    guard.begin("first")
+    guard.write_words("R100", [1, 2, 3])
+    guard.end()
+    # R100/R101 held: still the test's, their originals kept; R102 went back at once
+    assert emulator.memory.read("R100", 3) == [1, 2, 9]
+    assert {str(e): v for e, v in guard.journal.items()} == {"R100": 7, "R101": 8}
+    guard.begin("second")
+    requests = emulator.stats["requests"]
+    guard.write_words("R100", [4])
+    assert emulator.stats["requests"] == requests + 1, "a held word's original is known: only the write goes out"
+    guard.end()
+    assert {str(e): v for e, v in guard.journal.items()} == {"R100": 7, "R101": 8}
+    restored = guard.release()
+    assert sorted(str(e) for e, _ in restored) == ["R100", "R101"]
+    assert emulator.memory.read("R100", 3) == [7, 8, 9]
+    assert guard.journal == {} and guard.held == frozenset()
+
+
+def test_the_sessions_end_puts_held_words_back_whatever_hold_is_left(emulator):
+    emulator.memory.write("R105", [5])
+    guard = _guarded(emulator)
+    guard.hold([parse("R105")])
+    guard.begin("interrupted")
+    guard.write_words("R105", [99])
+    guard.end()
+    guard.finish()
+    assert emulator.memory.read("R105", 1) == [5] and guard.journal == {}
+
+
+def test_a_held_clock_goes_back_when_the_hold_ends_not_after_each_test(emulator):
+    from hil.bench.base import BenchBase
+    from hil.families.fbs.bench import Bench
+    from hil.bench.profile import load_profile
+    from hil.families.fbs.rtc_time import RtcTime
+    bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
+    assert isinstance(bench, BenchBase)
+    before = bench.plc.rtc.read().to_datetime()
+    bench.hold(["clock"])
+    bench.begin_test("sets the clock")
+    bench.plc.rtc.set(RtcTime.from_datetime(before.replace(year=2031)))
+    bench.end_test()
+    assert bench.plc.rtc.read().year == 31, "held: the clock stays as the test left it"
+    bench.release()
+    assert abs((bench.plc.rtc.read().to_datetime() - before).total_seconds()) < 5
+    bench.close()
+
+
+def test_pid_working_state_is_the_inputs_of_the_boxes_that_are_off():
+    from hil.families.fbs.bench import Bench
+    from hil.bench.profile import load_profile
+    bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
+    bench.raw.emulator.memory.set("M2", 1)  # zone-b (EN M2) runs: the ladder's, its words go back every test
+    held, clock = bench.working_state(["pid", "scratch"])
+    names = {str(e) for e in held}
+    assert not clock
+    assert {"R100", "R109", "R110", "R120", "R130", "R149"} <= names  # zone-a: SV, Os, PR, IR, DR (Zn 10)
+    assert not names & {"R200", "R300"}, "OR and WR are FUN86's outputs: never held"
+    zone_b = next(i for i in bench.plc.pid.config.instances if i.name == "zone-b")
+    assert str(zone_b.sv) not in names
+    assert {"R1000", "R1099", "M1000", "D3031"} <= names  # the [bench] scratch
+    bench.close()
+
+
+def test_a_marked_module_holds_its_words_until_its_last_test_and_the_next_module_finds_them_back(pytester):
+    pytester.makepyfile(test_a_held="""
+        import pytest
+        pytestmark = pytest.mark.working_state("scratch")
+
+        def test_one(bench):
+            bench.plc.io.write_words("R1000", [11])
+            bench.plc.io.write_words("R1050", [1])
+
+        def test_two(bench):
+            assert bench.plc.io.read_words("R1000", 1) == [11]  # held: the first test's value
+            bench.plc.io.write_words("R1000", [12])
+    """, test_b_plain="""
+        def test_finds_the_original(bench):
+            assert bench.plc.io.read_words("R1000", 1) == [5]
+            bench.plc.io.write_words("R1000", [13])
+
+        def test_then_plain_per_test_restore(bench):
+            assert bench.plc.io.read_words("R1000", 1) == [5]
+    """)
+    keep = KeepEmulator()
+
+    class Seed:
+        def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+            emulator = keep.pytest_hil_make_emulator(profile, epoch)
+            emulator.memory.set("R1000", 5)
+            return emulator
+
+    result = pytester.inline_run("--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider", plugins=[Seed()])
+    result.assertoutcome(passed=4)
+    assert keep.emulator.memory.read("R1000", 1) == [5]
+    assert keep.emulator.memory.read("R1050", 1) == [0]
+
+
+def test_a_run_stopped_inside_a_held_module_leaves_the_plc_as_found(pytester):
+    pytester.makepyfile(test_stops="""
+        import pytest
+        pytestmark = pytest.mark.working_state("scratch")
+
+        def test_one(bench):
+            bench.plc.io.write_words("R1000", [11])
+
+        def test_two(bench):
+            bench.plc.io.write_words("R1001", [12])
+            assert False, "deliberate: -x stops the run inside the hold"
+
+        def test_three(bench):
+            pass
+    """)
+    keep = KeepEmulator()
+    result = pytester.inline_run("--bench", str(EMULATOR_BENCH), "-x", "-p", "no:cacheprovider", plugins=[keep])
+    result.assertoutcome(passed=1, failed=1)
+    assert keep.emulator.memory.read("R1000", 2) == [0, 0]
