@@ -10,10 +10,6 @@ import pytest
 
 from hil.families.fbs.d4054 import code_for_rate, rate_for_code
 
-#: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
-#: after the last test here, not after each (hil.plugin.working_state)
-pytestmark = pytest.mark.working_state("clock")
-
 FINE_STEP = 0.088  # s/day, the manual's fine-mode resolution
 #: One code of Table 1 per kind of row, each end of each kind: coarse and fine mode, both signs, the fastest and
 #: slowest of each, no correction, the misprinted rows' codes and the codes consistent with their rates.

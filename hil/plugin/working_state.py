@@ -18,8 +18,8 @@ from typing import Any
 import pytest
 
 MARKER = ("working_state(kind, …): the module's tests each set these before relying on them — put back once the "
-          "module's last test ends instead of after each test (FBs: \"pid\" the operand words of every FUN86 box "
-          "that is off, \"scratch\" the [bench] scratch ranges, \"clock\" the RTC)")
+          "module's last test ends instead of after each test; \"clock\" on every bench, the other kinds are the "
+          "bench family's (README: Safety)")
 
 _NEXT = pytest.StashKey[Any]()  # the item pytest runs after this one (None: the last)
 
