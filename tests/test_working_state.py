@@ -132,6 +132,28 @@ def test_a_run_stopped_inside_a_held_module_leaves_the_plc_as_found(pytester):
             pass
     """)
     keep = KeepEmulator()
-    result = pytester.inline_run("--bench", str(EMULATOR_BENCH), "-x", "-p", "no:cacheprovider", plugins=[keep])
-    result.assertoutcome(passed=1, failed=1)
+    result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "-x", "-p", "no:cacheprovider",
+                                          plugins=[keep])
+    result.assert_outcomes(passed=1, failed=1)
     assert keep.emulator.memory.read("R1000", 2) == [0, 0]
+    out = result.stdout.str()
+    assert "a failed restore" not in out, "the hold's words went back at the session's end: no restore had failed"
+    assert "the PLC is as it was found" in out
+
+
+def test_what_a_hold_keeps_is_not_reported_as_left_by_a_failed_restore():
+    """At the session's end a hold still in force (the run stopped inside its module) is the session end's to put
+    back: the safety report's "a failed restore left these" list names only what a restore failed to put back."""
+    from hil.bench.profile import load_profile
+    from hil.families.fbs.bench import Bench
+    from hil.plugin.safety import _unrestored
+    bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
+    bench.hold(["scratch"])
+    bench.begin_test("holds R1000")
+    bench.plc.io.write_words("R1000", [7])
+    bench.end_test()
+    assert _unrestored(bench, exact=False) == []
+    assert _unrestored(bench) == ["R1000 (original 0)"]
+    bench.finish()
+    assert _unrestored(bench) == [] and bench.raw.emulator.memory.read("R1000", 1) == [0]
+    bench.close()

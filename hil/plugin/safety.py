@@ -121,9 +121,12 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 def _unrestored(bench, exact: bool = True) -> list[str]:  # noqa: ANN001
     """What is still not as it was found; ``exact=False`` leaves out a clock put back to within half a second
-    (the session's end makes it exact)."""
+    (the session's end makes it exact) and a working state held still (the run stopped inside a module that holds
+    one: its end puts that back, no failed restore left it)."""
     io = bench.io
-    out = [f"{a} (original {v})" for a, v in getattr(io, "unrestored", [])]  # the clock too, while a test has it set
+    held = set() if exact else {*getattr(io, "held", ()), *(["clock"] if getattr(io, "clock_held", False) else [])}
+    # the clock too, while a test has it set
+    out = [f"{a} (original {v})" for a, v in getattr(io, "unrestored", []) if a not in held]
     origin = getattr(io, "clock_origin", None)
     if exact and origin is not None and not getattr(io, "clock_due", False):
         out.append(f"clock (original {origin.plc:%Y-%m-%d %H:%M:%S}, to be put back exactly at its offset from host "
