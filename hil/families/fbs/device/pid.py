@@ -143,11 +143,12 @@ class Pid:
         """The words of :attr:`WORKING_BLOCKS` of every box whose EN reads 0 now (one read of every EN): FUN86
         reads none of them while EN stays 0, and a test sets the ones it relies on before switching EN on, so
         a suite may keep them as working state between its tests (hil.plugin.working_state).  A box the ladder
-        runs (EN 1) is left out: its words go back after every test."""
+        runs (EN 1), or whose EN the wire cannot read, is left out: its words go back after every test."""
         if not self.configured:
             return []
-        instances = list(self.config.instances)
-        ens = self.plc.io.read_many([str(inst.en) for inst in instances])
+        io = self.plc.io  # a box whose EN this wire cannot read is not known to be off: left out
+        instances = [inst for inst in self.config.instances if io.unreachable_reason(str(inst.en)) is None]
+        ens = io.read_many([str(inst.en) for inst in instances]) if instances else []
         out: list = []
         for inst, en in zip(instances, ens):
             if not en:
