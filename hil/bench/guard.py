@@ -357,8 +357,8 @@ class Guard(ABC):
         """The family's own undo, the clock, then every journaled original written back and read back equal
         (outside a hold: :meth:`hold`).
 
-        The clock is put back when a test may have set it (and it is not held) — to within half a second, or ``exact``ly (then also
-        when it is only approximately back), which ends its journal entry.  Returns the elements restored.
+        The clock is put back when a test may have set it (and it is not held) — to within half a second, or
+        ``exact``ly (then also when it is only approximately back), which ends its journal entry.  Returns the elements restored.
         Raises RestoreError listing what could not be put back, each with its original value; that stays in the
         journal for the next restore."""
         with self._lock:
