@@ -4,10 +4,16 @@ PLC is left as: a crash, the session's end or another module's first test puts i
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
+import pytest
+
 from hil.families.fbs.address import parse
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.families.fbs.transport.local import LocalTransport
-from tests.conftest import EMULATOR_BENCH
+from tests.conftest import EMULATOR_BENCH, REPO
 from tests.test_plugin import KeepEmulator
 
 
@@ -157,3 +163,57 @@ def test_what_a_hold_keeps_is_not_reported_as_left_by_a_failed_restore():
     bench.finish()
     assert _unrestored(bench) == [] and bench.raw.emulator.memory.read("R1000", 1) == [0]
     bench.close()
+
+
+HELD_MODULE = """
+import os, signal, time
+import pytest
+pytestmark = pytest.mark.working_state("scratch")
+
+def test_one(bench):
+    bench.plc.io.write_words("R1000", [11, 12])
+
+def test_two_dies_inside_the_hold(bench):
+    assert bench.plc.io.read_words("R1000", 2) == [11, 12]  # held: still the first test's
+    os.kill(os.getpid(), signal.SIG{sig})
+    time.sleep(30)
+
+def test_three(bench):
+    pass
+"""
+
+
+@pytest.mark.parametrize("sig", ["KILL", "TERM"])
+def test_a_run_killed_inside_a_hold_leaves_hil_emulate_as_found(tmp_path, sig):
+    """Against ``hil emulate`` as a separate real-time process over FATEK/TCP, with the durable journal: a run
+    SIGKILLed while a module holds its working state leaves the held words changed on the PLC, journaled — the
+    next session's recovery puts them back; a SIGTERMed run puts them back itself before it exits."""
+    from hil.families.fbs.transport.factory import open_transport
+    from hil.io.url import parse_target
+    from tests.external import bench_over_the_wire, hil_emulate
+    profile = tmp_path / "emulated.toml"
+    profile.write_text(EMULATOR_BENCH.read_text())
+    (tmp_path / "held").mkdir()
+    (tmp_path / "held" / "test_held.py").write_text(HELD_MODULE.replace("{sig}", sig))
+    (tmp_path / "next").mkdir()
+    (tmp_path / "next" / "test_next.py").write_text("def test_next_session(bench):\n    pass\n")
+    with hil_emulate(profile, 1.0) as where:
+        target = f"fatek+tcp://{where['fatek-tcp']}"
+        bench = tmp_path / "bench.toml"
+        bench.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, 1.0))
+        inner = ["-p", "no:cacheprovider", "-p", "no:hypothesispytest", "--bench", str(bench), "-q"]
+
+        def r1000() -> list[int]:
+            with open_transport(parse_target(target), timeout=2.0) as t:
+                return t.read_words("R1000", 2)
+
+        assert r1000() == [0, 0]
+        run = subprocess.run([sys.executable, "-m", "pytest", str(tmp_path / "held"), *inner], cwd=REPO,
+                             capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        assert run.returncode != 0, "a killed run is never PASSED"
+        if sig == "KILL":
+            assert r1000() == [11, 12], "SIGKILL: nothing could put the held words back yet"
+            nxt = subprocess.run([sys.executable, "-m", "pytest", str(tmp_path / "next"), *inner], cwd=REPO,
+                                 capture_output=True, text=True, timeout=120)
+            assert nxt.returncode == 0 and "hil bench recovery: a previous run" in nxt.stdout, nxt.stdout[-2000:]
+        assert r1000() == [0, 0], run.stdout[-2000:]

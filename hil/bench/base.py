@@ -97,9 +97,6 @@ class BenchBase(Generic[PlcT, LinkT]):
         return self.io.recover(self.recovery_steps, by_hand=by_hand)
 
     # -- a suite's working state (hil.plugin.working_state) ---------------------------------------------------
-    #: (module, kinds) of the hold in force (None: none); kept by hil.plugin.working_state
-    held_scope: Any = None
-
     def working_state(self, kinds: Sequence[str]) -> tuple[list, bool]:
         """The elements ``kinds`` name on this bench, and whether the clock is among them: ``"clock"`` here, the
         rest the family's (:meth:`working_elements`).  HilError for a kind the family does not know."""

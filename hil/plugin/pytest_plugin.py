@@ -2,7 +2,8 @@
 
 Loaded automatically through the ``pytest11`` entry point.  The bench is opened once per session — before
 collection when the run names one (:mod:`hil.plugin.preflight`), else once a bench test is collected; one that
-cannot be opened stops the run there, in one line — and every test's writes are restored when the test ends.
+cannot be opened stops the run there, in one line — and every test's writes are restored when the test ends (a
+module's declared working state when its last test ends: :mod:`hil.plugin.working_state`).
 """
 
 from __future__ import annotations
@@ -333,7 +334,8 @@ def bench(request: pytest.FixtureRequest) -> Iterator[BenchView]:
     """The bench (``hil.api.Bench`` on an FBs): ``bench.plc`` the PLC under test behind the guard, ``bench.wait(s)``
     bench time (virtual on the in-process emulator), ``bench.time.calendar()``, ``bench.cannot_reach(...)`` for a
     skip's reason, ``bench.faults``, ``bench.profile``.  Opened once per session (``--bench FILE``, ``--target
-    URL``); every write a test makes is put back, and read back, when the test ends, pass or fail."""
+    URL``); every write a test makes is put back, and read back, when the test ends, pass or fail — what its
+    module declares as working state (``pytest.mark.working_state``) when the module's last test ends."""
     state = request.config.stash[BENCH_SESSION]
     bench = state.open()  # raises at once, with the reason, once the bench is known dead
     with shielded():

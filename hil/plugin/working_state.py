@@ -22,14 +22,14 @@ MARKER = ("working_state(kind, …): the module's tests each set these before re
           "bench family's (README: Safety)")
 
 _NEXT = pytest.StashKey[Any]()  # the item pytest runs after this one (None: the last)
+_HELD = pytest.StashKey[Any]()  # (module, kinds) of the hold in force on the session's bench
 
 
 def kinds_of(item: pytest.Item | None) -> tuple[str, ...]:
     """The working-state kinds ``item``'s module declares (``pytestmark``), in order; () without the mark."""
     if item is None:
         return ()
-    marks = [m for m in item.iter_markers("working_state")]
-    return tuple(dict.fromkeys(kind for m in marks for kind in m.args))
+    return tuple(dict.fromkeys(kind for mark in item.iter_markers("working_state") for kind in mark.args))
 
 
 def _scope(item: pytest.Item | None) -> tuple[Any, tuple[str, ...]] | None:
@@ -41,25 +41,26 @@ def begin(bench: Any, item: pytest.Item) -> None:
     """Before ``item``'s test starts: the hold its module declares begins, when it is not already held (a hold
     of another module is released first — normally it ended with that module's last test)."""
     wanted = _scope(item)
-    if getattr(bench, "held_scope", None) == wanted:
+    if item.config.stash.get(_HELD, None) == wanted:
         return
-    end(bench)
+    end(bench, item.config)
     if wanted is not None:
         bench.hold(wanted[1])
-        bench.held_scope = wanted
+        item.config.stash[_HELD] = wanted
 
 
 def end_if_last(bench: Any, item: pytest.Item) -> None:
     """After ``item``'s own restore: end the hold when the next test is not of the same hold (or there is none)."""
-    if getattr(bench, "held_scope", None) is not None and _scope(item.stash.get(_NEXT, None)) != bench.held_scope:
-        end(bench)
+    held = item.config.stash.get(_HELD, None)
+    if held is not None and _scope(item.stash.get(_NEXT, None)) != held:
+        end(bench, item.config)
 
 
-def end(bench: Any) -> None:
+def end(bench: Any, config: pytest.Config) -> None:
     """End the hold now: everything held put back and read back (RestoreError when the PLC refuses)."""
-    if getattr(bench, "held_scope", None) is None:
+    if config.stash.get(_HELD, None) is None:
         return
-    bench.held_scope = None
+    config.stash[_HELD] = None
     bench.release()
 
 

@@ -150,11 +150,9 @@ class Pid:
         instances = [inst for inst in self.config.instances if io.unreachable_reason(str(inst.en)) is None]
         ens = io.read_many([str(inst.en) for inst in instances]) if instances else []
         out: list = []
-        for inst, en in zip(instances, ens):
-            if not en:
-                blocks = inst.blocks()
-                out += [first.offset(i) for key in self.WORKING_BLOCKS for first, count in [blocks[key]]
-                        for i in range(count)]
+        for inst in (inst for inst, en in zip(instances, ens) if not en):
+            for first, count in (inst.blocks()[key] for key in self.WORKING_BLOCKS):
+                out += [first.offset(i) for i in range(count)]
         return out
 
     def _reach(self, inst: PidInstance, written: set) -> int:
