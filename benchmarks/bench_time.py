@@ -27,12 +27,15 @@ PROFILE = ROOT / "fixtures" / "benches" / "emulator.toml"
 WARM_UP_S = 7.0
 
 
-def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: str | None = None) -> dict:
+def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: str | None = None,
+                lanes: int = 1) -> dict:
     """One pytest session over the non-slow FBs suite files, as ``hil run`` would run them on a bench: the total
     wall time, and per suite file the tests' own time (setup, call and teardown, from the JUnit report).  ``line``
-    ("9600 7E1"): over ``hil emulate``'s FATEK pty paced at that rate instead of FATEK/TCP."""
+    ("9600 7E1"): over ``hil emulate``'s FATEK pty paced at that rate instead of FATEK/TCP — port 0, whose rule
+    the bench then declares (``[bench] answers_at_scan_end``).  ``lanes`` > 1: as ``hil run --lanes N``."""
     files = files or MAIN_SET
-    out: dict = {"time_scale": time_scale, "per_suite": {}, "wire": f"FATEK pty at {line}" if line else "FATEK/TCP"}
+    out: dict = {"time_scale": time_scale, "per_suite": {}, "lanes": lanes,
+                 "wire": f"FATEK pty at {line}" if line else "FATEK/TCP"}
     with tempfile.TemporaryDirectory() as tmp:
         tmp_path = Path(tmp)
         emulated = tmp_path / "emulated.toml"
@@ -49,12 +52,16 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
                 url = (f"fatek+serial://{where['fatek-serial']}?baudrate={rate.baudrate}&bytesize={rate.bytesize}"
                        f"&parity={rate.parity}&stopbits={rate.stopbits}&station=1")
             bench = tmp_path / "bench.toml"
-            bench.write_text(bench_over_the_wire(emulated.read_text(), where, time_scale, url=url))
+            text = bench_over_the_wire(emulated.read_text(), where, time_scale, url=url)
+            if line:  # the emulated port 0 services each request at a scan's end, as the manual says port 0 does
+                text = text.replace("[bench]\n", "[bench]\nanswers_at_scan_end = true\n", 1)
+            bench.write_text(text)
             junit = tmp_path / "junit.xml"
             time.sleep(WARM_UP_S / time_scale)
             started = time.monotonic()
+            spread = ["-n", str(lanes), "--dist", "each"] if lanes > 1 else []  # hil run --lanes N
             subprocess.run([sys.executable, "-m", "pytest", *(str(SUITES / name) for name in files), "--bench",
-                            str(bench), "-q", "-p", "no:cacheprovider", f"--junitxml={junit}"], cwd=tmp_path,
+                            str(bench), "-q", "-p", "no:cacheprovider", f"--junitxml={junit}", *spread], cwd=tmp_path,
                            capture_output=True, text=True)
             out["total_wall_s"] = round(time.monotonic() - started, 1)
         cases = list(ET.parse(junit).getroot().iter("testcase"))

@@ -14,7 +14,8 @@ import pytest
 
 #: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
 #: after the last test here, not after each (hil.plugin.working_state)
-pytestmark = pytest.mark.working_state("clock")
+# the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes)
+pytestmark = [pytest.mark.working_state("clock"), pytest.mark.lane("clock")]
 
 
 def at(text: str) -> dt.datetime:

@@ -11,6 +11,8 @@ import pytest
 from hil.families.fbs.d4054 import code_for_rate, rate_for_code
 
 FINE_STEP = 0.088  # s/day, the manual's fine-mode resolution
+# the clock lane: only the RTC suites touch the clock and D4054 (hil run --lanes)
+pytestmark = pytest.mark.lane("clock")
 #: One code of Table 1 per kind of row, each end of each kind: coarse and fine mode, both signs, the fastest and
 #: slowest of each, no correction, the misprinted rows' codes and the codes consistent with their rates.
 TABLE_1_CODES = {

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Generic, Protocol, Sequence, TypeVar
+from typing import Any, ContextManager, Generic, Protocol, Sequence, TypeVar
 
 from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
 from hil.core.errors import HilError
@@ -47,6 +47,8 @@ class BenchBase(Generic[PlcT, LinkT]):
     time: Timebase
     plc: PlcT
     journal: Journal | None = None
+    #: the lane this bench is one of, in a run with lanes (:mod:`hil.plugin.lanes`); None: the run's only one
+    lane: str | None = None
     #: the family's own recovery steps, run before the guard's (e.g. a fault rig's coils)
     recovery_steps: tuple[RecoveryStep, ...] = ()
 
@@ -76,6 +78,10 @@ class BenchBase(Generic[PlcT, LinkT]):
         """Make sure the PLC has completed whole scans since the last write."""
         self.plc.settle()
 
+    def exclusive(self) -> ContextManager[None]:
+        """Hold the wire across several requests (no other lane's between them: :meth:`hil.core.link.Link.exclusive`)."""
+        return self.io.exclusive()
+
     # -- safety (issue 15): the durable journal, recovery first, the per-test restore ---------------------------
     def attach_journal(self) -> Journal | None:
         """The PLC's journal on disk, given to the guard (None for an in-process emulator: each run builds its
@@ -85,7 +91,7 @@ class BenchBase(Generic[PlcT, LinkT]):
             return None
         self.io.identity_vouched = bool(self.profile.plc_id)
         self.io.durable = Journal(plc_key(str(self.target), self.profile.plc_id), endpoint=lock_key(str(self.target)),
-                                  plc=self.plc_identity())
+                                  plc=self.plc_identity(), lane=self.lane)
         return self.io.durable
 
     def plc_identity(self) -> dict[str, str] | None:

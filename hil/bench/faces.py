@@ -10,7 +10,7 @@ bench may lack (``power_cycle``, ``settings``, ``faults``) are left off the prox
 from __future__ import annotations
 
 import datetime as dt
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, ContextManager, Protocol, TYPE_CHECKING
 
 if TYPE_CHECKING:
     from hil.bench.profile import Profile
@@ -155,6 +155,12 @@ class BenchView(Protocol):
 
     def settle(self) -> None:
         """Make sure the PLC has completed whole scans since the last write (its ladder has seen the write)."""
+        ...
+
+    def exclusive(self) -> ContextManager[None]:
+        """``with bench.exclusive():`` — the wire is this test's across several requests: in a run with lanes
+        (``hil run --lanes``) no other lane's request comes between them, for a step whose timing matters (a set
+        and an edge within one second of the PLC's clock).  Elsewhere it changes nothing."""
         ...
 
     def cannot_reach(self, *names: str) -> str | None:

@@ -32,10 +32,11 @@ family's link, reached through its public API only — which implements its addr
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Protocol, Sequence, TypeVar
+from typing import Any, Callable, ContextManager, Iterable, Iterator, Protocol, Sequence, TypeVar
 
 from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
 from hil.core.link import Link
@@ -499,10 +500,23 @@ class Guard(ABC):
     def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:
         """Replay what a dead run left in the durable journal (before anything else), as far as it can be proven
         (:mod:`hil.bench.replay`): the family's ``steps`` first, then its actions, the clock (exactly) and the
-        elements.  None without a durable journal (an in-process emulator: nothing outlives a run)."""
+        elements — and the same for each journal a run's lanes left beside it (:meth:`Journal.lanes`), each as
+        if it were this run's own.  None without a durable journal (an in-process emulator: nothing outlives a
+        run)."""
         journal = self.durable
         if journal is None:
             return None
+        steps = tuple(steps)
+        report = self._recover_journal(journal, steps, by_hand)
+        for lane in journal.lanes():
+            self.durable = lane  # what the replay drops, it drops from the lane's file
+            try:
+                report.merge(self._recover_journal(lane, steps, by_hand))
+            finally:
+                self.durable = journal
+        return report
+
+    def _recover_journal(self, journal: Journal, steps: tuple[RecoveryStep, ...], by_hand: bool) -> Recovery:
         try:
             journal.data = journal.load()
         except JournalError as exc:
@@ -591,6 +605,8 @@ class PublicLink(Protocol):
 
     def close(self) -> None: ...
 
+    def exclusive(self) -> ContextManager[None]: ...
+
 
 class GuardedLink(Guard, Link):
     """The guard wrapped round a link (composition): it holds the link as ``inner`` and reaches it only through
@@ -616,6 +632,12 @@ class GuardedLink(Guard, Link):
 
     def reopen(self) -> None:
         self.inner.reopen()
+
+    @contextlib.contextmanager
+    def exclusive(self) -> Iterator[None]:
+        """The guard's and the link's lock (the link's is the one a shared line's other lanes wait on)."""
+        with self._lock, self.inner.exclusive():
+            yield
 
     def _close(self) -> None:
         self.inner.close()

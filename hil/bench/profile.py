@@ -66,6 +66,9 @@ class Profile:
     sections: dict[str, Any] = field(default_factory=dict)
     #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
     scan_counter: str | None = None
+    #: [bench] answers_at_scan_end: the wire reaches a port that services each request at the end of a scan (FBs
+    #: ports 0, 1, 3, 4): a settle trusts that rule rather than prove each scan with the scan counter
+    answers_at_scan_end: bool = False
     #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
     scratch: tuple[str, ...] = ()
     #: [bench] offers: capabilities the bench's owner vouches for (hil.bench.capabilities.DECLARABLE)
@@ -169,6 +172,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     scan_counter = reader.take(bench, "bench", "scan_counter", str, None,
                                check=lambda v: bool(re.fullmatch(r"[A-Z]+[0-9]+", v))
                                or "must name one word register (letters, then digits)")
+    at_scan_end = reader.take(bench, "bench", "answers_at_scan_end", bool, False)
     scratch = reader.take(bench, "bench", "scratch", list, [],
                           check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
                                               for x in v) or "must be a list of element ranges (FIRST-LAST)")
@@ -223,7 +227,7 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     reader.done(history_t, "history")
     return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
                    faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id,
+                   scan_counter=scan_counter, answers_at_scan_end=at_scan_end, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id,
                    history_url=history_url)
 
 

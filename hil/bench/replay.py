@@ -44,6 +44,13 @@ class Recovery:
     def needed(self) -> bool:
         return bool(self.pending or self.refused)
 
+    def merge(self, other: "Recovery") -> None:
+        """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lanes`) held."""
+        if other.needed:
+            self.path = f"{self.path}, {other.path}" if self.needed else other.path
+        for name in ("pending", "verified", "refused", "changed", "failures", "notes"):
+            getattr(self, name).extend(getattr(other, name))
+
     @property
     def ok(self) -> bool:
         return not (self.failures or self.refused or self.changed)

@@ -66,6 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 "--station rig-2\n"
                                 "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
                                 "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n"
+                                "  hil run --bench my-bench.toml --lanes 2      (two lanes share a slow line)\n"
                                 "  hil run --bench lab-fbs.toml --lg-reserve \"family=fbs rtc=s35390a\"  (a labgrid "
                                 "place)\n")
     run.add_argument("--bench", metavar="FILE", action="append",
@@ -89,6 +90,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="where the JUnit XML goes (default reports/junit.xml)")
     run.add_argument("--html", metavar="PATH", default="reports/report.html",
                      help="where the HTML report goes (default reports/report.html)")
+    run.add_argument("--lanes", metavar="N", type=int, default=None,
+                     help="run the suites' lanes at the same time, in N processes sharing the bench (pytest-xdist "
+                          "-n N --dist each; hil.plugin.lanes): the RTC suites beside the temperature and PID ones; on port 0 at "
+                          "9600 bit/s one fills the line while the other waits for the PLC (README, Bench time)")
     run.add_argument("--operator", metavar="NAME", help="who runs the tests (default $HIL_OPERATOR or login name)")
     run.add_argument("--station", metavar="NAME", help="test station (default $HIL_STATION or host name)")
     run.add_argument("--trace", choices=("failures", "all", "off"), default=None,
@@ -341,6 +346,11 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
                            coordinator=args.lg_coordinator, wait=args.lg_wait)
         if args.bench or spec is not None:  # a bad profile: one line here, before pytest starts (and before a queue)
             check_profile(args.bench or default_bench(), spec)
+        if args.lanes is not None:
+            if args.lanes < 1:
+                raise InvalidValue(f"--lanes {args.lanes}: give 1 or more (1: one process, as without --lanes)")
+            if args.lanes > 1:
+                extra = ["-n", str(args.lanes), "--dist", "each", *extra]
         return run(args.bench, args.target, args.junitxml, extra, html=args.html, operator=args.operator,
                    station=args.station, trace=args.trace, verbosity=args.verbose - args.quiet, color=args.color,
                    lab=lab)

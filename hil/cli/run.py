@@ -13,7 +13,7 @@ from hil.bench.profile import refuse_default_for_a_plc
 _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
                 "--confcutdir", "--basetemp", "--bench", "--target", "--junitxml", "--junit-xml", "--hil-html",
                 "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
-                "--timeout", "--durations", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
+                "--timeout", "--durations", "-n", "--numprocesses", "--dist", "--max-worker-restart", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
                 "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures",
                 "--hil-records", "--hil-lock-wait", "--hil-lg-place", "--hil-lg-reserve", "--hil-lg-coordinator",
                 "--hil-lg-wait"}

@@ -40,7 +40,9 @@ named and kept, the others still replayed.  A kind may carry fields beyond those
 its own business); an unknown *section*, another version or another bench refuses the whole file.
 
 File: ``<state dir>/journal-<sha256(key)[:16]>.json`` where the state dir is ``$HIL_STATE_DIR``, else
-``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil`` (created with mode 0700).
+``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil`` (created with mode 0700).  A run with lanes
+(:mod:`hil.plugin.lanes`) has one more per lane process beside it, ``journal-<…>.lane-<LANE>.json``, each written
+only by its lane; recovery (and ``hil restore``) replays them with the run's own.
 """
 
 from __future__ import annotations
@@ -52,6 +54,7 @@ import hashlib
 import json
 import math
 import os
+import re
 import stat
 from dataclasses import dataclass
 from pathlib import Path
@@ -113,9 +116,24 @@ def state_dir() -> Path:
     return base
 
 
-def journal_path(key: str, directory: Path | None = None) -> Path:
+def journal_path(key: str, directory: Path | None = None, lane: str | None = None) -> Path:
+    """The journal file of the PLC ``key``: the run's, or that of one of its lanes (``lane``: a run with lanes,
+    :mod:`hil.plugin.lanes`, has one journal per lane process, each written only by it)."""
     digest = hashlib.sha256(key.encode()).hexdigest()[:16]
-    return (Path(directory) if directory else state_dir()) / f"journal-{digest}.json"
+    if lane is not None and not _LANE.fullmatch(lane):
+        raise JournalError(f"lane name {lane!r}: letters, digits, '-' and '_' only")
+    suffix = f".lane-{lane}" if lane is not None else ""
+    return (Path(directory) if directory else state_dir()) / f"journal-{digest}{suffix}.json"
+
+
+def lane_of(path: Path) -> str | None:
+    """The lane a journal file belongs to (None: a run's own journal, or not a journal's name)."""
+    match = _LANE_FILE.fullmatch(path.name)
+    return match.group(1) if match else None
+
+
+_LANE = re.compile(r"[A-Za-z0-9_-]{1,64}")
+_LANE_FILE = re.compile(r"journal-[0-9a-f]{16}\.lane-([A-Za-z0-9_-]{1,64})\.json")
 
 
 # -- the entry kinds ----------------------------------------------------------------------------------------------
@@ -339,14 +357,14 @@ def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
         return None, None, str(exc)
     except (OSError, ValueError, AttributeError, RecursionError):
         key = None
-    if not isinstance(key, str) or journal_path(key, path.parent) != path:
+    if not isinstance(key, str) or journal_path(key, path.parent, lane_of(path)) != path:
         try:
             parse(path.read_bytes(), f"<the bench whose journal is {path.name}>", path)
         except JournalRefused as exc:
             return None, None, str(exc)
         return None, None, f"the bench journal {path} is refused (unreadable)"
     try:
-        return key, Journal(key, path.parent), None
+        return key, Journal(key, path.parent, lane=lane_of(path)), None
     except JournalError as exc:
         return key, None, str(exc)
 
@@ -357,9 +375,10 @@ class Journal:
     ``endpoint`` and ``plc`` (the PLC's identity as the wire reads it) go into a new journal's file."""
 
     def __init__(self, key: str, directory: Path | None = None, *, endpoint: str | None = None,
-                 plc: dict[str, str] | None = None) -> None:
+                 plc: dict[str, str] | None = None, lane: str | None = None) -> None:
         self.key = key
-        self.path = journal_path(key, directory)
+        self.lane = lane
+        self.path = journal_path(key, directory, lane)
         self.endpoint = endpoint
         self.plc = plc
         self.test = ""  # the test now running (its node id), written with each entry
@@ -388,6 +407,16 @@ class Journal:
     @property
     def pending(self) -> bool:
         return _pending(self.data)
+
+    def lanes(self) -> list["Journal"]:
+        """The journals the lanes of a run on this PLC left beside this one (each lane process writes its own):
+        recovery replays them with it.  Empty for a lane's own journal."""
+        if self.lane is not None:
+            return []
+        stem = journal_path(self.key, self.path.parent).name.removesuffix(".json")
+        found = sorted(p for p in self.path.parent.glob(f"{stem}.lane-*.json") if lane_of(p) is not None)
+        return [Journal(self.key, self.path.parent, endpoint=self.endpoint, plc=self.plc, lane=lane_of(p))
+                for p in found]
 
     def entries(self) -> Iterable[tuple[EntryKind, str | None, Any]]:
         """Every pending entry: (kind, name or None, entry), malformed ones included."""
@@ -595,5 +624,5 @@ class Journal:
 
 
 __all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
-           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "parse", "register_kind", "run_left",
+           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "lane_of", "parse", "register_kind", "run_left",
            "state_dir"]

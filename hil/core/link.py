@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import threading
-from typing import Callable
+from typing import Callable, Iterator
 
 from hil.core.errors import TransportError
 
@@ -17,6 +18,14 @@ class Link:
         self._closers: list[Callable[[], None]] = []
         self.requests = 0  # protocol requests sent (round trips)
         self.closed = False
+
+    @contextlib.contextmanager
+    def exclusive(self) -> Iterator[None]:
+        """Hold the wire across several requests: where other processes take turns on it (a run's lanes on one
+        serial line, :mod:`hil.io.shared_line`), none of theirs comes between — for a step whose timing matters
+        (a set and an edge that must land within one second of the PLC's clock)."""
+        with self._lock:
+            yield
 
     def on_close(self, closer: Callable[[], None]) -> None:
         """Run ``closer`` after this link closes (e.g. stop the server of an ``emulator+…`` target)."""

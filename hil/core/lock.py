@@ -100,7 +100,7 @@ def lock_dir() -> Path:
     return Path("/run/lock/hil") if os.path.isdir("/run/lock") else Path("/tmp/hil-locks")
 
 
-def _shared_dir(directory: Path) -> None:
+def shared_dir(directory: Path) -> None:
     """Create ``directory`` (mode 1777) or check it: a real directory, owned by this user or root, and sticky if
     others can write it (so nobody removes or replaces another's lock file)."""
     import stat
@@ -140,7 +140,7 @@ class BenchLock:
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:
             return self
-        _shared_dir(self.directory)
+        shared_dir(self.directory)
         fd = self._open()
         started = time.monotonic()
         while True:
@@ -170,29 +170,7 @@ class BenchLock:
         return self
 
     def _open(self) -> int:
-        """The lock file: created readable and writable by all (the directory is shared; each user records
-        themselves in it), opened without following a link, and checked to be a plain file."""
-        import stat
-        flags = os.O_NOFOLLOW | os.O_CLOEXEC
-        try:
-            try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_EXCL | flags, 0o666)
-                os.fchmod(fd, 0o666)  # open's mode is cut by the umask
-            except FileExistsError:
-                try:
-                    fd = os.open(self.path, os.O_RDWR | flags)
-                except PermissionError:
-                    fd = os.open(self.path, os.O_RDONLY | flags)  # flock needs no write access
-        except OSError as exc:
-            if os.path.islink(self.path):
-                raise HilError(f"bench lock {self.path} is a symbolic link — refusing to follow it (someone planted "
-                               f"it; remove it after checking where it points)") from None
-            raise HilError(f"cannot open the bench lock {self.path}: {exc}") from None
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
-            os.close(fd)
-            raise HilError(f"bench lock {self.path} is not a plain file (or has other links) — refusing to use it")
-        return fd
+        return open_lock_file(self.path, "bench lock")
 
     def release(self) -> None:
         if self._fd is None:
@@ -225,6 +203,32 @@ class BenchLock:
         self.release()
 
 
+def open_lock_file(path: Path, what: str) -> int:
+    """A lock file in the shared directory: created readable and writable by all (each user records themselves in
+    it), opened without following a link, and checked to be a plain file."""
+    import stat
+    flags = os.O_NOFOLLOW | os.O_CLOEXEC
+    try:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | flags, 0o666)
+            os.fchmod(fd, 0o666)  # open's mode is cut by the umask
+        except FileExistsError:
+            try:
+                fd = os.open(path, os.O_RDWR | flags)
+            except PermissionError:
+                fd = os.open(path, os.O_RDONLY | flags)  # flock needs no write access
+    except OSError as exc:
+        if os.path.islink(path):
+            raise HilError(f"{what} {path} is a symbolic link — refusing to follow it (someone planted it; remove "
+                           f"it after checking where it points)") from None
+        raise HilError(f"cannot open the {what} {path}: {exc}") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+        os.close(fd)
+        raise HilError(f"{what} {path} is not a plain file (or has other links) — refusing to use it")
+    return fd
+
+
 def _read(fd: int) -> dict:
     try:
         raw = os.pread(fd, 4096, 0)
@@ -240,4 +244,4 @@ def _user() -> str:
         return str(os.getuid())
 
 
-__all__ = ["BenchLock", "BenchBusy", "describe_holder", "lock_dir", "lock_key", "plc_key"]
+__all__ = ["BenchLock", "BenchBusy", "describe_holder", "lock_dir", "lock_key", "open_lock_file", "plc_key", "shared_dir"]

@@ -106,6 +106,9 @@ class Scheme:
     #: stream); False for datagrams (UDP), which may be reordered or repeated — a protocol without transaction
     #: ids then fences every read (README, Safety)
     ordered: bool = True
+    #: the lanes of one run may use it at once (:mod:`hil.plugin.lanes`): a connection each (TCP, UDP), or a serial
+    #: line taken in turn by whole exchanges (:mod:`hil.io.shared_line`); not a server of one client (RFC 2217)
+    lanes: bool = False
     #: one URL of this form, for help texts and errors
     example: str = ""
 

@@ -10,7 +10,7 @@ from hil.core.registry import (COMMON, FENCE, PROTOCOLS, SERIAL, Protocol, Schem
 def register_modbus() -> None:
     PROTOCOLS.register("modbus", Protocol("modbus", address_param="unit", serial_scheme="modbus+rtu"))
     register_scheme(Scheme("modbus+tcp", "modbus", {**COMMON, "unit": int}, network=True, default_port=502,
-                           example="modbus+tcp://HOST:502?unit=1"))
+                           lanes=True, example="modbus+tcp://HOST:502?unit=1"))
     register_scheme(Scheme("modbus+rtu", "modbus", {**COMMON, **SERIAL, **FENCE, "unit": int},
                            example="modbus+rtu:///dev/ttyUSB0?baudrate=9600&parity=E&unit=1"))
     register_scheme(Scheme("modbus+rfc2217", "modbus", {**COMMON, **SERIAL, **FENCE, "unit": int}, network=True,

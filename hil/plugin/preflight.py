@@ -4,7 +4,8 @@ to check, exit 4 (pytest's usage error) — not a screen of skips and the same r
 The bench is opened (lock, wire, recovery of a dead run's journal) and asked for its status in
 ``pytest_sessionstart``, before pytest prints its header, whenever the run names a bench (``--bench``, which
 ``hil run`` always passes, or ``--target``) — so plain ``pytest suites --target …`` behaves as ``hil run`` does.
-``--collect-only`` opens nothing; a pytest-xdist controller lets go once it has checked (its workers open it).
+``--collect-only`` opens nothing; a pytest-xdist controller lets go of the wire once it has checked (its workers
+open it) — on a real bench it keeps the locks for them, each a lane (:mod:`hil.plugin.lanes`).
 Without either option the bench is opened when the first bench test is collected
 (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`), and one that cannot be is the same line there.
 """
@@ -16,7 +17,9 @@ import pytest
 from hil.core.errors import HilError
 from hil.core.registry import examples
 from hil.core import signals
+from hil.plugin import lanes
 from hil.plugin.stash import BENCH_SESSION
+from hil.io.url import parse_target
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -38,8 +41,15 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         raise pytest.UsageError(unreachable(state, exc)) from None
     except pytest.fail.Exception as exc:  # state.open() says why in pytest's own form
         raise pytest.UsageError(unreachable(state, exc, target)) from None
-    if getattr(config.option, "dist", "no") != "no" and not hasattr(config, "workerinput"):
-        state.release()  # a pytest-xdist controller runs no test: it checked, its workers open the bench
+    if lanes.distributed(config):  # a pytest-xdist controller runs no test: it checked, its workers open the bench
+        problem = lanes.check_run(config, parse_target(target))
+        if problem is not None:
+            state.release()
+            raise pytest.UsageError(f"hil: {problem}")
+        if state.lock is None:
+            state.release()  # each worker builds its own emulator
+        else:
+            lanes.lease(config)  # the locks stay with this run; each worker opens the wire as a lane
 
 
 def unreachable(state, exc: BaseException, target: str | None = None) -> str:  # noqa: ANN001 - the bench state

@@ -22,7 +22,7 @@ from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offe
 from hil.plugin import bench_time
 from hil.io.url import parse_target
 from hil.core.registry import examples
-from hil.plugin import hookspecs, working_state
+from hil.plugin import hookspecs, lanes, working_state
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
 from hil.plugin.lab import hold_place, let_go
@@ -36,7 +36,7 @@ from hil.bench.profile import refuse_default_for_a_plc
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
 pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
-                  "hil.plugin.preflight", "hil.plugin.fixtures", "hil.plugin.working_state"]
+                  "hil.plugin.preflight", "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
@@ -96,6 +96,7 @@ class BenchSession:
         self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
         self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
         self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
+        self.leased = False  # a run with lanes' controller: the wire closed, the locks kept for its workers
         self._profile: Profile | None = None
 
     @property
@@ -120,7 +121,8 @@ class BenchSession:
                 self._lock_bench()
                 self.bench = open_bench(self.profile, target=self.config.getoption("--target"),
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
-                                   emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e))
+                                   emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e),
+                                   lane=lanes.worker_lane(self.config))
                 self._recover()
             except HilError as exc:
                 self.error = f"cannot open the bench: {exc}"
@@ -145,6 +147,8 @@ class BenchSession:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""
         if self.lock is not None or parse_target(self.target).in_process:
             return
+        if lanes.worker_lane(self.config) is not None:
+            return  # a lane of a run with lanes: the controller holds every lock for the whole run (hil.plugin.lanes)
         wait = self.config.getoption("--hil-lock-wait") or 0.0
         if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
             self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
@@ -152,12 +156,20 @@ class BenchSession:
         if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
             self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
 
-    def release(self) -> None:
+    def close_wire(self) -> None:
+        """Close the bench's wire but keep the locks: a run with lanes' controller, for its workers."""
         try:
             if self.bench is not None:
                 self.bench.close()
         finally:
             self.bench = None
+            self.leased = self.lock is not None
+
+    def release(self) -> None:
+        try:
+            self.close_wire()
+        finally:
+            self.leased = False
             for lock in (self.plc_lock, self.lock, self.place_lock):
                 if lock is not None:
                     lock.release()

@@ -36,8 +36,10 @@ class Bench(BenchBase[FbsPlc, Transport]):
     FACE = faces.Bench
 
     def __init__(self, profile: Profile, *, target: str | None = None,
-                 emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
+                 emulator_builder: EmulatorBuilder | None = None, allow_destructive: bool = False,
+                 lane: str | None = None) -> None:
         self.profile = profile
+        self.lane = lane  # one lane of a run with lanes (hil.plugin.lanes): its own journal
         self.target: Target = parse_target(target or profile.target)
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
@@ -54,7 +56,7 @@ class Bench(BenchBase[FbsPlc, Transport]):
         self.io.allow_destructive = self.allow_destructive
         # the PLC object suites hold reaches the PLC only through the guarded operations (no .inner, no _write_*)
         self.plc = FbsPlc(guarded_io(self.io), self.time, settle_scans=profile.settle_scans,
-                          scan_counter=profile.scan_counter)
+                          scan_counter=profile.scan_counter, answers_at_scan_end=profile.answers_at_scan_end)
         self.plc.configure(profile.sections)
         self.faults = Faults(self)  # bench.faults.sensor_break …; every injected fault is undone in end_test
         # Safety (issue 15): the PLC's own side effects journaled too (FUN86's defaults on an EN edge), the RTC

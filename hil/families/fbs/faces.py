@@ -339,7 +339,8 @@ class Plc(Protocol):
 
     def settle(self, scans: int | None = None) -> None:
         """Wait for whole scans after the last write (the profile's ``settle_scans``; proved by the ladder's
-        scan counter when ``[bench] scan_counter`` names one)."""
+        scan counter when ``[bench] scan_counter`` names one, unless ``[bench] answers_at_scan_end`` says the
+        port keeps port 0's rule: then, as without a counter, round trips that each span a scan)."""
         ...
 
     def read_settled(self, names: list[str]) -> list[int]:

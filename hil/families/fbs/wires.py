@@ -16,12 +16,12 @@ register_wire(Wire("fatek-udp", "fatek", "udp", "FATEK protocol on UDP, as FBs E
 register_wire(Wire("fatek-serial", "fatek", "pty", "FATEK protocol on a pseudo-terminal", bytesize=7,
                    aliases=("fatek-pty",)), {**SERIAL, **FENCE})
 register_scheme(Scheme("fatek+tcp", "fatek", {**COMMON, **FENCE, "station": int}, network=True, default_port=500,
-                       example="fatek+tcp://HOST:500"))
+                       lanes=True, example="fatek+tcp://HOST:500"))
 # datagrams may come twice or out of order: every read is fenced (hil.families.fbs.transport.udp)
 register_scheme(Scheme("fatek+udp", "fatek", {**COMMON, **FENCE, "station": int}, network=True, default_port=500,
-                       ordered=False, example="fatek+udp://HOST:500?station=1"))
+                       ordered=False, lanes=True, example="fatek+udp://HOST:500?station=1"))
 register_scheme(Scheme("fatek+serial", "fatek", {**COMMON, **SERIAL, **FENCE, "station": int},
-                       example="fatek+serial:///dev/ttyUSB0?baudrate=9600"))
+                       lanes=True, example="fatek+serial:///dev/ttyUSB0?baudrate=9600"))
 register_scheme(Scheme("fatek+rfc2217", "fatek", {**COMMON, **SERIAL, **FENCE, "station": int}, network=True,
                        example="fatek+rfc2217://HOST:PORT?station=1"))
 register_scheme(Scheme("replay+fatek", "fatek", {**COMMON, "station": int}, path_names="recording",

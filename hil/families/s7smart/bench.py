@@ -94,8 +94,10 @@ class S7Bench(BenchBase[S7Plc, S7Io]):
     family = "s7-200smart"
 
     def __init__(self, profile: Profile, *, target: str | None = None,
-                 emulator_builder: S7EmulatorBuilder | None = None, allow_destructive: bool = False) -> None:
+                 emulator_builder: S7EmulatorBuilder | None = None, allow_destructive: bool = False,
+                 lane: str | None = None) -> None:
         self.profile = profile
+        self.lane = lane  # one lane of a run with lanes (hil.plugin.lanes): its own journal
         self.settings: S7Settings = profile.sections["s7"]
         self.layout: S7RtcLayout | None = profile.sections.get("s7rtc")
         self.target: Target = parse_target(target or profile.target)

@@ -9,7 +9,7 @@ from hil.io.modbus_schemes import register_modbus
 
 PROTOCOLS.register("s7", Protocol("s7"))  # the CPU is named by rack and slot, and has no serial form
 register_scheme(Scheme("s7+tcp", "s7", {**COMMON, "rack": int, "slot": int}, network=True, default_port=102,
-                       example="s7+tcp://HOST:102?rack=0&slot=1"))
+                       lanes=True, example="s7+tcp://HOST:102?rack=0&slot=1"))
 register_wire(Wire("s7-tcp", "s7", "tcp", "the S7 protocol (ISO-on-TCP; an S7-200 SMART profile, e.g. "
                    "fixtures/benches/s7-200smart.toml; port 0: OS chooses)"))
 register_modbus()

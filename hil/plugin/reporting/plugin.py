@@ -157,11 +157,23 @@ class Reporter:
     @pytest.hookimpl(trylast=True)
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         items = [i for i in session.items if "bench" in getattr(i, "fixturenames", ())]
-        self.run.uses_bench = bool(items)
-        state = self.run.state
-        if not items or state is None:
+        self._collected(Path(str(items[0].path)).parent if items else None)
+
+    @pytest.hookimpl(optionalhook=True)
+    def pytest_xdist_node_collection_finished(self, node: Any, ids: list[str]) -> None:
+        """A pytest-xdist controller collects nothing itself: its first worker's collection stands for the run's
+        (a run with lanes, hil.plugin.lanes: every worker collects every test).  The PLC's identity is not in the
+        header here — the controller let go of the wire for its workers."""
+        if self.run.verdict is not None or not ids:
             return
-        suites = Path(str(items[0].path)).parent
+        self._collected((self.config.rootpath / ids[0].split("::")[0]).parent)
+
+    def _collected(self, suites: Path | None) -> None:
+        """The bench tests are known (``suites``: their directory; None: no test uses the bench)."""
+        self.run.uses_bench = suites is not None
+        state = self.run.state
+        if suites is None or state is None:
+            return
         try:
             self.run.properties = suite_properties(
                 profile=state.profile, target=state.target, bench=state.bench, bench_error=state.error,

@@ -20,12 +20,14 @@ class FbsPlc:
     """
 
     def __init__(self, transport: Transport, timebase: Timebase, *, settle_scans: int = 2,
-                 scan_counter: str | None = None) -> None:
+                 scan_counter: str | None = None, answers_at_scan_end: bool = False) -> None:
         self.io = transport
         self.time = timebase
         self.settle_scans = settle_scans
         #: the bench ladder's scan counter ([bench] scan_counter): a word it adds 1 to every scan
         self.scan_counter = scan_counter
+        #: [bench] answers_at_scan_end: settles trust port 0's rule, the scan counter is left to what counts scans
+        self.answers_at_scan_end = answers_at_scan_end
         self.rtc = Rtc(self)
         self.temperature = Temperature(self)  # configured by the bench from the profile's [temperature]
         self.pid = Pid(self)  # configured by the bench from the profile's [pid]
@@ -41,16 +43,22 @@ class FbsPlc:
     def status(self) -> PlcStatus:
         return self.io.status()
 
+    @property
+    def _proves_scans(self) -> bool:
+        """Whether a settle proves its scans with the ladder's counter (else it relies on port 0's rule)."""
+        return self.scan_counter is not None and not self.answers_at_scan_end
+
     def settle(self, scans: int | None = None) -> None:
         """Make sure the PLC has completed whole scans since our last write.
 
         With a ladder scan counter the PLC proves it: the counter is read after the write and again until it has
         gone up by ``scans`` + 1 (the scan in progress at the first read may have begun before the write landed,
-        e.g. on a port that answers at once; the one after it cannot have).  Without one, port 0's rule — each
-        round trip spans at least one scan — with a few cheap status requests.
+        e.g. on a port that answers at once; the one after it cannot have).  Without one — or where the profile
+        says the wire reaches a port that answers at the end of a scan (``[bench] answers_at_scan_end``: ports 0,
+        1, 3, 4) — port 0's rule: each round trip spans at least one scan, so a few cheap status requests.
         """
         n = self.settle_scans if scans is None else scans
-        if self.scan_counter is not None:
+        if self._proves_scans:
             if n > 0:
                 self.await_scans(n)
             return
@@ -62,7 +70,7 @@ class FbsPlc:
 
         On port 0 that request is serviced at the end of a scan after the write too, so it counts as one of the
         ``settle_scans``: one status round trip fewer.  With a scan counter, one whole scan proved instead."""
-        if self.scan_counter is not None:
+        if self._proves_scans:
             self.await_scans(1)
             return
         self.settle(max(0, self.settle_scans - 1))
@@ -71,7 +79,7 @@ class FbsPlc:
         """:meth:`settle_before_request` and then a read of ``names``, in one round trip fewer: with a scan
         counter, the counter is read in the same frame as ``names`` (one frame is one scan), and the read repeated
         until it shows the whole scan after the last write done — its values are then from after it."""
-        if self.scan_counter is None or not names:
+        if not self._proves_scans or not names:
             self.settle_before_request()
             return self.io.read_many(names)
         first = self.read_scan_counter()

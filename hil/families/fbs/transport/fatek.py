@@ -36,6 +36,7 @@ from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
 from hil.io.request_policy import RequestPolicy, Resync
 from hil.io.serial_line import char_bits, is_pty
+from hil.io.shared_line import SharedLine
 from hil.io.trace import CHAR_BITS, DESCRIBERS, PRINTABLE
 
 if TYPE_CHECKING:
@@ -107,7 +108,14 @@ class FatekTransport(Transport):
         # before a request, after a fault: reconnect a lost connection, resynchronise with a loop-back (_probe)
         self._resync = Resync(needed=lambda: self._broken or self.dirty, probe=self._probe, failed=self._not_sent)
         self._command: Command = Loopback("")  # the request in hand (what a resync failure names)
+        if "://" not in port_url:  # a device or a pty: other processes (a run's lanes) may take turns on it
+            self._lock = SharedLine(port_url, taken=self._line_taken, leaving=lambda: self.dirty)
         self._line: Line = self.new_line()
+
+    def _line_taken(self, suspect: bool) -> None:
+        """The shared line is ours: the lane before us may have left a late reply on its way (hil.io.shared_line)."""
+        if suspect:
+            self.dirty = True
 
     def new_line(self) -> Line:
         """The line this client talks over, opened (a serial port, a pty, TCP or RFC 2217 by its URL; a subclass
@@ -203,6 +211,8 @@ class FatekTransport(Transport):
 
     def _close(self) -> None:
         self._line.close()
+        if isinstance(self._lock, SharedLine):
+            self._lock.close()
 
     # -- the exchange -------------------------------------------------------------------------------------------
     def _identity_fields(self) -> dict[str, str]:
@@ -279,7 +289,7 @@ class FatekTransport(Transport):
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
         with self._lock:
             try:
-                self._close()
+                self._line.close()
             except (serial.SerialException, OSError):
                 pass
             self._line = self.new_line()

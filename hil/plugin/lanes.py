@@ -1,0 +1,204 @@
+"""Lanes: one run on one PLC in several pytest-xdist worker processes at once (``hil run --lanes N``).
+
+On port 0 at 9600 bit/s the line is idle while a test waits for the PLC — a PID interval, a module's update, the
+clock's next second — and busy while another sets a clock field by field.  A second lane's requests fill those
+gaps (README, "Bench time").  What keeps it safe:
+
+* **Which tests may overlap.**  Every test is in a lane: its module's ``pytest.mark.lane(NAME)``, else ``"main"``.
+  ``hil run --lanes N`` is ``-n N --dist each``: every worker collects every test and keeps its own lanes' (they
+  are dealt round the workers), so a lane's tests run in one worker, in their order, as in a run without lanes;
+  only different lanes overlap.  The modules of one lane may touch the same elements; different lanes must
+  not (the RTC suites' clock and M1952–M1955 are one lane, the temperature and PID suites, which share the plant
+  and the scratch registers, the other).  A lane is a process, so each keeps its own working state.
+* **One run, one lock.**  The controller opens the bench before any worker starts: it takes the locks and replays
+  whatever a dead run left (its journal and every lane's), then lets go of the wire but keeps the locks to the end.
+  Each worker opens the wire under that lease (``hil_lane_lease``) instead of locking, and journals what it changes
+  in its own lane journal (``journal-….lane-gwN.json``), which the next run replays with the run's own.
+* **A wire lanes can share** (the scheme's ``lanes``): TCP or UDP to the PLC, a connection each; a serial device or
+  pty, taken in turn by whole exchanges (:mod:`hil.io.shared_line`), the main lane first: the other lanes fill
+  the line while it waits for the PLC.  Not an RFC 2217 server (one client at a time)
+  nor a Modbus RTU line; an in-process emulator is each worker's own, as in any xdist run.
+* **The verdict.**  Each worker says, at its end, whether it left the PLC as it found it (``hil_plc_left``); the
+  controller fails the run when one did not.  When a worker died, the controller replays the journals itself (its
+  locks are still held) before it lets go, and says what that found.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Any
+
+import pytest
+
+from hil.core.registry import SCHEMES
+from hil.io.shared_line import run_in_background
+from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce
+from hil.plugin.stash import BENCH_SESSION
+
+MARKER = ("lane(name): the lane of this module's tests in a run with lanes (hil run --lanes N): tests of one lane run "
+          "in one process, in order; tests of different lanes may run at the same time on one PLC, so they must "
+          "touch no element in common (unmarked: lane \"main\")")
+DEFAULT = "main"
+#: in a worker's ``workerinput``: the controller holds the bench's locks for it (its pid)
+LEASE = "hil_lane_lease"
+#: in a worker's ``workerinput``: the controller runs ``--dist each`` (a worker's own option says "no")
+SPLIT = "hil_lanes"
+#: in a worker's ``workeroutput``: what it says of the PLC at its end (:data:`hil.plugin.safety.PLC_LEFT`)
+LEFT = "hil_plc_left"
+_LANES_LEFT = pytest.StashKey[dict]()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", MARKER)
+
+
+def lane_of(item: pytest.Item) -> str:
+    mark = item.get_closest_marker("lane")
+    return str(mark.args[0]) if mark is not None and mark.args else DEFAULT
+
+
+def worker_lane(config: pytest.Config) -> str | None:
+    """In a worker that the controller leased the bench to: its lane's name (the worker id); else None."""
+    given = getattr(config, "workerinput", None)
+    if not given or not given.get(LEASE):
+        return None
+    return str(given.get("workerid") or "gw")
+
+
+def distributed(config: pytest.Config) -> bool:
+    """This process is a pytest-xdist controller: it runs no test, its workers do."""
+    return getattr(config.option, "dist", "no") != "no" and not hasattr(config, "workerinput")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """A worker of a run with lanes (``--dist each``: every worker collects every test) keeps its own lanes' tests
+    and deselects the others: the lanes, in name order, dealt round the workers.  Every worker sees the same
+    collection, so each deals the same way and every test runs exactly once, in its lane's worker.
+
+    (Not ``--dist loadgroup``: pytest-xdist 3.8 names a group by rewriting ``item._nodeid``, which pytest 9.2 no
+    longer reads, so its groups silently spread over the workers.)"""
+    given = getattr(config, "workerinput", None)
+    if not given or not given.get(SPLIT):
+        return
+    index, count = _worker_index(given), int(given.get("workercount") or 1)
+    names = sorted({lane_of(item) for item in items})
+    mine = {name for n, name in enumerate(names) if n % count == index}
+    kept = [item for item in items if lane_of(item) in mine]
+    dropped = [item for item in items if lane_of(item) not in mine]
+    # the main lane has the line first; the others fill its idle time (hil.io.shared_line)
+    run_in_background(DEFAULT not in mine and DEFAULT in names)
+    if dropped:
+        config.hook.pytest_deselected(items=dropped)
+        items[:] = kept
+
+
+def _worker_index(given: dict) -> int:
+    worker = str(given.get("workerid") or "gw0")
+    digits = worker.removeprefix("gw")
+    return int(digits) if digits.isdigit() else 0
+
+
+def check_run(config: pytest.Config, target: Any) -> str | None:
+    """Why this xdist run cannot have lanes on ``target`` (a parsed target URL); None: it can (or needs none)."""
+    if target.in_process:
+        return None  # each worker builds its own emulator
+    if getattr(config.option, "dist", "no") != "each":
+        return (f"several workers on one PLC need --dist each, so that each lane's tests stay in one worker "
+                f"(`hil run --lanes N` passes it), not --dist {config.option.dist}")
+    scheme = SCHEMES.get(target.scheme)
+    if scheme is None or not scheme.lanes:
+        shared = ", ".join(sorted(name for name, s in SCHEMES.items() if s.lanes and not s.in_process))
+        return (f"lanes cannot share a {target.scheme} wire (one client at a time): run without -n/--lanes, or "
+                f"reach the PLC over one of {shared}")
+    return None
+
+
+def lease(config: pytest.Config) -> None:
+    """The controller, once it has opened the bench (locks taken, recovery done): let go of the wire, keep the locks
+    for the workers."""
+    state = config.stash[BENCH_SESSION]
+    recovery = state.recovery
+    if recovery is not None and not recovery.ok:
+        state.release()
+        raise pytest.UsageError(f"{recovery.summary()} — no lane starts on a PLC left changed: `hil restore` once "
+                                f"the cause is fixed")
+    state.close_wire()
+    config.stash[_LANES_LEFT] = {}
+    # A worker that dies is not replaced: its replacement would run beside the dead lane's journal, unreplayed
+    # (the controller replays it at the end).  pytest-xdist reads --max-worker-restart when it configures, before
+    # the bench is known to be a real one; its session object keeps the number.
+    dsession = config.pluginmanager.getplugin("dsession")
+    if dsession is not None and hasattr(dsession, "_max_worker_restart"):
+        dsession._max_worker_restart = 0
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_configure_node(node: Any) -> None:
+    if getattr(node.config.option, "dist", "no") == "each":
+        node.workerinput[SPLIT] = True
+    state = node.config.stash.get(BENCH_SESSION, None)
+    if state is not None and state.leased:
+        node.workerinput[LEASE] = os.getpid()
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node: Any, error: object | None) -> None:
+    left = node.config.stash.get(_LANES_LEFT, None)
+    if left is None:
+        return
+    said = getattr(node, "workeroutput", {}).get(LEFT) if error is None else None
+    left[node.gateway.id] = said or f"lane {node.gateway.id} ended without saying (its process died: {error})"
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """A worker: say how it left the PLC.  The controller: the run's word on the PLC, from every lane's."""
+    config = session.config
+    if worker_lane(config) is not None:
+        config.workeroutput[LEFT] = config.stash.get(PLC_LEFT, "")  # type: ignore[attr-defined]
+        return
+    lanes = config.stash.get(_LANES_LEFT, None)
+    if lanes is None:
+        return
+    died = [lane for lane, said in lanes.items() if said.startswith(f"lane {lane} ended without")]
+    if died:
+        recovered = _replay(config)
+        if recovered is not None:
+            lanes.update({lane: AS_FOUND for lane in died} if recovered else {})
+    wrong = {lane: said for lane, said in lanes.items() if said != AS_FOUND}
+    config.stash[PLC_LEFT] = AS_FOUND if not wrong else "; ".join(
+        f"lane {lane}: {said}" for lane, said in sorted(wrong.items()))
+    if wrong:
+        _say(config, f"hil: {config.stash[PLC_LEFT]}")
+        if session.exitstatus == 0:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def _replay(config: pytest.Config) -> bool | None:
+    """A lane died: open the bench again (the locks are still this run's) and replay every journal now; whether
+    that put everything back (None: it could not be tried)."""
+    state = config.stash[BENCH_SESSION]
+    try:
+        state.open()
+    except BaseException as exc:  # noqa: BLE001 - pytest's fail exception too: said, and the lane stays unknown
+        _say(config, f"hil: a lane died and its journal could not be replayed now ({exc}): the next run or "
+                     f"`hil restore` does it")
+        return None
+    try:
+        recovery = state.recovery
+        if recovery is not None and recovery.needed:
+            announce(config, recovery)
+        return recovery is None or recovery.ok
+    finally:
+        state.close_wire()
+
+
+def _say(config: pytest.Config, text: str) -> None:
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.ensure_newline()
+        reporter.write_line(text, bold=True, red=True)
+    else:
+        print(text, file=sys.stderr)

@@ -1,0 +1,273 @@
+"""Lanes (hil.plugin.lanes): one run's lanes in pytest-xdist workers sharing one PLC — over one serial line taken
+in turn by whole exchanges (hil.io.shared_line), each lane journaling in its own file, the run failing when a lane
+leaves the PLC changed, and a dead lane's journal replayed."""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import multiprocessing
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from hil.core.journal import Journal, journal_path, lane_of
+from hil.io.shared_line import LINGER, SharedLine
+from hil.io.url import parse_target
+from hil.plugin import lanes
+from tests.conftest import EMULATOR_BENCH, REPO
+from tests.external import bench_over_the_wire, emulate_process
+
+LINE = "115200 7E1"  # 9600 costs minutes of line time here: benchmarks/run.py measures that one
+
+
+@pytest.fixture
+def private_dirs(tmp_path, monkeypatch):
+    """This test's own lock and state directories (for its subprocesses too)."""
+    monkeypatch.setenv("HIL_LOCK_DIR", str(tmp_path / "locks"))
+    monkeypatch.setenv("HIL_STATE_DIR", str(tmp_path / "state"))
+    return tmp_path
+
+
+# -- the shared line ----------------------------------------------------------------------------------------------
+def _hold_and_die(device: str, ready) -> None:  # noqa: ANN001 - a multiprocessing Event
+    line = SharedLine(device, taken=lambda suspect: None, leaving=lambda: False)
+    line.__enter__()  # in the middle of an exchange…
+    ready.set()
+    time.sleep(60)  # …killed here
+
+
+def test_a_holder_killed_mid_exchange_makes_the_next_one_resynchronise(private_dirs):
+    """The mark is "suspect" while the line is held: a lane killed in the middle of an exchange (its late reply may
+    still come) leaves it so, and the next holder is told; a clean release clears it."""
+    device = str(private_dirs / "ttyFAKE")
+    Path(device).touch()
+    ctx = multiprocessing.get_context("fork")
+    ready = ctx.Event()
+    proc = ctx.Process(target=_hold_and_die, args=(device, ready))
+    proc.start()
+    assert ready.wait(20)
+    seen: list[bool] = []
+    line = SharedLine(device, taken=seen.append, leaving=lambda: False)
+    proc.kill()
+    proc.join()
+    with line:  # the kernel dropped the dead holder's lock
+        pass
+    with line:
+        pass
+    assert seen == [True, False], "killed mid-exchange: suspect once; after a clean release: not"
+    line.close()
+
+
+def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(private_dirs):
+    """A background client (a named lane) asks only while no foreground client (the main lane) wants the line:
+    during an exchange and for LINGER after it, so between back-to-back exchanges it cannot get in; once the
+    foreground client pauses it can."""
+    device = str(private_dirs / "ttyFAKE")
+    Path(device).touch()
+    fore = SharedLine(device, taken=lambda s: None, leaving=lambda: False, background=False)
+    back = SharedLine(device, taken=lambda s: None, leaving=lambda: False, background=True)
+    got = threading.Event()
+
+    def background() -> None:
+        with back:
+            got.set()
+
+    with fore:
+        asker = threading.Thread(target=background)
+        asker.start()
+        assert not got.wait(0.1), "the background client took a line the foreground client holds"
+    for _ in range(20):  # back to back: each exchange within LINGER of the last
+        with fore:
+            pass
+        assert not got.is_set(), "a background exchange came between two back-to-back foreground ones"
+    assert got.wait(10 * LINGER + 5), "the foreground client paused: the background one must get the line"
+    asker.join()
+    fore.close()
+    back.close()
+
+
+def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:  # noqa: ANN001 - a Queue
+    from hil.families.fbs.transport.factory import open_transport
+    wrong = 0
+    with open_transport(parse_target(url)) as transport:
+        for n in range(rounds):
+            transport.write(register, n)
+            wrong += transport.read(register) != n
+        out.put((register, wrong, transport.requests))
+
+
+def test_two_processes_take_turns_on_one_paced_line_with_no_reply_crossed(private_dirs):
+    """Two clients in two processes on ``hil emulate``'s paced pty, each writing and reading back its own register
+    back to back: every exchange is whole (no process reads the other's reply), so 0 wrong values."""
+    profile = private_dirs / "emulated.toml"
+    profile.write_text(EMULATOR_BENCH.read_text().replace("[emulator]\n", f'[emulator]\nline = "{LINE}"\n', 1))
+    ctx = multiprocessing.get_context("spawn")
+    with emulate_process(profile, 1.0, {"fatek-serial": "--fatek-serial"}) as where:
+        url = f"fatek+serial://{where['fatek-serial']}?baudrate=115200&bytesize=7&parity=E&station=1"
+        out = ctx.Queue()
+        procs = [ctx.Process(target=_exchange_own_register, args=(url, reg, 150, out)) for reg in ("R1000", "R1001")]
+        for proc in procs:
+            proc.start()
+        for proc in procs:
+            proc.join(120)
+        results = sorted(out.get(timeout=5) for _ in procs)
+    assert [(reg, wrong) for reg, wrong, _ in results] == [("R1000", 0), ("R1001", 0)]
+    assert all(requests >= 300 for _, _, requests in results)
+
+
+# -- lane journals ----------------------------------------------------------------------------------------------
+def test_a_lanes_journal_is_named_by_its_lane_and_found_beside_the_runs(tmp_path):
+    key = "tcp://127.0.0.1:500"
+    own = Journal(key, tmp_path)
+    assert lane_of(own.path) is None and own.lanes() == []
+    lane = Journal(key, tmp_path, lane="gw1")
+    lane.add_elements({"R1000": 5}, {"R1000": 6})
+    assert lane.path == journal_path(key, tmp_path, "gw1") and lane_of(lane.path) == "gw1"
+    found = own.lanes()
+    assert [(j.lane, j.elements()) for j in found] == [("gw1", {"R1000": 5})]
+    assert lane.lanes() == [], "a lane's journal has no lanes of its own"
+    with pytest.raises(Exception, match="lane name"):
+        journal_path(key, tmp_path, "../x")
+
+
+# -- which runs may have lanes ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("url, dist, problem", [
+    ("emulator", "load", None),  # each worker builds its own emulator
+    ("fatek+tcp://127.0.0.1:500", "each", None),
+    ("fatek+serial:///dev/ttyUSB0", "each", None),
+    ("fatek+serial:///dev/ttyUSB0", "load", "--dist each"),
+    ("fatek+rfc2217://127.0.0.1:3001", "each", "cannot share a fatek+rfc2217 wire"),
+    ("modbus+rtu:///dev/ttyUSB0?unit=1", "each", "cannot share a modbus+rtu wire"),
+])
+def test_only_a_wire_lanes_can_share_and_dist_each_run_lanes_on_a_plc(url, dist, problem):
+    config = SimpleNamespace(option=SimpleNamespace(dist=dist))
+    said = lanes.check_run(config, parse_target(url))
+    assert (said is None) if problem is None else (problem in said), said
+
+
+# -- a run with lanes, end to end ---------------------------------------------------------------------------------
+def _bench_on_the_paced_pty(tmp: Path, where: dict[str, str]) -> Path:
+    url = f"fatek+serial://{where['fatek-serial']}?baudrate=115200&bytesize=7&parity=E&stopbits=1&station=1"
+    bench = tmp / "bench.toml"
+    bench.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, 1.0, url=url))
+    return bench
+
+
+def _paced_emulator(tmp: Path):  # noqa: ANN202 - the context manager of emulate_process
+    profile = tmp / "emulated.toml"
+    profile.write_text(EMULATOR_BENCH.read_text().replace("[emulator]\n", f'[emulator]\nline = "{LINE}"\n', 1))
+    return emulate_process(profile, 1.0, {"fatek-serial": "--fatek-serial", "rig-modbus-tcp": "--rig-modbus-tcp"})
+
+
+def _lanes_run(tmp: Path, bench: Path, *tests: str, timeout: float = 240) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pytest", *tests, "--bench", str(bench), "-n", "2", "--dist", "each",
+                           "-v", "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
+                           f"--junitxml={tmp / 'junit.xml'}"], cwd=REPO, capture_output=True, text=True,
+                          timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dirs):
+    """``hil run --lanes 2`` as pytest runs it, against ``hil emulate`` on its paced pty: the RTC suite in the clock
+    lane, the smoke suite in the main lane, each lane in one worker, every test once; both lanes leave the PLC as
+    found (no journal left), and the run is PASSED."""
+    with _paced_emulator(private_dirs) as where:
+        bench = _bench_on_the_paced_pty(private_dirs, where)
+        run = _lanes_run(private_dirs, bench, str(REPO / "suites" / "test_smoke.py"),
+                         str(REPO / "suites" / "test_rtc.py"))
+    out = run.stdout
+    assert run.returncode == 0, out[-3000:]
+    workers = {}
+    for worker, outcome, nodeid in re.findall(r"\[(gw\d)\] \[ *\d+%\] (PASSED|SKIPPED|FAILED|ERROR) (\S+)", out):
+        workers.setdefault(nodeid.split("::")[0], set()).add(worker)
+    rtc, smoke = workers["suites/test_rtc.py"], workers["suites/test_smoke.py"]
+    assert len(rtc) == 1 and len(smoke) == 1 and rtc != smoke, workers
+    import xml.etree.ElementTree as ET
+    cases = [(c.get("classname"), c.get("name")) for c in ET.parse(private_dirs / "junit.xml").getroot().iter("testcase")]
+    assert len(cases) == len(set(cases)) == 16, f"every test once (5 smoke + 11 RTC): {sorted(cases)}"
+    assert "hil: PASSED" in out or "PASSED" in out.splitlines()[-1], out[-1500:]
+    left = list((private_dirs / "state").glob("journal-*.json"))
+    assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
+
+
+LANE_MODULE = """
+import os, signal, time
+import pytest
+pytestmark = pytest.mark.lane("{lane}")
+
+def test_writes_then_dies(bench):
+    bench.plc.io.write_words("{register}", [{value}])
+    {kill}
+    time.sleep(30 if {die} else 0)
+"""
+
+
+@pytest.mark.parametrize("who", ["worker", "run"])
+def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
+    """A lane's worker SIGKILLed after its write: its lane journal holds the original.  ``worker``: the controller
+    (still holding the locks) replays it before the run ends — the run is not PASSED, the PLC is as found.
+    ``run``: the whole run killed (the controller first) — the next run's recovery replays the lane's journal."""
+    tests = private_dirs / "lanes"
+    tests.mkdir()
+    kill = ("os.kill(os.getpid(), signal.SIGKILL)" if who == "worker"  # the worker alone
+            else "os.kill(os.getppid(), signal.SIGKILL); os.kill(os.getpid(), signal.SIGKILL)")  # the controller too
+    (tests / "test_dies.py").write_text(LANE_MODULE.format(lane="clock", register="R1000", value=77, die=True,
+                                                           kill=kill))
+    (tests / "test_main.py").write_text(LANE_MODULE.format(lane="main", register="R1001", value=5, die=False,
+                                                           kill="pass"))
+    (private_dirs / "next").mkdir()
+    (private_dirs / "next" / "test_next.py").write_text("def test_next(bench):\n    pass\n")
+    from hil.families.fbs.transport.factory import open_transport
+    with _paced_emulator(private_dirs) as where:
+        bench = _bench_on_the_paced_pty(private_dirs, where)
+        url = f"fatek+serial://{where['fatek-serial']}?baudrate=115200&bytesize=7&parity=E&station=1"
+
+        def registers() -> list[int]:
+            with open_transport(parse_target(url)) as transport:
+                return transport.read_words("R1000", 2)
+
+        assert registers() == [0, 0]
+        run = subprocess.Popen([sys.executable, "-m", "pytest", str(tests), "--bench", str(bench), "-n", "2",
+                                "--dist", "each", "-p", "no:cacheprovider", "-p", "no:hypothesispytest"],
+                               cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                               start_new_session=True)
+        out, _ = run.communicate(timeout=180)
+        assert run.returncode != 0, "a run whose lane died is never PASSED"
+        if who == "run":
+            os.killpg(run.pid, signal.SIGKILL)  # the worker left behind, if any
+            lane_journals = list((private_dirs / "state").glob("journal-*.lane-*.json"))
+            assert lane_journals, "the dead lane's journal is on disk"
+            assert registers()[0] == 77, "nothing could put the lane's write back yet"
+            nxt = subprocess.run([sys.executable, "-m", "pytest", str(private_dirs / "next"), "--bench", str(bench),
+                                  "-p", "no:cacheprovider", "-q"], cwd=REPO, capture_output=True, text=True,
+                                 timeout=120)
+            assert nxt.returncode == 0 and "hil bench recovery: a previous run" in nxt.stdout, nxt.stdout[-2000:]
+        else:
+            assert "hil bench recovery: a previous run" in out, out[-3000:]
+        assert registers() == [0, 0], out[-3000:]
+    left = list((private_dirs / "state").glob("journal-*.json"))
+    assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
+
+
+def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs, monkeypatch):
+    """A worker that says it left the PLC changed (its safety report) fails the controller's run, whatever the
+    tests' outcomes, and the run's word on the PLC names the lane."""
+    from hil.plugin.safety import AS_FOUND, PLC_LEFT
+    config = SimpleNamespace(stash={}, pluginmanager=SimpleNamespace(get_plugin=lambda name: None))
+    config.stash[lanes._LANES_LEFT] = {}
+    for worker, said in (("gw0", AS_FOUND), ("gw1", "the PLC is NOT as it was found: 1 element still changed")):
+        lanes.pytest_testnodedown(SimpleNamespace(config=config, gateway=SimpleNamespace(id=worker),
+                                                  workeroutput={lanes.LEFT: said}), None)
+    session = SimpleNamespace(config=config, exitstatus=0)
+    monkeypatch.setattr(lanes, "worker_lane", lambda config: None)
+    lanes.pytest_sessionfinish(session)
+    assert session.exitstatus == pytest.ExitCode.TESTS_FAILED
+    assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
