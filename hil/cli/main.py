@@ -338,6 +338,9 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             if args.lg_place or args.lg_reserve:
                 raise InvalidValue("--lg-place/--lg-reserve name one place for one bench: with several --bench, "
                                    "name each bench's place in its profile's [labgrid] section")
+            if args.lanes is not None:
+                raise InvalidValue("--lanes runs one bench's lanes side by side: several --bench already run in "
+                                   "parallel, one process each — give --lanes with one --bench")
             from hil.cli.many import run_many
             return run_many(args.bench, args.target, args.junitxml, extra, console, html=args.html)
         args.bench = args.bench[0] if args.bench else None

@@ -51,6 +51,8 @@ _LANES_LEFT = pytest.StashKey[dict]()
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", MARKER)
+    if distributed(config) and getattr(config.option, "dist", "no") == "each":
+        config.pluginmanager.register(_Collected(), "hil-lanes-collected")
 
 
 def lane_of(item: pytest.Item) -> str:
@@ -141,6 +143,26 @@ def pytest_configure_node(node: Any) -> None:
     state = node.config.stash.get(BENCH_SESSION, None)
     if state is not None and state.leased:
         node.workerinput[LEASE] = os.getpid()
+
+
+class _Collected:
+    """A ``--dist each`` controller's count of the run's tests: each worker collected its own lanes' tests, and
+    pytest-xdist takes the last worker's count for the run's (its progress would pass 100 %) — the sum instead."""
+
+    def __init__(self) -> None:
+        self.per_worker: dict[str, int] = {}
+        self.session: pytest.Session | None = None
+
+    def pytest_sessionstart(self, session: pytest.Session) -> None:
+        self.session = session
+
+    @pytest.hookimpl(optionalhook=True)
+    def pytest_xdist_node_collection_finished(self, node: Any, ids: list[str]) -> None:
+        self.per_worker[node.gateway.id] = len(ids)
+
+    def pytest_runtest_logstart(self) -> None:
+        if self.session is not None and self.per_worker:
+            self.session.testscollected = sum(self.per_worker.values())
 
 
 @pytest.hookimpl(optionalhook=True)
