@@ -136,6 +136,17 @@ def lease(config: pytest.Config) -> None:
         dsession._max_worker_restart = 0
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """A lane goes on only while the controller that holds the run's locks does: a controller killed took its locks
+    with it, and another run may take the PLC — this lane stops (its teardown still puts its writes back)."""
+    given = getattr(item.config, "workerinput", None)
+    holder = given.get(LEASE) if given else None
+    if holder and os.getppid() != holder:
+        pytest.exit(f"hil: the run's controller (pid {holder}) is gone, and the bench's locks with it: lane "
+                    f"{worker_lane(item.config)} stops", returncode=pytest.ExitCode.INTERRUPTED)
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_configure_node(node: Any) -> None:
     if getattr(node.config.option, "dist", "no") == "each":
