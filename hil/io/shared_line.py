@@ -14,8 +14,8 @@ The mark is set while the line is held and left as the holder leaves it on relea
 reply — or was killed in the middle of an exchange — makes the next one resynchronise before its request rather
 than take another lane's late reply for its own answer.
 
-Turns are not equal: a process is in the foreground (the default) or the background (:func:`run_in_background`:
-a run's named lanes, beside its main lane).  A background client takes the line only while no foreground client
+Turns are not equal in a run with lanes: a process is in the foreground (the main lane) or the background (its
+named lanes), as :func:`run_in_background` says; a process that says neither takes plain turns.  A background client takes the line only while no foreground client
 wants it: a foreground one holds a shared lock on a second file (``….want``) from before it asks for the line
 until :data:`LINGER` after it let go of it (so across back-to-back exchanges), and a background one must take that
 file's lock exclusively before it asks.  So the main lane runs as it would alone but for a background exchange
@@ -36,14 +36,15 @@ from hil.core.lock import lock_dir, open_lock_file, shared_dir
 
 #: the mark's two values (one byte at the start of the file)
 _SUSPECT, _CLEAN = b"1", b"0"
-_background = False
+_background: bool | None = None  # None: plain turns (no lanes); False: the foreground; True: the background
 #: how long a foreground client keeps the line wanted after an exchange: longer than a client takes between two
 #: back-to-back exchanges (a decode and the next encode), shorter than a poll's pause
 LINGER = 0.03
 
 
 def run_in_background(yes: bool = True) -> None:
-    """This process's clients of a shared line take it only while no foreground process's client wants it."""
+    """This process's clients of a shared line take it only while no foreground process's client wants it (``yes``),
+    or are the foreground and keep it wanted across their back-to-back exchanges (``not yes``)."""
     global _background
     _background = yes
 
@@ -53,7 +54,7 @@ class SharedLine:
 
     ``taken(suspect)`` is called once the line is this client's, with whether the previous holder left a late reply
     possible (or died holding the line); ``leaving()`` as it lets go, and says whether one is possible now.
-    ``background``: this client's turn (None: the process's, :func:`run_in_background`)."""
+    ``background``: this client's turn, True or False (None: the process's, :func:`run_in_background`)."""
 
     def __init__(self, device: str, *, taken: Callable[[bool], None], leaving: Callable[[], bool],
                  background: bool | None = None) -> None:
@@ -68,7 +69,7 @@ class SharedLine:
         self._closing = False  # closed while held: the file goes when the last hold ends
         self._taken = taken
         self._leaving = leaving
-        self._background = False  # how the hold in progress was taken
+        self._background: bool | None = None  # how the hold in progress was taken
         self._turn = background
         self._wanting = False  # the shared lock on the want file is held (a foreground client, until LINGER after)
         self._unwant_timer: threading.Timer | None = None
@@ -120,6 +121,9 @@ class SharedLine:
 
     def _take(self) -> None:
         self._background = _background if self._turn is None else self._turn  # the release matches it
+        if self._background is None:  # plain turns: no lane is anyone's background
+            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            return
         if not self._background:
             if self._unwant_timer is not None:
                 self._unwant_timer.cancel()
