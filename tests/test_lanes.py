@@ -107,21 +107,22 @@ def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:  
 
 def test_two_processes_take_turns_on_one_paced_line_with_no_reply_crossed(private_dirs):
     """Two clients in two processes on ``hil emulate``'s paced pty, each writing and reading back its own register
-    back to back: every exchange is whole (no process reads the other's reply), so 0 wrong values."""
+    back to back (60 rounds each): every exchange is whole (no process reads the other's reply), so 0 wrong
+    values."""
     profile = private_dirs / "emulated.toml"
     profile.write_text(EMULATOR_BENCH.read_text().replace("[emulator]\n", f'[emulator]\nline = "{LINE}"\n', 1))
     ctx = multiprocessing.get_context("spawn")
     with emulate_process(profile, 1.0, {"fatek-serial": "--fatek-serial"}) as where:
         url = f"fatek+serial://{where['fatek-serial']}?baudrate=115200&bytesize=7&parity=E&station=1"
         out = ctx.Queue()
-        procs = [ctx.Process(target=_exchange_own_register, args=(url, reg, 150, out)) for reg in ("R1000", "R1001")]
+        procs = [ctx.Process(target=_exchange_own_register, args=(url, reg, 60, out)) for reg in ("R1000", "R1001")]
         for proc in procs:
             proc.start()
         for proc in procs:
             proc.join(120)
         results = sorted(out.get(timeout=5) for _ in procs)
     assert [(reg, wrong) for reg, wrong, _ in results] == [("R1000", 0), ("R1001", 0)]
-    assert all(requests >= 300 for _, _, requests in results)
+    assert all(requests >= 120 for _, _, requests in results)
 
 
 # -- lane journals ----------------------------------------------------------------------------------------------
@@ -181,9 +182,9 @@ def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dir
     found (no journal left), and the run is PASSED."""
     with _paced_emulator(private_dirs) as where:
         bench = _bench_on_the_paced_pty(private_dirs, where)
-        # the RTC suite's set, freeze and read-out tests (its midnights and running clock are a bench second each)
+        # the RTC suite's sets and read-outs (its midnights and running clock are a bench second each)
         run = _lanes_run(private_dirs, bench, str(REPO / "suites" / "test_smoke.py"),
-                         str(REPO / "suites" / "test_rtc.py"), "-k", "smoke or round_trip or r4135 or m1952")
+                         str(REPO / "suites" / "test_rtc.py"), "-k", "smoke or sunday or r4135 or overwrites")
     out = run.stdout
     assert run.returncode == 0, out[-3000:]
     workers = {}
@@ -193,7 +194,7 @@ def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dir
     assert len(rtc) == 1 and len(smoke) == 1 and rtc != smoke, workers
     import xml.etree.ElementTree as ET
     cases = [(c.get("classname"), c.get("name")) for c in ET.parse(private_dirs / "junit.xml").getroot().iter("testcase")]
-    assert len(cases) == len(set(cases)) and len(cases) >= 9, f"every test once: {sorted(cases)}"
+    assert len(cases) == len(set(cases)) and len(cases) >= 8, f"every test once: {sorted(cases)}"
     assert "hil: PASSED" in out or "PASSED" in out.splitlines()[-1], out[-1500:]
     left = list((private_dirs / "state").glob("journal-*.json"))
     assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
