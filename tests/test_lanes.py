@@ -136,6 +136,9 @@ def test_a_lanes_journal_is_named_by_its_lane_and_found_beside_the_runs(tmp_path
     found = own.lanes()
     assert [(j.lane, j.elements()) for j in found] == [("gw1", {"R1000": 5})]
     assert lane.lanes() == [], "a lane's journal has no lanes of its own"
+    from hil.core.journal import inspect  # what hil restore --show lists: a lane's file is a journal of the PLC too
+    shown_key, shown, refused = inspect(lane.path)
+    assert (shown_key, refused, shown.lane, shown.elements()) == (key, None, "gw1", {"R1000": 5})
     with pytest.raises(Exception, match="lane name"):
         journal_path(key, tmp_path, "../x")
 
