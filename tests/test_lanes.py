@@ -20,7 +20,7 @@ from types import SimpleNamespace
 import pytest
 
 from hil.core.journal import Journal, journal_path, lane_of
-from hil.io.shared_line import LINGER, SharedLine
+from hil.io.shared_line import SharedLine
 from hil.io.url import parse_target
 from hil.plugin import lanes
 from tests.conftest import EMULATOR_BENCH, REPO
@@ -67,10 +67,13 @@ def test_a_holder_killed_mid_exchange_makes_the_next_one_resynchronise(private_d
     line.close()
 
 
-def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(private_dirs):
+def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(private_dirs, monkeypatch):
     """A background client (a named lane) asks only while no foreground client (the main lane) wants the line:
     during an exchange and for LINGER after it, so between back-to-back exchanges it cannot get in; once the
-    foreground client pauses it can."""
+    foreground client pauses it can.  (LINGER made a second here: a loaded host's stall between two holds must
+    not pass for a pause.)"""
+    from hil.io import shared_line
+    monkeypatch.setattr(shared_line, "LINGER", 1.0)
     device = str(private_dirs / "ttyFAKE")
     Path(device).touch()
     fore = SharedLine(device, taken=lambda s: None, leaving=lambda: False, background=False)
@@ -89,7 +92,7 @@ def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(privat
         with fore:
             pass
         assert not got.is_set(), "a background exchange came between two back-to-back foreground ones"
-    assert got.wait(10 * LINGER + 5), "the foreground client paused: the background one must get the line"
+    assert got.wait(shared_line.LINGER + 10), "the foreground client paused: the background one must get the line"
     asker.join()
     fore.close()
     back.close()
@@ -190,6 +193,7 @@ def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dir
                          str(REPO / "suites" / "test_rtc.py"), "-k", "smoke or sunday or r4135 or overwrites")
     out = run.stdout
     assert run.returncode == 0, out[-3000:]
+    assert "ended without a word on the PLC" not in out, "each lane said how it left the PLC (its safety report)"
     workers = {}
     for worker, outcome, nodeid in re.findall(r"\[(gw\d)\] \[ *\d+%\] (PASSED|SKIPPED|FAILED|ERROR) (\S+)", out):
         workers.setdefault(nodeid.split("::")[0], set()).add(worker)
@@ -256,13 +260,14 @@ def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
                                  timeout=120)
             assert nxt.returncode == 0 and "hil bench recovery: a previous run" in nxt.stdout, nxt.stdout[-2000:]
         else:
+            assert "lane gw0 ended without a word on the PLC" in out, out[-3000:]
             assert "hil bench recovery: a previous run" in out, out[-3000:]
         assert registers() == [0, 0], out[-3000:]
     left = list((private_dirs / "state").glob("journal-*.json"))
     assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
 
 
-def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs, monkeypatch):
+def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs):
     """A worker that says it left the PLC changed (its safety report) fails the controller's run, whatever the
     tests' outcomes, and the run's word on the PLC names the lane."""
     from hil.plugin.safety import AS_FOUND, PLC_LEFT
@@ -272,8 +277,7 @@ def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs, monkeypa
         lanes.pytest_testnodedown(SimpleNamespace(config=config, gateway=SimpleNamespace(id=worker),
                                                   workeroutput={lanes.LEFT: said}), None)
     session = SimpleNamespace(config=config, exitstatus=0)
-    monkeypatch.setattr(lanes, "worker_lane", lambda config: None)
-    lanes.pytest_sessionfinish(session)
+    lanes._the_runs_word(session)
     assert session.exitstatus == pytest.ExitCode.TESTS_FAILED
     assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
 

@@ -26,14 +26,13 @@ gaps (README, "Bench time").  What keeps it safe:
 from __future__ import annotations
 
 import os
-import sys
 from typing import Any
 
 import pytest
 
 from hil.core.registry import SCHEMES
 from hil.io.shared_line import run_in_background
-from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce
+from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce, say
 from hil.plugin.stash import BENCH_SESSION
 
 MARKER = ("lane(name): the lane of this module's tests in a run with lanes (hil run --lanes N): tests of one lane run "
@@ -46,7 +45,7 @@ LEASE = "hil_lane_lease"
 SPLIT = "hil_lanes"
 #: in a worker's ``workeroutput``: what it says of the PLC at its end (:data:`hil.plugin.safety.PLC_LEFT`)
 LEFT = "hil_plc_left"
-_LANES_LEFT = pytest.StashKey[dict]()
+_LANES_LEFT = pytest.StashKey[dict]()  # worker id → what it said of the PLC (None: nothing)
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -181,57 +180,59 @@ def pytest_testnodedown(node: Any, error: object | None) -> None:
     left = node.config.stash.get(_LANES_LEFT, None)
     if left is None:
         return
-    said = getattr(node, "workeroutput", {}).get(LEFT) if error is None else None
-    left[node.gateway.id] = said or f"lane {node.gateway.id} ended without saying (its process died: {error})"
+    # None: the lane said nothing of the PLC (its process died, or it never got to its safety report)
+    left[node.gateway.id] = (getattr(node, "workeroutput", {}).get(LEFT) or None) if error is None else None
 
 
-@pytest.hookimpl(trylast=True)
-def pytest_sessionfinish(session: pytest.Session) -> None:
-    """A worker: say how it left the PLC.  The controller: the run's word on the PLC, from every lane's."""
+@pytest.hookimpl(wrapper=True)
+def pytest_sessionfinish(session: pytest.Session):  # noqa: ANN201 - a wrapper
+    """After every other session-end hook (the safety report's last restores among them):
+
+    * a worker says how it left the PLC — inside pytest-xdist's own wrapper, which sends ``workeroutput`` once
+      this returns;
+    * the controller gives the run's word on the PLC from every lane's — inside the report's wrapper, which gives
+      the verdict from the exit status this may set."""
+    result = yield
     config = session.config
     if worker_lane(config) is not None:
         config.workeroutput[LEFT] = config.stash.get(PLC_LEFT, "")  # type: ignore[attr-defined]
-        return
-    lanes = config.stash.get(_LANES_LEFT, None)
-    if lanes is None:
-        return
-    died = [lane for lane, said in lanes.items() if said.startswith(f"lane {lane} ended without")]
-    if died:
-        recovered = _replay(config)
-        if recovered is not None:
-            lanes.update({lane: AS_FOUND for lane in died} if recovered else {})
+    elif config.stash.get(_LANES_LEFT, None) is not None:
+        _the_runs_word(session)
+    return result
+
+
+def _the_runs_word(session: pytest.Session) -> None:
+    config = session.config
+    lanes = config.stash[_LANES_LEFT]
+    died = [lane for lane, said in lanes.items() if said is None]
+    if died:  # replayed by this run, which still holds the locks: as found only if that put everything back
+        say(config, f"hil: lane{'s' if len(died) > 1 else ''} {', '.join(sorted(died))} ended without a word on the "
+                    f"PLC (a process that died): this run replays the journals now", bold=True, yellow=True)
+        word = AS_FOUND if _replay(config) else "its process died, and what it left is not known to be put back"
+        lanes.update(dict.fromkeys(died, word))
     wrong = {lane: said for lane, said in lanes.items() if said != AS_FOUND}
     config.stash[PLC_LEFT] = AS_FOUND if not wrong else "; ".join(
         f"lane {lane}: {said}" for lane, said in sorted(wrong.items()))
     if wrong:
-        _say(config, f"hil: {config.stash[PLC_LEFT]}")
+        say(config, f"hil: {config.stash[PLC_LEFT]}", bold=True, red=True)
         if session.exitstatus == 0:
             session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
-def _replay(config: pytest.Config) -> bool | None:
+def _replay(config: pytest.Config) -> bool:
     """A lane died: open the bench again (the locks are still this run's) and replay every journal now; whether
-    that put everything back (None: it could not be tried)."""
+    that was done and put everything back, read back."""
     state = config.stash[BENCH_SESSION]
     try:
         state.open()
     except (Exception, pytest.fail.Exception) as exc:  # noqa: BLE001 - said; the lane's journal stays for later
-        _say(config, f"hil: a lane died and its journal could not be replayed now ({exc}): the next run or "
-                     f"`hil restore` does it")
-        return None
+        say(config, f"hil: a lane died and its journal could not be replayed now ({exc}): the next run or "
+                    f"`hil restore` does it", bold=True, red=True)
+        return False
     try:
         recovery = state.recovery
         if recovery is not None and recovery.needed:
             announce(config, recovery)
-        return recovery is None or recovery.ok
+        return recovery is not None and recovery.ok
     finally:
         state.close_wire()
-
-
-def _say(config: pytest.Config, text: str) -> None:
-    reporter = config.pluginmanager.get_plugin("terminalreporter")
-    if reporter is not None:
-        reporter.ensure_newline()
-        reporter.write_line(text, bold=True, red=True)
-    else:
-        print(text, file=sys.stderr)

@@ -96,7 +96,6 @@ class BenchSession:
         self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
         self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
         self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
-        self.leased = False  # a run with lanes' controller: the wire closed, the locks kept for its workers
         self._profile: Profile | None = None
 
     @property
@@ -156,6 +155,11 @@ class BenchSession:
         if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
             self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
 
+    @property
+    def leased(self) -> bool:
+        """The locks are held with the wire closed: a run with lanes' controller, for its workers."""
+        return self.bench is None and self.lock is not None
+
     def close_wire(self) -> None:
         """Close the bench's wire but keep the locks: a run with lanes' controller, for its workers."""
         try:
@@ -163,13 +167,11 @@ class BenchSession:
                 self.bench.close()
         finally:
             self.bench = None
-            self.leased = self.lock is not None
 
     def release(self) -> None:
         try:
             self.close_wire()
         finally:
-            self.leased = False
             for lock in (self.plc_lock, self.lock, self.place_lock):
                 if lock is not None:
                     lock.release()

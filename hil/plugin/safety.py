@@ -26,15 +26,20 @@ PLC_LEFT = pytest.StashKey[str]()
 AS_FOUND = "the PLC is as it was found (every value written was put back and read back)"
 
 
-def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.bench.guard.Recovery
-    text = recovery.summary()
-    config.stash.setdefault(RECOVERY_NOTES, []).append(text)
+def say(config: pytest.Config, text: str, **markup: bool) -> None:
+    """A line of the bench's safety on the console, whatever the verbosity (stderr without a terminal reporter)."""
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
         reporter.ensure_newline()
-        reporter.write_line(text, bold=True, red=not recovery.ok, yellow=recovery.ok)
+        reporter.write_line(text, **markup)
     else:
         print(text, file=sys.stderr)
+
+
+def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.bench.guard.Recovery
+    text = recovery.summary()
+    config.stash.setdefault(RECOVERY_NOTES, []).append(text)
+    say(config, text, bold=True, red=not recovery.ok, yellow=recovery.ok)
 
 
 class BenchRecoveryFailed(Exception):
@@ -98,23 +103,17 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         f"the PLC is NOT as it was found: {len(left)} element{'s' if len(left) != 1 else ''} still changed")
     if error is None and not left:
         return
-    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
     if not left:
-        if not retried:
-            return
-        text = "hil: every value a failed restore had left changed was restored at the end of the session"
-        (reporter.write_line(text, yellow=True) if reporter else print(text, file=sys.stderr))
+        if retried:
+            say(session.config, "hil: every value a failed restore had left changed was restored at the end of "
+                                "the session", yellow=True)
         return
     journal = getattr(bench, "journal", None)
     where = f" (kept in {journal.path}; the next run or `hil restore` puts them back)" if journal is not None else ""
     text = f"hil: the PLC is NOT as it was found — still unrestored{where}: {'; '.join(left)}"
     if error is not None:
         text += f" — last error: {error}"
-    if reporter is not None:
-        reporter.ensure_newline()
-        reporter.write_line(text, bold=True, red=True)
-    else:
-        print(text, file=sys.stderr)
+    say(session.config, text, bold=True, red=True)
     if session.exitstatus == 0:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
 

@@ -3,7 +3,8 @@
 Every test's writes are put back (and read back) when it ends.  On port 0 at 9600 bit/s that costs a PID test more
 than the test itself: it reads the originals of a FUN86 box's operand blocks, writes the test's values, then
 writes the originals back and reads them back — and the next test reads them again as its own originals.  Yet
-those words (SV, Os, the gains, OR, WR of a box that is off; the bench's scratch) are set by every test of the
+those words (SV, Os and the gains of a box that is off — never OR and WR, FUN86's outputs; the bench's
+scratch) are set by every test of the
 suite before it relies on them, and between two of its tests their values are as arbitrary as a bench's
 originals are.  A suite module marked ``working_state("pid", "scratch")`` has them journaled as usual (on disk
 before the first write; recovery replays them after a crash) but put back once, when the module's last test ends

@@ -277,7 +277,8 @@ class Rtc:
         read-out.
 
         An accepted set is read back: the PLC's read-out, copied from the chip by a scan after the set (proved by
-        the scan counter where the bench declares one, by port 0's rule otherwise), must show the time sent —
+        the scan counter where the bench declares one, by port 0's rule otherwise or where the profile says the
+        port keeps it — FbsPlc.settle), must show the time sent —
         a PLC that drops the set while M1955 stays 0 raises :class:`RtcSetLost`.  Where M1955 was already 1 (an
         earlier refusal) and still is, that read-back is the verdict on a valid time: whether an accepted set clears
         M1955 is the spec's [our choice] (RTC-VAL-4), so the 1 may be the earlier refusal's."""
