@@ -28,3 +28,14 @@ def _private_hil_state(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("HIL_HISTORY_URL", "off")  # the run history only where a test turns it on (test_history*)
     if "HIL_LOCK_DIR" not in __import__("os").environ:
         monkeypatch.setenv("HIL_LOCK_DIR", str(base / "locks"))
+
+
+@pytest.fixture(autouse=True)
+def _no_process_left_behind():
+    """What a test started in a group of its own (tests/processes.py) and did not end — it failed or was
+    interrupted first — is ended here: an interrupted run leaves no ``hil emulate`` or worker behind."""
+    from tests import processes
+    before = processes.running()  # a module's or the session's emulator: ended by its own fixture
+    yield
+    processes.end_all(but=before)
+

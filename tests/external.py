@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Iterator
 
 from hil.core.registry import WIRES
+from tests import processes
 from tests.conftest import REPO
 
 #: the rig's banks (hil.families.fbs.sim.rig): the fault → its first coil when the rig starts at coil 0
@@ -64,21 +65,19 @@ def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
     with SIGINT; it must exit cleanly."""
     ptys = {wire.option for wire in WIRES.values() if wire.kind == "pty"}
     options = [arg for option in wires.values() for arg in (option, *(() if option in ptys else ("127.0.0.1:0",)))]
-    proc = subprocess.Popen(
+    proc = processes.spawn(
         [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
          "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
-        yield _read_endpoints(proc, set(wires), timeout=60)  # start-up: seconds, more on a busy host
-    finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=30)  # generous: CI hosts run several of these in parallel
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 0, f"hil emulate exited with {proc.returncode}: {proc.stderr.read()}"
+        yield _read_endpoints(proc, set(wires), timeout=120)  # hang guard: start-up takes seconds
+    except BaseException:
+        processes.end(proc, signal.SIGINT, grace=3)  # a failed or interrupted test: no clean exit to prove
+        raise
+    # hang guard: hil emulate exits at once on SIGINT
+    returncode = processes.end(proc, signal.SIGINT, grace=60)
+    assert returncode == 0, f"hil emulate exited with {returncode}: {proc.stderr.read()}"
 
 
 def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: float, wire: str = "fatek-tcp",

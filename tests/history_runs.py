@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 
 #: A bench test file: two tests, one that waits for the harness to say go (the harness does something to the run
@@ -66,7 +67,7 @@ def env(url: str, **extra: str) -> dict[str, str]:
 def pytest_run(args: list[str], url: str, cwd: Path, **extra: str) -> subprocess.Popen:
     """One session of the pytest plugin in its own process (its output in ``cwd/out.txt``)."""
     out = open(cwd / "out.txt", "wb")
-    return subprocess.Popen([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", *args], cwd=cwd,
+    return processes.spawn([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", *args], cwd=cwd,
                             env=env(url, **extra), stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
 
 

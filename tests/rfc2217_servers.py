@@ -29,6 +29,8 @@ import serial.rfc2217
 
 from hil.io.serial_line import is_pty
 
+from tests import processes
+
 SER2NET = shutil.which("ser2net") or shutil.which("ser2net", path="/usr/sbin:/usr/local/sbin:/sbin")
 NO_SER2NET = "ser2net is not installed (Debian: apt-get install ser2net; .ci/run installs it)"
 
@@ -89,7 +91,7 @@ def ser2net(device: str, line: str = "9600e71", *, raw_device: str | None = None
         path = os.path.join(tmp, "ser2net.yaml")
         with open(path, "w") as f:
             f.write("".join(config))
-        proc = subprocess.Popen([SER2NET, "-n", "-d", "-c", path, "-P", os.path.join(tmp, "ser2net.pid")],
+        proc = processes.spawn([SER2NET, "-n", "-d", "-c", path, "-P", os.path.join(tmp, "ser2net.pid")],
                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 text=True)
         try:

@@ -21,6 +21,7 @@ from hil.core.lock import BenchBusy, BenchLock, lock_dir, lock_key
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.rtc_time import RtcTime
 from hil.core.journal import Journal
+from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
@@ -440,7 +441,7 @@ def test_sighup_and_sigterm_unwind_and_restore(tmp_path, emulated, signame):
     bench = Bench(profile)
     try:
         before = bench.raw.read("R1000")
-        child = subprocess.Popen([sys.executable, "-m", "pytest", str(tmp_path / "test_sleeper.py"), "-s", "-q",
+        child = processes.spawn([sys.executable, "-m", "pytest", str(tmp_path / "test_sleeper.py"), "-s", "-q",
                                   "--bench", str(profile.path), "-p", "no:cacheprovider", "-p", "no:hypothesispytest"],
                                  cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                  env=os.environ.copy())

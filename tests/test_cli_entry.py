@@ -16,6 +16,8 @@ from hil.cli import main as cli
 from hil.cli.main import main
 from hil.cli.run import pytest_args, selects_tests
 
+from tests import processes
+
 REPO = Path(__file__).resolve().parent.parent
 EXIT_USAGE, EXIT_INTERNAL = 4, 3
 
@@ -134,7 +136,7 @@ def test_emulate_clock_starts_at_host_time(tmp_path: Path) -> None:
     from hil.families.fbs.device.plc import FbsPlc
     from hil.core.timebase import HostTimebase
     from hil.families.fbs.transport.factory import open_transport
-    proc = subprocess.Popen([sys.executable, "-m", "hil", "emulate", "--fatek-tcp", "127.0.0.1:0", "--no-live"],
+    proc = processes.spawn([sys.executable, "-m", "hil", "emulate", "--fatek-tcp", "127.0.0.1:0", "--no-live"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     try:
         kind, address = proc.stdout.readline().split()

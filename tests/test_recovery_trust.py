@@ -27,6 +27,7 @@ from hil.core.journal import Journal, JournalError, journal_path
 from hil.core.lock import BenchLock, lock_key, plc_key
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
+from tests import processes
 from tests.broken import BrokenEmulator  # noqa: F401 - the factory tests.broken_emulate finds here
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
@@ -544,7 +545,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
             theirs = subprocess.run(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
                                     capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
             assert theirs.returncode == 3 and "is in use by" in theirs.stdout, theirs.stdout + theirs.stderr
-        other = subprocess.Popen(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
+        other = processes.spawn(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         try:
             assert other.stdout.readline().strip() == "held"

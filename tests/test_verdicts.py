@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 from junitparser import Error, Failure, JUnitXml, Skipped
 
+from tests import processes
 from tests.conftest import EMULATOR_BENCH
 
 TINY = '''
@@ -53,7 +54,7 @@ def run_tiny(tmp_path: Path, source: str, *args: str, signal_after: str | None =
            f"--junitxml={out / 'junit.xml'}", "-o", "junit_family=xunit1", "--hil-html", str(out / "report.html"),
            *args]
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
-    child = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    child = processes.spawn(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     seen: list[str] = []
     if signal_after is not None:
         assert child.stdout is not None
@@ -257,7 +258,7 @@ def test_hil_run_with_two_benches_stopped_by_sigterm_merges_interrupted_reports(
     (out).mkdir()
     (out / "junit.xml").write_text("<testsuites><testsuite name='earlier' tests='1'/></testsuites>")  # a stale pass
     env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "PY_COLORS")}
-    parent = subprocess.Popen([sys.executable, "-m", "hil.cli.main", "run", *benches, "--junitxml",
+    parent = processes.spawn([sys.executable, "-m", "hil.cli.main", "run", *benches, "--junitxml",
                                str(out / "junit.xml"), "--", str(suite), "-s", "--rootdir", str(suite),
                                "-p", "no:hypothesispytest", "--assert=plain"],
                               cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
