@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 from pathlib import Path
 
 import pytest
@@ -39,3 +40,58 @@ def _no_process_left_behind():
     yield
     processes.end_all(but=before)
 
+
+# -- the gate's tiers and a new order every run (pyproject's markers; README "The project's tests") ----------------
+# The order is shuffled here rather than by pytest-randomly: installed, that plugin would also shuffle the pytest
+# runs these tests start (pytester's and subprocesses'), whose order is what those tests are about.
+def pytest_addoption(parser):
+    parser.addoption("--matrix", action="store_true",
+                     help="also run the exhaustive real-time matrix (tests marked matrix; scripts/e2e_matrix.py)")
+    parser.addoption("--order-seed", type=int, default=None,
+                     help="shuffle the tests with this seed (default: a new one, printed in the header); "
+                          "--order-seed=0 keeps the files' order")
+
+
+def _order_seed(config) -> int:
+    workerinput = getattr(config, "workerinput", None)
+    if workerinput is not None:  # a pytest-xdist worker: the controller's seed, so that every worker agrees
+        return workerinput["hil_order_seed"]
+    if not hasattr(config, "_hil_order_seed"):
+        given = config.getoption("--order-seed")
+        config._hil_order_seed = given if given is not None else random.SystemRandom().randrange(1, 2**32)
+    return config._hil_order_seed
+
+
+def pytest_configure_node(node):
+    node.workerinput["hil_order_seed"] = _order_seed(node.config)
+
+
+def pytest_report_header(config):
+    return f"tests shuffled with --order-seed={_order_seed(config)}"
+
+
+def pytest_collection_modifyitems(config, items):
+    """The matrix only when asked for; the modules in a shuffled order and each module's tests too (a module's
+    tests stay together: its fixtures are set up once); then the e2e tests after the rest (a stable sort)."""
+    if not config.getoption("--matrix"):
+        deselected = [item for item in items if item.get_closest_marker("matrix")]
+        if deselected:
+            config.hook.pytest_deselected(items=deselected)
+            items[:] = [item for item in items if not item.get_closest_marker("matrix")]
+    seed = _order_seed(config)
+    if seed:
+        shuffle = random.Random(seed).shuffle
+        modules: dict[str, list] = {}
+        for item in items:
+            modules.setdefault(item.nodeid.split("::")[0], []).append(item)
+        groups = list(modules.values())
+        shuffle(groups)
+        for group in groups:
+            shuffle(group)
+        items[:] = [item for group in groups for item in group]
+    items.sort(key=lambda item: item.get_closest_marker("e2e") is not None)
+
+
+def pytest_sessionfinish(session):
+    from tests import processes
+    processes.end_all(grace=0)

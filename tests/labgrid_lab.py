@@ -2,7 +2,7 @@
 the OS), places made with ``labgrid-client`` as a lab admin would.
 
 labgrid lives in its own environment (its ``pyserial-labgrid`` fork must not replace the test environment's
-pyserial): ``.ci/run`` makes ``.venv-labgrid`` with ``pip install -e '.[labgrid]'``; ``$HIL_LABGRID_BIN`` or a
+pyserial): ``scripts/e2e_matrix.py`` makes ``.venv-labgrid`` with ``pip install -e '.[labgrid]'``; ``$HIL_LABGRID_BIN`` or a
 ``labgrid-coordinator`` on PATH work too.
 """
 
@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
+from tests import processes
 from tests.conftest import REPO
 
 LABGRID = "labgrid==26.0.1"
@@ -42,7 +43,7 @@ def ser2net() -> str | None:
 
 MISSING = (None if labgrid_bin() else
            f"labgrid is not installed: python3 -m venv .venv-labgrid && .venv-labgrid/bin/pip install -e '.[labgrid]' "
-           f"(as .ci/run does), or set HIL_LABGRID_BIN") or \
+           f"(as scripts/e2e_matrix.py does), or set HIL_LABGRID_BIN") or \
           (None if ser2net() else "ser2net is not installed (apt-get install ser2net, as .ci/run does)")
 
 
@@ -93,12 +94,12 @@ def running_lab(directory: Path, exporter: str, places: dict[str, tuple[str, str
     started: list[subprocess.Popen] = []
     try:
         with open(log, "w") as out:  # the coordinator keeps its places in its working directory
-            started.append(subprocess.Popen([str(bin_ / "labgrid-coordinator"), "-l", "127.0.0.1:0"], cwd=directory,
+            started.append(processes.spawn([str(bin_ / "labgrid-coordinator"), "-l", "127.0.0.1:0"], cwd=directory,
                                             stdout=out, stderr=subprocess.STDOUT, start_new_session=True,
                                             env={**os.environ, "PYTHONUNBUFFERED": "1"}))
         address = wait_for(log, r"^listening on (\S+:\d+)$", 30, started[0]).group(1)
         with open(directory / "exporter.log", "w") as out:  # its own session: ser2net children stop with it
-            started.append(subprocess.Popen([str(bin_ / "labgrid-exporter"), "-c", address, "-n", "lab-host",
+            started.append(processes.spawn([str(bin_ / "labgrid-exporter"), "-c", address, "-n", "lab-host",
                                              "--hostname", "127.0.0.1", "exporter.yaml"], cwd=directory, stdout=out,
                                             stderr=subprocess.STDOUT, start_new_session=True,
                                             env={**os.environ, "PYTHONUNBUFFERED": "1"}))

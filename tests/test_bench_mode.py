@@ -10,7 +10,6 @@ that a new kind of skip fails this test.  The bench-like profile declares what a
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import subprocess
@@ -19,6 +18,7 @@ import time
 
 import pytest
 
+from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
@@ -58,26 +58,30 @@ def outcome_counts(out: str) -> dict[str, int]:
     return {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error|errors)", last)}
 
 
-@pytest.mark.timeout(600)
-def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path):
+#: the gate runs the main set over FATEK/TCP (the bench path once); the matrix (scripts/e2e_matrix.py) every run
+#: over both wires
+GATE = ("main", "fatek-tcp")
+
+
+@pytest.mark.e2e
+@pytest.mark.timeout(600)  # a hang guard
+@pytest.mark.parametrize("name, wire", [pytest.param(name, wire, marks=() if (name, wire) == GATE else pytest.mark.matrix)
+                                        for name in RUNS for wire in ("fatek-tcp", "modbus-tcp")])
+def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path, name, wire):
     emulated = tmp_path / "emulated.toml"
     emulated.write_text(bench_like(EMULATOR_BENCH.read_text()))
+    files, selected, scale = RUNS[name]
     started = time.monotonic()
-    with contextlib.ExitStack() as stack:
-        runs = {}
-        for name, (files, selected, scale) in RUNS.items():
-            for wire in ("fatek-tcp", "modbus-tcp"):
-                where = stack.enter_context(hil_emulate(emulated, scale, modbus=True))
-                bench = tmp_path / f"{name}-{wire}.toml"
-                bench.write_text(bench_over_the_wire(emulated.read_text(), where, scale, wire))
-                runs[name, wire] = subprocess.Popen(
-                    [sys.executable, "-m", "pytest", *(str(SUITES / f) for f in files), "--bench", str(bench),
-                     "--hil-run-slow", "-q", "-rsfE", "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
-                     *(("-k", selected) if selected else ())],
-                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
-                    env={**os.environ, "PYTHONUNBUFFERED": "1"})
-        outputs = {key: proc.communicate(timeout=540)[0] for key, proc in runs.items()}
-    print(f"bench mode: {len(runs)} runs in parallel took {time.monotonic() - started:.1f} s")
+    with hil_emulate(emulated, scale, modbus=True) as where:
+        bench = tmp_path / f"{name}-{wire}.toml"
+        bench.write_text(bench_over_the_wire(emulated.read_text(), where, scale, wire))
+        done = processes.run(
+            [sys.executable, "-m", "pytest", *(str(SUITES / f) for f in files), "--bench", str(bench),
+             "--hil-run-slow", "-q", "-rsfE", "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
+             *(("-k", selected) if selected else ())],
+            stderr=subprocess.STDOUT, cwd=tmp_path, env={**os.environ, "PYTHONUNBUFFERED": "1"}, timeout=540)
+    outputs = {(name, wire): done.stdout}
+    print(f"bench mode: {name} over {wire} took {time.monotonic() - started:.1f} s")
     for (name, wire), out in outputs.items():
         counts = outcome_counts(out)
         print(f"{name} over {wire}: {counts}")

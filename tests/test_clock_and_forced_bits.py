@@ -29,6 +29,8 @@ from tests.external import bench_over_the_wire, hil_emulate
 TEN_RUNS = 0.050
 REAL_TIME = time.time  # the host's wall clock, whatever a test does to time.time
 
+pytestmark = pytest.mark.e2e  # hil emulate in real time
+
 
 @pytest.fixture(scope="module")
 def emulated(tmp_path_factory):
@@ -72,6 +74,7 @@ def _a_run_that_sets_the_clock(profile, *, dies: bool = False) -> Bench:
 
 
 # -- item 5: no second lost per run ----------------------------------------------------------------------------
+@pytest.mark.matrix  # ten sessions' precision in ms: the host's load is in it
 @pytest.mark.timeout(240)  # ten sessions, each a set and an exact restore (often two sets: Guard._put_exactly): ≈ 60 s alone
 def test_ten_runs_that_set_the_clock_leave_its_offset_within_50_ms(profile):
     # Ten sessions in one process: each a new bench (guard, journal, origin) on a new connection, as ten

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from tests import processes
 from tests.external import _read_endpoints
 from tests.wheel_venv import REPO, Installed, installed_hil  # noqa: F401 - a fixture
 
@@ -42,6 +43,7 @@ def _project(tmp_path: Path) -> Path:
     return project
 
 
+@pytest.mark.e2e
 @pytest.mark.timeout(300)
 def test_the_example_project_runs_from_a_wheel_and_catches_a_broken_oven(installed_hil: Installed,
                                                                         tmp_path: Path) -> None:
@@ -77,11 +79,12 @@ def test_the_example_project_runs_from_a_wheel_and_catches_a_broken_oven(install
     assert typed.returncode == 0, typed.stdout + typed.stderr
 
 
+@pytest.mark.matrix
 @pytest.mark.timeout(300)
 def test_the_example_project_passes_against_hil_emulate_in_real_time(installed_hil: Installed,
                                                                      tmp_path: Path) -> None:
     project = _project(tmp_path)
-    emulate = subprocess.Popen([str(installed_hil.hil), "emulate", "--no-live", "--bench", "bench.toml",
+    emulate = processes.spawn([str(installed_hil.hil), "emulate", "--no-live", "--bench", "bench.toml",
                                 "--fatek-tcp", "127.0.0.1:0", "--time-scale", str(TIME_SCALE)], cwd=project,
                                env=installed_hil.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:

@@ -29,12 +29,14 @@ from pathlib import Path
 
 import pytest
 
+from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import RIG_FIRST_COIL, emulate_process
 from tests.labgrid_lab import MISSING, RunningLab, refused_port, running_lab, wait_for
 from tests.test_bench_mode import bench_like
 
-pytestmark = pytest.mark.skipif(MISSING is not None, reason=MISSING or "")
+#: the matrix, not the gate (scripts/e2e_matrix.py, which also makes .venv-labgrid): two suite runs of wall time
+pytestmark = [pytest.mark.matrix, pytest.mark.skipif(MISSING is not None, reason=MISSING or "")]
 
 #: temperature first: its polled waits do not mind the other runs starting beside A; the RTC suite's one-second
 #: windows then have the host to themselves
@@ -113,7 +115,7 @@ def start(lab: RunningLab, tmp: Path, name: str, reserve: list[str], tests: list
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(REPO), env.get("PYTHONPATH")]))
     log = tmp / f"{name}.log"
     with open(log, "w") as out:
-        proc = subprocess.Popen(
+        proc = processes.spawn(
             [str(python or sys.executable), "-m", "hil.cli.main", "run", "--bench", str(tmp / "lab.toml"),
              "--lg-coordinator", lab.coordinator, *reserve, "--junitxml", str(tmp / f"{name}.xml"),
              "--html", str(tmp / f"{name}.html"), "--", *tests, *pytest_args, "-p", "no:cacheprovider", "-rfE"],

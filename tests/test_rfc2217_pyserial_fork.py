@@ -40,6 +40,7 @@ def _installed_fork() -> Path:
     return target
 
 
+@pytest.mark.matrix  # installs the fork from the package registry: labgrid's environment, as the lab test
 @pytest.mark.timeout(400)
 def test_the_rfc2217_wire_works_with_pyserial_labgrid():
     fork = _installed_fork()

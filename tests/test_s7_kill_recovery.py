@@ -21,6 +21,7 @@ import pytest
 
 from hil.core.journal import Journal
 from hil.core.lock import lock_key
+from tests import processes
 from tests.conftest import REPO
 from tests.external import emulate_process
 
@@ -68,6 +69,7 @@ def _until_pending(key: str, child: subprocess.Popen, limit: float = 30.0) -> bo
     return Journal(key).pending
 
 
+@pytest.mark.matrix  # the gate kills FBs runs (tests/test_kill_recovery.py); the S7 recovery is in-process too
 @pytest.mark.timeout(180)  # 10–20 s; child processes start slowly on a loaded host
 def test_killed_s7_runs_leave_the_cpu_as_they_found_it(tmp_path):
     with emulate_process(S7_BENCH, TIME_SCALE, {"s7-tcp": "--s7-tcp"}) as where:
@@ -84,7 +86,7 @@ def test_killed_s7_runs_leave_the_cpu_as_they_found_it(tmp_path):
         problems, clock_left, changed_left = [], 0, 0
         for delay in DELAYS:
             label = f"SIGKILL {delay} s into the suites"
-            child = subprocess.Popen([sys.executable, "-m", "pytest", str(REPO / "suites" / "s7smart"), *inner],
+            child = processes.spawn([sys.executable, "-m", "pytest", str(REPO / "suites" / "s7smart"), *inner],
                                      cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                                      text=True)
             pending = _until_pending(key, child)

@@ -326,6 +326,7 @@ def _against_hil_emulate(defect: type, tmp_path) -> tuple[str, str]:  # noqa: AN
     return defect.__name__, run.stdout + run.stderr
 
 
+@pytest.mark.matrix  # the in-process test above catches each; tests/test_s7_wire.py has the hil emulate path
 @pytest.mark.timeout(600)
 def test_whole_domain_checks_catch_their_broken_cpu_against_hil_emulate(tmp_path):
     """Each defect above served by ``hil emulate --s7-tcp`` as a separate real-time process, reached only over the

@@ -140,7 +140,8 @@ def _soak(wire: str, seed: int) -> dict:
     return figures
 
 
-@pytest.mark.timeout(55)
+@pytest.mark.matrix  # a soak: thousands of calls a wire in real time (the gate has the faults one by one)
+@pytest.mark.timeout(120)
 @pytest.mark.parametrize("wire", WIRES)
 def test_soak_wire_faults(wire: str, capsys: pytest.CaptureFixture[str]) -> None:
     figures = _soak(wire, seed=sum(map(ord, wire)))
