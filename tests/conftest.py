@@ -15,6 +15,13 @@ EMULATOR_TARGETS = ["emulator", "emulator+fatek-tcp", "emulator+fatek-serial", "
 pytest_plugins = ["pytester"]
 
 
+def over_targets(*matrix_only: str) -> list:
+    """EMULATOR_TARGETS as parameters; those named are marked ``matrix`` (a whole suite over a slow wire costs the
+    gate CPU time that other tests of that wire already spend on the same frames)."""
+    return [pytest.param(target, marks=pytest.mark.matrix if target in matrix_only else ())
+            for target in EMULATOR_TARGETS]
+
+
 @pytest.fixture
 def emulator():
     from hil.families.fbs.sim import Emulator

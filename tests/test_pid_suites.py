@@ -23,14 +23,14 @@ from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.temperature import decode_start
 from tests.broken import replace_model
-from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
+from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
 SUITE_TESTS = 25  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
-@pytest.mark.parametrize("target", EMULATOR_TARGETS)
+@pytest.mark.parametrize("target", over_targets("emulator+modbus-rtu", "emulator+fatek-serial"))
 def test_pid_suites_pass_on_every_emulator_target(pytester, target):
     result = pytester.runpytest_inprocess(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), "--target", target)
     result.assert_outcomes(passed=SUITE_TESTS)

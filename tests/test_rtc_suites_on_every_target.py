@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
+from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 RTC_SUITES = [str(REPO / "suites" / f) for f in
               ("test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py")]
 
 
-@pytest.mark.parametrize("target", EMULATOR_TARGETS)
+@pytest.mark.parametrize("target", over_targets("emulator+modbus-rtu"))
 def test_rtc_suites_pass(pytester, target):
     result = pytester.runpytest_inprocess(*RTC_SUITES, "--bench", str(EMULATOR_BENCH), "--target", target, "-rs",
                                           "-p", "no:cacheprovider", "-p", "no:hypothesispytest")

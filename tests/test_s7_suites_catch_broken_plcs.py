@@ -246,7 +246,7 @@ def test_s7_suites_pass_on_the_emulator(pytester, target):
     assert len(passed) >= 30  # cases that share a wait are folded into one test each
 
 
-@pytest.mark.parametrize("target", ["emulator+s7-tcp", "emulator+modbus-tcp"])
+@pytest.mark.parametrize("target", ["emulator+s7-tcp", pytest.param("emulator+modbus-tcp", marks=pytest.mark.matrix)])
 @pytest.mark.parametrize("plugin, catcher", VARIANTS, ids=lambda v: _name(v) if isinstance(v, BrokenS7) else "")
 def test_s7_suites_fail_on_broken_plc(pytester, plugin, catcher, target):
     _passed, _skipped, failed = run_s7(pytester, "--target", target, plugin=plugin)
