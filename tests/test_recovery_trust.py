@@ -523,6 +523,7 @@ def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp
 
 @pytest.mark.skipif(os.getuid() != 0 or not os.path.exists("/usr/bin/python3"),
                     reason="a second user's run can only be made as root (os.setuid to nobody)")
+@pytest.mark.timeout(300)  # a hang guard: two cold starts of the system's Python as nobody (no bytecode cache)
 def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
     """Issue 25 item 4: the lock directory is shared by every user of the host, so another user's run on the same
     PLC holds the same lock (both ways round)."""
@@ -543,7 +544,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
     try:
         with BenchLock(url).acquire():  # ours first: theirs is refused, naming us
             theirs = subprocess.run(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
-                                    capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL)
+                                    capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)  # hang guard
             assert theirs.returncode == 3 and "is in use by" in theirs.stdout, theirs.stdout + theirs.stderr
         other = processes.spawn(["/usr/bin/python3", "-c", hold], preexec_fn=drop, env=env, cwd="/",
                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -553,7 +554,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
                 BenchLock(url).acquire()
         finally:
             other.stdin.close()
-            other.wait(timeout=30)
+            other.wait(timeout=120)  # a hang guard: it exits when its stdin closes
     finally:
         shutil.rmtree(base, ignore_errors=True)
 
