@@ -69,6 +69,12 @@ def _order_seed(config) -> int:
     return config._hil_order_seed
 
 
+def _shuffled(path: Path) -> bool:
+    """The project's own tests only: a pytest run they start may collect the suites and tests/data with this
+    conftest loaded (``--rootdir`` the checkout), and its order is what such a test is about."""
+    return path.is_relative_to(REPO / "tests") and not path.is_relative_to(REPO / "tests" / "data")
+
+
 def pytest_configure_node(node):
     node.workerinput["hil_order_seed"] = _order_seed(node.config)
 
@@ -86,16 +92,17 @@ def pytest_collection_modifyitems(config, items):
             config.hook.pytest_deselected(items=deselected)
             items[:] = [item for item in items if not item.get_closest_marker("matrix")]
     seed = _order_seed(config)
-    if seed:
+    ours = [item for item in items if _shuffled(item.path)]
+    if seed and ours:
         shuffle = random.Random(seed).shuffle
         modules: dict[str, list] = {}
-        for item in items:
+        for item in ours:
             modules.setdefault(item.nodeid.split("::")[0], []).append(item)
         groups = list(modules.values())
         shuffle(groups)
         for group in groups:
             shuffle(group)
-        items[:] = [item for group in groups for item in group]
+        items[:] = [item for item in items if not _shuffled(item.path)] + [item for group in groups for item in group]
     items.sort(key=lambda item: item.get_closest_marker("e2e") is not None)
 
 
