@@ -27,7 +27,8 @@ def test_two_emulator_benches_in_parallel(tmp_path, capsys):
     a = bench_copy(tmp_path, "bench-a")
     b = bench_copy(tmp_path, "bench-b", target="emulator+fatek-tcp")
     junit = tmp_path / "reports" / "junit.xml"
-    code = main(["run", "--bench", str(a), "--bench", str(b), "--junitxml", str(junit), "--", "-q", "-k",
+    code = main(["run", "--bench", str(a), "--bench", str(b), "--junitxml", str(junit), "--html",
+                 str(junit.parent / "report.html"), "--", "-q", "-k",
                  "smoke or test_rtc.py"])
     logs = "".join(p.read_text() for p in junit.parent.glob("run-*.log"))
     assert code == 0, logs

@@ -33,8 +33,10 @@ def test_wheel_install_runs_the_bundled_suites_from_anywhere(installed_hil: Inst
         [c.get("classname") for c in cases]
 
     def ids(command: list[str], cwd: Path) -> list[str]:
-        listed = subprocess.run([*command, "run", "--", "--co", "-q", "-p", "no:cacheprovider"], cwd=cwd, env=env,
-                                capture_output=True, text=True, timeout=120)
+        # the reports in this test's directory: the checkout's reports/ is the user's, never the tests'
+        reports = ["--junitxml", str(tmp_path / "ids" / "junit.xml"), "--html", str(tmp_path / "ids" / "report.html")]
+        listed = subprocess.run([*command, "run", *reports, "--", "--co", "-q", "-p", "no:cacheprovider"], cwd=cwd,
+                                env=env, capture_output=True, text=True, timeout=120)
         assert listed.returncode == 0, listed.stdout + listed.stderr
         return [line for line in listed.stdout.splitlines() if "::" in line]
 
