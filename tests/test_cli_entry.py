@@ -45,6 +45,16 @@ def test_hil_run_with_a_file_runs_only_that_file(tmp_path: Path) -> None:
     assert "warning" not in done.stdout.splitlines()[-1]  # no "module already imported" noise on every run
 
 
+def test_plain_pytest_outside_the_checkout_warns_of_no_assert_rewriting(tmp_path: Path) -> None:
+    # an editable install: pytest cannot list the package's files, so a plugin module imported before pytest marks
+    # it warned "Module already imported so cannot be rewritten" (one per module, on every run)
+    done = processes.run([sys.executable, "-m", "pytest", str(REPO / "suites" / "test_smoke.py"), "-q", "-p",
+                          "no:cacheprovider", "-W", "error::pytest.PytestAssertRewriteWarning"], cwd=tmp_path,
+                         timeout=120)
+    assert done.returncode == 0 and "PytestAssertRewriteWarning" not in done.stdout + done.stderr, \
+        done.stdout[-3000:] + done.stderr
+
+
 def test_cache_provider_works_from_any_directory(tmp_path: Path) -> None:
     # --lf needs pytest's cache provider; its directory is the current one, never inside the package
     done = hil("run", "-q", "--junitxml", str(tmp_path / "j.xml"), "--html", str(tmp_path / "r.html"), "--",

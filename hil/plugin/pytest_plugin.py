@@ -13,7 +13,14 @@ from typing import Iterator
 
 import pytest
 
-from hil.bench.base import BenchBase as Bench
+#: this plugin's own plugin modules (pytest_plugins below).  pytest rewrites the asserts of a module it loads as a
+#: plugin; this module imports some of them first, so they are marked before those imports — otherwise, from an
+#: editable install (whose files pytest cannot list), each import warns "already imported so cannot be rewritten"
+PLUGINS = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements", "hil.plugin.preflight",
+           "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes"]
+pytest.register_assert_rewrite(*PLUGINS)
+
+from hil.bench.base import BenchBase as Bench  # noqa: E402 - after the plugins are marked for rewriting
 from hil.bench.faces import BenchView
 from hil.bench.family import build_emulator, default_family, open_bench
 from hil.core.errors import HilError, TransportError
@@ -35,8 +42,7 @@ from hil.bench.profile import refuse_default_for_a_plc
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
-pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
-                  "hil.plugin.preflight", "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes"]
+pytest_plugins = PLUGINS
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "
