@@ -149,10 +149,9 @@ def bench_with_crystal(tmp_path: Path, ppm: float) -> Path:
     return path
 
 
-def test_drift_measure_emulator_day_is_quick(capsys):
-    start = time.monotonic()
+def test_drift_measure_of_an_emulator_day_runs_on_virtual_time(capsys):
+    # its speed is a benchmark's (benchmarks/run.py: virtual seconds per wall second); pytest-timeout guards a hang
     rc, out, _ = run(capsys, "drift", "measure", "emulator", "--duration", "86400")
-    assert time.monotonic() - start < 5
     assert rc == 0
     assert re.search(r"drift\s+│ [+-]\d+\.\d{3} s/day", out)
     assert re.search(r"ppm\s+│ [+-]\d+\.\d{3}", out) and "resolution" in out

@@ -53,7 +53,7 @@ def test_long_waits_print_a_line_every_so_often_when_not_on_a_terminal(monkeypat
                                             suspend=contextlib.nullcontext, minimum=0.5, log_every=0.3))
     started = time.monotonic()
     timebase.wait(1.0)
-    assert 0.95 < time.monotonic() - started < 2.0  # the same wait, in pieces
+    assert time.monotonic() - started > 0.95  # the same wait, in pieces: not cut short
     timebase.wait(0.2)  # under the minimum: nothing
     lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("hil: ")]
     assert lines[0] == "hil: suites/test_rtc_drift.py::test_day[pid] — bench.wait(1 s) started"

@@ -221,7 +221,7 @@ def test_silence_becomes_reply_timeout(emulator: Emulator) -> None:
             started = time.monotonic()
             with pytest.raises(ReplyTimeout) as info:
                 wrong_unit.read_words("D10", 2)
-            assert time.monotonic() - started < 2.0
+            assert time.monotonic() - started < 60  # a hang guard: two tries of 0.2 s, then the error
         message = str(info.value)
         assert "FC03" in message and "6010 ×2" in message and "D10–D11" in message
         assert server.address in message and "unit=9" in message and "0.4 s" in message

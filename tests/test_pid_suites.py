@@ -45,14 +45,14 @@ def test_without_a_scan_counter_the_scan_counts_skip_saying_how_to_declare_one(p
     result.stdout.fnmatch_lines(["*needs scan_counter*[[]bench[]] scan_counter = *"])
 
 
-def test_the_heater_loop_test_takes_under_2_s_on_the_emulator(pytester):
+def test_the_heater_loop_test_passes_on_the_emulator(pytester):
+    # its call time on virtual time is printed, not bounded: a speed is a benchmark's (benchmarks/run.py)
     started = time.perf_counter()
     result = pytester.inline_run(SUITES[1], *INNER, "--bench", str(EMULATOR_BENCH), "-k", "r4007_seconds")
     elapsed = time.perf_counter() - started
     result.assertoutcome(passed=1)
     call = [r for r in result.getreports("pytest_runtest_logreport") if r.when == "call"][0]
     print(f"heater-loop test: {call.duration:.3f} s call, {elapsed:.2f} s whole inner run")
-    assert call.duration < 2.0
 
 
 # The heater-loop checks against hil emulate reached only over the wire, heaters opened through the Modbus
