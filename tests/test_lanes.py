@@ -101,7 +101,9 @@ def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(privat
 def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:  # noqa: ANN001 - a Queue
     from hil.families.fbs.transport.factory import open_transport
     wrong = 0
-    with open_transport(parse_target(url)) as transport:
+    # a reply timeout of 30 s is a hang guard: on a busy host the other process's turn and hil emulate's reply may
+    # take over a second, which the default (a bench's 1 s) would call lost
+    with open_transport(parse_target(url), timeout=30.0) as transport:
         for n in range(rounds):
             transport.write(register, n)
             wrong += transport.read(register) != n

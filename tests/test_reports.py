@@ -9,6 +9,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 
+import numpy  # noqa: F401 - pytester's in-process runs restore sys.modules, and numpy cannot load twice in a process
 import pytest
 from junitparser import JUnitXml
 

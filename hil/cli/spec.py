@@ -18,6 +18,7 @@ import pytest
 from rich.console import Console
 from rich.markup import escape
 
+from hil.plugin import requirements
 from hil.plugin.requirements import REQUIREMENTS_FILE, Requirement, item_ids, load
 
 
@@ -58,13 +59,14 @@ def collect(suites: Path) -> tuple[int, dict[str, tuple[str, ...]], str]:
     """Collect ``suites`` without the bench plugin: (pytest's exit code, test → IDs, pytest's output)."""
     collector = _Collector()
     args = ["--collect-only", "-q", "-p", "no:cacheprovider", "-p", "no:hil", "-p", "no:hil-report",
-            "-p", "hil.plugin.requirements", "-W", "ignore::pytest.PytestUnknownMarkWarning",
-            str(suites)]
+            "-W", "ignore::pytest.PytestUnknownMarkWarning", str(suites)]
     out = io.StringIO()
     path = list(sys.path)
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(out):
-            code = pytest.main(args, plugins=[collector])
+            # the spec() marker's plugin as the module this process already imported (``-p`` would ask pytest
+            # to rewrite it, and warn that it is already imported)
+            code = pytest.main(args, plugins=[collector, requirements])
     finally:
         # in process (a test calling main()), the suites' modules ("conftest", "test_rtc" …) must not stay
         # imported under those names for a later pytest run of other files in the same process
