@@ -89,6 +89,10 @@ def bench_over_the_wire(profile_text: str, where: dict[str, str], time_scale: fl
                   else f"modbus+tcp://{where['modbus-tcp']}?unit=1")
     text = re.sub(r'(?m)^target = "emulator"', f'target = "{url}"', profile_text)
     text = re.sub(r"(?m)^time_scale = .*", f"time_scale = {time_scale}", text)
+    # the reply timeout a hang guard: hil emulate shares a busy CI host with the run, and a bench's 2 s would call
+    # a reply it was slow to send lost (a write's outcome then unknown, the test in error)
+    assert re.search(r"(?m)^timeout = ", text) is None, "the profile names its own reply timeout"
+    text = text.replace("[bench]\n", "[bench]\ntimeout = 10.0\n", 1)
 
     def rig(match: re.Match) -> str:
         fault = match.group(1)
