@@ -139,6 +139,7 @@ def _profile(tmp_path, where, target=None):
     return load_profile(path)
 
 
+@pytest.mark.e2e
 def test_a_restore_that_fails_while_the_plc_is_away_is_completed_when_it_returns(tmp_path, emulated):
     proxy = Proxy(emulated["fatek-tcp"])
     bench = Bench(_profile(tmp_path, emulated, f"fatek+tcp://127.0.0.1:{proxy.port}"))
@@ -166,6 +167,7 @@ def _offset(bench) -> float:
     return (plc - host).total_seconds()
 
 
+@pytest.mark.e2e
 def test_a_far_time_zone_leaves_the_clocks_offset_unchanged(tmp_path, emulated, monkeypatch):
     bench = Bench(_profile(tmp_path, emulated))
     try:
@@ -232,6 +234,7 @@ def test_the_lock_directory_is_shared_by_every_user_of_the_host(tmp_path, monkey
         BenchLock("fatek+tcp://127.0.0.1:500", loose).acquire()
 
 
+@pytest.mark.e2e
 def test_hil_rtc_set_refuses_while_a_run_holds_the_bench(tmp_path, emulated):
     url = f"fatek+tcp://{emulated['fatek-tcp']}"
     other = url.replace("127.0.0.1", "localhost")
@@ -243,6 +246,7 @@ def test_hil_rtc_set_refuses_while_a_run_holds_the_bench(tmp_path, emulated):
 
 
 # -- recovery first ----------------------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, emulated, pytester):
     profile = _profile(tmp_path, emulated)
     bench = Bench(profile)
@@ -340,6 +344,7 @@ def test_every_bypass_is_refused_before_a_byte_is_sent(pytester):
     result.assert_outcomes(passed=15)
 
 
+@pytest.mark.e2e
 def test_a_fault_rig_pointing_at_the_plc_under_test_is_refused(tmp_path, emulated):
     text = bench_over_the_wire(EMULATOR_BENCH.read_text(), emulated, 1)
     plc = emulated["fatek-tcp"]
@@ -354,6 +359,7 @@ def test_a_fault_rig_pointing_at_the_plc_under_test_is_refused(tmp_path, emulate
         bench.close()
 
 
+@pytest.mark.e2e
 def test_rig_coils_have_their_own_allow_list(tmp_path, emulated):
     text = bench_over_the_wire(EMULATOR_BENCH.read_text(), emulated, 1)
     text = text.replace("first_coil = 0", 'first_coil = 0\ncoils = "0-3"', 1)
@@ -433,6 +439,7 @@ def test_writes_then_hangs(bench):
 '''
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("signame", ["SIGHUP", "SIGTERM"])
 def test_sighup_and_sigterm_unwind_and_restore(tmp_path, emulated, signame):
     import signal as sig
@@ -476,6 +483,7 @@ def test_writes_then_the_plc_goes_for_good(bench, request):
                                  "M1000 (original 0)*"])
 
 
+@pytest.mark.e2e
 def test_hil_restore_shows_and_replays_a_dead_runs_journal(tmp_path, emulated):
     profile = _profile(tmp_path, emulated)
     bench = Bench(profile)

@@ -136,12 +136,14 @@ def test_modbus_listener_that_never_replies_is_one_line(silent_listener: int, tm
     assert "no valid reply" in lines[0] and "retries" not in lines[0]
 
 
+@pytest.mark.e2e
 def test_emulate_refuses_time_scale_zero_before_any_endpoint_line(tmp_path: Path) -> None:
     done = hil("emulate", "--fatek-tcp", "127.0.0.1:0", "--time-scale", "0", "--no-live", cwd=tmp_path)
     assert done.returncode == EXIT_USAGE and done.stdout == ""
     assert "--time-scale 0" in done.stderr
 
 
+@pytest.mark.e2e
 def test_emulate_clock_starts_at_host_time(tmp_path: Path) -> None:
     from hil.families.fbs.device.plc import FbsPlc
     from hil.core.timebase import HostTimebase

@@ -66,6 +66,7 @@ def test_a_reordered_or_repeated_datagram_is_never_taken_for_the_answer(fault: s
     assert faults.injected[fault] == 4
 
 
+@pytest.mark.e2e
 def test_hil_emulate_serves_it_to_another_program() -> None:
     """``hil emulate --fatek-udp HOST:PORT`` prints ``fatek-udp HOST:PORT``; a FATEK client over UDP reaches it,
     and a request from another socket meanwhile is answered to that socket, the client's next read still right."""

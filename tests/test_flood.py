@@ -98,6 +98,7 @@ def _latency(sock: socket.socket, n: int, until=None, request=_fatek_ping) -> li
     return out
 
 
+@pytest.mark.e2e
 def test_a_flood_on_one_connection_leaves_another_clients_latency_within_2x(tmp_path):
     profile = tmp_path / "emulated.toml"
     profile.write_text(EMULATOR_BENCH.read_text())
@@ -165,6 +166,7 @@ os.close(fd)
 }
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("wire", sorted(MODBUS_FLOODS))
 def test_a_modbus_flood_leaves_another_clients_latency_within_2x(tmp_path, wire):
     profile = tmp_path / "emulated.toml"

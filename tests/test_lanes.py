@@ -110,6 +110,7 @@ def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:  
         out.put((register, wrong, transport.requests))
 
 
+@pytest.mark.e2e
 def test_two_processes_take_turns_on_one_paced_line_with_no_reply_crossed(private_dirs):
     """Two clients in two processes on ``hil emulate``'s paced pty, each writing and reading back its own register
     back to back (60 rounds each): every exchange is whole (no process reads the other's reply), so 0 wrong

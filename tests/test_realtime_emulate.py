@@ -34,6 +34,7 @@ def emulated(tmp_path_factory):
         yield where
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("url", ["fatek+tcp://{fatek-tcp}", "modbus+tcp://{modbus-tcp}?unit=1"])
 def test_every_request_is_answered_after_a_scan_of_its_own(emulated, url):
     link = open_transport(url.format_map(emulated), timeout=2.0)
@@ -45,6 +46,7 @@ def test_every_request_is_answered_after_a_scan_of_its_own(emulated, url):
     assert min(steps) >= 1, f"two requests answered with no scan between them: counter {seen}"
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("url", ["fatek+tcp://{fatek-tcp}", "modbus+tcp://{modbus-tcp}?unit=1"])
 def test_an_rtc_set_sent_back_to_back_lands(emulated, url):
     """M1952 := 1 with the fields, then M1952 := 0 at once, as a client that trusts the port would: the PLC has

@@ -126,6 +126,7 @@ def _restore_like(capsys, *argv: str) -> tuple[int, list[str]]:
 
 
 # -- item 1: a planted journal --------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_journal_in_a_state_directory_others_can_write_is_refused_and_nothing_written(plc, tmp_path, monkeypatch,
                                                                                         capsys):
     """A 1777 state directory (as /tmp): whoever could write there may have planted the journal."""
@@ -156,6 +157,7 @@ def _as_nobody(code: str) -> None:
 
 @pytest.mark.skipif(os.getuid() != 0, reason="a journal owned by another user can only be made as root "
                                              "(os.setuid to nobody); the directory check is tested above")
+@pytest.mark.e2e
 def test_a_journal_planted_by_another_user_is_refused_and_nothing_written(plc, tmp_path, capsys):
     """Another user (nobody) writes a journal named as hil names them; it is moved into our private state
     directory (as a careless copy would): refused by its owner, by `hil restore` and by the next run alike."""
@@ -179,6 +181,7 @@ def test_a_journal_planted_by_another_user_is_refused_and_nothing_written(plc, t
     assert _state(plc) == before and path.read_bytes() == raw
 
 
+@pytest.mark.e2e
 def test_an_own_journal_is_still_replayed_only_within_the_profile(plc, tmp_path, capsys):
     """The same planted content in our own file: R2000 and Y0 are not writable, Y1 neither, RUN/STOP needs
     allow_destructive, the clock's elements are writable (so it is replayed, to its offset — not to 2001 + the
@@ -205,6 +208,7 @@ def test_an_own_journal_is_still_replayed_only_within_the_profile(plc, tmp_path,
 
 
 # -- item 2: save before mutate --------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_disk_full_twice_in_a_row_leaves_nothing_unjournaled(plc, tmp_path, monkeypatch):
     """The journal's own writes fail (ENOSPC at the os level, only for files in the state directory): test A's
     write to R1001 is refused, so is test B's, so is every later one — none reaches the PLC."""
@@ -238,6 +242,7 @@ def test_disk_full_twice_in_a_row_leaves_nothing_unjournaled(plc, tmp_path, monk
 
 
 # -- item 3: what happened since --------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_run_killed_between_journaling_a_write_and_sending_it_is_still_put_back(plc, tmp_path):
     """The journal records what is about to be written before it goes out: a run killed in between leaves the PLC
     holding what its previous write left — the run's own value, restored, not an operator's change kept."""
@@ -265,6 +270,7 @@ def test_a_run_killed_between_journaling_a_write_and_sending_it_is_still_put_bac
         journal_path(lock_key(url)).unlink(missing_ok=True)
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("command", [("restore",), ("rtc", "sync")], ids=["hil-restore", "direct-command"])
 def test_a_dead_runs_fun86_rewrites_are_put_back_by_every_recovery(plc, tmp_path, capsys, command):
     """WR is no element the profile lets a test write, but FUN86 rewrites it because of one (EN).  Every recovery —
@@ -293,6 +299,7 @@ def test_a_dead_runs_fun86_rewrites_are_put_back_by_every_recovery(plc, tmp_path
         path.unlink(missing_ok=True)
 
 
+@pytest.mark.e2e
 def test_an_operators_change_after_a_crash_is_kept_and_reported(plc, tmp_path):
     """A run writes R1000, R1001 and STOPs the PLC, then dies; an operator writes R1000 = 5555.  The next run
     (allow_destructive off) leaves R1000 at 5555 and the PLC in STOP, lists both, puts R1001 back, fails."""
@@ -319,6 +326,7 @@ def test_an_operators_change_after_a_crash_is_kept_and_reported(plc, tmp_path):
 
 
 # -- item 4: one lock and one journal per PLC --------------------------------------------------------------------
+@pytest.mark.e2e
 def test_fatek_then_modbus_to_one_plc_share_one_lock_and_one_recovery(plc, tmp_path):
     died = _session(tmp_path, _profile(tmp_path, plc, "fatek", plc_id="line-3"),
                     f"bench.plc.io.write('R1002', 77)\n{KILL}")
@@ -337,6 +345,7 @@ def test_fatek_then_modbus_to_one_plc_share_one_lock_and_one_recovery(plc, tmp_p
     assert not Journal(key).pending
 
 
+@pytest.mark.e2e
 def test_a_journal_from_another_plc_at_the_same_endpoint_is_not_replayed(plc, tmp_path, capsys):
     """The journal's PLC identity (command 53; each emulator has a serial of its own) is not this PLC's."""
     url = _url(plc)
@@ -375,6 +384,7 @@ def _malformed(key: str, where: dict) -> dict[str, tuple[bytes, str]]:
 CASES = ["version 0", "version 1", "version 3", "another bench", "null", "[]", "NaN", "truncated"]
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("case", CASES)
 def test_a_malformed_journal_gives_one_clear_line_and_is_kept(plc, tmp_path, capsys, case):
     url = _url(plc)
@@ -390,6 +400,7 @@ def test_a_malformed_journal_gives_one_clear_line_and_is_kept(plc, tmp_path, cap
     assert path.read_bytes() == raw
 
 
+@pytest.mark.e2e
 def test_show_names_a_journal_whose_bench_differs_from_its_file_name(plc, tmp_path, capsys):
     url = _url(plc)
     wrong = _journal("tcp://10.0.0.9:500", plc, elements={"R1000": _stamp({"original": 0, "wrote": 1})})
@@ -399,6 +410,7 @@ def test_show_names_a_journal_whose_bench_differs_from_its_file_name(plc, tmp_pa
     assert len(lines) == 1 and "belongs to bench" in lines[0] and "nothing pending" not in lines[0], lines
 
 
+@pytest.mark.e2e
 def test_an_out_of_range_value_blocks_no_other_entry(plc, tmp_path, capsys):
     url = _url(plc)
     key = lock_key(url)
@@ -419,12 +431,14 @@ def test_an_out_of_range_value_blocks_no_other_entry(plc, tmp_path, capsys):
 
 
 # -- item 9: volatile ----------------------------------------------------------------------------------------------
+@pytest.mark.e2e
 def test_volatile_overlapping_writable_is_refused(tmp_path, plc):
     with pytest.raises(ProfileError, match=r"volatile and writable overlap at R1000, R1001"):
         load_profile(_profile(tmp_path, plc, volatile='["R4128-R4135", "R1000-R1001"]'))
     load_profile(EMULATOR_BENCH)  # the clock's R4128–R4134 may be both: the clock restore puts them back
 
 
+@pytest.mark.e2e
 def test_a_journaled_element_now_volatile_is_dropped_not_retried_forever(plc, tmp_path, capsys):
     """A scan counter journaled while the profile forgot it was volatile: once the profile says so, recovery
     drops it (and says so) instead of failing its read-back on every run."""
@@ -438,6 +452,7 @@ def test_a_journaled_element_now_volatile_is_dropped_not_retried_forever(plc, tm
 
 
 # -- item 10: the rig is a separate device ---------------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_rig_on_the_plcs_own_modbus_port_is_refused(plc, tmp_path, capsys):
     own = f"modbus+tcp://{plc['modbus-tcp']}?unit=1"
     profile = load_profile(_profile(tmp_path, plc, rig=own))
@@ -470,6 +485,7 @@ def _leave_changed(where: dict) -> None:
         t.bit_action("M1001", 1)
 
 
+@pytest.mark.e2e
 def test_the_verified_list_is_exactly_what_was_read_back(plc, tmp_path, capsys):
     url = _url(plc)
     key = lock_key(url)
@@ -492,6 +508,7 @@ def never_enables(emulator, profile, epoch) -> None:  # noqa: ANN001 - a defect 
     emulator.memory.disabled["M"] = Sticky(emulator.memory.disabled["M"])
 
 
+@pytest.mark.e2e
 def test_an_enable_that_does_not_read_back_is_not_called_verified(tmp_path, capsys):
     spec = "tests.test_recovery_trust:BrokenEmulator:never_enables"
     with hil_emulate(EMULATOR_BENCH, 1.0, broken=spec) as where:
@@ -508,6 +525,7 @@ def test_an_enable_that_does_not_read_back_is_not_called_verified(tmp_path, caps
 
 
 # -- item 12: the bundled profile is the emulator's --------------------------------------------------------------
+@pytest.mark.e2e
 def test_a_plc_named_by_target_alone_does_not_get_the_emulators_profile(plc, tmp_path, capsys):
     (tmp_path / "test_it.py").write_text("def test_it(bench):\n    bench.plc.io.write('R1000', 1)\n")
     run = subprocess.run([sys.executable, "-m", "pytest", str(tmp_path), "--target", _url(plc), "-q",
@@ -559,6 +577,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
         shutil.rmtree(base, ignore_errors=True)
 
 
+@pytest.mark.e2e
 def test_an_operators_forced_bit_stays_forced_after_recovery(plc, tmp_path, capsys):
     """Enable states journaled with command 43 (the kind issue 25 item 7 journals) come back exactly, read back:
     a bit the operator had disabled is disabled again, one that was enabled is enabled."""

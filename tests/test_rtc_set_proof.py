@@ -40,6 +40,7 @@ def hil_rtc_set(url: str, when: str) -> subprocess.CompletedProcess:
     # date and time loaded, the weekday cleared to 0: a Friday (5) reads back as Sunday
     ("tests.test_rtc_suites_catch_broken_plcs:with_rtc:SetClearsTheWeekday", "the weekday sent (5) was lost"),
 ], ids=["correct", "drops", "clears-weekday"])
+@pytest.mark.e2e
 def test_hil_rtc_set_reads_back(tmp_path, broken, lost):
     profile = tmp_path / "bench.toml"
     profile.write_text(EMULATOR_BENCH.read_text())

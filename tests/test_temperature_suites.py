@@ -322,6 +322,7 @@ def test_the_suite_passes_on_the_mixed_fahrenheit_fast_profile(pytester, tmp_pat
 TIME_SCALE = 100
 
 
+@pytest.mark.e2e
 def test_temperature_suite_against_hil_emulate_with_a_modbus_coil_rig(pytester, tmp_path):
     (tmp_path / "emulated.toml").write_text(EMULATOR_BENCH.read_text())
     with hil_emulate(tmp_path / "emulated.toml", TIME_SCALE) as where:

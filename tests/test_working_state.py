@@ -183,6 +183,7 @@ def test_three(bench):
 """
 
 
+@pytest.mark.e2e
 @pytest.mark.parametrize("sig", ["KILL", "TERM"])
 def test_a_run_killed_inside_a_hold_leaves_hil_emulate_as_found(tmp_path, sig):
     """Against ``hil emulate`` as a separate real-time process over FATEK/TCP, with the durable journal: a run
