@@ -293,3 +293,35 @@ def test_a_lane_whose_controller_is_gone_stops_before_its_next_test():
     gone = SimpleNamespace(config=SimpleNamespace(workerinput={lanes.LEASE: os.getppid() + 99999, "workerid": "gw1"}))
     with pytest.raises(pytest.exit.Exception, match="controller .* is gone.*lane gw1 stops"):
         lanes.pytest_runtest_setup(gone)
+
+
+def test_a_client_opening_a_shared_line_leaves_the_holders_reply_alone(private_dirs):
+    """pyserial's open flushes the tty's input queue, which on a shared line is every lane's: a client opens the
+    port only in its turn, so a reply already on its way to the lane holding the line is not thrown away (it was:
+    a lane that started late made another's write "unanswered" on a busy host)."""
+    from hil.families.fbs.protocol.fatek import FrameAssembler, Loopback, encode_request
+    from hil.families.fbs.sim.plc import Emulator
+    from hil.families.fbs.sim.serve_fatek import start_fatek_pty
+    from hil.families.fbs.transport.fatek import FatekTransport
+    server = start_fatek_pty(Emulator())
+    holder = FatekTransport(server.address, timeout=30.0)
+    late: list[FatekTransport] = []
+    opener = threading.Thread(target=lambda: late.append(FatekTransport(server.address, timeout=30.0)))
+    try:
+        with holder._lock:  # the holder's exchange, by hand: the request out, the reply waiting unread
+            holder._line.write(encode_request(1, Loopback("AB")))
+            deadline = time.monotonic() + 20  # a hang guard
+            while not holder._line.pending():
+                assert time.monotonic() < deadline, "hang guard: the emulator never answered"
+                time.sleep(0.001)
+            opener.start()  # another lane's client opens the port now
+            opener.join(0.5)  # (a slow host only delays it: this wait cannot make the test fail)
+            assembler = FrameAssembler()
+            while not (frames := assembler.feed(holder._line.receive(0.2))):
+                assert time.monotonic() < deadline, "the holder's reply was thrown away by the other client's open"
+        assert b"AB" in frames[0], frames  # the loop-back's own reply
+    finally:
+        opener.join(60)
+        for client in [holder, *late]:
+            client.close()
+        server.stop()

@@ -110,7 +110,10 @@ class FatekTransport(Transport):
         self._command: Command = Loopback("")  # the request in hand (what a resync failure names)
         if "://" not in port_url:  # a device or a pty: other processes (a run's lanes) may take turns on it
             self._lock = SharedLine(port_url, taken=self._line_taken, leaving=lambda: self.dirty)
-        self._line: Line = self.new_line()
+        # opened in this client's turn: pyserial's open flushes the tty's input queue (tcflush), which on a shared
+        # line is also the other lanes' — a reply on its way to the lane holding the line would be lost
+        with self._lock:
+            self._line: Line = self.new_line()
 
     def _line_taken(self, suspect: bool) -> None:
         """The shared line is ours: the lane before us may have left a late reply on its way (hil.io.shared_line)."""
