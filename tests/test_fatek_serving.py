@@ -6,9 +6,13 @@ connections and shows it keeps serving, counts the rejects and never lets a reje
 
 from __future__ import annotations
 
+import asyncio
 import errno
+import fcntl
 import os
 import socket
+import struct
+import termios
 import threading
 import time
 from dataclasses import dataclass
@@ -17,8 +21,10 @@ from typing import ClassVar
 import pytest
 import serial
 
+from hil.families.fbs.sim import serve_fatek
 from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.families.fbs.sim.serve_fatek import start_fatek_pty, start_fatek_tcp
+from hil.sim.runtime import LoopThread
 from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError
 from hil.families.fbs.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegisters, WriteRegisters, build_frame,
                                 encode_error, encode_request, split_frame)
@@ -28,6 +34,8 @@ from hil.io.line import open_hint
 from tests.concurrency import run_clients
 
 STATUS_REQUEST = b"\x020140C7\x03"
+#: a reply timeout where no reply is meant to be waited out: a hang guard, long enough for any busy host
+HANG_GUARD = 30.0
 
 
 # --- fixtures -------------------------------------------------------------------------------------------------------
@@ -54,7 +62,7 @@ def pty(emulator):
 def client(request, emulator):
     handle = (start_fatek_tcp if request.param == "tcp" else start_fatek_pty)(emulator)
     url = f"socket://{handle.address}" if request.param == "tcp" else handle.address
-    transport = FatekTransport(url, timeout=2.0)
+    transport = FatekTransport(url, timeout=HANG_GUARD)
     yield transport
     transport.close()
     handle.stop()
@@ -69,13 +77,15 @@ class RawTcp:
     """A bare socket client: send any bytes, collect reply frames."""
 
     def __init__(self, handle) -> None:
-        self.sock = socket.create_connection(_tcp_address(handle), timeout=2.0)
+        self.sock = socket.create_connection(_tcp_address(handle), timeout=HANG_GUARD)
         self.assembler = FrameAssembler()
 
     def send(self, data: bytes) -> None:
         self.sock.sendall(data)
 
-    def frames(self, n: int = 1, timeout: float = 2.0) -> list[bytes]:
+    def frames(self, n: int = 1, timeout: float = HANG_GUARD) -> list[bytes]:
+        """Up to ``n`` frames, waiting at most ``timeout`` s for them (a hang guard, or how long "nothing else"
+        is looked for)."""
         got: list[bytes] = []
         deadline = time.monotonic() + timeout
         while len(got) < n and (left := deadline - time.monotonic()) > 0:
@@ -91,8 +101,9 @@ class RawTcp:
 
     def exchange(self, frame: bytes) -> bytes:
         self.send(frame)
-        (reply,) = self.frames(1)
-        return reply
+        replies = self.frames(1)
+        assert len(replies) == 1, f"hang guard: no reply within {HANG_GUARD:.0f} s"
+        return replies[0]
 
     def close(self) -> None:
         self.sock.close()
@@ -240,7 +251,9 @@ def test_rejected_frames_over_tcp(tcp, emulator):
             raw.send(bytes([byte]))
         replies = raw.frames(1)
         assert len(replies) == 1 and split_frame(replies[0]).command == "40"
-        assert raw.frames(1, timeout=0.2) == []  # and nothing else was answered
+        # and nothing else was answered: a short look is enough, as a slow host can only make it miss a stray
+        # reply, never invent one (the counters below are the real check: one request served)
+        assert raw.frames(1, timeout=0.2) == []
     finally:
         raw.close()
     assert emulator.stats["fatek_bad_checksum"] == 1
@@ -258,31 +271,32 @@ def test_disconnect_mid_frame_then_serve_others(tcp, emulator):
         raw.send(encode_request(1, WriteRegisters(parse("R0"), [0xBAD]))[:-4])
         raw.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")  # RST
         raw.close()
-    with FatekTransport(f"socket://{tcp.address}", timeout=2.0) as client:
+    with FatekTransport(f"socket://{tcp.address}", timeout=HANG_GUARD) as client:
         assert client.read("R0") == 0
     assert emulator.memory.snapshot() == snapshot
 
 
 def test_eight_parallel_clients(tcp, emulator):
     def work(n: int) -> None:
-        with FatekTransport(f"socket://{tcp.address}", timeout=3.0) as client:
+        with FatekTransport(f"socket://{tcp.address}", timeout=HANG_GUARD) as client:
             for i in range(30):
                 client.write_words(f"R{100 * n}", [n, i, n * i])
                 assert client.read_words(f"R{100 * n}", 3) == [n, i, n * i]
 
-    run_clients(work, 8, join_timeout=15)
+    run_clients(work, 8, join_timeout=60)  # a hang guard
     assert [emulator.memory.read(f"R{100 * n}", 3) for n in range(8)] == [[n, 29, n * 29] for n in range(8)]
 
 
 def test_rejected_frames_over_pty(pty, emulator):
     snapshot = emulator.memory.snapshot()
     write = encode_request(1, WriteRegisters(parse("R0"), [0xBAD]))
-    port = serial.Serial(pty.address, timeout=1.0)
+    port = serial.Serial(pty.address, timeout=HANG_GUARD)  # read_until returns at the ETX
     try:
         port.write(b"noise\xff" + _bad_checksum(write) + encode_request(9, WriteRegisters(parse("R0"), [1])))
         port.write(write[:10])  # cut short by the next STX
         port.write(STATUS_REQUEST)
         reply = port.read_until(b"\x03")
+        assert reply.endswith(b"\x03"), f"hang guard: no whole reply within {HANG_GUARD:.0f} s: {reply!r}"
         assert split_frame(reply).command == "40"
     finally:
         port.close()
@@ -290,17 +304,47 @@ def test_rejected_frames_over_pty(pty, emulator):
     assert emulator.memory.snapshot() == snapshot
 
 
-def test_pty_survives_clients_closing_mid_frame(pty, emulator):
-    for _ in range(3):
-        port = serial.Serial(pty.address, timeout=1.0)
-        port.write(encode_request(1, MixedWrite([(parse("R0"), 5)]))[:8])  # then go away mid-frame
-        port.close()
-    # With no client open the server must idle, not spin on EIO from the master.
-    # (its CPU time while idle is a benchmark's figure, not a bound a busy host keeps)
-    with FatekTransport(pty.address, timeout=2.0) as client:
-        assert client.read_words("R0", 2) == [0, 0]
-        client.write("R1", 9)
-    assert emulator.memory.get("R1") == 9
+def test_pty_survives_clients_closing_mid_frame(emulator, monkeypatch):
+    # With no client open the server must idle, not spin on EIO from the master: counted as the times its reader
+    # is called with nothing to read, over a number of its loop's iterations (a spinning reader is called on every
+    # one of them; host time does not enter: its CPU time while idle is a benchmark's figure,
+    # benchmarks/bench_host_time.py)
+    empty_wakeups: list[int] = []
+    readable = serve_fatek._PtyServer._readable  # noqa: SLF001 - the reader the loop calls
+
+    def counting(self) -> None:  # noqa: ANN001
+        try:
+            waiting = struct.unpack("i", fcntl.ioctl(self.master, termios.FIONREAD, b"\0\0\0\0"))[0]
+        except OSError:  # EIO: nothing to read either
+            waiting = 0
+        if not waiting:
+            empty_wakeups.append(1)
+        readable(self)
+
+    monkeypatch.setattr(serve_fatek._PtyServer, "_readable", counting)  # noqa: SLF001
+    pty = start_fatek_pty(emulator)
+    try:
+        for _ in range(3):
+            port = serial.Serial(pty.address, timeout=1.0)
+            port.write(encode_request(1, MixedWrite([(parse("R0"), 5)]))[:8])  # then go away mid-frame
+            port.close()
+
+        async def iterations(n: int) -> None:
+            for _ in range(n):
+                await asyncio.sleep(0)  # one pass of the loop each: a readable fd's reader is called in every one
+
+        woken = len(empty_wakeups)
+        LoopThread.shared().run(iterations(200), timeout=60)  # the timeout a hang guard
+        # a spinning reader is called in each of the 200 passes; an idle one at most once per client gone (a flush
+        # on close racing the read; 0 seen)
+        idle_calls = len(empty_wakeups) - woken
+        assert idle_calls <= 3, f"the reader was called {idle_calls} times with nothing to read in 200 passes"
+        with FatekTransport(pty.address, timeout=HANG_GUARD) as client:
+            assert client.read_words("R0", 2) == [0, 0]
+            client.write("R1", 9)
+        assert emulator.memory.get("R1") == 9
+    finally:
+        pty.stop()
 
 
 def test_pty_server_does_not_talk_first(pty):
@@ -312,32 +356,51 @@ def test_pty_server_does_not_talk_first(pty):
 
 
 # --- client-side failures -------------------------------------------------------------------------------------------
+def _sent(client: FatekTransport) -> list[bytes]:
+    """The frames ``client`` puts on the wire from now on (its observers)."""
+    frames: list[bytes] = []
+    client.observers.append(lambda direction, frame: frames.append(frame) if direction == "tx" else None)
+    return frames
+
+
 def test_read_timeout_names_request_station_and_wait(tcp):
     with FatekTransport(f"socket://{tcp.address}", station=5, timeout=0.3, retries=0) as client:
+        sent = _sent(client)
         started = time.monotonic()
         with pytest.raises(ReplyTimeout) as info:
             client.read_words("R12", 3)
         elapsed = time.monotonic() - started
     message = str(info.value)
-    assert elapsed >= 0.28  # it waited its timeout (a busy host only waits longer; pytest-timeout guards a hang)
+    assert [split_frame(f).command for f in sent] == ["46"]  # one try, no retry (retries=0)
+    # it waited its timeout out: a guaranteed lower bound (the client gives up only at its monotonic deadline; a
+    # busy host only waits longer), and no upper one
+    assert elapsed >= 0.3 - 1e-6
     assert "station 05" in message and "read 3 from R12 (46)" in message and "0.30 s" in message
     assert "054603R00012" in message and tcp.address in message
 
 
 def test_reads_are_retried_and_writes_are_not(tcp):
     with FatekTransport(f"socket://{tcp.address}", station=5, timeout=0.2, retries=2) as client:
+        sent = _sent(client)
         started = time.monotonic()
         with pytest.raises(ReplyTimeout, match="3 tries of 0.2 s"):
             client.read("R0")
-        assert time.monotonic() - started >= 0.55  # three tries of 0.2 s were waited out, not fewer
+        elapsed = time.monotonic() - started
+        # three tries, counted: the read, then a resynchronising loop-back before each retry (unanswered too, so the
+        # read was not sent again) — and each waited out its 0.2 s (a guaranteed lower bound, no upper one)
+        assert [split_frame(f).command for f in sent] == ["46", "4E", "4E"]
+        assert elapsed >= 3 * 0.2 - 1e-6
         # The line is suspect now (a late reply may come): a write is not sent until a loop-back resynchronises.
+        sent.clear()
         with pytest.raises(ReplyTimeout, match="not sent .* went unanswered .* and so did a loop-back"):
             client.write("R0", 1)
+        assert [split_frame(f).command for f in sent] == ["4E", "4E", "4E"], "loop-backs only: the write not sent"
     with FatekTransport(f"socket://{tcp.address}", station=5, timeout=0.2, retries=2) as client:
-        started = time.monotonic()
+        sent = _sent(client)
         with pytest.raises(ReplyTimeout, match="outcome unknown") as info:
             client.write("R0", 1)
-        assert "attempt 1 of 1" in str(info.value)  # one try: a write is never retried
+        assert "attempt 1 of 1" in str(info.value)
+        assert [split_frame(f).command for f in sent] == ["47"], "one try: a write is never retried"
 
 
 def test_timeout_mentions_bad_frames_discarded():
@@ -345,22 +408,27 @@ def test_timeout_mentions_bad_frames_discarded():
     listener = socket.create_server(("127.0.0.1", 0))
     port = listener.getsockname()[1]
 
+    client_done = threading.Event()
+
     def peer() -> None:
         conn, _ = listener.accept()
         with conn:
             conn.recv(100)
             conn.sendall(_bad_checksum(encode_error(1, "46", "0")) + build_frame(2, "46", "00001")
                          + build_frame(1, "44", "00"))
-            time.sleep(0.6)
+            # the connection stays open until the client has given up (an event, not a sleep: a client slowed by
+            # a busy host must see its timeout, not the peer hanging up)
+            client_done.wait(60)  # a hang guard
 
-    thread = threading.Thread(target=peer)
+    thread = threading.Thread(target=peer, daemon=True)
     thread.start()
     try:
         with FatekTransport(f"socket://127.0.0.1:{port}", timeout=0.3, retries=0) as client:
             with pytest.raises(ReplyTimeout) as info:
                 client.read("R0")
     finally:
-        thread.join()
+        client_done.set()
+        thread.join(60)
         listener.close()
     message = str(info.value)
     assert "discarded 3 bad frame(s)" in message

@@ -54,7 +54,7 @@ def test_a_holder_killed_mid_exchange_makes_the_next_one_resynchronise(private_d
     ready = ctx.Event()
     proc = ctx.Process(target=_hold_and_die, args=(device, ready))
     proc.start()
-    assert ready.wait(20)
+    assert ready.wait(60), "hang guard: the holder did not take the line within 60 s"
     seen: list[bool] = []
     line = SharedLine(device, taken=seen.append, leaving=lambda: False)
     proc.kill()
@@ -67,13 +67,46 @@ def test_a_holder_killed_mid_exchange_makes_the_next_one_resynchronise(private_d
     line.close()
 
 
+class _Timers:
+    """threading.Timer for hil.io.shared_line, fired by the test: LINGER's end is an event the test decides, not a
+    stretch of host time a loaded host's stall could pass for."""
+
+    def __init__(self) -> None:
+        self.made: list[_Timer] = []
+
+    def __call__(self, interval: float, function) -> "_Timer":  # noqa: ANN001
+        timer = _Timer(interval, function)
+        self.made.append(timer)
+        return timer
+
+
+class _Timer:
+    daemon = False
+
+    def __init__(self, interval: float, function) -> None:  # noqa: ANN001
+        self.interval, self.function = interval, function
+        self.started = self.cancelled = False
+
+    def start(self) -> None:
+        self.started = True
+
+    def cancel(self) -> None:
+        self.cancelled = True
+
+    def fire(self) -> None:
+        """LINGER has passed (as a started Timer would run it)."""
+        assert self.started and not self.cancelled
+        self.function()
+
+
 def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(private_dirs, monkeypatch):
     """A background client (a named lane) asks only while no foreground client (the main lane) wants the line:
     during an exchange and for LINGER after it, so between back-to-back exchanges it cannot get in; once the
-    foreground client pauses it can.  (LINGER made a second here: a loaded host's stall between two holds must
-    not pass for a pause.)"""
+    foreground client pauses it can.  LINGER's timer is the test's (fired when the test says the pause is long
+    enough): back to back is every exchange before the timer of the one before it fired, whatever the host does."""
     from hil.io import shared_line
-    monkeypatch.setattr(shared_line, "LINGER", 1.0)
+    timers = _Timers()
+    monkeypatch.setattr(shared_line, "threading", SimpleNamespace(RLock=threading.RLock, Timer=timers))
     device = str(private_dirs / "ttyFAKE")
     Path(device).touch()
     fore = SharedLine(device, taken=lambda s: None, leaving=lambda: False, background=False)
@@ -85,15 +118,19 @@ def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(privat
             got.set()
 
     with fore:
-        asker = threading.Thread(target=background)
+        asker = threading.Thread(target=background, daemon=True)
         asker.start()
+        # a short look suffices: a slow host can only make the background client later, never let it in
         assert not got.wait(0.1), "the background client took a line the foreground client holds"
-    for _ in range(20):  # back to back: each exchange within LINGER of the last
+    for _ in range(20):  # back to back: each exchange before the last one's LINGER ended
         with fore:
             pass
         assert not got.is_set(), "a background exchange came between two back-to-back foreground ones"
-    assert got.wait(shared_line.LINGER + 10), "the foreground client paused: the background one must get the line"
-    asker.join()
+    assert [t.interval for t in timers.made] == [shared_line.LINGER] * 21, "each exchange kept the line LINGER more"
+    assert all(t.cancelled for t in timers.made[:-1]), "each back-to-back exchange took over the wait before it"
+    timers.made[-1].fire()  # the foreground client paused: LINGER after its last exchange has passed
+    assert got.wait(60), "hang guard: the foreground client paused but the background one did not get the line"
+    asker.join(60)
     fore.close()
     back.close()
 
@@ -243,7 +280,7 @@ def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
         url = f"fatek+serial://{where['fatek-serial']}?baudrate=115200&bytesize=7&parity=E&station=1"
 
         def registers() -> list[int]:
-            with open_transport(parse_target(url)) as transport:
+            with open_transport(parse_target(url), timeout=30.0) as transport:  # a hang guard, as above
                 return transport.read_words("R1000", 2)
 
         assert registers() == [0, 0]

@@ -1,13 +1,16 @@
 """The emulator's pty wires at a serial line's real rate (hil.sim.pacing): a character takes its bits' time.
 
-Timings are of large transfers (seconds of line time against milliseconds of host overhead), so a loaded host
-changes them by far less than the 10 % allowed; the expectation is computed from the configured rate, never a
-number written down here."""
+The time a transfer takes is bounded from below only: a paced line cannot carry N characters in less than N
+character times (the pacer hands each slice on at the loop time its last character would have arrived, on the
+ideal clock), and a busy host can only make it slower.  How close to the line's rate it comes is a benchmark's
+figure (benchmarks/bench_host_time.py).  The floor is computed from the configured rate, never a number written
+down here."""
 
 from __future__ import annotations
 
 import asyncio
 import os
+import select
 import time
 
 import pytest
@@ -46,9 +49,15 @@ def test_the_url_sets_the_pace_with_the_protocols_usual_frame():
         emulator_line(parse_target("emulator+fatek-serial?parity=E"))
 
 
+#: how long a transfer may go without a byte before the test calls it hung (a hang guard, not a measure)
+HANG_GUARD = 60.0
+#: asyncio may run a timer up to its clock's resolution early, and the float clock rounds: far below a character
+EARLY = 1e-6
+
+
 def _transfer(rate: LineRate, size: int, direction: str) -> tuple[int, float]:
-    """``size`` bytes written at one end of a paced pty bridge, read at the other: (bytes that came after the
-    first piece, seconds from the first piece to the last) — the bridge's start-up latency left out."""
+    """``size`` bytes written at one end of a paced pty bridge, read at the other: (bytes carried, seconds from
+    just before the write to the last byte's arrival) — every byte crossed the pacer within that span."""
     runtime = LoopThread.shared()
 
     async def start() -> PtyPair:
@@ -58,12 +67,13 @@ def _transfer(rate: LineRate, size: int, direction: str) -> tuple[int, float]:
     src_path, dst_path = (pair.path_b, pair.path_a) if direction == "b_to_a" else (pair.path_a, pair.path_b)
     src, dst = os.open(src_path, os.O_RDWR | os.O_NOCTTY), os.open(dst_path, os.O_RDWR | os.O_NOCTTY)
     try:
+        started, got = time.monotonic(), 0
         os.write(src, bytes(range(256)) * (size // 256))
-        first = len(os.read(dst, 4096))
-        started, got = time.monotonic(), first
         while got < size:
+            ready, _, _ = select.select([dst], [], [], HANG_GUARD)
+            assert ready, f"hang guard: {got} of {size} bytes came, then none for {HANG_GUARD:.0f} s"
             got += len(os.read(dst, 4096))
-        return size - first, time.monotonic() - started
+        return got, time.monotonic() - started
     finally:
         os.close(src)
         os.close(dst)
@@ -75,18 +85,19 @@ def _transfer(rate: LineRate, size: int, direction: str) -> tuple[int, float]:
 
 @pytest.mark.parametrize("direction", ["b_to_a", "a_to_b"])
 def test_a_paced_pty_carries_a_large_transfer_at_the_line_rate(direction):
-    """The Modbus RTU wire's bridge, both ways: 5 KB at 57600 8E1 takes its bytes × 11 bit times (≈ 1 s)."""
+    """The Modbus RTU wire's bridge, both ways: 5 KB at 57600 8E1 takes at least its bytes × 11 bit times (≈ 1 s)."""
     rate = LineRate(57600, 8, "E", 1)
     carried, elapsed = _transfer(rate, 5120, direction)
-    expected = carried * rate.bits / rate.baudrate
-    # the pace is a floor: no faster than the bits allow (a busy host may only be slower; the bench-time benchmark
-    # measures how close it comes)
-    assert elapsed >= 0.9 * expected, f"{carried} bytes in {elapsed:.3f} s, expected {expected:.3f} s"
+    floor = carried * rate.bits / rate.baudrate
+    assert carried == 5120  # every byte, in order of arrival (none dropped)
+    # the pace is a floor: no faster than the bits allow — a guaranteed lower bound (a busy host is only slower)
+    assert elapsed >= floor - EARLY, f"{carried} bytes in {elapsed:.3f} s, faster than the line's {floor:.3f} s"
 
 
 def test_fatek_frames_on_a_paced_pty_take_their_bytes_times_the_bit_time():
     """Known frames over emulator+fatek-serial at 9600 7E1 (port 0's factory setting): every request and reply
-    byte is counted as it goes by, and the exchange takes those bytes × 10 / 9600 s (scans are virtual here)."""
+    byte is counted as it goes by, and the exchange takes at least those bytes × 10 / 9600 s (scans are virtual
+    here): each request and each reply crosses the pacer whole before the next one is sent."""
     url = "emulator+fatek-serial?baudrate=9600&bytesize=7&parity=E"
     rate = emulator_line(parse_target(url))
     with open_transport(url) as plc:
@@ -97,11 +108,12 @@ def test_fatek_frames_on_a_paced_pty_take_their_bytes_times_the_bit_time():
         for _ in range(4):
             assert plc.read_words("R0", 64) == [0] * 64
         elapsed = time.monotonic() - started
-    expected = sum(carried) * rate.bits / rate.baudrate
+    floor = sum(carried) * rate.bits / rate.baudrate
     frames = len(encode_request(1, ReadRegisters("R0", 64))) + 9 + 64 * 4  # the request; STX…ETX around 64 words
     assert sum(carried) == 4 * frames, "one request and its reply a read, nothing else (no fence on a direct line)"
-    assert elapsed >= 0.9 * expected, (f"{sum(carried)} bytes in {elapsed:.3f} s, expected "
-                                                          f"{expected:.3f} s at {rate}")
+    # a guaranteed lower bound, as above (no upper one: a busy host is only slower)
+    assert elapsed >= floor - EARLY, (f"{sum(carried)} bytes in {elapsed:.3f} s, faster than the line's "
+                                      f"{floor:.3f} s at {rate}")
 
 
 def test_a_flood_on_a_paced_line_is_bounded_and_dropped_beyond_the_buffer():

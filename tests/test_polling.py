@@ -32,6 +32,9 @@ def test_fun86_is_awaited_at_the_pid_interval_of_r4005():
     try:
         pid = bench.plc.pid
         assert pid.timing() == (4, 2)  # power-on R4005 = 0102H: every 4 s, PWM period 2 s
+        # bench time on the in-process emulator is its virtual clock: exact, whatever the host's load (no host time
+        # is compared with anything here)
+        assert bench.time.virtual
         started = bench.time.now()
         assert not pid.wait_until(lambda: False, steps=1.0)
         elapsed = bench.time.now() - started
