@@ -80,17 +80,21 @@ def test_clock_runs_after_a_set(bench, clock):
 # -- weekday -----------------------------------------------------------------------------------------------------
 @pytest.mark.spec("S7-RTC-7")
 @pytest.mark.parametrize("written", [0x01, 0x03, 0x06])
-def test_weekday_ignored_on_write_and_computed_on_read(clock, written):
+def test_weekday_ignored_on_write_and_computed_on_read(bench, clock, written):
+    began = bench.time.now()
     result = clock.set(bytes([0x24, 0x06, 0x15, 0x08, 0x30, 0x00, 0x00, written]))
     assert result.accepted, f"SET_RTC refused a valid date with weekday {written:02X}: {result}"
-    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), f"weekday {written:02X} written: ")
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), f"weekday {written:02X} written: ",
+                 since=(bench, began))
 
 
 @pytest.mark.spec("S7-RTC-9", "S7-RTC-7")
 def test_weekday_advances_at_midnight(bench, clock):
+    began = bench.time.now()
     assert clock.set(T("24 06 15 23 59 58 00 07")).accepted  # Saturday 23:59:58
     bench.wait(3)
-    assert_reads(clock, T("24 06 16 00 00 00 00 00")[:5], 1, range(1, 4))  # Sunday
+    # Sunday; the set's second counted from the minute read: 58 is 2 s before it
+    assert_reads(clock, T("24 06 16 00 00 00 00 00")[:5], 1, range(1, 4), since=(bench, began), set_second=-2)
 
 
 # -- refused buffers: ENO = 0, 0007H, clock unchanged ---------------------------------------------------------
@@ -232,11 +236,13 @@ def test_clock_runs_over_every_month_end_and_leap_day(bench, clock):
 
 
 @pytest.mark.spec("S7-RTC-4")
-def test_valid_set_after_a_refused_one(clock):
+def test_valid_set_after_a_refused_one(bench, clock):
     assert clock.set(INVALID_DATES["30 February 2024"]).error == T_DATA_ERROR
+    began = bench.time.now()
     result = clock.set(T("24 02 29 09 00 00 00 01"))
     assert result.accepted, f"valid set after a refused one: {result}"
-    assert_reads(clock, T("24 02 29 09 00 00 00 00")[:5], 5, range(0, 3))  # 29 Feb 2024 was a Thursday
+    assert_reads(clock, T("24 02 29 09 00 00 00 00")[:5], 5, range(0, 3),  # 29 Feb 2024 was a Thursday
+                 since=(bench, began))
 
 
 # -- leap years 2000–2099 ------------------------------------------------------------------------------------------
@@ -278,12 +284,14 @@ def set_i(clock):
     ([36, 2, 29, 23, 59, 0, 0, 1], T("36 02 29 23 59 00 00 00"), 6),   # 29 Feb 2036, a Friday
     ([0, 1, 1, 0, 0, 0, 0, 0], T("00 01 01 00 00 00 00 00"), 7),
 ])
-def test_set_rtc_i_equals_set_rtc_with_bcd(set_i, integers, bcd_buffer, weekday):
+def test_set_rtc_i_equals_set_rtc_with_bcd(bench, set_i, integers, bcd_buffer, weekday):
+    began = bench.time.now()
     result = set_i.set_int(integers)
     assert result.accepted, f"SET_RTC_I refused {integers}: {result}"
-    assert_reads(set_i, bcd_buffer[:5], weekday, range(0, 3), "SET_RTC_I: ")
+    assert_reads(set_i, bcd_buffer[:5], weekday, range(0, 3), "SET_RTC_I: ", since=(bench, began))
+    began = bench.time.now()
     assert set_i.set(bcd_buffer).accepted
-    assert_reads(set_i, bcd_buffer[:5], weekday, range(0, 3), "SET_RTC: ")
+    assert_reads(set_i, bcd_buffer[:5], weekday, range(0, 3), "SET_RTC: ", since=(bench, began))
 
 
 @pytest.mark.spec("S7-RTC-15", "S7-RTC-4")
@@ -292,11 +300,12 @@ def test_set_rtc_i_equals_set_rtc_with_bcd(set_i, integers, bcd_buffer, weekday)
                                       pytest.param([24, 6, 20, 24, 0, 0, 0, 0], marks=pytest.mark.spec("S7-RTC-6")),
                                       pytest.param([24, 6, 20, 9, 0, 0, 1, 0], marks=pytest.mark.spec("S7-RTC-6")),
                                       [24, 6, 20, 9, 100, 0, 0, 0]])  # (minute 100: no two-digit number at all)
-def test_set_rtc_i_refuses_what_set_rtc_refuses(set_i, integers):
+def test_set_rtc_i_refuses_what_set_rtc_refuses(bench, set_i, integers):
+    began = bench.time.now()
     assert set_i.set(SATURDAY_15_JUNE_2024).accepted
     result = set_i.set_int(integers)
     assert (result.eno, result.error) == (0, T_DATA_ERROR), f"SET_RTC_I {integers}: {result}"
-    assert_reads(set_i, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3))
+    assert_reads(set_i, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), since=(bench, began))
 
 
 # -- edge-triggered --------------------------------------------------------------------------------------------
