@@ -5,6 +5,8 @@ from __future__ import annotations
 import random
 from pathlib import Path
 
+import numpy  # noqa: F401 - before any pytester run: its in-process runs put sys.modules back as they found it,
+# and numpy's C core cannot be loaded a second time in one process (the report's plots then silently go missing)
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent

@@ -16,7 +16,7 @@ from junitparser import JUnitXml
 from hil.plugin.reporting.identity import public_url
 from hil.plugin.reporting.model import Measurement, Series, area_of
 from hil.io.trace import describe_modbus
-from tests.conftest import EMULATOR_BENCH, REPO
+from tests.conftest import EMULATOR_BENCH
 
 ANSI = re.compile(r"\x1b\[|\x1b\]|\x1b[()]")
 
@@ -30,7 +30,7 @@ def hil_run(tmp_path_factory):
     proc = subprocess.run(
         [sys.executable, "-m", "hil.cli.main", "run", "-q", "--junitxml", str(out / "junit.xml"),
          "--html", str(out / "report.html"), "--", "-k", "drift or smoke or readings_are_in_range"],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=120)
+        cwd=out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=120)
     return proc, out
 
 
