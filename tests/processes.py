@@ -20,7 +20,9 @@ _LIVE: dict[int, subprocess.Popen] = {}
 
 def spawn(args: list[str], **kwargs: Any) -> subprocess.Popen:
     """``subprocess.Popen(args, **kwargs)`` in a new process group, remembered until :func:`end`."""
-    proc = subprocess.Popen(args, process_group=0, **kwargs)
+    if not kwargs.get("start_new_session"):  # a session of its own is a group of its own already (setsid)
+        kwargs["process_group"] = 0
+    proc = subprocess.Popen(args, **kwargs)
     _LIVE[proc.pid] = proc
     return proc
 
