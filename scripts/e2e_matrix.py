@@ -1,5 +1,5 @@
 """The exhaustive real-time matrix: ``python scripts/e2e_matrix.py`` (from the project directory, with .venv made as
-README's first command makes it; about 10 minutes on a 2-core host).
+README's first command makes it; about 8 minutes on a 2-core host).
 
 What the gate (``.ci/run``) runs once per path, this runs in full: every defect of the broken-PLC variants against
 ``hil emulate`` over the wire, the FBs suite set on both wires and every time scale, kills and recoveries at 13
