@@ -26,11 +26,9 @@ run, next to the bound the test used to hold (``was``):
 from __future__ import annotations
 
 import argparse
-import asyncio
 import datetime as dt
 import json
 import os
-import select
 import subprocess
 import sys
 import tempfile
@@ -270,38 +268,13 @@ def punctuality(rounds: int) -> list[dict]:
 
 
 # -- 3. the paced line ----------------------------------------------------------------------------------------------
-def _pty_transfer(line, size: int) -> float:  # noqa: ANN001 - a LineRate or None
-    from hil.sim.ptypair import PtyPair
-    from hil.sim.runtime import LoopThread
-    runtime = LoopThread.shared()
-
-    async def start() -> PtyPair:
-        return PtyPair(asyncio.get_running_loop(), line=line)
-
-    pair = runtime.run(start())
-    src, dst = (os.open(p, os.O_RDWR | os.O_NOCTTY) for p in (pair.path_b, pair.path_a))
-    try:
-        start_t, got = time.perf_counter(), 0
-        os.write(src, bytes(range(256)) * (size // 256))
-        while got < size:
-            select.select([dst], [], [], 60)
-            got += len(os.read(dst, 4096))
-        return time.perf_counter() - start_t
-    finally:
-        os.close(src)
-        os.close(dst)
-
-        async def stop() -> None:
-            pair.close()
-        runtime.run(stop())
-
-
 def paced_line(rounds: int) -> dict:
     from hil.sim.pacing import LineRate
     rate, size = LineRate(57600, 8, "E", 1), 5120
     line_s = size * rate.bits / rate.baudrate
-    paced = best_of(rounds, lambda: _pty_transfer(rate, size))
-    unpaced = best_of(rounds, lambda: _pty_transfer(None, size))
+    from tests.test_paced_line import pty_transfer  # the test's transfer, timed from just before the write
+    paced = best_of(rounds, lambda: pty_transfer(rate, size, "b_to_a")[1])
+    unpaced = best_of(rounds, lambda: pty_transfer(None, size, "b_to_a")[1])
     return {"line": str(rate), "bytes": size, "line_s": line_s, "paced_s": paced, "unpaced_s": unpaced,
             "ratio": paced / line_s, "was": "within 10 % of the line's time", "target_ratio": 1.1}
 

@@ -55,8 +55,9 @@ HANG_GUARD = 60.0
 EARLY = 1e-6
 
 
-def _transfer(rate: LineRate, size: int, direction: str) -> tuple[int, float]:
-    """``size`` bytes written at one end of a paced pty bridge, read at the other: (bytes carried, seconds from
+def pty_transfer(rate: LineRate | None, size: int, direction: str) -> tuple[int, float]:
+    """``size`` bytes written at one end of a paced pty bridge (unpaced: ``rate`` None; benchmarks/bench_host_time.py
+    times the same transfer), read at the other: (bytes carried, seconds from
     just before the write to the last byte's arrival) — every byte crossed the pacer within that span."""
     runtime = LoopThread.shared()
 
@@ -87,7 +88,7 @@ def _transfer(rate: LineRate, size: int, direction: str) -> tuple[int, float]:
 def test_a_paced_pty_carries_a_large_transfer_at_the_line_rate(direction):
     """The Modbus RTU wire's bridge, both ways: 5 KB at 57600 8E1 takes at least its bytes × 11 bit times (≈ 1 s)."""
     rate = LineRate(57600, 8, "E", 1)
-    carried, elapsed = _transfer(rate, 5120, direction)
+    carried, elapsed = pty_transfer(rate, 5120, direction)
     floor = carried * rate.bits / rate.baudrate
     assert carried == 5120  # every byte, in order of arrival (none dropped)
     # the pace is a floor: no faster than the bits allow — a guaranteed lower bound (a busy host is only slower)
