@@ -1,7 +1,7 @@
 """Bench mode is the product: the whole FBs suite set, slow tests included, against ``hil emulate`` as a separate
 real-time process, reached only over its wires (FATEK/TCP and Modbus/TCP) and its Modbus relay rig, with a
-bench-like profile (the ladder's scan counter declared).  Each run has its own ``hil emulate`` (a PLC has one
-plant) and they run in parallel; the time scale is accelerated so that CI stays short.
+bench-like profile (the ladder's scan counter declared).  Each run is a test with its own ``hil emulate`` (a PLC
+has one plant); the gate runs the main set over FATEK/TCP, the matrix every run; the time scale is accelerated.
 
 Every skip must name a reason a bench profile removes (a Modbus user map for D4054, [rtc] drift_max_hours for the
 drift test, [bench] offers for a PLC fresh from power-on or one seen to make the spec's choices) — listed below so
@@ -80,14 +80,12 @@ def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path, name, wi
              "--hil-run-slow", "-q", "-rsfE", "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
              *(("-k", selected) if selected else ())],
             stderr=subprocess.STDOUT, cwd=tmp_path, env={**os.environ, "PYTHONUNBUFFERED": "1"}, timeout=540)
-    outputs = {(name, wire): done.stdout}
-    print(f"bench mode: {name} over {wire} took {time.monotonic() - started:.1f} s")
-    for (name, wire), out in outputs.items():
-        counts = outcome_counts(out)
-        print(f"{name} over {wire}: {counts}")
-        assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
-        assert counts.get("passed", 0) > 0, out[-3000:]
-        assert counts.get("passed", 0) == PASSES_ALL.get(name, counts.get("passed")), f"{name}/{wire}: {counts}"
-        for line in out.splitlines():
-            if line.startswith("SKIPPED"):
-                assert any(re.search(allowed, line) for allowed in ALLOWED_SKIPS), f"{name}/{wire}: {line}"
+    out = done.stdout
+    counts = outcome_counts(out)
+    print(f"bench mode: {name} over {wire} took {time.monotonic() - started:.1f} s: {counts}")
+    assert counts.get("failed", 0) == 0 and counts.get("error", 0) + counts.get("errors", 0) == 0, out[-6000:]
+    assert counts.get("passed", 0) > 0, out[-3000:]
+    assert counts.get("passed", 0) == PASSES_ALL.get(name, counts.get("passed")), f"{name}/{wire}: {counts}"
+    for line in out.splitlines():
+        if line.startswith("SKIPPED"):
+            assert any(re.search(allowed, line) for allowed in ALLOWED_SKIPS), f"{name}/{wire}: {line}"
