@@ -61,14 +61,17 @@ def pytest_addoption(parser):
                           "--order-seed=0 keeps the files' order")
 
 
+ORDER_SEED = pytest.StashKey[int]()  # the controller's seed, chosen once a run
+
+
 def _order_seed(config) -> int:
     workerinput = getattr(config, "workerinput", None)
     if workerinput is not None:  # a pytest-xdist worker: the controller's seed, so that every worker agrees
         return workerinput["hil_order_seed"]
-    if not hasattr(config, "_hil_order_seed"):
+    if ORDER_SEED not in config.stash:
         given = config.getoption("--order-seed")
-        config._hil_order_seed = given if given is not None else random.SystemRandom().randrange(1, 2**32)
-    return config._hil_order_seed
+        config.stash[ORDER_SEED] = given if given is not None else random.SystemRandom().randrange(1, 2**32)
+    return config.stash[ORDER_SEED]
 
 
 def _shuffled(path: Path) -> bool:
