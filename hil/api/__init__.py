@@ -22,6 +22,7 @@ from typing import Mapping, Protocol, Sequence
 
 from hil.bench.faces import BenchTime, BenchView, FaultInjector
 from hil.core.errors import HilError, WriteRefused
+from hil.core.evidence import Expectation, StaleEvidence
 from hil.core.measurement import Measurement, Outcome
 from hil.families.fbs.device.pid import AlarmWords, Sample, Trace
 from hil.families.fbs.device.rtc import RtcChip, RtcFlags, RtcSnapshot, SetResult
@@ -70,7 +71,7 @@ __all__ = [
     "BenchView", "S7Bench", "S7IO",
     # values the areas return
     "RtcTime", "SetResult", "RtcSnapshot", "RtcFlags", "RtcChip", "PidInstance", "AlarmWords", "Trace", "Sample",
-    "TableView", "WorkView", "Measurement", "Outcome",
+    "TableView", "WorkView", "Measurement", "Outcome", "Expectation",
     # errors a test may expect
-    "HilError", "WriteRefused",
+    "HilError", "WriteRefused", "StaleEvidence",
 ]

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Any, ContextManager, Generic, Protocol, Sequence, TypeVar
+from typing import Any, Callable, ContextManager, Generic, Protocol, Sequence, TypeVar
 
 from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
 from hil.core.errors import HilError
+from hil.core.evidence import Expectation, expect
 from hil.bench.profile import Profile
 from hil.core.journal import Journal
 from hil.core.timebase import Timebase
@@ -77,6 +78,11 @@ class BenchBase(Generic[PlcT, LinkT]):
     def settle(self) -> None:
         """Make sure the PLC has completed whole scans since the last write."""
         self.plc.settle()
+
+    def expect(self, what: str, condition: Callable[[], bool]) -> Expectation:
+        """Before a stimulus: the wait for ``condition`` after it (:mod:`hil.core.evidence`); StaleEvidence now
+        if it already holds."""
+        return expect(self.time, what, condition)
 
     def exclusive(self) -> ContextManager[None]:
         """Hold the wire across several requests (no other lane's between them: :meth:`hil.core.link.Link.exclusive`)."""

@@ -10,10 +10,11 @@ bench may lack (``power_cycle``, ``settings``, ``faults``) are left off the prox
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, ContextManager, Protocol, TYPE_CHECKING
+from typing import Any, Callable, ContextManager, Protocol, TYPE_CHECKING
 
 if TYPE_CHECKING:
     from hil.bench.profile import Profile
+    from hil.core.evidence import Expectation
     from hil.io.url import Target
 
 
@@ -155,6 +156,13 @@ class BenchView(Protocol):
 
     def settle(self) -> None:
         """Make sure the PLC has completed whole scans since the last write (its ladder has seen the write)."""
+        ...
+
+    def expect(self, what: str, condition: Callable[[], bool]) -> Expectation:
+        """Before a stimulus, the wait for what it should produce: ``awaited = bench.expect("TW+3 counts 9 modules",
+        lambda: ...)``, then the write, then ``assert awaited.within(limit, every=poll)``.  ``condition`` is read
+        now: if it already holds, the wait could be satisfied by the PLC's previous state, and
+        :class:`hil.core.evidence.StaleEvidence` (reported as a test error naming ``what``) is raised instead."""
         ...
 
     def exclusive(self) -> ContextManager[None]:

@@ -24,6 +24,7 @@ from hil.bench.base import BenchBase as Bench  # noqa: E402 - after the plugins 
 from hil.bench.faces import BenchView
 from hil.bench.family import build_emulator, default_family, open_bench
 from hil.core.errors import HilError, TransportError
+from hil.core.evidence import StaleEvidence
 from hil.bench.profile import Profile, load_profile
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.plugin import bench_time
@@ -346,7 +347,17 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa
     if (call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(TransportError)
             and "bench" in getattr(item, "fixturenames", ())):
         item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"
+    if call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(StaleEvidence):
+        report.stale_evidence = True  # (a plain attribute: it travels with the report from an xdist worker)
     return report
+
+
+def pytest_report_teststatus(report: pytest.TestReport, config: pytest.Config) -> tuple[str, str, str] | None:
+    """A wait satisfied before its stimulus is an error of the test, not a verdict on the PLC: counted and
+    listed as an error (the run still exits 1)."""
+    if report.when == "call" and getattr(report, "stale_evidence", False):
+        return "error", "E", "ERROR (stale evidence)"
+    return None
 
 
 @pytest.fixture

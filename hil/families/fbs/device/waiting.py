@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+from hil.core import evidence
 from hil.core.timebase import Timebase
 
 #: looks per period of what is awaited: an event is seen within 1/POLLS_PER_PERIOD of its period (4 %)
@@ -22,15 +23,7 @@ def poll_until(clock: Timebase, event: Callable[[], bool], *, period: float, wit
     """Evaluate ``event`` (a read of the PLC) every ``period`` / :data:`POLLS_PER_PERIOD` bench seconds until it
     holds — True — or ``within`` bench seconds have passed — False (a test then asserts what it expects, as it
     would after the full wait)."""
-    every = period / POLLS_PER_PERIOD
-    deadline = clock.now() + within
-    while True:
-        if event():
-            return True
-        left = deadline - clock.now()
-        if left <= 0:
-            return False
-        clock.wait(min(every, left))
+    return evidence.poll_until(clock, event, every=period / POLLS_PER_PERIOD, within=within)
 
 
 __all__ = ["poll_until", "POLLS_PER_PERIOD"]
