@@ -76,7 +76,7 @@ def test_the_plugin_reports_a_stale_wait_as_an_error_of_the_test(pytester):
     """)
     result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "-rfE", "-p", "no:cacheprovider")
     result.assert_outcomes(passed=1, failed=1, errors=1)
-    result.stdout.fnmatch_lines(["*StaleEvidence: the wait for 'R1000 holds 7' was already satisfied before its "
-                                 "stimulus*", "ERROR (stale evidence) *test_stale_wait*"])
+    result.stdout.fnmatch_lines([("*StaleEvidence: the wait for 'R1000 holds 7' was already satisfied before its "
+                                  "stimulus*"), "ERROR (stale evidence) *test_stale_wait*"])
     result.stdout.fnmatch_lines(["E*AssertionError: R1002 never held 9", "FAILED *test_wait_for_what_never_comes*"])
     assert result.ret == 1
