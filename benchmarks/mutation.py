@@ -112,6 +112,9 @@ def _config(work: Path, name: str, timeout: float) -> Path:
 
 def _cosmic_ray(work: Path, *args: str) -> None:
     exe = Path(sys.executable).with_name("cosmic-ray")
+    if not exe.exists():
+        sys.exit(f"mutation testing needs cosmic-ray beside this Python ({exe} is missing): "
+                 f"{sys.executable} -m pip install cosmic-ray==8.7")
     env = {**os.environ, "PYTHONPATH": str(work), "HIL_STATE_DIR": str(work / ".hil-state"),
            "HIL_LOCK_DIR": str(work / ".hil-locks")}
     subprocess.run([str(exe), "--verbosity", "WARNING", *args], cwd=work, env=env, check=True)
