@@ -507,3 +507,34 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
         assert _close(after[p], before[p]), (
             f"point {p} read {before[p]} before the break, {after[p]} after being repaired")
 
+
+@pytest.mark.spec("TEMP-UNIT-1", "TEMP-UNIT-3", "TEMP-ACC-1")
+def test_a_reading_below_zero_is_a_signed_word(bench, temp, measure):
+    """20.1/20.3: a reading is one register in 0.1 °, and the ranges of most sensors go below 0 °C, so a reading
+    below zero is the signed 16-bit value: −12.3 ° is the word FF85H, −123.  Each point a reference holds below 0 in
+    the table's unit ([temperature] reference: an ice-salt bath, a calibrator) must read a word with the sign bit set
+    whose signed value is the reference's temperature within the module's accuracy — not 0 (a PLC that clamps at
+    zero), not the magnitude (one that drops the sign).  Skipped on a bench with no such reference."""
+    config = temp.config
+    installed = _installed(bench, range(config.points))
+    cold = {p: c for p, c in config.reference.items() if _in_unit(c, config.unit) < 0 and p in installed}
+    if not cold:
+        pytest.skip(f"no point installed in R4010/R4011 is held below 0 °{config.unit}: name one in [temperature] "
+                    f"reference (an ice-salt bath, a calibrator) to check readings below zero")
+    for point, celsius in sorted(cold.items()):
+        _, module = config.point_module(point)
+        want = _in_unit(celsius, config.unit)
+        allowed = _reference_allowance(config, module, celsius)
+        word = bench.plc.io.read_words(config.readings.offset(point), 1)[0]  # the raw word, not the decoded value
+        value = word - 0x10000 if word & 0x8000 else word
+        measure(f"point{point}_below_zero", value / 10, unit=f"°{config.unit}", low=want - allowed,
+                high=want + allowed, note=f"a reference holds it at {celsius} °C; word {word:04X}H")
+        expected = round(want * 10)
+        assert word & 0x8000, (
+            f"point {point} ({module.sensor.name}) is held at {want:.1f} °{config.unit}: its reading word is "
+            f"{word:04X}H = {word}, with no sign bit; below zero a reading is the signed 16-bit value "
+            f"(about {expected & 0xFFFF:04X}H = {expected})")
+        assert abs(value / 10 - want) <= allowed + 1e-9, (
+            f"point {point} ({module.sensor.name}) is held at {want:.1f} °{config.unit}: its word {word:04X}H reads "
+            f"{value / 10} °{config.unit} signed, more than the module's accuracy ±{allowed:.2f} °{config.unit} off")
+

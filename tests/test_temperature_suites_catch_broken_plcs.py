@@ -5,6 +5,7 @@ is slow where the manual lets it be — must PASS."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from hil.families.fbs.sim.models.temperature import TemperatureModel
@@ -13,6 +14,22 @@ from tests.conftest import EMULATOR_BENCH
 from tests.test_temperature_suites import SUITE_TESTS, mixed_profile
 
 SUITE = "test_temperature.py"
+BELOW_ZERO = "test_a_reading_below_zero_is_a_signed_word"
+TABLE_CODES = "test_work_block_codes_for_a_table_that_does_not_fit"
+
+
+class ReadingsClampedAtZero(TemperatureModel):
+    """A reading below zero shows 0 (an unsigned conversion that saturates)."""
+
+    def resolution(self, mean):
+        return np.maximum(super().resolution(mean), 0.0)
+
+
+class SignDropped(TemperatureModel):
+    """A reading below zero shows its magnitude: −20.5 ° reads 205."""
+
+    def resolution(self, mean):
+        return np.abs(super().resolution(mean))
 
 
 class TableTakenAtItsNextCycle(TemperatureModel):
@@ -62,6 +79,29 @@ def _bench(tmp_path, profile: str):
     path = tmp_path / "mixed.toml"
     path.write_text(mixed_profile(EMULATOR_BENCH.read_text()))
     return path
+
+
+# variant → (the suite test that must fail on it, the profiles it shows on)
+CAUGHT_BY = {
+    ReadingsClampedAtZero: (BELOW_ZERO, ["default", "mixed"]),
+    SignDropped: (BELOW_ZERO, ["default", "mixed"]),
+}
+
+
+@pytest.mark.parametrize(("variant", "profile"), [(v, p) for v, (_, ps) in CAUGHT_BY.items() for p in ps],
+                         ids=lambda x: x if isinstance(x, str) else x.__name__)
+def test_the_suite_fails_on_a_broken_plc(pytester, tmp_path, variant, profile):
+    name = CAUGHT_BY[variant][0]
+    passed, failed = run_suites(pytester, [SUITE], _with(variant), "-k", name, bench=_bench(tmp_path, profile))
+    assert [f.split("::")[-1] for f in failed] == [name], f"{variant.__name__}: passed {passed}, failed {failed}"
+
+
+@pytest.mark.parametrize("profile", ["default", "mixed"])
+def test_the_new_checks_pass_on_the_correct_emulator(pytester, tmp_path, profile):
+    names = [BELOW_ZERO]
+    passed, failed = run_suites(pytester, [SUITE], _with(TemperatureModel), "-k", " or ".join(names),
+                                bench=_bench(tmp_path, profile))
+    assert not failed and sorted(p.split("::")[-1] for p in passed) == sorted(names), (passed, failed)
 
 
 @pytest.mark.parametrize("profile", ["default", "mixed"])
