@@ -538,3 +538,49 @@ def test_a_reading_below_zero_is_a_signed_word(bench, temp, measure):
             f"point {point} ({module.sensor.name}) is held at {want:.1f} °{config.unit}: its word {word:04X}H reads "
             f"{value / 10} °{config.unit} signed, more than the module's accuracy ±{allowed:.2f} °{config.unit} off")
 
+
+@pytest.mark.spec("TEMP-RATE-2")
+def test_each_module_shows_a_change_within_its_own_update_time(bench, temp, breaker, measure):
+    """20.1: a module measures every one of its points once per *its own* update time (fast / normal: 2TC, 6RTD,
+    6NTC 1/2 s, 6TC and 16RTD 2/4 s, 16TC 3/6 s), whatever other modules are fitted beside it.  Every point the
+    rig can open is opened at once; each one's 28767 — news: none reads it before — must show within its own
+    module's update time (and the scan margin), not only within the slowest module's.  Timed on the last poll that
+    still saw the point's old reading, from the moment its open was done: a lower bound, whatever the wire's
+    delays."""
+    config = temp.config
+    points = breaker.openable(_installed(bench, range(config.points)))  # (a masked point shows no break: 20.3.3)
+    if not points:
+        pytest.skip("the sensor-break rig can open none of the points installed in R4010/R4011")
+    rate = 0 if config.rate == "fast" else 1
+    before = temp.readings()
+    already = [p for p in points if before[p] == BREAK]
+    assert not already, f"points {already} read 28767 before any sensor was opened"
+    clock = bench.plc.time
+    opened = {}
+    for p in points:
+        breaker.open(p)
+        opened[p] = clock.now()  # (the open is done by now: the time is taken late, the check only more lenient)
+    missed = dict(opened)  # each point's last poll that did not see 28767
+    waiting = set(points)
+    deadline = clock.now() + 1.5 * temp.update_period() + UPDATE_MARGIN_S  # (a hang guard: the slowest module's)
+    while waiting:
+        polled = clock.now()
+        readings = temp.readings()
+        for p in list(waiting):
+            if readings[p] == BREAK:
+                waiting.discard(p)
+            else:
+                missed[p] = polled
+        if not waiting or polled >= deadline:
+            break
+        clock.wait(temp.poll_interval)
+    assert not waiting, f"points {sorted(waiting)} never read 28767 after their sensors were opened"
+    for k, module in enumerate(config.modules):  # (measure fails the test at the first module out of its limit)
+        mine = [p for p in points if config.point_module(p)[0] == k]
+        if mine:
+            limit = UPDATE_S[module.type.name][rate]
+            measure(f"module{k + 1}_update", max(missed[p] - opened[p] for p in mine), unit="s", low=0,
+                    high=limit + UPDATE_MARGIN_S,
+                    note=f"module {k + 1}, an FBs-{module.type.name} at the {config.rate} rate, measures each of its "
+                         f"points within its own update time, {limit} s (the last poll that still saw a point of it "
+                         f"unbroken, from that point's open)")

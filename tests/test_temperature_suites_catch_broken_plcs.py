@@ -15,6 +15,7 @@ from tests.test_temperature_suites import SUITE_TESTS, mixed_profile
 
 SUITE = "test_temperature.py"
 BELOW_ZERO = "test_a_reading_below_zero_is_a_signed_word"
+OWN_UPDATE = "test_each_module_shows_a_change_within_its_own_update_time"
 TABLE_CODES = "test_work_block_codes_for_a_table_that_does_not_fit"
 
 
@@ -30,6 +31,15 @@ class SignDropped(TemperatureModel):
 
     def resolution(self, mean):
         return np.abs(super().resolution(mean))
+
+
+class EveryModuleOnTheSlowestCycle(TemperatureModel):
+    """Every module goes round its points once per the slowest fitted module's update time (a 1 s 6NTC beside a
+    2 s 6TC refreshes every 2 s)."""
+
+    def _step(self, module):
+        slowest = max(m.update_s[self.config.rate] for m in self.fitted)
+        return slowest / module.points
 
 
 class TableTakenAtItsNextCycle(TemperatureModel):
@@ -85,6 +95,8 @@ def _bench(tmp_path, profile: str):
 CAUGHT_BY = {
     ReadingsClampedAtZero: (BELOW_ZERO, ["default", "mixed"]),
     SignDropped: (BELOW_ZERO, ["default", "mixed"]),
+    # (2 × 16TC have one update time: only modules of different ones show it)
+    EveryModuleOnTheSlowestCycle: (OWN_UPDATE, ["mixed"]),
 }
 
 
@@ -98,7 +110,7 @@ def test_the_suite_fails_on_a_broken_plc(pytester, tmp_path, variant, profile):
 
 @pytest.mark.parametrize("profile", ["default", "mixed"])
 def test_the_new_checks_pass_on_the_correct_emulator(pytester, tmp_path, profile):
-    names = [BELOW_ZERO]
+    names = [BELOW_ZERO, OWN_UPDATE]
     passed, failed = run_suites(pytester, [SUITE], _with(TemperatureModel), "-k", " or ".join(names),
                                 bench=_bench(tmp_path, profile))
     assert not failed and sorted(p.split("::")[-1] for p in passed) == sorted(names), (passed, failed)
