@@ -47,9 +47,18 @@ def breaker(bench, temp):
         pytest.skip(reason)
     yield bench.faults.sensor_break
     # Close every circuit and restore the mask now, then let each point be measured healthy again, so the next
-    # test starts from a PLC with no break bits (the bench's own end_test then finds nothing left to undo).
+    # test starts from a PLC with no break bits (the bench's own end_test then finds nothing left to undo).  A
+    # point the test left masked reads 0 with no break bit until the PLC measures it again: the wait is also for
+    # every installed point to read something else (a test that failed midway may leave one).
     bench.end_test()
-    temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and BREAK not in temp.readings())
+    temp.wait_until(lambda: _healthy_again(bench, temp))
+
+
+def _healthy_again(bench, temp):
+    """No break bit, no 28767, and no point installed in R4010/R4011 reading 0 (one masked a moment ago)."""
+    readings = temp.readings()
+    installed = [readings[p] for p in _installed(bench, range(len(readings)))]
+    return temp.read_work().break_words == (0, 0) and BREAK not in readings and 0 not in installed
 
 
 def _words(points):
@@ -59,6 +68,12 @@ def _words(points):
     for p in points:
         words[p // 16] |= 1 << (p % 16)
     return tuple(words)
+
+
+def _installed(bench, points):
+    """Those of ``points`` whose bit in R4010 (0–15) or R4011 (16–31) is 1 (20.3.3)."""
+    mask = bench.plc.io.read_words("R4010", 2)
+    return [p for p in points if mask[p // 16] >> (p % 16) & 1]
 
 
 def _bits(words):
@@ -115,6 +130,14 @@ def _accuracy_c(family, celsius):
     return abs(celsius) / 100 + (1.0 if family == "TC" else 0.0)
 
 
+def _reference_allowance(config, module, celsius):
+    """How far, in the table's unit, a point a reference holds at ``celsius`` may read: the module's accuracy, the
+    reference's own uncertainty and the reading's rounding (1 ° at the fast rate, 0.1 ° at the normal one)."""
+    allowed = (_accuracy_c(FAMILY[module.type.name], celsius) + config.reference_tolerance)
+    allowed *= 9 / 5 if config.unit == "F" else 1
+    return allowed + (0.5 if config.rate == "fast" else 0.05)
+
+
 @pytest.mark.spec("TEMP-SENS-1", "TEMP-SENS-2", "TEMP-SENS-3", "TEMP-UNIT-1", "TEMP-UNIT-2", "TEMP-RATE-1",
                   "TEMP-ACC-1", "TEMP-MASK-1", "TEMP-BREAK-2", "TEMP-WORK-5")
 def test_readings_are_in_range_and_units(bench, temp, measure):
@@ -150,9 +173,7 @@ def test_readings_are_in_range_and_units(bench, temp, measure):
                 assert value % 10 == 0, f"fast rate has 1° resolution, point {point} reads {value} (0.1° units)"
             if point in config.reference and attempt == 0:
                 celsius = config.reference[point]
-                family = FAMILY[module.type.name]
-                allowed = (_accuracy_c(family, celsius) + config.reference_tolerance) * (9 / 5 if unit == "F" else 1)
-                allowed += 0.5 if config.rate == "fast" else 0.05  # the reading's own rounding
+                allowed = _reference_allowance(config, module, celsius)
                 want = _in_unit(celsius, unit)
                 measure(f"point{point}_reference", value / 10, unit=f"°{unit}", low=want - allowed,
                         high=want + allowed, note=f"a reference holds it at {celsius} °C")
@@ -172,14 +193,34 @@ def test_readings_are_in_range_and_units(bench, temp, measure):
             f"normal rate has 0.1 ° resolution, yet all {len(samples)} readings are whole degrees: {samples[:12]}")
 
 
+def _head(work):
+    """TW+0 and TW+3: the execution code, the mismatch bits, the point and module counts."""
+    return work.words[0], work.words[3]
+
+
 def _retable(bench, temp, items, condition):
-    """Write table words (``items``: offset from SR → word) and wait (at most the update time) for ``condition``
-    of the work block; the work block as then read."""
+    """Write table words (``items``: offset from SR → word) and wait, at most the update time (a PLC takes a new
+    table at its own next cycle), for the work block the new table produces: ``condition`` holding on a TW+0/TW+3
+    other than the one read before the write.  Each step of the tests is chosen so that its expected TW+0 differs
+    from the step before, so a block still showing the previous table is never read as the answer (fresh evidence);
+    a PLC whose block does not change fails here.  Returns the work block as then read."""
+    before = _head(temp.read_work())
     sr = temp.config.table
     bench.plc.io.write_many({str(sr.offset(k)): v & 0xFFFF for k, v in items.items()})
     bench.settle()
-    temp.wait_until(lambda: condition(temp.read_work()))
-    return temp.read_work()
+    seen = []
+
+    def fresh():
+        seen[:] = [temp.read_work()]
+        return _head(seen[0]) != before and condition(seen[0])
+
+    temp.wait_until(fresh)
+    work = seen[0]
+    written = ", ".join(f"SR+{k} = {v & 0xFFFF:04X}H" for k, v in items.items())
+    assert _head(work) != before, (
+        f"{written} written: TW+0 TW+3 still {before[0]:04X}H {before[1]:04X}H after the update time, the work "
+        f"block never showed the new table")
+    return work
 
 
 @pytest.mark.spec("TEMP-MASK-2")
@@ -204,12 +245,14 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
     n = len(config.modules)
     before = temp.readings()
 
+    # Each bad count from the valid table (56H), so that FEH is news: a PLC that takes the table at its next cycle
+    # still shows the last one's code and TW+3 until then.
     for count in (0, 9):
         work = _retable(bench, temp, {1: count}, lambda w: w.execution_code == BAD_MODULE_COUNT)
         assert work.execution_code == BAD_MODULE_COUNT, (
             f"module count {count} in SR+1: execution code {work.execution_code:02X}H, expected FEH")
         assert work.module_count == count, f"module count {count}: TW+3 low byte {work.module_count}"
-    _retable(bench, temp, {1: n}, lambda w: w.execution_code == MEASURING)
+        _put_back_count(bench, temp, n)
 
     biggest = max(range(n), key=lambda k: POINTS[config.modules[k].type.name])
     size = POINTS[config.modules[biggest].type.name]
@@ -220,8 +263,7 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
         assert work.execution_code == TOO_MANY_POINTS, (
             f"{many} × {config.modules[biggest].type.name} = {many * size} points: execution code "
             f"{work.execution_code:02X}H, expected FFH (more than 32 points)")
-        _retable(bench, temp, {1: n, **{4 + k: table[4 + k] for k in range(many) if 4 + k < len(table)}},
-                 lambda w: w.execution_code == MEASURING)
+        _put_back_count(bench, temp, n, {4 + k: table[4 + k] for k in range(many) if 4 + k < len(table)})
 
     # Bit k: table module k + 1 names no module (FFH) or another module than the one fitted (TEMP-WORK-4) — each
     # kind on the even and on the odd modules, each step flagging other modules than the one before (a bit seen set
@@ -269,9 +311,9 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
 @pytest.mark.spec("TEMP-TBL-2")
 def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
     """20.3.1: the table is valid only with SR+0 = A556H.  With any other marker — one above (A557H) and one below
-    (56A5H, A556H byte-swapped), one update time and the margin each — the PLC measures nothing: sensors opened
-    meanwhile (every one the rig can open) show neither 28767 nor a break bit.  The sensors repaired, A556H is put
-    back.  Needs SR+0 in [safety] writable; the guard restores it."""
+    (56A5H, A556H byte-swapped), one update time and the margin each, after one more for the PLC to take the first
+    — the PLC measures nothing: sensors opened meanwhile (every one the rig can open) show neither 28767 nor a
+    break bit.  The sensors repaired, A556H is put back.  Needs SR+0 in [safety] writable; the guard restores it."""
     config = temp.config
     sr = config.table
     _need(bench, str(sr))
@@ -280,7 +322,10 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
         pytest.skip("the sensor-break rig can open none of the fitted points")
     io = bench.plc.io
     update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
-    io.write(str(sr), 0xA557)  # (the marker first: a valid table must not get to measure an open sensor)
+    # The marker first, and one update time for the PLC to take it (it may read the table at its next cycle, and an
+    # idle PLC shows nothing that says it has): a valid table must not get to measure an open sensor.
+    io.write(str(sr), 0xA557)
+    bench.plc.time.wait(update + UPDATE_MARGIN_S)
     bench.settle()
     before, words_before = temp.readings(), temp.read_work().break_words
     for p in points:
@@ -299,6 +344,13 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
     for p in points:  # (repaired before the table is valid again: no open sensor left to be measured and waited out)
         breaker.repair(p)
     io.write(str(sr), 0xA556)
+
+
+def _put_back_count(bench, temp, n, entries=None):
+    """The table's own module count (and ``entries``) back: measuring again, 56H (20.3.2)."""
+    work = _retable(bench, temp, {1: n, **(entries or {})}, lambda w: w.execution_code == MEASURING)
+    assert work.execution_code == MEASURING, (
+        f"the table's module count {n} put back: execution code {work.execution_code:02X}H, expected 56H")
 
 
 def _another_module(name, headroom):
@@ -454,3 +506,81 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
                 high=tolerance / 10, note=f"read {before[p] / 10} before the break, {after[p] / 10} after")
         assert _close(after[p], before[p]), (
             f"point {p} read {before[p]} before the break, {after[p]} after being repaired")
+
+
+@pytest.mark.spec("TEMP-UNIT-1", "TEMP-UNIT-3", "TEMP-ACC-1")
+def test_a_reading_below_zero_is_a_signed_word(bench, temp, measure):
+    """20.1/20.3: a reading is one register in 0.1 °, and the ranges of most sensors go below 0 °C, so a reading
+    below zero is the signed 16-bit value: −12.3 ° is the word FF85H, −123.  Each point a reference holds below 0 in
+    the table's unit ([temperature] reference: an ice-salt bath, a calibrator) must read a word with the sign bit set
+    whose signed value is the reference's temperature within the module's accuracy — not 0 (a PLC that clamps at
+    zero), not the magnitude (one that drops the sign).  Skipped on a bench with no such reference."""
+    config = temp.config
+    installed = _installed(bench, range(config.points))
+    cold = {p: c for p, c in config.reference.items() if _in_unit(c, config.unit) < 0 and p in installed}
+    if not cold:
+        pytest.skip(f"no point installed in R4010/R4011 is held below 0 °{config.unit}: name one in [temperature] "
+                    f"reference (an ice-salt bath, a calibrator) to check readings below zero")
+    for point, celsius in sorted(cold.items()):
+        _, module = config.point_module(point)
+        want = _in_unit(celsius, config.unit)
+        allowed = _reference_allowance(config, module, celsius)
+        word = bench.plc.io.read_words(config.readings.offset(point), 1)[0]  # the raw word, not the decoded value
+        value = word - 0x10000 if word & 0x8000 else word
+        measure(f"point{point}_below_zero", value / 10, unit=f"°{config.unit}", low=want - allowed,
+                high=want + allowed, note=f"a reference holds it at {celsius} °C; word {word:04X}H")
+        expected = round(want * 10)
+        assert word & 0x8000, (
+            f"point {point} ({module.sensor.name}) is held at {want:.1f} °{config.unit}: its reading word is "
+            f"{word:04X}H = {word}, with no sign bit; below zero a reading is the signed 16-bit value "
+            f"(about {expected & 0xFFFF:04X}H = {expected})")
+        assert abs(value / 10 - want) <= allowed + 1e-9, (
+            f"point {point} ({module.sensor.name}) is held at {want:.1f} °{config.unit}: its word {word:04X}H reads "
+            f"{value / 10} °{config.unit} signed, more than the module's accuracy ±{allowed:.2f} °{config.unit} off")
+
+
+@pytest.mark.spec("TEMP-RATE-2")
+def test_each_module_shows_a_change_within_its_own_update_time(bench, temp, breaker, measure):
+    """20.1: a module measures every one of its points once per *its own* update time (fast / normal: 2TC, 6RTD,
+    6NTC 1/2 s, 6TC and 16RTD 2/4 s, 16TC 3/6 s), whatever other modules are fitted beside it.  Every point the
+    rig can open is opened at once; each one's 28767 — news: none reads it before — must show within its own
+    module's update time (and the scan margin), not only within the slowest module's.  Timed on the last poll that
+    still saw the point's old reading, from the moment its open was done: a lower bound, whatever the wire's
+    delays."""
+    config = temp.config
+    points = breaker.openable(_installed(bench, range(config.points)))  # (a masked point shows no break: 20.3.3)
+    if not points:
+        pytest.skip("the sensor-break rig can open none of the points installed in R4010/R4011")
+    rate = 0 if config.rate == "fast" else 1
+    before = temp.readings()
+    already = [p for p in points if before[p] == BREAK]
+    assert not already, f"points {already} read 28767 before any sensor was opened"
+    clock = bench.plc.time
+    opened = {}
+    for p in points:
+        breaker.open(p)
+        opened[p] = clock.now()  # (the open is done by now: the time is taken late, the check only more lenient)
+    missed = dict(opened)  # each point's last poll that did not see 28767
+    waiting = set(points)
+    deadline = clock.now() + 1.5 * temp.update_period() + UPDATE_MARGIN_S  # (a hang guard: the slowest module's)
+    while waiting:
+        polled = clock.now()
+        readings = temp.readings()
+        for p in list(waiting):
+            if readings[p] == BREAK:
+                waiting.discard(p)
+            else:
+                missed[p] = polled
+        if not waiting or polled >= deadline:
+            break
+        clock.wait(temp.poll_interval)
+    assert not waiting, f"points {sorted(waiting)} never read 28767 after their sensors were opened"
+    for k, module in enumerate(config.modules):  # (measure fails the test at the first module out of its limit)
+        mine = [p for p in points if config.point_module(p)[0] == k]
+        if mine:
+            limit = UPDATE_S[module.type.name][rate]
+            measure(f"module{k + 1}_update", max(missed[p] - opened[p] for p in mine), unit="s", low=0,
+                    high=limit + UPDATE_MARGIN_S,
+                    note=f"module {k + 1}, an FBs-{module.type.name} at the {config.rate} rate, measures each of its "
+                         f"points within its own update time, {limit} s (the last poll that still saw a point of it "
+                         f"unbroken, from that point's open)")

@@ -220,7 +220,8 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
     """The default bench: zone-a heats points 0–9 with a broken sensor on 3 and 6 disabled; zone-b (Md 1) cools
     12–31 with point 20 not installed; point 10 is unheated and follows a ramp."""
     def build():  # noqa: ANN202
-        emu = build_emulator(profile(), EPOCH)
+        # (point 11 where the golden record has it: the bench's reference points, before 11 went below zero)
+        emu = build_emulator(profile(reference={"10": 28.0, "11": 28.3}), EPOCH)
         emu.model(TemperatureModel).set_source(10, Ramp(20.0, 0.05, high=90.0))
         emu.model(TemperatureModel).open(3)
         return emu

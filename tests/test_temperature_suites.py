@@ -26,7 +26,7 @@ from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITE = str(REPO / "suites" / "test_temperature.py")
-SUITE_TESTS = 6
+SUITE_TESTS = 8
 # The inner runs need no hypothesis; loading its plugin re-imports (and rewrites) ~70 modules per run.
 INNER = ("-p", "no:hypothesispytest")
 

@@ -147,6 +147,9 @@ class Temperature:
         update period: :func:`~hil.families.fbs.device.waiting.poll_until`; 0.25 s for a 16TC at 0.1 °), with the
         manual's worst case — every point measured once more, ``periods`` × the update period — as the timeout;
         True if it held.  A test then asserts what it expects as it would after the full wait: an event that never
-        comes fails there, a fast PLC costs only the time it takes."""
+        comes fails there, a fast PLC costs only the time it takes.  The event must be news — something the test's
+        stimulus produces that did not hold before it (a value other than the one read before, a code the previous
+        state did not show): a module that refreshes on its own period still shows the previous state for up to a
+        period, and a condition that already held would read that as the answer."""
         period = self.update_period()
         return poll_until(self.plc.time, event, period=period, within=period * periods)
