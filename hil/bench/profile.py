@@ -14,6 +14,7 @@ import re
 import hashlib
 import tomllib
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Callable
 
@@ -95,7 +96,12 @@ class Profile:
             wanted = self.plugin.elements([name])
         except (AddressError, ValueError):
             return False
-        return wanted <= self.plugin.elements(self.safety.writable)
+        return wanted <= self._writable_elements
+
+    @cached_property
+    def _writable_elements(self) -> Any:
+        """``[safety] writable`` expanded once (a suite may ask about thousands of elements)."""
+        return self.plugin.elements(self.safety.writable)
 
 
 # -- reading -----------------------------------------------------------------------------------------------------
