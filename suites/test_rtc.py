@@ -130,13 +130,15 @@ def test_clock_keeps_running_after_a_set(bench, rtc, io):
     assert second in (5, 6)
 
 
-@pytest.mark.spec("RTC-RUN-2")  # [our choice]: needs spec_choices
+@pytest.mark.spec("RTC-RUN-2", "RTC-RUN-3")  # [our choice]: needs spec_choices
 def test_end_of_2099_rolls_over_to_2000(bench, rtc, io):
+    """The weekday counts on: Thursday 31 December 2099 (4) → Friday (5), although 1 January 2000 was a Saturday."""
     assert rtc.set(at("2099-12-31 23:59:59")).accepted
     bench.wait(2)
-    second, minute, hour, day, month, year = io.read_words("R4128", 6)
+    second, minute, hour, day, month, year, weekday = io.read_words("R4128", 7)
     assert (minute, hour, day, month, year) == (0, 0, 1, 1, 0)
     assert second in (1, 2)
+    assert weekday == 5, f"R4134 = {weekday} after Thursday 31 December 2099, expected 5 (Friday, one day on)"
 
 
 #: (time set, R4135 expected): hour and minute each at both ends and between, and a pair whose bytes differ

@@ -87,14 +87,8 @@ class D4054SignInverted(RtcModel):
 class WeekdayStuck(RtcModel):
     """The weekday stays what it was at the last set: it does not advance at midnight."""
 
-    _stuck: int | None = None
-
-    def write_chip(self, emu, t):
-        super().write_chip(emu, t)
-        self._stuck = t.weekday
-
-    def weekday_for(self, year, month, day):
-        return self._stuck if self._stuck is not None else super().weekday_for(year, month, day)
+    def weekday_after(self, days):
+        return self._anchor_weekday
 
 
 class M1954Cleared(RtcModel):
@@ -230,14 +224,16 @@ class AdjustWindowEndsAt58(RtcModel):
 class SetClearsTheWeekday(RtcModel):
     """A set loads R4128–R4133 but writes 0 (Sunday) into the chip's weekday counter, which counts on from there."""
 
-    _offset = 0
-
     def write_chip(self, emu, t):
         super().write_chip(emu, t)
-        self._offset = -super().weekday_for(t.year, t.month, t.day) % 7
+        self._anchor_weekday = 0
 
-    def weekday_for(self, year, month, day):
-        return (super().weekday_for(year, month, day) + self._offset) % 7
+
+class CalendarWeekday(RtcModel):
+    """Computes the weekday from the date instead of counting it on: Saturday after the 2099 → 2000 wrap."""
+
+    def read_chip(self, now):
+        return super().read_chip(now).with_weekday_from_date()
 
 
 class D4054ZeroesSingleSteps(RtcModel):
@@ -280,6 +276,7 @@ CAUGHT_BY = {
     AdjustCarrySkipsThe31st: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     AdjustWindowEndsAt58: "test_adjust_30s_over_both_windows_and_their_edges",
     SetClearsTheWeekday: "test_set_then_read_round_trip_of_every_field_edge_and_weekday",
+    CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
