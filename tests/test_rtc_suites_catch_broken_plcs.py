@@ -8,7 +8,7 @@ import math
 import pytest
 
 from hil.families.fbs.sim.models.rtc import RtcModel
-from hil.families.fbs.rtc_time import CENTURY_SECONDS, RtcTime
+from hil.families.fbs.rtc_time import CENTURY_SECONDS, FIELDS, RtcTime
 from tests import broken_calendar as cal
 from tests.broken import BrokenEmulator, replace_model, run_suites
 from tests.conftest import EMULATOR_BENCH
@@ -164,12 +164,37 @@ class RunningMonthsAlternate(_CalendarChip):
 
 
 class SetTakesLowBytesOnly(RtcModel):
-    """Validates and loads only the low byte of each of R4128–R4134 (0100H is taken as 0)."""
+    """Validates and loads only the low byte of each of R4128–R4134 in ``fields`` (0105H is taken as 5)."""
+
+    fields = FIELDS
 
     def on_hold_edge(self, emu):
         words = emu.memory.words["R"]
-        words[4128:4135] = [w & 0xFF for w in words[4128:4135]]
+        for index, name in enumerate(FIELDS):
+            if name in self.fields:
+                words[4128 + index] &= 0xFF
         super().on_hold_edge(emu)
+
+
+class ComparesSigned(RtcModel):
+    """Compares signed, against the maximum only, the fields in ``fields`` (8000H–FFFFH pass as negative).
+
+    Those are the fields whose minimum is 0, the lower bound a PLC may take for granted; the chip then takes what
+    it is given."""
+
+    fields = ("second", "minute", "hour", "year", "weekday")
+
+    def validate(self, t):
+        # a negative value passes `<= max`: validated as if it were 0, the one lower bound never checked
+        registers = [0 if name in self.fields and value & 0x8000 else value
+                     for name, value in zip(FIELDS, t.to_registers())]
+        return super().validate(RtcTime.from_registers(registers))
+
+
+def one_field(defect: type, field: str) -> type:
+    """``defect`` confined to one register: the suite must catch it in each field, not only in some."""
+    return type(f"{defect.__name__}In{field.capitalize()}", (defect,),
+                {"fields": (field,), "__doc__": f"{defect.__doc__.splitlines()[0]}  Only the {field}."})
 
 
 class LeapDayRefusedIn2000(RtcModel):
@@ -281,6 +306,13 @@ CAUGHT_BY = {
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
 }
+#: every field's register-width check, field by field (the weekday's range is RTC-VAL-5's, tested apart)
+for _field in FIELDS:
+    _test = ("test_weekday_out_of_range_is_refused_with_m1955_and_the_clock_runs_on" if _field == "weekday" else
+             CAUGHT_BY[SetTakesLowBytesOnly])
+    CAUGHT_BY[one_field(SetTakesLowBytesOnly, _field)] = _test
+    if _field in ComparesSigned.fields:
+        CAUGHT_BY[one_field(ComparesSigned, _field)] = _test
 #: defects of a PLC without an RTC chip: run on the profile that says so
 NO_CHIP = {NoChipStillReadsOut, NoChipM1954Set}
 
