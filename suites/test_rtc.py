@@ -12,6 +12,8 @@ import datetime as dt
 
 import pytest
 
+from hil.families.fbs.device.rtc import RtcSetLost
+
 #: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
 #: after the last test here, not after each (hil.plugin.working_state)
 # the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes)
@@ -156,6 +158,31 @@ def test_r4135_is_hour_high_byte_minute_low_byte(rtc, io):
         if got != word:
             wrong.append(f"{when}: R4135 = {got:04X}H, expected {word:04X}H (hour high byte, minute low byte)")
     assert not wrong, "; ".join(wrong)
+
+
+@pytest.mark.spec("RTC-SET-1", "RTC-SET-2")
+def test_set_takes_a_one_scan_pulse_of_m1952(bench, rtc, io):
+    """The set happens at M1952's fall however briefly M1952 was 1: M1952 := 1 with R4128–R4134 in one request and
+    M1952 := 0 in the very next.  The clock is first set to a time far from the pulsed one, so only the pulse's set
+    can make it show that.  On a port that services each request at the end of a scan (port 0's rule) the PLC has
+    seen the 1 for a scan; on a port that may answer mid-scan both writes may land in one scan, and a clock that
+    did not take the pulse is no verdict there."""
+    assert rtc.set(at("2024-03-05 10:00:00")).accepted
+    pulsed = at("2031-08-14 17:30:20")
+    began = bench.time.now()
+    try:
+        result = rtc.set(pulsed, pulse=True)
+        second, *rest = result.shown.to_registers()  # read with M1955 from a scan after the fall
+        most = 20 + int(bench.time.now() - began) + 1
+        taken = result.accepted and rest == [30, 17, 14, 8, 31, 4] and 20 <= second <= most
+        shown = f"M1955 = {int(result.refused)}, R4128–R4134 = {[second, *rest]}"
+    except RtcSetLost as lost:  # M1955 = 0, the clock not on the time pulsed
+        taken, shown = False, str(lost)
+    if not taken and bench.plc.scan_counter is not None and not bench.plc.answers_at_scan_end:
+        pytest.fail(f"inconclusive: a one-scan pulse of M1952 did not set the clock ({shown}), but this wire may "
+                    f"answer mid-scan ([bench] answers_at_scan_end is not set), so no scan may have seen the 1",
+                    pytrace=False)
+    assert taken, f"a one-scan pulse of M1952 (1, then 0 in the next request) did not set {pulsed}: {shown}"
 
 
 @pytest.mark.spec("RTC-READ-1", "RTC-SET-3")

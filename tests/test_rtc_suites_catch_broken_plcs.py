@@ -261,6 +261,24 @@ class CalendarWeekday(RtcModel):
         return super().read_chip(now).with_weekday_from_date()
 
 
+class SetNeedsM1952HeldThreeScans(RtcModel):
+    """Loads the chip at M1952's fall only if M1952 was 1 for at least 3 scans (a debounced trigger)."""
+
+    _held = 0  # scans M1952 has been 1 in a row, up to the last scan
+    _held_before_fall = 0
+
+    def scan(self, emu):
+        if emu.memory.bits["M"][HOLD]:
+            self._held += 1
+        else:
+            self._held_before_fall, self._held = self._held, 0
+        super().scan(emu)
+
+    def on_hold_edge(self, emu):
+        if self._held_before_fall >= 3:
+            super().on_hold_edge(emu)
+
+
 class D4054ZeroesSingleSteps(RtcModel):
     """Takes a code of ±1 step for noise and clears D4054 (5681H, 56FFH never read back)."""
 
@@ -303,6 +321,7 @@ CAUGHT_BY = {
     SetClearsTheWeekday: "test_set_then_read_round_trip_of_every_field_edge_and_weekday",
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
+    SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
 }
