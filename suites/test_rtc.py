@@ -160,6 +160,28 @@ def test_r4135_is_hour_high_byte_minute_low_byte(rtc, io):
     assert not wrong, "; ".join(wrong)
 
 
+#: (time set, R4135 one tick later): the running clock's second 59 carrying into the minute, the hour, a new day
+R4135_RUNNING = [("2024-03-05 13:45:59", 0x0D2E), ("2024-03-05 09:59:59", 0x0A00),
+                 ("2024-03-05 23:59:59", 0x0000)]
+
+
+@pytest.mark.spec("RTC-REG-2", "RTC-READ-1")
+def test_r4135_follows_the_running_clock_across_a_minute_an_hour_and_midnight(bench, rtc, io):
+    """R4135 is read out every scan with R4128–R4134, not only written at a set: a second after each set the clock
+    has run into the next minute on its own, and R4129, R4130 and R4135, read in one request (one scan), must show
+    that new minute, R4135 = hour × 256 + minute."""
+    wrong = []
+    for when, word in R4135_RUNNING:
+        assert rtc.set(at(when)).accepted, f"{when}: refused (M1955 = 1)"
+        bench.wait(1.0)  # the chip restarted its second at the set: it has ticked into the next minute by now
+        _second, minute, hour, *_, hour_minute = io.read_words("R4128", 8)
+        if (hour, minute) != (word >> 8, word & 0xFF):
+            wrong.append(f"{when} + 1 s: R4130:R4129 = {hour}:{minute}, not yet the next minute")
+        elif hour_minute != word:
+            wrong.append(f"{when} + 1 s: R4135 = {hour_minute:04X}H, expected {word:04X}H for {hour}:{minute}")
+    assert not wrong, "\n".join(wrong)
+
+
 @pytest.mark.spec("RTC-SET-1", "RTC-SET-2")
 def test_set_takes_a_one_scan_pulse_of_m1952(bench, rtc, io):
     """The set happens at M1952's fall however briefly M1952 was 1: M1952 := 1 with R4128–R4134 in one request and

@@ -261,6 +261,17 @@ class CalendarWeekday(RtcModel):
         return super().read_chip(now).with_weekday_from_date()
 
 
+class R4135OnlyAtASet(RtcModel):
+    """Writes R4135 only when the chip is loaded (a set, a ±30 s correction): the read-out copies R4128–R4134."""
+
+    def copy_out(self, emu, t):
+        emu.memory.words["R"][4128:4135] = t.to_registers()
+
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        emu.memory.words["R"][4135] = t.hour_minute_word()
+
+
 class SetNeedsM1952HeldThreeScans(RtcModel):
     """Loads the chip at M1952's fall only if M1952 was 1 for at least 3 scans (a debounced trigger)."""
 
@@ -322,6 +333,7 @@ CAUGHT_BY = {
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
     SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
+    R4135OnlyAtASet: "test_r4135_follows_the_running_clock_across_a_minute_an_hour_and_midnight",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
 }
