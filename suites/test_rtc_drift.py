@@ -66,13 +66,14 @@ def _drift_max_s(profile) -> float:
     return (rtc.drift_max_hours if rtc is not None else 12.0) * 3600
 
 
-def _planned(profile) -> float:
-    """Two measurements of at most [rtc] drift_max_hours each, plus the bracket probes and the set-up."""
-    return 2 * _drift_max_s(profile) + 120
+def _planned(measurements: int):
+    """The bench time of ``measurements`` drift measurements of at most [rtc] drift_max_hours each, plus the bracket
+    probes and the set-up."""
+    return lambda profile: measurements * (_drift_max_s(profile) + 60)
 
 
 @pytest.mark.slow
-@pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.bench_time(_planned(2), reason="two drift measurements of up to [rtc] drift_max_hours")
 @pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-2", "RTC-DRIFT-4")
 @pytest.mark.measures("drift_uncompensated", unit="s/day")
 @pytest.mark.measures("drift_residual", unit="s/day", low=-FINE_STEP, high=FINE_STEP)
@@ -111,38 +112,72 @@ def _conclusive(result, max_s: float, what: str, needed: float = FINE_STEP,
                     pytrace=False)
 
 
-#: Table 1's largest code: 56FCH for a clock fast by 16.61 s/day, i.e. a correction 16.6113 s/day slower
-LARGEST_CODE = 0x56FC
-LARGEST_CORRECTION = -rate_for_code(LARGEST_CODE).s_per_day
+#: Table 1's largest code of each sign and the rate change it makes (s/day, the manual's sign: the code for a clock
+#: fast by r slows it by r): 56FCH for a clock fast by 16.61 s/day, 5602H for one slow by 16.88 s/day
+EXTREME_CODES = {code: -rate_for_code(code).s_per_day for code in (0x56FC, 0x5602)}
+#: the code kept in force across a set of the clock: the last one measured, already in force when the set comes
+KEPT_CODE = list(EXTREME_CODES)[-1]
 #: each measurement's resolution (s/day): ample to tell a 16.6 s/day correction from none or from its opposite
 DIRECTION_RESOLUTION = 4.0
 
 
+def _change_found(plain, measured, expected: float, what: str) -> str | None:
+    """None when ``measured`` differs from ``plain`` by ``expected`` s/day within the two resolutions; else why not."""
+    change = measured.s_per_day - plain.s_per_day
+    within = plain.resolution + measured.resolution
+    if abs(change - expected) <= within:
+        return None
+    verdict = ("the correction has the wrong sign" if change * expected < 0 and abs(change) > within else
+               "the code is not applied as the table says")
+    return (f"{what} changed the clock's rate by {change:+.3f} s/day; Table 1: {expected:+.3f} s/day (± {within:.3f}, "
+            f"the measurements' resolutions): {verdict}")
+
+
 @pytest.mark.slow
-@pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
-@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4")
+@pytest.mark.bench_time(_planned(4), reason="four drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4", "RTC-DRIFT-10")
 @pytest.mark.measures("d4054_largest_correction", unit="s/day")  # its limits: the resolutions the run reached
-def test_d4054_largest_code_slows_the_clock_by_table_1s_amount(bench, s35390a, io, measure):
-    """The direction and size of D4054's correction, in a fraction of the fine-step test's bench time: the clock's
-    rate measured at D4054 = 0 and at 56FCH (Table 1: a clock fast by 16.61 s/day) must differ by −16.61 s/day
-    within the two measurements' resolutions (each below 4 s/day).  A PLC that applies the code with the wrong
-    sign (+16.6) or not at all (0) is outside that by far."""
+@pytest.mark.measures("d4054_most_negative_correction", unit="s/day")
+@pytest.mark.measures("d4054_correction_after_a_set", unit="s/day")
+def test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount_and_a_set_keeps_it(
+        bench, s35390a, io, measure):
+    """The direction and size of D4054's correction for each sign, in a fraction of the fine-step test's bench time:
+    the clock's rate measured at D4054 = 0, at 56FCH (Table 1: a clock fast by 16.61 s/day) and at 5602H (slow by
+    16.88 s/day) must differ by −16.61 and +16.88 s/day within the measurements' resolutions (each below 4 s/day),
+    and still by +16.88 s/day once the clock has been set with 5602H in force: a set loads the time, not the rate.
+    A PLC that applies a code with the wrong sign, not at all, or drops it at a set is outside that by far."""
     max_s = _drift_max_s(bench.profile)
     if max_s <= 0:
         pytest.skip("this bench does not measure drift ([rtc] drift_max_hours = 0); give it the hours a "
                     "measurement to 4 s/day takes here")
+
+    def measured(what: str):
+        result = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
+        _conclusive(result, max_s, what, DIRECTION_RESOLUTION, "the direction check's")
+        return result
+
     io.write("D4054", 0x0000)
-    plain = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
-    _conclusive(plain, max_s, "D4054 = 0", DIRECTION_RESOLUTION, "the direction check's")
-    io.write("D4054", LARGEST_CODE)
-    corrected = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
-    _conclusive(corrected, max_s, f"D4054 = {LARGEST_CODE:04X}H", DIRECTION_RESOLUTION, "the direction check's")
-    change = corrected.s_per_day - plain.s_per_day
-    within = plain.resolution + corrected.resolution
-    measure("d4054_largest_correction", change, low=LARGEST_CORRECTION - within,
-            high=LARGEST_CORRECTION + within,
-            note=f"{plain.s_per_day:+.3f} s/day at D4054 = 0, {corrected.s_per_day:+.3f} at {LARGEST_CODE:04X}H")
-    assert abs(change - LARGEST_CORRECTION) <= within, (
-        f"D4054 = {LARGEST_CODE:04X}H changed the clock's rate by {change:+.3f} s/day; Table 1: "
-        f"{LARGEST_CORRECTION:+.3f} s/day (± {within:.3f}, the measurements' resolutions); "
-        f"{'the correction has the wrong sign' if change > 0 else 'the code is not applied as the table says'}")
+    plain = measured("D4054 = 0")
+    wrong = []
+    for (code, expected), name in zip(EXTREME_CODES.items(), ("d4054_largest_correction",
+                                                              "d4054_most_negative_correction")):
+        io.write("D4054", code)
+        at_code = measured(f"D4054 = {code:04X}H")
+        _record(measure, name, plain, at_code, expected, f"at {code:04X}H")
+        wrong.append(_change_found(plain, at_code, expected, f"D4054 = {code:04X}H"))
+    # KEPT_CODE in force (the loop's last): the clock set to the time it shows, and the rate measured from after that
+    assert s35390a.set(s35390a.read().to_datetime()).accepted
+    after_set = measured(f"D4054 = {KEPT_CODE:04X}H after a set")
+    _record(measure, "d4054_correction_after_a_set", plain, after_set, EXTREME_CODES[KEPT_CODE],
+            f"at {KEPT_CODE:04X}H, measured after a set of the clock")
+    wrong.append(_change_found(plain, after_set, EXTREME_CODES[KEPT_CODE],
+                               f"D4054 = {KEPT_CODE:04X}H, once the clock was set with it in force,"))
+    wrong = [w for w in wrong if w]
+    assert not wrong, "\n".join(wrong)
+
+
+def _record(measure, name: str, plain, measured, expected: float, where: str) -> None:
+    """The rate change as a measurement, its limits Table 1's amount ± the resolutions the run reached."""
+    within = plain.resolution + measured.resolution
+    measure(name, measured.s_per_day - plain.s_per_day, low=expected - within, high=expected + within,
+            note=f"{plain.s_per_day:+.3f} s/day at D4054 = 0, {measured.s_per_day:+.3f} {where}")

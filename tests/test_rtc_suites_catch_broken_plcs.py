@@ -290,6 +290,28 @@ class SetNeedsM1952HeldThreeScans(RtcModel):
             super().on_hold_edge(emu)
 
 
+class D4054NegativeCodesIgnored(RtcModel):
+    """Applies only the codes of a clock that runs fast (S > 0): 5603H, 5602H … change nothing."""
+
+    def correction_rate(self, code):
+        return max(super().correction_rate(code), 0.0)
+
+
+class D4054NegativeCodesInverted(RtcModel):
+    """Applies the codes of a clock that runs slow with the wrong sign: 5602H slows it by 16.88 s/day."""
+
+    def correction_rate(self, code):
+        return abs(super().correction_rate(code))
+
+
+class D4054DroppedAtASet(RtcModel):
+    """A set loads the chip's time and resets its rate adjustment, though D4054 still holds the code."""
+
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        self._rate = self.chip_rate(0)
+
+
 class D4054ZeroesSingleSteps(RtcModel):
     """Takes a code of ±1 step for noise and clears D4054 (5681H, 56FFH never read back)."""
 
@@ -317,6 +339,7 @@ class NoChipM1954Set(RtcModel):
         emu.memory.bits["M"][INSTALLED] = 1
 
 
+D4054_DIRECTION = "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount_and_a_set_keeps_it"
 #: defect → the suite test that must catch it (in process here, against ``hil emulate`` in
 #: tests/test_broken_plcs_on_a_bench.py)
 CAUGHT_BY = {
@@ -333,6 +356,9 @@ CAUGHT_BY = {
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
     SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
+    D4054NegativeCodesIgnored: D4054_DIRECTION,
+    D4054NegativeCodesInverted: D4054_DIRECTION,
+    D4054DroppedAtASet: D4054_DIRECTION,
     R4135OnlyAtASet: "test_r4135_follows_the_running_clock_across_a_minute_an_hour_and_midnight",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
