@@ -125,21 +125,25 @@ def test_clock_runs_into_and_out_of_a_sunday(bench, rtc, io):
 def test_clock_keeps_running_after_a_set(bench, rtc, io):
     """The rate to ±20 % over 5 s (the month-end test sees every bench second bring exactly one tick; the slow
     drift tests measure the rate to 0.088 s/day)."""
+    began = bench.time.now()
     assert rtc.set(at("2024-03-05 10:00:00")).accepted
     bench.wait(5)
     second, minute, hour = io.read_words("R4128", 3)
+    most = int(bench.time.now() - began) + 1  # the set's procedure, the wait and the read, on a busy host too
     assert (hour, minute) == (10, 0)
-    assert second in (5, 6)
+    assert 5 <= second <= max(6, most), f"second {second} 5 s after a set of 10:00:00"
 
 
 @pytest.mark.spec("RTC-RUN-2", "RTC-RUN-3")  # [our choice]: needs spec_choices
 def test_end_of_2099_rolls_over_to_2000(bench, rtc, io):
     """The weekday counts on: Thursday 31 December 2099 (4) → Friday (5), although 1 January 2000 was a Saturday."""
+    began = bench.time.now()
     assert rtc.set(at("2099-12-31 23:59:59")).accepted
     bench.wait(2)
     second, minute, hour, day, month, year, weekday = io.read_words("R4128", 7)
+    most = int(bench.time.now() - began)  # whole seconds past 23:59:59, however long the set and the read took
     assert (minute, hour, day, month, year) == (0, 0, 1, 1, 0)
-    assert second in (1, 2)
+    assert 1 <= second <= max(2, most), f"second {second} 2 s after a set of 23:59:59"
     assert weekday == 5, f"R4134 = {weekday} after Thursday 31 December 2099, expected 5 (Friday, one day on)"
 
 
