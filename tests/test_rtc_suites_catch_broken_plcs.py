@@ -339,7 +339,6 @@ class NoChipM1954Set(RtcModel):
         emu.memory.bits["M"][INSTALLED] = 1
 
 
-D4054_DIRECTION = "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount_and_a_set_keeps_it"
 #: defect → the suite test that must catch it (in process here, against ``hil emulate`` in
 #: tests/test_broken_plcs_on_a_bench.py)
 CAUGHT_BY = {
@@ -356,9 +355,9 @@ CAUGHT_BY = {
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
     SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
-    D4054NegativeCodesIgnored: D4054_DIRECTION,
-    D4054NegativeCodesInverted: D4054_DIRECTION,
-    D4054DroppedAtASet: D4054_DIRECTION,
+    D4054NegativeCodesIgnored: "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount",
+    D4054NegativeCodesInverted: "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount",
+    D4054DroppedAtASet: "test_d4054_correction_stays_in_force_across_a_set_of_the_clock",
     R4135OnlyAtASet: "test_r4135_follows_the_running_clock_across_a_minute_an_hour_and_midnight",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
@@ -367,9 +366,11 @@ CAUGHT_BY = {
 for _field in FIELDS:
     _test = ("test_weekday_out_of_range_is_refused_with_m1955_and_the_clock_runs_on" if _field == "weekday" else
              CAUGHT_BY[SetTakesLowBytesOnly])
-    CAUGHT_BY[one_field(SetTakesLowBytesOnly, _field)] = _test
-    if _field in ComparesSigned.fields:
-        CAUGHT_BY[one_field(ComparesSigned, _field)] = _test
+    for _defect in (SetTakesLowBytesOnly, ComparesSigned):
+        if _field in _defect.fields:
+            _variant = one_field(_defect, _field)
+            globals()[_variant.__name__] = _variant  # by name, as tests/broken_emulate.py looks a defect up
+            CAUGHT_BY[_variant] = _test
 #: defects of a PLC without an RTC chip: run on the profile that says so
 NO_CHIP = {NoChipStillReadsOut, NoChipM1954Set}
 
