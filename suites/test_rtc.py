@@ -13,6 +13,7 @@ import datetime as dt
 import pytest
 
 from hil.families.fbs.device.rtc import RtcSetLost
+from hil.families.fbs.rtc_time import RtcTime
 
 #: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
 #: after the last test here, not after each (hil.plugin.working_state)
@@ -145,6 +146,23 @@ def test_end_of_2099_rolls_over_to_2000(bench, rtc, io):
     assert (minute, hour, day, month, year) == (0, 0, 1, 1, 0)
     assert 1 <= second <= max(2, most), f"second {second} 2 s after a set of 23:59:59"
     assert weekday == 5, f"R4134 = {weekday} after Thursday 31 December 2099, expected 5 (Friday, one day on)"
+
+
+@pytest.mark.spec("RTC-VAL-5", "RTC-RUN-3")  # [our choice]: needs spec_choices
+def test_weekday_written_is_kept_and_counts_on_from_itself(bench, rtc, io):
+    """The weekday is the chip's own counter, never computed from the date: a Thursday (29 February 2024) written
+    as Monday (1) is taken as written, and at midnight it counts on to Tuesday (2), not to the date's Friday."""
+    sent = RtcTime(59, 59, 23, 29, 2, 24, 1)
+    began = bench.time.now()
+    result = rtc.set(sent)
+    assert result.accepted, f"{sent}: refused (M1955 = 1): the weekday is not checked against the date"
+    assert result.shown.weekday == 1, f"R4134 = {result.shown.weekday} after a set of weekday 1 on a Thursday"
+    bench.wait(1.0)  # the chip restarted its second at the set: it has ticked into 1 March by now
+    read = io.read_words("R4128", 7)
+    most = int(bench.time.now() - began) - 1
+    assert read[1:] == [0, 0, 1, 3, 24, 2] and 0 <= read[0] <= max(most, 0), (
+        f"R4128–R4134 = {read} one second after {sent}: expected [0, 0, 0, 1, 3, 24, 2] (Tuesday, one day on from "
+        f"the Monday written)")
 
 
 #: (time set, R4135 expected): hour and minute each at both ends and between, and a pair whose bytes differ

@@ -254,6 +254,14 @@ class SetClearsTheWeekday(RtcModel):
         self._anchor_weekday = 0
 
 
+class WeekdayFromTheDateAtASet(RtcModel):
+    """A set loads the date's weekday into the chip's counter, not the one written (it counts on from there)."""
+
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        self._anchor_weekday = t.with_weekday_from_date().weekday
+
+
 class CalendarWeekday(RtcModel):
     """Computes the weekday from the date instead of counting it on: Saturday after the 2099 → 2000 wrap."""
 
@@ -353,6 +361,7 @@ CAUGHT_BY = {
     AdjustWindowEndsAt58: "test_adjust_30s_over_both_windows_and_their_edges",
     SetClearsTheWeekday: "test_set_then_read_round_trip_of_every_field_edge_and_weekday",
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
+    WeekdayFromTheDateAtASet: "test_weekday_written_is_kept_and_counts_on_from_itself",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
     SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
     D4054NegativeCodesIgnored: "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount",
