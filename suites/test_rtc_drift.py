@@ -141,14 +141,17 @@ def _direction_measurement(s35390a, max_s: float, what: str):
     return result
 
 
-def _rate_change(measure, name: str, before, after, expected: float, note: str) -> None:
-    """The rate change from ``before`` to ``after`` as measurement ``name``: Table 1's ``expected`` s/day within the
-    two measurements' resolutions (measure() fails the test at once outside them)."""
+#: what a direction check's rate change outside its limits usually means
+WRONG_DIRECTION = "a change of the opposite sign means the correction's sign is inverted, none that it is not applied"
+
+
+def _rate_change(measure, name: str, before, after, expected: float, what: str, meaning: str) -> None:
+    """The rate change from ``before`` to ``after`` (``what`` made it) as measurement ``name``: ``expected`` s/day
+    within the two measurements' resolutions (measure() fails the test at once outside them, saying ``meaning``)."""
     within = before.resolution + after.resolution
     measure(name, after.s_per_day - before.s_per_day, low=expected - within, high=expected + within,
-            note=f"{note}: {before.s_per_day:+.3f} s/day before, {after.s_per_day:+.3f} after; expected "
-                 f"{expected:+.3f} ± {within:.3f} (the resolutions): a change of the opposite sign means the "
-                 f"correction's sign is inverted, none that the code is not applied")
+            note=f"{what}: {before.s_per_day:+.3f} s/day before, {after.s_per_day:+.3f} after; expected "
+                 f"{expected:+.3f} ± {within:.3f} (the resolutions): {meaning}")
 
 
 @pytest.mark.slow
@@ -168,7 +171,7 @@ def test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount(be
                                                               "d4054_most_negative_correction")):
         io.write("D4054", code)
         corrected = _direction_measurement(s35390a, max_s, f"D4054 = {code:04X}H")
-        _rate_change(measure, name, plain, corrected, expected, f"D4054 = 0 → {code:04X}H")
+        _rate_change(measure, name, plain, corrected, expected, f"D4054 = 0 → {code:04X}H", WRONG_DIRECTION)
 
 
 @pytest.mark.slow
@@ -185,4 +188,5 @@ def test_d4054_correction_stays_in_force_across_a_set_of_the_clock(bench, s35390
     assert s35390a.set(s35390a.read().to_datetime()).accepted  # the clock set to the time it shows
     after = _direction_measurement(s35390a, max_s, f"D4054 = {KEPT_CODE:04X}H after a set")  # begun after it
     _rate_change(measure, "d4054_rate_change_at_a_set", before, after, 0.0,
-                 f"a set of the clock with D4054 = {KEPT_CODE:04X}H in force")
+                 f"a set of the clock with D4054 = {KEPT_CODE:04X}H in force",
+                 f"a change near {-EXTREME_CODES[KEPT_CODE]:+.2f} s/day means the set dropped the correction")
