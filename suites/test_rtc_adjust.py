@@ -124,9 +124,11 @@ def test_adjust_acts_on_the_rising_edge_only(bench, rtc, io):
     assert (hour, minute) == (10, 21) and 0 <= second <= most, f"the edge did not correct: {hour}:{minute}:{second}"
     # M1953 still held at 1 while the clock shows a second in the 30–59 window: a PLC acting on the level
     # rather than the edge would round it up to 10:22:00 at its next scan
+    began = bench.time.now()
     assert rtc.set(dt.datetime(2024, 3, 5, 10, 21, 45)).accepted
     bench.wait(1)
     io.write("M1953", 0)
     second, minute, hour = io.read_words("R4128", 3)
+    most = 45 + int(bench.time.now() - began) + 1  # the set, the wait and the requests, on a busy host too
     assert (hour, minute) == (10, 21), f"corrected again while M1953 stayed 1: {hour}:{minute}:{second}"
-    assert second in (46, 47, 48)
+    assert 46 <= second <= max(48, most), f"second {second}: the clock did not run on from 10:21:45"
