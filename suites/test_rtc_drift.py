@@ -46,9 +46,13 @@ def s35390a(bench):
 
 @pytest.mark.spec("RTC-DRIFT-7", "RTC-DRIFT-3")
 def test_d4054_write_read_back_of_every_table_1_code(s35390a, io):
-    """Every kind of Table 1 code, written and read back one after the other."""
+    """Every kind of Table 1 code, written and read back one after the other.  Each differs from the one before it,
+    so each read-back shows a write: where D4054 already held the first code, that one goes last."""
+    codes = list(TABLE_1_CODES.items())
+    if io.read("D4054") == codes[0][0]:
+        codes = codes[1:] + codes[:1]
     wrong = []
-    for code, row in TABLE_1_CODES.items():
+    for code, row in codes:
         io.write("D4054", code)
         if (got := io.read("D4054")) != code:
             wrong.append(f"{code:04X}H ({row}) read back as {got:04X}H")
@@ -66,13 +70,14 @@ def _drift_max_s(profile) -> float:
     return (rtc.drift_max_hours if rtc is not None else 12.0) * 3600
 
 
-def _planned(profile) -> float:
-    """Two measurements of at most [rtc] drift_max_hours each, plus the bracket probes and the set-up."""
-    return 2 * _drift_max_s(profile) + 120
+def _planned(measurements: int):
+    """The bench time of ``measurements`` drift measurements of at most [rtc] drift_max_hours each, plus the bracket
+    probes and the set-up."""
+    return lambda profile: measurements * (_drift_max_s(profile) + 60)
 
 
 @pytest.mark.slow
-@pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.bench_time(_planned(2), reason="two drift measurements of up to [rtc] drift_max_hours")
 @pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-2", "RTC-DRIFT-4")
 @pytest.mark.measures("drift_uncompensated", unit="s/day")
 @pytest.mark.measures("drift_residual", unit="s/day", low=-FINE_STEP, high=FINE_STEP)
@@ -111,38 +116,77 @@ def _conclusive(result, max_s: float, what: str, needed: float = FINE_STEP,
                     pytrace=False)
 
 
-#: Table 1's largest code: 56FCH for a clock fast by 16.61 s/day, i.e. a correction 16.6113 s/day slower
-LARGEST_CODE = 0x56FC
-LARGEST_CORRECTION = -rate_for_code(LARGEST_CODE).s_per_day
+#: Table 1's largest code of each sign and the rate change it makes (s/day, the manual's sign: the code for a clock
+#: fast by r slows it by r): 56FCH for a clock fast by 16.61 s/day, 5602H for one slow by 16.88 s/day
+EXTREME_CODES = {code: -rate_for_code(code).s_per_day for code in (0x56FC, 0x5602)}
+#: the code kept in force across a set of the clock
+KEPT_CODE = 0x5602
 #: each measurement's resolution (s/day): ample to tell a 16.6 s/day correction from none or from its opposite
 DIRECTION_RESOLUTION = 4.0
 
 
-@pytest.mark.slow
-@pytest.mark.bench_time(_planned, reason="two drift measurements of up to [rtc] drift_max_hours")
-@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4")
-@pytest.mark.measures("d4054_largest_correction", unit="s/day")  # its limits: the resolutions the run reached
-def test_d4054_largest_code_slows_the_clock_by_table_1s_amount(bench, s35390a, io, measure):
-    """The direction and size of D4054's correction, in a fraction of the fine-step test's bench time: the clock's
-    rate measured at D4054 = 0 and at 56FCH (Table 1: a clock fast by 16.61 s/day) must differ by −16.61 s/day
-    within the two measurements' resolutions (each below 4 s/day).  A PLC that applies the code with the wrong
-    sign (+16.6) or not at all (0) is outside that by far."""
+def _direction_max_s(bench) -> float:
+    """[rtc] drift_max_hours in bench seconds; skip (before anything is written) where the bench measures no drift."""
     max_s = _drift_max_s(bench.profile)
     if max_s <= 0:
         pytest.skip("this bench does not measure drift ([rtc] drift_max_hours = 0); give it the hours a "
                     "measurement to 4 s/day takes here")
+    return max_s
+
+
+def _direction_measurement(s35390a, max_s: float, what: str):
+    """The clock's rate as it runs now, to the direction checks' resolution (or the test fails as inconclusive)."""
+    result = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
+    _conclusive(result, max_s, what, DIRECTION_RESOLUTION, "the direction check's")
+    return result
+
+
+#: what a direction check's rate change outside its limits usually means
+WRONG_DIRECTION = "a change of the opposite sign means the correction's sign is inverted, none that it is not applied"
+
+
+def _rate_change(measure, name: str, before, after, expected: float, what: str, meaning: str) -> None:
+    """The rate change from ``before`` to ``after`` (``what`` made it) as measurement ``name``: ``expected`` s/day
+    within the two measurements' resolutions (measure() fails the test at once outside them, saying ``meaning``)."""
+    within = before.resolution + after.resolution
+    measure(name, after.s_per_day - before.s_per_day, low=expected - within, high=expected + within,
+            note=f"{what}: {before.s_per_day:+.3f} s/day before, {after.s_per_day:+.3f} after; expected "
+                 f"{expected:+.3f} ± {within:.3f} (the resolutions): {meaning}")
+
+
+@pytest.mark.slow
+@pytest.mark.bench_time(_planned(3), reason="three drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-1", "RTC-DRIFT-3", "RTC-DRIFT-4")
+@pytest.mark.measures("d4054_largest_correction", unit="s/day")  # its limits: the resolutions the run reached
+@pytest.mark.measures("d4054_most_negative_correction", unit="s/day")
+def test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount(bench, s35390a, io, measure):
+    """The direction and size of D4054's correction for each sign, in a fraction of the fine-step test's bench time:
+    the clock's rate measured at D4054 = 0, at 56FCH (Table 1: a clock fast by 16.61 s/day) and at 5602H (slow by
+    16.88 s/day) must differ by −16.61 and +16.88 s/day within the measurements' resolutions (each below 4 s/day).
+    A PLC that applies a code with the wrong sign (for either sign) or not at all is outside that by far."""
+    max_s = _direction_max_s(bench)
     io.write("D4054", 0x0000)
-    plain = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
-    _conclusive(plain, max_s, "D4054 = 0", DIRECTION_RESOLUTION, "the direction check's")
-    io.write("D4054", LARGEST_CODE)
-    corrected = s35390a.drift.measure_until(DIRECTION_RESOLUTION, max_s)
-    _conclusive(corrected, max_s, f"D4054 = {LARGEST_CODE:04X}H", DIRECTION_RESOLUTION, "the direction check's")
-    change = corrected.s_per_day - plain.s_per_day
-    within = plain.resolution + corrected.resolution
-    measure("d4054_largest_correction", change, low=LARGEST_CORRECTION - within,
-            high=LARGEST_CORRECTION + within,
-            note=f"{plain.s_per_day:+.3f} s/day at D4054 = 0, {corrected.s_per_day:+.3f} at {LARGEST_CODE:04X}H")
-    assert abs(change - LARGEST_CORRECTION) <= within, (
-        f"D4054 = {LARGEST_CODE:04X}H changed the clock's rate by {change:+.3f} s/day; Table 1: "
-        f"{LARGEST_CORRECTION:+.3f} s/day (± {within:.3f}, the measurements' resolutions); "
-        f"{'the correction has the wrong sign' if change > 0 else 'the code is not applied as the table says'}")
+    plain = _direction_measurement(s35390a, max_s, "D4054 = 0")
+    for (code, expected), name in zip(EXTREME_CODES.items(), ("d4054_largest_correction",
+                                                              "d4054_most_negative_correction")):
+        io.write("D4054", code)
+        corrected = _direction_measurement(s35390a, max_s, f"D4054 = {code:04X}H")
+        _rate_change(measure, name, plain, corrected, expected, f"D4054 = 0 → {code:04X}H", WRONG_DIRECTION)
+
+
+@pytest.mark.slow
+@pytest.mark.bench_time(_planned(2), reason="two drift measurements of up to [rtc] drift_max_hours")
+@pytest.mark.spec("RTC-DRIFT-10", "RTC-DRIFT-1")
+@pytest.mark.measures("d4054_rate_change_at_a_set", unit="s/day")  # its limits: the resolutions the run reached
+def test_d4054_correction_stays_in_force_across_a_set_of_the_clock(bench, s35390a, io, measure):
+    """A set loads the time, not the rate: with 5602H in D4054 (Table 1: a clock slow by 16.88 s/day) the rate
+    measured after a set of the clock must be the rate measured before it, within the two measurements'
+    resolutions (each below 4 s/day).  A PLC that drops the correction at a set changes it by −16.88 s/day."""
+    max_s = _direction_max_s(bench)
+    io.write("D4054", KEPT_CODE)
+    before = _direction_measurement(s35390a, max_s, f"D4054 = {KEPT_CODE:04X}H")
+    assert s35390a.set(s35390a.read().to_datetime()).accepted  # the clock set to the time it shows
+    after = _direction_measurement(s35390a, max_s, f"D4054 = {KEPT_CODE:04X}H after a set")  # begun after it
+    _rate_change(measure, "d4054_rate_change_at_a_set", before, after, 0.0,
+                 f"a set of the clock with D4054 = {KEPT_CODE:04X}H in force",
+                 f"a change near {-EXTREME_CODES[KEPT_CODE]:+.2f} s/day means the set dropped the correction")

@@ -39,7 +39,8 @@ REAL_TIME = {"PrealarmAfter9Scans", "PrealarmAfter11Scans", "DipDoesNotResetTheC
 SLOWER_THAN_REAL_TIME = {"ActsBeforeMeasured": 0.3}
 #: caught by the drift tests, which need bench hours: the direction check with the largest code (4 s/day) gets
 #: them at a high time scale, with [rtc] drift_max_hours given (the fine-step test would need far more)
-NEEDS_DRIFT_HOURS = {"D4054SignInverted"}
+NEEDS_DRIFT_HOURS = {"D4054SignInverted", "D4054NegativeCodesIgnored", "D4054NegativeCodesInverted",
+                     "D4054DroppedAtASet"}
 #: caught only when the set and the M1953 edge come within the one chip second from :59 to the next minute
 RTC_REAL_TIME = {"AdjustWindowEndsAt58"}
 DRIFT_TIME_SCALE = 100.0
@@ -65,8 +66,9 @@ def _defects() -> list[tuple[str, list[str], list[str], float]]:
         else:
             found.append((spec, rtc_files, ["-x"], TIME_SCALE))
     for cls, name in rtc_defects.CAUGHT_BY.items():  # the whole-domain checks: only the test that must catch it
-        found.append((f"{rtc_defects.__name__}:with_rtc:{cls.__name__}", rtc_files, ["-k", name],
-                      1.0 if cls.__name__ in RTC_REAL_TIME else TIME_SCALE))
+        scale = (1.0 if cls.__name__ in RTC_REAL_TIME else
+                 DRIFT_TIME_SCALE if cls.__name__ in NEEDS_DRIFT_HOURS else TIME_SCALE)
+        found.append((f"{rtc_defects.__name__}:with_rtc:{cls.__name__}", rtc_files, ["-k", name], scale))
     for cls, names in temperature_defects.CAUGHT_BY.items():
         found.append((f"{temperature_defects.__name__}:Variant:{cls.__name__}", [temperature_defects.SUITE],
                       ["-k", _k(names)], TIME_SCALE))

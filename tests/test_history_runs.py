@@ -62,9 +62,11 @@ def test_compare_names_exactly_the_tests_and_measurements_that_changed(recorded)
     assert code == 0, out
     assert _rows(out, "tests that changed outcome") == [[DRIFT_TEST, "passed", "failed"]]
     moved = {(r[0], r[1]) for r in _rows(out, "measurements that moved")}
+    direction = "suites/test_rtc_drift.py::test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount"
+    kept = "suites/test_rtc_drift.py::test_d4054_correction_stays_in_force_across_a_set_of_the_clock"
     assert moved == {(DRIFT_TEST, "drift_uncompensated"), (DRIFT_TEST, "drift_residual"),
-                     ("suites/test_rtc_drift.py::test_d4054_largest_code_slows_the_clock_by_table_1s_amount",
-                      "d4054_largest_correction")}
+                     (direction, "d4054_largest_correction"), (direction, "d4054_most_negative_correction"),
+                     (kept, "d4054_rate_change_at_a_set")}
     differs = {r[0] for r in _rows(out, "what differs between the runs")}
     assert differs == {"profile", "profile_sha256", "verdict"}  # same PLC, suites commit and harness
     code, same = history("compare", "1", "2", url=url)
@@ -119,7 +121,7 @@ def test_export_as_json_and_csv(recorded, tmp_path):
     code, _ = history("export", "--what", "measurements", "--format", "json", "-o", str(tmp_path / "m.json"),
                       url=url)
     rows = json.loads((tmp_path / "m.json").read_text())
-    assert code == 0 and len(rows) == 3 * 4  # 3 drift measurements and the flip test's, each run
+    assert code == 0 and len(rows) == 3 * 6  # 5 drift measurements and the flip test's, each run
     measured = [r for r in rows if r["value"] is not None]
     assert sorted((r["run"], r["name"], f"{r['value']:g}") for r in measured) == sorted(  # JUnit writes %g
         (n + 1, name, f"{value:g}") for n, j in enumerate(junits) for name, value in _junit_measurements(j).items())

@@ -64,7 +64,8 @@ def test_set_then_read_round_trip(rig: SimpleNamespace, when: dt.datetime) -> No
 
 
 @pytest.mark.parametrize(("when", "after"), [
-    (dt.datetime(2099, 12, 31, 23, 59, 59), rt(2000, 1, 1, 0, 0, 0)),  # the two-digit year wraps
+    # the two-digit year wraps; the weekday counts on, Thursday → Friday (1 Jan 2000 was a Saturday): RTC-RUN-3
+    (dt.datetime(2099, 12, 31, 23, 59, 59), dataclasses.replace(rt(2000, 1, 1, 0, 0, 0), weekday=5)),
     (dt.datetime(2024, 2, 28, 23, 59, 59), rt(2024, 2, 29, 0, 0, 0)),
     (dt.datetime(2023, 2, 28, 23, 59, 59), rt(2023, 3, 1, 0, 0, 0)),
     (dt.datetime(2024, 2, 29, 23, 59, 59), rt(2024, 3, 1, 0, 0, 0)),
@@ -73,8 +74,6 @@ def test_clock_rolls_over(rig: SimpleNamespace, when: dt.datetime, after: RtcTim
     assert rig.rtc.set(when)
     rig.plc.time.wait(1.0)
     assert rig.rtc.read() == after
-    if after.year == 0:
-        assert after.weekday == 6  # 1 Jan 2000 is a Saturday
 
 
 def test_r4135_is_hour_high_minute_low(rig: SimpleNamespace) -> None:
@@ -82,10 +81,20 @@ def test_r4135_is_hour_high_minute_low(rig: SimpleNamespace) -> None:
     assert rig.plc.io.read(reg.RTC_HOUR_MINUTE) == 0x0D2D
 
 
-def test_weekday_written_is_not_checked_and_read_out_follows_the_date(rig: SimpleNamespace) -> None:
-    wrong = dataclasses.replace(rt(2024, 2, 29, 10, 0, 0), weekday=0)  # a Thursday written as Sunday
+def test_weekday_written_is_not_checked_and_the_chip_counts_on_from_it(rig: SimpleNamespace) -> None:
+    wrong = dataclasses.replace(rt(2024, 2, 29, 23, 59, 59), weekday=0)  # a Thursday written as Sunday
     assert rig.rtc.set(wrong).accepted  # [our choice] weekday range-checked only
-    assert rig.rtc.read().weekday == 4
+    assert rig.rtc.read().weekday == 0  # the chip's own counter: never computed from the date
+    rig.plc.time.wait(1.0)
+    assert rig.rtc.read().weekday == 1  # one day on
+
+
+def test_weekday_counter_survives_a_new_d4054_code(rig: SimpleNamespace) -> None:
+    """A new code re-anchors the chip: its weekday counter is carried over, not recomputed from the date."""
+    rig.rtc.set(dataclasses.replace(rt(2024, 2, 29, 10, 0, 0), weekday=2))
+    rig.rtc.rate_code = 0x56E5
+    rig.plc.settle()
+    assert rig.rtc.read().weekday == 2
 
 
 def test_registers_freeze_while_m1952_is_set_and_the_chip_keeps_counting(rig: SimpleNamespace) -> None:
@@ -149,14 +158,14 @@ def test_invalid_set_is_refused_and_the_clock_keeps_its_time(rig: SimpleNamespac
     (dt.datetime(2024, 5, 31, 23, 59, 45), rt(2024, 6, 1, 0, 0, 0)),
     (dt.datetime(2024, 2, 28, 23, 59, 31), rt(2024, 2, 29, 0, 0, 0)),
     (dt.datetime(2023, 12, 31, 23, 59, 30), rt(2024, 1, 1, 0, 0, 0)),
-    (dt.datetime(2099, 12, 31, 23, 59, 30), rt(2000, 1, 1, 0, 0, 0)),
+    (dt.datetime(2099, 12, 31, 23, 59, 30), dataclasses.replace(rt(2000, 1, 1, 0, 0, 0), weekday=5)),  # counted on
 ])
 def test_adjust_30s(rig: SimpleNamespace, before: dt.datetime, after: RtcTime) -> None:
     assert rig.rtc.set(before)
     rig.rtc.adjust_30s()
     got = rig.rtc.read()
     assert got == after
-    assert got.weekday == after.weekday  # the weekday advances with the date
+    assert got.weekday == after.weekday  # the weekday counter advances by one with the date
     assert not rig.rtc.read_flags().adjust_30s
 
 

@@ -8,7 +8,7 @@ import math
 import pytest
 
 from hil.families.fbs.sim.models.rtc import RtcModel
-from hil.families.fbs.rtc_time import CENTURY_SECONDS, RtcTime
+from hil.families.fbs.rtc_time import CENTURY_SECONDS, FIELDS, RtcTime
 from tests import broken_calendar as cal
 from tests.broken import BrokenEmulator, replace_model, run_suites
 from tests.conftest import EMULATOR_BENCH
@@ -87,14 +87,8 @@ class D4054SignInverted(RtcModel):
 class WeekdayStuck(RtcModel):
     """The weekday stays what it was at the last set: it does not advance at midnight."""
 
-    _stuck: int | None = None
-
-    def write_chip(self, emu, t):
-        super().write_chip(emu, t)
-        self._stuck = t.weekday
-
-    def weekday_for(self, year, month, day):
-        return self._stuck if self._stuck is not None else super().weekday_for(year, month, day)
+    def weekday_after(self, days):
+        return self._anchor_weekday
 
 
 class M1954Cleared(RtcModel):
@@ -170,12 +164,37 @@ class RunningMonthsAlternate(_CalendarChip):
 
 
 class SetTakesLowBytesOnly(RtcModel):
-    """Validates and loads only the low byte of each of R4128–R4134 (0100H is taken as 0)."""
+    """Validates and loads only the low byte of each of R4128–R4134 in ``fields`` (0105H is taken as 5)."""
+
+    fields = FIELDS
 
     def on_hold_edge(self, emu):
         words = emu.memory.words["R"]
-        words[4128:4135] = [w & 0xFF for w in words[4128:4135]]
+        for index, name in enumerate(FIELDS):
+            if name in self.fields:
+                words[4128 + index] &= 0xFF
         super().on_hold_edge(emu)
+
+
+class ComparesSigned(RtcModel):
+    """Compares signed, against the maximum only, the fields in ``fields`` (8000H–FFFFH pass as negative).
+
+    Those are the fields whose minimum is 0, the lower bound a PLC may take for granted; the chip then takes what
+    it is given."""
+
+    fields = ("second", "minute", "hour", "year", "weekday")
+
+    def validate(self, t):
+        # a negative value passes `<= max`: validated as if it were 0, the one lower bound never checked
+        registers = [0 if name in self.fields and value & 0x8000 else value
+                     for name, value in zip(FIELDS, t.to_registers())]
+        return super().validate(RtcTime.from_registers(registers))
+
+
+def one_field(defect: type, field: str) -> type:
+    """``defect`` confined to one register: the suite must catch it in each field, not only in some."""
+    return type(f"{defect.__name__}In{field.capitalize()}", (defect,),
+                {"fields": (field,), "__doc__": f"{defect.__doc__.splitlines()[0]}  Only the {field}."})
 
 
 class LeapDayRefusedIn2000(RtcModel):
@@ -230,14 +249,75 @@ class AdjustWindowEndsAt58(RtcModel):
 class SetClearsTheWeekday(RtcModel):
     """A set loads R4128–R4133 but writes 0 (Sunday) into the chip's weekday counter, which counts on from there."""
 
-    _offset = 0
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        self._anchor_weekday = 0
+
+
+class WeekdayFromTheDateAtASet(RtcModel):
+    """A set loads the date's weekday into the chip's counter, not the one written (it counts on from there)."""
 
     def write_chip(self, emu, t):
         super().write_chip(emu, t)
-        self._offset = -super().weekday_for(t.year, t.month, t.day) % 7
+        self._anchor_weekday = t.with_weekday_from_date().weekday
 
-    def weekday_for(self, year, month, day):
-        return (super().weekday_for(year, month, day) + self._offset) % 7
+
+class CalendarWeekday(RtcModel):
+    """Computes the weekday from the date instead of counting it on: Saturday after the 2099 → 2000 wrap."""
+
+    def read_chip(self, now):
+        return super().read_chip(now).with_weekday_from_date()
+
+
+class R4135OnlyAtASet(RtcModel):
+    """Writes R4135 only when the chip is loaded (a set, a ±30 s correction): the read-out copies R4128–R4134."""
+
+    def copy_out(self, emu, t):
+        emu.memory.words["R"][4128:4135] = t.to_registers()
+
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        emu.memory.words["R"][4135] = t.hour_minute_word()
+
+
+class SetNeedsM1952HeldThreeScans(RtcModel):
+    """Loads the chip at M1952's fall only if M1952 was 1 for at least 3 scans (a debounced trigger)."""
+
+    _held = 0  # scans M1952 has been 1 in a row, up to the last scan
+    _held_before_fall = 0
+
+    def scan(self, emu):
+        if emu.memory.bits["M"][HOLD]:
+            self._held += 1
+        else:
+            self._held_before_fall, self._held = self._held, 0
+        super().scan(emu)
+
+    def on_hold_edge(self, emu):
+        if self._held_before_fall >= 3:
+            super().on_hold_edge(emu)
+
+
+class D4054NegativeCodesIgnored(RtcModel):
+    """Applies only the codes of a clock that runs fast (S > 0): 5603H, 5602H … change nothing."""
+
+    def correction_rate(self, code):
+        return max(super().correction_rate(code), 0.0)
+
+
+class D4054NegativeCodesInverted(RtcModel):
+    """Applies the codes of a clock that runs slow with the wrong sign: 5602H slows it by 16.88 s/day."""
+
+    def correction_rate(self, code):
+        return abs(super().correction_rate(code))
+
+
+class D4054DroppedAtASet(RtcModel):
+    """A set loads the chip's time and resets its rate adjustment, though D4054 still holds the code."""
+
+    def write_chip(self, emu, t):
+        super().write_chip(emu, t)
+        self._rate = self.chip_rate(0)
 
 
 class D4054ZeroesSingleSteps(RtcModel):
@@ -280,10 +360,26 @@ CAUGHT_BY = {
     AdjustCarrySkipsThe31st: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     AdjustWindowEndsAt58: "test_adjust_30s_over_both_windows_and_their_edges",
     SetClearsTheWeekday: "test_set_then_read_round_trip_of_every_field_edge_and_weekday",
+    CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
+    WeekdayFromTheDateAtASet: "test_weekday_written_is_kept_and_counts_on_from_itself",
     D4054ZeroesSingleSteps: "test_d4054_write_read_back_of_every_table_1_code",
+    SetNeedsM1952HeldThreeScans: "test_set_takes_a_one_scan_pulse_of_m1952",
+    D4054NegativeCodesIgnored: "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount",
+    D4054NegativeCodesInverted: "test_d4054_largest_codes_of_both_signs_change_the_rate_by_table_1s_amount",
+    D4054DroppedAtASet: "test_d4054_correction_stays_in_force_across_a_set_of_the_clock",
+    R4135OnlyAtASet: "test_r4135_follows_the_running_clock_across_a_minute_an_hour_and_midnight",
     NoChipStillReadsOut: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
     NoChipM1954Set: "test_without_a_chip_d4053_is_0_m1954_is_0_and_r4128_r4135_are_not_updated",
 }
+#: every field's register-width check, field by field (the weekday's range is RTC-VAL-5's, tested apart)
+for _field in FIELDS:
+    _test = ("test_weekday_out_of_range_is_refused_with_m1955_and_the_clock_runs_on" if _field == "weekday" else
+             CAUGHT_BY[SetTakesLowBytesOnly])
+    for _defect in (SetTakesLowBytesOnly, ComparesSigned):
+        if _field in _defect.fields:
+            _variant = one_field(_defect, _field)
+            globals()[_variant.__name__] = _variant  # by name, as tests/broken_emulate.py looks a defect up
+            CAUGHT_BY[_variant] = _test
 #: defects of a PLC without an RTC chip: run on the profile that says so
 NO_CHIP = {NoChipStillReadsOut, NoChipM1954Set}
 

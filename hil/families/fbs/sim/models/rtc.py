@@ -20,7 +20,7 @@ from hil.families.fbs.address import parse
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import rate_for_code
-from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime, weekday_of
+from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
 # (the emulator's speed-ups — the read-out skipped while the second is unchanged, the footprint a batch of scans
 # relies on — and the broken variants' invalid times model no manual statement: in a module of their own)
 from hil.families.fbs.sim.models.rtc_shortcuts import RtcShortcuts, rolled_over_seconds
@@ -39,6 +39,8 @@ _CHIP = parse(reg.RTC_CHIP).index  # D4053
 _RATE_CODE = parse(reg.RTC_RATE_CODE).index  # D4054
 
 S35390A = 3
+#: days in the chip's century 2000–2099: its day count wraps with its year
+CENTURY_DAYS = CENTURY_SECONDS // 86400
 
 
 def seconds_of(t: RtcTime) -> int:
@@ -67,7 +69,7 @@ class RtcModel(RtcShortcuts, Model):
     def __init_subclass__(cls, **kwargs: object) -> None:
         super().__init_subclass__(**kwargs)
         cls._plain = all(getattr(cls, name) is getattr(RtcModel, name)
-                         for name in ("publish_chip", "chip_seconds", "read_chip", "copy_out", "weekday_for"))
+                         for name in ("publish_chip", "chip_seconds", "read_chip", "copy_out", "weekday_after"))
 
     def __init__(self, chip: int = S35390A, crystal_ppm: float = 0.0,
                  start: dt.datetime | RtcTime | None = None) -> None:
@@ -82,6 +84,7 @@ class RtcModel(RtcShortcuts, Model):
         # _anchor_t, and how many chip seconds pass per virtual second from then on.
         self._anchor_t = 0.0
         self._anchor_s = float(seconds_of(start_time))
+        self._anchor_weekday = start_time.weekday  # what the chip's weekday counter shows at _anchor_s
         self._code = 0  # the D4054 value in force
         self._rate = self.chip_rate(self._code)
         self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
@@ -125,17 +128,21 @@ class RtcModel(RtcShortcuts, Model):
         return (self._anchor_s + (now - self._anchor_t) * self._rate) % CENTURY_SECONDS
 
     def read_chip(self, now: float) -> RtcTime:
-        """The time the chip shows at ``now`` (whole seconds; weekday from :meth:`weekday_for`)."""
-        when = EPOCH + dt.timedelta(seconds=math.floor(self.chip_seconds(now)))
-        year = when.year - 2000
-        return RtcTime(when.second, when.minute, when.hour, when.day, when.month, year,
-                       self.weekday_for(year, when.month, when.day))
+        """The time the chip shows at ``now`` (whole seconds; weekday from :meth:`weekday_after`)."""
+        seconds = math.floor(self.chip_seconds(now))
+        when = EPOCH + dt.timedelta(seconds=seconds)
+        # chip days since the anchor, counted across the 2099 → 2000 wrap as one day like any other
+        days = (seconds // 86400 - math.floor(self._anchor_s) // 86400) % CENTURY_DAYS
+        return RtcTime(when.second, when.minute, when.hour, when.day, when.month, when.year - 2000,
+                       self.weekday_after(days))
 
     def write_chip(self, emu: "Emulator", t: RtcTime) -> None:
         """Load ``t`` into the chip at ``emu.now``.  Writing restarts the chip's second: the sub-second phase is
-        zero at the write, so the next tick comes one (chip) second later — what a sync at a whole second wants."""
+        zero at the write, so the next tick comes one (chip) second later — what a sync at a whole second wants.
+        The weekday counter takes the weekday written, whatever the date's is (RTC-VAL-5)."""
         self._anchor_t = emu.now
         self._anchor_s = float(seconds_of(t))
+        self._anchor_weekday = t.weekday % 7  # (% 7: only a broken ``validate`` lets 7 or more through)
 
     def chip_rate(self, code: int) -> float:
         """Chip seconds per virtual second with D4054 = ``code``."""
@@ -152,9 +159,11 @@ class RtcModel(RtcShortcuts, Model):
         except ValueError:
             return 0.0
 
-    def weekday_for(self, year: int, month: int, day: int) -> int:
-        """The weekday the chip reports for a date (0 = Sunday): it follows the date, whatever was written."""
-        return weekday_of(year, month, day)
+    def weekday_after(self, days: int) -> int:
+        """The chip's weekday counter ``days`` chip days after the anchor (0 = Sunday): it advances by one
+        (6 → 0) whenever the date advances and is never computed from the date, so after the wrap from Thursday
+        31 Dec 2099 it shows Friday although 1 Jan 2000 was a Saturday (fbs-rtc.md, ±30 s correction)."""
+        return (self._anchor_weekday + days) % 7
 
     # -- PLC behaviour ----------------------------------------------------------------------------------------
     def publish_chip(self, emu: "Emulator") -> None:
@@ -185,13 +194,14 @@ class RtcModel(RtcShortcuts, Model):
 
     def apply_30s(self, t: RtcTime) -> RtcTime:
         """±30 s correction of ``t``: seconds 0–29 → :00; 30–59 → :00 of the next minute, carrying through hour,
-        day, month and year (2099 → 2000); the weekday follows the date."""
+        day, month and year (2099 → 2000); the weekday counter advances by one when the date does."""
         when = t.to_datetime().replace(second=0)
         if t.second >= 30:
             when += dt.timedelta(minutes=1)
         if when.year > 2099:  # the chip's two-digit year wraps
             when = when.replace(year=2000)
-        return RtcTime.from_datetime(when)
+        weekday = (t.weekday + (when.date() != t.to_datetime().date())) % 7
+        return RtcTime(0, when.minute, when.hour, when.day, when.month, when.year - 2000, weekday)
 
     def on_adjust_edge(self, emu: "Emulator") -> None:
         """Rising edge of M1953: apply :meth:`apply_30s` to the chip's current time."""
@@ -199,6 +209,7 @@ class RtcModel(RtcShortcuts, Model):
 
     def on_rate_code(self, emu: "Emulator", code: int) -> None:
         """A new D4054 value: re-anchor at ``emu.now`` (keeping the phase) and run at the new rate from here."""
+        self._anchor_weekday = self.read_chip(emu.now).weekday
         self._anchor_s = self.chip_seconds(emu.now)
         self._anchor_t = emu.now
         self._code = code
