@@ -155,3 +155,24 @@ def test_a_scan_range_without_bench_timing_is_refused():
     data = tomllib.loads(EMULATOR_BENCH.read_text().replace("seed = 0\n", "seed = 0\nscan_time_range = [5, 20]\n", 1))
     with pytest.raises(ProfileError, match=r'bench\.toml: \[emulator\] scan_time_range .*timing = "bench"'):
         profile_from_dict(data, path=Path("bench.toml"))
+
+
+def test_jumps_over_request_free_time_agree_with_scanning_every_scan():
+    """The engine's fast-forward (and FUN86's wake-ups) in bench timing leave what a scan-by-scan run leaves: the
+    same readings, work block, FUN86 outputs and scan counter."""
+    def run(every_scan: bool) -> Emulator:
+        emu = emulator(2)
+
+        def until(t: float) -> None:
+            if not every_scan:
+                emu.advance_to(t)
+            while emu.now < t - 1e-9:
+                emu.scan()
+        until(13.0)
+        emu.memory.set("M0", 1)  # zone-a's EN: PID steps, the plant heating
+        until(80.0)
+        return emu
+    jumped, scanned = run(False), run(True)
+    assert jumped.scans < scanned.scans / 10, "the fast-forward jumped"
+    assert jumped.memory.words["R"] == scanned.memory.words["R"]
+    assert jumped.memory.bits == scanned.memory.bits
