@@ -157,11 +157,13 @@ def test_a_scan_range_without_bench_timing_is_refused():
         profile_from_dict(data, path=Path("bench.toml"))
 
 
-def test_jumps_over_request_free_time_agree_with_scanning_every_scan():
+@pytest.mark.parametrize("seed", range(2, 8))
+def test_jumps_over_request_free_time_agree_with_scanning_every_scan(seed):
     """The engine's fast-forward (and FUN86's wake-ups) in bench timing leave what a scan-by-scan run leaves: the
-    same readings, work block, FUN86 outputs and scan counter."""
-    def run(every_scan: bool) -> Emulator:
-        emu = emulator(2)
+    same readings, work block, FUN86 outputs and scan counter (seeds that put a module's refresh before and after
+    the table cycle)."""
+    def run(every_scan: bool) -> tuple[Emulator, list[int]]:
+        emu = emulator(seed)
 
         def until(t: float) -> None:
             if not every_scan:
@@ -169,10 +171,24 @@ def test_jumps_over_request_free_time_agree_with_scanning_every_scan():
             while emu.now < t - 1e-9:
                 emu.scan()
         until(13.0)
+        # no table for a while (the next table cycle stops the measuring), sensors opened meanwhile: a jump over
+        # the cycle must still take the measurements due before it under the valid table
+        emu.memory.words["R"][TABLE] = 0xA557
+        emu.scan()
+        model = emu.model(TemperatureModel)
+        for point in range(2 * POINTS):
+            model.open(point)
+        until(23.0)
+        breaks = emu.memory.words["R"][WORK + 1:WORK + 3]
+        emu.memory.words["R"][TABLE] = 0xA556
+        for point in range(2 * POINTS):
+            model.repair(point)
+        until(40.0)
         emu.memory.set("M0", 1)  # zone-a's EN: PID steps, the plant heating
         until(80.0)
-        return emu
-    jumped, scanned = run(False), run(True)
+        return emu, breaks
+    (jumped, jumped_breaks), (scanned, scanned_breaks) = run(False), run(True)
     assert jumped.scans < scanned.scans / 10, "the fast-forward jumped"
+    assert jumped_breaks == scanned_breaks, "the break bits while the table was invalid"
     assert jumped.memory.words["R"] == scanned.memory.words["R"]
     assert jumped.memory.bits == scanned.memory.bits

@@ -144,8 +144,12 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
 
     def next_event(self, now: float) -> float:
         # Measurements are caught up at the next scan, each at its scheduled time (see _measure_module), so a
-        # time jump loses nothing and the model never needs a scan of its own between requests.
-        return math.inf
+        # time jump loses nothing and the model never needs a scan of its own between requests — unless the table
+        # may change between them (bench timing: at a table cycle), when measurements due before the cycle must be
+        # taken under the table before it, as scanning every scan would
+        if not self.phases.bench:
+            return math.inf
+        return min(self._table_due, self.next_measurement())
 
     def next_measurement(self) -> float:
         """Virtual time of the next scheduled measurement of any point (a PID acting on PV may need a scan then)."""
