@@ -281,6 +281,7 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
     io = bench.plc.io
     update = max(UPDATE_S[m.type.name][0 if config.rate == "fast" else 1] for m in config.modules)
     io.write(str(sr), 0xA557)  # (the marker first: a valid table must not get to measure an open sensor)
+    bench.plc.time.wait(update + UPDATE_MARGIN_S)  # a table rewrite may take effect only at the next cycle
     bench.settle()
     before, words_before = temp.readings(), temp.read_work().break_words
     for p in points:
