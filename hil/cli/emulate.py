@@ -73,7 +73,7 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         rate = LineRate.parse(line)
         profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
     profile = with_timing(profile, timing, seed)
-    print(f"hil emulate: timing {profile.emulator.timing_plan().describe()}, seed {profile.emulator.seed} "
+    print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
           f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr, flush=True)
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)

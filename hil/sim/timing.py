@@ -42,10 +42,12 @@ class Timing:
         return period * (1.0 - self.stream(name).random())  # random() is in [0, 1): the phase in (0, period]
 
     def describe(self) -> str:
+        """The mode as a report shows it (the seed is reported on its own)."""
         if not self.bench:
             return "instant"
-        shown = "" if self.scan_range is None else f", scans {self.scan_range[0] * 1000:g}–{self.scan_range[1] * 1000:g} ms"
-        return f"bench (seed {self.seed}{shown})"
+        if self.scan_range is None:
+            return "bench"
+        return f"bench (scans {self.scan_range[0] * 1000:g}–{self.scan_range[1] * 1000:g} ms)"
 
 
 INSTANT = Timing()
