@@ -9,6 +9,7 @@ import signal
 import sys
 import threading
 import time
+from typing import Any
 
 from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
@@ -47,7 +48,7 @@ def with_timing(profile: Profile, timing: str | None, seed: int | None) -> Profi
     """``profile`` with the command line's ``--timing`` and ``--seed`` over its ``[emulator]`` keys."""
     if timing is not None and timing not in TIMING_MODES:
         raise InvalidValue(f"--timing {timing}: must be one of {', '.join(TIMING_MODES)}")
-    changes = {k: v for k, v in (("timing", timing), ("seed", seed)) if v is not None}
+    changes: dict[str, Any] = {k: v for k, v in (("timing", timing), ("seed", seed)) if v is not None}
     if changes.get("timing") == "instant" and profile.emulator.scan_time_range_ms is not None:
         changes["scan_time_range_ms"] = None  # (the profile's scan range varies bench scans only)
     return dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, **changes))
