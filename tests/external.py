@@ -44,27 +44,28 @@ def _read_endpoints(proc: subprocess.Popen, kinds: set[str], timeout: float) -> 
 
 
 @contextlib.contextmanager
-def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False,
-                broken: str | None = None) -> Iterator[dict[str, str]]:
+def hil_emulate(profile: Path, time_scale: float, *, modbus: bool = False, broken: str | None = None,
+                timing: str | None = None, seed: int | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` on FATEK/TCP (and Modbus/TCP with ``modbus``) with the fault rig; yields
     {"fatek-tcp": addr, "rig-modbus-tcp": addr[, "modbus-tcp": addr]}.  Stops it with SIGINT (as an operator's
     Ctrl-C) and checks that it exits cleanly.  ``broken``: "MODULE:FACTORY:DEFECT" serves a deliberately broken
-    emulator instead (tests/broken_emulate.py)."""
+    emulator instead (tests/broken_emulate.py).  ``timing`` and ``seed``: ``--timing`` and ``--seed``."""
     wires = {"fatek-tcp": "--fatek-tcp", "rig-modbus-tcp": "--rig-modbus-tcp"}
     if modbus:
         wires["modbus-tcp"] = "--modbus-tcp"
-    with emulate_process(profile, time_scale, wires, broken=broken) as endpoints:
+    with emulate_process(profile, time_scale, wires, broken=broken, timing=timing, seed=seed) as endpoints:
         yield endpoints
 
 
 @contextlib.contextmanager
-def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *,
-                    broken: str | None = None) -> Iterator[dict[str, str]]:
+def emulate_process(profile: Path, time_scale: float, wires: dict[str, str], *, broken: str | None = None,
+                    timing: str | None = None, seed: int | None = None) -> Iterator[dict[str, str]]:
     """``hil emulate --bench profile`` serving each endpoint kind of ``wires`` (kind → its option, on a free
     loopback port; a pty wire's option on a pseudo-terminal); yields kind → address (or the pty's path).  Stopped
     with SIGINT; it must exit cleanly."""
     ptys = {wire.option for wire in WIRES.values() if wire.kind == "pty"}
     options = [arg for option in wires.values() for arg in (option, *(() if option in ptys else ("127.0.0.1:0",)))]
+    options += [*(("--timing", timing) if timing else ()), *(("--seed", str(seed)) if seed is not None else ())]
     proc = processes.spawn(
         [sys.executable, "-m", *(["tests.broken_emulate", broken] if broken else ["hil.cli.main", "emulate"]),
          "--no-live", "--bench", str(profile), *options, "--time-scale", str(time_scale)],

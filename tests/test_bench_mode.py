@@ -2,6 +2,8 @@
 real-time process, reached only over its wires (FATEK/TCP and Modbus/TCP) and its Modbus relay rig, with a
 bench-like profile (the ladder's scan counter declared).  Each run is a test with its own ``hil emulate`` (a PLC
 has one plant); the gate runs the main set over FATEK/TCP, the matrix every run; the time scale is accelerated.
+The gate's emulator runs in bench timing (hil.sim.timing) with a seed taken from the commit, printed with the
+test's output: the suites must hold for a PLC that publishes as late as the manual allows, and a failure replays.
 
 Every skip must name a reason a bench profile removes (a Modbus user map for D4054, [rtc] drift_max_hours for the
 drift test, [bench] offers for a PLC fresh from power-on or one seen to make the spec's choices) — listed below so
@@ -61,6 +63,29 @@ def outcome_counts(out: str) -> dict[str, int]:
 #: the gate runs the main set over FATEK/TCP (the bench path once); the matrix (scripts/e2e_matrix.py) every run
 #: over both wires
 GATE = ("main", "fatek-tcp")
+#: the gate's emulator times as a bench may (hil.sim.timing): scans of 10–20 ms (never shorter than the profile's
+#: 10 ms: at the accelerated time scale, shorter ones widen the scan counter's brackets), readings, table rewrites
+#: and PID steps at the seed's phases
+BENCH_TIMING = '[emulator]\ntiming = "bench"\nscan_time_range = [10, 20]\n'
+#: the gate's seed outside a git checkout (an sdist, a copied tree)
+FALLBACK_SEED = 1
+
+
+def commit_seed() -> int:
+    """The gate's timing seed: the checked-out commit's first 32 bits (each commit its own phases, the same ones
+    every time it is run again), else :data:`FALLBACK_SEED`."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return FALLBACK_SEED
+    commit = head.stdout.strip()
+    return int(commit[:8], 16) if head.returncode == 0 and re.fullmatch(r"[0-9a-f]{40,64}", commit) else FALLBACK_SEED
+
+
+def bench_timed(text: str) -> str:
+    """The profile with the gate's bench-timing keys in its [emulator] section."""
+    assert text.count("[emulator]\n") == 1 and "timing =" not in text, "one [emulator] section, no timing key yet"
+    return text.replace("[emulator]\n", BENCH_TIMING, 1)
 
 
 @pytest.mark.e2e
@@ -69,10 +94,18 @@ GATE = ("main", "fatek-tcp")
                                         for name in RUNS for wire in ("fatek-tcp", "modbus-tcp")])
 def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path, name, wire):
     emulated = tmp_path / "emulated.toml"
-    emulated.write_text(bench_like(EMULATOR_BENCH.read_text()))
+    text = bench_like(EMULATOR_BENCH.read_text())
+    seed = None
+    if (name, wire) == GATE:
+        text, seed = bench_timed(text), commit_seed()
+        # (pytest shows a failing test's captured output: the seed to replay it with)
+        print(f"bench timing: hil emulate --timing bench --seed {seed} (replay: the same seed, this profile's "
+              f"[emulator] {BENCH_TIMING.splitlines()[-1]})")
+    emulated.write_text(text)
     files, selected, scale = RUNS[name]
     started = time.monotonic()
-    with hil_emulate(emulated, scale, modbus=True) as where:
+    with hil_emulate(emulated, scale, modbus=True, timing="bench" if seed is not None else None,
+                     seed=seed) as where:
         bench = tmp_path / f"{name}-{wire}.toml"
         bench.write_text(bench_over_the_wire(emulated.read_text(), where, scale, wire))
         done = processes.run(

@@ -27,6 +27,7 @@ from hil.io.url import parse_target
 from hil.bench.lab.resolve import Lab
 from hil.sim.wire_faults import KINDS, check_rates
 from hil.sim.pacing import LineRate
+from hil.sim.timing import MODES as TIMING_MODES, Timing
 
 CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid", "history")
 
@@ -44,6 +45,18 @@ class EmulatorSettings:
     seed: int = 0
     #: ``line = "9600 7E1"``: the pace of the emulator's pty wires (hil.sim.pacing.LineRate); None: unpaced
     line: Any = None
+    #: ``timing = "bench"``: publish what the manual lets happen later, later, at phases drawn from ``seed``
+    #: (hil.sim.timing); "instant" (the default): at once
+    timing: str = "instant"
+    #: ``scan_time_range = [MIN, MAX]`` (ms, bench timing only): each scan's length drawn from it; None: every
+    #: scan ``scan_time_ms`` long
+    scan_time_range_ms: tuple[float, float] | None = None
+
+    def timing_plan(self) -> Timing:
+        """The emulator's :class:`~hil.sim.timing.Timing` (the same ``seed`` as the plant's noise: one number
+        replays the whole emulated PLC)."""
+        scans = self.scan_time_range_ms
+        return Timing(self.timing, self.seed, None if scans is None else (scans[0] / 1000, scans[1] / 1000))
 
 
 @dataclass(frozen=True)
@@ -206,8 +219,15 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
         scan_time_ms=reader.take(emu_t, "emulator", "scan_time_ms", float, 10.0,
                                  check=lambda v: 0.1 <= v <= 1000 or "must be 0.1–1000 ms"),
         seed=reader.take(emu_t, "emulator", "seed", int, 0),
-        line=reader.take(emu_t, "emulator", "line", str, None, convert=_line_rate))
+        line=reader.take(emu_t, "emulator", "line", str, None, convert=_line_rate),
+        timing=reader.take(emu_t, "emulator", "timing", str, "instant",
+                           check=lambda v: v in TIMING_MODES or f"must be one of {', '.join(TIMING_MODES)}"),
+        scan_time_range_ms=reader.take(emu_t, "emulator", "scan_time_range", list, None, check=_scan_range,
+                                       convert=tuple))
     reader.done(emu_t, "emulator")
+    if emulator.scan_time_range_ms is not None and emulator.timing != "bench":
+        raise ProfileError(f"{where}: [emulator] scan_time_range varies the scans in bench timing only: add "
+                           f"timing = \"bench\" or remove it")
 
 
     for section in data:
@@ -325,6 +345,14 @@ class Reader:
     def done(self, table: dict[str, Any], section: str) -> None:
         if table:
             raise ProfileError(f"{self.where}: unknown key(s) in [{section}]: {', '.join(sorted(table))}")
+
+
+def _scan_range(value: tuple) -> bool | str:
+    """``[MIN, MAX]`` in ms, 0.1 ≤ MIN ≤ MAX ≤ 1000 (the range of ``scan_time_ms``)."""
+    if len(value) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        return "must be [MIN, MAX], two numbers of milliseconds"
+    low, high = value
+    return (0.1 <= low <= high <= 1000) or "must have 0.1 ≤ MIN ≤ MAX ≤ 1000 ms"
 
 
 def _line_rate(value: str) -> Any:

@@ -9,11 +9,13 @@ import signal
 import sys
 import threading
 import time
+from typing import Any
 
 from hil.core.errors import InvalidValue
 from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
-from hil.bench.profile import load_profile
+from hil.bench.profile import Profile, load_profile
+from hil.sim.timing import MODES as TIMING_MODES
 from hil.io.hosts import unresolved
 from hil.sim.pacing import LineRate
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
@@ -42,12 +44,25 @@ def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's s
                            f"(127.0.0.1, 0.0.0.0 for all) and a free port (0 lets the OS choose)") from None
 
 
+def with_timing(profile: Profile, timing: str | None, seed: int | None) -> Profile:
+    """``profile`` with the command line's ``--timing`` and ``--seed`` over its ``[emulator]`` keys."""
+    if timing is not None and timing not in TIMING_MODES:
+        raise InvalidValue(f"--timing {timing}: must be one of {', '.join(TIMING_MODES)}")
+    changes: dict[str, Any] = {k: v for k, v in (("timing", timing), ("seed", seed)) if v is not None}
+    if changes.get("timing") == "instant" and profile.emulator.scan_time_range_ms is not None:
+        changes["scan_time_range_ms"] = None  # (the profile's scan range varies bench scans only)
+    return dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, **changes))
+
+
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
             rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False,
-            line: str | None = None) -> int:
+            line: str | None = None, timing: str | None = None, seed: int | None = None) -> int:
     """``endpoints``: (wire, "HOST:PORT" or None for ptys).  Prints ``<kind> <address>`` per endpoint.
 
     ``line``: "9600 7E1" paces the pty wires at that rate (over the profile's ``[emulator] line``).
+
+    ``timing`` ("instant" or "bench") and ``seed`` override the profile's ``[emulator] timing`` and ``seed``; the
+    seed in effect is printed first, on stderr (stdout's lines are the endpoints scripts parse), to replay a run.
 
     ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
     hil.families.fbs.sim.rig).
@@ -58,6 +73,9 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     if line is not None:
         rate = LineRate.parse(line)
         profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
+    profile = with_timing(profile, timing, seed)
+    print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
+          f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr, flush=True)
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []

@@ -136,6 +136,12 @@ def build_parser() -> argparse.ArgumentParser:
                          help="the rig's first coil: temperature point 0's sensor (default 0)")
     emulate.add_argument("--time-scale", type=float, default=1.0, metavar="X",
                          help="virtual seconds per wall second (default 1)")
+    emulate.add_argument("--timing", choices=("instant", "bench"),
+                         help="'bench': readings, table rewrites and PID steps as late as the manual allows, scans "
+                              "of varying length, at seeded phases (default: the profile's [emulator] timing)")
+    emulate.add_argument("--seed", type=int, metavar="N",
+                         help="the emulator's seed (timing phases, plant noise; default: the profile's [emulator] "
+                              "seed); hil emulate prints the one in effect at start")
 
     probe = sub.add_parser("probe", help="show a PLC's status and key registers",
                            formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -368,7 +374,8 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
             raise InvalidValue(f"nothing to serve: give {', '.join(flags[:-1])} or {flags[-1]} (the profile's "
                                f"family serves some of them)")
         return emulate(args.bench or str(default_bench()), endpoints, args.time_scale, args.rig_modbus_tcp,
-                       args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line)
+                       args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line,
+                       timing=args.timing, seed=args.seed)
     if args.command == "probe":
         from hil.cli.probe import probe
         return probe(args.url, console, bench=args.bench)

@@ -17,6 +17,7 @@ from typing import Any, Callable, Iterable, TypeVar
 from hil.core.errors import InvalidValue
 from hil import __version__
 from hil.sim.model import Model
+from hil.sim.timing import INSTANT, Timing
 
 T = TypeVar("T")
 
@@ -32,10 +33,14 @@ class Engine:
     realtime_catch_up = 1000
 
     def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
-                 seed: int = 0) -> None:
+                 seed: int = 0, timing: Timing = INSTANT) -> None:
         if scan_time <= 0:
             raise InvalidValue(f"scan time must be positive, not {scan_time}")
-        self.scan_time = scan_time
+        #: when the models publish (hil.sim.timing); with a range of scan lengths, scan_time is its shortest: the
+        #: grid the clock lands jumps on, and the room every "is there a whole scan left" test asks for
+        self.timing = timing
+        self._scan_lengths = timing.stream("scan") if timing.bench and timing.scan_range else None
+        self.scan_time = timing.scan_range[0] if self._scan_lengths else scan_time
         self.station = station
         self.seed = seed
         self.memory = memory
@@ -78,8 +83,15 @@ class Engine:
 
     def tick(self) -> None:
         """The clock of one scan (a model running scans in a batch ticks it for each of them)."""
-        self.now += self.scan_time
+        self.now += self.scan_length()
         self.scans += 1
+
+    def scan_length(self) -> float:
+        """How long the coming scan takes: ``scan_time``, or in bench timing a seeded draw from the range."""
+        if self._scan_lengths is None:
+            return self.scan_time
+        low, high = self.timing.scan_range  # type: ignore[misc]  # set with _scan_lengths
+        return self._scan_lengths.uniform(low, high)
 
     def end_scan(self) -> None:
         """What the controller does at the end of every scan after the models (a family may add to it)."""

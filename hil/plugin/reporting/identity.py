@@ -81,6 +81,9 @@ def plc_identity(bench: Any) -> dict[str, str]:
     if emulator is not None:
         out["emulator version"] = str(getattr(emulator, "version", "?"))
         out["emulator seed"] = str(getattr(emulator, "seed", "?"))
+        timing = getattr(emulator, "timing", None)
+        if timing is not None:  # (bench timing: the seed replays its phases)
+            out["emulator timing"] = timing.describe()
         out.pop("version", None)
         out.pop("seed", None)
         out.pop("unit", None)

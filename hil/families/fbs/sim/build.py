@@ -18,14 +18,14 @@ from hil.families.fbs.pid import PidConfig
 def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:
     """An FBs emulator for ``profile`` whose clock-related models start at ``epoch`` (the bench's "host time")."""
     emulator = Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,
-                        seed=profile.emulator.seed)
+                        seed=profile.emulator.seed, timing=profile.emulator.timing_plan())
     if profile.scan_counter:
         emulator.scan_counter = parse(profile.scan_counter)
     rtc = profile.rtc
     emulator.add_model(RtcModel(chip=rtc.chip if rtc else 3, crystal_ppm=rtc.crystal_ppm if rtc else 0.0,
                                 start=(rtc.start if rtc and rtc.start else epoch)))
     if "temperature" in profile.sections:
-        emulator.add_model(TemperatureModel(profile.sections["temperature"]))
+        emulator.add_model(TemperatureModel(profile.sections["temperature"], timing=emulator.timing))
     if "pid" in profile.sections or "plant" in profile.sections:
         add_pid_models(emulator, profile)
     return emulator
@@ -36,7 +36,12 @@ def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     config = profile.sections.get("pid") or PidConfig(())
     temperature = emulator.model(TemperatureModel)
     fun86 = Fun86Model(config, temperature.config if temperature else None)
-    fun86.batcher = Span()  # (the scans at PID intervals between requests, in batches)
+    fun86.phases = emulator.timing
+    if not emulator.timing.bench:
+        # (the scans at PID intervals between requests, in batches; bench timing scans them one by one: the
+        # batches assume the instant table and scan grid, and a second copy of them for bench phases is not worth
+        # its upkeep)
+        fun86.batcher = Span()
     if temperature is not None:
         fun86.next_measurement = temperature.next_measurement
         fun86.temperature_model = temperature

@@ -10,6 +10,7 @@ from hil.families.fbs.registers import POWER_ON_DEFAULTS
 from hil.families.fbs.sim.memory import Memory
 from hil.sim.engine import Engine
 from hil.sim.model import Model
+from hil.sim.timing import INSTANT, Timing
 
 #: Main-unit identity the emulator reports in the detailed status (command 53). [our choice] values.
 UNIT_TYPE_MC = 0x01
@@ -23,8 +24,8 @@ class Emulator(Engine):
     memory: Memory
 
     def __init__(self, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
-                 seed: int = 0) -> None:
-        super().__init__(Memory(), scan_time=scan_time, station=station, seed=seed)
+                 seed: int = 0, timing: Timing = INSTANT) -> None:
+        super().__init__(Memory(), scan_time=scan_time, station=station, seed=seed, timing=timing)
         # [our choice] each emulator is a PLC of its own: a serial of its own, served in its identity (command
         # 53), so that a journal, a lock or a rig check never takes one emulator for another
         self.serial = os.urandom(8)

@@ -44,6 +44,7 @@ import numpy as np
 
 from hil.families.fbs.address import Address, parse
 from hil.sim.columns import signed16 as signed
+from hil.sim.timing import INSTANT, Timing
 from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
@@ -173,6 +174,8 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         self._wiring_for: "Memory | None" = None
         #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
         self.batcher = None
+        #: when the PID steps begin after EN rises (hil.sim.timing; build_emulator sets the emulator's)
+        self.phases: Timing = INSTANT
 
     # -- the seams broken variants override (per point: arrays over an instance's points) -------------------------
     def valid(self, sn: int, zn: int) -> bool:
@@ -402,7 +405,9 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         if rising:
             st.interval, st.pwm = self.timing(words["R"][_R[reg.PID_TIMING]])
             st.started = now
-            st.next_pid = now
+            # the first PID step: at the edge's scan (instant timing) or up to one interval later (bench timing,
+            # each instance at its own phase: hil.sim.timing)
+            st.next_pid = now + self.phases.phase(f"fun86:{inst.name}:{inst.en}", st.interval)
         start = self.readings_start(mem)
         if start is None or not self.all_measured(mem):
             st.running = False

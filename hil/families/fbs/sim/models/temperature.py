@@ -10,6 +10,12 @@ What the model does every scan, as the FBs OS does:
   reading and its break bit (TW+1/TW+2);
 * writes the execution code 56H once every point has been measured once.
 
+In bench timing (hil.sim.timing) the model publishes as late as the manual allows: each module refreshes all its
+points' readings and break bits at once, once per update time, at a seeded phase of its own; the table is read
+once per cycle (the longest update time of the fitted modules), at a seeded phase, so a rewrite takes effect at
+the next cycle and the work block (execution code, mismatch and break bits) changes only at those times.  The
+same code measures and reports in both modes; only the schedule differs.
+
 Each point's true temperature comes from a *source* (models/sensor_inputs.py: the simulated world, with the
 faults a rig injects on a sensor); the emulator's speed-ups (batches of scans, the readings' upper bound, cycles
 a long jump skips unseen) are in models/temperature_batching.py.  This file holds the manual's behaviour only.
@@ -30,6 +36,7 @@ import numpy as np
 
 from hil.sim.columns import last_of_each, occurrence, signed16
 from hil.sim.model import Model
+from hil.sim.timing import INSTANT, Timing
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
 # (the simulated world the sensors see, and the emulator's speed-ups: no manual statement, so not here; the sources
@@ -54,8 +61,13 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
     batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: TemperatureConfig, *, fitted: Sequence[ModuleType] | None = None,
-                 write_table: bool = True) -> None:
+                 write_table: bool = True, timing: Timing = INSTANT) -> None:
         self.config = config
+        self.phases = timing
+        #: bench timing: the table's words as read at the last table cycle (before the first: none), and when the
+        #: next cycle reads it again
+        self._table_read: list[int] = [0]
+        self._table_due = 0.0
         #: The modules physically plugged in, in expansion order (default: those the profile names).
         self.fitted: list[ModuleType] = list(fitted if fitted is not None else (m.type for m in config.modules))
         self.write_table = write_table
@@ -122,19 +134,48 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
             emu.memory.write(self.config.table, self.config.table_words())
         self._quiet = None
         for k, module in enumerate(self.fitted):
-            self._next[k] = emu.now + self._step(module)
+            first = self.phases.phase(f"temperature:module{k}", self._cycle(module)) if self.phases.bench else 0.0
+            self._next[k] = emu.now + (first or self._step(module))
+        # bench timing: the table the power-on left is read at once (the OS starts from it), a rewrite at the next
+        # table cycle, the first of which comes at a seeded phase
+        self._table_due = emu.now
+        self._table_in_effect(emu.now, emu.memory)
+        self._table_due = emu.now + self.phases.phase("temperature:table", self._table_cycle())
 
     def next_event(self, now: float) -> float:
         # Measurements are caught up at the next scan, each at its scheduled time (see _measure_module), so a
-        # time jump loses nothing and the model never needs a scan of its own between requests.
-        return math.inf
+        # time jump loses nothing and the model never needs a scan of its own between requests — unless the table
+        # may change between them (bench timing: at a table cycle), when measurements due before the cycle must be
+        # taken under the table before it, as scanning every scan would
+        if not self.phases.bench:
+            return math.inf
+        return min(self._table_due, self.next_measurement())
 
     def next_measurement(self) -> float:
         """Virtual time of the next scheduled measurement of any point (a PID acting on PV may need a scan then)."""
         return min((self._next[k] for k in self._active), default=math.inf)
 
     def _step(self, module: ModuleType) -> float:
-        return module.update_s[self.config.rate] / module.points
+        """The time between two measurements of the module: one point after the other, round its points once per
+        update time (bench timing: all its points at once, once per update time)."""
+        return self._cycle(module) / (1 if self.phases.bench else module.points)
+
+    def _cycle(self, module: ModuleType) -> float:
+        return module.update_s[self.config.rate]
+
+    def _table_cycle(self) -> float:
+        """Bench timing: how often the table is read — the longest update time of the fitted modules ([our
+        choice] 1 s with none fitted)."""
+        return max((self._cycle(m) for m in self.fitted), default=1.0)
+
+    def _table_in_effect(self, now: float, mem: "Memory") -> list[int]:
+        """Bench timing: the table's words as the last table cycle at or before ``now`` read them."""
+        if now + 1e-9 >= self._table_due:
+            cycle = self._table_cycle()
+            self._table_due += (math.floor((now + 1e-9 - self._table_due) / cycle) + 1) * cycle
+            words, sr = mem.words[self.config.table.kind], self.config.table.index
+            self._table_read = list(words[sr:sr + 4 + min(words[sr + 1], MAX_MODULES)])
+        return self._table_read
 
     def _layout(self, key: tuple[int, ...]) -> tuple:
         """The table's decoded layout (state, readings, work, codes, modules, total), cached on its raw words."""
@@ -180,7 +221,7 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
         return plan
 
     def scan(self, emu: "Emulator") -> None:
-        quiet = self._quiet
+        quiet = None if self.phases.bench else self._quiet  # (bench timing: the table read may change any scan)
         if quiet is not None:
             header, due, bank, first, block, words, sr = quiet
             # (the table's words equal to the recorded header, marker and count included — equal count, equal
@@ -192,8 +233,10 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
                 bank[first:first + len(block)] = block
                 return
         mem = emu.memory
-        words = mem.words[self.config.table.kind]
-        sr = self.config.table.index
+        if self.phases.bench:
+            words, sr = self._table_in_effect(emu.now, mem), 0
+        else:
+            words, sr = mem.words[self.config.table.kind], self.config.table.index
         self._active = ()
         if words[sr] != TABLE_MARKER:
             self.state = "idle"
@@ -257,6 +300,8 @@ class TemperatureModel(SensorInputs, BatchingShortcuts, Model):
         cycle = module.update_s[self.config.rate]
         self._next[k] = self.skip_unseen(self._next[k], now, cycle, self.config.averaging, self.log is not None)
         times, self._next[k] = schedule(self._next[k], step, now + 1e-9)
+        if self.phases.bench:  # every point of the module at each cycle (the multiplexer ends where it began)
+            times = np.repeat(times, module.points)
         points = first + (self._mux[k] + np.arange(len(times))) % module.points
         self._mux[k] = (self._mux[k] + len(times)) % module.points
         return times, points
