@@ -1,7 +1,7 @@
 """The temperature suite over the whole domain of its rules: readings below 0 °C, each module's own update time, and
 a table rewrite taken at the PLC's next cycle.  Each broken variant is a tiny subclass of the temperature model that
-breaks exactly one rule, and the suite test stating that rule must FAIL on it; the correct emulator — and one that
-is slow where the manual lets it be — must PASS."""
+breaks exactly one rule, and the suite test stating that rule must FAIL on it; the correct emulator — and the same
+in bench timing, slow where the manual lets it be — must PASS."""
 
 from __future__ import annotations
 
@@ -40,36 +40,6 @@ class EveryModuleOnTheSlowestCycle(TemperatureModel):
     def _step(self, module):
         slowest = max(m.update_s[self.config.rate] for m in self.fitted)
         return slowest / module.points
-
-
-class TableTakenAtItsNextCycle(TemperatureModel):
-    """Correct but slow, as the manual allows: the table is read once per update period (the slowest module's), so
-    for up to a period after a rewrite the work block still shows the table before it."""
-
-    batchable = False  # (each scan through scan below)
-
-    def power_on(self, emu):
-        super().power_on(emu)
-        self._taken, self._cycle = None, -1
-
-    def next_event(self, now):
-        """A scan at each cycle's start, when the table is taken (the measurements since are caught up there, with
-        the table taken before: what a PLC measured meanwhile)."""
-        return (now // self.config.update_period() + 1) * self.config.update_period()
-
-    def scan(self, emu):
-        words, sr = emu.memory.words[self.config.table.kind], self.config.table.index
-        size = 4 + 8  # (the longest table: 8 modules)
-        current = words[sr:sr + size]
-        if self._taken is not None:  # (what is due up to now is measured with the table taken before)
-            words[sr:sr + size] = self._taken
-            try:
-                super().scan(emu)
-            finally:
-                words[sr:sr + size] = current
-        cycle = int(emu.now // self.config.update_period())  # (taken on a fixed grid: idle time brings it no sooner)
-        if cycle != self._cycle:
-            self._taken, self._cycle = current, cycle
 
 
 def _with(model_class: type[TemperatureModel]) -> BrokenEmulator:
@@ -116,9 +86,16 @@ def test_the_new_checks_pass_on_the_correct_emulator(pytester, tmp_path, profile
     assert not failed and sorted(p.split("::")[-1] for p in passed) == sorted(names), (passed, failed)
 
 
+@pytest.mark.parametrize("seed", [1, 2, 3])
 @pytest.mark.parametrize("profile", ["default", "mixed"])
-def test_the_suite_passes_on_a_plc_that_takes_the_table_at_its_next_cycle(pytester, tmp_path, profile):
-    """Slow where the manual lets it be, and right: the whole suite passes.  (The module-count check once read TW+3
-    before such a PLC had taken the new count, and the marker check opened sensors before it had taken A557H.)"""
-    passed, failed = run_suites(pytester, [SUITE], _with(TableTakenAtItsNextCycle), bench=_bench(tmp_path, profile))
+def test_the_suite_passes_on_a_plc_that_times_things_as_a_bench_may(pytester, tmp_path, profile, seed):
+    """Slow where the manual lets it be, and right — the emulator in bench timing (hil.sim.timing: each module
+    refreshes once per update time at its own phase, a table rewrite acts at the next cycle): the whole suite
+    passes.  (The module-count check once read TW+3 before such a PLC had taken the new count, and the marker check
+    opened sensors before it had taken A557H.)"""
+    text = _bench(tmp_path, profile).read_text()
+    assert "\nseed = 0\n" in text, "the emulator profile sets [emulator] seed"
+    timed = tmp_path / "bench-timed.toml"
+    timed.write_text(text.replace("\nseed = 0\n", f'\nseed = {seed}\ntiming = "bench"\n', 1))
+    passed, failed = run_suites(pytester, [SUITE], None, bench=timed)
     assert not failed and len(passed) == SUITE_TESTS, (passed, failed)
