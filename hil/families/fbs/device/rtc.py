@@ -397,11 +397,18 @@ class Drift:
         resolution it got and must not decide on it).
 
         One second transition is timed first to learn how wide this bench's brackets are (polling interval plus
-        a round trip); the duration is chosen for half the resolution asked, as brackets vary."""
+        a round trip); the duration is chosen for half the resolution asked, as brackets vary.  Brackets can vary
+        more than that (a PLC whose scans differ in length, a busy wire): a measurement that comes out too coarse
+        is taken once more, as much longer as its resolution says (resolution falls as 1/duration), within
+        ``max_duration``."""
         _, _, width = self._transition(timeout)
         needed = 2 * max(width, self.rtc.poll_interval) * 86400 / resolution
         duration = min(max_duration, max(needed, transitions + 3.0))
-        return self.measure(duration, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
+        result = self.measure(duration, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
+        if result.resolution < resolution or duration >= max_duration:
+            return result
+        longer = min(max_duration, duration * 1.5 * result.resolution / resolution)
+        return self.measure(longer, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
 
     def compensate(self, rate: float) -> int:
         """Write the manual's D4054 code for a clock error of ``rate`` s/day and return it.
