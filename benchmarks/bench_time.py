@@ -28,13 +28,17 @@ WARM_UP_S = 7.0
 
 
 def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: str | None = None,
-                lanes: int = 1) -> dict:
+                lanes: int = 1, timing: str | None = None, seed: int | None = None,
+                scan_range_ms: tuple[float, float] | None = None) -> dict:
     """One pytest session over the non-slow FBs suite files, as ``hil run`` would run them on a bench: the total
     wall time, and per suite file the tests' own time (setup, call and teardown, from the JUnit report).  ``line``
     ("9600 7E1"): over ``hil emulate``'s FATEK pty paced at that rate instead of FATEK/TCP — port 0, whose rule
-    the bench then declares (``[bench] answers_at_scan_end``).  ``lanes`` > 1: as ``hil run --lanes N``."""
+    the bench then declares (``[bench] answers_at_scan_end``).  ``lanes`` > 1: as ``hil run --lanes N``.
+    ``timing``/``seed``: ``hil emulate --timing bench --seed N`` (hil.sim.timing), with scans of
+    ``scan_range_ms`` (``[emulator] scan_time_range``)."""
     files = files or MAIN_SET
-    out: dict = {"time_scale": time_scale, "per_suite": {}, "lanes": lanes,
+    out: dict = {"time_scale": time_scale, "per_suite": {}, "lanes": lanes, "timing": timing or "instant",
+                 "seed": seed, "scan_time_range_ms": scan_range_ms,
                  "wire": f"FATEK pty at {line}" if line else "FATEK/TCP"}
     with tempfile.TemporaryDirectory() as tmp:
         tmp_path = Path(tmp)
@@ -42,10 +46,15 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
         text = bench_like(PROFILE.read_text())
         if line:
             text = text.replace("[emulator]\n", f'[emulator]\nline = "{line}"\n', 1)
+        if timing:
+            text = text.replace("[emulator]\n", f'[emulator]\ntiming = "{timing}"\n', 1)
+        if scan_range_ms:
+            low, high = scan_range_ms
+            text = text.replace("[emulator]\n", f"[emulator]\nscan_time_range = [{low}, {high}]\n", 1)
         emulated.write_text(text)
         wires = {"fatek-serial" if line else "fatek-tcp": "--fatek-serial" if line else "--fatek-tcp",
                  "rig-modbus-tcp": "--rig-modbus-tcp"}
-        with emulate_process(emulated, time_scale, wires) as where:
+        with emulate_process(emulated, time_scale, wires, seed=seed) as where:
             url = None
             if line:
                 rate = LineRate.parse(line)
@@ -95,10 +104,24 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
 
 
 if __name__ == "__main__":
+    import argparse
     import json
-    result = bench_times(float(sys.argv[1]) if len(sys.argv) > 1 else 1.0,
-                         files=sys.argv[3:] or None, line=sys.argv[2] if len(sys.argv) > 2 and sys.argv[2] else None)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("time_scale", nargs="?", type=float, default=1.0)
+    parser.add_argument("--line", help='pace the FATEK pty at this rate ("9600 7E1") instead of FATEK/TCP')
+    parser.add_argument("--lanes", type=int, default=1, help="as hil run --lanes N")
+    parser.add_argument("--timing", choices=("instant", "bench"), help="hil emulate --timing")
+    parser.add_argument("--seed", type=int, help="hil emulate --seed")
+    parser.add_argument("--scan-range", type=float, nargs=2, metavar=("MIN_MS", "MAX_MS"),
+                        help="[emulator] scan_time_range (bench timing)")
+    parser.add_argument("files", nargs="*", help="suite files (default: the non-slow main set)")
+    args = parser.parse_intermixed_args()
+    result = bench_times(args.time_scale, files=args.files or None, line=args.line, lanes=args.lanes,
+                         timing=args.timing, seed=args.seed,
+                         scan_range_ms=tuple(args.scan_range) if args.scan_range else None)
     print(json.dumps(result, indent=1))
     total = result["total_wall_s"]
-    print(f"non-slow FBs suites at time scale {result['time_scale']}: {total:.0f} s "
-          f"({'within' if total <= 180 else 'over'} the 3 min target)", file=sys.stderr)
+    failures = sum(row["failures"] for row in result["per_suite"].values())
+    print(f"non-slow FBs suites at time scale {result['time_scale']} ({result['wire']}, {result['timing']} timing"
+          f"{', seed ' + str(result['seed']) if result['seed'] is not None else ''}): {total:.0f} s "
+          f"({'within' if total <= 180 else 'over'} the 3 min target), {failures} failed", file=sys.stderr)
