@@ -50,9 +50,12 @@ SESSIONS = {
     # rate's resolution run at all; the default profile has neither)
     # (and once more on the default profile with 2-sample averaging at the normal rate — 0.1 ° resolution with
     # averaging: averaged-temperature.toml)
+    # (and in bench timing, where the model reads its table once per cycle and refreshes each module at its phase:
+    # bench-timed.toml)
     "temperature": (MODELS + "temperature.py", "sh -c " + shlex.quote(
         PYTEST + "suites/test_temperature.py " + PID_SUITES + " && " + PYTEST + "suites/test_temperature.py --bench "
-        + "mixed-temperature.toml && " + PYTEST + "suites/test_temperature.py --bench averaged-temperature.toml")),
+        + "mixed-temperature.toml && " + PYTEST + "suites/test_temperature.py --bench averaged-temperature.toml && "
+        + PYTEST + "suites/test_temperature.py --bench bench-timed.toml")),
     "fun86": (MODELS + "fun86.py", PYTEST + PID_SUITES),
     # (and once more as a CR40, a CPU without a clock: cr40.toml)
     "s7": ("hil/families/s7smart/sim/clock.py", "sh -c " + shlex.quote(
@@ -86,6 +89,15 @@ def _averaged_profile(dest: Path) -> None:
     text = (ROOT / "fixtures" / "benches" / "emulator.toml").read_text(encoding="utf-8")
     out = text.replace("averaging = 1\n", "averaging = 2\n", 1)
     assert out != text and 'rate = "normal"' in out
+    dest.write_text(out, encoding="utf-8")
+
+
+def _bench_timed_profile(dest: Path) -> None:
+    """The emulator's profile in bench timing (hil.sim.timing), seed 1, scans of 5-20 ms: the schedule a bench may
+    keep, which the instant profiles never run."""
+    text = (ROOT / "fixtures" / "benches" / "emulator.toml").read_text(encoding="utf-8")
+    out = text.replace("\nseed = 0\n", '\nseed = 1\ntiming = "bench"\nscan_time_range = [5, 20]\n', 1)
+    assert out != text
     dest.write_text(out, encoding="utf-8")
 
 
@@ -194,6 +206,7 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:  # noqa: C9
         _mixed_profile(tree / "mixed-temperature.toml")
         _averaged_profile(tree / "averaged-temperature.toml")
         _cr40_profile(tree / "cr40.toml")
+        _bench_timed_profile(tree / "bench-timed.toml")
         rng = random.Random(SEED)
         rows: list[dict] = []
         dbs = {}
