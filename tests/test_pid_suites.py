@@ -25,7 +25,7 @@ from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 25  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 28  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -320,6 +320,48 @@ class SecondWordsKeepFourBits(Fun86Model):
         return first, second & 0x000F
 
 
+class R4005NotClamped(Fun86Model):
+    """R4005 codes past 5 not clamped: 2^code s in both bytes (code 6: 64 s)."""
+
+    def timing(self, r4005):
+        return 2.0 ** (r4005 & 0xFF), 2.0 ** (r4005 >> 8)
+
+
+class R4005ClampedInTheLowByteOnly(Fun86Model):
+    """The PID interval clamped at 32 s, the PWM period (high byte) not: 2^code s."""
+
+    def timing(self, r4005):
+        interval, _pwm = super().timing(r4005)
+        return interval, 2.0 ** (r4005 >> 8)
+
+
+class R4005ClampedInTheHighByteOnly(Fun86Model):
+    """The PWM period clamped at 32 s, the PID interval (low byte) not: 2^code s."""
+
+    def timing(self, r4005):
+        _interval, pwm = super().timing(r4005)
+        return 2.0 ** (r4005 & 0xFF), pwm
+
+
+class ErrLatchedUntilAnEnEdge(Fun86Model):
+    """ERR, once set by a bad Sn/Zn, stays 1 while EN stays 1, whatever Sn/Zn become."""
+
+    batchable = False
+
+    def scan(self, emu):
+        bits = emu.memory.bits
+        latched = getattr(self, "latched", set())
+        self.latched = latched
+        super().scan(emu)
+        for inst in self.config.instances:
+            if not bits[inst.en.kind][inst.en.index]:
+                latched.discard(inst.name)
+            elif bits[inst.err.kind][inst.err.index]:
+                latched.add(inst.name)
+            elif inst.name in latched:
+                bits[inst.err.kind][inst.err.index] = 1
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -372,6 +414,10 @@ CAUGHT_BY = {
     KiZeroStillIntegrates: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
     Zn32Refused: ["test_err_exactly_for_invalid_sn_zn"],
     PwmPeriodFromTheLowByte: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    R4005NotClamped: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    R4005ClampedInTheLowByteOnly: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    R4005ClampedInTheHighByteOnly: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    ErrLatchedUntilAnEnEdge: ["test_err_clears_when_sn_zn_become_valid_with_en_held"],
     SecondWordsKeepFourBits: ["test_normal_bits_of_every_point_at_both_edges_and_alm",
                               "test_prealarm_of_every_point_at_r4008"],
 }
