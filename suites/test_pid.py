@@ -32,11 +32,17 @@ def _instances(pid):
 
 
 def _nth_instance(pid, which, checks):
-    """The ``which``-th FUN86 with constant Sn/Zn; skip when the profile has fewer (``checks``: what it would show)."""
+    """``which`` 0: the profile's first FUN86 with constant Sn/Zn; 1: "the second box" — of the others, the one with
+    Sn ≠ 0 reaching furthest past point 15 (its bits counted from Sn ≠ 0, into WR+1/WR+3 and R4013), taken from the
+    profile whatever its place in it; skip when the profile has none (``checks``: what it would show)."""
     instances = _instances(pid)
-    if which >= len(instances):
-        pytest.skip(f"the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks {checks})")
-    return instances[which]
+    if which == 0:
+        return instances[0]
+    second = [i for i in instances[1:] if i.sn != 0 and i.sn + i.zn > 16]
+    if not second:
+        pytest.skip(f"the profile has no second FUN86 with constant Sn ≠ 0 whose points cross 16 (it checks "
+                    f"{checks} counted from Sn)")
+    return max(second, key=lambda i: i.zn)
 
 
 def _start(bench, pid, inst):

@@ -405,6 +405,16 @@ class HeaterLoopIgnoresTheBand(Fun86Model):
         return super().track(st, idx, pv, at, high, valid, sv, os, limit, count, np.zeros(np.shape(pv), dtype=bool))
 
 
+class BitsCountFromPoint0(Fun86Model):
+    """WR bits placed by the point's own number (bit p % 16 of word p // 16), not counted from Sn."""
+
+    def bit_words(self, st, bits):
+        if st.weights is None:
+            word, bit = divmod(st.sn + np.arange(st.zn), 16)
+            st.weights = np.stack((np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)))
+        return super().bit_words(st, bits)
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -464,6 +474,8 @@ CAUGHT_BY = {
     HeaterLoopR4007LowByte: ["test_heater_loop_warning_after_r4007_seconds_and_not_before[R4007-256]"],
     HeaterLoopTimerNotRestarted: ["test_heater_loop_timer_restarts_when_the_output_dips_below_r4006"],
     HeaterLoopIgnoresTheBand: ["test_heater_loop_stays_off_with_pv_in_band"],
+    BitsCountFromPoint0: ["test_normal_bit_positions_count_from_sn[second-instance]",
+                          "test_prealarm_when_r4008_is_below_pv[second-instance]"],
     SecondWordsKeepFourBits: ["test_normal_bits_of_every_point_at_both_edges_and_alm",
                               "test_prealarm_of_every_point_at_r4008"],
 }
