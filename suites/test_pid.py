@@ -374,7 +374,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
     bench.plc.io.write(str(inst.operand("os", point)), os)
     for edge in ("low", "high"):
         pv, sv, words, alm = _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv=(
-            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond))
+            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond), inside=beyond == 0)
         normal = words.normal(point)
         if beyond == 0:
             assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
@@ -387,11 +387,18 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
             assert alm, f"a point out of its band ({edge} edge) sets ALM"
 
 
-def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv):
+def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv, inside):
     """SV aimed at the PV just read (``sv_from_pv``), then the alarm words and ALM read while PV held still: (PV,
-    SV, words, ALM).  PV moves by noise: only a PV seen the same before and after the reads counts."""
+    SV, words, ALM).  PV moves by noise: only a PV seen the same before and after the reads counts.  Before each
+    aim the point is put on the other side (``inside``: the normal bit the aim should give; SV = PV for out of
+    band, SV 100.0 ° + 10 Os above PV for in band) and seen there: the bit read after the aim is that write's."""
     for _attempt in range(20):
         pv = pid.pv(point)
+        pid.set_set_point(point, pv + 10 * os + 1000 if inside else pv)
+        bench.settle()
+        assert pid.alarm_words(inst).normal(point) is not inside, (
+            f"precondition: PV {pv}, SV {pv + 10 * os + 1000 if inside else pv}, Os {os}: "
+            + ("out of band: not normal" if inside else "in band: normal"))
         sv = sv_from_pv(pv)
         pid.set_set_point(point, sv)
         bench.settle()
@@ -521,8 +528,9 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         """Enabled points of ``inst`` not normal (the caller has settled)."""
         return sorted(enabled[inst.name] - set(pid.alarm_words(inst).normal_points()))
 
-    for bank, index in _pv_blocks(bench):
-        fake = {p: 1000 + 7 * p for inst in instances for p in inst.points}
+    for k, (bank, index) in enumerate(_pv_blocks(bench)):
+        # other PVs in each block: a PLC still reading the block before sees PVs 10.0 ° off (Os 0: not normal)
+        fake = {p: 1000 + 7 * p + 100 * k for inst in instances for p in inst.points}
         _write_pvs(bench, (bank, index), fake, held)
         io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
         for inst in instances:
@@ -533,16 +541,18 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
                                        f"{inst.name} did not read their PV from {bank}{index} + point")
     first = instances[0]
     p0 = first.sn
-    for code, bank, index in ((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0), (23999, "D", 3999)):
+    for k, (code, bank, index) in enumerate(((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0),
+                                             (23999, "D", 3999))):
         name = f"{bank}{index + p0}"
         if bench.cannot_reach(name) or p0 not in enabled[first.name]:
             continue
-        io.write_many({name: 1234, "R4003": KEY, "R4004": code})
+        value = 1234 + 10 * k  # (a PLC still reading the last code's register sees 1.0 ° or more off: not normal)
+        io.write_many({name: value, "R4003": KEY, "R4004": code})
         held.pop(name, None)  # (it may lie in a block written through `held`)
-        _set_band(bench, first, {p: 1234 for p in first.points}, {p: 0 for p in first.points}, held)
+        _set_band(bench, first, {p: value for p in first.points}, {p: 0 for p in first.points}, held)
         bench.settle()
         assert p0 in pid.alarm_words(first).normal_points(), (
-            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from {name}")
+            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV ({value}) from {name}")
     if not temperature.configured:
         return
     blocks = _pv_blocks(bench)
