@@ -1,10 +1,12 @@
 """FUN86 TPCTL temperature PID (FBs manual ch. 20.7): ERR, the normal and warning bits, ALM, R4012/R4013, defaults.
 
-Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32;
+Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32 (and
+not for valid Sn/Zn, with EN held too);
 "normal" when SV − Os ≤ PV ≤ SV + Os (SV 2000, Os 50: 195.0 ° … 205.0 ° is normal); WR+0/WR+2 bit b = point Sn + b,
 WR+1/WR+3 bit b = point Sn + 16 + b; a warning after 10 consecutive scans with PV ≥ R4008; ALM on any point out
 of band or any warning; a point whose R4012/R4013 bit is 0 has its output forced off; R4005 = 0102H, R4006 = 90,
-R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4003 = A55AH with R4004 = 10000–13839
+R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4005 codes ≥ 5 → 32 s, in the
+low byte (PID interval) and the high byte (PWM period); R4003 = A55AH with R4004 = 10000–13839
 (R0–R3839) or 20000–23999 (D0–D3999) as where FUN86 reads its PVs, any other value (or R4003 ≠ A55AH) the table's
 readings; FUN86 acting only once every fitted point has been measured.  The bench profile's [pid] only says
 *where* the ladder's FUN86 operands are; [bench] scratch names 32 R and D words the PVs may be put in.
