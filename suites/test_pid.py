@@ -1,10 +1,12 @@
 """FUN86 TPCTL temperature PID (FBs manual ch. 20.7): ERR, the normal and warning bits, ALM, R4012/R4013, defaults.
 
-Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32;
+Every expectation is stated here, literally from the manual: ERR for Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32 (and
+not for valid Sn/Zn, with EN held too);
 "normal" when SV − Os ≤ PV ≤ SV + Os (SV 2000, Os 50: 195.0 ° … 205.0 ° is normal); WR+0/WR+2 bit b = point Sn + b,
 WR+1/WR+3 bit b = point Sn + 16 + b; a warning after 10 consecutive scans with PV ≥ R4008; ALM on any point out
 of band or any warning; a point whose R4012/R4013 bit is 0 has its output forced off; R4005 = 0102H, R4006 = 90,
-R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4003 = A55AH with R4004 = 10000–13839
+R4007 = 600, R4008 = 3500 and Kc/Ki/Td = 110/17/50 after the first execution; R4005 codes ≥ 5 → 32 s, in the
+low byte (PID interval) and the high byte (PWM period); R4003 = A55AH with R4004 = 10000–13839
 (R0–R3839) or 20000–23999 (D0–D3999) as where FUN86 reads its PVs, any other value (or R4003 ≠ A55AH) the table's
 readings; FUN86 acting only once every fitted point has been measured.  The bench profile's [pid] only says
 *where* the ladder's FUN86 operands are; [bench] scratch names 32 R and D words the PVs may be put in.
@@ -32,11 +34,17 @@ def _instances(pid):
 
 
 def _nth_instance(pid, which, checks):
-    """The ``which``-th FUN86 with constant Sn/Zn; skip when the profile has fewer (``checks``: what it would show)."""
+    """``which`` 0: the profile's first FUN86 with constant Sn/Zn; 1: "the second box" — of the others, the one with
+    Sn ≠ 0 reaching furthest past point 15 (its bits counted from Sn ≠ 0, into WR+1/WR+3 and R4013), taken from the
+    profile whatever its place in it; skip when the profile has none (``checks``: what it would show)."""
     instances = _instances(pid)
-    if which >= len(instances):
-        pytest.skip(f"the profile has one FUN86 (a second with Sn ≠ 0 reaching points ≥ 16 checks {checks})")
-    return instances[which]
+    if which == 0:
+        return instances[0]
+    second = [i for i in instances[1:] if i.sn != 0 and i.sn + i.zn > 16]
+    if not second:
+        pytest.skip(f"the profile has no second FUN86 with constant Sn ≠ 0 whose points cross 16 (it checks "
+                    f"{checks} counted from Sn)")
+    return max(second, key=lambda i: i.zn)
 
 
 def _start(bench, pid, inst):
@@ -66,15 +74,16 @@ def _registers(inst, key, count=None):
     return f"{start}-{start.offset((count or inst.zn) - 1)}"
 
 
-def _all_in_band(bench, pid, inst, os=WIDE):
-    """SV = PV, Os = 100.0 ° for every point of ``inst``: every point normal (gains kept low: no heating)."""
+def _all_in_band(bench, pid, inst, os=WIDE, above=0):
+    """SV = PV, Os = 100.0 ° for every point of ``inst``: every point normal (gains kept low: no heating); with
+    ``above`` (0.1 °) SV that far above PV instead."""
     _need(bench, _registers(inst, "sv"), _registers(inst, "os"), _registers(inst, "pr"), _registers(inst, "ir"),
           _registers(inst, "dr"))
     pvs = pid.pvs(inst.points)
     items = {}
     for key, value in (("sv", None), ("os", os), ("pr", 1), ("ir", 0), ("dr", 0)):  # block by block: range frames
         for p in inst.points:
-            items[str(inst.operand(key, p))] = pvs[p] & 0xFFFF if value is None else value
+            items[str(inst.operand(key, p))] = (pvs[p] + above) & 0xFFFF if value is None else value
     bench.plc.io.write_many(items)
     bench.settle()
 
@@ -269,7 +278,12 @@ def _fun86_waits_for_the_measurements(bench, pid, inst, temperature):
     assert temperature.wait_until(lambda: temperature.read_work().execution_code == 0x56, periods=2), \
         "the temperature modules never finished measuring every point"
     interval, _ = _timing(io)
-    assert _comes_true(bench, lambda: any(io.read_words(str(inst.or_), inst.zn)), interval + 1.0), (
+
+    def rose():  # (an output other than the one read before EN went 1: fresh)
+        outputs = io.read_words(str(inst.or_), inst.zn)
+        return any(outputs) and outputs != before[0]
+
+    assert _comes_true(bench, rose, interval + 1.0), (
         "every point measured, SV 100 ° above PV (heating): the output must rise within a PID interval")
 
 
@@ -314,6 +328,28 @@ def test_err_exactly_for_invalid_sn_zn(bench, pid, settable):
     assert not wrong, "; ".join(wrong)
 
 
+@pytest.mark.spec("PID-OP-3")
+def test_err_clears_when_sn_zn_become_valid_with_en_held(bench, pid, settable):
+    """20.7: ERR is FUN86's verdict on the Sn/Zn it executes with — out of range: ERR = 1 and nothing done — so with
+    EN held at 1 it follows Sn/Zn both ways: each invalid class (Sn > 31, Zn < 1, Zn > 32, Sn + Zn > 32) written
+    while the box runs with a valid pair raises ERR, and a valid pair written back (EN never leaving 1) clears it;
+    each read is from a scan after the write (settled) and differs from the one before it."""
+    pid.enable(settable, False, heating=None)
+    bench.settle()
+    good = GOOD_SN_ZN[0]
+    pid.set_sn_zn(settable, *good)
+    pid.enable(settable, True, heating=True)
+    cases = [case for n, bad in enumerate(BAD_SN_ZN)
+             for case in ((bad, True), (GOOD_SN_ZN[(n + 1) % len(GOOD_SN_ZN)], False))]
+    err = bool(bench.plc.read_settled([str(settable.err)])[0])
+    assert not err, f"Sn = {good[0]}, Zn = {good[1]} (valid), EN 0 → 1: ERR must be 0"
+    for (sn, zn), want in cases:  # each pair's ERR differs from the one before it: fresh evidence of the write
+        pid.set_sn_zn(settable, sn, zn)
+        err = bool(bench.plc.read_settled([str(settable.err)])[0])
+        assert err == want, (f"Sn = {sn}, Zn = {zn} written with EN held at 1: ERR = {int(err)}, expected {int(want)}"
+                             + (" (out of range)" if want else " (valid again: ERR must clear without an EN edge)"))
+
+
 # -- defaults ------------------------------------------------------------------------------------------------------
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-R4006-1", "PID-R4007-1", "PID-R4008-1")
 @pytest.mark.needs("power_on_state", reason="a bench's R4005–R4008 may have been set since power-on")
@@ -340,7 +376,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
     bench.plc.io.write(str(inst.operand("os", point)), os)
     for edge in ("low", "high"):
         pv, sv, words, alm = _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv=(
-            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond))
+            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond), inside=beyond == 0)
         normal = words.normal(point)
         if beyond == 0:
             assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
@@ -353,11 +389,18 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
             assert alm, f"a point out of its band ({edge} edge) sets ALM"
 
 
-def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv):
+def _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv, inside):
     """SV aimed at the PV just read (``sv_from_pv``), then the alarm words and ALM read while PV held still: (PV,
-    SV, words, ALM).  PV moves by noise: only a PV seen the same before and after the reads counts."""
+    SV, words, ALM).  PV moves by noise: only a PV seen the same before and after the reads counts.  Before each
+    aim the point is put on the other side (``inside``: the normal bit the aim should give; SV = PV for out of
+    band, SV 100.0 ° + 10 Os above PV for in band) and seen there: the bit read after the aim is that write's."""
     for _attempt in range(20):
         pv = pid.pv(point)
+        pid.set_set_point(point, pv + 10 * os + 1000 if inside else pv)
+        bench.settle()
+        assert pid.alarm_words(inst).normal(point) is not inside, (
+            f"precondition: PV {pv}, SV {pv + 10 * os + 1000 if inside else pv}, Os {os}: "
+            + ("out of band: not normal" if inside else "in band: normal"))
         sv = sv_from_pv(pv)
         pid.set_set_point(point, sv)
         bench.settle()
@@ -376,8 +419,14 @@ def test_normal_bit_positions_count_from_sn(bench, pid, which):
     """WR+0 bit b = point Sn + b, WR+1 bit b = point Sn + 16 + b (an instance with Sn ≠ 0 or points ≥ 16)."""
     inst = _nth_instance(pid, which, "WR+1")
     _start(bench, pid, inst)
-    _all_in_band(bench, pid, inst)
     enabled = _enabled_points(bench, inst)
+    # every point out of its band first (SV 100.0 ° above PV, Os 0): no normal bit — so the bits read after the
+    # points come into their bands are that write's doing, not left from before
+    _all_in_band(bench, pid, inst, os=0, above=WIDE)
+    words = _only(pid.alarm_words(inst).words[:2], inst, enabled)
+    assert words == (0, 0), (f"{inst.name}: every point 100.0 ° under SV with Os 0: no normal bit, WR+0/WR+1 = "
+                             f"{_bits(words)}")
+    _all_in_band(bench, pid, inst)
     words = _only(pid.alarm_words(inst).words[:2], inst, enabled)
     want = _expected_words(inst, enabled)
     assert words == want, (f"{inst.name} (Sn {inst.sn}, Zn {inst.zn}): WR+0/WR+1 = {words[0]:016b} "
@@ -481,8 +530,9 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         """Enabled points of ``inst`` not normal (the caller has settled)."""
         return sorted(enabled[inst.name] - set(pid.alarm_words(inst).normal_points()))
 
-    for bank, index in _pv_blocks(bench):
-        fake = {p: 1000 + 7 * p for inst in instances for p in inst.points}
+    for k, (bank, index) in enumerate(_pv_blocks(bench)):
+        # other PVs in each block: a PLC still reading the block before sees PVs 10.0 ° off (Os 0: not normal)
+        fake = {p: 1000 + 7 * p + 100 * k for inst in instances for p in inst.points}
         _write_pvs(bench, (bank, index), fake, held)
         io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
         for inst in instances:
@@ -493,16 +543,18 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
                                        f"{inst.name} did not read their PV from {bank}{index} + point")
     first = instances[0]
     p0 = first.sn
-    for code, bank, index in ((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0), (23999, "D", 3999)):
+    for k, (code, bank, index) in enumerate(((10000, "R", 0), (13839, "R", 3839), (20000, "D", 0),
+                                             (23999, "D", 3999))):
         name = f"{bank}{index + p0}"
         if bench.cannot_reach(name) or p0 not in enabled[first.name]:
             continue
-        io.write_many({name: 1234, "R4003": KEY, "R4004": code})
+        value = 1234 + 10 * k  # (a PLC still reading the last code's register sees 1.0 ° or more off: not normal)
+        io.write_many({name: value, "R4003": KEY, "R4004": code})
         held.pop(name, None)  # (it may lie in a block written through `held`)
-        _set_band(bench, first, {p: 1234 for p in first.points}, {p: 0 for p in first.points}, held)
+        _set_band(bench, first, {p: value for p in first.points}, {p: 0 for p in first.points}, held)
         bench.settle()
         assert p0 in pid.alarm_words(first).normal_points(), (
-            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV from {name}")
+            f"R4004 = {code} names {bank}{index}: point {p0} must read its PV ({value}) from {name}")
     if not temperature.configured:
         return
     blocks = _pv_blocks(bench)
@@ -767,8 +819,12 @@ def test_alm_follows_a_warning_alone(bench, pid):
     _start(bench, pid, inst)
     _all_in_band(bench, pid, inst)
     _latched(pid, inst)
+    alm = pid.alm(inst)
     if _all_enabled(bench, inst):  # (a disabled point's part in ALM is the spec's [our choice] PID-DIS-1)
-        assert not pid.alm(inst), "every point normal and no warning: ALM = 0"
+        assert not alm, "every point normal and no warning: ALM = 0"
+    elif alm:
+        pytest.skip(f"{inst.name}: ALM already 1 with a point disabled and none warning (the spec's [our choice] "
+                    f"PID-DIS-1): a warning's ALM would not be fresh evidence")
     bench.plc.io.write("R4008", 100)
     _ten_scans(bench)
     assert pid.alarm_words(inst).warning_points(), "R4008 below every PV must warn"
@@ -776,14 +832,14 @@ def test_alm_follows_a_warning_alone(bench, pid):
 
 
 # -- R4005: the PID interval, and when a new one takes effect ---------------------------------------------------------
-def _steps(bench, pid, point, seconds):
-    """Polled every 0.1 s for ``seconds``: the bench times at which OR of ``point`` changed, and every poll's (OR,
-    Y, bench time) of it."""
+def _steps(bench, pid, point, seconds, every=0.1):
+    """Polled every ``every`` s for ``seconds``: the bench times at which OR of ``point`` changed, and every poll's
+    (OR, Y, bench time) of it."""
     clock = bench.plc.time
     end = clock.now() + seconds
     last, steps, polls = pid.output(point), [], []
     while clock.now() < end:
-        bench.wait(0.1)
+        bench.wait(every)
         value, y = pid.output_and_bit(point)  # one request: OR and Y of the same scan
         polls.append((value, y, clock.now()))
         if value != last:
@@ -843,6 +899,49 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     gaps = [round(b - a, 2) for a, b in zip(fresh, fresh[1:])]
     assert len(fresh) >= 3 and max(gaps) < 2.5, (
         f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
+
+
+#: R4005 (low byte, high byte) past the table's last code (5 → 32 s): the manual's "≥ 5 → 32 s", 6 and FFH in each
+LONG_CODES = [(6, 0xFF), (0xFF, 6)]
+LONGEST_S = 32
+
+
+def _integrating_point(bench, pid):
+    """(instance, point) switched on with PVs of the suite's choosing: 2.0 ° below SV, Kc 100, Ki 100 (1 repeat/min),
+    Td 0 — OR moves at every PID step and only then (see the test below); skip without an enabled point."""
+    instances, block = _fake_instances(bench, pid)
+    inst = instances[0]
+    _need(bench, "R4005")
+    point = next(iter(_enabled_points(bench, inst)), None)
+    if point is None:
+        pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
+    _write_pvs(bench, block, {point: 1000})
+    bench.plc.io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
+    pid.set_gains(point, 100, 100, 0)
+    return inst, point
+
+
+@pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
+@pytest.mark.bench_time(3 * LONGEST_S + 10, reason="three 32 s PID intervals and PWM periods")
+@pytest.mark.parametrize("low,high", LONG_CODES, ids=[f"R4005-{h:02X}{lo:02X}H" for lo, h in LONG_CODES])
+def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
+    """20.7: R4005's low byte ≥ 5 → PID every 32 s, its high byte ≥ 5 → a PWM period of 32 s.  R4005 = 6 and FFH in
+    one byte, the other in the other, EN 0 → 1: OR (integral action at a constant error) steps 32 s apart, and Y (ON for
+    OR/16383 of each period, here ≈ 15 %) switches on every 32 s.  Polled every second: a step or a rise is placed
+    within a poll and a read, so the gaps are held to 32 ± 2 s (the next codes' 16 s and 64 s stay far out)."""
+    inst, point = _integrating_point(bench, pid)
+    bench.plc.io.write("R4005", high << 8 | low)
+    pid.restart(inst)  # in force from this EN edge; OR's first step is at it, before the polls
+    steps, polls = _steps(bench, pid, point, 2 * LONGEST_S + 6, every=1.0)
+    gaps = [round(b - a, 1) for a, b in zip(steps, steps[1:])]
+    assert len(steps) >= 2 and all(abs(g - LONGEST_S) <= 2 for g in gaps), (
+        f"R4005 low byte {low:02X}H (≥ 5): PID every {LONGEST_S} s, so OR steps {LONGEST_S} s apart; saw "
+        f"{len(steps)} steps, gaps {gaps} s")
+    rises = [t for (_, before, _), (_, y, t) in zip(polls, polls[1:]) if y and not before]
+    periods = [round(b - a, 1) for a, b in zip(rises, rises[1:])]
+    assert len(rises) >= 2 and all(abs(p - LONGEST_S) <= 2 for p in periods), (
+        f"R4005 high byte {high:02X}H (≥ 5): a PWM period of {LONGEST_S} s, so Y switches on every {LONGEST_S} s; "
+        f"saw {len(rises)} rises, {periods} s apart")
 
 
 @pytest.mark.spec("PID-LAW-1", "PID-LAW-3")
@@ -914,17 +1013,16 @@ def _comes_true(bench, condition, within):
     return False
 
 
-def _heated_point(bench, pid, heat_by=None):
-    """The instance and point the output tests use, the instance switched on; ``heat_by`` (0.1 °) puts SV that far
-    above PV before the EN edge, so the first PID step already heats."""
+def _heated_point(bench, pid):
+    """The instance and point the output tests use, the instance switched on heating with SV 50.0 ° under PV (set
+    before the EN edge): its output goes to 0 — where a test's rise then starts from."""
     inst = _instances(pid)[0]
     points = _enabled_points(bench, inst)
     if not points:
         pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
     point = points[min(3, len(points) - 1)]
     _need(bench, *(str(inst.operand(k, point)) for k in ("sv", "pr", "ir", "dr")))
-    if heat_by is not None:
-        pid.set_set_point(point, pid.pv(point) + heat_by)
+    pid.set_set_point(point, pid.pv(point) - 500)
     # The manual's default gains (fbs-pid.md: Kc 110, Ki 17, Td 50), what these expectations assume, before the EN
     # edge: FUN86's first step after it already uses them, whatever the bench's own (tuned) gains are — those are
     # journaled and put back.
@@ -935,13 +1033,13 @@ def _heated_point(bench, pid, heat_by=None):
 
 def _cooled_point(bench, pid):
     """An enabled point of a box other than the first, switched on cooling (H/C = 0) at the default gains, PV 50.0 °
-    above SV; None when the profile has no second box."""
+    under SV (its output goes to 0); None when the profile has no second box."""
     for inst in _instances(pid)[1:]:
         points = _enabled_points(bench, inst)
         if points and not bench.cannot_reach(str(inst.en), str(inst.hc),
                                              *(str(inst.operand(k, points[0])) for k in ("sv", "pr", "ir", "dr"))):
             point = points[-1]
-            pid.set_set_point(point, pid.pv(point) - 500)
+            pid.set_set_point(point, pid.pv(point) + 500)
             pid.set_gains(point, 110, 17, 50)  # before the EN edge, as _heated_point
             pid.enable(inst, True, heating=False)
             bench.settle()
@@ -957,6 +1055,11 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     inst, point = _heated_point(bench, pid)
     cooled = _cooled_point(bench, pid)
     interval, pwm = _timing(bench.plc.io)
+    # fresh evidence: each output seen at 0 (SV on the far side, since before the EN edge) before its rise is asked
+    for p in [point] + ([cooled] if cooled is not None else []):
+        assert _comes_true(bench, lambda p=p: pid.output(p) == 0, 2 * interval + 0.5), (
+            f"precondition: point {p}, PV 50 ° on the side of SV where it needs no output: output "
+            f"{pid.output(p)}, expected 0 within two PID intervals")
     pid.set_set_point(point, pid.pv(point) + 500)  # 50.0 ° below SV: far outside the proportional band
     if cooled is not None:
         pid.set_set_point(cooled, pid.pv(cooled) - 500)  # cooling: 50.0 ° above SV

@@ -33,8 +33,8 @@ PID_CONTROL = ["test_pid_control.py"]
 #: made them inconclusive run after run; 400 ms at 5); the rest plans a few bench minutes
 RUNS = {"main": (MAIN_SET, None, 5.0), "heater-loop": (PID_CONTROL, "heater_loop", 5.0),
         "closed-loop": (PID_CONTROL, "not heater_loop", 50.0)}
-#: runs whose every test must pass (the heater-loop checks: 3 tests, one in two parametrizations)
-PASSES_ALL = {"heater-loop": 4}
+#: runs whose every test must pass (the heater-loop checks: 5 tests, two in two parametrizations)
+PASSES_ALL = {"heater-loop": 7}
 #: what may be skipped against a separate process, and why a bench may skip it too
 ALLOWED_SKIPS = [
     r"D4054 tests need D4054: D4054 cannot be reached over the default FBs Modbus map",  # a user map removes it

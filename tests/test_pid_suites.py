@@ -25,7 +25,7 @@ from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 25  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 31  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -52,7 +52,7 @@ def test_the_heater_loop_test_passes_on_the_emulator_on_virtual_time(pytester, m
     sleep = time.sleep
     monkeypatch.setattr(time, "sleep", lambda seconds: (slept.append(seconds), sleep(seconds))[1])
     result = pytester.inline_run(SUITES[1], *INNER, "--bench", str(EMULATOR_BENCH), "-k", "r4007_seconds")
-    result.assertoutcome(passed=1)
+    result.assertoutcome(passed=2)  # R4007 = 60 s and 256 s
     properties = dict(p for r in result.getreports("pytest_runtest_logreport") for p in r.user_properties)
     assert float(properties["hil_virtual_s"]) >= 60, properties  # R4007 = 60 s (its minimum) and more of bench time…
     assert sum(slept) < 1.0, f"…but the host slept {sum(slept):.1f} s of it"  # …none of it slept on the host
@@ -320,6 +320,101 @@ class SecondWordsKeepFourBits(Fun86Model):
         return first, second & 0x000F
 
 
+class R4005NotClamped(Fun86Model):
+    """R4005 codes past 5 not clamped: 2^code s in both bytes (code 6: 64 s)."""
+
+    def timing(self, r4005):
+        return 2.0 ** (r4005 & 0xFF), 2.0 ** (r4005 >> 8)
+
+
+class R4005ClampedInTheLowByteOnly(Fun86Model):
+    """The PID interval clamped at 32 s, the PWM period (high byte) not: 2^code s."""
+
+    def timing(self, r4005):
+        interval, _pwm = super().timing(r4005)
+        return interval, 2.0 ** (r4005 >> 8)
+
+
+class R4005ClampedInTheHighByteOnly(Fun86Model):
+    """The PWM period clamped at 32 s, the PID interval (low byte) not: 2^code s."""
+
+    def timing(self, r4005):
+        _interval, pwm = super().timing(r4005)
+        return 2.0 ** (r4005 & 0xFF), pwm
+
+
+class ErrLatchedUntilAnEnEdge(Fun86Model):
+    """ERR, once set by a bad Sn/Zn, stays 1 while EN stays 1, whatever Sn/Zn become."""
+
+    batchable = False
+
+    def scan(self, emu):
+        bits = emu.memory.bits
+        latched = getattr(self, "latched", set())
+        self.latched = latched
+        super().scan(emu)
+        for inst in self.config.instances:
+            if not bits[inst.en.kind][inst.en.index]:
+                latched.discard(inst.name)
+            elif bits[inst.err.kind][inst.err.index]:
+                latched.add(inst.name)
+            elif inst.name in latched:
+                bits[inst.err.kind][inst.err.index] = 1
+
+
+class HeaterLoopR4007LowByte(Fun86Model):
+    """Only R4007's low byte taken as the heater-loop time (256 s → 0 s)."""
+
+    batchable = False
+
+    def scan(self, emu):
+        words = emu.memory.words["R"]
+        saved = words[4007]
+        words[4007] = saved & 0xFF
+        try:
+            super().scan(emu)
+        finally:
+            words[4007] = saved
+
+
+class HeaterLoopTimerNotRestarted(Fun86Model):
+    """An output dip under R4006 (PV still out of band) does not restart the heater-loop timer: it runs on from the
+    first rise until PV comes into the band."""
+
+    batchable = False
+
+    def track(self, st, idx, pv, at, high, valid, sv, os, limit, count=True, band=None):
+        starts = super().track(st, idx, pv, at, high, valid, sv, os, limit, count, band)
+        first = self.__dict__.setdefault("first", {}).setdefault(id(st), {})
+        inside = np.asarray(self.in_band(pv[-1], sv, os), dtype=bool)
+        for j, p in enumerate(np.arange(st.zn)[idx]):
+            since = st.loop_since[p]
+            if inside[j]:
+                first.pop(p, None)
+            elif since == since:
+                st.loop_since[p] = first.setdefault(p, since)
+        return starts
+
+
+class HeaterLoopIgnoresTheBand(Fun86Model):
+    """The heater-loop timer runs on output ≥ R4006 % alone, PV in band or not."""
+
+    batchable = False
+
+    def track(self, st, idx, pv, at, high, valid, sv, os, limit, count=True, band=None):
+        return super().track(st, idx, pv, at, high, valid, sv, os, limit, count, np.zeros(np.shape(pv), dtype=bool))
+
+
+class BitsCountFromPoint0(Fun86Model):
+    """WR bits placed by the point's own number (bit p % 16 of word p // 16), not counted from Sn."""
+
+    def bit_words(self, st, bits):
+        if st.weights is None:
+            word, bit = divmod(st.sn + np.arange(st.zn), 16)
+            st.weights = np.stack((np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)))
+        return super().bit_words(st, bits)
+
+
 class Variant:
     """Plugin for the inner run: the profile's emulator with ``model_class`` in place of FUN86."""
 
@@ -372,6 +467,15 @@ CAUGHT_BY = {
     KiZeroStillIntegrates: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
     Zn32Refused: ["test_err_exactly_for_invalid_sn_zn"],
     PwmPeriodFromTheLowByte: ["test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1"],
+    R4005NotClamped: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    R4005ClampedInTheLowByteOnly: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    R4005ClampedInTheHighByteOnly: ["test_r4005_codes_above_5_give_32_s_in_both_bytes"],
+    ErrLatchedUntilAnEnEdge: ["test_err_clears_when_sn_zn_become_valid_with_en_held"],
+    HeaterLoopR4007LowByte: ["test_heater_loop_warning_after_r4007_seconds_and_not_before[R4007-256]"],
+    HeaterLoopTimerNotRestarted: ["test_heater_loop_timer_restarts_when_the_output_dips_below_r4006"],
+    HeaterLoopIgnoresTheBand: ["test_heater_loop_stays_off_with_pv_in_band"],
+    BitsCountFromPoint0: ["test_normal_bit_positions_count_from_sn[second-instance]",
+                          "test_prealarm_when_r4008_is_below_pv[second-instance]"],
     SecondWordsKeepFourBits: ["test_normal_bits_of_every_point_at_both_edges_and_alm",
                               "test_prealarm_of_every_point_at_r4008"],
 }
