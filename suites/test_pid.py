@@ -873,8 +873,10 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
         pid.set_gains(plain, 100, 0, 0)
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
     pid.restart(inst)  # EN 0 → 1: in force from now
+    if plain is not None:  # the first PID step: at EN's edge, or (a PLC may) up to one interval, 4 s, after it
+        pid.wait_until(lambda: pid.output(plain) > 0)
     io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
-    flat = pid.output(plain) if plain is not None else None  # after the step at EN's rising edge
+    flat = pid.output(plain) if plain is not None else None  # after the first step
     held, polls = _steps(bench, pid, point, 9.0)
     if plain is not None:
         assert flat > 0, f"point {plain}: 2.0 ° below SV at Kc 100, its output must be up after a PID step"
@@ -901,8 +903,10 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
         f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
 
 
-#: R4005 (low byte, high byte) past the table's last code (5 → 32 s): the manual's "≥ 5 → 32 s", 6 and FFH in each
-LONG_CODES = [(6, 0xFF), (0xFF, 6)]
+#: R4005 (low byte, high byte) past the table's last code (5 → 32 s), the manual's "≥ 5 → 32 s": FFH for the interval with 6 for the period shows each byte's clamp on its own (a PLC that
+#: clamps one byte only, or neither, misses 32 s in one of them); the mirror case adds 70 bench seconds for no new
+#: class, so it runs with the slow tests
+LONG_CODES = [pytest.param(0xFF, 6, id="R4005-06FFH"), pytest.param(6, 0xFF, id="R4005-FF06H", marks=pytest.mark.slow)]
 LONGEST_S = 32
 
 
@@ -923,7 +927,7 @@ def _integrating_point(bench, pid):
 
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
 @pytest.mark.bench_time(3 * LONGEST_S + 10, reason="three 32 s PID intervals and PWM periods")
-@pytest.mark.parametrize("low,high", LONG_CODES, ids=[f"R4005-{h:02X}{lo:02X}H" for lo, h in LONG_CODES])
+@pytest.mark.parametrize("low,high", LONG_CODES)
 def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
     """20.7: R4005's low byte ≥ 5 → PID every 32 s, its high byte ≥ 5 → a PWM period of 32 s.  R4005 = 6 and FFH in
     one byte, the other in the other, EN 0 → 1: OR (integral action at a constant error) steps 32 s apart, and Y (ON for
@@ -937,7 +941,9 @@ def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
     assert len(steps) >= 2 and all(abs(g - LONGEST_S) <= 2 for g in gaps), (
         f"R4005 low byte {low:02X}H (≥ 5): PID every {LONGEST_S} s, so OR steps {LONGEST_S} s apart; saw "
         f"{len(steps)} steps, gaps {gaps} s")
-    rises = [t for (_, before, _), (_, y, t) in zip(polls, polls[1:]) if y and not before]
+    # Y's rises at period starts; not the one where OR first leaves 0 — the output starting, which a PLC whose first
+    # PID step comes after EN's edge (up to an interval later) may show in the middle of a period
+    rises = [t for (was, before, _), (value, y, t) in zip(polls, polls[1:]) if y and not before and not (was == 0 < value)]
     periods = [round(b - a, 1) for a, b in zip(rises, rises[1:])]
     assert len(rises) >= 2 and all(abs(p - LONGEST_S) <= 2 for p in periods), (
         f"R4005 high byte {high:02X}H (≥ 5): a PWM period of {LONGEST_S} s, so Y switches on every {LONGEST_S} s; "
