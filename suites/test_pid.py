@@ -856,21 +856,8 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     is ON for OR/16383 of each PWM period (2 s): over the 9 s at about 13 % output, the share of polls with Y on
     is within 15 points of OR's, and Y switches on every 2 s (R4005's high byte 1).  A second point at the same error with Ki = 0, Td = 0 keeps one OR throughout
     (no integral action)."""
-    instances, block = _fake_instances(bench, pid)
-    inst = instances[0]
-    _need(bench, "R4005")
-    point = next(iter(_enabled_points(bench, inst)), None)
-    if point is None:
-        pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
+    inst, point, plain = _integrating_point(bench, pid, plain=True)
     io = bench.plc.io
-    # a second point with Ki = 0 and Td = 0 (no integral, no derivative: 20.7) at the same error: OR constant
-    plain = next(iter(_enabled_points(bench, inst)[1:]), None)
-    _write_pvs(bench, block, {point: 1000, **({plain: 1000} if plain is not None else {})})
-    io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
-    pid.set_gains(point, 100, 100, 0)
-    if plain is not None:
-        io.write_many({str(inst.operand("sv", plain)): 1020, str(inst.operand("os", plain)): 0})
-        pid.set_gains(plain, 100, 0, 0)
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
     pid.restart(inst)  # EN 0 → 1: in force from now
     if plain is not None:  # the first PID step: at EN's edge, or (a PLC may) up to one interval, 4 s, after it
@@ -910,19 +897,24 @@ LONG_CODES = [pytest.param(0xFF, 6, id="R4005-06FFH"), pytest.param(6, 0xFF, id=
 LONGEST_S = 32
 
 
-def _integrating_point(bench, pid):
-    """(instance, point) switched on with PVs of the suite's choosing: 2.0 ° below SV, Kc 100, Ki 100 (1 repeat/min),
-    Td 0 — OR moves at every PID step and only then (see the test below); skip without an enabled point."""
+def _integrating_point(bench, pid, *, plain=False):
+    """(instance, point, plain) switched on with PVs of the suite's choosing: ``point`` 2.0 ° below SV, Kc 100, Ki 100
+    (1 repeat/min), Td 0 — OR moves at every PID step and only then (see the test above); with ``plain``, the next
+    enabled point at the same error with Ki 0 and Td 0 (no integral, no derivative: 20.7), whose OR stays constant
+    — None where the instance has no second enabled point.  Skip without an enabled point."""
     instances, block = _fake_instances(bench, pid)
     inst = instances[0]
     _need(bench, "R4005")
-    point = next(iter(_enabled_points(bench, inst)), None)
-    if point is None:
+    enabled = list(_enabled_points(bench, inst))
+    if not enabled:
         pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
-    _write_pvs(bench, block, {point: 1000})
-    bench.plc.io.write_many({str(inst.operand("sv", point)): 1020, str(inst.operand("os", point)): 0})
-    pid.set_gains(point, 100, 100, 0)
-    return inst, point
+    point, other = enabled[0], (enabled[1] if plain and len(enabled) > 1 else None)
+    gains = {p: ki for p, ki in ((point, 100), (other, 0)) if p is not None}
+    _write_pvs(bench, block, {p: 1000 for p in gains})
+    for p, ki in gains.items():
+        bench.plc.io.write_many({str(inst.operand("sv", p)): 1020, str(inst.operand("os", p)): 0})
+        pid.set_gains(p, 100, ki, 0)
+    return inst, point, other
 
 
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
@@ -933,7 +925,7 @@ def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
     one byte, the other in the other, EN 0 → 1: OR (integral action at a constant error) steps 32 s apart, and Y (ON for
     OR/16383 of each period, here ≈ 15 %) switches on every 32 s.  Polled every second: a step or a rise is placed
     within a poll and a read, so the gaps are held to 32 ± 2 s (the next codes' 16 s and 64 s stay far out)."""
-    inst, point = _integrating_point(bench, pid)
+    inst, point, _ = _integrating_point(bench, pid)
     bench.plc.io.write("R4005", high << 8 | low)
     pid.restart(inst)  # in force from this EN edge; OR's first step is at it, before the polls
     steps, polls = _steps(bench, pid, point, 2 * LONGEST_S + 6, every=1.0)
