@@ -201,22 +201,24 @@ def _head(work):
 def _retable(bench, temp, items, condition):
     """Write table words (``items``: offset from SR → word) and wait, at most the update time (a PLC takes a new
     table at its own next cycle), for the work block the new table produces: ``condition`` holding on a TW+0/TW+3
-    other than the one read before the write.  Each step of the tests is chosen so that its expected TW+0 differs
-    from the step before, so a block still showing the previous table is never read as the answer (fresh evidence);
-    a PLC whose block does not change fails here.  Returns the work block as then read."""
-    before = _head(temp.read_work())
+    other than the one read before the write.  Each step of the tests is chosen so that ``condition`` is false
+    before its write (``bench.expect`` says so, as a test error, where it is not), so a block still showing the
+    previous table is never read as the answer (fresh evidence); a PLC whose block does not change fails here.
+    Returns the work block as then read."""
     sr = temp.config.table
-    bench.plc.io.write_many({str(sr.offset(k)): v & 0xFFFF for k, v in items.items()})
-    bench.settle()
-    seen = []
+    written = ", ".join(f"SR+{k} = {v & 0xFFFF:04X}H" for k, v in items.items())
+    seen, before = [], None
 
-    def fresh():
+    def shows_it():
         seen[:] = [temp.read_work()]
         return _head(seen[0]) != before and condition(seen[0])
 
-    temp.wait_until(fresh)
+    awaited = bench.expect(f"the work block that {written} produces", shows_it)
+    before = _head(seen[0])
+    bench.plc.io.write_many({str(sr.offset(k)): v & 0xFFFF for k, v in items.items()})
+    bench.settle()
+    awaited.within(temp.update_period() * 1.5, every=temp.poll_interval)
     work = seen[0]
-    written = ", ".join(f"SR+{k} = {v & 0xFFFF:04X}H" for k, v in items.items())
     assert _head(work) != before, (
         f"{written} written: TW+0 TW+3 still {before[0]:04X}H {before[1]:04X}H after the update time, the work "
         f"block never showed the new table")
