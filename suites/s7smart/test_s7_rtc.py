@@ -235,6 +235,17 @@ def test_clock_runs_over_every_month_end_and_leap_day(bench, clock):
     assert not wrong, "\n".join(wrong)
 
 
+@pytest.mark.spec("S7-RTC-17", "S7-RTC-7")
+def test_clock_runs_from_2099_into_2000(bench, clock):
+    """The clock keeps two-digit years: the second after 2099-12-31 23:59:59 (a Thursday) is 2000-01-01 00:00:00,
+    a Saturday — not a year 2100 (16#A0, or 00 with 2100's Friday), and the clock does not stop."""
+    began = bench.time.now()
+    assert clock.set(T("99 12 31 23 59 58 00 05")).accepted
+    bench.wait(3)  # two ticks past the set: the read comes after the year's wrap
+    assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(1, 4), "2099-12-31 23:59:58 + 3 s: ",
+                 since=(bench, began), set_second=-2)
+
+
 @pytest.mark.spec("S7-RTC-4")
 def test_valid_set_after_a_refused_one(bench, clock):
     assert clock.set(INVALID_DATES["30 February 2024"]).error == T_DATA_ERROR
