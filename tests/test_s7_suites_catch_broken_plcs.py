@@ -220,6 +220,13 @@ class RunningEveryMonth30(_CalendarClock):
     days_in = staticmethod(cal.every_month_30)
 
 
+class FiresOnBothEdges(RtcTestProgram):
+    """Runs the clock instructions on the trigger's rise and again on its fall (a P and an N contact)."""
+
+    def fires(self, previous, now):  # noqa: ANN001, ANN201
+        return bool(now) != bool(previous)
+
+
 # -- the end of the clock's range: 2099 → 2000 (issue 39) --------------------------------------------------------
 class _CenturyRunsOn(S7Clock):
     """A clock that counts on past 2099-12-31 23:59:59 into 2100 (no two-digit wrap); ``show_2100`` is what
@@ -275,6 +282,8 @@ CAUGHT_BY = [
     (RunningMonthsAlternate, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
     (RunningEveryMonth30, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
     (RunningEveryMonth30, "test_clock_runs_over_every_month_end_and_leap_day"),
+    (LevelTriggered, "test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it"),
+    (FiresOnBothEdges, "test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it"),
     (YearCarriesInto2100, "test_clock_runs_from_2099_into_2000"),
     (WeekdayCountsOnInto2100, "test_clock_runs_from_2099_into_2000"),
     (ClockStopsAtTheEndOf2099, "test_clock_runs_from_2099_into_2000"),

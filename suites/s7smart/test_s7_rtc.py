@@ -393,6 +393,23 @@ def test_held_trigger_sets_once(bench, clock):
                  since=(bench, began), set_second=1)
 
 
+@pytest.mark.spec("S7-RTC-10")
+def test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it(bench, clock):
+    """The one-shot rule from another side than the test above: the buffer never changes.  Run on the trigger's
+    level, SET_RTC would load the same time again at every scan and the clock would stand still while it is held;
+    run on its fall too, it would load it again at the release.  Each new rising edge does set it."""
+    began = bench.time.now()
+    assert clock.set(SATURDAY_15_JUNE_2024, hold=True).accepted
+    bench.wait(2)
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(2, 5), "trigger held 2 s: ", since=(bench, began))
+    clock.release()
+    bench.wait(2)
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(4, 7), "released, 2 s later: ", since=(bench, began))
+    began = bench.time.now()
+    assert clock.set(SATURDAY_15_JUNE_2024).accepted
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), "a second edge: ", since=(bench, began))
+
+
 # -- power loss (emulator: power cycles on demand) -----------------------------------------------------------------
 @pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
 @pytest.mark.spec("S7-RTC-13")
