@@ -40,6 +40,11 @@ class BrokenS7:
         return emulator
 
 
+def broken_s7(defect: type) -> BrokenS7:
+    """The profile's S7 emulator with ``defect`` in place of the model it subclasses (the clock or the program)."""
+    return BrokenS7(program_cls=defect) if issubclass(defect, RtcTestProgram) else BrokenS7(defect)
+
+
 def run_s7(pytester, *args: str, plugin: object | None = None, bench=S7_BENCH):  # noqa: ANN001, ANN201
     recorder = pytester.inline_run(str(S7_SUITES), "--bench", str(bench), "-p", "no:cacheprovider", *args,
                                    plugins=[plugin] if plugin else [])
@@ -208,18 +213,81 @@ class RunningMonthsAlternate(_CalendarClock):
     days_in = staticmethod(cal.months_alternate)
 
 
-#: defect → the suite test that must catch it (in process and against ``hil emulate --s7-tcp``)
-CAUGHT_BY = {
-    BcdUncheckedInHourMonthSecond: "test_illegal_bytes_are_not_written",
-    NonBcdHourMonthSecondGives0006: "test_illegal_bytes_end_with_eno_0_and_0007",
-    DayRangeOffByOne: "test_invalid_dates_refused_with_0007_and_the_clock_unchanged",
-    ValidatesMonthsAlternate: "test_invalid_dates_refused_with_0007_and_the_clock_unchanged",
-    RunningFebruaryHas28: "test_clock_runs_over_every_month_end_and_leap_day",
-    RunningYear2000Common: "test_clock_runs_over_every_month_end_and_leap_day",
-    RunningMonthsAlternate: "test_clock_runs_over_every_month_end_and_leap_day",
-    SetRtcITakesBytesModulo100: "test_set_rtc_i_refuses_what_set_rtc_refuses",
-    NoClockStartsAtTheHostTime: "test_a_cpu_without_a_clock_starts_at_2000_01_01",
-}
+# -- defects of the rules two tests hold (issue 39): the second test must catch each on its own --------------------
+class RunningEveryMonth30(_CalendarClock):
+    """The day counter of every month ends at 30: 30 January 23:59:59 is followed by 1 February."""
+
+    days_in = staticmethod(cal.every_month_30)
+
+
+class FiresOnBothEdges(RtcTestProgram):
+    """Runs the clock instructions on the trigger's rise and again on its fall (a P and an N contact)."""
+
+    def fires(self, previous, now):  # noqa: ANN001, ANN201
+        return bool(now) != bool(previous)
+
+
+# -- the end of the clock's range: 2099 → 2000 (issue 39) --------------------------------------------------------
+class _CenturyRunsOn(S7Clock):
+    """A clock that counts on past 2099-12-31 23:59:59 into 2100 (no two-digit wrap); ``show_2100`` is what
+    READ_RTC makes of a time in 2100."""
+
+    def time(self, now):  # noqa: ANN001, ANN201
+        return self._anchor + dt.timedelta(seconds=math.floor(now - self._anchor_now + 1e-9))
+
+    def encode(self, when):  # noqa: ANN001, ANN201
+        return super().encode(when) if when.year < 2100 else self.show_2100(when)
+
+    def show_2100(self, when: dt.datetime) -> bytes:
+        raise NotImplementedError
+
+
+class YearCarriesInto2100(_CenturyRunsOn):
+    """The BCD year counter carries past 99: 2100-01-01 reads as year 16#A0, with 2100's weekday (Friday, 6)."""
+
+    def show_2100(self, when):  # noqa: ANN001, ANN201
+        in_2000 = super().encode(when.replace(year=when.year - 100))
+        return bytes([0xA0]) + in_2000[1:7] + bytes([timebuf.weekday(when.date())])
+
+
+class WeekdayCountsOnInto2100(_CenturyRunsOn):
+    """The year shows 00, but the weekday is counted on from 2099-12-31: 2100-01-01's Friday (6), not Saturday."""
+
+    def show_2100(self, when):  # noqa: ANN001, ANN201
+        in_2000 = super().encode(when.replace(year=when.year - 100))
+        return in_2000[:7] + bytes([timebuf.weekday(when.date())])
+
+
+class ClockStopsAtTheEndOf2099(_CenturyRunsOn):
+    """The clock stands at 2099-12-31 23:59:59 once it gets there."""
+
+    def time(self, now):  # noqa: ANN001, ANN201
+        return min(super().time(now), dt.datetime(2099, 12, 31, 23, 59, 59))
+
+
+#: (defect, the suite test that must catch it: in process and against ``hil emulate --s7-tcp``); a rule two tests
+#: hold has its defects listed with each
+CAUGHT_BY = [
+    (BcdUncheckedInHourMonthSecond, "test_illegal_bytes_are_not_written"),
+    (NonBcdHourMonthSecondGives0006, "test_illegal_bytes_end_with_eno_0_and_0007"),
+    (DayRangeOffByOne, "test_invalid_dates_refused_with_0007_and_the_clock_unchanged"),
+    (ValidatesMonthsAlternate, "test_invalid_dates_refused_with_0007_and_the_clock_unchanged"),
+    (RunningFebruaryHas28, "test_clock_runs_over_every_month_end_and_leap_day"),
+    (RunningYear2000Common, "test_clock_runs_over_every_month_end_and_leap_day"),
+    (RunningMonthsAlternate, "test_clock_runs_over_every_month_end_and_leap_day"),
+    (SetRtcITakesBytesModulo100, "test_set_rtc_i_refuses_what_set_rtc_refuses"),
+    (NoClockStartsAtTheHostTime, "test_a_cpu_without_a_clock_starts_at_2000_01_01"),
+    (RunningFebruaryHas28, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
+    (RunningYear2000Common, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
+    (RunningMonthsAlternate, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
+    (RunningEveryMonth30, "test_clock_ticks_into_the_next_day_as_the_calendar_does"),
+    (RunningEveryMonth30, "test_clock_runs_over_every_month_end_and_leap_day"),
+    (LevelTriggered, "test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it"),
+    (FiresOnBothEdges, "test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it"),
+    (YearCarriesInto2100, "test_clock_runs_from_2099_into_2000"),
+    (WeekdayCountsOnInto2100, "test_clock_runs_from_2099_into_2000"),
+    (ClockStopsAtTheEndOf2099, "test_clock_runs_from_2099_into_2000"),
+]
 #: defects only a CPU without a clock shows: run on the profile as a CR40
 ON_A_CR40 = {NoClockStartsAtTheHostTime}
 
@@ -297,33 +365,35 @@ def test_an_fbs_emulator_on_an_s7_bench_is_refused(pytester):
     assert len([line for line in result.stderr.lines if line.strip()]) == 1, result.stderr.lines
 
 
-@pytest.mark.parametrize("defect", list(CAUGHT_BY), ids=lambda cls: cls.__name__)
-def test_whole_domain_checks_catch_their_broken_cpu(pytester, defect):
+@pytest.mark.parametrize("defect, catcher", CAUGHT_BY, ids=lambda v: v.__name__ if isinstance(v, type) else v)
+def test_whole_domain_checks_catch_their_broken_cpu(pytester, defect, catcher):
+    """The catcher run alone (``-k``): it fails on the defect without help from any other test."""
     bench = S7_BENCH
     if defect in ON_A_CR40:
         bench = pytester.path / "cr40.toml"
         bench.write_text(cr40_text())
-    _passed, _skipped, failed = run_s7(pytester, "--target", "emulator", "-k", CAUGHT_BY[defect],
-                                       plugin=BrokenS7(defect), bench=bench)
-    assert any(CAUGHT_BY[defect] in f for f in failed), f"{CAUGHT_BY[defect]} did not catch {defect.__name__}"
+    _passed, _skipped, failed = run_s7(pytester, "--target", "emulator", "-k", catcher, plugin=broken_s7(defect),
+                                       bench=bench)
+    assert any(catcher in f for f in failed), f"{catcher} did not catch {defect.__name__}"
 
 
-def _against_hil_emulate(defect: type, tmp_path) -> tuple[str, str]:  # noqa: ANN001
-    spec = f"tests.test_s7_suites_catch_broken_plcs:BrokenS7:{defect.__name__}"  # importable by hil emulate
+def _against_hil_emulate(defect: type, catcher: str, tmp_path) -> tuple[str, bool, str]:  # noqa: ANN001
+    spec = f"tests.test_s7_suites_catch_broken_plcs:broken_s7:{defect.__name__}"  # importable by hil emulate
+    name = f"{defect.__name__}-{catcher}"
     served = S7_BENCH
     if defect in ON_A_CR40:
-        served = tmp_path / f"{defect.__name__}-served.toml"
+        served = tmp_path / f"{name}-served.toml"
         served.write_text(cr40_text())
     with emulate_process(served, EMULATE_TIME_SCALE, {"s7-tcp": "--s7-tcp"}, broken=spec) as endpoints:
-        profile = tmp_path / f"{defect.__name__}.toml"
+        profile = tmp_path / f"{name}.toml"
         text = re.sub(r'(?m)^target = .*$', f'target = "s7+tcp://{endpoints["s7-tcp"]}"', served.read_text())
         # (a freshly started hil emulate is straight from power-on, as a bench's owner would declare)
         profile.write_text(text.replace("[bench]", f'[bench]\ntime_scale = {EMULATE_TIME_SCALE}\n'
                                         'offers = ["spec_choices", "power_on_state"]', 1))
         run = subprocess.run([sys.executable, "-m", "pytest", RTC_SUITE, "--bench", str(profile), "-q", "-rf",
-                              "-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-k", CAUGHT_BY[defect]],
+                              "-p", "no:cacheprovider", "-p", "no:hypothesispytest", "-k", catcher],
                              cwd=REPO, capture_output=True, text=True, timeout=300)
-    return defect.__name__, run.stdout + run.stderr
+    return name, f"FAILED {RTC_SUITE}::{catcher}" in run.stdout, run.stdout + run.stderr
 
 
 @pytest.mark.matrix  # the in-process test above catches each; tests/test_s7_wire.py has the hil emulate path
@@ -332,7 +402,6 @@ def test_whole_domain_checks_catch_their_broken_cpu_against_hil_emulate(tmp_path
     """Each defect above served by ``hil emulate --s7-tcp`` as a separate real-time process, reached only over the
     S7 protocol: the test that catches it in process must fail there too."""
     with concurrent.futures.ThreadPoolExecutor(max_workers=4) as pool:
-        results = dict(pool.map(lambda d: _against_hil_emulate(d, tmp_path), CAUGHT_BY))
-    missed = [f"{name}:\n{out[-1500:]}" for name, out in results.items()
-              if f"FAILED {RTC_SUITE}::{CAUGHT_BY[next(c for c in CAUGHT_BY if c.__name__ == name)]}" not in out]
+        results = list(pool.map(lambda case: _against_hil_emulate(*case, tmp_path), CAUGHT_BY))
+    missed = [f"{name}:\n{out[-1500:]}" for name, caught, out in results if not caught]
     assert not missed, "defects their test does not catch against hil emulate:\n" + "\n".join(missed)

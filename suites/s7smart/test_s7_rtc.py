@@ -7,6 +7,7 @@ Expectations are written as the bytes a status chart would show.
 
 from __future__ import annotations
 
+import calendar
 import datetime as dt
 
 import pytest
@@ -28,6 +29,17 @@ SATURDAY_15_JUNE_2024 = T("24 06 15 08 30 00 00 07")
 
 def bcd(n: int) -> int:
     return n // 10 << 4 | n % 10
+
+
+def day_of_week(date: dt.date) -> int:
+    """The manual's day of week (1 = Sunday … 7 = Saturday) from Python's calendar, independent of the PLC."""
+    return date.isoweekday() % 7 + 1
+
+
+def buffer_of(when: dt.datetime) -> bytes:
+    """The time buffer of ``when`` as a status chart shows it, weekday computed."""
+    fields = (when.year - 2000, when.month, when.day, when.hour, when.minute, when.second, 0)
+    return bytes(bcd(v) for v in fields) + bytes([day_of_week(when.date())])
 
 
 def seconds_window(seconds: range, since: tuple | None, set_second: int = 0) -> range:
@@ -235,6 +247,61 @@ def test_clock_runs_over_every_month_end_and_leap_day(bench, clock):
     assert not wrong, "\n".join(wrong)
 
 
+def _last_seconds_of_days() -> list[dt.datetime]:
+    """23:59:59 of every month's last day in 2023 (a common year), of the 30th of each of its 31-day months, of
+    28 and 29 February 2096 (a leap year by the 4-year rule) and of 28 February 2000 (leap by the 400-year rule):
+    dates from Python's calendar, where the table above is written out for 2024 (and February 2023 and 2000)."""
+    days = [dt.date(2023, m, calendar.monthrange(2023, m)[1]) for m in range(1, 13)]
+    days += [dt.date(2023, m, 30) for m in range(1, 13) if calendar.monthrange(2023, m)[1] == 31]
+    days += [dt.date(2096, 2, 28), dt.date(2096, 2, 29), dt.date(2000, 2, 28)]
+    return [dt.datetime.combine(day, dt.time(23, 59, 59)) for day in days]
+
+
+def _read_when_the_day_changes(bench, clock, day: int, began: float) -> bytes | None:
+    """READ_RTC, polled until its day byte differs from ``day`` (the tick the set leads to: fresh evidence, not a
+    fixed wait); None when it has not changed 3 s after ``began``, much longer than the one second it needs."""
+    while True:
+        read = clock.read().buffer
+        if read[2] != day:
+            return read
+        if bench.time.now() - began > 3.0:
+            return None
+        bench.wait(0.2)
+
+
+@pytest.mark.spec("S7-RTC-9", "S7-RTC-8", "S7-RTC-7")
+def test_clock_ticks_into_the_next_day_as_the_calendar_does(bench, clock):
+    """The month-end rule seen from another side than the table above: other years, and each case read as soon as
+    the day byte changes.  What READ_RTC shows then must be the set time plus the seconds that have passed, by
+    Python's calendar — the next day (the 31st, 29 February or the 1st of the next month), 00:00:0x, its weekday."""
+    wrong = []
+    for start in _last_seconds_of_days():
+        began = bench.time.now()
+        result = clock.set(buffer_of(start))
+        if not result.accepted:
+            wrong.append(f"{start}: SET_RTC refused it ({result})")
+            continue
+        read = _read_when_the_day_changes(bench, clock, bcd(start.day), began)
+        ran = bench.time.now() - began
+        shown = _decode(read) if read is not None else None
+        if (shown is None or not start + dt.timedelta(seconds=1) <= shown <= start + dt.timedelta(seconds=ran + 1)
+                or read[6:] != bytes([0x00, day_of_week(shown.date())])):
+            wrong.append(f"{start} + {ran:.1f} s: READ_RTC = {read.hex(' ').upper() if read else 'the same day'}, "
+                         f"expected {buffer_of(start + dt.timedelta(seconds=1)).hex(' ').upper()} (± seconds)")
+    assert not wrong, "\n".join(wrong)
+
+
+@pytest.mark.spec("S7-RTC-17", "S7-RTC-7")
+def test_clock_runs_from_2099_into_2000(bench, clock):
+    """The clock keeps two-digit years: the second after 2099-12-31 23:59:59 (a Thursday) is 2000-01-01 00:00:00,
+    a Saturday — not a year 2100 (16#A0, or 00 with 2100's Friday), and the clock does not stop."""
+    began = bench.time.now()
+    assert clock.set(T("99 12 31 23 59 58 00 05")).accepted
+    bench.wait(3)  # two ticks past the set: the read comes after the year's wrap
+    assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(1, 4), "2099-12-31 23:59:58 + 3 s: ",
+                 since=(bench, began), set_second=-2)
+
+
 @pytest.mark.spec("S7-RTC-4")
 def test_valid_set_after_a_refused_one(bench, clock):
     assert clock.set(INVALID_DATES["30 February 2024"]).error == T_DATA_ERROR
@@ -255,10 +322,10 @@ def test_leap_days_2000_to_2096_accepted_with_correct_weekday(clock):
         if not result.accepted:
             refused.append(f"{year}: {result}")
             continue
-        weekday = dt.date(year, 2, 29).isoweekday() % 7 + 1  # Python's calendar, independent of the PLC
+        expected = day_of_week(dt.date(year, 2, 29))
         got = clock.read().buffer
-        if got[:5] != buffer[:5] or got[7] != weekday:
-            wrong.append(f"{year}: read {got.hex(' ').upper()}, weekday expected {weekday}")
+        if got[:5] != buffer[:5] or got[7] != expected:
+            wrong.append(f"{year}: read {got.hex(' ').upper()}, weekday expected {expected}")
     assert not refused, f"29 February refused in leap years: {refused}"
     assert not wrong, f"29 February read back wrong: {wrong}"
 
@@ -320,8 +387,27 @@ def test_held_trigger_sets_once(bench, clock):
     assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(5, 8), "trigger held 5 s: ",
                  since=(bench, began))
     clock.release()
+    began = bench.time.now()
     assert clock.set(T("24 01 01 01 01 01 00 02")).accepted  # a fresh edge takes the new buffer
-    assert_reads(clock, T("24 01 01 01 01 00 00 00")[:5], 2, range(1, 4))  # 1 Jan 2024 was a Monday
+    assert_reads(clock, T("24 01 01 01 01 00 00 00")[:5], 2, range(1, 4),  # 1 Jan 2024 was a Monday
+                 since=(bench, began), set_second=1)
+
+
+@pytest.mark.spec("S7-RTC-10")
+def test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it(bench, clock):
+    """The one-shot rule from another side than the test above: the buffer never changes.  Run on the trigger's
+    level, SET_RTC would load the same time again at every scan and the clock would stand still while it is held;
+    run on its fall too, it would load it again at the release.  Each new rising edge does set it."""
+    began = bench.time.now()
+    assert clock.set(SATURDAY_15_JUNE_2024, hold=True).accepted
+    bench.wait(2)
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(2, 5), "trigger held 2 s: ", since=(bench, began))
+    clock.release()
+    bench.wait(2)
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(4, 7), "released, 2 s later: ", since=(bench, began))
+    began = bench.time.now()
+    assert clock.set(SATURDAY_15_JUNE_2024).accepted
+    assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), "a second edge: ", since=(bench, began))
 
 
 # -- power loss (emulator: power cycles on demand) -----------------------------------------------------------------
@@ -329,20 +415,26 @@ def test_held_trigger_sets_once(bench, clock):
 @pytest.mark.spec("S7-RTC-13")
 def test_power_loss_starts_at_2000_01_01_saturday(bench, clock):
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
+    began = bench.time.now()
     bench.power_cycle(backup_expired=True)
-    assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), "after the back-up ran out: ")
+    assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), "after the back-up ran out: ",
+                 since=(bench, began))
 
 
 @pytest.mark.needs("power_cycle", reason="switches the CPU off and on")
 @pytest.mark.spec("S7-RTC-14")
 def test_power_cycle_keeps_the_time_only_with_an_rtc(bench, clock):
+    set_at = bench.time.now()
     assert clock.set(T("24 06 15 08 30 00 00 07")).accepted
     bench.wait(2)
+    cycled_at = bench.time.now()
     bench.power_cycle(backup_expired=False)
     if bench.settings.cpu in ("CR40", "CR60"):  # no RTC: the set value is lost at the next power cycle
-        assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), f"{bench.settings.cpu}: ")
+        assert_reads(clock, T("00 01 01 00 00 00 00 00")[:5], 7, range(0, 2), f"{bench.settings.cpu}: ",
+                     since=(bench, cycled_at))
     else:
-        assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(2, 5), f"{bench.settings.cpu}: ")
+        assert_reads(clock, T("24 06 15 08 30 00 00 00")[:5], 7, range(2, 5), f"{bench.settings.cpu}: ",
+                     since=(bench, set_at))
 
 
 @pytest.mark.needs("power_on_state", reason="only a CPU straight from power-on shows where its clock started")
