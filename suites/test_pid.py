@@ -890,10 +890,9 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
         f"after EN 0 → 1 with R4005 low byte 0 the PID interval is 1 s: {len(fresh)} steps in 4.5 s, gaps {gaps} s")
 
 
-#: R4005 (low byte, high byte) past the table's last code (5 → 32 s), the manual's "≥ 5 → 32 s": FFH for the interval with 6 for the period shows each byte's clamp on its own (a PLC that
-#: clamps one byte only, or neither, misses 32 s in one of them); the mirror case adds 70 bench seconds for no new
-#: class, so it runs with the slow tests
-LONG_CODES = [pytest.param(0xFF, 6, id="R4005-06FFH"), pytest.param(6, 0xFF, id="R4005-FF06H", marks=pytest.mark.slow)]
+#: R4005 (low byte, high byte) past the table's last code (5 → 32 s), the manual's "≥ 5 → 32 s": FFH in one byte
+#: and 6 in the other, each way round (a PLC that clamps one byte only, or neither, misses 32 s in one of them)
+LONG_CODES = [pytest.param(0xFF, 6, id="R4005-06FFH"), pytest.param(6, 0xFF, id="R4005-FF06H")]
 LONGEST_S = 32
 
 
@@ -918,6 +917,7 @@ def _integrating_point(bench, pid, *, plain=False):
 
 
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
+@pytest.mark.slow  # two 32 s intervals and periods after the first step: over a minute of bench time per case
 @pytest.mark.bench_time(3 * LONGEST_S + 10, reason="three 32 s PID intervals and PWM periods")
 @pytest.mark.parametrize("low,high", LONG_CODES)
 def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
