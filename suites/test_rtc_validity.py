@@ -5,7 +5,8 @@ R4128–R4134 = second, minute, hour, day, month, year, weekday with exactly one
 field's minimum and maximum, every month's day one past its last (31 in each 30-day month, 32, 29 and 30
 February), and for every field each way an unsigned 16-bit register is out of range that a narrower check would
 miss (the sign bit set, FFFFH, the high byte set over a valid low byte).  The
-refusals follow each other with no wait; one wait at the end shows the clock still running.
+refusals follow each other with no wait, each against the clock set to START (set again every 30 s); one wait
+at the end shows the clock still running.
 """
 
 from __future__ import annotations
@@ -71,16 +72,24 @@ INVALID_WEEKDAY = {
 }
 
 
+#: bench seconds after a set of START within which its minute (R4129) and hour still read START's: the cases are
+#: refused against one set of START until then (a refused set leaves the clock on it), well before the minute turns
+START_HOLDS_S = 30.0
+
+
 def _refuse_each(bench, rtc, io, cases: dict[str, RtcTime]) -> None:
-    """Per case: a valid set of START, the invalid one — M1955 must be 1 after it and R4128–R4134 still on START's
-    time.  No wait between cases; after the last refusal one wait: the clock must have run on from START.
+    """Per case: the invalid set — M1955 must be 1 after it and R4128–R4134 still on START's time, set before the
+    case (again after START_HOLDS_S, or after a case that changed the clock).  No wait between cases; after the last
+    refusal one wait: the clock must have run on from START.
 
     Whether an accepted set clears M1955 is the spec's [our choice] (RTC-VAL-4), not relied on here: where START's
     set leaves M1955 at 1, the clock left unchanged is the evidence of that case's refusal."""
     wrong = []
+    began = None
     for case, registers in cases.items():
-        began = bench.time.now()
-        rtc.set(START)
+        if began is None or bench.time.now() - began > START_HOLDS_S:
+            began = bench.time.now()
+            rtc.set(START)
         result = rtc.set(registers)
         second, *rest = result.shown.to_registers()  # R4128–R4134, read with M1955 from a scan after the set
         most = int(bench.time.now() - began) + 1  # the chip restarted its second at START's set, after `began`
@@ -88,11 +97,12 @@ def _refuse_each(bench, rtc, io, cases: dict[str, RtcTime]) -> None:
             wrong.append(f"{case}: M1955 = 0 after the set")
         if rest != START_REST or not 0 <= second <= most:
             wrong.append(f"{case}: the clock was changed: R4128–R4134 = {[second, *rest]}")
+            began = None  # (START again for the next case)
     assert not wrong, "\n".join(wrong)
     bench.wait(1.2)
     second, *rest = io.read_words("R4128", 7)
-    # START's last set came after the last case's `began`: at most the whole seconds since then (+ the one the chip
-    # restarted), however long that case's requests took; at least the 1.2 s waited since
+    # START's last set came after `began`: at most the whole seconds since then (+ the one the chip restarted),
+    # however long the requests took; at least the 1.2 s waited since
     most = int(bench.time.now() - began) + 1
     assert rest == START_REST and 1 <= second <= most, (
         f"after the refusals the clock stopped or jumped: R4128–R4134 = {[second, *rest]} "
