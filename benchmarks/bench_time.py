@@ -69,10 +69,12 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
             time.sleep(WARM_UP_S / time_scale)
             started = time.monotonic()
             spread = ["-n", str(lanes), "--dist", "each"] if lanes > 1 else []  # hil run --lanes N
-            subprocess.run([sys.executable, "-m", "pytest", *(str(SUITES / name) for name in files), "--bench",
-                            str(bench), "-q", "-p", "no:cacheprovider", f"--junitxml={junit}", *spread], cwd=tmp_path,
-                           capture_output=True, text=True)
+            done = subprocess.run([sys.executable, "-m", "pytest", *(str(SUITES / name) for name in files),
+                                   "--bench", str(bench), "-q", "-rfE", "-p", "no:cacheprovider",
+                                   f"--junitxml={junit}", *spread], cwd=tmp_path, capture_output=True, text=True)
             out["total_wall_s"] = round(time.monotonic() - started, 1)
+            if done.returncode:  # a timing is worth little without why a test failed: pytest's failures, kept
+                out["pytest_output_tail"] = done.stdout.splitlines()[-80:]
         cases = list(ET.parse(junit).getroot().iter("testcase"))
         slowest = sorted(cases, key=lambda c: -float(c.get("time", 0)))
         out["slowest"] = {f"{c.get('classname', '').rsplit('.', 1)[-1]}::{c.get('name')}": float(c.get("time", 0))
