@@ -1078,6 +1078,33 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     assert not any(_sample_output(bench, pid, point, pwm)), "output 0 but Y still switches"
 
 
+@pytest.mark.spec("PID-DIS-1", "PID-PRE-1", "PID-EN-2")  # [our choice] PID-DIS-1: needs spec_choices
+def test_a_point_disabled_with_its_prealarm_set_reports_no_warning(bench, pid):
+    """A point whose pre-alarm is set (PV ≥ R4008 for 10 scans: its WR+2/WR+3 bit) is disabled in R4012/R4013: its
+    warning bit goes to 0 and stays there (PID-DIS-1, a disabled point reports warning = 0), while a neighbour still
+    enabled at the same PV keeps its own."""
+    instances, block = _fake_instances(bench, pid)
+    inst = instances[0]
+    _latched(pid, inst)
+    enabled = list(_enabled_points(bench, inst))
+    if len(enabled) < 2:
+        pytest.skip(f"{inst.name} has fewer than two enabled points (one disabled, one kept as the witness)")
+    point, witness = enabled[0], enabled[1]
+    _need(bench, "R4012" if point < 16 else "R4013")
+    _write_pvs(bench, block, {point: 1000, witness: 1000})
+    bench.plc.io.write("R4008", 1000)  # 100.0 °: both PVs at the pre-alarm limit
+    _ten_scans(bench)
+    assert pid.alarm_words(inst).warning(point) and pid.alarm_words(inst).warning(witness), (
+        f"precondition: PV = R4008 for 10 scans sets the warning bits of points {point} and {witness}")
+    cleared = bench.expect(f"point {point}'s warning bit clears once it is disabled",
+                           lambda: not pid.alarm_words(inst).warning(point))
+    pid.set_enabled(point, False)
+    _ten_scans(bench)
+    assert cleared.within(2.0, every=0.1), (
+        f"point {point} disabled in R4012/R4013 with its pre-alarm set: its warning bit must read 0")
+    assert pid.alarm_words(inst).warning(witness), f"point {witness}, still enabled at R4008, lost its warning"
+
+
 @pytest.mark.spec("PID-EN-2", "PID-EN-1", "PID-OP-5")
 def test_disabled_point_output_is_forced_off(bench, pid):
     """R4012/R4013 bit = 0 forces the point's output off at once: Y is sampled from the first scan after the
