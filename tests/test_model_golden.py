@@ -32,9 +32,13 @@ PID_32 = {"en": "M0", "sn": 0, "zn": 32, "yn": "Y0", "sv": "R1000", "os": "R1040
           "dr": "R1160", "or": "R1200", "wr": "R1240"}
 
 
+GOLDEN_REFERENCE = {"10": 28.0, "11": 28.3}
+
+
 def profile(modules=None, plant=None, pid=None, **temperature):  # noqa: ANN001, ANN201
     base = load_profile(EMULATOR_BENCH)
-    area = dict(base.areas["temperature"], **temperature)
+    # (the reference points the golden records were made with: the bench's point 11 has since gone below zero)
+    area = dict(base.areas["temperature"], **{"reference": GOLDEN_REFERENCE, **temperature})
     if modules is not None:
         area["modules"] = modules
         area.pop("reference", None)  # the bench's reference points are points of its own table
@@ -220,8 +224,7 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
     """The default bench: zone-a heats points 0–9 with a broken sensor on 3 and 6 disabled; zone-b (Md 1) cools
     12–31 with point 20 not installed; point 10 is unheated and follows a ramp."""
     def build():  # noqa: ANN202
-        # (point 11 where the golden record has it: the bench's reference points, before 11 went below zero)
-        emu = build_emulator(profile(reference={"10": 28.0, "11": 28.3}), EPOCH)
+        emu = build_emulator(profile(), EPOCH)
         emu.model(TemperatureModel).set_source(10, Ramp(20.0, 0.05, high=90.0))
         emu.model(TemperatureModel).open(3)
         return emu

@@ -18,7 +18,7 @@ from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureMode
 from hil.families.fbs.temperature import MODULE_BY_CODE, parse_temperature
 from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
-from tests.test_model_golden import EPOCH, FULL_MODULES, PID_32, against_golden, full_plc, profile, start
+from tests.test_model_golden import EPOCH, FULL_MODULES, GOLDEN_REFERENCE, PID_32, against_golden, full_plc, profile, start
 
 MODULES = {m.name: m for m in MODULE_BY_CODE.values()}
 SV_1500 = {f"R{1000 + p}": 1500 for p in range(32)}
@@ -203,7 +203,8 @@ def default_bench(plant=None):  # noqa: ANN001, ANN201
 
     def build():  # noqa: ANN202
         prof = profile_from_dict({"bench": {"name": "kernel"}, "rtc": {"chip": 3, "crystal_ppm": 12.5},
-                                  "temperature": base.areas["temperature"], "pid": base.areas["pid"],
+                                  "temperature": {**base.areas["temperature"], "reference": GOLDEN_REFERENCE},
+                                  "pid": base.areas["pid"],
                                   "plant": plant or {}})
         return build_emulator(prof, EPOCH)
     return build
@@ -389,7 +390,7 @@ def test_cooling_and_heating_instances_on_one_plant_with_averaging():
         start(emu, en="M2", hc="M3", heating=False, sv={f"R{400 + b}": 200 for b in range(20)}, R4008=880)
         emu.advance(240)
     base = load_profile(EMULATOR_BENCH)
-    area = dict(base.areas["temperature"], averaging=8, unit="F")
+    area = dict(base.areas["temperature"], averaging=8, unit="F", reference=GOLDEN_REFERENCE)
 
     def build():  # noqa: ANN202
         return build_emulator(profile_from_dict({"bench": {"name": "kernel"}, "temperature": area,

@@ -62,7 +62,8 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     ``line``: "9600 7E1" paces the pty wires at that rate (over the profile's ``[emulator] line``).
 
     ``timing`` ("instant" or "bench") and ``seed`` override the profile's ``[emulator] timing`` and ``seed``; the
-    seed in effect is printed first, on stderr (stdout's lines are the endpoints scripts parse), to replay a run.
+    seed in effect is printed on stderr once every endpoint listens (stdout's lines are the endpoints scripts
+    parse), to replay a run.
 
     ``rig_modbus_tcp``: also serve a fault rig (Modbus/TCP coils: sensor break, heater open, SSR short; see
     hil.families.fbs.sim.rig).
@@ -74,8 +75,6 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         rate = LineRate.parse(line)
         profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
     profile = with_timing(profile, timing, seed)
-    print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
-          f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr, flush=True)
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []
@@ -92,6 +91,10 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
                                 lambda: start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil))
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
+        # once it serves (a usage error stays one line): the seed in effect, to replay the run
+        print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
+              f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr,
+              flush=True)
         for sig in (signal.SIGINT, signal.SIGTERM):
             # not stop.set() in the handler: it runs in the main thread, which may hold the Event's own lock
             # inside stop.wait() (the real-time loop waits on it every scan) — set it from another thread
