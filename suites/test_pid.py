@@ -1061,11 +1061,14 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     pid.set_set_point(point, pid.pv(point) + 500)  # 50.0 ° below SV: far outside the proportional band
     if cooled is not None:
         pid.set_set_point(cooled, pid.pv(cooled) - 500)  # cooling: 50.0 ° above SV
-    assert _comes_true(bench, lambda: pid.output(point) > 0, interval + 0.5), \
-        "PV 50 ° below SV (heating): the output value must rise within a PID interval"
+    # each box was switched on just before: its first PID step may come up to an interval after EN's edge (the
+    # manual does not put it at the edge), and the change shows at the step after the write — two intervals at most
+    rise = 2 * interval + 0.5
+    assert _comes_true(bench, lambda: pid.output(point) > 0, rise), \
+        "PV 50 ° below SV (heating): the output value must rise at the next PID step"
     if cooled is not None:
-        assert _comes_true(bench, lambda: pid.output(cooled) > 0, interval + 0.5), \
-            f"point {cooled}, PV 50 ° above SV (cooling, H/C = 0): its output must rise within a PID interval"
+        assert _comes_true(bench, lambda: pid.output(cooled) > 0, rise), \
+            f"point {cooled}, PV 50 ° above SV (cooling, H/C = 0): its output must rise at the next PID step"
     assert any(_sample_output(bench, pid, point, pwm)), f"output {pid.output(point)} but Y never on in a PWM period"
     pid.set_set_point(point, pid.pv(point) - 500)  # PV ≫ SV
     if cooled is not None:
