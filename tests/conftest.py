@@ -90,7 +90,8 @@ def pytest_report_header(config):
 
 def pytest_collection_modifyitems(config, items):
     """The matrix only when asked for; the modules in a shuffled order and each module's tests too (a module's
-    tests stay together: its fixtures are set up once); then the e2e tests after the rest (a stable sort)."""
+    tests stay together: its fixtures are set up once); then the e2e tests after the rest (a stable sort), the
+    longest first."""
     if not config.getoption("--matrix"):
         deselected = [item for item in items if item.get_closest_marker("matrix")]
         if deselected:
@@ -108,7 +109,14 @@ def pytest_collection_modifyitems(config, items):
         for group in groups:
             shuffle(group)
         items[:] = [item for item in items if not _shuffled(item.path)] + [item for group in groups for item in group]
-    items.sort(key=lambda item: item.get_closest_marker("e2e") is not None)
+    items.sort(key=_tier)
+
+
+def _tier(item) -> tuple[bool, bool]:  # noqa: ANN001
+    """The unmarked tests, then the e2e ones, those marked ``e2e(leads=True)`` first among them: the longest start
+    first, so that the gate does not end on one worker running a minute-long test while the others wait."""
+    e2e = item.get_closest_marker("e2e")
+    return e2e is not None, not (e2e is not None and e2e.kwargs.get("leads", False))
 
 
 def pytest_sessionfinish(session):
