@@ -7,6 +7,8 @@ import re
 
 import pytest
 
+from hil.families.fbs.address import WORD_BANKS
+
 WORDS = ("R", "D")  # 16-bit registers a ladder leaves free
 BITS = ("M",)
 
@@ -60,8 +62,8 @@ def test_mixed_read_and_write(bench):
 def _outside_allow_list(bench):
     """A register this bench's wire reaches but its profile does not let a test write: the guard's refusal is
     shown on the bench's own allow-list, never on a register we assumed nobody allows."""
-    for kind, count in (("R", 3840), ("D", 4096)):  # the FBs's R0–R3839 and D0–D4095 (those the wire reaches)
-        for n in range(count):
+    for kind in ("R", "D"):  # every R and D register of an FBs that the wire reaches
+        for n in range(WORD_BANKS[kind]):
             name = f"{kind}{n}"
             if not bench.profile.can_write(name) and bench.unreachable_reason(name) is None:
                 return name
