@@ -1,5 +1,5 @@
 """Report details a user reads: outcomes counted as pytest counts them, the suite named after the bench, the HTML
-page's layout at 1280 px (in headless chromium when it is installed), its status filter and sections."""
+page's layout at 1280 and 800 px (in headless chromium when it is installed), its status filter and sections."""
 
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def test_xfail_error_grammar_and_suite_name(pytester) -> None:
 
 def _records() -> list[Record]:
     long_id = "suites/test_temperature.py::test_sensor_break_reads_28767_with_only_its_bit[" + "p" * 120 + "]"
-    records = [Record(f"{long_id}{i}", "temperature", "passed", 0.01) for i in range(40)]
+    records = [Record(f"{long_id}{i}", "temperature", "passed", 0.01, requirements=["TEMP-SENS-1"]) for i in range(40)]
     records += [Record(f"suites/test_pid.py::test_alarm_{i}", "PID", "skipped", 0.0,
                        message="the bench profile has no [pid] section: " + "add it to the profile " * 12)
                 for i in range(20)]
@@ -100,29 +100,37 @@ window.addEventListener('load', () => {
   for (const el of document.querySelectorAll('table, pre, img, details, h3')) {
     widest = Math.max(widest, el.getBoundingClientRect().right);
   }
+  // a badge is one word on one line: one taller than the shortest has wrapped ("passe" / "d"); every section open
+  document.querySelectorAll('details').forEach(d => { d.open = true; });
+  const badges = [...document.querySelectorAll('.badge')].filter(e => e.offsetParent !== null);
+  const line = Math.min(...badges.map(e => e.offsetHeight));
+  const wrapped = badges.filter(e => e.offsetHeight > 1.5 * line).length;
   const passed = () => [...document.querySelectorAll('.passed-row')].filter(e => e.offsetParent !== null).length;
   const before = passed();
   const box = document.querySelector('.filters input[value="passed"]');
   box.checked = false; box.dispatchEvent(new Event('change'));
-  document.body.setAttribute('data-probe', [view, root.scrollWidth, Math.ceil(widest), before, passed()].join(','));
+  document.body.setAttribute('data-probe',
+    [view, root.scrollWidth, Math.ceil(widest), before, passed(), badges.length, wrapped].join(','));
 });
 </script></body>"""
 
 
 @pytest.mark.skipif(shutil.which("chromium") is None and shutil.which("chromium-browser") is None,
                     reason="no headless chromium here (apt-get install -y chromium); the CSS rules are checked above")
-def test_html_fits_1280px_in_headless_chromium(tmp_path: Path) -> None:
+@pytest.mark.parametrize("width", [1280, 800])
+def test_html_fits_the_window_in_headless_chromium(tmp_path: Path, width: int) -> None:
     page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
     probe = tmp_path / "probe.html"
     probe.write_text(page.replace("</body>", _PROBE, 1), encoding="utf-8")
     browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    done = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--window-size=1280,900",
+    done = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},900",
                            "--virtual-time-budget=3000", "--dump-dom", probe.as_uri()],
                           capture_output=True, text=True, timeout=90)
     found = re.search(r'data-probe="([\d,]+)"', done.stdout)
     assert found, done.stdout[-500:] + done.stderr[-500:]
-    view, scroll, widest, shown_before, shown_after = map(int, found.group(1).split(","))
+    view, scroll, widest, shown_before, shown_after, badges, wrapped = map(int, found.group(1).split(","))
     assert scroll <= view and widest <= view, (view, scroll, widest)  # nothing runs off the right edge
+    assert badges > 40 and wrapped == 0, f"{wrapped} of {badges} outcome badges broken over two lines at {width} px"
     assert shown_before > 0 and shown_after == 0  # the status filter hides the passed tests
 
 

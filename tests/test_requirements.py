@@ -110,3 +110,14 @@ def test_unknown_id_in_a_run_is_a_usage_error(pytester):
     result = pytester.runpytest_inprocess("--bench", str(EMULATOR_BENCH), "-p", "no:cacheprovider")
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*test_bad.py::test_a: spec() names PID-NOPE-1*"])
+
+
+def test_the_requirement_table_shows_a_measurement_as_the_measurement_table_does():
+    """One wording of a measurement: a float's representation error (45.15999999999999) never reaches the table."""
+    from hil.core.measurement import Measurement
+
+    settle = Measurement("pid_settle_time", 45.16 - 1e-14, "s", None, 600.0)
+    record = model.TestRecord("suites/test_pid_control.py::test_closed_loop", "PID", "passed", 2.0,
+                              measurements=[settle], requirements=["PID-LAW-2"])
+    html = requirements_section([record])
+    assert "pid_settle_time = 45.16 s &lt;= 600 PASS" in html and "45.1599" not in html

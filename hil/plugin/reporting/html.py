@@ -36,7 +36,7 @@ td{overflow-wrap:anywhere}
 th,td{border:1px solid #d8dee4;padding:4px 10px;text-align:left;vertical-align:top;font-size:14px}
 th{background:#f1f3f5}
 td.n{text-align:right;font-variant-numeric:tabular-nums}
-.badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
+.badge{display:inline-block;white-space:nowrap;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
 .passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped,.xfailed{background:#9a6700}
 .aborted,.incomplete{background:#6639ba}
 .FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}.UNSET{color:#9a6700;font-weight:600}

@@ -53,8 +53,8 @@ def requirements_section(records: list[TestRecord]) -> str:
         source = _e(f"{req.manual} · {req.spec}") if req else ""
         cells = "".join(
             f'<div><span class="badge {r.outcome}">{r.outcome}</span> <code>{_e(r.nodeid)}</code>'
-            + "".join(f'<br><span class="{m.outcome.name}">{_e(m.name)} = {_e(m.value)} {_e(m.unit)}'
-                      f'{_e(_limits(m))} {m.outcome.name}</span>' for m in r.measurements)
+            # (the measurement's own wording: the figures as the measurement table and the console show them)
+            + "".join(f'<br><span class="{m.outcome.name}">{_e(m.describe())}</span>' for m in r.measurements)
             + "</div>" for r in tests)
         body.append(f'<tr class="{outcome}-row"><td><code>{_e(rid)}</code></td>'
                     f'<td><span class="badge {outcome}">{outcome}</span></td>'
@@ -65,9 +65,3 @@ def requirements_section(records: list[TestRecord]) -> str:
     return head + ("<table class=\"requirements\"><tr><th>requirement</th><th>verdict</th><th>statement</th>"
                    f"<th>tests · measurements</th></tr>{''.join(body)}</table>")
 
-
-def _limits(m) -> str:  # noqa: ANN001 - a hil.core.measurement.Measurement
-    low, high = getattr(m, "low", None), getattr(m, "high", None)
-    if low is None and high is None:
-        return ""
-    return f" [{'' if low is None else low} … {'' if high is None else high}]"
