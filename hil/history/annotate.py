@@ -79,7 +79,9 @@ def _previous_link(last: dict[str, Any], page: Path | None) -> str:
 def sparkline(values: list[float | None], low: float | None, high: float | None, *, width: int = 120,
               height: int = 22) -> str:
     """An inline SVG: the values oldest to newest (the newest, this run's, as a dot), the limits as a band."""
-    shown = [v for v in values if v is not None and not math.isnan(v)]
+    # a run that measured nothing keeps its place and breaks the line: no value is drawn where none was read
+    measured = {i: v for i, v in enumerate(values) if v is not None and not math.isnan(v)}
+    shown = list(measured.values())
     if not shown:
         return "<span class='meta'>—</span>"
     bounds = [*shown, *(x for x in (low, high) if x is not None)]
@@ -94,18 +96,31 @@ def sparkline(values: list[float | None], low: float | None, high: float | None,
         return round(pad + (height - 2 * pad) * (1 - (v - lo) / span), 1)
 
     step = (width - 2 * pad) / max(1, len(values) - 1)
-    points = [(round(pad + i * step, 1), y(v)) for i, v in enumerate(values) if v is not None and not math.isnan(v)]
     parts = []
     if low is not None or high is not None:
         top, bottom = y(high if high is not None else hi), y(low if low is not None else lo)
         parts.append(f'<rect x="0" y="{top}" width="{width}" height="{max(0.5, bottom - top)}" fill="#1a7f37" '
                      f'fill-opacity="0.12"/>')
-    parts.append('<polyline fill="none" stroke="#0969da" stroke-width="1.3" points="'
-                 + " ".join(f"{x},{yy}" for x, yy in points) + '"/>')
-    last = values[-1]
-    inside = last is not None and (low is None or last >= low) and (high is None or last <= high)
-    x, yy = points[-1]
-    parts.append(f'<circle cx="{x}" cy="{yy}" r="2.5" fill="{"#1a7f37" if inside else "#cf222e"}"/>')
+    for run in _stretches(sorted(measured)):
+        points = " ".join(f"{round(pad + i * step, 1)},{y(measured[i])}" for i in run)
+        parts.append(f'<polyline fill="none" stroke="#0969da" stroke-width="1.3" points="{points}"/>')
+    newest = len(values) - 1
+    if newest in measured:  # this run's dot; none when this run measured nothing (the title says "—")
+        last = measured[newest]
+        inside = (low is None or last >= low) and (high is None or last <= high)
+        parts.append(f'<circle cx="{round(pad + newest * step, 1)}" cy="{y(last)}" r="2.5" '
+                     f'fill="{"#1a7f37" if inside else "#cf222e"}"/>')
     title = " → ".join("—" if v is None else f"{v:g}" for v in values)
     return (f'<svg class="spark" width="{width}" height="{height}" viewBox="0 0 {width} {height}" role="img">'
             f"<title>{_e(title)}</title>{''.join(parts)}</svg>")
+
+
+def _stretches(indexes: list[int]) -> list[list[int]]:
+    """Sorted ``indexes`` cut where one is missing: [0, 1, 3, 4] → [[0, 1], [3, 4]]."""
+    out: list[list[int]] = []
+    for i in indexes:
+        if out and out[-1][-1] == i - 1:
+            out[-1].append(i)
+        else:
+            out.append([i])
+    return out
