@@ -4,6 +4,7 @@ and flaky tests.  Pure functions over what :class:`hil.history.store.Store` retu
 from __future__ import annotations
 
 import math
+import textwrap
 from collections import defaultdict
 from dataclasses import dataclass, field
 from typing import Any
@@ -138,7 +139,8 @@ def trend_figure(name: str, rows: list[dict[str, Any]]) -> Any:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(9, 4), dpi=100)
+    # constrained layout makes room for the legend below the axis label; a long label is wrapped, never cut
+    fig = Figure(figsize=(9, 4), dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     colors = ["#0969da", "#cf222e", "#1a7f37", "#8250df", "#bc4c00", "#57606a"]
@@ -147,7 +149,7 @@ def trend_figure(name: str, rows: list[dict[str, Any]]) -> Any:
         color = colors[i % len(colors)]
         shown = [p for p in points if p["value"] is not None]
         ax.plot([p["started_at"] for p in shown], [p["value"] for p in shown], "-o", color=color, markersize=4,
-                linewidth=1.3, label=label[:90])
+                linewidth=1.3, label=textwrap.fill(label, 70))
         for limit in ("low", "high"):
             if any(p[limit] is not None for p in points):
                 ax.step([p["started_at"] for p in points], [p[limit] for p in points], "--", where="post",
@@ -156,7 +158,6 @@ def trend_figure(name: str, rows: list[dict[str, Any]]) -> Any:
     ax.set_xlabel("run started (UTC)")
     ax.set_ylabel(f"{name}{f' ({unit})' if unit else ''}")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, fontsize=8, frameon=False)
+    fig.legend(loc="outside lower center", ncol=2, fontsize=8, frameon=False)
     fig.autofmt_xdate()
-    fig.tight_layout()
     return fig
