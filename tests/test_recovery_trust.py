@@ -548,6 +548,8 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
     base = Path(tempfile.mkdtemp(prefix="hil-locks-", dir="/tmp"))
     os.chmod(base, 0o755)
     monkeypatch.setenv("HIL_LOCK_DIR", str(base / "locks"))
+    import pwd
+    monkeypatch.setenv("HIL_BENCH_GROUP", str(pwd.getpwnam("nobody").pw_gid))  # the bench group: nobody's (issue 40)
     url = "fatek+tcp://192.0.2.7:500"
     hold = ("import sys; from hil.core.lock import BenchLock, BenchBusy\n"
             f"try:\n    lock = BenchLock({url!r}).acquire()\nexcept BenchBusy as exc:\n    print(exc); sys.exit(3)\n"
@@ -558,6 +560,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
 
     def drop() -> None:
         os.setgid(nobody.pw_gid)
+        os.setgroups([nobody.pw_gid])
         os.setuid(nobody.pw_uid)
     try:
         with BenchLock(url).acquire():  # ours first: theirs is refused, naming us
