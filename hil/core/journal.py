@@ -133,6 +133,8 @@ def journal_dir() -> Path:
 
 
 def _trusted_dir(directory: Path) -> None:
+    if not os.path.lexists(directory):
+        return  # no journal to trust (and none can be saved: the first save says so)
     problem = bench_dir_problem(directory, bench_group())
     if problem:
         raise JournalRefused(f"{problem} (its journals kept)")
