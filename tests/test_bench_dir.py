@@ -317,3 +317,23 @@ def test_a_line_lock_file_another_user_closed_is_named_with_what_to_do(group_ben
     finally:
         os.close(leader)
         os.close(follower)
+
+
+def test_a_bench_lock_held_without_a_record_is_named_by_the_kernel(tmp_path):
+    """A process that holds the bench's lock file but wrote no holder record (another tool, an older hil): the
+    refusal still names its pid and command, from the kernel's lock table."""
+    path = BenchLock("fatek+tcp://127.0.0.1:500").path
+    BenchLock("fatek+tcp://127.0.0.1:500").acquire().release()  # the file, as hil creates it (empty: released)
+    code = (f"import fcntl, os, sys\nfd = os.open({str(path)!r}, os.O_RDONLY)\nfcntl.flock(fd, fcntl.LOCK_EX)\n"
+            "print('holding', flush=True)\nsys.stdin.readline()\n")
+    holder = processes.spawn([sys.executable, "-c", code, "--a-tool-of-its-own"], text=True, stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip() == "holding"
+        with pytest.raises(HilError) as info:
+            BenchLock("fatek+tcp://127.0.0.1:500").acquire()
+        text = str(info.value)
+        assert f"in use by pid {holder.pid} of user " in text and "--a-tool-of-its-own" in text, text
+    finally:
+        holder.stdin.close()
+        processes.end(holder, signal.SIGKILL, grace=0)
