@@ -201,8 +201,9 @@ def bench_dir_problem(directory: Path, group: int | None = None) -> str | None:
     mode = stat.S_IMODE(info.st_mode)
     shown = (f"the bench directory {directory} (mode {mode:04o}, owner {user_and_uid(info.st_uid)}, group "
              f"{_group_name(info.st_gid)})")
-    fix = (f"make it the bench group's: chgrp BENCH-GROUP {directory} && chmod 2770 {directory}, and set "
-           f"{BENCH_GROUP_ENV}=BENCH-GROUP — or set {BENCH_DIR_ENV} to a directory of yours")
+    fix = (f"have its owner or an administrator make it the bench group's (chgrp BENCH-GROUP {directory} && "
+           f"chmod 2770 {directory}; {BENCH_GROUP_ENV}=BENCH-GROUP for every user of the bench), or point "
+           f"{BENCH_DIR_ENV} at the directory every user of this bench shares")
     if not stat.S_ISDIR(info.st_mode):
         return f"{shown} is not a directory (a symbolic link or a file) — refusing to use it; {fix}"
     if mode & 0o002:
