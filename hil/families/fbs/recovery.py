@@ -3,7 +3,7 @@
 The rules — replay a dead run's journal before anything else, only as far as it can be proven, verify it, say so —
 are the guard's (:meth:`hil.bench.guard.Guard.recover`, :mod:`hil.bench.replay`).  This module adds what only an
 FBs bench has: the Modbus fault rig, whose coils are put back (and read back) first — only on a rig the profile
-names, never on the PLC itself, and only while a coil still holds what the run switched it to — and
+names and proven not to be the PLC itself, and only while a coil still holds what the run switched it to — and
 :func:`recover` for the CLI's writing commands (``hil rtc set``, ``hil drift measure --apply``), which hold a direct
 transport rather than a bench.
 """
@@ -18,7 +18,14 @@ from hil.core.journal import COILS, Journal
 from hil.core.lock import lock_key
 from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.rig_identity import rig_refusal
 from hil.families.fbs.transport.guard import GuardedTransport
+from hil.io.url import parse_target
+
+
+def rig_key(url: str) -> tuple[str, int]:
+    """The rig a URL reaches: its canonical endpoint and unit id (one endpoint may serve several units)."""
+    return lock_key(url), int(str(parse_target(url).params.get("unit", 1)))
 
 
 def rig_targets(profile: Any) -> frozenset[str]:
@@ -81,9 +88,11 @@ def recover(journal: Journal, transport: Any, timebase: Any, profile: Any = None
     # causes are replayed first (hil.bench.replay.replay_elements)
     guard.side_effects = plc.pid.side_effects
     guard.clock = plc.rtc.clock()
-    report = guard.recover(rig_steps(rig_targets(profile), lambda target: None))
+    timeout = profile.timeout if profile is not None else 2.0
+    report = guard.recover(rig_steps(rig_targets(profile),
+                                     lambda rig: rig_refusal(rig, journal.endpoint, transport, timeout)))
     assert report is not None  # a durable journal was given
     return report
 
 
-__all__ = ["recover", "restore_rig_coils", "rig_steps", "rig_targets"]
+__all__ = ["recover", "restore_rig_coils", "rig_key", "rig_steps", "rig_targets"]
