@@ -1,6 +1,6 @@
-"""A fault rig is switched only once it is proven a separate device (issue 40, item 2) — against ``hil emulate`` as
-a separate process (FATEK/TCP, its own Modbus/TCP port, the relay rig), reached only over the wire, the state
-directory a temp dir.
+"""A fault rig is switched only once it is proven a separate device, and recovery writes only the coils the profile
+lets its injectors switch (issue 40, items 2 and 3) — against ``hil emulate`` as a separate process (FATEK/TCP, its
+own Modbus/TCP port, the relay rig), reached only over the wire, the state directory a temp dir.
 
 The PLC's own Modbus port serves its outputs as coils: "coil 0" there is Y0.  Whatever cannot be decided — a PLC
 clock that reads 0, a rig that does not answer, an answer that proves nothing — is refused on every path: a fault
@@ -193,3 +193,50 @@ def test_the_relay_rig_is_proven_separate_and_switched(plc, tmp_path):
     finally:
         bench.close()
     assert _rig_coils(plc, [1]) == [0]
+
+
+# -- item 3: recovery writes only the coils the profile allows, each run of coils on its own -------------------------
+@pytest.mark.e2e
+def test_recovery_leaves_a_journaled_coil_outside_the_profiles_allow_list(plc, tmp_path):
+    """A run opens sensor 2 (coil 2) and point 0's heater circuit (coil 32) and is killed.  The next run's profile
+    allows coils 0–3, 36–39 and 64–67 on that rig: coil 2 is put back, coil 32 is not written — named, kept."""
+    died = _session(tmp_path, _bench(tmp_path, plc),
+                    f"bench.faults.sensor_break.open(2)\nbench.faults.heater_open.inject(0)\n{KILL}", name="dies")
+    assert _rig_coils(plc, [2, 32]) == [1, 1], died.stdout + died.stderr
+    narrow = _bench(tmp_path, plc, name="narrow",
+                    coils={"sensor_break": "0-3", "heater_open": "36-39", "ssr_short": "64-67"})
+    try:
+        run = _session(tmp_path, narrow, "pass", name="next")
+        out = run.stdout + run.stderr
+        assert run.returncode != 0, out
+        assert "coil 32 is not one the profile lets its injectors switch" in out and "0-3, 36-39, 64-67" in out, out
+        assert _rig_coils(plc, [2, 32]) == [0, 1]
+        assert [k.rpartition("/")[2] for k in Journal(lock_key(_url(plc))).coils()] == ["coil32"]
+    finally:
+        _switch_rig(plc, [(32, 0)])
+        journal_path(lock_key(_url(plc))).unlink(missing_ok=True)
+
+
+@pytest.mark.e2e
+def test_two_journaled_coils_in_different_banks_are_read_each_on_its_own(plc, tmp_path):
+    """A run opens sensor 2 (coil 2) and is killed; its journal also names coil 200 of a second bank the next run's
+    profile allows ([faults.ssr_short] first_coil = 200) and this relay module does not have.  Coil 200's read
+    fails (exception 02) — and coil 2 is still put back and verified; coil 200 is named and kept."""
+    died = _session(tmp_path, _bench(tmp_path, plc), f"bench.faults.sensor_break.open(2)\n{KILL}", name="dies")
+    assert _rig_coils(plc, [2]) == [1], died.stdout + died.stderr
+    key = lock_key(_url(plc))
+    data = json.loads(journal_path(key).read_text())
+    (coil2,) = [k for k in data["coils"] if k.endswith("/coil2")]
+    data["coils"][coil2.replace("/coil2", "/coil200")] = {**data["coils"][coil2], "coil": 200}
+    journal_path(key).write_text(json.dumps(data))
+    banks = _bench(tmp_path, plc, name="banks")
+    banks.write_text(banks.read_text().replace("first_coil = 64", "first_coil = 200"))
+    try:
+        run = _session(tmp_path, banks, "pass", name="next")
+        out = run.stdout + run.stderr
+        assert run.returncode != 0, out
+        assert f"rig coil {coil2} = 0" in out and "coil200 (original 0)" in out, out
+        assert _rig_coils(plc, [2]) == [0]
+        assert [k.rpartition("/")[2] for k in Journal(key).coils()] == ["coil200"]
+    finally:
+        journal_path(key).unlink(missing_ok=True)
