@@ -31,6 +31,7 @@ RTC_WORDS = 7  # R4128–R4134: second, minute, hour, day, month, year, weekday
 NO_FBS_MEMORY = frozenset({"1", "2"})
 WAIT = 2.0  # seconds the rig has to answer, at most (the profile's timeout when shorter)
 TRIES = 3  # comparisons tried when the PLC's clock moves on while the rig is read
+ADVICE = "[faults.*] target must name the relay module (powered, at its own address), never the PLC"
 
 Words = list[int]
 
@@ -40,7 +41,7 @@ def rig_refusal(rig: str, plc: str | None, transport: Any, timeout: float) -> st
     ``transport``, whose requests wait ``timeout`` seconds), or whether it is cannot be told.  None only once it is
     proven a separate device."""
     if plc is not None and lock_key(rig) == lock_key(plc):
-        return f"{rig} is the PLC under test ({plc})"
+        return f"{rig} is the PLC under test ({plc}); {ADVICE}"
     try:
         link = RigLink(rig_wire(parse_target(rig), min(WAIT, timeout), retries=0))
     except HilError as exc:
@@ -68,11 +69,11 @@ def _compare(rig: str, plc: str | None, transport: Any, read_rig: Callable[[], W
             if isinstance(clock, str):
                 return _undecided(rig, f"it serves registers at {RTC_FIRST}… and {clock}")
         if not any(before) or not any(after):
-            return _undecided(rig, f"it serves registers at {RTC_FIRST}… and the PLC's clock there reads 0, so the "
-                                   f"two cannot be told apart — set the PLC's clock first")
+            return _undecided(rig, f"it serves registers at {RTC_FIRST}… and the PLC's clock reads 0 (a running "
+                                   f"clock would tell them apart)")
         if there in (before, after):
             return (f"{rig} serves the PLC's own memory (its RTC read-out {RTC_FIRST}… reads there as over "
-                    f"{plc or 'the bench wire'}): it is the PLC's own Modbus port")
+                    f"{plc or 'the bench wire'}): it is the PLC's own Modbus port; {ADVICE}")
         if before == after:  # the clock stood still while the rig was read: the rig holds what it never held
             return None
     return _undecided(rig, f"the PLC's clock moved on while the rig's {RTC_FIRST}… was read, {TRIES} times over")
@@ -90,9 +91,7 @@ def _plc_clock(transport: Any) -> Words | str:
 
 
 def _undecided(rig: str, why: str) -> str:
-    return (f"{rig} cannot be told apart from the PLC under test: {why}. Nothing is switched on a rig that is not "
-            f"proven a separate device: check that [faults.*] target names the relay module (powered, on its own "
-            f"address), not the PLC's own Modbus port")
+    return f"{rig} cannot be told apart from the PLC under test: {why}; {ADVICE}"
 
 
 __all__ = ["rig_refusal"]
