@@ -243,7 +243,7 @@ def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dir
     cases = [(c.get("classname"), c.get("name")) for c in ET.parse(private_dirs / "junit.xml").getroot().iter("testcase")]
     assert len(cases) == len(set(cases)) and len(cases) >= 8, f"every test once: {sorted(cases)}"
     assert "hil: PASSED" in out or "PASSED" in out.splitlines()[-1], out[-1500:]
-    left = list((private_dirs / "state").glob("journal-*.json"))
+    left = list((private_dirs / "locks").glob("journal-*.json"))
     assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
 
 
@@ -292,7 +292,7 @@ def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
         assert run.returncode != 0, "a run whose lane died is never PASSED"
         if who == "run":
             os.killpg(run.pid, signal.SIGKILL)  # the worker left behind, if any
-            lane_journals = list((private_dirs / "state").glob("journal-*.lane-*.json"))
+            lane_journals = list((private_dirs / "locks").glob("journal-*.lane-*.json"))
             assert lane_journals, "the dead lane's journal is on disk"
             assert registers()[0] == 77, "nothing could put the lane's write back yet"
             nxt = subprocess.run([sys.executable, "-m", "pytest", str(private_dirs / "next"), "--bench", str(bench),
@@ -303,7 +303,7 @@ def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
             assert "lane gw0 ended without a word on the PLC" in out, out[-3000:]
             assert "hil bench recovery: a previous run" in out, out[-3000:]
         assert registers() == [0, 0], out[-3000:]
-    left = list((private_dirs / "state").glob("journal-*.json"))
+    left = list((private_dirs / "locks").glob("journal-*.json"))
     assert all(not Journal(json.loads(p.read_text())["bench"], p.parent, lane=lane_of(p)).pending for p in left)
 
 

@@ -127,20 +127,20 @@ def _restore_like(capsys, *argv: str) -> tuple[int, list[str]]:
 
 # -- item 1: a planted journal --------------------------------------------------------------------------------
 @pytest.mark.e2e
-def test_a_journal_in_a_state_directory_others_can_write_is_refused_and_nothing_written(plc, tmp_path, monkeypatch,
+def test_a_journal_in_a_bench_directory_others_can_write_is_refused_and_nothing_written(plc, tmp_path, monkeypatch,
                                                                                         capsys):
-    """A 1777 state directory (as /tmp): whoever could write there may have planted the journal."""
+    """A 1777 bench directory (as /tmp): whoever could write there may have planted the journal."""
     shared = tmp_path / "shared"
     shared.mkdir()
     os.chmod(shared, 0o1777)
-    monkeypatch.setenv("HIL_STATE_DIR", str(shared))
+    monkeypatch.setenv("HIL_LOCK_DIR", str(shared))
     url = _url(plc)
     path = journal_path(lock_key(url), shared)
     path.write_text(json.dumps(_planted(lock_key(url), plc)))
     os.chmod(path, 0o600)
     before, raw = _state(plc), path.read_bytes()
     code, lines = _restore(capsys, url, "--bench", str(_profile(tmp_path, plc)))
-    assert code != 0 and len(lines) == 1 and "writable by others" in lines[0], lines
+    assert code != 0 and len(lines) == 1 and "writable by everyone" in lines[0], lines
     assert _state(plc) == before and path.read_bytes() == raw
 
 
@@ -210,10 +210,10 @@ def test_an_own_journal_is_still_replayed_only_within_the_profile(plc, tmp_path,
 # -- item 2: save before mutate --------------------------------------------------------------------------------
 @pytest.mark.e2e
 def test_disk_full_twice_in_a_row_leaves_nothing_unjournaled(plc, tmp_path, monkeypatch):
-    """The journal's own writes fail (ENOSPC at the os level, only for files in the state directory): test A's
+    """The journal's own writes fail (ENOSPC at the os level, only for files in the bench directory): test A's
     write to R1001 is refused, so is test B's, so is every later one — none reaches the PLC."""
     bench = open_bench(load_profile(_profile(tmp_path, plc)), target=_url(plc))
-    state = str(Path(os.environ["HIL_STATE_DIR"]).resolve())
+    state = str(Path(os.environ["HIL_LOCK_DIR"]).resolve())
     real_write = os.write
 
     def full(fd: int, data: bytes) -> int:
@@ -548,6 +548,8 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
     base = Path(tempfile.mkdtemp(prefix="hil-locks-", dir="/tmp"))
     os.chmod(base, 0o755)
     monkeypatch.setenv("HIL_LOCK_DIR", str(base / "locks"))
+    import pwd
+    monkeypatch.setenv("HIL_BENCH_GROUP", str(pwd.getpwnam("nobody").pw_gid))  # the bench group: nobody's (issue 40)
     url = "fatek+tcp://192.0.2.7:500"
     hold = ("import sys; from hil.core.lock import BenchLock, BenchBusy\n"
             f"try:\n    lock = BenchLock({url!r}).acquire()\nexcept BenchBusy as exc:\n    print(exc); sys.exit(3)\n"
@@ -558,6 +560,7 @@ def test_two_users_runs_on_one_plc_are_kept_apart(monkeypatch):
 
     def drop() -> None:
         os.setgid(nobody.pw_gid)
+        os.setgroups([nobody.pw_gid])
         os.setuid(nobody.pw_uid)
     try:
         with BenchLock(url).acquire():  # ours first: theirs is refused, naming us

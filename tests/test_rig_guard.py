@@ -11,21 +11,41 @@ import pytest
 from hil.bench.profile import load_profile
 from hil.bench.replay import Recovery
 from hil.core.journal import Journal
-from hil.core.lock import lock_key
 from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
-from hil.families.fbs.recovery import restore_rig_coils
+from hil.families.fbs.recovery import restore_rig_coils, rig_key
 from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.rig_identity import rig_refusal
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
+from hil.families.fbs.transport.factory import open_transport
 from hil.io.modbus_client import ModbusWire
 from hil.io.request_policy import RequestPolicy
 from tests.conftest import EMULATOR_BENCH
 
 
 @pytest.fixture
-def rig():
-    server = start_rig_modbus_tcp(build_emulator(load_profile(EMULATOR_BENCH), dt.datetime(2026, 1, 1)))
+def plc():
+    """The PLC under test, in process (its clock running from 2026-01-01)."""
+    emulator = build_emulator(load_profile(EMULATOR_BENCH), dt.datetime(2026, 1, 1))
+    with open_transport("emulator", emulator_factory=lambda: emulator) as transport:
+        yield transport
+
+
+@pytest.fixture
+def rig(plc):
+    server = start_rig_modbus_tcp(plc.emulator)
     yield f"modbus+tcp://{server.address}?unit=1"
     server.stop()
+
+
+@pytest.fixture
+def not_the_plc(plc):
+    """The identity decision recovery takes on every path, for this PLC."""
+    return lambda target: rig_refusal(target, "emulator", plc, 2.0)
+
+
+def _rigs(url: str) -> dict:
+    """A profile's rig at ``url`` with the coils of its first bank allowed."""
+    return {rig_key(url): frozenset(range(32))}
 
 
 def _coil(url: str, coil: int) -> int:
@@ -53,7 +73,7 @@ def test_a_coil_is_journaled_before_it_is_switched_and_put_back_by_undo(rig):
         injector.close()
 
 
-def test_recovery_puts_back_only_coils_still_as_the_run_left_them(rig):
+def test_recovery_puts_back_only_coils_still_as_the_run_left_them(rig, not_the_plc):
     dead = ModbusCoilSensorBreak(rig, 0, journal=Journal("bench"))
     dead.open(4)
     dead.open(5)
@@ -64,23 +84,23 @@ def test_recovery_puts_back_only_coils_still_as_the_run_left_them(rig):
     journal = Journal("bench")
     journal.data = journal.load()
     report = Recovery("bench", str(journal.path))
-    restore_rig_coils(journal, report, rigs=frozenset([lock_key(rig)]))
+    restore_rig_coils(journal, report, False, _rigs(rig), not_the_plc)
     assert report.verified == [f"rig coil {dead.coil_key(4)} = 0", f"rig coil {dead.coil_key(5)} = 0"]
     assert not report.failures and not report.changed
     assert _coil(rig, 4) == 0 and Journal("bench").load()["coils"] == {}
 
 
-def test_recovery_keeps_an_operators_change_and_refuses_a_rig_the_profile_does_not_name(rig):
+def test_recovery_keeps_an_operators_change_and_refuses_a_rig_the_profile_does_not_name(rig, not_the_plc):
     dead = ModbusCoilSensorBreak(rig, 0, journal=Journal("bench"))
     dead.open(6)
     dead.close()
     journal = Journal("bench")
     journal.data = journal.load()
     report = Recovery("bench", str(journal.path))
-    restore_rig_coils(journal, report)  # no rigs in the profile
+    restore_rig_coils(journal, report, False, {}, not_the_plc)  # no rigs in the profile
     assert report.refused and "is not a fault rig of this profile" in report.refused[0] and _coil(rig, 6) == 1
     journal.data["coils"][dead.coil_key(6)]["wrote"] = False  # as if the run had switched it off: now it reads on
     report = Recovery("bench", str(journal.path))
-    restore_rig_coils(journal, report, rigs=frozenset([lock_key(rig)]))
+    restore_rig_coils(journal, report, False, _rigs(rig), not_the_plc)
     assert report.changed == [f"rig coil {dead.coil_key(6)} reads 1, the run wrote 0 (original 0)"]
     assert _coil(rig, 6) == 1 and dead.coil_key(6) in Journal("bench").load()["coils"]

@@ -521,7 +521,7 @@ class Guard(ABC):
             journal.data = journal.load()
         except JournalError as exc:
             return Recovery(journal.key, str(journal.path), refused=[str(exc)])
-        report = Recovery(journal.key, str(journal.path), journal.describe())
+        report = Recovery(journal.key, str(journal.path), journal.describe(), by=journal.left_by())
         if not journal.pending:
             return report
         mismatch = identity_problem(journal, self.identity_vouched)

@@ -39,6 +39,7 @@ class Recovery:
     changed: list[str] = field(default_factory=list)  # someone changed it since the run: left as it is (kept)
     failures: list[str] = field(default_factory=list)  # a restore that failed (kept)
     notes: list[str] = field(default_factory=list)  # dropped without a write, and why (volatile)
+    by: str = ""  # whose run left the journal (another user's, on a shared bench: :meth:`Journal.left_by`)
 
     @property
     def needed(self) -> bool:
@@ -48,6 +49,7 @@ class Recovery:
         """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lanes`) held."""
         if other.needed:
             self.path = f"{self.path}, {other.path}" if self.needed else other.path
+            self.by = "; ".join(dict.fromkeys(b for b in (self.by if self.needed else "", other.by) if b))
         for name in ("pending", "verified", "refused", "changed", "failures", "notes"):
             getattr(self, name).extend(getattr(other, name))
 
@@ -70,10 +72,13 @@ class Recovery:
         if self.failures:
             parts.append("restore failed: " + "; ".join(self.failures))
         if self.ok:
-            return (f"hil bench recovery: a previous run on {self.bench} died leaving {len(self.pending)} entry(s) "
-                    f"— " + " — ".join(parts))
-        return (f"hil bench recovery FAILED on {self.bench} (what is left is kept in {self.path}; `hil restore "
-                f"--show` lists it): " + " — ".join(parts))
+            return (f"hil bench recovery: a previous run on {self.bench}{self._whose()} died leaving "
+                    f"{len(self.pending)} entry(s) — " + " — ".join(parts))
+        return (f"hil bench recovery FAILED on {self.bench}{self._whose()} (what is left is kept in {self.path}; "
+                f"`hil restore --show` lists it): " + " — ".join(parts))
+
+    def _whose(self) -> str:
+        return f" ({self.by}; its journal {self.path})" if self.by else ""
 
 
 def _describe_plc(identity: dict[str, str]) -> str:

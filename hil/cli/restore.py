@@ -21,7 +21,7 @@ from hil.bench.profile import Profile, load_profile
 from hil.core.lock import BenchLock, plc_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
-from hil.core.journal import inspect, journal_path, state_dir, run_left
+from hil.core.journal import inspect, journal_dir, journal_path, run_left
 from hil.bench.replay import age_problem
 
 if TYPE_CHECKING:
@@ -61,7 +61,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
     """Each pending journal, entry by entry, with what the next run does with it; one line for a refused file."""
     profile = None
     if url is None and bench is None:
-        paths = sorted(state_dir().glob("journal-*.json"))
+        paths = sorted(journal_dir().glob("journal-*.json"))
     else:
         profile = load_profile(bench) if bench else None
         target = url or profile.target  # type: ignore[union-attr]

@@ -11,9 +11,12 @@ its restore was written *and read back equal*.
 A run that dies leaves the file behind; the next run on the same PLC replays it before anything else
 (:meth:`hil.bench.guard.Guard.recover`) — only as far as it can be proven — and ``hil restore`` does it by hand.
 
-Trust: the state directory must be a directory of this user's that nobody else can write, and the journal a
-regular file of this user's that nobody else can write; anything else is refused whole (:class:`JournalRefused`,
-one line, the file kept).
+Where: beside the bench's locks, in the bench directory every user of the bench shares (:func:`journal_dir`,
+:func:`hil.core.paths.bench_dir`), so the next run on the PLC finds a dead run's journal whoever started either.
+Trust: that directory must be the bench group's and nobody else's (:func:`hil.core.paths.bench_dir_problem`), and
+the journal a plain file nobody outside the group can write, of an owner who could have written it there
+(:func:`hil.core.paths.bench_file_problem`); anything else is refused whole (:class:`JournalRefused`, one line, the
+file kept).
 
 The schema (version 2), one JSON object::
 
@@ -39,8 +42,10 @@ Each section is checked entry by entry by its kind's validator (:func:`register_
 named and kept, the others still replayed.  A kind may carry fields beyond those its validator checks (they are
 its own business); an unknown *section*, another version or another bench refuses the whole file.
 
-File: ``<state dir>/journal-<sha256(key)[:16]>.json`` where the state dir is ``$HIL_STATE_DIR``, else
-``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil`` (created with mode 0700).  A run with lanes
+File: ``<bench dir>/journal-<sha256(key)[:16]>.json`` where the bench dir is ``$HIL_LOCK_DIR``, else
+``/var/tmp/hil`` (mode 2770, the file 0660).  A journal an earlier hil left in the user's state directory
+(``$HIL_STATE_DIR``, else ``$XDG_STATE_HOME/hil``, else ``~/.local/state/hil``) is not replayed from there: the run
+refuses, saying where to move it.  A run with lanes
 (:mod:`hil.plugin.lanes`) has one more per lane process beside it, ``journal-<…>.lane-<LANE>.json``, each written
 only by its lane; recovery (and ``hil restore``) replays them with the run's own.
 """
@@ -62,6 +67,8 @@ from typing import Any, Callable, Iterable
 
 from hil.core.humantime import moment
 from hil.core.errors import HilError
+from hil.core.paths import (BENCH_FILE_MODE, bench_dir_problem, bench_file_problem, bench_group, prepare_bench_dir,
+                            share_with_bench, user_name)
 
 VERSION = 2
 #: top-level fields that are not entry sections
@@ -78,42 +85,84 @@ class JournalRefused(JournalError):
 
 
 # -- trust --------------------------------------------------------------------------------------------------------
-def _private(path: Path, what: str, *, directory: bool) -> None:
-    """Refuse ``path`` unless it is this user's, of the right type, and nobody else can write it."""
+def _private(path: Path) -> None:
+    """Refuse the state directory ``path`` unless it is a directory of this user's that nobody else can write."""
+    try:
+        info = os.lstat(path)
+    except OSError as exc:
+        raise JournalRefused(f"cannot check the state directory {path}: {exc}") from None
+    if not stat.S_ISDIR(info.st_mode):
+        shown = "a symbolic link" if stat.S_ISLNK(info.st_mode) else "not a directory"
+        raise JournalRefused(f"the state directory {path} is {shown} — refusing to trust it (check it by hand)")
+    if info.st_uid != os.getuid():
+        raise JournalRefused(f"the state directory {path} belongs to uid {info.st_uid}, not to you (uid "
+                             f"{os.getuid()}) — refusing to trust it (check it by hand)")
+    if info.st_mode & 0o022:
+        raise JournalRefused(f"the state directory {path} is writable by others (mode "
+                             f"{stat.S_IMODE(info.st_mode):04o}) — refusing to trust it (use a private directory, "
+                             f"mode 0700)")
+
+
+def _state_base() -> Path:
+    given = os.environ.get("HIL_STATE_DIR")
+    if given:
+        return Path(given)
+    xdg = os.environ.get("XDG_STATE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".local" / "state") / "hil"
+
+
+def state_dir() -> Path:
+    """This user's private state directory (the run history), created with mode 0700."""
+    base = _state_base()
+    try:
+        base.mkdir(parents=True, exist_ok=True, mode=0o700)
+    except OSError as exc:
+        raise JournalError(f"cannot create the state directory {base}: {exc}") from None
+    _private(base)
+    return base
+
+
+def journal_dir() -> Path:
+    """Where journals are: the bench directory (created, checked), shared by every user of the bench."""
+    try:
+        return prepare_bench_dir()
+    except JournalError:
+        raise
+    except HilError as exc:
+        raise JournalRefused(str(exc)) from None
+
+
+def _trusted_dir(directory: Path) -> None:
+    if not os.path.lexists(directory):
+        return  # no journal to trust (and none can be saved: the first save says so)
+    problem = bench_dir_problem(directory, bench_group())
+    if problem:
+        raise JournalRefused(f"{problem} (its journals kept)")
+
+
+def _trusted(path: Path) -> None:
+    """Refuse the journal ``path`` unless anyone who could have written it is of the bench (absent: nothing)."""
     try:
         info = os.lstat(path)
     except FileNotFoundError:
         return
     except OSError as exc:
-        raise JournalRefused(f"cannot check the {what} {path}: {exc}") from None
-    kind_ok = stat.S_ISDIR(info.st_mode) if directory else stat.S_ISREG(info.st_mode)
-    if not kind_ok:
-        shown = "a symbolic link" if stat.S_ISLNK(info.st_mode) else "not a " + ("directory" if directory else
-                                                                                 "regular file")
-        raise JournalRefused(f"the {what} {path} is {shown} — refusing to trust it (kept; check it by hand)")
-    if info.st_uid != os.getuid():
-        raise JournalRefused(f"the {what} {path} belongs to uid {info.st_uid}, not to you (uid {os.getuid()}) — "
-                             f"refusing to trust it (kept; check it by hand)")
-    if info.st_mode & 0o022:
-        raise JournalRefused(f"the {what} {path} is writable by others (mode {stat.S_IMODE(info.st_mode):04o}) — "
-                             f"refusing to trust journals there (kept; use a private directory, mode 0700)")
-    if not directory and info.st_nlink != 1:
-        raise JournalRefused(f"the {what} {path} has {info.st_nlink} hard links — refusing to trust it (kept)")
+        raise JournalRefused(f"cannot check the bench journal {path}: {exc}") from None
+    problem = bench_file_problem(path, info)
+    if problem:
+        raise JournalRefused(f"the bench journal {problem}")
 
 
-def state_dir() -> Path:
-    given = os.environ.get("HIL_STATE_DIR")
-    if given:
-        base = Path(given)
-    else:
-        xdg = os.environ.get("XDG_STATE_HOME")
-        base = (Path(xdg) if xdg else Path.home() / ".local" / "state") / "hil"
+def _left_in_state_dir(path: Path) -> None:
+    """Refuse to start over a journal an earlier hil left in this user's state directory: it is the PLC's
+    originals, and only the bench directory's journal is replayed."""
     try:
-        base.mkdir(parents=True, exist_ok=True, mode=0o700)
-    except OSError as exc:
-        raise JournalError(f"cannot create the state directory {base}: {exc}") from None
-    _private(base, "state directory", directory=True)
-    return base
+        old = _state_base() / path.name
+    except RuntimeError:  # no home directory to look in
+        return
+    if old.parent.resolve() != path.parent.resolve() and os.path.lexists(old):
+        raise JournalRefused(f"a bench journal an earlier hil left is in your state directory: {old} — move it "
+                             f"beside the bench's locks (mv {old} {path}) so recovery replays it, then run again")
 
 
 def journal_path(key: str, directory: Path | None = None, lane: str | None = None) -> Path:
@@ -123,7 +172,7 @@ def journal_path(key: str, directory: Path | None = None, lane: str | None = Non
     if lane is not None and not _LANE.fullmatch(lane):
         raise JournalError(f"lane name {lane!r}: letters, digits, '-' and '_' only")
     suffix = f".lane-{lane}" if lane is not None else ""
-    return (Path(directory) if directory else state_dir()) / f"journal-{digest}{suffix}.json"
+    return (Path(directory) if directory else journal_dir()) / f"journal-{digest}{suffix}.json"
 
 
 def lane_of(path: Path) -> str | None:
@@ -250,7 +299,10 @@ def _check_enable(entry: Any) -> str | None:
 
 
 def _who(entry: Any) -> str:
-    return f" — by {entry.get('test') or '?'} (pid {entry.get('pid')})" if isinstance(entry, dict) else ""
+    if not isinstance(entry, dict):
+        return ""
+    user = f", user {entry['user']}" if isinstance(entry.get("user"), str) else ""
+    return f" — by {entry.get('test') or '?'} (pid {entry.get('pid')}{user})"
 
 
 def _show_element(name: str, e: Any) -> str:
@@ -348,10 +400,10 @@ def _pending(data: dict[str, Any]) -> bool:
 
 
 def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
-    """A journal file found in the state directory, for ``hil restore --show``: (its bench key, the journal, why
+    """A journal file found in the bench directory, for ``hil restore --show``: (its bench key, the journal, why
     it is refused as a whole) — the key None when the file does not say one."""
     try:
-        _private(path, "bench journal", directory=False)
+        _trusted(path)
         key = json.loads(path.read_bytes(), parse_constant=_reject_constant).get("bench")
     except JournalRefused as exc:
         return None, None, str(exc)
@@ -388,11 +440,12 @@ class Journal:
     # -- reading ----------------------------------------------------------------------------------------------------
     def load(self) -> dict[str, Any]:
         """The file's data (an empty journal when there is none); JournalRefused when it cannot be trusted."""
-        _private(self.path.parent, "state directory", directory=True)
-        _private(self.path, "bench journal", directory=False)
+        _trusted_dir(self.path.parent)
+        _trusted(self.path)
         try:
             fd = os.open(self.path, os.O_RDONLY | os.O_NOFOLLOW)
         except FileNotFoundError:
+            _left_in_state_dir(self.path)
             return _empty(self.key)
         except OSError as exc:
             raise JournalError(f"cannot read the bench journal {self.path}: {exc}") from None
@@ -428,6 +481,14 @@ class Journal:
             elif kind.present(value):
                 yield kind, None, value
 
+    def left_by(self) -> str:
+        """Whose run left the pending entries, for the user who finds them: ``user alice, pid 1234`` (each run's)."""
+        runs = sorted({(e.get("user"), e.get("pid")) for _, _, e in self.entries() if isinstance(e, dict)},
+                      key=str)
+        return "; ".join(", ".join(part for part in (f"user {u}" if isinstance(u, str) else "",
+                                                      f"pid {p}" if p is not None else "") if part)
+                         for u, p in runs if u is not None or p is not None) or "a run that left no name"
+
     def problem(self, kind: EntryKind, entry: Any) -> str | None:
         """Why ``entry`` of ``kind`` is malformed (None when well formed)."""
         return kind.check(entry)
@@ -460,7 +521,8 @@ class Journal:
 
     # -- writing (save before mutate: each change durable before it shows) ---------------------------------------
     def _stamp(self) -> dict[str, Any]:
-        return {"test": self.test, "pid": os.getpid(), "at": dt.datetime.now(dt.timezone.utc).isoformat()}
+        return {"test": self.test, "pid": os.getpid(), "user": user_name(os.getuid()),  # whose run, for the next user
+                "at": dt.datetime.now(dt.timezone.utc).isoformat()}
 
     def _change(self, apply: Callable[[dict[str, Any]], bool], *, adds: bool = True) -> None:
         """Apply ``apply`` to a copy of the data, save the copy, and only then take it.  ``apply`` returns False
@@ -598,8 +660,9 @@ class Journal:
             else:
                 data["bench"] = self.key
                 tmp = directory / f".{self.path.name}.{os.getpid()}.tmp"
-                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)
+                fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, BENCH_FILE_MODE)
                 try:
+                    share_with_bench(fd, directory)  # whoever runs next on this PLC must be able to recover it
                     raw = json.dumps(data, indent=1, sort_keys=True, allow_nan=False).encode()
                     written = os.write(fd, raw)
                     if written != len(raw):
@@ -625,4 +688,4 @@ class Journal:
 
 __all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
            "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "lane_of", "parse", "register_kind", "run_left",
-           "state_dir"]
+           "journal_dir", "state_dir"]

@@ -3,12 +3,12 @@
 Two runs against the same PLC would interleave writes and restores and corrupt each other's results.  The key is
 the PLC (:func:`plc_key`): the profile's ``[bench] plc_id`` where it names one — then every wire to that PLC (FATEK,
 Modbus, another port) shares one lock and one journal — and the canonical endpoint (:func:`lock_key`) always: a run
-takes both.  The lock files live in a directory shared by every user of the host (:func:`lock_dir`, mode 1777 like
-/tmp, opened with O_NOFOLLOW; each file checked to be a plain file), so two users' runs on one PLC are kept apart
-too; each file holds who has it — pid, host, user, start time, command — so a run that cannot get it can say who to
-ask.  The kernel drops a flock when its process dies, so a lock left by a crashed run is taken over at once; its
-leftover holder record is kept as :attr:`stale`.  In-process ``emulator…`` targets need no lock: each run builds its
-own emulator.
+takes both.  The lock files live in the bench directory every user of the host shares (:func:`lock_dir`, the
+bench group's, mode 2770: :func:`hil.core.paths.prepare_bench_dir`; files 0660, opened with O_NOFOLLOW and checked
+to be plain files), so two users' runs on one PLC are kept apart too; each file holds who has it — pid, host, user,
+start time, command — so a run that cannot get it can say who to ask.  The kernel drops a flock when its process
+dies, so a lock left by a crashed run is taken over at once; its leftover holder record is kept as :attr:`stale`.
+In-process ``emulator…`` targets need no lock: each run builds its own emulator.
 """
 
 from __future__ import annotations
@@ -20,11 +20,14 @@ import hashlib
 import json
 import os
 import socket
+import stat
 import sys
 import time
 from pathlib import Path
 
 from hil.core.errors import HilError
+from hil.core.paths import (BENCH_FILE_MODE, bench_dir, bench_file_problem, prepare_bench_dir, share_with_bench,
+                            user_and_uid)
 from hil.core.registry import SCHEMES
 
 
@@ -35,7 +38,8 @@ class BenchBusy(HilError):
         self.key = key
         self.holder = holder
         self.waited = waited
-        who = describe_holder(holder) if holder else "another process (no holder record)"
+        who = describe_holder(holder) if holder.get("pid") else \
+            (" and ".join(holder.get("kernel", ())) or "another process") + " (no holder record)"
         wait = f" (waited {waited:.1f} s; --hil-lock-wait SECONDS waits longer)" if waited else \
             " (pass --hil-lock-wait SECONDS to wait for it)"
         super().__init__(f"bench {key} is in use by {who}{wait}")
@@ -91,35 +95,10 @@ def plc_key(target: str, plc_id: str | None = None) -> str:
     return f"plc:{plc_id}" if plc_id else lock_key(target)
 
 
-def lock_dir() -> Path:
-    """The directory every user of the host shares for bench locks (mode 1777): ``$HIL_LOCK_DIR``, else
-    ``/run/lock/hil`` (``/tmp/hil-locks`` where there is no /run/lock)."""
-    given = os.environ.get("HIL_LOCK_DIR")
-    if given:
-        return Path(given)
-    return Path("/run/lock/hil") if os.path.isdir("/run/lock") else Path("/tmp/hil-locks")
-
-
-def shared_dir(directory: Path) -> None:
-    """Create ``directory`` (mode 1777) or check it: a real directory, owned by this user or root, and sticky if
-    others can write it (so nobody removes or replaces another's lock file)."""
-    import stat
-    try:
-        directory.mkdir(parents=True, mode=0o700)
-        os.chmod(directory, 0o1777)  # mkdir's mode is cut by the umask
-    except FileExistsError:
-        pass
-    except OSError as exc:
-        raise HilError(f"cannot create the lock directory {directory}: {exc}") from None
-    info = os.lstat(directory)
-    if not stat.S_ISDIR(info.st_mode):
-        raise HilError(f"lock directory {directory} is not a directory — refusing to use it")
-    if info.st_uid not in (os.getuid(), 0):
-        raise HilError(f"lock directory {directory} belongs to uid {info.st_uid} — refusing to use it (it must be "
-                       f"yours or root's)")
-    if info.st_mode & 0o002 and not info.st_mode & stat.S_ISVTX:
-        raise HilError(f"lock directory {directory} is writable by everyone without the sticky bit — refusing to use "
-                       f"it (chmod 1777)")
+#: the bench directory (``$HIL_LOCK_DIR``), created and checked by :func:`shared_dir`
+lock_dir = bench_dir
+#: create the bench directory (mode 2770, the bench group's) or refuse one not safe to share
+shared_dir = prepare_bench_dir
 
 
 class BenchLock:
@@ -150,7 +129,7 @@ class BenchLock:
             except BlockingIOError:
                 waited = time.monotonic() - started
                 if waited >= wait:
-                    holder = _read(fd)
+                    holder = _read(fd) or {"kernel": [describe_process(pid) for pid in kernel_holders(fd)]}
                     os.close(fd)
                     raise BenchBusy(self.name, holder, waited if wait else 0.0) from None
                 time.sleep(min(poll, max(0.0, wait - waited)))
@@ -204,29 +183,75 @@ class BenchLock:
 
 
 def open_lock_file(path: Path, what: str) -> int:
-    """A lock file in the shared directory: created readable and writable by all (each user records themselves in
-    it), opened without following a link, and checked to be a plain file."""
-    import stat
+    """A lock file in the bench directory: created readable and writable by the bench group (each user records
+    themselves in it), opened without following a link, and checked (:func:`hil.core.paths.bench_file_problem`)."""
     flags = os.O_NOFOLLOW | os.O_CLOEXEC
     try:
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | flags, 0o666)
-            os.fchmod(fd, 0o666)  # open's mode is cut by the umask
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | flags, BENCH_FILE_MODE)
+            share_with_bench(fd, path.parent)
         except FileExistsError:
             try:
                 fd = os.open(path, os.O_RDWR | flags)
             except PermissionError:
                 fd = os.open(path, os.O_RDONLY | flags)  # flock needs no write access
     except OSError as exc:
-        if os.path.islink(path):
-            raise HilError(f"{what} {path} is a symbolic link — refusing to follow it (someone planted it; remove "
-                           f"it after checking where it points)") from None
-        raise HilError(f"cannot open the {what} {path}: {exc}") from None
+        raise HilError(_unopenable(path, what, exc)) from None
     info = os.fstat(fd)
-    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+    if info.st_uid == os.getuid() and stat.S_ISREG(info.st_mode) and stat.S_IMODE(info.st_mode) != BENCH_FILE_MODE:
+        share_with_bench(fd, path.parent)  # ours from an earlier hil (0666, 0600): the bench group's from now on
+        info = os.fstat(fd)
+    problem = bench_file_problem(path, info)
+    if problem:
         os.close(fd)
-        raise HilError(f"{what} {path} is not a plain file (or has other links) — refusing to use it")
+        raise HilError(f"{what} {problem}")
     return fd
+
+
+def _unopenable(path: Path, what: str, exc: OSError) -> str:
+    """Why a lock file cannot be opened, and what to do: a planted link, or another user's file closed to us."""
+    if os.path.islink(path):
+        return (f"{what} {path} is a symbolic link — refusing to follow it (someone planted it; remove it after "
+                f"checking where it points)")
+    try:
+        info = os.lstat(path)
+    except OSError:
+        return f"cannot open the {what} {path}: {exc}"
+    owner = user_and_uid(info.st_uid)
+    return (f"cannot open the {what} {path} (mode {stat.S_IMODE(info.st_mode):04o}, owner {owner}): {exc} — the "
+            f"bench group must be able to read and write it: ask {owner} to chmod 0660 it (or remove it while no "
+            f"run uses the bench)")
+
+
+# -- who holds a lock, as the kernel says ---------------------------------------------------------------------------
+def kernel_holders(fd: int) -> list[int]:
+    """The pids holding a flock on ``fd``'s file, from ``/proc/locks`` (empty where it cannot be read): the truth
+    even where a holder wrote no record (a serial line's lock, another user's read-only file)."""
+    info = os.fstat(fd)
+    device = f"{os.major(info.st_dev):02x}:{os.minor(info.st_dev):02x}:{info.st_ino}"
+    try:
+        with open("/proc/locks") as locks:
+            lines = locks.read().splitlines()
+    except OSError:
+        return []
+    pids = []
+    for line in lines:
+        fields = line.split()
+        if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5] == device:  # not a waiter's "-> FLOCK"
+            pids.append(int(fields[4]))
+    return pids
+
+
+def describe_process(pid: int) -> str:
+    """``pid 1234 of user bob (uid 1001): python3 -m hil probe …`` from /proc (the bare pid where it cannot be
+    read)."""
+    try:
+        raw = Path(f"/proc/{pid}/cmdline").read_bytes()
+        owner = user_and_uid(os.stat(f"/proc/{pid}").st_uid)
+    except OSError:
+        return f"pid {pid}"
+    command = " ".join(part.decode(errors="replace") for part in raw.split(b"\0") if part)
+    return f"pid {pid} of user {owner}: {command or '?'}"
 
 
 def _read(fd: int) -> dict:
@@ -244,4 +269,5 @@ def _user() -> str:
         return str(os.getuid())
 
 
-__all__ = ["BenchLock", "BenchBusy", "describe_holder", "lock_dir", "lock_key", "open_lock_file", "plc_key", "shared_dir"]
+__all__ = ["BenchLock", "BenchBusy", "describe_holder", "describe_process", "kernel_holders", "lock_dir",
+           "lock_key", "open_lock_file", "plc_key", "shared_dir"]

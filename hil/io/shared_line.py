@@ -21,6 +21,10 @@ until :data:`LINGER` after it let go of it (so across back-to-back exchanges), a
 file's lock exclusively before it asks.  So the main lane runs as it would alone but for a background exchange
 already on the line when it asks (one frame, tens of milliseconds at 9600 bit/s), and the background lanes fill the
 line's idle time: the main lane's waits for the PLC.
+
+A wait for the line is bounded (:data:`WAIT`, ``$HIL_LINE_WAIT`` seconds): a process that keeps it longer — another
+user's run, a stuck tool — is named (pid, user, command, from the kernel's lock table) instead of hanging the
+command with no output.
 """
 
 from __future__ import annotations
@@ -29,10 +33,11 @@ import fcntl
 import hashlib
 import os
 import threading
+import time
 from typing import Callable
 
 from hil.core.errors import TransportError
-from hil.core.lock import lock_dir, open_lock_file, shared_dir
+from hil.core.lock import describe_process, kernel_holders, lock_dir, open_lock_file, shared_dir
 
 #: the mark's two values (one byte at the start of the file)
 _SUSPECT, _CLEAN = b"1", b"0"
@@ -40,6 +45,27 @@ _background: bool | None = None  # None: plain turns (no lanes); False: the fore
 #: how long a foreground client keeps the line wanted after an exchange: longer than a client takes between two
 #: back-to-back exchanges (a decode and the next encode), shorter than a poll's pause
 LINGER = 0.03
+#: how long a client waits for the line before it names the holder and gives up: far longer than any holder of a
+#: run keeps it (an exchange with its retries, a section of several requests), far shorter than a user's patience
+WAIT = 30.0
+WAIT_ENV = "HIL_LINE_WAIT"
+#: the pause between two tries while the line is held: short against an exchange (tens of milliseconds at
+#: 9600 bit/s), so a turn passes at about the speed the kernel's own wait would give it
+POLL = 0.002
+
+
+def line_wait() -> float:
+    """The wait for the line, in seconds: ``$HIL_LINE_WAIT``, else :data:`WAIT`."""
+    given = os.environ.get(WAIT_ENV, "").strip()
+    if not given:
+        return WAIT
+    try:
+        value = float(given)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise TransportError(f"{WAIT_ENV}={given}: want a number of seconds greater than 0")
+    return value
 
 
 def run_in_background(yes: bool = True) -> None:
@@ -73,6 +99,7 @@ class SharedLine:
         self._turn = background
         self._wanting = False  # the shared lock on the want file is held (a foreground client, until LINGER after)
         self._unwant_timer: threading.Timer | None = None
+        self._wait = line_wait()
 
     def __enter__(self) -> "SharedLine":
         self._thread.acquire()
@@ -120,24 +147,43 @@ class SharedLine:
             self._thread.release()
 
     def _take(self) -> None:
+        deadline = time.monotonic() + self._wait  # one wait for the whole turn, whatever it queues behind
         self._background = _background if self._turn is None else self._turn  # the release matches it
         if self._background is None:  # plain turns: no lane is anyone's background
-            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            self._flock(self._fd, fcntl.LOCK_EX, deadline)
             return
         if not self._background:
             if self._unwant_timer is not None:
                 self._unwant_timer.cancel()
                 self._unwant_timer = None
             if not self._wanting:
-                fcntl.flock(self._want, fcntl.LOCK_SH)  # wanted: no background client may ask from now on
+                self._flock(self._want, fcntl.LOCK_SH, deadline)  # wanted: no background client may ask from now on
                 self._wanting = True
-            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            self._flock(self._fd, fcntl.LOCK_EX, deadline)
             return
-        fcntl.flock(self._want, fcntl.LOCK_EX)  # granted only while no foreground client wants the line
+        self._flock(self._want, fcntl.LOCK_EX, deadline)  # granted only while no foreground client wants the line
         try:
-            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            self._flock(self._fd, fcntl.LOCK_EX, deadline)
         finally:
             fcntl.flock(self._want, fcntl.LOCK_UN)
+
+    def _flock(self, fd: int, operation: int, deadline: float) -> None:
+        """``flock`` by tries until ``deadline`` (the kernel's own wait cannot be bounded); then name the holder."""
+        while True:
+            try:
+                fcntl.flock(fd, operation | fcntl.LOCK_NB)
+                return
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    raise self._busy(fd) from None
+                time.sleep(POLL)
+
+    def _busy(self, fd: int) -> TransportError:
+        holders = " and ".join(describe_process(pid) for pid in kernel_holders(fd)) or \
+            "another process (the kernel's lock table does not say which)"
+        return TransportError(f"the serial line {self.device} is held by {holders}: waited {self._wait:g} s for it "
+                              f"({self.path}) — ask its user or end that process, or set {WAIT_ENV}=SECONDS to wait "
+                              f"longer")
 
     def _unwant(self) -> None:
         with self._thread:

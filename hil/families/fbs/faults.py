@@ -28,7 +28,6 @@ from __future__ import annotations
 import sys
 from typing import TYPE_CHECKING, Any
 
-from hil.core.lock import lock_key
 from hil.families.fbs.address import parse
 from hil.families.fbs.injectors.config import KNOWN_FAULTS, PLANT_FAULTS
 from hil.families.fbs.injectors.emulator import EmulatorPlantFault, EmulatorSensorBreak
@@ -36,8 +35,7 @@ from hil.families.fbs.injectors.injector import FaultError, SensorBreakInjector
 from hil.families.fbs.injectors.manual import ManualSensorBreak
 from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.injectors.plc_bit import PlcBitSensorBreak
-from hil.families.fbs.protocol.modbus_map import to_modbus
-from hil.families.fbs.registers import RTC_SECOND as RTC_READ_FIRST
+from hil.families.fbs.rig_identity import rig_refusal
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 
@@ -100,7 +98,7 @@ class Faults:
         elif kind == "modbus-coil":
             why = self.not_the_plc(str(spec["target"]))
             if why:
-                raise FaultError(f"[faults.{name}] target {why}: a fault rig must be a separate device — refused")
+                raise FaultError(f"[faults.{name}] target {why} — refused: a fault rig must be a separate device")
             injector = ModbusCoilSensorBreak(spec["target"], spec.get("first_coil", 0),
                                              float(spec.get("timeout", self.bench.profile.timeout)),
                                              journal=getattr(self.bench, "journal", None), coils=spec.get("coils"))
@@ -112,38 +110,13 @@ class Faults:
         return injector
 
     def not_the_plc(self, target: str) -> str | None:
-        """Why the rig at ``target`` is the PLC under test (None when it is a separate device, as far as can be
-        told): the same endpoint, or a Modbus port that serves the PLC's own memory — its RTC read-out
-        R4128–R4134 reads there as it does over the bench's wire (the PLC's own Modbus port on another port
-        number).  Asked once per target."""
+        """Why the rig at ``target`` may not be switched: it is the PLC under test, or that cannot be told (None
+        once it is proven a separate device: :func:`~hil.families.fbs.rig_identity.rig_refusal`, the decision
+        recovery takes too).  Asked once per target."""
         cache = self.__dict__.setdefault("_not_the_plc", {})
         if target not in cache:
-            cache[target] = self._rig_is_plc(target)
+            cache[target] = rig_refusal(target, str(self.bench.target), self.bench.raw, self.bench.profile.timeout)
         return cache[target]
-
-    def _rig_is_plc(self, target: str) -> str | None:
-        if lock_key(target) == lock_key(str(self.bench.target)):
-            return f"{target} is the PLC under test ({self.bench.target})"
-        raw = self.bench.raw
-        if raw.unreachable_reason(RTC_READ_FIRST):
-            return None
-        ref = to_modbus(RTC_READ_FIRST)
-        rig = ModbusCoilSensorBreak(target, 0, timeout=min(2.0, self.bench.profile.timeout), retries=0)
-        try:
-            before = raw.read_words(RTC_READ_FIRST, 7)
-            try:
-                there = rig.read_registers(ref.pdu, 7)
-            except Exception:  # noqa: BLE001 - a rig that cannot answer as an FBs is not this FBs
-                return None
-            after = raw.read_words(RTC_READ_FIRST, 7)
-        finally:
-            rig.close()
-        if not any(before):
-            return None
-        if there in (before, after):
-            return (f"{target} serves the PLC's own memory (its RTC read-out {RTC_READ_FIRST}… reads there as over "
-                    f"{self.bench.target}): it is the PLC's own Modbus port")
-        return None
 
     @property
     def heater_open(self) -> SensorBreakInjector | None:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 from hil.bench.guard import GuardedLink
+from hil.bench.lab.resolve import ranges
 from hil.bench.replay import Recovery
 from hil.core.errors import RestoreError
 from hil.core.journal import Journal, run_left
@@ -41,6 +42,17 @@ def rig_wire(target: Target, timeout: float, retries: int = 2) -> ModbusWire:
                           bytesize=int(str(p.get("bytesize", 8))), stopbits=int(str(p.get("stopbits", 1))), unit=unit,
                           timeout=timeout, retries=retries, hint=hint, probe=RIG_PROBE, label="fault rig",
                           describe=_coils)
+
+
+def coil_runs(coils: Iterable[int]) -> list[tuple[int, int]]:
+    """The coils as runs of consecutive numbers (first, count), each at most one FC01 read long."""
+    runs: list[tuple[int, int]] = []
+    for coil in sorted(set(coils)):
+        if runs and coil == sum(runs[-1]) and runs[-1][1] < MAX_COILS:
+            runs[-1] = (runs[-1][0], runs[-1][1] + 1)
+        else:
+            runs.append((coil, 1))
+    return runs
 
 
 def _coils(table: str, address: int, count: int) -> str:
@@ -72,14 +84,12 @@ class RigLink:
         return self.wire.requests
 
     def read_coils(self, coils: list[int]) -> list[int]:
-        """Each coil's state (0/1), in one request from the lowest to the highest (a rig's coils are few)."""
-        if not coils:
-            return []
-        low = min(coils)
-        if max(coils) - low >= MAX_COILS:  # far apart (another injector's bank): one request each
-            return [self.wire.read(COILS, c, 1)[0] for c in coils]
-        states = self.wire.read(COILS, low, max(coils) - low + 1)
-        return [states[c - low] for c in coils]
+        """Each coil's state (0/1): one request per run of consecutive coils, never across a gap (a rig's banks
+        may have coils it does not serve between them)."""
+        states: dict[int, int] = {}
+        for first, count in coil_runs(coils):
+            states.update(zip(range(first, first + count), self.wire.read(COILS, first, count)))
+        return [states[c] for c in coils]
 
     def write_coils(self, items: list[tuple[int, int]]) -> None:
         """Switch coils, in order (each never repeated when its reply is lost: the request policy's rule)."""
@@ -174,8 +184,31 @@ class GuardedRig(GuardedLink):
     # -- recovery -----------------------------------------------------------------------------------------------
     def replay(self, entries: dict[str, dict[str, Any]], report: Recovery) -> None:
         """A dead run's coil ``entries`` (checked by the caller): each back to its original through the restore,
-        only while it still holds what the run switched it to (or its original: then it is only dropped)."""
-        elements = [self.coil(key) for key in entries]
+        only while it still holds what the run switched it to (or its original: then it is only dropped), and only
+        a coil of this guard's allow-list.  Each run of consecutive coils is read and put back on its own, so a
+        coil the rig fails leaves the others to be put back."""
+        elements = self._replayable(entries, report)
+        for first, count in coil_runs(e.coil for e in elements):
+            self._replay_run([e for e in elements if first <= e.coil < first + count], entries, report)
+
+    def _replayable(self, entries: dict[str, dict[str, Any]], report: Recovery) -> list[RigCoil]:
+        """The entries' coils this guard may write back; the others refused by name (their entries stay)."""
+        allowed = {e.coil for e in self.writable}
+        out = []
+        for key, entry in entries.items():
+            coil = int(entry["coil"])
+            if not key.endswith(f"/coil{coil}"):
+                why = f"its key does not name coil {coil}, its entry's — check the journal (hil restore --show)"
+            elif coil not in allowed:
+                why = (f"coil {coil} is not one the profile lets its injectors switch on {self.target} "
+                       f"({ranges(frozenset(allowed)) or 'none'}): put it back by hand, or name it in [faults.*] coils")
+            else:
+                out.append(RigCoil(key, coil))
+                continue
+            report.refused.append(f"rig coil {key}: {why}; left as it is, the entry kept")
+        return out
+
+    def _replay_run(self, elements: list[RigCoil], entries: dict[str, dict[str, Any]], report: Recovery) -> None:
         try:
             now = self.read_originals(elements)
         except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
@@ -201,10 +234,12 @@ class GuardedRig(GuardedLink):
                 for name, value, why in exc.failures:
                     failed.add(str(name))
                     report.failures.append(f"rig coil {name} (original {int(value)}): {why}")
+        for element in again:  # a failed one stays on disk for the next recovery, not retried with the next coils
+            self.journal.pop(element, None)
         back += [e for e in again if e.key not in failed]
         if self.durable is not None:  # what read back as its original (a restored one is dropped already)
             self.durable.drop_elements(e.key for e in back)
         report.verified += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in back]
 
 
-__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "rig_wire"]
+__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_wire"]

@@ -34,6 +34,13 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         self.allowed = parse_coils(coils) if coils is not None else None  # the rig's own allow-list
         self._guard: GuardedRig | None = None
 
+    @property
+    def writable(self) -> frozenset[int]:
+        """The coils this injector may switch: ``first_coil`` + a point, within the rig's allow-list (``coils``) —
+        what its guard allows, and what recovery may put back on this rig."""
+        coils = range(self.first_coil, self.first_coil + MAX_POINTS)
+        return frozenset(c for c in coils if self.allowed is None or c in self.allowed)
+
     def coil_key(self, point: int) -> str:
         return f"{lock_key(str(self.target))}#unit{self.unit}/coil{self.first_coil + point}"
 
@@ -52,8 +59,7 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
             except TransportError as exc:
                 raise FaultError(f"cannot reach the sensor-break relay module at {self.target}: is it powered and "
                                  f"wired, and is the URL in [faults.sensor_break] target right? ({exc})") from None
-            coils = [self.first_coil + p for p in range(MAX_POINTS)]
-            self._guard = GuardedRig(self.target, RigLink(wire), coils, self.journal)
+            self._guard = GuardedRig(self.target, RigLink(wire), self.writable, self.journal)
         return self._guard
 
     def read_registers(self, address: int, count: int) -> list[int]:
