@@ -707,7 +707,7 @@ def _scans(bench):
 def _write_bracketed(bench, name, value):
     """Write ``value`` between two reads of the scan counter: (c1, c2).  Port 0 services each request at the end
     of a scan and scans between two requests, and a read is r requests (``io.requests_per_read``: 2 where reads
-    are fenced, README, Safety), so the write landed after scan c1 + r at the earliest and c2 − 1 at the latest:
+    are fenced, docs/safety.md), so the write landed after scan c1 + r at the earliest and c2 − 1 at the latest:
     the first scan to see it is one of c1 + r + 1 … c2.  (r is what the transport says, never a count measured
     from the scans: a busy host only makes those larger, and a bracket built on one narrower than the truth.)"""
     c1 = _scans(bench)

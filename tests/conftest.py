@@ -50,7 +50,7 @@ def _no_process_left_behind():
     processes.end_all(but=before)
 
 
-# -- the gate's tiers and a new order every run (pyproject's markers; README "The project's tests") ----------------
+# -- the gate's tiers and a new order every run (pyproject's markers; docs/getting-started.md) ----------------
 # The order is shuffled here rather than by pytest-randomly: installed, that plugin would also shuffle the pytest
 # runs these tests start (pytester's and subprocesses'), whose order is what those tests are about.
 def pytest_addoption(parser):

@@ -269,7 +269,7 @@ def test_unknown_error_code_still_raises():
     (Frame(1, "47", "01R045001234"), "A"),
     (Frame(1, "48", "02R00000R04200"), "A"),
     (Frame(1, "49", "01R042001234"), "A"),
-    # two faults: the first in the frame decides (README, "The emulator on the wire")
+    # two faults: the first in the frame decides (docs/targets.md)
     (Frame(1, "45", "01M99992"), "A"),  # name beyond the model, then bit value 2
     (Frame(1, "42", "9M9999"), "2"),  # action 9 comes before the name beyond the model
     (Frame(1, "45", "FFM00000"), "4"),  # 255 bits from M0: the second value is missing (format)

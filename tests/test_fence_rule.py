@@ -1,4 +1,4 @@
-"""Which reads are fenced (README, Safety): every read on a line that may repeat a reply, only after trouble on a
+"""Which reads are fenced (docs/safety.md): every read on a line that may repeat a reply, only after trouble on a
 direct one — shown by the frames on the wire."""
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ PLACES = {"bench1": ("lab-host/fbs-bench/*", TAGS), "bench2": ("lab-host/fbs-ben
 
 
 def exporter_config(emulated: dict[str, str], dead_port: int) -> str:
-    """What a lab admin writes for a FATEK bench (README "A lab of benches"), pointed at ``hil emulate``."""
+    """What a lab admin writes for a FATEK bench (docs/lab.md), pointed at ``hil emulate``."""
     host, port = emulated["fatek-tcp"].rsplit(":", 1)
     rig = emulated["rig-modbus-tcp"]
     return f"""\

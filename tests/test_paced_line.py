@@ -165,7 +165,7 @@ def test_a_profile_sets_the_pace_and_a_bad_one_is_refused_naming_the_key():
 
 def test_every_fatek_device_operation_on_port_0_costs_at_most_1_3_times_its_fewest_bytes():
     """benchmarks/run.py's per-operation table, on a paced 9600 7E1 line as port 0 is wired (a direct line: fenced
-    only after a timeout or retry, README "Safety" — whatever fences it sends are counted): each procedure's request
+    only after a timeout or retry, docs/safety.md — whatever fences it sends are counted): each procedure's request
     and reply bytes against the fewest its steps need in the cheapest frames."""
     from benchmarks.run import _device_operations
     rows = _device_operations("emulator+fatek-serial?baudrate=9600&bytesize=7&parity=E")

@@ -10,7 +10,7 @@ Replies repeated 1–50 ms later ("echo") are in the plan too: a late or repeate
 answer to a later request (transaction ids on Modbus/TCP, a fence after every read on FATEK and Modbus RTU).  One
 double fault no client can see through without transaction ids is kept apart: a reply that never comes (``drop``;
 ``close``, which on a pty is silence) while a repeated copy of an earlier reply of the same shape arrives in its
-place — on FATEK or RTU that copy is the answer, byte for byte (README, Safety).  So on those wires the soak runs
+place — on FATEK or RTU that copy is the answer, byte for byte (docs/safety.md).  So on those wires the soak runs
 its first half with every in-order fault, its second with echo and every fault but the losses; Modbus/TCP runs
 them all at once throughout.
 """

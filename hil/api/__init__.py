@@ -8,7 +8,7 @@ Everything a test may call is declared here, typed (``py.typed``: mypy, pyright 
 names not exported here are internal and may change.  The Protocols are the contract: the ``bench`` fixture is a
 proxy built from them (:mod:`hil.bench.view`), so a test reaches the PLC only through the guard.  Units are the
 manual's: temperatures in 0.1 ° of the profile's unit, outputs 0–16383, bench seconds; each docstring names the
-register or bit it reads (spec/fbs-*.md).  README "Writing tests for your bench"; reference: docs/api.md
+register or bit it reads (spec/fbs-*.md).  docs/writing-tests.md; reference: docs/api.md
 (``python -m hil.api.reference``).
 
 Fixtures (``pytest --fixtures`` lists them): ``bench`` → :class:`Bench`, ``plc`` → :class:`Plc`, ``io`` →

@@ -17,7 +17,7 @@ from hil.bench.faces import members
 HEADER = """# hil API reference
 
 Generated from the docstrings of `hil.api` by `python -m hil.api.reference` (do not edit by hand; a test checks
-that it is current).  How to use it: README, "Writing tests for your bench".
+that it is current).  How to use it: docs/writing-tests.md.
 
 """
 

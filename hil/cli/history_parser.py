@@ -45,13 +45,15 @@ def add_parser(sub: "argparse._SubParsersAction") -> None:
     p = action("show", "one run: identity, verdict, tests, measurements")
     p.add_argument("run", metavar="RUN", help="its number, UUID (or its start), last, or last~N")
     p = action("compare", "two runs: what differs in identity, the tests that changed outcome, measurements moved")
-    p.add_argument("a", metavar="A")
-    p.add_argument("b", metavar="B")
+    p.add_argument("a", metavar="A", help="the run compared from (changes read B − A): its number, UUID (or its "
+                                          "start), last, or last~N")
+    p.add_argument("b", metavar="B", help="the run compared with, written as A")
     p.add_argument("--tolerance", type=float, default=None, metavar="REL",
                    help="measurements within this relative difference are not named (default: any difference the "
                         "reports show, at six significant digits)")
     p = action("trend", "one measurement over the runs: a table and a plot (value against date, with its limits)")
-    p.add_argument("measurement", metavar="MEASUREMENT")
+    p.add_argument("measurement", metavar="MEASUREMENT",
+                   help="the measurement's name as the reports show it (e.g. drift_residual, pid_settle_time)")
     p.add_argument("--bench", metavar="NAME", help="this bench's runs only")
     p.add_argument("--test", metavar="NODEID", help="this test's measurement only (where several measure the name)")
     p.add_argument("--plot", metavar="PNG", help="where the plot goes (default reports/trend-MEASUREMENT.png; "
@@ -62,7 +64,9 @@ def add_parser(sub: "argparse._SubParsersAction") -> None:
     p.add_argument("--bench", metavar="NAME", help="this bench's runs only")
     p = action("export", "runs, tests or measurements as CSV or JSON")
     filters(p)
-    p.add_argument("--what", choices=("runs", "tests", "measurements"), default="runs")
-    p.add_argument("--format", choices=("csv", "json"), default="csv")
+    p.add_argument("--what", choices=("runs", "tests", "measurements"), default="runs",
+                   help="a row per run (default), per test of each run, or per measurement of each test")
+    p.add_argument("--format", choices=("csv", "json"), default="csv",
+                   help="CSV with a header row (default) or a JSON array of objects")
     p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
     action("sync", "upload the runs kept in the local spool (while the store was unreachable) to the store")

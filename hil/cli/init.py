@@ -77,7 +77,7 @@ def _read_table(transport: Transport, at: str, notes: list[str]) -> dict[str, ob
 
 def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0) -> str:
     lines = [f"# Bench profile written by `hil init {target}` from what the PLC said; check every line and fill in",
-             "# the commented placeholders (README \"Writing tests for your bench\", fixtures/benches/example-bench.toml).",
+             "# the commented placeholders (docs/writing-tests.md, fixtures/benches/example-bench.toml).",
              f"# PLC status: {found.status}"]
     if found.identity:
         lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))

@@ -93,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--lanes", metavar="N", type=int, default=None,
                      help="run the suites' lanes at the same time, in N processes sharing the bench (pytest-xdist "
                           "-n N --dist each; hil.plugin.lanes): the RTC suites beside the temperature and PID ones; on port 0 at "
-                          "9600 bit/s one fills the line while the other waits for the PLC (README, Bench time)")
+                          "9600 bit/s one fills the line while the other waits for the PLC (docs/performance.md)")
     run.add_argument("--operator", metavar="NAME", help="who runs the tests (default $HIL_OPERATOR or login name)")
     run.add_argument("--station", metavar="NAME", help="test station (default $HIL_STATION or host name)")
     run.add_argument("--trace", choices=("failures", "all", "off"), default=None,

@@ -3,7 +3,7 @@
 The generic layers (core, io, sim, bench, plugin) name no family, wire or register: they iterate these tables.  A
 family's plug-in module fills them when it is imported, and the first look-up imports every installed family (the
 ``hil.families`` entry points, :mod:`hil.bench.family`), so a new family or wire is its own package plus one entry
-point — README "Architecture" lists what each registers.
+point — docs/architecture.md lists what each registers.
 
 =====================  ==========================================================================================
 :data:`SCHEMES`        target URL schemes: their protocol, query parameters, default port, what the path names
@@ -104,7 +104,7 @@ class Scheme:
     path_names: str = "serial device"
     #: what a request fence may rely on: the line delivers each reply once and in order (a serial line, a TCP
     #: stream); False for datagrams (UDP), which may be reordered or repeated — a protocol without transaction
-    #: ids then fences every read (README, Safety)
+    #: ids then fences every read (docs/safety.md)
     ordered: bool = True
     #: the lanes of one run may use it at once (:mod:`hil.plugin.lanes`): a connection each (TCP, UDP), or a serial
     #: line taken in turn by whole exchanges (:mod:`hil.io.shared_line`); not a server of one client (RFC 2217)

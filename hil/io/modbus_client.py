@@ -6,7 +6,7 @@ It owns the rules a Modbus request lives by, in one place:
   they would repeat writes too: reads are retried with its backoff, a write whose reply never came raises
   OutcomeUnknown and is never sent again;
 * every reply must answer exactly the request sent (function, unit, quantity, write echo), else it is a fault;
-* a late or repeated reply to an earlier request is never taken for the answer (README, Safety).  On TCP the
+* a late or repeated reply to an earlier request is never taken for the answer (docs/safety.md).  On TCP the
   transaction id tells: pymodbus skips a frame with another non-zero id and keeps waiting for ours, and refuses
   one with id 0 (tests/test_late_replies.py pins both).  RTU has no id: pymodbus drains the input before each
   request (the silent interval), and a read's reply must be the only thing received with nothing waiting after
@@ -292,7 +292,7 @@ class ModbusWire:
         so a stale frame taken for ours leaves ours still to come: it shows up with the reply (pymodbus would drop
         it), waiting on the line after it, or before the answer to a probe read whose quantity differs from the
         read's.  Raises :class:`_Stale` (the read is repeated after a resynchronisation).  The probe read, a second
-        round trip, only on a line that may repeat a reply (``fence_every_read``; README, Safety); on a direct line
+        round trip, only on a line that may repeat a reply (``fence_every_read``; docs/safety.md); on a direct line
         the reply must only have come alone.  On TCP the transaction id did it."""
         if not self.serial:
             return

@@ -30,7 +30,7 @@ from hil.core.registry import PROTOCOLS, SCHEMES, Scheme, register_scheme
 from hil.io.line import is_rfc2217
 
 #: fence=reads: the line may repeat a reply (a gateway, a protocol converter): every read is fenced; fence=trouble
-#: (the default): a direct line, fenced only after a timeout, a retry or a stray frame (README, Safety)
+#: (the default): a direct line, fenced only after a timeout, a retry or a stray frame (docs/safety.md)
 FENCES = ("trouble", "reads")
 #: the in-process emulator without a wire; every other scheme is a family's or a wire's (hil.core.registry)
 register_scheme(Scheme("emulator", "local", in_process=True))

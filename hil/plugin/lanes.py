@@ -2,7 +2,7 @@
 
 On port 0 at 9600 bit/s the line is idle while a test waits for the PLC — a PID interval, a module's update, the
 clock's next second — and busy while another sets a clock field by field.  A second lane's requests fill those
-gaps (README, "Bench time").  What keeps it safe:
+gaps (docs/performance.md).  What keeps it safe:
 
 * **Which tests may overlap.**  Every test is in a lane: its module's ``pytest.mark.lane(NAME)``, else ``"main"``.
   ``hil run --lanes N`` is ``-n N --dist each``: every worker collects every test and keeps its own lanes' (they

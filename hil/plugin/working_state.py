@@ -20,7 +20,7 @@ import pytest
 
 MARKER = ("working_state(kind, …): the module's tests each set these before relying on them — put back once the "
           "module's last test ends instead of after each test; \"clock\" on every bench, the other kinds are the "
-          "bench family's (README: Safety)")
+          "bench family's (docs/safety.md)")
 
 _NEXT = pytest.StashKey[Any]()  # the item pytest runs after this one (None: the last)
 _HELD = pytest.StashKey[Any]()  # (module, kinds) of the hold in force on the session's bench

@@ -249,7 +249,7 @@ def _parse_values(text: str, address: Address, count: int) -> list[int]:
     return [int(text[i:i + width], 16) for i in range(0, len(text), width)]
 
 
-# Server side: which error a request with a fault gets (README, "The emulator on the wire").  The frame is
+# Server side: which error a request with a fault gets (docs/targets.md).  The frame is
 # read left to right and the first fault decides: the count field (format, 4), the element name (format 4, or
 # A beyond the model), the extent the count and name give (over the command's limit 4, past the model A), then
 # each value (a bit other than 0/1, a RUN/STOP or bit-action argument out of its set: 2; cut short or not hex: 4),

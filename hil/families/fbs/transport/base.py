@@ -63,7 +63,7 @@ class Transport(Link, ABC):
 
     limits = Limits()
     #: Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids that
-    #: may repeat a reply, README, Safety).  Port 0 services each at the end of a scan: suites that bracket scans
+    #: may repeat a reply, docs/safety.md).  Port 0 services each at the end of a scan: suites that bracket scans
     #: count with it.
     requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.

@@ -366,7 +366,7 @@ class FatekTransport(Transport):
         read is repeated); the line is then in step again after the echo.  A second round trip rather than the
         loop-back sent in the same write as the request: a FATEK master waits for each reply (a 2-wire RS-485
         line is half-duplex, and ports 0/1/3/4 and the Ethernet modules' serial side take one request per
-        scan), and on the emulator's wires it costs ≈ 10 % of the suites' wall time (README, Safety)."""
+        scan), and on the emulator's wires it costs ≈ 10 % of the suites' wall time (docs/safety.md)."""
         with self._lock:
             if self._broken or self.dirty or self.station == BROADCAST:
                 return False

@@ -5,7 +5,7 @@ The guard's rules (allow-list before a byte is sent, originals journaled, durabl
 offset, verified restore retried until it succeeds, recovery) are :class:`hil.bench.guard.Guard`'s; this module
 gives them the FBs address model: an element is a base :class:`~hil.families.fbs.address.Address` (a bit or a
 16-bit word; WM16 covers M16–M31), and its reads are the transport's, where no late or repeated reply is taken for
-an answer (README, Safety: which reads are fenced).
+an answer (docs/safety.md: which reads are fenced).
 
 Elements the PLC itself rewrites every scan (``volatile``, e.g. the RTC read-out R4128–R4135) are allowed but
 not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.Rtc.clock`) puts it right.
@@ -76,7 +76,7 @@ class GuardedTransport(GuardedLink):
         return list(parse(name).elements())
 
     def read_originals(self, elements: list[Address]) -> list[int]:
-        # never a late reply (README, Safety: which reads are fenced); from one scan or not, as frames are cheapest
+        # never a late reply (docs/safety.md: which reads are fenced); from one scan or not, as frames are cheapest
         return self.inner.read_many(elements, one_scan=False)
 
     def write_back(self, items: list[tuple[Address, int]]) -> None:

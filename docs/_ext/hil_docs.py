@@ -1,0 +1,59 @@
+"""Pages of the documentation site generated from the code when Sphinx starts, so none is kept by hand: the
+requirement matrix (``hil spec``'s, from the catalogue and the suites' ``spec()`` markers) and the command-line
+reference (from the argparse parsers, :mod:`hil.cli.reference`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from hil.cli.main import build_parser
+from hil.cli.reference import render as command_reference
+from hil.cli.spec import build
+from hil.core.paths import suites_dir
+
+GENERATED = Path(__file__).resolve().parent.parent / "_generated"
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def requirement_matrix() -> str:
+    """The matrix as a Markdown page: per statement its source, the tests that name it, or why none does."""
+    code, matrix, output = build(suites_dir())
+    if code not in (0, 5):
+        raise RuntimeError(f"collecting the suites for the requirement matrix failed (pytest exit {code}):\n{output}")
+    rows = []
+    for req in matrix.requirements.values():
+        tests = matrix.tests.get(req.id, [])
+        if tests:
+            checked = "<br>".join(f"`{_cell(t)}`" for t in tests)
+        else:
+            checked = f"no test — {req.untested_kind}: {_cell(req.untested_reason)}" if req.untested else "MISSING"
+        choice = " *[our choice]*" if req.choice else ""
+        rows.append(f"| `{req.id}` | {_cell(req.manual)} | {_cell(req.statement)}{choice} | {checked} |")
+    tested = sum(1 for r in matrix.requirements.values() if matrix.tests.get(r.id))
+    return "\n".join([
+        "# Requirement matrix", "",
+        "Generated from `hil/requirements.toml` and the suites' `spec()` markers when this site was built — the "
+        "same matrix `hil spec -v` prints.", "",
+        f"{len(matrix.requirements)} statements, {tested} checked by at least one test.", "",
+        "| requirement | manual | statement | checked by |", "|---|---|---|---|", *rows, ""])
+
+
+def _write(name: str, text: str) -> None:
+    GENERATED.mkdir(exist_ok=True)
+    target = GENERATED / name
+    if not target.is_file() or target.read_text(encoding="utf-8") != text:  # (an unchanged file: no rebuild)
+        target.write_text(text, encoding="utf-8")
+
+
+def _generate(app: Any) -> None:
+    _write("requirements.md", requirement_matrix())
+    _write("commands.md", command_reference(build_parser()))
+
+
+def setup(app: Any) -> dict[str, Any]:
+    app.connect("builder-inited", _generate)
+    return {"parallel_read_safe": True, "parallel_write_safe": True}
