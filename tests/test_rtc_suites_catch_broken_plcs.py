@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+from dataclasses import replace
 import math
 
 import pytest
@@ -237,6 +238,15 @@ class AdjustCarrySkipsThe31st(_AdjustCalendar):
     days_in = staticmethod(cal.every_month_30)
 
 
+class AdjustWrapsInside2099(RtcModel):
+    """The ±30 s correction wraps the year as soon as it is 2099 (a two-digit counter compared with 99 too early):
+    a carry inside 2099 lands in 2000."""
+
+    def apply_30s(self, t):
+        fixed = super().apply_30s(t)
+        return replace(fixed, year=0) if fixed.year == 99 else fixed
+
+
 class AdjustWindowEndsAt58(RtcModel):
     """Second 59 is taken as part of the drop window."""
 
@@ -359,6 +369,7 @@ CAUGHT_BY = {
     AdjustCarryIgnoresLeapYears: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     AdjustCarrySkipsThe31st: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     AdjustWindowEndsAt58: "test_adjust_30s_over_both_windows_and_their_edges",
+    AdjustWrapsInside2099: "test_adjust_30s_carries_into_hour_day_every_month_and_year",
     SetClearsTheWeekday: "test_set_then_read_round_trip_of_every_field_edge_and_weekday",
     CalendarWeekday: "test_adjust_30s_carry_from_2099_wraps_to_2000",
     WeekdayFromTheDateAtASet: "test_weekday_written_is_kept_and_counts_on_from_itself",
