@@ -319,8 +319,26 @@ def test_closed_loop_heating_reaches_the_band_and_stays(bench, pid, measure, rep
     report.attach_pid(list(zip(cols["t"], cols["pv"], cols["sv"], cols["output"])), unit="°C", output_unit="%",
                       title=f"PID closed loop, point {point}: SV {sv / 10} ± {os / 10} °")
     inside = trace.settled_at(os)
-    assert inside is not None, f"PV never stayed within SV {sv / 10} ± {os / 10} °: last {trace.samples[-1]}"
+    assert inside is not None, (f"PV never stayed within SV {sv / 10} ± {os / 10} °: last {trace.samples[-1]}"
+                                f"{_unheated(bench, cols)}")
     measure("pid_settle_time", inside,
             note=f"PV came into SV ± Os only after {inside:.0f} s")
     assert inside <= SETTLE_S, f"PV came into SV ± Os only after {inside:.0f} s (allowed {SETTLE_S} s)"
     assert pid.alarm_words(inst).normal(point), "PV in band: the point's normal bit is set"
+
+
+def _unheated(bench, cols):
+    """Why a closed loop may not even have moved PV: a point whose temperature did not follow its output is not
+    heated by it (on the emulator, a profile without [plant] heats nothing) — said, so the failure is not read
+    as FUN86's."""
+    moved = max(cols["pv"]) - min(cols["pv"])
+    if moved >= 1.0 or max(cols["output"]) < 50:
+        return ""
+    hint = (f"; PV moved {moved:.1f} ° while the output reached {max(cols['output']):.0f} %: the point's temperature "
+            f"does not follow its output")
+    if bench.profile.target.startswith("emulator") and "plant" not in bench.profile.areas:
+        hint += (" — this profile has no [plant], so the emulator heats nothing: add a [plant] section "
+                 "(fixtures/benches/emulator.toml has one)")
+    else:
+        hint += " — check that the point's heater is wired to the box's Yn and its sensor is in the oven"
+    return hint

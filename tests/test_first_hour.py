@@ -159,3 +159,17 @@ def test_a_default_profile_that_cannot_be_opened_stops_at_collection(tmp_path: P
     assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
     assert f"cannot open bench 'mine' at {target}:" in done.stderr
     assert "passed" not in done.stdout and "skipped" not in done.stdout and "error" not in done.stdout.lower()
+
+
+def test_a_closed_loop_on_an_emulator_without_a_plant_says_so(tmp_path):
+    """[pid] without [plant]: the emulator heats nothing, and the closed loop's failure says that, not only that
+    PV never reached the band."""
+    import re as _re
+    text = (REPO / "fixtures" / "benches" / "emulator.toml").read_text()
+    profile = tmp_path / "no-plant.toml"
+    profile.write_text(_re.sub(r"(?ms)^\[plant\].*?(?=^\[|\Z)", "", text))
+    assert "\n[plant]" not in profile.read_text() and "[pid" in profile.read_text()
+    done = hil("run", "--bench", str(profile), "--", str(REPO / "suites" / "test_pid_control.py"), "-k",
+               "closed_loop", "--hil-run-slow", cwd=tmp_path)
+    assert done.returncode == 1, done.stdout[-3000:]
+    assert "this profile has no [plant], so the emulator heats nothing" in done.stdout, done.stdout[-3000:]
