@@ -215,6 +215,7 @@ def test_exception_reply_becomes_plc_error_reply(tcp_server: ServerHandle) -> No
     message = str(info.value)
     assert info.value.code == "11" and "gateway target device failed to respond" in message
     assert "FC03" in message and "4128" in message and f"{port}?unit=7" in message
+    assert "serves no unit 7 — check the target's ?unit=" in message  # the likeliest cause, said (RTU and FATEK do)
 
 
 def test_silence_becomes_reply_timeout(emulator: Emulator) -> None:

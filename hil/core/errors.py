@@ -33,12 +33,12 @@ class ProtocolError(HilError):
 class PlcErrorReply(HilError):
     """The PLC answered with an error code instead of data."""
 
-    def __init__(self, code: str, meaning: str, request: str = "") -> None:
+    def __init__(self, code: str, meaning: str, request: str = "", hint: str = "") -> None:
         self.code = code
         self.meaning = meaning
         self.request = request
         where = f" to {request}" if request else ""
-        super().__init__(f"PLC replied error {code} ({meaning}){where}")
+        super().__init__(f"PLC replied error {code} ({meaning}){where}" + (f": {hint}" if hint else ""))
 
 
 class TransportError(HilError):

@@ -41,7 +41,7 @@ from hil.core.errors import InvalidValue, PlcErrorReply, TransportError
 from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
 from hil.io.request_policy import RequestPolicy, Resync
-from hil.io.modbus_codes import EXCEPTION_NAMES
+from hil.io.modbus_codes import EXCEPTION_NAMES, GATEWAY
 from hil.io.url import serial_target
 
 COILS, DISCRETE_INPUTS, HOLDING = "coil", "discrete", "holding"
@@ -385,7 +385,10 @@ class ModbusWire:
                 raise _Shape(f"an exception reply to function {rr.function_code & 0x7F}")
             code = getattr(rr, "exception_code", None)
             meaning = EXCEPTION_NAMES.get(code, "unknown Modbus exception") if code is not None else "error reply"
-            raise PlcErrorReply(str(code), meaning, f"{what} on {self.description}")
+            # (a server that is no gateway answers 10/11 for a unit id it does not serve: the likeliest cause)
+            hint = (f"the server serves no unit {self.unit} — check the target's ?unit= (the PLC's Modbus unit id, "
+                    f"usually 1)" if code in GATEWAY else "")
+            raise PlcErrorReply(str(code), meaning, f"{what} on {self.description}", hint)
         if rr.function_code != fc:
             raise _Shape(f"function {rr.function_code} answered function {fc}")
         if rr.dev_id not in (0, self.unit):

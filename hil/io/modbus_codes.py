@@ -5,3 +5,6 @@ EXCEPTION_NAMES = {
     5: "acknowledge", 6: "server device busy", 7: "negative acknowledge", 8: "memory parity error",
     10: "gateway path unavailable", 11: "gateway target device failed to respond",
 }
+
+#: the gateway exceptions, which a Modbus/TCP server also sends for a unit id it does not serve
+GATEWAY = (10, 11)
