@@ -41,7 +41,20 @@ def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
     assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
     line = _one_line(done)  # nothing collected, skipped or passed before it: it is the only line
     assert f"at {target}:" in line and says in line, line
+    assert "socket://" not in line  # the user's target, never the form pyserial is handed
     assert not (tmp_path / "reports" / "junit.xml").exists()  # no report claiming a verdict
+
+
+@pytest.mark.e2e
+def test_probe_names_the_users_target_not_pyserials_socket_url(tmp_path: Path) -> None:
+    refused = hil("probe", f"fatek+tcp://127.0.0.1:{_refused_port()}", cwd=tmp_path)
+    assert refused.returncode == EXIT_USAGE and "cannot open fatek+tcp://127.0.0.1:" in refused.stderr + refused.stdout
+    assert "socket://" not in refused.stderr + refused.stdout
+    from tests.external import emulate_process
+    with emulate_process(REPO / "fixtures" / "benches" / "emulator.toml", 1.0, {"fatek-tcp": "--fatek-tcp"}) as where:
+        done = hil("probe", f"fatek+tcp://{where['fatek-tcp']}", cwd=tmp_path)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"FATEK station 1 on fatek+tcp://{where['fatek-tcp']}" in done.stdout and "socket://" not in done.stdout
 
 
 def test_plain_pytest_stops_the_same_way(tmp_path: Path) -> None:

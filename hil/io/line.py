@@ -148,8 +148,10 @@ def is_rfc2217(url: str) -> bool:
 
 
 def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: int, timeout: float,
-              write_timeout: float | None = None, exclusive: bool | None = None) -> Line:
+              write_timeout: float | None = None, exclusive: bool | None = None, name: str | None = None) -> Line:
     """Open the port ``url`` names with these line settings (8N1 on a pty: :func:`~hil.io.serial_line.line_coding`).
+    ``name``: what errors call it — the user's own target (``fatek+tcp://HOST:500``) rather than pyserial's
+    ``socket://`` form of it.
 
     ``timeout`` bounds how long an RFC 2217 server may take to acknowledge the settings at open; ``write_timeout``
     is for local ports only (an RFC 2217 port has none).  Raises :class:`TransportError` naming the cause."""
@@ -163,13 +165,14 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
         return LocalLine(serial.serial_for_url(url, timeout=0, write_timeout=write_timeout, **settings,
                                                     **extra), write_timeout)
     except (serial.SerialException, OSError, ValueError, termios.error) as exc:
+        shown = name or url
         nameless = unresolved(urlsplit(url).hostname) if url.startswith(("socket://", "rfc2217://")) else None
         if nameless is not None:
-            raise TransportError(f"cannot open {url}: {nameless}") from exc
+            raise TransportError(f"cannot open {shown}: {nameless}") from exc
         hint = open_hint(url, exc)
         known = hint in _OPEN_HINTS.values()  # a known cause is the whole message (pyserial repeats the path)
         detail = re.sub(r"^Could not open port \S+: ", "", str(exc))  # the URL again, with hil's own options
-        raise TransportError(f"cannot open {url}: " + (hint if known else f"{detail} — {hint}")) from exc
+        raise TransportError(f"cannot open {shown}: " + (hint if known else f"{detail} — {hint}")) from exc
 
 
 def _open_rfc2217(url: str, timeout: float, settings: dict) -> serial.SerialBase:

@@ -67,7 +67,8 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
         port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
         if target.scheme == "fatek+serial" and "baudrate" in params:
             params["paced"] = True  # a pty with a baud rate of its own is a paced one (hil emulate --line)
-        return FatekTransport(port_url, description=str(target), **params)
+        line = f"fatek+tcp://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else port_url
+        return FatekTransport(port_url, description=str(target), line_name=line, **params)
     if target.scheme == "modbus+tcp":
         return ModbusTransport.tcp(target.host, target.port, **params)
     return ModbusTransport.rtu(target.serial_port, **params)  # a device, or an RFC 2217 server's line

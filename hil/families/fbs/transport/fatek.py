@@ -68,7 +68,7 @@ class FatekTransport(Transport):
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,
                  backoff: float = 0.05, description: str | None = None, fence: str = "trouble",
-                 paced: bool | None = None) -> None:
+                 paced: bool | None = None, line_name: str | None = None) -> None:
         """``fence``: "trouble" (a direct line) or "reads" (a line that may repeat replies: every read fenced);
         ``paced``: the port has a line rate (None: a device or RFC 2217 port has, a pty or socket has not)."""
         if not 0 <= station <= 0xFE:
@@ -81,6 +81,8 @@ class FatekTransport(Transport):
             raise InvalidValue(f"fence must be 'trouble' or 'reads', not {fence!r}")
         super().__init__(description or f"FATEK station {station} on {port_url}")
         self.port_url = port_url
+        #: what messages call the line: the user's target for a TCP line (not pyserial's socket:// form of it)
+        self.line_name = line_name or port_url
         self.station = station
         self.timeout = float(timeout)
         self.retries = retries
@@ -123,7 +125,7 @@ class FatekTransport(Transport):
     def new_line(self) -> Line:
         """The line this client talks over, opened (a serial port, a pty, TCP or RFC 2217 by its URL; a subclass
         brings another kind: :class:`~hil.families.fbs.transport.udp.FatekUdpTransport`)."""
-        return open_line(self.port_url, **self._settings)
+        return open_line(self.port_url, **self._settings, name=self.line_name)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -210,7 +212,7 @@ class FatekTransport(Transport):
     def _status(self) -> PlcStatus:
         status: StatusReply = self._exchange(ShortStatus())
         return PlcStatus(running=status.running, flags=status.flags, identity=self._identity_fields(),
-                         via=f"FATEK station {self.station} on {self.port_url}")
+                         via=f"FATEK station {self.station} on {self.line_name}")
 
     def _close(self) -> None:
         self._line.close()
@@ -335,7 +337,7 @@ class FatekTransport(Transport):
                     self.dirty = False  # an error reply is still our reply: the line is in step
                     self._settle(replies[n + 1:], assembler)
                     raise PlcErrorReply(exc.code, exc.meaning, f"{command.describe()} sent to station "
-                                        f"{self.station:02X} on {self.port_url}") from None
+                                        f"{self.station:02X} on {self.line_name}") from None
                 except (FrameError, ProtocolError) as exc:
                     self.discarded.append((reply, f"{type(exc).__name__}: {exc}"))
                     continue
@@ -422,7 +424,7 @@ class FatekTransport(Transport):
 
     def _timeout_message(self, command: Command, frame: bytes, wait: float, attempt: int, attempts: int,
                          assembler: FrameAssembler) -> str:
-        parts = [f"no reply from station {self.station:02X} on {self.port_url} to {command.describe()} "
+        parts = [f"no reply from station {self.station:02X} on {self.line_name} to {command.describe()} "
                  f"within {wait:.2f} s (attempt {attempt} of {attempts}); sent {show_frame(frame)}"]
         if self.discarded:
             bad = "; ".join(f"{show_frame(f)} ({why})" for f, why in self.discarded[:3])
@@ -438,7 +440,7 @@ class FatekTransport(Transport):
             observer(direction, frame)
 
     def _where(self) -> str:
-        return f"station {self.station:02X} on {self.port_url}"
+        return f"station {self.station:02X} on {self.line_name}"
 
 
 #: what to check when a FATEK PLC does not answer
