@@ -19,6 +19,15 @@ def _refused_port() -> int:
         return s.getsockname()[1]
 
 
+def _bench_for(target: str, where: Path) -> str:
+    """A newcomer's profile for the PLC at ``target``: the example copied, its target set (README "Wiring a real
+    bench"); a PLC only ever runs with a profile that names it."""
+    text = (REPO / "fixtures" / "benches" / "example-bench.toml").read_text()
+    path = where / "my-bench.toml"
+    path.write_text(text.replace('# target = "fatek+tcp://PLC-IP:500"', f'target = "{target}"', 1))
+    return str(path)
+
+
 def _one_line(done: subprocess.CompletedProcess) -> str:
     lines = [line for line in (done.stdout + done.stderr).splitlines() if line.strip()]
     assert len(lines) == 1, done.stdout + done.stderr
@@ -37,7 +46,7 @@ def test_a_bench_that_cannot_be_opened_is_one_line_before_anything_is_collected(
         target: str, says: str, silent_listener: int, tmp_path: Path) -> None:
     target = target.format(refused=_refused_port(), silent=silent_listener)
     # a PLC's profile: the bundled default is the emulator's, refused for a PLC before the wire is tried
-    done = hil("run", "--bench", "example-bench", "--target", target, cwd=tmp_path)
+    done = hil("run", "--bench", _bench_for(target, tmp_path), "--target", target, cwd=tmp_path)
     assert done.returncode == EXIT_USAGE, done.stdout + done.stderr
     line = _one_line(done)  # nothing collected, skipped or passed before it: it is the only line
     assert f"at {target}:" in line and says in line, line
@@ -60,7 +69,7 @@ def test_probe_names_the_users_target_not_pyserials_socket_url(tmp_path: Path) -
 def test_plain_pytest_stops_the_same_way(tmp_path: Path) -> None:
     target = f"fatek+tcp://127.0.0.1:{_refused_port()}"
     done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites"), "--target", target,
-                           "--bench", str(REPO / "fixtures" / "benches" / "example-bench.toml"), "-p",
+                           "--bench", _bench_for(target, tmp_path), "-p",
                            "no:cacheprovider"], cwd=tmp_path, capture_output=True, text=True, timeout=120)
     assert done.returncode == EXIT_USAGE
     assert f"at {target}:" in _one_line(done)

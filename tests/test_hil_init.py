@@ -46,6 +46,21 @@ def test_init_fills_in_what_the_plc_says_and_leaves_placeholders(tmp_path: Path,
     assert "already exist" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("planted", ["bench.toml", "tests/test_first.py"])
+@pytest.mark.parametrize("force", [False, True], ids=["", "force"])
+def test_init_writes_nothing_through_a_symbolic_link(tmp_path: Path, capsys, planted: str, force: bool) -> None:
+    """Issue 40 item 13: a dangling link where the profile goes made hil init write the profile where it pointed."""
+    work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
+    (work / "tests").mkdir(parents=True)
+    elsewhere.mkdir()
+    (work / planted).symlink_to(elsewhere / "victim")
+    assert main(["init", "emulator", "--dir", str(work), *(["--force"] if force else [])]) == EXIT_USAGE
+    said = " ".join(capsys.readouterr().err.split())
+    assert f"{work / planted} is a symbolic link (to {elsewhere / 'victim'})" in said and "remove the link" in said
+    assert not (elsewhere / "victim").exists() and list(elsewhere.iterdir()) == []
+    assert sorted(p.name for p in work.rglob("*") if not p.is_symlink()) == ["tests"]  # nothing written at all
+
+
 def test_init_says_why_a_table_is_not_there(tmp_path: Path) -> None:
     assert main(["init", "emulator", "--dir", str(tmp_path), "--temperature-table", "R100"]) == 0
     text = (tmp_path / "bench.toml").read_text()

@@ -1,3 +1,5 @@
+import re
+
 import pytest
 
 from hil.core.errors import ProfileError
@@ -9,8 +11,47 @@ def test_shipped_profiles_load():
     emulator = load_profile(REPO / "fixtures/benches/emulator.toml")
     example = load_profile(REPO / "fixtures/benches/example-bench.toml")
     assert emulator.target == "emulator" and emulator.rtc.chip == 3
-    assert example.target.startswith("fatek+serial://") and not example.safety.allow_destructive
+    assert example.target == "emulator" and not example.safety.allow_destructive  # reaches no hardware as written
     assert len(emulator.digest) == 64
+
+
+def test_the_example_reaches_no_hardware_until_edited(tmp_path):
+    """Issue 40 item 5: the example newcomers copy (and the error for a bare --target pointed them to) had an
+    active relay-module rig at a LAN address with no coil allow-list.  As written it reaches nothing; uncommented,
+    its PLC and rig parts load and say what to change (placeholders, not a real-looking address), and the rig has
+    its allow-list."""
+    text = (REPO / "fixtures/benches/example-bench.toml").read_text()
+    example = load_profile(REPO / "fixtures/benches/example-bench.toml")
+    assert example.target == "emulator" and example.faults == {}
+    assert "192.168." not in text and "PLC-IP" in text and "RELAY-MODULE-IP" in text
+    edited = text.replace('# target = "fatek+tcp://PLC-IP:500"', 'target = "fatek+tcp://PLC-IP:500"')
+    for line in ("[faults.sensor_break]", 'kind = "modbus-coil"\n', "target = \"modbus+tcp://RELAY-MODULE-IP",
+                 "first_coil = 0", "coils = "):  # the sensor-break rig's keys, as its comment says
+        edited = edited.replace("# " + line, line, 1)
+    (tmp_path / "mine.toml").write_text(edited)
+    mine = load_profile(tmp_path / "mine.toml")
+    assert mine.target == "fatek+tcp://PLC-IP:500" and mine.station == 1
+    assert mine.faults["sensor_break"]["coils"] and "RELAY-MODULE-IP" in mine.faults["sensor_break"]["target"]
+
+
+@pytest.mark.parametrize("bench, says", [
+    ({"station": 3, "target": "fatek+tcp://h:500?station=1"}, "station = 3, but [bench] target says station=1"),
+    ({"station": 2, "target": "modbus+tcp://h:502?unit=5"}, "station = 2, but [bench] target says unit=5"),
+    ({"target": "fatek+tcp://h:500?station=0"}, "station=0 must be 1–254"),
+])
+def test_a_profile_naming_two_stations_is_refused(bench, says):
+    with pytest.raises(ProfileError, match=re.escape(says)):
+        profile_from_dict({"bench": {"name": "b", **bench}})
+
+
+def test_the_station_comes_from_one_place():
+    """[bench] station, else the target's ?station=/?unit=, else 1; every wire then carries it."""
+    from hil.bench.profile import plc_target
+    assert profile_from_dict({"bench": {"name": "b", "target": "fatek+tcp://h:500?station=7"}}).station == 7
+    profile = profile_from_dict({"bench": {"name": "b", "station": 3, "target": "modbus+tcp://h:502"}})
+    assert plc_target(profile).params["unit"] == 3
+    assert plc_target(profile, "modbus+tcp://h:502?timeout=1").params == {"timeout": 1.0, "unit": 3}
+    assert plc_target(profile, "emulator+modbus-tcp").params == {}  # the emulator answers as the profile's station
 
 
 def test_can_write_checks_whole_elements():

@@ -64,10 +64,13 @@ def test_an_independent_client_reads_and_writes_the_emulators_v_memory(served):
         client.disconnect()
 
 
-def test_an_independent_client_sees_the_clock_buffer_the_suites_see(served):
+def test_an_independent_client_sees_the_clock_buffer_the_suites_see(served, tmp_path):
     emulator, host, port = served
-    profile = load_profile(S7_BENCH)
-    bench = open_bench(profile, target=f"s7+tcp://{host}:{port}")  # hil's path: the bench over the S7 wire
+    url = f"s7+tcp://{host}:{port}"
+    mine = tmp_path / "s7.toml"  # a bench's profile for that CPU (a PLC runs only with a profile naming it)
+    mine.write_text(S7_BENCH.read_text().replace('target = "emulator+s7-tcp"', f'target = "{url}"', 1))
+    profile = load_profile(mine)
+    bench = open_bench(profile, target=url)  # hil's path: the bench over the S7 wire
     try:
         result = bench.plc.rtc.read()
         assert result.accepted

@@ -13,7 +13,7 @@ import re
 
 import hashlib
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Callable
@@ -23,7 +23,9 @@ from hil.bench.family import Family, default_family, families, family as family_
 from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
 from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError, TargetError
-from hil.io.url import parse_target
+from hil.core.lock import lock_key
+from hil.core.registry import PROTOCOLS, SCHEMES
+from hil.io.url import Target, parse_target
 from hil.bench.lab.resolve import Lab
 from hil.sim.wire_faults import KINDS, check_rates
 from hil.sim.pacing import LineRate
@@ -182,7 +184,8 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     bench = reader.table(data, "bench")
     name = reader.take(bench, "bench", "name", str, required=True)
     target = reader.take(bench, "bench", "target", str, "emulator", check=_check_target)
-    station = reader.take(bench, "bench", "station", int, 1, check=lambda v: 1 <= v <= 254 or "must be 1–254")
+    stated = reader.take(bench, "bench", "station", int, None, check=_check_station)
+    station = _one_station(where, parse_target(target), stated)
     time_scale = reader.take(bench, "bench", "time_scale", float, 1.0, check=lambda v: v > 0 or "must be > 0")
     settle = reader.take(bench, "bench", "settle_scans", int, 2, check=lambda v: v >= 1 or "must be ≥ 1")
     timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
@@ -257,13 +260,86 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
                    history_url=history_url)
 
 
+def _check_station(value: int) -> bool | str:
+    return 1 <= value <= 254 or "must be 1–254"
+
+
+def address_param(target: Target) -> str | None:
+    """The query parameter that names the PLC on ``target``'s wire (FATEK ``station``, Modbus ``unit``), None where
+    the URL takes none (an ``emulator…`` target: its emulator answers as the profile's station; S7's rack/slot)."""
+    protocol = PROTOCOLS.get(target.protocol)
+    param = protocol.address_param if protocol is not None else None
+    return param if param in SCHEMES[target.scheme].params else None
+
+
+def _one_station(where: str, target: Target, stated: int | None) -> int:
+    """The PLC's station: ``[bench] station``, else the one ``[bench] target`` names (``?station=``/``?unit=``),
+    else 1.  Both, and different: the profile names two PLCs."""
+    param = address_param(target)
+    in_url = url_station(target)
+    if in_url is None:
+        return stated if stated is not None else 1
+    if _check_station(in_url) is not True:
+        raise ProfileError(f"{where}: [bench] target {target}: {param}={in_url} must be 1–254")
+    if stated is not None:
+        _agree(where, stated, f"[bench] target says {param}={in_url}", in_url)
+    return in_url
+
+
+def url_station(target: Target) -> int | None:
+    """The station (or unit) ``target``'s URL names itself, None when it names none."""
+    param = address_param(target)
+    given = target.params.get(param) if param is not None else None
+    return int(given) if given is not None else None  # type: ignore[call-overload]
+
+
+def _agree(where: str, station: int, said: str, other: int) -> None:
+    if other != station:
+        raise ProfileError(f"{where}: [bench] station = {station}, but {said}: one PLC has one station — make them "
+                           f"agree (or leave it out of the URL: the profile's station is used on every wire)")
+
+
+def plc_target(profile: Profile, url: str | None = None) -> Target:
+    """The PLC a run or a command on ``profile`` reaches, for every wire and command alike: ``url`` (default: the
+    profile's target) addressed at the profile's station (FATEK ``station``, Modbus ``unit``) — on a multidrop
+    line station 1 is somebody else's PLC.  A URL naming a PLC must be one the profile names (its allow-list and
+    switches are that bench's), and a URL naming a station must name the profile's."""
+    target = parse_target(url if url is not None else profile.target)
+    if url is not None and not target.in_process:
+        _refuse_unnamed(profile, target)
+    param, given = address_param(target), url_station(target)
+    if param is None:
+        return target
+    if given is not None:
+        _agree(_where(profile), profile.station, f"target {target} says {param}={given}", given)
+    return replace(target, params={**target.params, param: profile.station})
+
+
+def _refuse_unnamed(profile: Profile, target: Target) -> None:
+    """A PLC only ever with a profile that names it: not the emulator's (RUN/STOP allowed, broad writable ranges),
+    nor another bench's (its allow-list is for another machine)."""
+    own = parse_target(profile.target)
+    if own.in_process:
+        raise ProfileError(f"target {target} names a PLC, and the profile {_where(profile)} is for the emulator "
+                           f"(target = {profile.target!r}): its allow-list and switches are not that PLC's — pass "
+                           f"--bench with a profile whose [bench] target is that PLC (`hil init {target}` writes one)")
+    if lock_key(str(own)) != lock_key(str(target)):
+        raise ProfileError(f"target {target} is not the PLC the profile {_where(profile)} names ({profile.target}): "
+                           f"its allow-list and switches are that bench's — pass --bench with a profile whose [bench] "
+                           f"target is {target} (`hil init {target}` writes one)")
+
+
+def _where(profile: Profile) -> str:
+    return str(profile.path) if profile.path is not None else repr(profile.name)
+
+
 def refuse_default_for_a_plc(target: str | None, bench: str | None, default: Path | str) -> None:
     """No --bench and a --target naming a PLC (not an ``emulator…`` target): refuse the default profile, which is
     the emulator's (RUN/STOP allowed, broad writable ranges), rather than let it loose on somebody's machine."""
     if target and not bench and not parse_target(target).in_process:
         raise ProfileError(f"--target {target} names a PLC, and no --bench profile was given: the default profile "
                            f"({default}) is the emulator's (RUN/STOP allowed, broad writable ranges) — pass --bench "
-                           f"with a profile for this PLC (see fixtures/benches/example-bench.toml)")
+                           f"with a profile for this PLC (`hil init {target}` writes one)")
 
 
 def _check_overlap(plugin: Family, safety: Safety, where: str) -> None:

@@ -9,6 +9,7 @@ placeholders saying what to fill in.  Nothing is overwritten unless ``--force``.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -158,7 +159,8 @@ def test_every_point_reads_a_temperature(temperature: Temperature) -> None:
 def init(target: str, directory: Path, console: Console, *, name: str | None = None, table: str | None = None,
          time_scale: float = 1.0, force: bool = False) -> int:
     profile, test = directory / "bench.toml", directory / "tests" / "test_first.py"
-    existing = [p for p in (profile, test) if p.exists()]
+    _refuse_links(profile, test)
+    existing = [p for p in (profile, test) if os.path.lexists(p)]
     if existing and not force:
         raise InvalidValue(f"{', '.join(map(str, existing))} already exist{'s' if len(existing) == 1 else ''}: "
                            f"pass --force to overwrite")
@@ -173,8 +175,8 @@ def init(target: str, directory: Path, console: Console, *, name: str | None = N
         found = read_plc(opened.transport, table)
     name = name or f"bench at {target}"
     test.parent.mkdir(parents=True, exist_ok=True)
-    profile.write_text(render_profile(name, target, found, time_scale))
-    test.write_text(FIRST_TEST.format(name=name, profile=profile.name, test=test.relative_to(directory)))
+    _write(profile, render_profile(name, target, found, time_scale), force)
+    _write(test, FIRST_TEST.format(name=name, profile=profile.name, test=test.relative_to(directory)), force)
     console.print(f"wrote {profile} and {test}")
     for note in found.notes:
         console.print(f"  note: {note}")
@@ -182,6 +184,28 @@ def init(target: str, directory: Path, console: Console, *, name: str | None = N
     console.print(f"next: {here}hil run --bench {profile.name} -- tests; then the bundled suites: "
                   f"hil run --bench {profile.name}")
     return 0
+
+
+def _refuse_links(*paths: Path) -> None:
+    """A symbolic link where init writes, dangling or not, would have it write wherever the link points (another
+    user's file, a system file): refused, with or without --force."""
+    for path in paths:
+        if path.is_symlink():
+            raise InvalidValue(f"{path} is a symbolic link (to {os.readlink(path)}): hil init writes no file through "
+                               f"one — remove the link, or pass --dir with a directory of your own")
+
+
+def _write(path: Path, text: str, force: bool) -> None:
+    """Write ``path`` itself, never through a link planted there since the check (O_NOFOLLOW; without ``force``
+    only a file that does not exist yet, O_EXCL)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | (os.O_TRUNC if force else os.O_EXCL)
+    try:
+        fd = os.open(path, flags, 0o666)  # the umask cuts it, as for any file the user writes
+    except OSError as exc:
+        raise InvalidValue(f"cannot write {path}: {exc.strerror} — hil init writes only a plain file of its own "
+                           f"there (no symbolic link; an existing file only with --force)") from None
+    with os.fdopen(fd, "w", encoding="utf-8") as out:
+        out.write(text)
 
 
 def _q(text: str) -> str:

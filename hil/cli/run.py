@@ -90,8 +90,21 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
     return args + extra
 
 
+def given(extra: list[str], option: str) -> str | None:
+    """The value the pytest arguments give ``option`` (``--target URL`` or ``--target=URL``; the last, as pytest
+    takes it), None when they do not name it."""
+    found = None
+    for n, arg in enumerate(extra):
+        if arg == option and n + 1 < len(extra):
+            found = extra[n + 1]
+        elif arg.startswith(option + "="):
+            found = arg.partition("=")[2]
+    return found
+
+
 def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: object) -> int:
-    refuse_default_for_a_plc(target, bench, default_bench())  # before pytest is given the default by name
+    # before pytest is given the default by name; `hil run -- --target URL` names a PLC as much as --target does
+    refuse_default_for_a_plc(given(extra, "--target") or target, given(extra, "--bench") or bench, default_bench())
     Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
     for own in (junitxml, options.get("html")):  # an earlier run's result must not pass for this one's, even if
         if own:  # this one dies before its reports say INCOMPLETE (hil.plugin.reporting.verdict)

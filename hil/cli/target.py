@@ -16,7 +16,7 @@ from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.plugin import FAMILY as FBS
 from hil.families.fbs.sim.build import build_emulator
 from hil.core.errors import HilError, InvalidValue
-from hil.bench.profile import Profile, load_profile
+from hil.bench.profile import Profile, load_profile, plc_target
 from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
@@ -53,7 +53,8 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
                        f"it, hil run --bench {bench} runs its suites")
     if url is None and given is None:  # as hil run: the default profile's target, the emulator
         given = load_profile(default_bench())
-    target = parse_target(url if url is not None else given.target)
+    # a profile's PLC at its station (and a URL the profile does not name refused); a bare URL as it stands
+    target = plc_target(given, url) if given is not None else parse_target(url or "")
     profile = given if given is not None or not target.in_process else load_profile(default_bench())
     epoch = dt.datetime.now().replace(microsecond=0)
     factory = None

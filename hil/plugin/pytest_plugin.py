@@ -39,7 +39,7 @@ from hil.core.lock import describe_holder, BenchLock, plc_key
 from hil.plugin.preflight import unreachable
 from hil.core.signals import shielded
 from hil.bench.view import suite_view
-from hil.bench.profile import refuse_default_for_a_plc
+from hil.bench.profile import plc_target, refuse_default_for_a_plc
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
@@ -145,9 +145,11 @@ class BenchSession:
             self.dead = self.recovery.summary()
 
     def _refuse_default_profile(self) -> None:
-        """The bundled profile is the emulator's: never for a PLC named by --target alone."""
+        """The bundled profile is the emulator's: never for a PLC named by --target alone; and a PLC only ever
+        with a profile that names it, at its station (before any lock is taken or byte sent)."""
         refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
                                  self.profile.path)
+        plc_target(self.profile, self.config.getoption("--target"))
 
     def _lock_bench(self) -> None:
         """Two runs must not interleave on one real bench (an in-process emulator is each run's own)."""

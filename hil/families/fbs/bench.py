@@ -14,7 +14,7 @@ from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs import registers as reg
 from hil.bench.base import BenchBase
-from hil.bench.profile import Profile
+from hil.bench.profile import Profile, plc_target
 from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
@@ -22,7 +22,7 @@ from hil.families.fbs.identity import read_identity
 from hil.families.fbs.recovery import rig_steps, rig_targets
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.bench.view import guarded_io
-from hil.io.url import Target, parse_target
+from hil.io.url import Target
 from hil.families.fbs.faults import Faults
 from hil.families.fbs.sim.build import build_emulator
 from hil.sim.wire_faults import WireFaults
@@ -40,7 +40,7 @@ class Bench(BenchBase[FbsPlc, Transport]):
                  lane: str | None = None) -> None:
         self.profile = profile
         self.lane = lane  # one lane of a run with lanes (hil.plugin.lanes): its own journal
-        self.target: Target = parse_target(target or profile.target)
+        self.target: Target = plc_target(profile, target or None)  # at the profile's station, on every wire
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
         if emulator_builder is None:

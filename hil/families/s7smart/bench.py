@@ -12,7 +12,7 @@ from typing import Callable
 
 from hil.core.errors import HilError, TargetError
 from hil.bench.base import BenchBase
-from hil.bench.profile import Profile
+from hil.bench.profile import Profile, plc_target
 from hil.families.s7smart import faces
 from hil.families.s7smart.address import parse_s7_range
 from hil.families.s7smart.device.plc import S7Plc
@@ -22,7 +22,7 @@ from hil.bench.view import guarded_io
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
 from hil.core.timebase import Timebase, timebase_for
-from hil.io.url import Target, parse_target
+from hil.io.url import Target
 from hil.families.s7smart.sim.serve_modbus import start_s7_modbus_tcp
 from hil.families.s7smart.transport.s7wire import DEFAULT_PORT, SnapS7Io
 from hil.families.s7smart.sim.serve_s7 import start_s7_server
@@ -100,7 +100,7 @@ class S7Bench(BenchBase[S7Plc, S7Io]):
         self.lane = lane  # one lane of a run with lanes (hil.plugin.lanes): its own journal
         self.settings: S7Settings = profile.sections["s7"]
         self.layout: S7RtcLayout | None = profile.sections.get("s7rtc")
-        self.target: Target = parse_target(target or profile.target)
+        self.target: Target = plc_target(profile, target or None)  # at the profile's unit, on every wire
         self.allow_destructive = allow_destructive or profile.safety.allow_destructive
         epoch = dt.datetime.now().replace(microsecond=0)
         if emulator_builder is None:
