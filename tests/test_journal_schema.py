@@ -74,8 +74,10 @@ def test_a_written_value_is_recorded_before_each_write_and_the_first_original_ke
 
 def test_enable_states_keep_the_first_and_leave_only_when_dropped(tmp_path):
     journal = Journal("tcp://127.0.0.1:500", tmp_path)
-    journal.add_enable_states({"M1001": True})
-    journal.add_enable_states({"M1001": False, "M1002": False})
+    journal.add_enable_states({"M1001": True}, {"M1001": False})
+    journal.add_enable_states({"M1001": False, "M1002": False}, {"M1001": True, "M1002": True})
     assert Journal("tcp://127.0.0.1:500", tmp_path).enable_states() == {"M1001": True, "M1002": False}
+    # what command 42 set, as for a written value: the last, and the one before it (issue 40, item 6)
+    assert jmod.run_left(journal.data["enable"]["M1001"]) == [True, False]
     journal.drop_enable_states(["M1001", "M1002"])
     assert not journal.path.exists()

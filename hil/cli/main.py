@@ -173,7 +173,12 @@ def build_parser() -> argparse.ArgumentParser:
                                     "  hil restore --show fatek+tcp://192.168.1.5\n")
     restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
     restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
-    restore.add_argument("--show", action="store_true", help="only print what is pending; change nothing")
+    restore.add_argument("--show", action="store_true",
+                         help="list every journal (whose, which bench) and, with --bench, what a restore would do "
+                              "with each entry on the PLC as it reads now; write nothing")
+    restore.add_argument("--accept-host-clock", action="store_true",
+                         help="set the PLC's clock from a journal written during another boot of this host, on the "
+                              "host clock as it is now (whether it was stepped since cannot be checked)")
     add_history(sub)
     return parser
 
@@ -391,7 +396,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         return list_all(console)
     if args.command == "restore":
         from hil.cli.restore import restore
-        return restore(args.url, args.bench, console, show=args.show)
+        return restore(args.url, args.bench, console, show=args.show, accept_host_clock=args.accept_host_clock)
     if args.command == "history":
         from hil.cli.history import history
         return history(args, console)
