@@ -20,7 +20,8 @@ A real PLC is somebody's machine.  The guard
   clock — journaled the same way but put back once, when the suite's last test ends, not after every test;
 * :meth:`Guard.recover`: replays what a dead run left in the durable journal, through the same restore (the
   clock exactly, from its journaled wall-clock origin — refused, and said so, when that origin is older than
-  :data:`ORIGIN_MAX_AGE` or the host clock was stepped since: :func:`origin_from_journal`).
+  :data:`ORIGIN_MAX_AGE`, the host clock was stepped since, or it is from another boot of the host and not
+  accepted by hand: :func:`origin_from_journal`).
 
 Elements the PLC itself rewrites every scan (``volatile``) are allowed but not journaled.
 
