@@ -28,8 +28,12 @@ def test_an_unknown_section_refuses_the_file_until_its_kind_is_registered(tmp_pa
     data = json.loads(journal.path.read_text())
     data["forced"] = {"M1": {"disabled": True}}
     journal.path.write_text(json.dumps(data))
+    refused = Journal("tcp://127.0.0.1:500", tmp_path)  # kept as it is, named, and nothing added to it
+    assert "unknown section" in refused.refused and refused.pending
     with pytest.raises(JournalRefused, match="unknown section"):
-        Journal("tcp://127.0.0.1:500", tmp_path)
+        refused.load()
+    with pytest.raises(JournalRefused, match="unknown section.*refusing every write"):
+        refused.add_elements({"R2": 0}, {"R2": 1})
     kind = register_kind(EntryKind("forced", True, lambda e: None, lambda n, e: f"{n} forced", {}))
     try:
         assert any("M1 forced" in line for line in Journal("tcp://127.0.0.1:500", tmp_path).describe())

@@ -123,6 +123,30 @@ def test_a_damaged_lane_journal_is_named_and_the_good_ones_beside_it_restored(pl
         damaged.unlink()
 
 
+def test_a_damaged_run_journal_is_named_and_its_lanes_restored(plc, tmp_path, capsys):
+    url, profile = _url(plc), _profile(tmp_path, plc)
+    with _plc(plc) as t:
+        found = t.read("R1001")
+    damaged = _died_writing(profile, {"R1000": 1}).path
+    with _plc(plc) as t:
+        t.write("R1000", 0)
+    _died_writing(profile, {"R1001": found ^ 0x66}, lane="gw0")
+    damaged.write_bytes(b'{"version": 2')
+    try:
+        code, lines = _restore(capsys, url, "--bench", str(profile))
+        text = " ".join(lines)
+        assert code != 0 and str(damaged) in text and "damaged" in text and f"R1001 = {found}" in text, text
+        with _plc(plc) as t:
+            assert t.read("R1001") == found, "the lane's journal replayed"
+        run = _session(tmp_path, profile, "bench.plc.io.write('R1002', 5)")  # nothing goes out over a damaged one
+        assert run.returncode != 0 and str(damaged) in run.stdout, run.stdout
+        with _plc(plc) as t:
+            assert t.read("R1002") == 0
+        assert damaged.read_bytes() == b'{"version": 2', "kept as it is"
+    finally:
+        damaged.unlink()
+
+
 # -- item 10: a host clock step beyond the journal's own bound; another boot ---------------------------------------
 def _killed_with_the_clock_set(profile: Path, **change: float | str) -> Path:
     """A run that set the RTC and was killed; its journal's clock entry then changed as the host's clocks would

@@ -423,9 +423,10 @@ def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
             return None, None, str(exc)
         return None, None, f"the bench journal {path} is refused (unreadable)"
     try:
-        return key, Journal(key, path.parent, lane=lane_of(path)), None
+        journal = Journal(key, path.parent, lane=lane_of(path))
     except JournalError as exc:
         return key, None, str(exc)
+    return (key, None, journal.refused) if journal.refused else (key, journal, None)
 
 
 class Journal:
@@ -442,7 +443,15 @@ class Journal:
         self.plc = plc
         self.test = ""  # the test now running (its node id), written with each entry
         self.failed: str | None = None  # why a save failed: no write may go out after it (this session)
-        self.data = self.load()
+        # why the file on disk cannot be trusted (damaged, another version or bench, not ours): it is kept as it is
+        # — nothing may change it, so no write goes out — and recovery names it while it replays the others (the
+        # lanes' journals beside it); an untrusted bench directory still refuses everything at once
+        self.refused: str | None = None
+        _trusted_dir(self.path.parent)
+        try:
+            self.data = self.load()
+        except JournalRefused as exc:
+            self.refused, self.data = str(exc), _empty(key)
 
     # -- reading ----------------------------------------------------------------------------------------------------
     def load(self) -> dict[str, Any]:
@@ -466,7 +475,8 @@ class Journal:
 
     @property
     def pending(self) -> bool:
-        return _pending(self.data)
+        """Whether anything may be left to put back: entries, or a file that cannot be read (:attr:`refused`)."""
+        return self.refused is not None or _pending(self.data)
 
     def lane_names(self) -> list[str]:
         """The lanes whose journals a run on this PLC left beside this one (each lane process writes its own):
@@ -541,7 +551,10 @@ class Journal:
 
     def _change(self, apply: Callable[[dict[str, Any]], bool], *, adds: bool = True) -> None:
         """Apply ``apply`` to a copy of the data, save the copy, and only then take it.  ``apply`` returns False
-        when nothing changed.  Once a save has failed, nothing more may be added (``adds``)."""
+        when nothing changed.  Once a save has failed, nothing more may be added (``adds``); nothing at all while
+        the file on disk cannot be trusted (:attr:`refused`: saving would replace it)."""
+        if self.refused:
+            raise JournalRefused(f"{self.refused} — refusing every write to the PLC until it is dealt with")
         if adds and self.failed:
             raise JournalError(f"the bench journal {self.path} could not be written earlier in this run "
                                f"({self.failed}) — refusing every later write to the PLC")
