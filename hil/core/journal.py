@@ -29,7 +29,9 @@ The schema (version 2), one JSON object::
      "elements": {NAME: {"original": int, "wrote": int | null, "earlier"?: int, …}},  # wrote null: the PLC's own
      "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null,
                          "earlier"?: bool, …}},
-     "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float, …},
+     "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float,      # the host's wall clock, and
+                         "boot"?: id, "since_boot"?: seconds,                 # its boot clock read with it:
+                         "width"?: seconds, "spread"?: seconds, …},           # how well each is known
      "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
      "disabled": [NAME, …],                                             # bits command 42 disabled
      "enable":   {NAME: {"disabled": bool, "wrote": bool, "earlier"?: bool, …}}}  # command 43 before 42, and

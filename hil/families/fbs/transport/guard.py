@@ -13,7 +13,7 @@ not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.R
 
 from __future__ import annotations
 
-from typing import Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 from hil.bench.guard import GuardedLink
 from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
@@ -262,11 +262,11 @@ class GuardedTransport(GuardedLink):
                 why = "not in the profile's [safety] writable"
             if why is None and (act is None or read is None):
                 why = f"{self.inner.description} has no commands 42/43"
-            if why:
+            if why or bit is None or read is None:
                 report.refused.append(f"enable state of {name}: {why}")
                 continue
             try:
-                decision = self._bit_verdict(name, bit, entry, journal.data["elements"].get(name), report)
+                decision = self._bit_verdict(name, bit, entry, journal.data["elements"].get(name), report, read)
             except HilError as exc:
                 report.failures.append(f"enable state of {name}: reading it failed: {exc}")
                 continue
@@ -284,11 +284,12 @@ class GuardedTransport(GuardedLink):
             report.verified.append(f"{name} {state} (read back, command 43)")
             journal.drop_enable_states([name])
 
-    def _bit_verdict(self, name: str, bit: Address, entry: dict, element: dict | None, report: Recovery) -> str:
+    def _bit_verdict(self, name: str, bit: Address, entry: dict, element: dict | None, report: Recovery,
+                     read: Callable[[Address, int], list[int]]) -> str:
         """What recovery does with a bit's enable state (:func:`still_the_runs`): the state the run set is the
         run's only while the bit's value is not changed since either (an operator who forced the bit at another
         value forced it: both are left) — a CHANGED one is reported here."""
-        disabled, value = bool(self.inner.read_disabled(bit, 1)[0]), self.read_originals([bit])[0]
+        disabled, value = bool(read(bit, 1)[0]), self.read_originals([bit])[0]
         decision = still_the_runs(disabled, entry["disabled"], run_left(entry))
         touched = element is not None and ELEMENTS.check(element) is None and still_the_runs(
             value, element["original"], run_left(element) if element["wrote"] is not None else None) == CHANGED
