@@ -62,28 +62,20 @@ class Recovery:
     def ok(self) -> bool:
         return not (self.failures or self.refused or self.changed)
 
-    def outcomes(self) -> list[str]:
-        """What became (``show``: would become) of the entries, one part per kind of outcome."""
-        parts = []
-        if self.planned:
-            parts.append("would restore (if it still reads so then): " + "; ".join(self.planned))
-        if self.verified:
-            parts.append(("already back (read): " if self.show else "restored and verified (read back): ")
-                         + "; ".join(self.verified))
-        if self.notes:
-            parts.append(("would drop: " if self.show else "dropped: ") + "; ".join(self.notes))
-        if self.changed:
-            parts.append("changed since — left: " + "; ".join(self.changed))
-        if self.refused:
-            parts.append("refused: " + "; ".join(self.refused))
-        if self.failures:
-            parts.append(("cannot tell: " if self.show else "restore failed: ") + "; ".join(self.failures))
-        return parts
+    def sections(self) -> list[tuple[str, list[str]]]:
+        """What became (``show``: would become) of the entries: (what, the entries' lines), by kind of outcome."""
+        show = self.show
+        return [("would restore", self.planned),
+                ("already back (read)" if show else "restored and verified (read back)", self.verified),
+                ("would drop" if show else "dropped", self.notes),
+                ("changed since — left", self.changed),
+                ("refused", self.refused),
+                ("cannot tell (reading it failed)" if show else "restore failed", self.failures)]
 
     def summary(self) -> str:
         if not self.needed:
             return f"hil bench recovery: nothing pending for {self.bench}"
-        parts = self.outcomes()
+        parts = [f"{what}: " + "; ".join(lines) for what, lines in self.sections() if lines]
         if self.ok:
             return (f"hil bench recovery: a previous run on {self.bench}{self._whose()} died leaving "
                     f"{len(self.pending)} entry(s) — " + " — ".join(parts))

@@ -170,6 +170,8 @@ def build_parser() -> argparse.ArgumentParser:
                                          "that PLC replays it first. This does it by hand, holding the bench lock.",
                              epilog="examples:\n  hil restore --bench my-bench.toml\n"
                                     "  hil restore --show                 (every bench's pending journal)\n"
+                                    "  hil restore --show --bench my-bench.toml   (and what a restore would do, "
+                                    "read from the PLC)\n"
                                     "  hil restore --show fatek+tcp://192.168.1.5\n")
     restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
     restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")

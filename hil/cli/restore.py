@@ -123,11 +123,9 @@ def _plan(profile: Profile, target: str, say) -> dict[Path, "Recovery"]:  # noqa
 
 def _items(report: "Recovery") -> Iterator[tuple[str, str]]:
     """One line per entry of a ``show`` report: what a restore would do with it."""
-    for label, items in (("would restore", report.planned), ("already back", report.verified),
-                         ("would drop", report.notes), ("changed since — left", report.changed),
-                         ("refused", report.refused), ("cannot tell (reading it failed)", report.failures)):
-        for item in items:
-            yield label, item
+    for what, lines in report.sections():
+        for line in lines:
+            yield what, line
 
 
 def _header(path: Path, key: str, journal: "Journal") -> str:
