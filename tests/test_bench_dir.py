@@ -202,9 +202,10 @@ def test_a_journal_an_earlier_hil_left_in_the_state_directory_is_not_forgotten(t
     old = Path(os.environ["HIL_STATE_DIR"]) / new.name
     old.parent.mkdir(parents=True, exist_ok=True)
     old.write_text("{}")
-    with pytest.raises(JournalRefused) as info:
-        Journal(key)
-    assert str(old) in str(info.value) and f"mv {old} {new}" in str(info.value)
+    journal = Journal(key)  # refused as a whole: pending, named by recovery, and nothing written over it
+    assert journal.pending and str(old) in journal.refused and f"mv {old} {new}" in journal.refused
+    with pytest.raises(JournalRefused, match="refusing every write"):
+        journal.add_elements({"R1": 0}, {"R1": 1})
 
 
 def test_hil_restore_refuses_a_world_writable_bench_directory(tmp_path):

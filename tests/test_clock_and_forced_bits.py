@@ -168,8 +168,11 @@ def test_an_origin_older_than_the_limit_or_from_the_future_is_refused():
     timebase = HostTimebase()
     origin = origin_from_journal(_entry(now.wall - 100.25, boot="b", since_boot=399.75), timebase, now)
     assert abs(origin.original(timebase) - dt.datetime(2026, 1, 1, 0, 1, 40, 250000)) < dt.timedelta(seconds=0.01)
-    # another boot: nothing to compare with but the age
-    assert origin_from_journal(_entry(now.wall - 3700, boot="a", since_boot=400.0), timebase, now)
+    # another boot: nothing to compare with but the age — only a person can accept it (issue 40, item 10)
+    with pytest.raises(OriginRefused, match="another boot.*--accept-host-clock"):
+        origin_from_journal(_entry(now.wall - 3700, boot="a", since_boot=400.0), timebase, now)
+    assert origin_from_journal(_entry(now.wall - 3700, boot="a", since_boot=400.0), timebase, now,
+                               accept_host_clock=True)
 
 
 # -- item 7: forced bits stay forced --------------------------------------------------------------------------
@@ -228,10 +231,10 @@ def test_forced_bits_stay_forced_after_a_crash_and_recovery(profile):
 def test_an_enable_state_that_cannot_be_journaled_is_not_kept_in_memory_either(tmp_path):
     journal = Journal("tcp://127.0.0.1:500", tmp_path / "gone")  # its directory does not exist: no save succeeds
     with pytest.raises(JournalError):
-        journal.add_enable_states({"M1001": True})
+        journal.add_enable_states({"M1001": True}, {"M1001": False})
     assert journal.enable_states() == {} and not journal.pending  # so the next try saves it again, or fails again
     with pytest.raises(JournalError):
-        journal.add_enable_states({"M1001": True})
+        journal.add_enable_states({"M1001": True}, {"M1001": False})
 
 
 def test_a_bit_action_that_cannot_be_journaled_is_not_sent(tmp_path):

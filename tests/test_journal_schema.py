@@ -28,8 +28,12 @@ def test_an_unknown_section_refuses_the_file_until_its_kind_is_registered(tmp_pa
     data = json.loads(journal.path.read_text())
     data["forced"] = {"M1": {"disabled": True}}
     journal.path.write_text(json.dumps(data))
+    refused = Journal("tcp://127.0.0.1:500", tmp_path)  # kept as it is, named, and nothing added to it
+    assert "unknown section" in refused.refused and refused.pending
     with pytest.raises(JournalRefused, match="unknown section"):
-        Journal("tcp://127.0.0.1:500", tmp_path)
+        refused.load()
+    with pytest.raises(JournalRefused, match="unknown section.*refusing every write"):
+        refused.add_elements({"R2": 0}, {"R2": 1})
     kind = register_kind(EntryKind("forced", True, lambda e: None, lambda n, e: f"{n} forced", {}))
     try:
         assert any("M1 forced" in line for line in Journal("tcp://127.0.0.1:500", tmp_path).describe())
@@ -74,8 +78,10 @@ def test_a_written_value_is_recorded_before_each_write_and_the_first_original_ke
 
 def test_enable_states_keep_the_first_and_leave_only_when_dropped(tmp_path):
     journal = Journal("tcp://127.0.0.1:500", tmp_path)
-    journal.add_enable_states({"M1001": True})
-    journal.add_enable_states({"M1001": False, "M1002": False})
+    journal.add_enable_states({"M1001": True}, {"M1001": False})
+    journal.add_enable_states({"M1001": False, "M1002": False}, {"M1001": True, "M1002": True})
     assert Journal("tcp://127.0.0.1:500", tmp_path).enable_states() == {"M1001": True, "M1002": False}
+    # what command 42 set, as for a written value: the last, and the one before it (issue 40, item 6)
+    assert jmod.run_left(journal.data["enable"]["M1001"]) == [True, False]
     journal.drop_enable_states(["M1001", "M1002"])
     assert not journal.path.exists()

@@ -45,8 +45,9 @@ READINGS = {f"R{n}" for n in range(3020, 3052)}  # the temperature readings: mea
 NEXT_SESSION = "def test_next_session(bench):\n    pass\n"
 
 
-def snapshot(target: str, rig: str) -> dict[str, object]:
-    """Everything a run could leave changed, read over the wire."""
+def snapshot(target: str, rig: str, time_scale: float = TIME_SCALE) -> dict[str, object]:
+    """Everything a run could leave changed, read over the wire (the PLC's clock as its offset from host time, on
+    an emulator running at ``time_scale``)."""
     from pymodbus.client import ModbusTcpClient
     out: dict[str, object] = {}
     with open_transport(parse_target(target), timeout=2.0) as t:
@@ -64,8 +65,8 @@ def snapshot(target: str, rig: str) -> dict[str, object]:
         asked = time.time()
         plc = RtcTime.from_registers(t.read_words("R4128", 7)).to_datetime()
         answered = time.time()
-        out["rtc offset"] = (plc - dt.datetime(1970, 1, 1)).total_seconds() - (asked + answered) / 2 * TIME_SCALE
-        out["rtc offset ±"] = (answered - asked) / 2 * TIME_SCALE + 1  # the read's bracket and the whole second
+        out["rtc offset"] = (plc - dt.datetime(1970, 1, 1)).total_seconds() - (asked + answered) / 2 * time_scale
+        out["rtc offset ±"] = (answered - asked) / 2 * time_scale + 1  # the read's bracket and the whole second
     host, port = rig.rsplit(":", 1)
     client = ModbusTcpClient(host, port=int(port))
     assert client.connect()
@@ -77,13 +78,13 @@ def snapshot(target: str, rig: str) -> dict[str, object]:
     return out
 
 
-def differences(before: dict, after: dict, moving: set[str]) -> list[str]:
+def differences(before: dict, after: dict, moving: set[str], time_scale: float = TIME_SCALE) -> list[str]:
     diff = [f"{k}: {before[k]} → {after[k]}" for k in before
             if k not in moving and k not in RTC_NAMES and not k.startswith("rtc offset") and before[k] != after[k]]
     # the clock: its offset from host time kept, within what the two readings can tell (their brackets) and what a
     # restore may lose (a few of the run's round trips: 3 host seconds' worth, far from a clock left where a test
     # set it)
-    if abs(after["rtc offset"] - before["rtc offset"]) > before["rtc offset ±"] + after["rtc offset ±"] + 3 * TIME_SCALE:
+    if abs(after["rtc offset"] - before["rtc offset"]) > before["rtc offset ±"] + after["rtc offset ±"] + 3 * time_scale:
         diff.append(f"RTC offset from host time moved by {after['rtc offset'] - before['rtc offset']:.0f} s")
     return diff
 

@@ -420,7 +420,7 @@ def test_an_out_of_range_value_blocks_no_other_entry(plc, tmp_path, capsys):
     with _plc(plc) as t:
         t.write("R1001", 9)
     code, lines = _restore(capsys, "--show", "--bench", str(_profile(tmp_path, plc)))
-    assert any("R1001" in line and "still reads 9" in line for line in lines), lines
+    assert any("would restore: R1001 to 0 (reads 9, as the run left it)" in line for line in lines), lines
     code, lines = _restore(capsys, url, "--bench", str(_profile(tmp_path, plc)))
     text = " ".join(lines)
     assert code == 1 and "R1001 = 0" in text and "R1000: malformed: value 70000" in text, lines
@@ -587,7 +587,7 @@ def test_an_operators_forced_bit_stays_forced_after_recovery(plc, tmp_path, caps
     url = _url(plc)
     key = lock_key(url)
     journal_path(key).write_text(json.dumps(_journal(key, plc, enable={
-        "M1001": _stamp({"disabled": True}), "M1002": _stamp({"disabled": False})})))
+        "M1001": _stamp({"disabled": True, "wrote": False}), "M1002": _stamp({"disabled": False, "wrote": True})})))
     with _plc(plc) as t:
         t.bit_action("M1002", 1)  # the dead run disabled M1002 and enabled M1001
     try:

@@ -104,9 +104,11 @@ class BenchBase(Generic[PlcT, LinkT]):
         """Which PLC the wire reaches, as far as it can tell (None: it cannot); the family's."""
         return None
 
-    def recover(self, *, by_hand: bool = False) -> Recovery | None:
-        """Replay what a dead run left in this PLC's journal — before anything else, with the lock held."""
-        return self.io.recover(self.recovery_steps, by_hand=by_hand)
+    def recover(self, *, by_hand: bool = False, show: bool = False,
+                accept_host_clock: bool = False) -> Recovery | None:
+        """Replay what a dead run left in this PLC's journal — before anything else, with the lock held (``show``:
+        only say what it would do; :meth:`hil.bench.guard.Guard.recover`)."""
+        return self.io.recover(self.recovery_steps, by_hand=by_hand, show=show, accept_host_clock=accept_host_clock)
 
     # -- a suite's working state (hil.plugin.working_state) ---------------------------------------------------
     def working_state(self, kinds: Sequence[str]) -> tuple[list, bool]:

@@ -20,7 +20,8 @@ A real PLC is somebody's machine.  The guard
   clock — journaled the same way but put back once, when the suite's last test ends, not after every test;
 * :meth:`Guard.recover`: replays what a dead run left in the durable journal, through the same restore (the
   clock exactly, from its journaled wall-clock origin — refused, and said so, when that origin is older than
-  :data:`ORIGIN_MAX_AGE` or the host clock was stepped since: :func:`origin_from_journal`).
+  :data:`ORIGIN_MAX_AGE`, the host clock was stepped since, or it is from another boot of the host and not
+  accepted by hand: :func:`origin_from_journal`).
 
 Elements the PLC itself rewrites every scan (``volatile``) are allowed but not journaled.
 
@@ -42,7 +43,7 @@ from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
 from hil.core.link import Link
 from hil.io.status import PlcStatus
 from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
-from hil.core.journal import CLOCK, Journal, JournalError
+from hil.core.journal import CLOCK, COILS, Journal, JournalError, journal_path
 from hil.core.timebase import HostClocks, Timebase
 
 T = TypeVar("T")
@@ -67,10 +68,8 @@ class Clock:
 #: recovery refuses a journaled clock origin older than this (host seconds): carried further, the host clock's
 #: steps across reboots (which nothing can detect) and the PLC crystal's own drift make its offset a guess
 ORIGIN_MAX_AGE = 24 * 3600.0
-#: how far the host's wall clock and its boot clock may disagree about the time since an origin (seconds, plus
-#: NTP's largest slew of 500 ppm) before the host clock counts as stepped
-ORIGIN_SLACK = 0.1
-_SLEW = 5e-4
+#: what a float's reading of the host clocks can tell apart (s): below the spread of any two reads
+CLOCK_RESOLUTION = 1e-6
 
 
 @dataclass(frozen=True)
@@ -92,26 +91,61 @@ class OriginRefused(HilError):
     """A dead run's clock origin that cannot be carried to now (too old, or the host clock stepped since)."""
 
 
-def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClocks) -> ClockOrigin:
+class HostClockUnproven(OriginRefused):
+    """A dead run's clock origin from another boot of the host (or a host whose boot clock cannot be read): nothing
+    can tell whether its wall clock was stepped since — only a person can accept it (``--accept-host-clock``)."""
+
+
+def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClocks, *,
+                        accept_host_clock: bool = False) -> ClockOrigin:
     """A journaled clock origin (PLC time at host wall time ``host``, ×``scale``) on this session's ``timebase``,
     checked against the host's clocks now: refused when it is in the future, older than :data:`ORIGIN_MAX_AGE`,
-    or — same boot — when the wall clock and the boot clock disagree about the time since (a stepped host clock
-    would move the restored PLC clock with it).  Raises :class:`OriginRefused` saying which."""
+    or when the wall clock and the boot clock disagree about the time since by more than the journal's own
+    measurement allows (:func:`step_bound`: NTP slews both alike, only a step parts them).  From another boot —
+    or where the boot clock cannot be compared — nothing can tell a step: refused (:class:`HostClockUnproven`)
+    unless ``accept_host_clock``.  Raises :class:`OriginRefused` saying which, with the figures."""
     plc, wall, scale = dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]), float(entry["scale"])
     elapsed = host.wall - wall
-    if elapsed < -ORIGIN_SLACK:
-        raise OriginRefused(f"its host time is {-elapsed:.1f} s in the future: the host clock was set back since")
+    bound = step_bound(entry, host)
+    if elapsed < -bound:
+        raise OriginRefused(f"its host time is {-elapsed:.6f} s in the future: the host clock was set back since")
     if elapsed > ORIGIN_MAX_AGE:
         raise OriginRefused(f"it is {elapsed / 3600:.1f} h old (limit {ORIGIN_MAX_AGE / 3600:.0f} h): too long to "
                             f"carry its offset from host time")
     booted = entry.get("since_boot")
-    same_boot = host.boot is not None and entry.get("boot") == host.boot
-    if same_boot and booted is not None and host.since_boot is not None:
+    if host.boot is None or entry.get("boot") != host.boot or booted is None or host.since_boot is None:
+        if not accept_host_clock:
+            raise HostClockUnproven(_unproven(entry, host, elapsed))
+    else:
         passed = host.since_boot - float(booted)
-        if abs(elapsed - passed) > ORIGIN_SLACK + _SLEW * passed:
-            raise OriginRefused(f"the host's wall clock moved {elapsed:+.1f} s since it while {passed:.1f} s passed "
-                                f"(boot clock): the host clock was stepped, so its offset from host time is lost")
+        step = elapsed - passed
+        if abs(step) > bound:
+            raise OriginRefused(f"the host's wall clock moved {elapsed:+.6f} s since it while its boot clock moved "
+                                f"{passed:+.6f} s: the host clock was stepped by {step:+.6f} s, beyond the "
+                                f"±{bound:.6f} s the journal's own measurement allows — its offset from host time "
+                                f"is lost")
     return ClockOrigin(plc, timebase.now() - elapsed * scale, scale)
+
+
+def step_bound(entry: dict[str, Any], host: HostClocks) -> float:
+    """How far the host's wall clock and boot clock may disagree about the time since a journaled origin without
+    a step (s): half the origin's own bracket (``width``, host seconds) and half of each reading's spread of the
+    two host clocks (then and now) — what the journal measured, nothing assumed."""
+    width, spread = entry.get("width", 0.0), entry.get("spread", 0.0)
+    measured = sum(float(v) for v in (width, spread) if isinstance(v, (int, float)) and v >= 0)
+    return (measured + host.spread) / 2 + CLOCK_RESOLUTION
+
+
+def _unproven(entry: dict[str, Any], host: HostClocks, elapsed: float) -> str:
+    if host.boot is None or host.since_boot is None:
+        why = "this host's boot clock cannot be read"
+    elif entry.get("boot") is None or entry.get("since_boot") is None:
+        why = "the journal has no boot clock reading"
+    else:
+        why = f"it was journaled during another boot of this host (boot {entry['boot']}, now {host.boot})"
+    return (f"{why}, so nothing can tell whether the host's wall clock was stepped in the {elapsed:.0f} s since — "
+            f"not set from it; `hil restore --bench FILE --accept-host-clock` sets the PLC's clock from the host "
+            f"clock as it is now, if you know it is right")
 
 
 #: a family's own recovery step (e.g. a fault rig's coils): called with the journal, the report to add to and
@@ -265,8 +299,10 @@ class Guard(ABC):
             timebase = self.clock.timebase
             lag = (timebase.now() - origin.at) / origin.scale  # host seconds since the origin
             host = HostClocks.now()
+            # with what bounds the host clocks' agreement later (step_bound): the origin's bracket, the pair's spread
             self.durable.set_clock(origin.plc, host.wall - lag, origin.scale, boot=host.boot,
-                                   since_boot=None if host.since_boot is None else host.since_boot - lag)
+                                   since_boot=None if host.since_boot is None else host.since_boot - lag,
+                                   width=origin.width / origin.scale, spread=host.spread)
         self.clock_origin = origin
         self.clock_due = True
 
@@ -497,52 +533,67 @@ class Guard(ABC):
                         if got != v], False
 
     # -- recovery first ----------------------------------------------------------------------------------------
-    def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False) -> Recovery | None:
+    def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False, show: bool = False,
+                accept_host_clock: bool = False) -> Recovery | None:
         """Replay what a dead run left in the durable journal (before anything else), as far as it can be proven
         (:mod:`hil.bench.replay`): the family's ``steps`` first, then its actions, the clock (exactly) and the
-        elements — and the same for each journal a run's lanes left beside it (:meth:`Journal.lanes`), each as
-        if it were this run's own.  None without a durable journal (an in-process emulator: nothing outlives a
-        run)."""
+        elements — and the same for each journal a run's lanes left beside it (:meth:`Journal.lane_names`), each
+        as if it were this run's own; a journal that cannot be read is named (refused) and the others still
+        replayed.  ``show``: decide and list only, writing nothing (``hil restore --show``; the family's steps,
+        which read another device, are listed unread).  ``accept_host_clock``: a clock origin from another boot
+        of the host is carried on the host clock as it is (:func:`origin_from_journal`).  None without a durable
+        journal (an in-process emulator: nothing outlives a run)."""
         journal = self.durable
         if journal is None:
             return None
         steps = tuple(steps)
-        report = self._recover_journal(journal, steps, by_hand)
-        for lane in journal.lanes():
+        report = Recovery(journal.key, str(journal.path), show=show)
+        report.merge(self._recover_journal(journal, steps, by_hand, show, accept_host_clock))
+        for name in journal.lane_names():
+            try:
+                lane = journal.lane_journal(name)
+            except JournalError as exc:  # damaged or untrusted: named, kept, and the others still replayed
+                report.merge(Recovery(journal.key, str(journal_path(journal.key, journal.path.parent, name)),
+                                      refused=[str(exc)], show=show))
+                continue
             self.durable = lane  # what the replay drops, it drops from the lane's file
             try:
-                report.merge(self._recover_journal(lane, steps, by_hand))
+                report.merge(self._recover_journal(lane, steps, by_hand, show, accept_host_clock))
             finally:
                 self.durable = journal
         return report
 
-    def _recover_journal(self, journal: Journal, steps: tuple[RecoveryStep, ...], by_hand: bool) -> Recovery:
+    def _recover_journal(self, journal: Journal, steps: tuple[RecoveryStep, ...], by_hand: bool, show: bool,
+                         accept_host_clock: bool) -> Recovery:
         try:
             journal.data = journal.load()
         except JournalError as exc:
-            return Recovery(journal.key, str(journal.path), refused=[str(exc)])
-        report = Recovery(journal.key, str(journal.path), journal.describe(), by=journal.left_by())
+            return Recovery(journal.key, str(journal.path), refused=[str(exc)], show=show)
+        report = Recovery(journal.key, str(journal.path), journal.describe(), by=journal.left_by(), show=show)
         if not journal.pending:
             return report
         mismatch = identity_problem(journal, self.identity_vouched)
         if mismatch:
             report.refused.append(mismatch)
             return report
-        for step in steps:
-            step(journal, report, by_hand)
+        if show:  # a family's step reads (and writes) another device: listed as the journal holds it
+            report.planned += [f"{line} (not read by --show)" for line in journal.describe(COILS)]
+        else:
+            for step in steps:
+                step(journal, report, by_hand)
         with self._lock:
             try:
                 self._recover_actions(journal, report, by_hand)
             except HilError as exc:
                 report.failures.append(f"RUN/STOP and disabled bits: {exc}")
-            self._recover_clock(journal, report, by_hand)
+            self._recover_clock(journal, report, by_hand, accept_host_clock)
             replay_elements(self, journal, report, by_hand)
         return report
 
     def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
         """A family's own entries (e.g. RUN/STOP, disabled bits), each checked and read back, into ``report``."""
 
-    def _recover_clock(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+    def _recover_clock(self, journal: Journal, report: Recovery, by_hand: bool, accept_host_clock: bool) -> None:
         """The clock a dead run may have set, back at its offset from the host's clock (exactly)."""
         entry = journal.clock()
         if entry is None:
@@ -556,11 +607,16 @@ class Guard(ABC):
             report.refused.append(f"clock: {why}")
             return
         try:
-            origin = origin_from_journal(entry, self.clock.timebase, HostClocks.now())
+            origin = origin_from_journal(entry, self.clock.timebase, HostClocks.now(),
+                                         accept_host_clock=accept_host_clock)
         except OriginRefused as exc:  # kept in the journal: only a person can tell the right time now
             report.refused.append(f"clock (original {entry['plc']} at host time {entry['host']:.3f}): its origin is "
                                   f"refused — {exc}; not set. Set the PLC's clock by hand, then remove the "
                                   f"\"clock\" entry from {journal.path}")
+            return
+        if report.show:
+            report.planned.append(f"clock to {origin.original(self.clock.timebase):%Y-%m-%d %H:%M:%S} (its offset "
+                                  f"from host time)")
             return
         self.clock_due = True
         self.clock_origin = origin

@@ -29,7 +29,8 @@ MAX_AGE = 7 * 86400.0  # s: an older entry is not replayed by a run (the PLC has
 
 @dataclass
 class Recovery:
-    """What :meth:`hil.bench.guard.Guard.recover` found in a dead run's journal, and what became of each entry."""
+    """What :meth:`hil.bench.guard.Guard.recover` found in a dead run's journal, and what became of each entry —
+    or, with ``show`` (``hil restore --show``), what it would become: the same decisions, nothing written."""
 
     bench: str
     path: str
@@ -40,37 +41,41 @@ class Recovery:
     failures: list[str] = field(default_factory=list)  # a restore that failed (kept)
     notes: list[str] = field(default_factory=list)  # dropped without a write, and why (volatile)
     by: str = ""  # whose run left the journal (another user's, on a shared bench: :meth:`Journal.left_by`)
+    planned: list[str] = field(default_factory=list)  # ``show``: what a restore would put back (nothing written)
+    show: bool = False  # decide and list only: nothing is written, to the PLC or to the journal
+    parts: list["Recovery"] = field(default_factory=list)  # one per journal (the run's, each lane's), once merged
 
     @property
     def needed(self) -> bool:
         return bool(self.pending or self.refused)
 
     def merge(self, other: "Recovery") -> None:
-        """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lanes`) held."""
+        """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lane_names`) held."""
         if other.needed:
             self.path = f"{self.path}, {other.path}" if self.needed else other.path
             self.by = "; ".join(dict.fromkeys(b for b in (self.by if self.needed else "", other.by) if b))
-        for name in ("pending", "verified", "refused", "changed", "failures", "notes"):
+        for name in ("pending", "verified", "refused", "changed", "failures", "notes", "planned"):
             getattr(self, name).extend(getattr(other, name))
+        self.parts.append(other)
 
     @property
     def ok(self) -> bool:
         return not (self.failures or self.refused or self.changed)
 
+    def sections(self) -> list[tuple[str, list[str]]]:
+        """What became (``show``: would become) of the entries: (what, the entries' lines), by kind of outcome."""
+        show = self.show
+        return [("would restore", self.planned),
+                ("already back (read)" if show else "restored and verified (read back)", self.verified),
+                ("would drop" if show else "dropped", self.notes),
+                ("changed since — left", self.changed),
+                ("refused", self.refused),
+                ("cannot tell (reading it failed)" if show else "restore failed", self.failures)]
+
     def summary(self) -> str:
         if not self.needed:
             return f"hil bench recovery: nothing pending for {self.bench}"
-        parts = []
-        if self.verified:
-            parts.append("restored and verified (read back): " + "; ".join(self.verified))
-        if self.notes:
-            parts.append("dropped: " + "; ".join(self.notes))
-        if self.changed:
-            parts.append("changed by someone since the run (left as they are): " + "; ".join(self.changed))
-        if self.refused:
-            parts.append("not replayed: " + "; ".join(self.refused))
-        if self.failures:
-            parts.append("restore failed: " + "; ".join(self.failures))
+        parts = [f"{what}: " + "; ".join(lines) for what, lines in self.sections() if lines]
         if self.ok:
             return (f"hil bench recovery: a previous run on {self.bench}{self._whose()} died leaving "
                     f"{len(self.pending)} entry(s) — " + " — ".join(parts))
@@ -79,6 +84,27 @@ class Recovery:
 
     def _whose(self) -> str:
         return f" ({self.by}; its journal {self.path})" if self.by else ""
+
+
+#: what recovery does with an entry, from what it holds now (:func:`still_the_runs`)
+BACK, RESTORE, CHANGED = "back", "restore", "changed"
+
+
+def still_the_runs(now: Any, original: Any, left: "list | None") -> str:
+    """The one rule for every entry recovery may put back (an element, a bit's enable state, RUN/STOP): BACK when
+    it holds its original (nothing to write), RESTORE when it still holds what the run left (``left``:
+    :func:`hil.core.journal.run_left`; None for what the PLC rewrote itself, which has no written value), else
+    CHANGED — someone changed it since the run: left as it is, and said."""
+    if now == original:
+        return BACK
+    if left is None or now in left:
+        return RESTORE
+    return CHANGED
+
+
+def changed_line(name: str, now: Any, left: list, original: Any) -> str:
+    """How an entry someone changed since the run is reported."""
+    return f"{name} reads {now}, the run wrote {' or '.join(map(str, left))} (original {original})"
 
 
 def _describe_plc(identity: dict[str, str]) -> str:
@@ -187,7 +213,8 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
             report.refused.append(f"{label}: {verdict.why}")
         elif verdict.action == "drop":
             report.notes.append(f"{label}: {verdict.why}")
-            journal.drop_elements([verdict.name])
+            if not report.show:
+                journal.drop_elements([verdict.name])
         elif guard.causes_side_effects(verdict.element):
             causes.append(verdict)
         else:
@@ -198,7 +225,8 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
 
 
 def _replay(guard: "Guard", journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
-    """One pass of :func:`replay_elements`: read ``checks``, put back those that still hold what the run wrote."""
+    """One pass of :func:`replay_elements`: read ``checks``, put back those that still hold what the run wrote
+    (:func:`still_the_runs`); with ``report.show`` only say so."""
     try:
         now = guard.read_originals([v.element for v in checks])
     except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
@@ -206,14 +234,21 @@ def _replay(guard: "Guard", journal: Journal, report: Recovery, checks: list[Ver
         return
     back, restore = [], []
     for verdict, value in zip(checks, now):
-        original, wrote = verdict.entry["original"], verdict.entry["wrote"]
-        if value == original:
+        original = verdict.entry["original"]
+        left = run_left(verdict.entry) if verdict.entry["wrote"] is not None else None
+        decision = still_the_runs(value, original, left)
+        if decision == BACK:
             back.append(verdict)
-        elif wrote is None or value in run_left(verdict.entry):  # wrote None: the PLC's own, after a run's write
+        elif decision == RESTORE:
             restore.append(verdict)
+            if report.show:
+                report.planned.append(f"{verdict.name} to {original} (reads {value}"
+                                      + (", the PLC's own)" if left is None else ", as the run left it)"))
         else:
-            report.changed.append(f"{verdict.name} reads {value}, the run wrote "
-                                  f"{' or '.join(map(str, run_left(verdict.entry)))} (original {original})")
+            report.changed.append(changed_line(verdict.name, value, left or [], original))
+    if report.show:
+        report.verified += [f"{v.name} = {v.entry['original']}" for v in back]
+        return
     bad = {str(name): why for name, _, why in guard._put_back([(v.element, v.entry["original"]) for v in restore])} \
         if restore else {}
     for verdict in restore:
@@ -225,5 +260,5 @@ def _replay(guard: "Guard", journal: Journal, report: Recovery, checks: list[Ver
     journal.drop_elements(v.name for v in back)
 
 
-__all__ = ["MAX_AGE", "Recovery", "Verdict", "age_problem", "element_verdicts", "identity_problem",
-           "replay_elements"]
+__all__ = ["BACK", "CHANGED", "MAX_AGE", "RESTORE", "Recovery", "Verdict", "age_problem", "changed_line",
+           "element_verdicts", "identity_problem", "replay_elements", "still_the_runs"]

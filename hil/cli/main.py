@@ -170,10 +170,17 @@ def build_parser() -> argparse.ArgumentParser:
                                          "that PLC replays it first. This does it by hand, holding the bench lock.",
                              epilog="examples:\n  hil restore --bench my-bench.toml\n"
                                     "  hil restore --show                 (every bench's pending journal)\n"
+                                    "  hil restore --show --bench my-bench.toml   (and what a restore would do, "
+                                    "read from the PLC)\n"
                                     "  hil restore --show fatek+tcp://192.168.1.5\n")
     restore.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
     restore.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
-    restore.add_argument("--show", action="store_true", help="only print what is pending; change nothing")
+    restore.add_argument("--show", action="store_true",
+                         help="list every journal (whose, which bench) and, with --bench, what a restore would do "
+                              "with each entry on the PLC as it reads now; write nothing")
+    restore.add_argument("--accept-host-clock", action="store_true",
+                         help="set the PLC's clock from a journal written during another boot of this host, on the "
+                              "host clock as it is now (whether it was stepped since cannot be checked)")
     add_history(sub)
     return parser
 
@@ -391,7 +398,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
         return list_all(console)
     if args.command == "restore":
         from hil.cli.restore import restore
-        return restore(args.url, args.bench, console, show=args.show)
+        return restore(args.url, args.bench, console, show=args.show, accept_host_clock=args.accept_host_clock)
     if args.command == "history":
         from hil.cli.history import history
         return history(args, console)

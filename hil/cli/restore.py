@@ -2,15 +2,20 @@
 
 By hand, recovery follows the same rules as a run's (:mod:`hil.bench.replay`: this user's file, this PLC, the
 profile's allow-list and switches, still the value the run wrote), except that it also takes entries older than a
-run would.  ``--show`` changes nothing: it says, for each journal and each entry, what the next run does with it.
+run would, and — with ``--accept-host-clock`` — a clock origin from another boot of the host.  ``--show`` writes
+nothing: it lists every journal it finds (whose, which bench) and, with the PLC's profile, what a restore would do
+with each entry, decided by the very code a restore runs (:meth:`hil.bench.guard.Guard.recover`, ``show``) on
+what the PLC holds now.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import os
 import socket
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterator
 
 from rich.console import Console
 from rich.markup import escape
@@ -18,38 +23,30 @@ from rich.markup import escape
 from hil.core.errors import HilError
 from hil.bench.family import open_bench
 from hil.bench.profile import Profile, load_profile
-from hil.core.lock import BenchLock, plc_key
+from hil.core.lock import BenchLock, lock_key, plc_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
-from hil.core.journal import inspect, journal_dir, journal_path, run_left
-from hil.bench.replay import age_problem
+from hil.core.journal import inspect, journal_dir
 
 if TYPE_CHECKING:
+    from hil.bench.replay import Recovery
     from hil.core.journal import Journal
 
 
-def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False) -> int:
+def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False,
+            accept_host_clock: bool = False) -> int:
     if show:
         return _show(url, bench, console)
     if url and bench is None and not parse_target(url).in_process:
         raise HilError(f"name the profile of the PLC at {url} (--bench FILE): recovery replays only what that "
                        f"profile's [safety] allows, and the default profile is the emulator's")
     profile = load_profile(bench or default_bench())  # whichever family it is: its bench replays the journal
-    target = url or profile.target
-    locks = [BenchLock(target)]
-    if profile.plc_id:
-        locks.append(BenchLock(target, key=plc_key(target, profile.plc_id)))
-    try:
-        for lock in locks:
-            lock.acquire()
+    with _locked(profile, url or profile.target) as target:
         opened = open_bench(profile, target=target)
         try:
-            report = opened.recover(by_hand=True)
+            report = opened.recover(by_hand=True, accept_host_clock=accept_host_clock)
         finally:
             opened.close()
-    finally:
-        for lock in reversed(locks):
-            lock.release()
     if report is None:
         console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False, soft_wrap=True)
         return 0
@@ -57,91 +54,86 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
     return 0 if report.ok else 1
 
 
+@contextlib.contextmanager
+def _locked(profile: Profile, target: str) -> Iterator[str]:
+    """The bench's locks (its endpoint's, and its PLC's when the profile names it), as a run takes them."""
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(BenchLock(target))
+        if profile.plc_id:
+            stack.enter_context(BenchLock(target, key=plc_key(target, profile.plc_id)))
+        yield target
+
+
 def _show(url: str | None, bench: str | None, console: Console) -> int:
-    """Each pending journal, entry by entry, with what the next run does with it; one line for a refused file."""
-    profile = None
-    if url is None and bench is None:
-        paths = sorted(journal_dir().glob("journal-*.json"))
-    else:
-        profile = load_profile(bench) if bench else None
-        target = url or profile.target  # type: ignore[union-attr]
-        paths = [journal_path(plc_key(target, profile.plc_id if profile else None))]
-    shown = listed = 0
-    for path in paths:
-        if not path.exists():
-            continue
+    """Every journal found, whose and which bench's, and — for the profile's PLC — what a restore would do with
+    each entry on what the PLC holds now (read, nothing written); a refused file in one line."""
+    def say(text: str, style: str = "") -> None:
+        console.print(f"[{style}]{escape(text)}[/]" if style else escape(text), highlight=False, soft_wrap=True)
+
+    planned: dict[Path, Recovery] = {}
+    if bench is not None or (url and parse_target(url).in_process):
+        profile = load_profile(bench or default_bench())
+        planned = _plan(profile, url or profile.target, say)
+    shown = 0
+    for path in sorted(journal_dir().glob("journal-*.json")):
         key, journal, refused = inspect(path)
+        if url and bench is None and journal is not None and lock_key(url) not in (key, journal.data.get("endpoint")):
+            continue  # only the journals of the PLC at URL
         if refused:
             shown += 1
-            console.print(f"[bold red]refused[/] {escape(refused)}", highlight=False, soft_wrap=True)
+            say(f"refused {refused}", "bold red")
             continue
         assert journal is not None
         if not journal.pending:
             continue
         shown += 1
-        listed += 1
-        console.print(f"[bold]{escape(str(key))}[/] ({path}): pending restore"
-                      + (f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""),
-                      highlight=False, soft_wrap=True)
-        for line in _verdicts(journal, profile):
-            console.print(f"  {escape(line)}", highlight=False, soft_wrap=True)
+        say(_header(path, str(key), journal), "bold")
+        part = planned.get(path)
+        if part is not None:
+            for label, item in _items(part):
+                say(f"  {label}: {item}")
+        else:
+            for line in journal.describe():
+                say(f"  {line}")
+            say("  what a restore would do: needs the PLC's profile to read it — hil restore --show --bench FILE",
+                "yellow")
         for note in _gone(str(journal.data.get("endpoint") or key), journal.data):
-            console.print(f"  [yellow]{escape(note)}[/]", highlight=False, soft_wrap=True)
+            say(f"  {note}", "yellow")
     if not shown:
-        console.print("nothing pending: no run left a PLC changed", highlight=False, soft_wrap=True)
-    elif profile is None and listed:
-        console.print("(each entry also needs the PLC's profile to allow it: --bench FILE shows what it allows)",
-                      highlight=False, soft_wrap=True)
+        say("nothing pending: no run left a PLC changed")
     return 0
 
 
-def _verdicts(journal: Journal, profile: Profile | None) -> list[str]:
-    """One line per entry: what it holds, then what the next run does with it (under ``profile`` when given)."""
-    writable = volatile = plugin = None
-    if profile is not None:
-        plugin = profile.plugin
-        writable = plugin.elements(profile.safety.writable)
-        volatile = plugin.elements(profile.safety.volatile)
-    out = []
-    for kind, name, entry in journal.entries():
-        problem = kind.check(entry)
-        what = kind.describe(name or kind.section, entry) if problem is None else f"{kind.section} {name or ''}".strip()
-        if problem is None:
-            problem = age_problem(entry, by_hand=False)
-            if problem:
-                problem += " — not replayed by a run"
-        dropped = False
-        if problem is None and kind.section == "elements" and plugin is not None and writable is not None \
-                and volatile is not None:
+def _plan(profile: Profile, target: str, say) -> dict[Path, "Recovery"]:  # noqa: ANN001 - a local printer
+    """What a restore would do with each journal of the profile's PLC (by file): the restore's own decisions
+    (:meth:`hil.bench.guard.Guard.recover` with ``show``), on the PLC read now under the bench's locks.  Empty,
+    and said, when a run holds the bench (its PLC is not read behind that run's back)."""
+    try:
+        with _locked(profile, target):
+            opened = open_bench(profile, target=target)
             try:
-                element = next(iter(plugin.elements([str(name)])), None)
-            except (HilError, ValueError):
-                element = None
-            dropped = element in volatile
-            if element is None:
-                problem = "not an element of this PLC"
-            elif not dropped and element not in writable and entry.get("wrote") is not None:
-                problem = "not in the profile's [safety] writable"
-            check = getattr(plugin, "value_problem", None)
-            if problem is None and not dropped and check is not None:
-                bad = next(filter(None, (check(element, v) for v in [entry["original"], *run_left(entry)])), None)
-                problem = f"malformed: {bad}" if bad else None
-        if problem is None and kind.section == "run" and profile is not None \
-                and not profile.safety.allow_destructive:
-            problem = "RUN/STOP needs [safety] allow_destructive"
-        if problem is not None:
-            out.append(f"{what}: next run refuses it ({problem}); kept")
-        elif dropped:
-            out.append(f"{what}: next run drops it (volatile in the profile)")
-        elif kind.section == "elements" and writable is not None and element not in writable:
-            out.append(f"{what}: next run restores it only if the PLC rewrites it after a write the profile allows "
-                       f"(a FUN86 box's gains after its EN), else refuses it")
-        elif kind.keyed and entry.get("wrote") is not None:
-            out.append(f"{what}: next run restores it if it still reads "
-                       f"{' or '.join(str(int(v)) for v in run_left(entry))}, else leaves it and says so")
-        else:
-            out.append(f"{what}: next run restores it (read back)")
-    return out
+                report = opened.recover(by_hand=True, show=True)
+            finally:
+                opened.close()
+    except HilError as exc:
+        say(f"{target} not read ({exc}): its journals are listed as they are", "yellow")
+        return {}
+    return {} if report is None else {Path(part.path): part for part in report.parts}
+
+
+def _items(report: "Recovery") -> Iterator[tuple[str, str]]:
+    """One line per entry of a ``show`` report: what a restore would do with it."""
+    for what, lines in report.sections():
+        for line in lines:
+            yield what, line
+
+
+def _header(path: Path, key: str, journal: "Journal") -> str:
+    """Whose journal it is (each run's user and pid, :meth:`Journal.left_by`) and which bench's (its key, the wire
+    written over)."""
+    where = f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""
+    lane = f", lane {journal.lane}" if journal.lane else ""
+    return f"{key}{lane} ({path}): pending restore — left by {journal.left_by()}{where}"
 
 
 def _pids(data: object) -> set[int]:

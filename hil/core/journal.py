@@ -29,10 +29,13 @@ The schema (version 2), one JSON object::
      "elements": {NAME: {"original": int, "wrote": int | null, "earlier"?: int, …}},  # wrote null: the PLC's own
      "coils":    {KEY:  {"target": URL, "coil": int, "unit": int, "original": bool, "wrote": bool | null,
                          "earlier"?: bool, …}},
-     "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float, …},
+     "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float,      # the host's wall clock, and
+                         "boot"?: id, "since_boot"?: seconds,                 # its boot clock read with it:
+                         "width"?: seconds, "spread"?: seconds, …},           # how well each is known
      "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
      "disabled": [NAME, …],                                             # bits command 42 disabled
-     "enable":   {NAME: {"disabled": bool, …}}}                         # enable state (command 43) before 42
+     "enable":   {NAME: {"disabled": bool, "wrote": bool, "earlier"?: bool, …}}}  # command 43 before 42, and
+                                                                        # the state command 42 set
 
 "wrote" is written (fsync'd) before the write goes out, so a run killed between the two leaves the PLC holding
 what its previous write left: that value is kept as "earlier" (absent until an element is written twice), and
@@ -295,7 +298,9 @@ def _check_disabled(entry: Any) -> str | None:
 
 
 def _check_enable(entry: Any) -> str | None:
-    return _fields(entry, {"disabled": _bool}, {"disabled": "true or false"})
+    return _fields(entry, {"disabled": _bool, "wrote": _bool},
+                   {"disabled": "true or false", "wrote": "true or false (the state command 42 set)"}) \
+        or _earlier_problem(entry, _bool, "true or false")
 
 
 def _who(entry: Any) -> str:
@@ -330,8 +335,12 @@ def _show_disabled(name: str, e: Any) -> str:
     return f"{', '.join(e)} disabled by command 42 (to be re-enabled)"
 
 
+def _enabled(disabled: bool) -> str:
+    return "disabled" if disabled else "enabled"
+
+
 def _show_enable(name: str, e: Any) -> str:
-    return f"{name} {'disabled' if e['disabled'] else 'enabled'} (command 43) before the run changed it{_who(e)}"
+    return f"{name} {_enabled(e['disabled'])} (command 43) before the run {_enabled(e['wrote'])} it{_who(e)}"
 
 
 ELEMENTS = register_kind(EntryKind("elements", True, _check_element, _show_element, {}))
@@ -416,9 +425,10 @@ def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
             return None, None, str(exc)
         return None, None, f"the bench journal {path} is refused (unreadable)"
     try:
-        return key, Journal(key, path.parent, lane=lane_of(path)), None
+        journal = Journal(key, path.parent, lane=lane_of(path))
     except JournalError as exc:
         return key, None, str(exc)
+    return (key, None, journal.refused) if journal.refused else (key, journal, None)
 
 
 class Journal:
@@ -435,7 +445,15 @@ class Journal:
         self.plc = plc
         self.test = ""  # the test now running (its node id), written with each entry
         self.failed: str | None = None  # why a save failed: no write may go out after it (this session)
-        self.data = self.load()
+        # why the file on disk cannot be trusted (damaged, another version or bench, not ours): it is kept as it is
+        # — nothing may change it, so no write goes out — and recovery names it while it replays the others (the
+        # lanes' journals beside it); an untrusted bench directory still refuses everything at once
+        self.refused: str | None = None
+        _trusted_dir(self.path.parent)
+        try:
+            self.data = self.load()
+        except JournalRefused as exc:
+            self.refused, self.data = str(exc), _empty(key)
 
     # -- reading ----------------------------------------------------------------------------------------------------
     def load(self) -> dict[str, Any]:
@@ -459,21 +477,29 @@ class Journal:
 
     @property
     def pending(self) -> bool:
-        return _pending(self.data)
+        """Whether anything may be left to put back: entries, or a file that cannot be read (:attr:`refused`)."""
+        return self.refused is not None or _pending(self.data)
 
-    def lanes(self) -> list["Journal"]:
-        """The journals the lanes of a run on this PLC left beside this one (each lane process writes its own):
-        recovery replays them with it.  Empty for a lane's own journal."""
+    def lane_names(self) -> list[str]:
+        """The lanes whose journals a run on this PLC left beside this one (each lane process writes its own):
+        recovery replays them with it, each on its own (a damaged one is named, the others still replayed).
+        Empty for a lane's own journal."""
         if self.lane is not None:
             return []
         stem = journal_path(self.key, self.path.parent).name.removesuffix(".json")
-        found = sorted(p for p in self.path.parent.glob(f"{stem}.lane-*.json") if lane_of(p) is not None)
-        return [Journal(self.key, self.path.parent, endpoint=self.endpoint, plc=self.plc, lane=lane_of(p))
-                for p in found]
+        return sorted(lane for p in self.path.parent.glob(f"{stem}.lane-*.json") if (lane := lane_of(p)) is not None)
 
-    def entries(self) -> Iterable[tuple[EntryKind, str | None, Any]]:
-        """Every pending entry: (kind, name or None, entry), malformed ones included."""
-        for kind in KINDS.values():
+    def lane_journal(self, name: str) -> "Journal":
+        """The journal lane ``name`` left beside this one (JournalError when it cannot be read or trusted)."""
+        return Journal(self.key, self.path.parent, endpoint=self.endpoint, plc=self.plc, lane=name)
+
+    def lanes(self) -> list["Journal"]:
+        """Every lane's journal (:meth:`lane_names`); JournalError at the first that cannot be read."""
+        return [self.lane_journal(name) for name in self.lane_names()]
+
+    def entries(self, *kinds: EntryKind) -> Iterable[tuple[EntryKind, str | None, Any]]:
+        """Every pending entry (of ``kinds``, when given): (kind, name or None, entry), malformed ones included."""
+        for kind in kinds or KINDS.values():
             value = self.data.get(kind.section)
             if kind.keyed:
                 for name, entry in (value or {}).items():
@@ -508,10 +534,11 @@ class Journal:
     def clock(self) -> dict[str, Any] | None:
         return self.data["clock"]
 
-    def describe(self) -> list[str]:
-        """What is pending, for people: one line per entry (a malformed one says what is wrong with it)."""
+    def describe(self, *kinds: EntryKind) -> list[str]:
+        """What is pending (of ``kinds``, when given), for people: one line per entry (a malformed one says what is
+        wrong with it)."""
         lines = []
-        for kind, name, entry in self.entries():
+        for kind, name, entry in self.entries(*kinds):
             problem = kind.check(entry)
             if problem:
                 lines.append(f"{entry_id(kind.section, name)}: malformed, {problem}")
@@ -526,7 +553,10 @@ class Journal:
 
     def _change(self, apply: Callable[[dict[str, Any]], bool], *, adds: bool = True) -> None:
         """Apply ``apply`` to a copy of the data, save the copy, and only then take it.  ``apply`` returns False
-        when nothing changed.  Once a save has failed, nothing more may be added (``adds``)."""
+        when nothing changed.  Once a save has failed, nothing more may be added (``adds``); nothing at all while
+        the file on disk cannot be trusted (:attr:`refused`: saving would replace it)."""
+        if self.refused:
+            raise JournalRefused(f"{self.refused} — refusing every write to the PLC until it is dealt with")
         if adds and self.failed:
             raise JournalError(f"the bench journal {self.path} could not be written earlier in this run "
                                f"({self.failed}) — refusing every later write to the PLC")
@@ -602,14 +632,22 @@ class Journal:
         """Bit → whether it was disabled (forced) before a test first enabled or disabled it (well-formed ones)."""
         return {n: bool(e["disabled"]) for n, e in self.data["enable"].items() if _check_enable(e) is None}
 
-    def add_enable_states(self, states: dict[str, bool]) -> None:
-        """Bits' enable states (True: disabled) before a first command 42 enable/disable; a bit already journaled
-        keeps its first (older) state."""
+    def add_enable_states(self, states: dict[str, bool], wrote: dict[str, bool]) -> None:
+        """Bits' enable states (True: disabled) before a first command 42 enable/disable — a bit already journaled
+        keeps its first (older) state — and the state the command about to go out sets (``wrote``), the one
+        before it kept as "earlier", as for elements: recovery puts back only a bit still as the run left it."""
         def apply(data: dict[str, Any]) -> bool:
-            fresh = {n: bool(v) for n, v in states.items() if n not in data["enable"]}
-            stamp = self._stamp()
-            data["enable"].update({n: {"disabled": v, **stamp} for n, v in fresh.items()})
-            return bool(fresh)
+            entries, changed, stamp = data["enable"], False, self._stamp()
+            for name, value in states.items():
+                if name not in entries:
+                    entries[name] = {"disabled": bool(value), "wrote": bool(wrote[name]), **stamp}
+                    changed = True
+            for name, value in wrote.items():
+                old = entries.get(name)
+                if old is not None and old.get("wrote") != bool(value):
+                    entries[name] = {**old, "wrote": bool(value), **_earlier(old)}
+                    changed = True
+            return changed
         self._change(apply)
 
     def drop_enable_states(self, names: Iterable[str]) -> None:

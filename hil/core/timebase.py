@@ -96,17 +96,24 @@ class HostClocks:
     wall: float
     since_boot: float | None
     boot: str | None
+    #: how far apart the wall clock and the boot clock were read (s): the pair is known together to ± half this
+    spread: float = 0.0
 
     @classmethod
     def now(cls) -> "HostClocks":
-        # time.time() looked up at each call: the one place hil reads the host's wall clock for a clock's origin
-        since_boot = time.clock_gettime(time.CLOCK_BOOTTIME) if hasattr(time, "CLOCK_BOOTTIME") else None
+        # time.time() looked up at each call: the one place hil reads the host's wall clock for a clock's origin;
+        # the boot clock read either side of it, so the pair's own uncertainty is measured, not assumed
+        boottime = getattr(time, "CLOCK_BOOTTIME", None)
+        before = time.clock_gettime(boottime) if boottime is not None else None
         wall = time.time()
+        after = time.clock_gettime(boottime) if boottime is not None else None
         try:
             boot = Path("/proc/sys/kernel/random/boot_id").read_text().strip() or None
         except OSError:
             boot = None
-        return cls(wall, since_boot, boot)
+        if before is None or after is None:
+            return cls(wall, None, boot)
+        return cls(wall, (before + after) / 2, boot, after - before)
 
 
 def next_whole_second(when: dt.datetime) -> dt.datetime:

@@ -13,12 +13,12 @@ not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.R
 
 from __future__ import annotations
 
-from typing import Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 from hil.bench.guard import GuardedLink
-from hil.bench.replay import Recovery, age_problem
+from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
 from hil.core.errors import HilError, TransportError, WriteRefused
-from hil.core.journal import DISABLED, ENABLE, RUN, Journal
+from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, run_left
 from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
 from hil.families.fbs.transport.base import NameLike, Transport, check_value, value_problem
@@ -102,25 +102,30 @@ class GuardedTransport(GuardedLink):
 
     def bit_action(self, name: NameLike, action: int) -> None:
         """Command 42 (1 disable, 2 enable, 3 set, 4 reset) on a writable bit.  Before a bit is first enabled or
-        disabled its enable state is read (command 43) and journaled, durable first; it is put back when the test
-        ends, the bit's value with the other originals."""
+        disabled its enable state is read (command 43) and journaled, durable first, with the state the command
+        sets; it is put back when the test ends, the bit's value with the other originals.  What is journaled as
+        written is what the command leaves: the value set (3, 4), or the value the bit holds (1, 2 leave it), so
+        that recovery can tell a bit someone changed since."""
         inner_call = getattr(self.inner, "bit_action", None)
         read_state = getattr(self.inner, "read_disabled", None)
         if inner_call is None or read_state is None:
             raise WriteRefused(f"bit actions (FATEK command 42) are not offered by {self.inner.description}")
+        base = self.split(name)
 
         def act() -> None:
-            base = self.split(name)
-            fresh = [a for a in base if a not in self.enable_original] if action in (1, 2) else []
-            if fresh:
+            if action in (1, 2):
+                fresh = [a for a in base if a not in self.enable_original]
                 states = {a: bool(read_state(a, 1)[0]) for a in fresh}
                 if self.durable is not None:  # on disk before it is kept (and before the command goes out)
-                    self.durable.add_enable_states({str(a): v for a, v in states.items()})
+                    self.durable.add_enable_states({str(a): v for a, v in states.items()},
+                                                   {str(a): action == 1 for a in base})
                 self.enable_original.update(states)
             inner_call(base[0], action)
-        base = self.split(name)
-        wrote = {base[0]: 1 if action == 3 else 0} if action in (3, 4) else None
-        self.guarded([name], act, wrote)
+        with self._lock:
+            self.check([name])  # refused before anything is read
+            wrote = {base[0]: 1 if action == 3 else 0} if action in (3, 4) else \
+                {base[0]: self.read_originals(base[:1])[0]}
+            self.guarded([name], act, wrote)
 
     def _restore_actions(self) -> None:
         """The bits' enable states back and RUN/STOP back (before the values are restored), each read back
@@ -184,30 +189,8 @@ class GuardedTransport(GuardedLink):
 
     def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
         """A dead run's RUN/STOP (only with allow_destructive, and only while the PLC is still as the run set it)
-        and its disabled bits (only writable ones), each read back."""
-        run = journal.extra("run")
-        if run is not None:
-            why = RUN.check(run) or age_problem(run, by_hand)
-            if why is None and not self.allow_destructive:
-                why = "RUN/STOP is destructive and the profile's [safety] allow_destructive is off"
-            if why is None and not hasattr(self.inner, "set_running"):
-                why = f"RUN/STOP is not offered by {self.inner.description}"
-            if why:
-                report.refused.append(f"RUN/STOP: {why}")
-            else:
-                now = bool(self.inner.status().running)  # read: what the PLC is in now
-                state = {True: "RUN", False: "STOP"}
-                if now not in (run["original"], run["wrote"]):  # the run left it as it was; someone changed it
-                    report.changed.append(f"RUN/STOP is {state[now]}, the run set {state[run['wrote']]} (original "
-                                          f"{state[run['original']]})")
-                else:
-                    try:
-                        self._put_running(run["original"])
-                    except HilError as exc:
-                        report.failures.append(f"RUN/STOP (original {state[run['original']]}): {exc}")
-                    else:
-                        report.verified.append(f"RUN/STOP = {state[run['original']]}")
-                        journal.set_extra("run", None)
+        and its disabled bits (only writable ones), each read back; with ``report.show`` only said."""
+        self._recover_running(journal, report, by_hand)
         names = journal.extra("disabled", [])
         if names:
             why = DISABLED.check(names)
@@ -222,6 +205,8 @@ class GuardedTransport(GuardedLink):
                 why = f"{', '.join(refused)} not in the profile's [safety] writable"
             if why:
                 report.refused.append(f"disabled bits {names}: {why}")
+            elif report.show:
+                report.planned.append(f"{', '.join(names)} enabled (command 42)")
             else:
                 try:
                     self._reenable(bits)
@@ -232,9 +217,40 @@ class GuardedTransport(GuardedLink):
                     journal.set_extra("disabled", [])
         self._recover_enable_states(journal, report, by_hand)
 
+    def _recover_running(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
+        """RUN/STOP back, while the PLC is still in the state the run set (:func:`still_the_runs`)."""
+        run = journal.extra("run")
+        if run is None:
+            return
+        why = RUN.check(run) or age_problem(run, by_hand)
+        if why is None and not self.allow_destructive:
+            why = "RUN/STOP is destructive and the profile's [safety] allow_destructive is off"
+        if why is None and not hasattr(self.inner, "set_running"):
+            why = f"RUN/STOP is not offered by {self.inner.description}"
+        if why:
+            report.refused.append(f"RUN/STOP: {why}")
+            return
+        state = {True: "RUN", False: "STOP"}
+        now = bool(self.inner.status().running)  # read: what the PLC is in now
+        decision = still_the_runs(now, run["original"], [run["wrote"]])
+        if decision == CHANGED:  # the run left it as it was; someone changed it
+            report.changed.append(f"RUN/STOP is {state[now]}, the run set {state[run['wrote']]} (original "
+                                  f"{state[run['original']]})")
+        elif report.show:
+            (report.planned if decision == RESTORE else report.verified).append(f"RUN/STOP = {state[run['original']]}")
+        else:
+            try:
+                self._put_running(run["original"])
+            except HilError as exc:
+                report.failures.append(f"RUN/STOP (original {state[run['original']]}): {exc}")
+            else:
+                report.verified.append(f"RUN/STOP = {state[run['original']]}")
+                journal.set_extra("run", None)
+
     def _recover_enable_states(self, journal: Journal, report: Recovery, by_hand: bool) -> None:
-        """Each bit's journaled enable state (command 43 before the run's command 42) put back — writable bits only
-        — and read back with command 43."""
+        """Each bit's journaled enable state (command 43 before the run's command 42) put back — writable bits only,
+        and only while the bit is still as the run left it: its enable state the one the run set and its value
+        not changed since (:meth:`_bit_verdict`) — and read back with command 43; with ``report.show`` only said."""
         act, read = getattr(self.inner, "bit_action", None), getattr(self.inner, "read_disabled", None)
         for name, entry in journal.data["enable"].items():
             why = ENABLE.check(entry) or age_problem(entry, by_hand)
@@ -246,10 +262,20 @@ class GuardedTransport(GuardedLink):
                 why = "not in the profile's [safety] writable"
             if why is None and (act is None or read is None):
                 why = f"{self.inner.description} has no commands 42/43"
-            if why:
+            if why or bit is None or read is None:
                 report.refused.append(f"enable state of {name}: {why}")
                 continue
+            try:
+                decision = self._bit_verdict(name, bit, entry, journal.data["elements"].get(name), report, read)
+            except HilError as exc:
+                report.failures.append(f"enable state of {name}: reading it failed: {exc}")
+                continue
             state = "disabled" if entry["disabled"] else "enabled"
+            if decision == CHANGED:
+                continue
+            if report.show:
+                (report.planned if decision == RESTORE else report.verified).append(f"{name} {state} (command 42)")
+                continue
             try:
                 self._put_enable_state(bit, entry["disabled"])
             except HilError as exc:
@@ -257,6 +283,25 @@ class GuardedTransport(GuardedLink):
                 continue
             report.verified.append(f"{name} {state} (read back, command 43)")
             journal.drop_enable_states([name])
+
+    def _bit_verdict(self, name: str, bit: Address, entry: dict, element: dict | None, report: Recovery,
+                     read: Callable[[Address, int], list[int]]) -> str:
+        """What recovery does with a bit's enable state (:func:`still_the_runs`): the state the run set is the
+        run's only while the bit's value is not changed since either (an operator who forced the bit at another
+        value forced it: both are left) — a CHANGED one is reported here."""
+        disabled, value = bool(read(bit, 1)[0]), self.read_originals([bit])[0]
+        decision = still_the_runs(disabled, entry["disabled"], run_left(entry))
+        touched = element is not None and ELEMENTS.check(element) is None and still_the_runs(
+            value, element["original"], run_left(element) if element["wrote"] is not None else None) == CHANGED
+        if decision == RESTORE and touched:
+            decision = CHANGED
+        if decision == CHANGED:
+            shown = {True: "disabled", False: "enabled"}
+            ran = f", value {' or '.join(map(str, run_left(element)))}" if element is not None and touched else ""
+            report.changed.append(f"{name} is {shown[disabled]} with value {value}, the run left it "
+                                  f"{' or '.join(shown[s] for s in run_left(entry))}{ran} (original "
+                                  f"{shown[entry['disabled']]})")
+        return decision
 
     def _read_first(self, items: list[tuple[Address, int]]) -> set:
         """Besides FUN86's side effects, each run of adjacent elements the test last wrote back to their originals
