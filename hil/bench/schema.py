@@ -23,6 +23,9 @@ from hil.core.errors import AddressError, ProfileError, TargetError
 #: what a check may raise to refuse a value; the message follows "<file>: [section] key: "
 REFUSALS = (ValueError, TypeError, AddressError, TargetError)
 
+#: what the errors call a type, in TOML's words where Python's differ
+_TOML_NAMES = {dict: "table", list: "list"}
+
 Verdict = Callable[[Any], "bool | str"]
 
 
@@ -120,7 +123,8 @@ class Section:
             if key.name in table:
                 value = self._value(key, table[key.name], where, checks.get(key.name))
             elif key.required:
-                raise located(ProfileError(f"{where}: [{self.name}] {key.name} is required"), self.name)
+                such = f" (such as {key.name} = {toml_value(key.example)})" if key.example is not None else ""
+                raise located(ProfileError(f"{where}: [{self.name}] {key.name} is required{such}"), self.name)
             else:
                 value = defaults.get(key.name, key.default)
             out[key.attr or key.name] = value
@@ -131,7 +135,8 @@ class Section:
         if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         if key.kind is not object and (not isinstance(value, key.kind) or (key.kind is int and isinstance(value, bool))):
-            raise located(ProfileError(f"{label} must be a {key.kind.__name__}, not {value!r}"), self.name, key.name)
+            raise located(ProfileError(f"{label} must be a {_TOML_NAMES.get(key.kind, key.kind.__name__)}, not "
+                                       f"{value!r}"), self.name, key.name)
         try:
             verdict = key.limits(value)
             for check in (key.check, extra):
@@ -179,3 +184,18 @@ def line_of(text: str, section: str, key: str | None = None) -> int | None:
         elif current == section and assignment is not None and assignment.match(line):
             return number
     return header
+
+
+def toml_value(value: Any) -> str:
+    """``value`` written as TOML (the scalars, lists and inline tables a profile holds)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return f"{value!r}"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(map(toml_value, value)) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
+    raise TypeError(f"no TOML for {value!r}")
