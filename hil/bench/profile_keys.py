@@ -83,7 +83,7 @@ EMULATOR = Section("emulator", "The emulated PLC (emulator targets only).", (
         "\"instant\": at once.", "instant", choices=TIMING_MODES, live=False),
     Key("scan_time_range", list, "[MIN, MAX] ms: each scan's length drawn from it (bench timing only).",
         attr="scan_time_range_ms", check=_scan_range, convert=tuple, live=False,
-        json={"items": {"type": "number"}, "minItems": 2, "maxItems": 2}),
+        example=[5.0, 15.0], json={"items": {"type": "number"}, "minItems": 2, "maxItems": 2}),
 ))
 
 PROBABILITY = "must be a probability 0–1"
@@ -100,8 +100,8 @@ WIRE_FAULTS = Section("wire_faults", "Faults the emulator's servers put on the w
 
 HISTORY = Section("history", "Where this bench records its runs (hil history).", (
     Key("url", str, "The run-history store: sqlite:///PATH, postgresql://… or \"off\"; the default store "
-        "without.", attr="history_url", pattern=r"(?s).*\S.*",
-        hint="must be a URL (sqlite:///PATH, postgresql://…) or 'off'"),
+        "without.", attr="history_url", pattern=r".*\S.*",
+        hint="must be a URL (sqlite:///PATH, postgresql://…) or 'off'", example="sqlite:///runs.db"),
 ))
 
 

@@ -53,7 +53,7 @@ RTC = Section("rtc", "The PLC's real-time clock: on a real bench chip states wha
     Key("crystal_ppm", float, "The emulated crystal's error (positive: the clock runs fast).", 0.0, low=-500,
         high=500, unit="ppm", hint="must be within ±500 ppm", live=False),
     Key("start", object, "The emulated clock at start: \"host\" (the host's time) or a date-time like "
-        "2024-02-29 12:00:00.", convert=_start, default_doc="\"host\"", live=False,
+        "2024-02-29 12:00:00.", convert=_start, default_doc="\"host\"", example="host", live=False,
         json={"type": "string"}),
     Key("drift_max_hours", float, "The longest one drift measurement may take on this bench (the drift test "
         "makes two; 0: no drift test here).", 12.0, low=0, high=24 * 14, unit="h",
