@@ -32,23 +32,23 @@ CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgri
 
 @dataclass(frozen=True)
 class Safety:
-    writable: tuple[str, ...] = ()
+    writable: tuple[str, ...] = SAFETY.default("writable")
     volatile: tuple[str, ...] = ()  # a profile always sets it: its family's default_volatile unless it says
-    allow_destructive: bool = False
+    allow_destructive: bool = SAFETY.default("allow_destructive")
 
 
 @dataclass(frozen=True)
 class EmulatorSettings:
-    scan_time_ms: float = 10.0
-    seed: int = 0
-    #: ``line = "9600 7E1"``: the pace of the emulator's pty wires (hil.sim.pacing.LineRate); None: unpaced
-    line: Any = None
-    #: ``timing = "bench"``: publish what the manual lets happen later, later, at phases drawn from ``seed``
-    #: (hil.sim.timing); "instant" (the default): at once
-    timing: str = "instant"
-    #: ``scan_time_range = [MIN, MAX]`` (ms, bench timing only): each scan's length drawn from it; None: every
-    #: scan ``scan_time_ms`` long
-    scan_time_range_ms: tuple[float, float] | None = None
+    """``[emulator]`` (:data:`hil.bench.profile_keys.EMULATOR` describes each key)."""
+
+    scan_time_ms: float = EMULATOR.default("scan_time_ms")
+    seed: int = EMULATOR.default("seed")
+    #: a hil.sim.pacing.LineRate; None: unpaced
+    line: Any = EMULATOR.default("line")
+    #: "bench": publish what the manual lets happen later, later, at phases drawn from ``seed`` (hil.sim.timing)
+    timing: str = EMULATOR.default("timing")
+    #: (MIN, MAX) ms, bench timing only; None: every scan ``scan_time_ms`` long
+    scan_time_range_ms: tuple[float, float] | None = EMULATOR.default("scan_time_range")
 
     def timing_plan(self) -> Timing:
         """The emulator's :class:`~hil.sim.timing.Timing` (the same ``seed`` as the plant's noise: one number
@@ -61,11 +61,11 @@ class EmulatorSettings:
 class Profile:
     path: Path | None
     name: str
-    target: str = "emulator"
-    station: int = 1
-    time_scale: float = 1.0
-    settle_scans: int = 2
-    timeout: float = 2.0
+    target: str = BENCH.default("target")
+    station: int = BENCH.default("station")
+    time_scale: float = BENCH.default("time_scale")
+    settle_scans: int = BENCH.default("settle_scans")
+    timeout: float = BENCH.default("timeout")
     safety: Safety = Safety()
     emulator: EmulatorSettings = EmulatorSettings()
     #: the family's sections as written ([temperature], [pid], …), for composing new profiles from this one
@@ -77,14 +77,14 @@ class Profile:
     #: the family's sections parsed once into typed records (e.g. "temperature" → TemperatureConfig)
     sections: dict[str, Any] = field(default_factory=dict)
     #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
-    scan_counter: str | None = None
+    scan_counter: str | None = BENCH.default("scan_counter")
     #: [bench] answers_at_scan_end: the wire reaches a port that services each request at the end of a scan (FBs
     #: ports 0, 1, 3, 4): a settle trusts that rule rather than prove each scan with the scan counter
-    answers_at_scan_end: bool = False
+    answers_at_scan_end: bool = BENCH.default("answers_at_scan_end")
     #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
-    scratch: tuple[str, ...] = ()
+    scratch: tuple[str, ...] = BENCH.default("scratch")
     #: [bench] offers: capabilities the bench's owner vouches for (hil.bench.capabilities.DECLARABLE)
-    offers: tuple[str, ...] = ()
+    offers: tuple[str, ...] = BENCH.default("offers")
     #: the labgrid place this run holds (hil.bench.lab.resolve.Lab) when the target came from one, else None
     lab: Any = None
     #: [bench] plc_id: the PLC's name on this site — one lock and one journal for it whatever wire reaches it

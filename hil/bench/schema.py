@@ -106,6 +106,12 @@ class Section:
     def key(self, name: str) -> Key:
         return next(k for k in self.keys if k.name == name)
 
+    def default(self, name: str) -> Any:
+        """The value a record holds when the key is not given: the declared default, converted as a given value
+        would be (so a record's field defaults come from here, not from a second copy)."""
+        key = self.key(name)
+        return _converted(key, key.default)
+
     def read(self, table: Any, where: str, *, checks: dict[str, Verdict] | None = None,
              defaults: dict[str, Any] | None = None) -> dict[str, Any]:
         """The table's values by record field (every declared key, its default where the table has none), refusing
@@ -126,7 +132,7 @@ class Section:
                 such = f" (such as {key.name} = {toml_value(key.example)})" if key.example is not None else ""
                 raise located(ProfileError(f"{where}: [{self.name}] {key.name} is required{such}"), self.name)
             else:
-                value = defaults.get(key.name, key.default)
+                value = _converted(key, defaults.get(key.name, key.default))
             out[key.attr or key.name] = value
         return out
 
@@ -149,6 +155,10 @@ class Section:
         if verdict is not True:
             raise located(ProfileError(f"{label} = {value!r} {verdict}"), self.name, key.name)
         return value
+
+
+def _converted(key: Key, value: Any) -> Any:
+    return key.convert(value) if value is not None and key.convert is not None else value
 
 
 def located(error: ProfileError, section: str, key: str | None = None) -> ProfileError:

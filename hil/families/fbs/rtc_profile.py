@@ -14,19 +14,6 @@ from hil.families.fbs.rtc_time import CHIP_NAMES
 CHIP_CODES = {name: code for code, name in CHIP_NAMES.items()}
 
 
-@dataclass(frozen=True)
-class RtcSettings:
-    chip: int = 3
-    crystal_ppm: float = 0.0
-    start: dt.datetime | None = None  # None: the bench's host time when the emulator is built
-    #: the longest one drift measurement may take on this bench (the drift test makes two); 0: none here
-    drift_max_hours: float = 12.0
-
-
-def parse_rtc(table: dict[str, Any], where: str) -> RtcSettings:
-    return RtcSettings(**RTC.read(table, where))
-
-
 def _chip(value: Any) -> int:
     if isinstance(value, int) and not isinstance(value, bool) and value in CHIP_NAMES:
         return value
@@ -59,3 +46,18 @@ RTC = Section("rtc", "The PLC's real-time clock: on a real bench chip states wha
         "makes two; 0: no drift test here).", 12.0, low=0, high=24 * 14, unit="h",
         hint="must be 0–336 h (0: no drift test here)"),
 ))
+
+
+@dataclass(frozen=True)
+class RtcSettings:
+    """``[rtc]`` (:data:`RTC` describes each key)."""
+
+    chip: int = RTC.default("chip")
+    crystal_ppm: float = RTC.default("crystal_ppm")
+    start: dt.datetime | None = RTC.default("start")  # None: the bench's host time when the emulator is built
+    #: the longest one drift measurement may take on this bench (the drift test makes two); 0: none here
+    drift_max_hours: float = RTC.default("drift_max_hours")
+
+
+def parse_rtc(table: dict[str, Any], where: str) -> RtcSettings:
+    return RtcSettings(**RTC.read(table, where))

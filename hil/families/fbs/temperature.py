@@ -122,52 +122,6 @@ def decode_start(word: int) -> Address | None:
 
 
 # -- the [temperature] profile section ----------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ModuleConfig:
-    type: ModuleType
-    sensor: SensorKind
-
-
-@dataclass(frozen=True)
-class TemperatureConfig:
-    """Where the table, readings and work block live, and which modules are fitted, from ``[temperature]``."""
-
-    table: Address
-    readings: Address
-    work: Address
-    modules: tuple[ModuleConfig, ...]
-    unit: str = "C"
-    averaging: int = 1
-    rate: str = "normal"
-    sources: dict[int, dict[str, Any]] = field(default_factory=dict)  # emulator only: point → source spec
-    #: point → °C a reference holds it at on this bench (a calibrator, an ice point, a stable bath): the readings
-    #: suite checks those points within the module's accuracy (the emulator holds them there too)
-    reference: dict[int, float] = field(default_factory=dict)
-    reference_tolerance: float = 0.0  # °C: the reference's own uncertainty, added to the module's accuracy
-
-    @property
-    def points(self) -> int:
-        return sum(m.type.points for m in self.modules)
-
-    def point_module(self, point: int) -> tuple[int, ModuleConfig]:
-        """(module index, module) that measures ``point``."""
-        first = 0
-        for k, module in enumerate(self.modules):
-            if point < first + module.type.points:
-                return k, module
-            first += module.type.points
-        raise IndexError(f"point {point} is not configured (the modules give {self.points} points)")
-
-    def update_period(self) -> float:
-        """Seconds after which every point has been measured again (the slowest module at this rate)."""
-        return max(m.type.update_s[self.rate] for m in self.modules)
-
-    def table_words(self) -> list[int]:
-        """SR+0 … SR+3+N as WinProladder (or the ladder) writes them."""
-        return [TABLE_MARKER, len(self.modules), encode_start(self.readings), encode_start(self.work)] + [
-            m.sensor.code << 8 | m.type.code for m in self.modules]
-
-
 def _start_register(value: str) -> Address:
     address = parse(value)
     encode_start(address)  # an R or D register: the table names it in one word
@@ -204,6 +158,52 @@ TEMPERATURE = Section("temperature", "Where the ladder keeps the temperature tab
     Key("reference_tolerance", float, "The reference's own uncertainty.", 0.0, low=0, unit="°C",
         hint="must be a number of °C ≥ 0"),
 ), family="fbs")
+
+
+@dataclass(frozen=True)
+class ModuleConfig:
+    type: ModuleType
+    sensor: SensorKind
+
+
+@dataclass(frozen=True)
+class TemperatureConfig:
+    """Where the table, readings and work block live, and which modules are fitted, from ``[temperature]``."""
+
+    table: Address
+    readings: Address
+    work: Address
+    modules: tuple[ModuleConfig, ...]
+    unit: str = TEMPERATURE.default("unit")
+    averaging: int = TEMPERATURE.default("averaging")
+    rate: str = TEMPERATURE.default("rate")
+    sources: dict[int, dict[str, Any]] = field(default_factory=dict)  # emulator only: point → source spec
+    #: point → °C a reference holds it at on this bench (a calibrator, an ice point, a stable bath): the readings
+    #: suite checks those points within the module's accuracy (the emulator holds them there too)
+    reference: dict[int, float] = field(default_factory=dict)
+    reference_tolerance: float = TEMPERATURE.default("reference_tolerance")  # °C: the reference's own uncertainty, added to the module's accuracy
+
+    @property
+    def points(self) -> int:
+        return sum(m.type.points for m in self.modules)
+
+    def point_module(self, point: int) -> tuple[int, ModuleConfig]:
+        """(module index, module) that measures ``point``."""
+        first = 0
+        for k, module in enumerate(self.modules):
+            if point < first + module.type.points:
+                return k, module
+            first += module.type.points
+        raise IndexError(f"point {point} is not configured (the modules give {self.points} points)")
+
+    def update_period(self) -> float:
+        """Seconds after which every point has been measured again (the slowest module at this rate)."""
+        return max(m.type.update_s[self.rate] for m in self.modules)
+
+    def table_words(self) -> list[int]:
+        """SR+0 … SR+3+N as WinProladder (or the ladder) writes them."""
+        return [TABLE_MARKER, len(self.modules), encode_start(self.readings), encode_start(self.work)] + [
+            m.sensor.code << 8 | m.type.code for m in self.modules]
 
 
 def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> TemperatureConfig:

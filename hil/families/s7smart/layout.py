@@ -22,18 +22,6 @@ CPUS = ("SR20", "ST20", "SR30", "ST30", "SR40", "ST40", "SR60", "ST60", "CR40", 
 
 
 @dataclass(frozen=True)
-class S7Settings:
-    cpu: str = "ST40"
-    hold_start: int = 0  # V byte of holding register 40001 (MBUS_SLAVE HoldStart, conventionally VB0)
-    max_hold: int = 1000  # holding registers mapped (MBUS_SLAVE MaxHold)
-    start: str = "host"  # the emulator's clock at build: "host" time or "power-loss" (2000-01-01 00:00:00)
-
-    @property
-    def has_rtc(self) -> bool:
-        return self.cpu not in NO_RTC_CPUS
-
-
-@dataclass(frozen=True)
 class S7RtcLayout:
     set_trigger: S7Address  # rising edge → SET_RTC set_buffer
     read_trigger: S7Address  # rising edge → READ_RTC read_buffer
@@ -87,8 +75,8 @@ def _v(shape: str) -> dict[str, Any]:
 S7 = Section("s7", "The S7-200 SMART CPU and its Modbus server (MBUS_SLAVE).", (
     Key("cpu", str, "The CPU model (CR40/CR60: no real-time clock).", "ST40", choices=CPUS,
         hint=f"is not an S7-200 SMART CPU ({', '.join(CPUS)})"),
-    Key("hold_start", object, "MBUS_SLAVE HoldStart: the V byte of holding register 40001.", 0,
-        convert=_hold_start, default_doc="\"VB0\"", json={"type": "string"}, example="VB0"),
+    Key("hold_start", str, "MBUS_SLAVE HoldStart: the V byte of holding register 40001.", "VB0",
+        convert=_hold_start),
     Key("max_hold", int, "MBUS_SLAVE MaxHold: holding registers mapped.", 1000, low=1, high=10240,
         hint="must be 1–10240 registers"),
     Key("start", str, "The emulator's clock at power-on: \"host\" time or \"power-loss\" (2000-01-01).", "host",
@@ -114,6 +102,20 @@ S7RTC = Section("s7rtc", "Where the test program on the PLC keeps its clock trig
     Key("set_i_buffer", str, "8 bytes, plain integers, SET_RTC_I's input.", **_v("buffer"), example="VB120"),
     Key("sm4_3", str, "A copy of SM4.3 (colliding clock access), a bit.", **_v("bit"), example="V102.1"),
 ), family="s7-200smart")
+
+
+@dataclass(frozen=True)
+class S7Settings:
+    """``[s7]`` (:data:`S7` describes each key)."""
+
+    cpu: str = S7.default("cpu")
+    hold_start: int = S7.default("hold_start")  # the V byte (VB0: 0)
+    max_hold: int = S7.default("max_hold")
+    start: str = S7.default("start")
+
+    @property
+    def has_rtc(self) -> bool:
+        return self.cpu not in NO_RTC_CPUS
 
 
 def parse_s7_settings(table: dict[str, Any], where: str) -> S7Settings:

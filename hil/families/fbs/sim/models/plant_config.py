@@ -10,25 +10,6 @@ from hil.bench.schema import Key, Section
 from hil.core.errors import ProfileError
 
 
-@dataclass(frozen=True)
-class PlantPoint:
-    ambient: float = 25.0
-    gain: float = 300.0
-    tau: float = 300.0
-    dead_time: float = 0.0
-    noise: float = 0.05
-    initial: float | None = None
-
-
-@dataclass(frozen=True)
-class PlantConfig:
-    default: PlantPoint = PlantPoint()
-    points: dict[int, PlantPoint] | None = None
-
-    def point(self, p: int) -> PlantPoint:
-        return (self.points or {}).get(p, self.default)
-
-
 def _number(name: str, doc: str, default: float | None, low: float, high: float, unit: str) -> Key:
     return Key(name, float, doc, default, low=low, high=high, unit=unit, live=False)
 
@@ -47,6 +28,27 @@ PLANT = Section("plant", "The emulator's thermal plant, one first-order-plus-dea
     Key("points", dict, "Per-point overrides: [plant.points.N] with the keys above, N a point 0–31.", {},
         live=False, json={"additionalProperties": {"type": "object"}}),
 ), family="fbs")
+
+
+@dataclass(frozen=True)
+class PlantPoint:
+    """One point's plant (:data:`PLANT` describes each key)."""
+
+    ambient: float = PLANT.default("ambient")
+    gain: float = PLANT.default("gain")
+    tau: float = PLANT.default("tau")
+    dead_time: float = PLANT.default("dead_time")
+    noise: float = PLANT.default("noise")
+    initial: float | None = PLANT.default("initial")
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    default: PlantPoint = PlantPoint()
+    points: dict[int, PlantPoint] | None = None
+
+    def point(self, p: int) -> PlantPoint:
+        return (self.points or {}).get(p, self.default)
 
 
 def parse_plant(section: dict[str, Any], where: str = "<profile>") -> PlantConfig:
