@@ -128,6 +128,9 @@ def test_init_points_editors_at_the_schema_and_its_profile_loads(tmp_path: Path)
      r"bench\.toml:4: \[s7rtc\] read_trigger is required \(such as read_trigger = \"V100.1\"\)$"),
     ('[bench]\nname = "b"\n[temperature]\ntable = "R3000"\nreadings = "R3020"\nwork = "R3060"\nmodules = []\n',
      r"bench\.toml:7: \[temperature\] modules: must be a non-empty list"),
+    ('[bench]\nname = "b"\n[[pid.instances]]\nname = "a"\n[[pid.instances]]\nname = "c"\nsv = "R4100"\n',
+     r"bench\.toml:7: \[pid\] instances\[1\] sv: R4100 is not a FUN86 register operand"),
+    ('[bench]\nname = "b"\n[pid]\nzn = 0\n', r"bench\.toml:4: \[pid\] zn = 0 must be 1–32$"),
 ])
 def test_errors_name_the_file_line_key_and_what_to_write(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "bench.toml").write_text(text)

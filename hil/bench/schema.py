@@ -113,57 +113,74 @@ class Section:
         return _converted(key, key.default)
 
     def read(self, table: Any, where: str, *, checks: dict[str, Verdict] | None = None,
-             defaults: dict[str, Any] | None = None) -> dict[str, Any]:
+             defaults: dict[str, Any] | None = None, label: str | None = None, nth: int = 0) -> dict[str, Any]:
         """The table's values by record field (every declared key, its default where the table has none), refusing
         an unknown key, a missing required one and a bad value with "<file>: [section] key …".  ``checks`` and
-        ``defaults`` add what depends on the bench (its family's address ranges and defaults)."""
+        ``defaults`` add what depends on the bench (its family's address ranges and defaults); ``label`` and
+        ``nth`` name the table of an array ("[pid] instances[2]", the third [[pid.instances]])."""
+        at = Place(where, label or f"[{self.name}]", self.name, nth)
         if not isinstance(table, dict):
-            raise located(ProfileError(f"{where}: [{self.name}] must be a table"), self.name)
+            raise at.error(None, "must be a table")
         unknown = sorted(set(table) - {k.name for k in self.keys})
         if unknown:
-            raise located(ProfileError(f"{where}: unknown key(s) in [{self.name}]: {', '.join(unknown)}"),
-                          self.name, unknown[0])
+            raise located(ProfileError(f"{where}: unknown key(s) in {at.label}: {', '.join(unknown)}"),
+                          self.name, unknown[0], nth)
         checks, defaults = checks or {}, defaults or {}
         out = {}
         for key in self.keys:
             if key.name in table:
-                value = self._value(key, table[key.name], where, checks.get(key.name))
+                value = _value(key, table[key.name], at, checks.get(key.name))
             elif key.required:
                 such = f" (such as {key.name} = {toml_value(key.example)})" if key.example is not None else ""
-                raise located(ProfileError(f"{where}: [{self.name}] {key.name} is required{such}"), self.name)
+                raise at.error(None, f"{key.name} is required{such}")
             else:
                 value = _converted(key, defaults.get(key.name, key.default))
             out[key.attr or key.name] = value
         return out
 
-    def _value(self, key: Key, value: Any, where: str, extra: Verdict | None) -> Any:
-        label = f"{where}: [{self.name}] {key.name}"
-        if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if key.kind is not object and (not isinstance(value, key.kind) or (key.kind is int and isinstance(value, bool))):
-            raise located(ProfileError(f"{label} must be a {_TOML_NAMES.get(key.kind, key.kind.__name__)}, not "
-                                       f"{value!r}"), self.name, key.name)
-        try:
-            verdict = key.limits(value)
-            for check in (key.check, extra):
-                if verdict is True and check is not None:
-                    verdict = check(value)
-            if verdict is True and key.convert is not None:
-                value = key.convert(value)
-        except REFUSALS as exc:
-            raise located(ProfileError(f"{label}: {exc}"), self.name, key.name) from None
-        if verdict is not True:
-            raise located(ProfileError(f"{label} = {value!r} {verdict}"), self.name, key.name)
-        return value
+
+@dataclass(frozen=True)
+class Place:
+    """Where a value is: the file, the table as the errors name it, and the table's header in the file."""
+
+    where: str
+    label: str
+    section: str
+    nth: int = 0
+
+    def error(self, key: str | None, text: str) -> ProfileError:
+        """"<file>: <table> <text>" (``text`` begins with the key where it is about one)."""
+        return located(ProfileError(f"{self.where}: {self.label} {text}"), self.section, key, self.nth)
+
+
+def _value(key: Key, value: Any, at: Place, extra: Verdict | None) -> Any:
+    """``value`` checked against ``key``'s declaration (and ``extra``), converted."""
+    if key.kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if key.kind is not object and (not isinstance(value, key.kind) or (key.kind is int and isinstance(value, bool))):
+        raise at.error(key.name, f"{key.name} must be a {_TOML_NAMES.get(key.kind, key.kind.__name__)}, not {value!r}")
+    try:
+        verdict = key.limits(value)
+        for check in (key.check, extra):
+            if verdict is True and check is not None:
+                verdict = check(value)
+        if verdict is True and key.convert is not None:
+            value = key.convert(value)
+    except REFUSALS as exc:
+        raise at.error(key.name, f"{key.name}: {exc}") from None
+    if verdict is not True:
+        raise at.error(key.name, f"{key.name} = {value!r} {verdict}")
+    return value
 
 
 def _converted(key: Key, value: Any) -> Any:
     return key.convert(value) if value is not None and key.convert is not None else value
 
 
-def located(error: ProfileError, section: str, key: str | None = None) -> ProfileError:
-    """Mark where in the file ``error`` is (the loader, which has the text, adds the line: :func:`with_line`)."""
-    error.place = (section, key)  # type: ignore[attr-defined]
+def located(error: ProfileError, section: str, key: str | None = None, nth: int = 0) -> ProfileError:
+    """Mark where in the file ``error`` is: ``key`` of the ``nth`` table headed ``[section]`` (the loader, which has
+    the text, adds the line: :func:`with_line`)."""
+    error.place = (section, key, nth)  # type: ignore[attr-defined]
     return error
 
 
@@ -180,18 +197,17 @@ def with_line(error: ProfileError, text: str, where: str) -> ProfileError:
 _HEADER = re.compile(r"\s*\[\[?\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 
 
-def line_of(text: str, section: str, key: str | None = None) -> int | None:
-    """The 1-based line of ``key`` in ``[section]`` (of the section's header when ``key`` is None or not found):
-    enough TOML to point an editor at the line, not a parser (tomllib has read the file already)."""
-    current, header = None, None
+def line_of(text: str, section: str, key: str | None = None, nth: int = 0) -> int | None:
+    """The 1-based line of ``key`` in the ``nth`` table headed ``[section]`` (of that header when ``key`` is None or
+    not found): enough TOML to point an editor at the line, not a parser (tomllib has read the file already)."""
+    inside, seen, header = False, -1, None
     assignment = re.compile(rf"\s*(\"?){re.escape(key)}\1\s*=") if key else None
     for number, line in enumerate(text.splitlines(), 1):
         match = _HEADER.match(line)
         if match:
-            current = match.group(1).replace('"', "")
-            if current == section and header is None:
-                header = number
-        elif current == section and assignment is not None and assignment.match(line):
+            inside = match.group(1).replace('"', "") == section and (seen := seen + 1) == nth
+            header = number if inside else header
+        elif inside and assignment is not None and assignment.match(line):
             return number
     return header
 

@@ -23,6 +23,7 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.address import parse
 from hil.families.fbs.device.temperature import TableView
 from hil.families.fbs.identity import read_identity
+from hil.families.fbs.pid import PID
 from hil.families.fbs.plugin import FAMILY
 from hil.families.fbs.rtc_profile import RTC
 from hil.families.fbs.rtc_time import CHIP_NAMES
@@ -104,10 +105,10 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     else:
         lines += render_section(RTC, active=False)
     lines += _temperature(found.temperature)
-    lines += ["# Your FUN86 (TPCTL) boxes, one [[pid.instances]] each (fixtures/benches/example-bench.toml):",
-              "# [[pid.instances]]", '# name = "oven"', '# en = "M20"', '# sv = "R2000"', "# sn = 4", "# zn = 2",
-              "# (and add their operands to [safety] writable)", "",
-              "# How this bench injects faults (skipped without): [faults.sensor_break] kind = \"modbus-coil\" …", ""]
+    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] writable.",
+              "# [[pid.instances]]   # several boxes: one such table each, with the keys of [pid] below"]
+    lines += render_section(PID, active=False)
+    lines += ["# How this bench injects faults (skipped without): [faults.sensor_break] kind = \"modbus-coil\" …", ""]
     for section in (EMULATOR, PLANT, WIRE_FAULTS, HISTORY, LABGRID):  # what a profile for a PLC rarely sets
         lines += render_section(section, active=False)
     return "\n".join(lines).rstrip("\n") + "\n"

@@ -11,7 +11,7 @@ from hil.families.fbs import entries  # noqa: F401 - its schemes, wires, report 
 from hil.families.fbs.address import parse_range
 from hil.families.fbs.transport.guard import expand
 from hil.families.fbs.transport.base import value_problem
-from hil.families.fbs.pid import parse_pid
+from hil.families.fbs.pid import PID, parse_pid
 from hil.families.fbs.sim.models.plant_config import PLANT, parse_plant
 from hil.families.fbs.rtc_profile import RTC, parse_rtc
 from hil.families.fbs.temperature import TEMPERATURE, parse_temperature
@@ -27,8 +27,7 @@ class FbsFamily:
     a_title = "a FATEK FBs"
     default = True  # the harness's first family: a profile naming none, a suite without a family marker
     sections = ("rtc", "temperature", "pid", "plant")
-    #: [pid] is checked by its parser alone (not declared yet)
-    declarations = (RTC, TEMPERATURE, PLANT)
+    declarations = (RTC, TEMPERATURE, PID, PLANT)
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
     #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal
     clock_elements = ("R4128-R4135",)
