@@ -63,14 +63,17 @@ def test_the_keys_appear_in_one_declaration_and_everything_says_the_same() -> No
         keys = [k.name for k in section.keys]
         assert len(keys) == len(set(keys)), f"[{section.name}] declares a key twice"
     declared = {s.name: [k.name for k in s.keys] for s in sections}
-    schema = {name: list(body["properties"]) for name, body in json_schema()["properties"].items()
-              if "properties" in body}
+    tables = {name: next(iter(body["properties"].values())) if name in {s.name for s in sections if s.named} else body
+              for name, body in json_schema()["properties"].items()}
+    schema = {name: list(body["properties"]) for name, body in tables.items() if "properties" in body}
     assert schema == declared
     assert _docs_keys() == declared
     # hil init writes every key of the core's and the FBs family's sections, set or as a commented placeholder
     fbs = {s.name for s in families()["fbs"].declarations}
-    template = {name: keys for name, keys in _template_keys(render_profile("b", "emulator", FOUND)).items()
-                if name in declared}  # [[pid.instances]]: a hand-written placeholder (not declared yet)
+    named = {s.name for s in sections if s.named}  # [faults.sensor_break]: a table of [faults]
+    written = {(name.split(".")[0] if name.split(".")[0] in named else name): keys
+               for name, keys in _template_keys(render_profile("b", "emulator", FOUND)).items()}
+    template = {name: keys for name, keys in written.items() if name in declared}  # not [[pid.instances]]
     assert template == {name: keys for name, keys in declared.items() if name in fbs or name in {s.name for s in CORE}}
 
 
@@ -131,6 +134,12 @@ def test_init_points_editors_at_the_schema_and_its_profile_loads(tmp_path: Path)
     ('[bench]\nname = "b"\n[[pid.instances]]\nname = "a"\n[[pid.instances]]\nname = "c"\nsv = "R4100"\n',
      r"bench\.toml:7: \[pid\] instances\[1\] sv: R4100 is not a FUN86 register operand"),
     ('[bench]\nname = "b"\n[pid]\nzn = 0\n', r"bench\.toml:4: \[pid\] zn = 0 must be 1–32$"),
+    ('[bench]\nname = "b"\n[faults.sensor_break]\nkind = "plc-bit"\nfirst = "R40"\n',
+     r"bench\.toml:5: \[faults\.sensor_break\] first: R40 is not a bit \(e\.g\. first = \"Y40\"\)$"),
+    ('[bench]\nname = "b"\n[faults.sensor_break]\nkind = "plc-bit"\nfirst = "Y40"\nfirst_coil = 2\n',
+     r"bench\.toml:6: \[faults\.sensor_break\]: unknown key\(s\) for kind = 'plc-bit': first_coil \(known: first, kind\)$"),
+    ('[bench]\nname = "b"\n[faults.ssr_short]\nkind = "modbus-coil"\n',
+     r"bench\.toml:3: \[faults\.ssr_short\] target is required with kind = 'modbus-coil' \(such as target = "),
 ])
 def test_errors_name_the_file_line_key_and_what_to_write(tmp_path: Path, text: str, message: str) -> None:
     (tmp_path / "bench.toml").write_text(text)

@@ -57,6 +57,8 @@ class Key:
     example: Any = None
     #: the default in words, when it depends on the bench ("the family's clock read-out")
     default_doc: str | None = None
+    #: given only beside these values of another key: {"kind": ("modbus-coil",)}
+    when: dict[str, tuple[Any, ...]] = field(default_factory=dict)
     #: more JSON Schema for editors (e.g. the items of a list), beside what the limits above give
     json: dict[str, Any] = field(default_factory=dict)
 
@@ -102,6 +104,8 @@ class Section:
     family: str | None = None
     #: a TOML array of tables (``[[pid.instances]]``) rather than one table
     array: bool = False
+    #: a table of tables, one per name ([faults.sensor_break], [faults.heater_open]), each with these keys
+    named: tuple[str, ...] = ()
 
     def key(self, name: str) -> Key:
         return next(k for k in self.keys if k.name == name)
@@ -136,7 +140,20 @@ class Section:
             else:
                 value = _converted(key, defaults.get(key.name, key.default))
             out[key.attr or key.name] = value
+        _refuse_out_of_place(self.keys, table, at)  # after the keys it depends on are checked
         return out
+
+
+def _refuse_out_of_place(keys: tuple[Key, ...], table: dict[str, Any], at: "Place") -> None:
+    """Refuse keys given beside a value of another key they do not go with (``Key.when``)."""
+    for key in keys:
+        for other, values in key.when.items():
+            if key.name in table and table.get(other) not in values:
+                known = sorted(k.name for k in keys if all(table.get(o) in v for o, v in k.when.items()))
+                wrong = sorted(k.name for k in keys if k.name in table and k.name not in known)
+                raise located(ProfileError(f"{at.where}: {at.label}: unknown key(s) for {other} = "
+                                           f"{table.get(other)!r}: {', '.join(wrong)} (known: {', '.join(known)})"),
+                              at.section, wrong[0], at.nth)
 
 
 @dataclass(frozen=True)

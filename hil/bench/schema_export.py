@@ -19,9 +19,8 @@ from hil.bench.schema import Key, Section, toml_value
 
 SCHEMA_FILE = Path(__file__).with_name("profile.schema.json")
 DOCS_FILE = Path(__file__).resolve().parents[2] / "docs" / "profile-keys.md"
-#: sections read by a parser without a declaration: allowed by the schema, not described key by key
-UNDECLARED = {"faults": "[faults.<name>]: how the bench injects a fault (the family's injectors; README \"Bench "
-                        "profiles\")."}
+#: core sections whose keys a family declares (each family its own: [faults.<name>] names its injectors)
+UNDECLARED = {"faults": "[faults.<name>]: how the bench injects a fault, declared by the family that injects it."}
 
 
 def declared_sections() -> tuple[Section, ...]:
@@ -31,7 +30,8 @@ def declared_sections() -> tuple[Section, ...]:
 
 def undeclared_sections() -> dict[str, str]:
     """Sections a family reads with its parser alone (no declaration yet), and [faults], with what they are."""
-    out = dict(UNDECLARED)
+    declared = {s.name for s in declared_sections()}
+    out = {name: why for name, why in UNDECLARED.items() if name not in declared}
     for name in sorted(families()):
         plugin = families()[name]
         declared = {s.name for s in plugin.declarations}
@@ -54,6 +54,10 @@ def json_schema() -> dict[str, Any]:
 
 
 def _section_schema(section: Section) -> dict[str, Any]:
+    if section.named:  # [faults.sensor_break], [faults.heater_open]: each a table of the keys
+        table = _section_schema(Section(section.name, section.doc, section.keys))
+        return {"type": "object", "description": section.doc, "properties": {n: table for n in section.named},
+                "additionalProperties": False}
     out: dict[str, Any] = {"type": "object", "description": section.doc,
                            "properties": {k.name: _key_schema(k) for k in section.keys},
                            "additionalProperties": False}
@@ -89,7 +93,9 @@ def _key_schema(key: Key) -> dict[str, Any]:
 def describe(key: Key) -> str:
     """The key's description with its range and where it applies, as the docs, the schema and the template say."""
     limits = key.range_text() if key.kind in (int, float) else ""
-    return key.doc + (f" Range: {limits}." if limits else "") + ("" if key.live else " Emulator only.")
+    only = "; ".join(f"{other} = {' or '.join(map(toml_value, values))}" for other, values in key.when.items())
+    return (key.doc + (f" Range: {limits}." if limits else "") + (f" Only with {only}." if only else "")
+            + ("" if key.live else " Emulator only."))
 
 
 def default_text(key: Key) -> str:
@@ -138,7 +144,8 @@ def render_section(section: Section, values: dict[str, Any] | None = None, notes
     whole section commented out (one that a profile written for this PLC should not set without thought)."""
     values, notes, shown_values = values or {}, notes or {}, shown or {}
     off = "" if active else "# "
-    lines = [f"# {line}" for line in textwrap.wrap(section.doc, 114)] + [f"{off}[{section.name}]"]
+    header = f"{section.name}.{section.named[0]}" if section.named else section.name
+    lines = [f"# {line}" for line in textwrap.wrap(section.doc, 114)] + [f"{off}[{header}]"]
     for key in section.keys:
         lines += [f"# {line}" for line in textwrap.wrap(describe(key), 114)]
         given = key.name in values

@@ -23,6 +23,7 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.address import parse
 from hil.families.fbs.device.temperature import TableView
 from hil.families.fbs.identity import read_identity
+from hil.families.fbs.injectors.config import FAULTS
 from hil.families.fbs.pid import PID
 from hil.families.fbs.plugin import FAMILY
 from hil.families.fbs.rtc_profile import RTC
@@ -108,7 +109,7 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] writable.",
               "# [[pid.instances]]   # several boxes: one such table each, with the keys of [pid] below"]
     lines += render_section(PID, active=False)
-    lines += ["# How this bench injects faults (skipped without): [faults.sensor_break] kind = \"modbus-coil\" …", ""]
+    lines += render_section(FAULTS, active=False)
     for section in (EMULATOR, PLANT, WIRE_FAULTS, HISTORY, LABGRID):  # what a profile for a PLC rarely sets
         lines += render_section(section, active=False)
     return "\n".join(lines).rstrip("\n") + "\n"
