@@ -1,8 +1,9 @@
 """What is generated from the profile's declarations (:mod:`hil.bench.schema`): the JSON Schema editors read
-(Even Better TOML, through a ``#:schema`` line), the docs' key tables and the sections of ``hil init``'s template.
+(Even Better TOML, through a ``#:schema`` line), the docs' key tables (a page of the documentation site, written
+when Sphinx starts: docs/_ext/hil_docs.py) and the sections of ``hil init``'s template.
 
-``python -m hil.bench.schema_export`` rewrites the two committed files (tests/test_profile_schema.py fails while
-they differ from what the declarations give).
+``python -m hil.bench.schema_export`` rewrites the committed schema (tests/test_profile_schema.py fails while it
+differs from what the declarations give).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ from hil.bench.profile_keys import CORE
 from hil.bench.schema import Key, Section, toml_value
 
 SCHEMA_FILE = Path(__file__).with_name("profile.schema.json")
-DOCS_FILE = Path(__file__).resolve().parents[2] / "docs" / "profile-keys.md"
 #: core sections whose keys a family declares (each family its own: [faults.<name>] names its injectors)
 UNDECLARED = {"faults": "[faults.<name>]: how the bench injects a fault, declared by the family that injects it."}
 
@@ -108,11 +108,11 @@ def default_text(key: Key) -> str:
 
 def markdown() -> str:
     lines = ["# Bench profile keys", "",
-             "Generated from the declarations (`hil/bench/profile_keys.py` and each family's) by",
-             "`python -m hil.bench.schema_export`; do not edit by hand.  Editors that read JSON Schema (Even Better",
-             "TOML: a `#:schema` line at the top of the file, as `hil init` writes) check a profile against",
-             "`hil/bench/profile.schema.json`.  \"Real PLC\": whether the key changes anything on a real bench (no:",
-             "only the emulator reads it).", ""]
+             "Generated from the declarations (`hil/bench/profile_keys.py` and each family's) when this site was",
+             "built.  Editors that read JSON Schema (Even Better TOML: a `#:schema` line at the top of the file, as",
+             "`hil init` writes) check a profile against `hil/bench/profile.schema.json`, generated from the same",
+             "declarations.  \"Real PLC\": whether the key changes anything on a real bench (no: only the emulator",
+             "reads it).", ""]
     for section in declared_sections():
         owner = f" (the {families()[section.family].title} family)" if section.family else ""
         lines += [f"## [{section.name}]{owner}", "", section.doc, "",
@@ -170,7 +170,8 @@ def schema_line() -> str:
 
 
 def generated() -> dict[Path, str]:
-    return {SCHEMA_FILE: json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n", DOCS_FILE: markdown()}
+    """The committed files and what they must hold."""
+    return {SCHEMA_FILE: json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"}
 
 
 def main(argv: Iterable[str] = ()) -> int:

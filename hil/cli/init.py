@@ -89,7 +89,7 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     or commented out with its default), each with its description (:func:`hil.bench.schema_export.render_section`)."""
     lines = [schema_line(),
              f"# Bench profile written by `hil init {target}` from what the PLC said; check every line and fill in",
-             "# the commented placeholders (docs/writing-tests.md, docs/profile-keys.md,",
+             "# the commented placeholders (docs/writing-tests.md, docs/profiles.md,",
              "# fixtures/benches/example-bench.toml).",
              f"# PLC status: {found.status}"]
     if found.identity:
