@@ -54,7 +54,9 @@ BENCH = Section("bench", "Which PLC, over which wire, and how the harness paces 
         "scans from the PLC's side.", pattern=ELEMENT, hint="must name one word register (letters, then digits)",
         example="R3999"),
     Key("answers_at_scan_end", bool, "The wire reaches a port that services each request at a scan's end (FBs "
-        "ports 0, 1, 3, 4): settles rely on that rule rather than prove each scan with the scan counter.", False),
+        "ports 0, 1, 3, 4): settles rely on that rule, a round trip per scan, rather than prove each scan with two "
+        "reads of the scan counter (which still brackets what counts scans). Leave it out for the Ethernet modules, "
+        "which may answer within a scan.", False),
     Key("scratch", list, "Element ranges nobody else uses, for the smoke suite (add them to [safety] writable).",
         [], pattern=rf"{ELEMENT}(-{ELEMENT})?", hint="must be a list of element ranges (FIRST-LAST)",
         convert=tuple, example=["R1000-R1099", "M1000-M1015"], json={"items": {"type": "string"}}),
@@ -67,8 +69,8 @@ BENCH = Section("bench", "Which PLC, over which wire, and how the harness paces 
 ))
 
 SAFETY = Section("safety", "What the harness may write: anything else is refused before a byte is sent.", (
-    Key("writable", list, "Address ranges the tests may write: journaled first, put back and read back after each "
-        "test.", [], convert=tuple, json=STRINGS),
+    Key("writable", list, "Address ranges the tests may write (\"R4128-R4134\", \"M1952-M1953\", \"D4054\"): "
+        "journaled first, put back and read back after each test.", [], convert=tuple, json=STRINGS),
     Key("volatile", list, "Values the PLC rewrites itself: never journaled nor restored.", convert=tuple,
         default_doc="the family's own (FBs: the RTC read-out R4128-R4135)", json=STRINGS),
     Key("allow_destructive", bool, "Allow RUN/STOP and other actions that change what the PLC does.", False),

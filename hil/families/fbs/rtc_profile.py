@@ -43,7 +43,8 @@ RTC = Section("rtc", "The PLC's real-time clock: on a real bench chip states wha
         "2024-02-29 12:00:00.", convert=_start, default_doc="\"host\"", example="host", live=False,
         json={"type": "string"}),
     Key("drift_max_hours", float, "The longest one drift measurement may take on this bench (the drift test "
-        "makes two; 0: no drift test here).", 12.0, low=0, high=24 * 14, unit="h",
+        "makes two, measuring until its resolution is below 0.088 s/day, and fails as inconclusive when this is "
+        "not enough; 0: no drift test here).", 12.0, low=0, high=24 * 14, unit="h",
         hint="must be 0–336 h (0: no drift test here)"),
 ))
 

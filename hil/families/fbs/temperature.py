@@ -135,7 +135,8 @@ def _unit(value: str) -> str:
 _REGISTER = "an R or D register such as 'R3000'"
 TEMPERATURE = Section("temperature", "Where the ladder keeps the temperature table (SR, 4 + N words), the readings "
                       "(one word per point, 0.1°) and the work block (TW, 4 + 4N words), and the modules fitted, in "
-                      "expansion order (at most 8 modules / 32 points).", (
+                      "expansion order (at most 8 modules / 32 points). Add \"R4010-R4011\" to [safety] writable for the mask "
+                      "checks, the table's SR…SR+11 for the FEH/FFH/mismatch checks.", (
     Key("table", str, f"The table's first register SR, {_REGISTER}.", required=True, convert=_start_register,
         example="R3000"),
     Key("readings", str, f"The first reading's register, {_REGISTER}.", required=True, convert=_start_register,
