@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Mapping
 
 from hil.core.errors import AddressError, ProfileError, TargetError
 
@@ -24,7 +24,7 @@ from hil.core.errors import AddressError, ProfileError, TargetError
 REFUSALS = (ValueError, TypeError, AddressError, TargetError)
 
 #: what the errors call a type, in TOML's words where Python's differ
-_TOML_NAMES = {dict: "table", list: "list"}
+_TOML_NAMES: dict[type, str] = {dict: "table", list: "list"}
 
 Verdict = Callable[[Any], "bool | str"]
 
@@ -116,7 +116,7 @@ class Section:
         key = self.key(name)
         return _converted(key, key.default)
 
-    def read(self, table: Any, where: str, *, checks: dict[str, Verdict] | None = None,
+    def read(self, table: Any, where: str, *, checks: Mapping[str, Verdict] | None = None,
              defaults: dict[str, Any] | None = None, label: str | None = None, nth: int = 0) -> dict[str, Any]:
         """The table's values by record field (every declared key, its default where the table has none), refusing
         an unknown key, a missing required one and a bad value with "<file>: [section] key …".  ``checks`` and
@@ -203,10 +203,10 @@ def located(error: ProfileError, section: str, key: str | None = None, nth: int 
 
 def with_line(error: ProfileError, text: str, where: str) -> ProfileError:
     """``error`` with "<file>:<line>:" in front where the key (or its section) is found in the file's ``text``."""
-    place = getattr(error, "place", None)
+    place: tuple[str, str | None, int] | None = getattr(error, "place", None)
     message = str(error)
     line = line_of(text, *place) if place else None
-    if line is None or not message.startswith(f"{where}: "):
+    if place is None or line is None or not message.startswith(f"{where}: "):
         return error
     return located(ProfileError(f"{where}:{line}: {message[len(where) + 2:]}"), *place)
 

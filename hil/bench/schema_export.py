@@ -149,9 +149,9 @@ def render_section(section: Section, values: dict[str, Any] | None = None, notes
     for key in section.keys:
         lines += [f"# {line}" for line in textwrap.wrap(describe(key), 114)]
         given = key.name in values
-        shown = toml_value(values[key.name] if given else shown_values.get(key.name, placeholder(key)))
+        text = toml_value(values[key.name] if given else shown_values.get(key.name, placeholder(key)))
         note = f"   # {notes[key.name]}" if key.name in notes else ""
-        lines.append(f"{off if given else '# '}{key.name} = {shown}{note}")
+        lines.append(f"{off if given else '# '}{key.name} = {text}{note}")
     return lines + [""]
 
 
