@@ -1,12 +1,14 @@
 """Pages of the documentation site generated from the code when Sphinx starts, so none is kept by hand: the
-requirement matrix (``hil spec``'s, from the catalogue and the suites' ``spec()`` markers) and the command-line
-reference (from the argparse parsers, :mod:`hil.cli.reference`)."""
+requirement matrix (``hil spec``'s, from the catalogue and the suites' ``spec()`` markers), the command-line
+reference (from the argparse parsers, :mod:`hil.cli.reference`) and the bench profile's keys (from their
+declarations, :mod:`hil.bench.schema_export`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+from hil.bench.schema_export import markdown as profile_keys
 from hil.cli.main import build_parser
 from hil.cli.reference import render as command_reference
 from hil.cli.spec import build
@@ -52,6 +54,7 @@ def _write(name: str, text: str) -> None:
 def _generate(app: Any) -> None:
     _write("requirements.md", requirement_matrix())
     _write("commands.md", command_reference(build_parser()))
+    _write("profile-keys.md", profile_keys())
 
 
 def setup(app: Any) -> dict[str, Any]:

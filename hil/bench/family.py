@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Protocol
 from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
+    from hil.bench.schema import Section
     from hil.bench.base import BenchBase
     from hil.bench.profile import Profile
     from hil.sim.engine import Engine
@@ -36,6 +37,9 @@ class Family(Protocol):
     a_title: str
     #: the profile sections this family reads (parsed by :meth:`parse_sections`)
     sections: tuple[str, ...]
+    #: the declarations of those sections' keys (:class:`hil.bench.schema.Section`), for the JSON Schema, the
+    #: template and the docs; a section not declared here is checked by its parser alone
+    declarations: tuple["Section", ...]
     #: the family of a profile that names none (one installed family says True)
     default: bool
     #: ``[safety] volatile`` when a profile says nothing: values the PLC rewrites itself

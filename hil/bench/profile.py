@@ -9,50 +9,48 @@ checks [faults.*] and the address ranges of [safety].
 
 from __future__ import annotations
 
-import re
-
 import hashlib
 import tomllib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from hil.bench.capabilities import DECLARABLE
 from hil.bench.family import Family, default_family, families, family as family_named
 from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
+from hil.bench.profile_keys import BENCH, EMULATOR, HISTORY, SAFETY, WIRE_FAULTS
+from hil.bench.schema import located, with_line
 from hil.core.paths import bench_path
-from hil.core.errors import AddressError, ProfileError, TargetError
+from hil.core.errors import AddressError, ProfileError
 from hil.core.lock import lock_key
 from hil.core.registry import PROTOCOLS, SCHEMES
 from hil.io.url import Target, parse_target
 from hil.bench.lab.resolve import Lab
 from hil.sim.wire_faults import KINDS, check_rates
-from hil.sim.pacing import LineRate
-from hil.sim.timing import MODES as TIMING_MODES, Timing
+from hil.sim.timing import Timing
 
 CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid", "history")
 
 
 @dataclass(frozen=True)
 class Safety:
-    writable: tuple[str, ...] = ()
+    writable: tuple[str, ...] = SAFETY.default("writable")
     volatile: tuple[str, ...] = ()  # a profile always sets it: its family's default_volatile unless it says
-    allow_destructive: bool = False
+    allow_destructive: bool = SAFETY.default("allow_destructive")
 
 
 @dataclass(frozen=True)
 class EmulatorSettings:
-    scan_time_ms: float = 10.0
-    seed: int = 0
-    #: ``line = "9600 7E1"``: the pace of the emulator's pty wires (hil.sim.pacing.LineRate); None: unpaced
-    line: Any = None
-    #: ``timing = "bench"``: publish what the manual lets happen later, later, at phases drawn from ``seed``
-    #: (hil.sim.timing); "instant" (the default): at once
-    timing: str = "instant"
-    #: ``scan_time_range = [MIN, MAX]`` (ms, bench timing only): each scan's length drawn from it; None: every
-    #: scan ``scan_time_ms`` long
-    scan_time_range_ms: tuple[float, float] | None = None
+    """``[emulator]`` (:data:`hil.bench.profile_keys.EMULATOR` describes each key)."""
+
+    scan_time_ms: float = EMULATOR.default("scan_time_ms")
+    seed: int = EMULATOR.default("seed")
+    #: a hil.sim.pacing.LineRate; None: unpaced
+    line: Any = EMULATOR.default("line")
+    #: "bench": publish what the manual lets happen later, later, at phases drawn from ``seed`` (hil.sim.timing)
+    timing: str = EMULATOR.default("timing")
+    #: (MIN, MAX) ms, bench timing only; None: every scan ``scan_time_ms`` long
+    scan_time_range_ms: tuple[float, float] | None = EMULATOR.default("scan_time_range")
 
     def timing_plan(self) -> Timing:
         """The emulator's :class:`~hil.sim.timing.Timing` (the same ``seed`` as the plant's noise: one number
@@ -65,11 +63,11 @@ class EmulatorSettings:
 class Profile:
     path: Path | None
     name: str
-    target: str = "emulator"
-    station: int = 1
-    time_scale: float = 1.0
-    settle_scans: int = 2
-    timeout: float = 2.0
+    target: str = BENCH.default("target")
+    station: int = 1  # (the profile's [bench] station, else its target's, else 1: _one_station)
+    time_scale: float = BENCH.default("time_scale")
+    settle_scans: int = BENCH.default("settle_scans")
+    timeout: float = BENCH.default("timeout")
     safety: Safety = Safety()
     emulator: EmulatorSettings = EmulatorSettings()
     #: the family's sections as written ([temperature], [pid], …), for composing new profiles from this one
@@ -81,14 +79,14 @@ class Profile:
     #: the family's sections parsed once into typed records (e.g. "temperature" → TemperatureConfig)
     sections: dict[str, Any] = field(default_factory=dict)
     #: [bench] scan_counter: a word the bench ladder adds 1 to every scan (fixtures/ladder.md), or None
-    scan_counter: str | None = None
+    scan_counter: str | None = BENCH.default("scan_counter")
     #: [bench] answers_at_scan_end: the wire reaches a port that services each request at the end of a scan (FBs
     #: ports 0, 1, 3, 4): a settle trusts that rule rather than prove each scan with the scan counter
-    answers_at_scan_end: bool = False
+    answers_at_scan_end: bool = BENCH.default("answers_at_scan_end")
     #: [bench] scratch: element ranges nobody else uses ("R1000-R1099", "M1000-M1015"), for the smoke suite
-    scratch: tuple[str, ...] = ()
+    scratch: tuple[str, ...] = BENCH.default("scratch")
     #: [bench] offers: capabilities the bench's owner vouches for (hil.bench.capabilities.DECLARABLE)
-    offers: tuple[str, ...] = ()
+    offers: tuple[str, ...] = BENCH.default("offers")
     #: the labgrid place this run holds (hil.bench.lab.resolve.Lab) when the target came from one, else None
     lab: Any = None
     #: [bench] plc_id: the PLC's name on this site — one lock and one journal for it whatever wire reaches it
@@ -123,10 +121,14 @@ class Profile:
 def load_profile(path: str | Path, *, lab: Any = None) -> Profile:
     """``lab``: the labgrid place the run holds (:class:`hil.bench.lab.resolve.Lab`), whose URLs replace the
     profile's target and fill its rig (a profile with ``[labgrid]`` cannot be loaded without one).  ``path`` may
-    be a bundled profile's short name (``s7-200smart``, :func:`hil.core.paths.bench_path`)."""
+    be a bundled profile's short name (``s7-200smart``, :func:`hil.core.paths.bench_path`).  An error names the
+    line of the key it is about (``<file>:<line>: [section] key …``)."""
     path = bench_path(path)
     raw, data = _read(path)
-    return profile_from_dict(data, path=Path(path), digest=hashlib.sha256(raw).hexdigest(), lab=lab)
+    try:
+        return profile_from_dict(data, path=Path(path), digest=hashlib.sha256(raw).hexdigest(), lab=lab)
+    except ProfileError as exc:
+        raise with_line(exc, raw.decode("utf-8"), str(path)) from None
 
 
 def _read(path: Path) -> tuple[bytes, dict[str, Any]]:
@@ -146,9 +148,11 @@ def lab_request(path: str | Path, *, place: str | None = None, tags: str | None 
     """The labgrid place a run on this profile asks for: the profile's ``[labgrid]`` with the command line's
     ``--lg-place`` / ``--lg-reserve`` / ``--lg-coordinator`` / ``--lg-wait`` over it; None when neither names one."""
     path = bench_path(path)
-    where = str(path)
-    data = _read(path)[1]
-    spec = parse_lab_section(Reader(where), data) if "labgrid" in data else None
+    raw, data = _read(path)
+    try:
+        spec = parse_lab_section(data, str(path)) if "labgrid" in data else None
+    except ProfileError as exc:
+        raise with_line(exc, raw.decode("utf-8"), str(path)) from None
     if spec is None and not (place or tags):
         return None
     return (spec or LabSpec()).overridden(place=place, tags=tags, coordinator=coordinator, wait=wait)
@@ -162,102 +166,25 @@ def check_profile(path: str | Path, spec: LabSpec | None) -> Profile:
 
 def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest: str = "",
                       lab: Any = None) -> Profile:
+    """The profile ``data`` describes, every key checked against its declaration (:mod:`hil.bench.profile_keys`
+    and the family's own)."""
     where = str(path) if path else "<profile>"
-    if "labgrid" in data:
-        spec = parse_lab_section(Reader(where), data)
-        if "target" in data.get("bench", {}):
-            raise ProfileError(f"{where}: [bench] target and [labgrid] both say where the PLC is: keep one")
-        if lab is None:
-            raise ProfileError(f"{where} takes its PLC from {spec.describe()}: `hil run --bench {where}` (or pytest "
-                               f"--bench) reserves it; other commands need its URL")
-    if lab is not None:
-        data = lab.apply(data, where)
-    installed = families()
-    owner = {section: plugin for plugin in installed.values() for section in plugin.sections}
-    for section in data:
-        if section not in CORE_SECTIONS and section not in owner:
-            known = sorted({*CORE_SECTIONS, *owner})
-            raise ProfileError(f"{where}: unknown section [{section}] (known: {', '.join(known)})")
+    data = _placed(data, where, lab)
+    owner = _section_owners(data, where)
     if "bench" not in data:
         raise ProfileError(f"{where}: missing the [bench] section (name, target, station, time_scale)")
-    reader = Reader(where)
-    bench = reader.table(data, "bench")
-    name = reader.take(bench, "bench", "name", str, required=True)
-    target = reader.take(bench, "bench", "target", str, "emulator", check=_check_target)
-    stated = reader.take(bench, "bench", "station", int, None, check=_check_station)
-    station = _one_station(where, parse_target(target), stated)
-    time_scale = reader.take(bench, "bench", "time_scale", float, 1.0, check=lambda v: v > 0 or "must be > 0")
-    settle = reader.take(bench, "bench", "settle_scans", int, 2, check=lambda v: v >= 1 or "must be ≥ 1")
-    timeout = reader.take(bench, "bench", "timeout", float, 2.0, check=lambda v: v > 0 or "must be > 0")
-    family = reader.take(bench, "bench", "family", str, default_family().name,
-                         check=lambda v: v in installed or f"must be one of {', '.join(sorted(installed))}")
-    scan_counter = reader.take(bench, "bench", "scan_counter", str, None,
-                               check=lambda v: bool(re.fullmatch(r"[A-Z]+[0-9]+", v))
-                               or "must name one word register (letters, then digits)")
-    at_scan_end = reader.take(bench, "bench", "answers_at_scan_end", bool, False)
-    scratch = reader.take(bench, "bench", "scratch", list, [],
-                          check=lambda v: all(isinstance(x, str) and re.fullmatch(r"[A-Z]+[0-9]+(-[A-Z]+[0-9]+)?", x)
-                                              for x in v) or "must be a list of element ranges (FIRST-LAST)")
-    offers = reader.take(bench, "bench", "offers", list, [],
-                         check=lambda v: all(x in DECLARABLE for x in v)
-                         or f"may list only {', '.join(DECLARABLE)}, not {', '.join(map(str, v))}")
-    plc_id = reader.take(bench, "bench", "plc_id", str, None,
-                         check=lambda v: bool(re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9._:/-]{0,63}", v))
-                         or "must be a name of 1–64 letters, digits and . _ : / - (e.g. \"line-3-plc-2\")")
-    reader.done(bench, "bench")
-    plugin = installed[family]
-
-    safety_t = reader.table(data, "safety")
-    ranges = plugin.check_ranges
-    volatile_default = list(plugin.default_volatile)
-    safety = Safety(
-        writable=tuple(reader.take(safety_t, "safety", "writable", list, [], check=ranges)),
-        volatile=tuple(reader.take(safety_t, "safety", "volatile", list, volatile_default, check=ranges)),
-        allow_destructive=reader.take(safety_t, "safety", "allow_destructive", bool, False))
-    reader.done(safety_t, "safety")
-    _check_overlap(plugin, safety, where)
-
-    emu_t = reader.table(data, "emulator")
-    emulator = EmulatorSettings(
-        scan_time_ms=reader.take(emu_t, "emulator", "scan_time_ms", float, 10.0,
-                                 check=lambda v: 0.1 <= v <= 1000 or "must be 0.1–1000 ms"),
-        seed=reader.take(emu_t, "emulator", "seed", int, 0),
-        line=reader.take(emu_t, "emulator", "line", str, None, convert=_line_rate),
-        timing=reader.take(emu_t, "emulator", "timing", str, "instant",
-                           check=lambda v: v in TIMING_MODES or f"must be one of {', '.join(TIMING_MODES)}"),
-        scan_time_range_ms=reader.take(emu_t, "emulator", "scan_time_range", list, None, check=_scan_range,
-                                       convert=tuple))
-    reader.done(emu_t, "emulator")
-    if emulator.scan_time_range_ms is not None and emulator.timing != "bench":
-        raise ProfileError(f"{where}: [emulator] scan_time_range varies the scans in bench timing only: add "
-                           f"timing = \"bench\" or remove it")
-
-
-    for section in data:
-        if section in owner and owner[section] is not plugin:
-            other = owner[section]
-            raise ProfileError(f"{where}: [{section}] describes {other.a_title}, not {plugin.a_title}: set "
-                               f"[bench] family = \"{other.name}\" (or remove the section)")
-    areas = {s: reader.table(data, s) for s in plugin.sections if s in data}
-    # refused when the profile is read, not when a test runs; parsed once, here
-    sections = plugin.parse_sections(areas, where)
-    faults_t = reader.table(data, "faults")
-    faults = {}
-    for fault, table in faults_t.items():
-        if not isinstance(table, dict):
-            raise ProfileError(f"{where}: [faults.{fault}] must be a table")
-        faults[fault] = table
-    if faults:
-        plugin.check_faults(faults, where)
-    wire_faults = _wire_faults(reader, data) if "wire_faults" in data else {}
-    history_t = reader.table(data, "history")
-    history_url = reader.take(history_t, "history", "url", str, None,
-                              check=lambda v: bool(v.strip()) or "must be a URL (sqlite:///PATH, postgresql://…) or 'off'")
-    reader.done(history_t, "history")
-    return Profile(path, name, target, station, time_scale, settle, timeout, safety, emulator, areas,
-                   faults, digest, wire_faults=wire_faults, family=family, sections=sections,
-                   scan_counter=scan_counter, answers_at_scan_end=at_scan_end, scratch=tuple(scratch), offers=tuple(offers), lab=lab, plc_id=plc_id,
-                   history_url=history_url)
+    bench = BENCH.read(data["bench"], where, defaults={"family": default_family().name})
+    bench["station"] = _one_station(where, parse_target(bench["target"]), bench["station"])
+    plugin = family_named(bench["family"])
+    _refuse_other_family(data, owner, plugin, where)
+    areas = {s: _table(data, s, where) for s in plugin.sections if s in data}
+    return Profile(
+        path=path, digest=digest, lab=lab, **bench, safety=_safety(data, plugin, where),
+        emulator=_emulator(data, where), areas=areas,
+        sections=plugin.parse_sections(areas, where),  # refused when the profile is read, not when a test runs
+        faults=_faults(data, plugin, where),
+        wire_faults=_wire_faults(data, where) if "wire_faults" in data else {},
+        **HISTORY.read(data.get("history", {}), where))
 
 
 def _check_station(value: int) -> bool | str:
@@ -355,86 +282,81 @@ def _check_overlap(plugin: Family, safety: Safety, where: str) -> None:
                            f"of the two lists")
 
 
-def _wire_faults(reader: "Reader", data: dict[str, Any]) -> dict[str, Any]:
-    """``[wire_faults]``: faults the emulator's servers put on the wire (emulator+… targets only).
+def _placed(data: dict[str, Any], where: str, lab: Any) -> dict[str, Any]:
+    """``data`` with the labgrid place's URLs in (``lab``); a ``[labgrid]`` profile needs a place to load."""
+    if "labgrid" in data:
+        spec = parse_lab_section(data, where)
+        if "target" in data.get("bench", {}):
+            raise located(ProfileError(f"{where}: [bench] target and [labgrid] both say where the PLC is: keep one"),
+                          "bench", "target")
+        if lab is None:
+            raise ProfileError(f"{where} takes its PLC from {spec.describe()}: `hil run --bench {where}` (or pytest "
+                               f"--bench) reserves it; other commands need its URL")
+    return data if lab is None else lab.apply(data, where)
 
-    ``seed`` (int), ``delay_seconds`` (how long a "delay" holds a reply) and ``split_gap`` (seconds), ``script`` (list of kinds, "none" = no fault) and one
-    probability (0–1) per kind (drop = 0.01, corrupt = 0.02 …) — see :mod:`hil.sim.wire_faults`."""
-    table = reader.table(data, "wire_faults")
-    out: dict[str, Any] = {
-        "seed": reader.take(table, "wire_faults", "seed", int, 0),
-        "delay_seconds": reader.take(table, "wire_faults", "delay_seconds", float, 1.0,
-                                     check=lambda v: 0 <= v <= 60 or "must be 0–60 s"),
-        "split_gap": reader.take(table, "wire_faults", "split_gap", float, 0.005,
-                                 check=lambda v: 0 <= v <= 5 or "must be 0–5 s"),
-        "script": reader.take(table, "wire_faults", "script", list, [],
-                              check=lambda v: all(k in KINDS or k == "none" for k in v)
-                              or f"must name kinds among {', '.join(KINDS)} (or 'none')"),
-    }
-    out["script"] = [None if k == "none" else k for k in out["script"]]
-    for kind in KINDS:
-        out[kind] = reader.take(table, "wire_faults", kind, float, 0.0,
-                                check=lambda v: 0 <= v <= 1 or "must be a probability 0–1")
-    reader.done(table, "wire_faults")
+
+def _section_owners(data: dict[str, Any], where: str) -> dict[str, Family]:
+    """Which installed family reads each family section, refusing a section nobody reads."""
+    owner = {section: plugin for plugin in families().values() for section in plugin.sections}
+    for section in data:
+        if section not in CORE_SECTIONS and section not in owner:
+            known = sorted({*CORE_SECTIONS, *owner})
+            raise located(ProfileError(f"{where}: unknown section [{section}] (known: {', '.join(known)})"), section)
+    return owner
+
+
+def _refuse_other_family(data: dict[str, Any], owner: dict[str, Family], plugin: Family, where: str) -> None:
+    for section in data:
+        if section in owner and owner[section] is not plugin:
+            other = owner[section]
+            raise located(ProfileError(f"{where}: [{section}] describes {other.a_title}, not {plugin.a_title}: set "
+                                       f"[bench] family = \"{other.name}\" (or remove the section)"), section)
+
+
+def _table(data: dict[str, Any], section: str, where: str) -> dict[str, Any]:
+    table = data.get(section, {})
+    if not isinstance(table, dict):
+        raise located(ProfileError(f"{where}: [{section}] must be a table"), section)
+    return dict(table)
+
+
+def _safety(data: dict[str, Any], plugin: Family, where: str) -> Safety:
+    """``[safety]``, its ranges in the family's addresses (its clock read-out volatile unless the profile says)."""
+    ranges = {"writable": plugin.check_ranges, "volatile": plugin.check_ranges}
+    safety = Safety(**SAFETY.read(data.get("safety", {}), where, checks=ranges,
+                                  defaults={"volatile": tuple(plugin.default_volatile)}))
+    _check_overlap(plugin, safety, where)
+    return safety
+
+
+def _emulator(data: dict[str, Any], where: str) -> EmulatorSettings:
+    emulator = EmulatorSettings(**EMULATOR.read(data.get("emulator", {}), where))
+    if emulator.scan_time_range_ms is not None and emulator.timing != "bench":
+        raise located(ProfileError(f"{where}: [emulator] scan_time_range varies the scans in bench timing only: "
+                                   f"add timing = \"bench\" or remove it"), "emulator", "scan_time_range")
+    return emulator
+
+
+def _faults(data: dict[str, Any], plugin: Family, where: str) -> dict[str, dict[str, Any]]:
+    """``[faults.<name>]`` tables, checked by the family that injects them."""
+    faults = {}
+    for fault, table in _table(data, "faults", where).items():
+        if not isinstance(table, dict):
+            raise located(ProfileError(f"{where}: [faults.{fault}] must be a table"), f"faults.{fault}")
+        faults[fault] = table
+    if faults:
+        plugin.check_faults(faults, where)
+    return faults
+
+
+def _wire_faults(data: dict[str, Any], where: str) -> dict[str, Any]:
+    """``[wire_faults]``: faults the emulator's servers put on the wire (emulator+… targets only) —
+    see :mod:`hil.sim.wire_faults`."""
+    out = WIRE_FAULTS.read(data["wire_faults"], where)
     try:
         check_rates({k: out[k] for k in KINDS})
     except ValueError as exc:
-        raise ProfileError(f"{reader.where}: [wire_faults] {exc}") from None
+        raise located(ProfileError(f"{where}: [wire_faults] {exc}"), "wire_faults") from None
     return out
 
 
-class Reader:
-    """Takes keys out of a table one by one, so that whatever is left over is an unknown key."""
-
-    def __init__(self, where: str) -> None:
-        self.where = where
-
-    def table(self, data: dict[str, Any], section: str) -> dict[str, Any]:
-        table = data.get(section, {})
-        if not isinstance(table, dict):
-            raise ProfileError(f"{self.where}: [{section}] must be a table")
-        return dict(table)
-
-    def take(self, table: dict[str, Any], section: str, key: str, kind: type, default: Any = None, *,
-             required: bool = False, check: Callable[[Any], Any] | None = None,
-             convert: Callable[[Any], Any] | None = None) -> Any:
-        label = f"{self.where}: [{section}] {key}"
-        if key not in table:
-            if required:
-                raise ProfileError(f"{label} is required")
-            return default
-        value = table.pop(key)
-        if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if kind is not object and (not isinstance(value, kind) or (kind is int and isinstance(value, bool))):
-            raise ProfileError(f"{label} must be a {kind.__name__}, not {value!r}")
-        try:
-            if convert:
-                value = convert(value)
-            verdict = check(value) if check else True
-        except (ValueError, TypeError, AddressError, TargetError) as exc:
-            raise ProfileError(f"{label}: {exc}") from None
-        if verdict is not True:
-            raise ProfileError(f"{label} = {value!r} {verdict}")
-        return value
-
-    def done(self, table: dict[str, Any], section: str) -> None:
-        if table:
-            raise ProfileError(f"{self.where}: unknown key(s) in [{section}]: {', '.join(sorted(table))}")
-
-
-def _scan_range(value: tuple) -> bool | str:
-    """``[MIN, MAX]`` in ms, 0.1 ≤ MIN ≤ MAX ≤ 1000 (the range of ``scan_time_ms``)."""
-    if len(value) != 2 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        return "must be [MIN, MAX], two numbers of milliseconds"
-    low, high = value
-    return (0.1 <= low <= high <= 1000) or "must have 0.1 ≤ MIN ≤ MAX ≤ 1000 ms"
-
-
-def _line_rate(value: str) -> Any:
-    return LineRate.parse(value)
-
-
-def _check_target(value: str) -> bool:
-    parse_target(value)
-    return True

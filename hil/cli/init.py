@@ -15,14 +15,23 @@ from pathlib import Path
 
 from rich.console import Console
 
+from hil.bench.lab.spec import LABGRID
+from hil.bench.profile_keys import BENCH, EMULATOR, HISTORY, SAFETY, WIRE_FAULTS
+from hil.bench.schema_export import render_section, schema_line
 from hil.cli.target import open_target
 from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import parse
 from hil.families.fbs.device.temperature import TableView
 from hil.families.fbs.identity import read_identity
+from hil.families.fbs.injectors.config import FAULTS
+from hil.families.fbs.pid import PID
+from hil.families.fbs.plugin import FAMILY
+from hil.families.fbs.rtc_profile import RTC
 from hil.families.fbs.rtc_time import CHIP_NAMES
-from hil.families.fbs.temperature import MAX_MODULES, MODULE_BY_CODE, SENSOR_BY_CODE, TABLE_MARKER, decode_start
+from hil.families.fbs.sim.models.plant_config import PLANT
+from hil.families.fbs.temperature import (MAX_MODULES, MODULE_BY_CODE, SENSOR_BY_CODE, TABLE_MARKER, TEMPERATURE,
+                                          decode_start)
 from hil.families.fbs.transport.base import Transport
 
 
@@ -77,46 +86,53 @@ def _read_table(transport: Transport, at: str, notes: list[str]) -> dict[str, ob
 
 
 def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0) -> str:
-    lines = [f"# Bench profile written by `hil init {target}` from what the PLC said; check every line and fill in",
-             "# the commented placeholders (docs/writing-tests.md, fixtures/benches/example-bench.toml).",
+    """The profile for what the PLC said: every declared key of the core's and the FBs family's sections (set,
+    or commented out with its default), each with its description (:func:`hil.bench.schema_export.render_section`)."""
+    lines = [schema_line(),
+             f"# Bench profile written by `hil init {target}` from what the PLC said; check every line and fill in",
+             "# the commented placeholders (docs/writing-tests.md, docs/profiles.md,",
+             "# fixtures/benches/example-bench.toml).",
              f"# PLC status: {found.status}"]
     if found.identity:
         lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))
-    lines += [f"# {note}" for note in found.notes]
-    lines += ["", "[bench]", f"name = {_q(name)}", f"target = {_q(target)}",
-              f"time_scale = {time_scale:g}" + ("" if time_scale == 1 else "   # an accelerated hil emulate's"),
-              "# scratch = [\"R1000-R1099\", \"M1000-M1015\"]   # registers and relays your ladder leaves alone "
-              "(add them to writable too)",
-              "# scan_counter = \"R3999\"   # a word your ladder adds 1 to every scan (fixtures/ladder.md)",
-              "", "[safety]", "# What the tests may write: journaled, put back and read back after each test.",
-              "writable = ["]
-    has_rtc = found.chip not in (None, 0)
-    if has_rtc:
-        lines += ['    "R4128-R4134",   # RTC set values', '    "M1952-M1953",   # RTC set trigger, ±30 s trigger']
-        if found.rate_code_reachable and found.chip == 3:
-            lines.append('    "D4054",         # S-35390A rate code')
-    lines += ['    # "R1000-R1099", "M1000-M1015",   # your scratch ranges', "]", "allow_destructive = false", ""]
+    lines += [f"# {note}" for note in found.notes] + [""]
+    bench = {"name": name, "target": target, "time_scale": time_scale}
+    lines += render_section(BENCH, bench, {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {},
+                            shown={"family": FAMILY.name})
+    lines += render_section(SAFETY, {"writable": _writable(found)}, {"writable": "add your scratch ranges"},
+                            shown={"volatile": list(FAMILY.default_volatile)})
     if found.chip is not None:
-        lines += ["[rtc]", f"chip = {_q(CHIP_NAMES.get(found.chip, str(found.chip)))}   # D4053 = {found.chip}", ""]
+        lines += render_section(RTC, {"chip": CHIP_NAMES.get(found.chip, str(found.chip))},
+                                {"chip": f"D4053 = {found.chip}"})
     else:
-        lines += ["# [rtc]", '# chip = "S-35390A"   # what D4053 says: none, HT1381, ISL1208, S-35390A', ""]
-    if found.temperature is not None:
-        t = found.temperature
-        modules = ", ".join(f"{{type = {_q(m)}, sensor = {_q(s)}}}" for m, s in t["modules"])  # type: ignore[attr-defined]
-        lines += ["[temperature]", f"# read from the table at {t['table']}",
-                  f"table = {_q(str(t['table']))}", f"readings = {_q(str(t['readings']))}", f"work = {_q(str(t['work']))}",
-                  f"modules = [{modules}]",
-                  'unit = "C"           # check: as set in WinProladder (not readable from the PLC)',
-                  "averaging = 1        # check: 1, 2, 4 or 8", 'rate = "normal"      # check: "normal" or "fast"', ""]
-    else:
-        lines += ["# [temperature]   # hil init --temperature-table R3000 reads it from the PLC",
-                  '# table = "R3000"', '# readings = "R3020"', '# work = "R3060"',
-                  '# modules = [{type = "16TC", sensor = "K"}]', ""]
-    lines += ["# Your FUN86 (TPCTL) boxes, one [[pid.instances]] each (fixtures/benches/example-bench.toml):",
-              "# [[pid.instances]]", '# name = "oven"', '# en = "M20"', '# sv = "R2000"', "# sn = 4", "# zn = 2",
-              "# (and add their operands to [safety] writable)", "",
-              "# How this bench injects faults (skipped without): [faults.sensor_break] kind = \"modbus-coil\" …"]
-    return "\n".join(lines) + "\n"
+        lines += render_section(RTC, active=False)
+    lines += _temperature(found.temperature)
+    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] writable.",
+              "# [[pid.instances]]   # several boxes: one such table each, with the keys of [pid] below"]
+    lines += render_section(PID, active=False)
+    lines += render_section(FAULTS, active=False)
+    for section in (EMULATOR, PLANT, WIRE_FAULTS, HISTORY, LABGRID):  # what a profile for a PLC rarely sets
+        lines += render_section(section, active=False)
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def _writable(found: Found) -> list[str]:
+    """The RTC's set values and triggers (and the S-35390A's rate code where the wire reaches it)."""
+    if found.chip in (None, 0):
+        return []
+    return ["R4128-R4134", "M1952-M1953"] + (["D4054"] if found.rate_code_reachable and found.chip == 3 else [])
+
+
+def _temperature(table: dict[str, object] | None) -> list[str]:
+    if table is None:
+        return ["# hil init --temperature-table R3000 reads [temperature] from the PLC"] + render_section(
+            TEMPERATURE, active=False)
+    values = {key: table[key] for key in ("table", "readings", "work")}
+    values["modules"] = [{"type": m, "sensor": s} for m, s in table["modules"]]  # type: ignore[attr-defined]
+    values.update(unit="C", averaging=1, rate="normal")
+    check = "check: not readable from the PLC"
+    return [f"# read from the table at {table['table']}"] + render_section(
+        TEMPERATURE, values, {"unit": check, "averaging": check, "rate": check})
 
 
 FIRST_TEST = '''"""A first test for {name}, written by `hil init`: run it with
@@ -206,10 +222,6 @@ def _write(path: Path, text: str, force: bool) -> None:
                            f"there (no symbolic link; an existing file only with --force)") from None
     with os.fdopen(fd, "w", encoding="utf-8") as out:
         out.write(text)
-
-
-def _q(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
 __all__ = ["Found", "init", "read_plc", "render_profile"]

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from hil.core.errors import InvalidValue, ProfileError
+from hil.bench.schema import Key, Section, located
 from hil.core.registry import PROTOCOLS
 
 #: labgrid's own default when neither -x nor LG_COORDINATOR says
@@ -103,25 +104,33 @@ def parse_tags(text: str | dict[str, Any]) -> tuple[tuple[str, str], ...]:
     return tuple(sorted(out))
 
 
-def parse_section(reader: Any, data: dict[str, Any]) -> LabSpec:
-    """``[labgrid]`` of a profile, with ``reader`` (:class:`hil.bench.profile.Reader`) refusing unknown keys."""
-    table = reader.table(data, "labgrid")
-    place = reader.take(table, "labgrid", "place", str, None, check=lambda v: bool(v.strip()) or "must not be empty")
-    tags = reader.take(table, "labgrid", "tags", dict, None, convert=parse_tags)
-    if place and tags:
-        raise ProfileError(f"{reader.where}: [labgrid] gives both place and tags: reserve by one of them")
-    spec = LabSpec(
-        place=place, tags=tags or (),
-        coordinator=reader.take(table, "labgrid", "coordinator", str, None,
-                                check=lambda v: bool(re.fullmatch(r"[\w.\-\[\]:]+", v)) or "must be HOST[:PORT]"),
-        wire=reader.take(table, "labgrid", "wire", str, None),
-        protocol=reader.take(table, "labgrid", "protocol", str, None,
-                             check=lambda v: v in PROTOCOLS or f"must be one of {', '.join(PROTOCOLS)}"),
-        params=tuple(reader.take(table, "labgrid", "params", dict, {}).items()),
-        rig=reader.take(table, "labgrid", "rig", str, "*"),
-        wait=reader.take(table, "labgrid", "wait", float, None, check=lambda v: v > 0 or "must be > 0 s"))
-    reader.done(table, "labgrid")
-    return spec
+LABGRID = Section("labgrid", "The labgrid place that holds the PLC, its wire and the fault rig (instead of "
+                  "[bench] target; README \"A lab of benches\").", (
+    Key("place", str, "The place's name.", pattern=r".*\S.*", hint="must not be empty",
+        example="fbs-bench-3"),
+    Key("tags", dict, "Reserve any place with these tags, e.g. {family = \"fbs\"} (instead of place).",
+        convert=parse_tags, example={"family": "fbs"}),
+    Key("coordinator", str, "HOST[:PORT] of the coordinator; default $LG_COORDINATOR, else labgrid's own.",
+        pattern=r"[\w.\-\[\]:]+", hint="must be HOST[:PORT]",
+        example="lab.example.com:20408"),
+    Key("wire", str, "The resource that is the PLC's wire (default: the place's only NetworkService, else its "
+        "only NetworkSerialPort).", example="plc-ethernet"),
+    Key("protocol", str, "What the wire speaks (default: from a NetworkService's port).",
+        choices=lambda: tuple(PROTOCOLS), example="fatek"),
+    Key("params", dict, "More query parameters for the wire's URL, e.g. {parity = \"E\"}.", {}),
+    Key("rig", str, "The ModbusTCPCoil resources that make the fault rig (a glob).", "*"),
+    Key("wait", float, "Seconds to wait for the place.", above=0, unit="s", hint="must be > 0 s",
+        example=600.0),
+))
+
+
+def parse_section(data: dict[str, Any], where: str) -> LabSpec:
+    """``[labgrid]`` of a profile (refusing unknown keys and bad values, :data:`LABGRID`)."""
+    values = LABGRID.read(data.get("labgrid", {}), where)
+    if values["place"] and values["tags"]:
+        raise located(ProfileError(f"{where}: [labgrid] gives both place and tags: reserve by one of them"),
+                      "labgrid", "tags")
+    return LabSpec(**{**values, "tags": values["tags"] or (), "params": tuple(values["params"].items())})
 
 
 __all__ = ["LabSpec", "parse_tags", "parse_section", "DEFAULT_COORDINATOR"]

@@ -28,7 +28,8 @@ from typing import Any
 
 from hil.families.fbs.address import Address, parse
 from hil.families.fbs.registers import point_bit
-from hil.core.errors import AddressError, InvalidValue, ProfileError
+from hil.bench.schema import Key, Section
+from hil.core.errors import InvalidValue, ProfileError
 
 MAX_POINTS = 32
 WORK_WORDS = 9  # WR … WR+8
@@ -52,28 +53,95 @@ def valid_sn_zn(sn: int, zn: int) -> bool:
     return 0 <= sn <= 31 and 1 <= zn <= 32 and sn + zn <= 32
 
 
+# -- the [pid] profile section ----------------------------------------------------------------------------------
+# Operand ranges of FUN86 (manual 20.7 operand table): R0–R3839, R5000–R8071, D0–D3999; Yn Y0–Y255.
+_WORD_RANGES = {"R": ((0, 3839), (5000, 8071)), "D": ((0, 3999),)}
+_SHAPES = {"bit": "a bit (e.g. \"M100\")", "Y": "a Y output; FUN86 drives transistor outputs Yn…",
+           "word": "a FUN86 register operand (R0–R3839, R5000–R8071 or D0–D3999)"}
+
+
+def _is(address: Address, shape: str) -> bool:
+    if shape == "bit":
+        return address.is_bit
+    if shape == "Y":
+        return address.kind == "Y"
+    return any(lo <= address.index <= hi for lo, hi in _WORD_RANGES.get(address.kind, ()))
+
+
+def _operand(shape: str) -> Any:
+    """The conversion of an operand key: an element of ``shape`` or InvalidValue saying what it is not."""
+    def convert(raw: Any) -> Address:
+        address = parse(raw)
+        if not _is(address, shape):
+            raise InvalidValue(f"{address} is not {_SHAPES[shape]}")
+        return address
+    return convert
+
+
+def _element_name(raw: Any) -> bool | str:
+    return isinstance(raw, str) or "must be an element name such as \"M0\" or \"R100\""
+
+
+def _key(name: str, shape: str, doc: str, default: str | None = None, **more: Any) -> Key:
+    return Key(name, object, doc, default, check=_element_name, convert=_operand(shape), json={"type": "string"},
+               **more)
+
+
+_INSTANCE_KEYS = (
+    Key("name", str, "The box's name in reports and suites (distinct per box).", "fun86", pattern=r".+",
+        hint="must be a non-empty string", default_doc="\"fun86\" (several boxes: \"fun86-N\")"),
+    _key("en", "bit", "EN: the contact that enables the box.", "M0"),
+    _key("hc", "bit", "H/C: heating (0) or cooling (1).", "M1"),
+    _key("err", "bit", "ERR: the box's error output (bad Sn/Zn).", "M100"),
+    _key("alm", "bit", "ALM: the box's alarm output.", "M101"),
+    Key("md", int, "Md: the operating mode.", 0, low=0, high=1),
+    _key("yn", "Y", "Yn: the first transistor output the box drives (one per point).", "Y30"),
+    Key("sn", int, "Sn: the first temperature point the box controls.", 0, low=0, high=31),
+    Key("zn", int, "Zn: how many points it controls (Sn + Zn ≤ 32).", 10, low=1, high=32),
+    _key("sv", "word", "Sv: the set points, one word per point.", "R100"),
+    _key("os", "word", "Os: the deviations (normal band), one word per point.", "R110"),
+    _key("pr", "word", "PR: the gains Kc, one word per point.", "R120"),
+    _key("ir", "word", "IR: the integral gains Ki, one word per point.", "R130"),
+    _key("dr", "word", "DR: the derivative times Td, one word per point.", "R140"),
+    _key("or", "word", "OR: the outputs (0–16383), one word per point.", "R200", attr="or_"),
+    _key("wr", "word", "WR: the box's work block (9 words).", "R300"),
+    _key("sn_register", "word", "Where a test box takes Sn from, so the harness can give it any Sn/Zn (with "
+         "zn_register): the ERR checks.", example="R850"),
+    _key("zn_register", "word", "Where that box takes Zn from (with sn_register).", example="R851"),
+)
+PID = Section("pid", "The ladder's FUN86 (TPCTL) boxes: one box's keys directly in [pid], or several boxes, one "
+              "[[pid.instances]] each with the same keys (a missing key takes the manual's example program).",
+              (*_INSTANCE_KEYS,
+               Key("instances", list, "Several boxes: one [[pid.instances]] table each, with the keys above "
+                   "(then no box keys directly in [pid]).", [], json={"items": {"$ref": "#/properties/pid"}},  # each box: [pid]'s keys
+                   example=[{"name": "oven", "en": "M20", "sv": "R2000", "sn": 4, "zn": 2}])),
+              family="fbs")
+#: one of several boxes, [[pid.instances]]: the same keys
+INSTANCE = Section("pid.instances", PID.doc, _INSTANCE_KEYS, family="fbs", array=True)
+
+
 @dataclass(frozen=True)
 class PidInstance:
     """One FUN86 in the ladder: its contacts, operands, and (optionally) where the ladder takes Sn/Zn from."""
 
-    name: str = "fun86"
-    en: Address = parse("M0")
-    hc: Address = parse("M1")
-    err: Address = parse("M100")
-    alm: Address = parse("M101")
-    md: int = 0
-    yn: Address = parse("Y30")
-    sn: int = 0
-    zn: int = 10
-    sv: Address = parse("R100")
-    os: Address = parse("R110")
-    pr: Address = parse("R120")
-    ir: Address = parse("R130")
-    dr: Address = parse("R140")
-    or_: Address = parse("R200")
-    wr: Address = parse("R300")
-    sn_register: Address | None = None
-    zn_register: Address | None = None
+    name: str = PID.default("name")
+    en: Address = PID.default("en")
+    hc: Address = PID.default("hc")
+    err: Address = PID.default("err")
+    alm: Address = PID.default("alm")
+    md: int = PID.default("md")
+    yn: Address = PID.default("yn")
+    sn: int = PID.default("sn")
+    zn: int = PID.default("zn")
+    sv: Address = PID.default("sv")
+    os: Address = PID.default("os")
+    pr: Address = PID.default("pr")
+    ir: Address = PID.default("ir")
+    dr: Address = PID.default("dr")
+    or_: Address = PID.default("or")
+    wr: Address = PID.default("wr")
+    sn_register: Address | None = PID.default("sn_register")
+    zn_register: Address | None = PID.default("zn_register")
 
     @property
     def settable(self) -> bool:
@@ -129,14 +197,6 @@ class PidConfig:
         return next((i for i in self.instances if not i.settable and point in i.points), None)
 
 
-_ADDRESS_KEYS = {"en": "bit", "hc": "bit", "err": "bit", "alm": "bit", "yn": "Y", "sv": "word", "os": "word",
-                 "pr": "word", "ir": "word", "dr": "word", "or": "word", "wr": "word", "sn_register": "word",
-                 "zn_register": "word"}
-_INSTANCE_KEYS = set(_ADDRESS_KEYS) | {"name", "md", "sn", "zn"}
-# Operand ranges of FUN86 (manual 20.7 operand table): R0–R3839, R5000–R8071, D0–D3999; Yn Y0–Y255.
-_WORD_RANGES = {"R": ((0, 3839), (5000, 8071)), "D": ((0, 3999),)}
-
-
 def parse_pid(section: dict[str, Any], where: str = "<profile>") -> PidConfig:
     """Validate a ``[pid]`` table; ProfileError names the instance, the key and the reason."""
     if not isinstance(section, dict):
@@ -151,7 +211,8 @@ def parse_pid(section: dict[str, Any], where: str = "<profile>") -> PidConfig:
             raise ProfileError(f"{where}: [pid] instances must be a non-empty array of tables ([[pid.instances]])")
     else:
         raw = [section]
-    instances = [_parse_instance(t, i, len(raw), where) for i, t in enumerate(raw)]
+    declared = INSTANCE if "instances" in section else PID
+    instances = [_parse_instance(t, i, len(raw), where, declared) for i, t in enumerate(raw)]
     names = [i.name for i in instances]
     if len(set(names)) != len(names):
         raise ProfileError(f"{where}: [pid] instance names must differ, got {names}")
@@ -159,43 +220,12 @@ def parse_pid(section: dict[str, Any], where: str = "<profile>") -> PidConfig:
     return PidConfig(tuple(instances))
 
 
-def _parse_instance(table: dict[str, Any], i: int, count: int, where: str) -> PidInstance:
-    label = f"{where}: [pid]" + (f" instances[{i}]" if count > 1 or "name" in table else "")
-    unknown = set(table) - _INSTANCE_KEYS
-    if unknown:
-        raise ProfileError(f"{label}: unknown key(s) {', '.join(sorted(unknown))} "
-                           f"(known: {', '.join(sorted(_INSTANCE_KEYS))})")
-    default = PidInstance()
-    values: dict[str, Any] = {"name": table.get("name", default.name if count == 1 else f"fun86-{i}")}
-    if not isinstance(values["name"], str) or not values["name"]:
-        raise ProfileError(f"{label} name: must be a non-empty string, not {values['name']!r}")
-    for key, kind in _ADDRESS_KEYS.items():
-        attr = "or_" if key == "or" else key
-        if key not in table:
-            values[attr] = getattr(default, attr)
-            continue
-        try:
-            address = parse(str(table[key])) if isinstance(table[key], str) else None
-        except AddressError as exc:
-            raise ProfileError(f"{label} {key}: {exc}") from None
-        if address is None:
-            raise ProfileError(f"{label} {key}: must be an element name such as \"M0\" or \"R100\", "
-                               f"not {table[key]!r}")
-        if kind == "bit" and not address.is_bit:
-            raise ProfileError(f"{label} {key}: {address} is not a bit (e.g. \"M100\")")
-        if kind == "Y" and address.kind != "Y":
-            raise ProfileError(f"{label} {key}: {address} is not a Y output; FUN86 drives transistor outputs Yn…")
-        if kind == "word":
-            ranges = _WORD_RANGES.get(address.kind)
-            if ranges is None or not any(lo <= address.index <= hi for lo, hi in ranges):
-                raise ProfileError(f"{label} {key}: {address} is not a FUN86 register operand "
-                                   f"(R0–R3839, R5000–R8071 or D0–D3999)")
-        values[attr] = address
-    for key, low, high in (("md", 0, 1), ("sn", 0, 31), ("zn", 1, 32)):
-        value = table.get(key, getattr(default, key))
-        if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
-            raise ProfileError(f"{label} {key}: must be an integer {low}–{high}, not {value!r}")
-        values[key] = value
+def _parse_instance(table: dict[str, Any], i: int, count: int, where: str, declared: Section) -> PidInstance:
+    numbered = f" instances[{i}]" if count > 1 or "name" in table else ""
+    label = f"{where}: [pid]{numbered}"
+    values = declared.read(table, where, label=f"[pid]{numbered}", nth=i,
+                           defaults={"name": PID.default("name") if count == 1 else f"fun86-{i}"})
+    values.pop("instances", None)
     if values["sn"] + values["zn"] > MAX_POINTS:
         raise ProfileError(f"{label} sn/zn: Sn + Zn = {values['sn'] + values['zn']} > 32; FUN86 controls points "
                            f"0–31 (a test of ERR sets bad values through sn_register/zn_register instead)")

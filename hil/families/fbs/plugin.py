@@ -11,11 +11,11 @@ from hil.families.fbs import entries  # noqa: F401 - its schemes, wires, report 
 from hil.families.fbs.address import parse_range
 from hil.families.fbs.transport.guard import expand
 from hil.families.fbs.transport.base import value_problem
-from hil.families.fbs.pid import parse_pid
-from hil.families.fbs.sim.models.plant_config import parse_plant
-from hil.families.fbs.rtc_profile import parse_rtc
-from hil.families.fbs.temperature import parse_temperature
-from hil.families.fbs.injectors.config import check_fault_configs
+from hil.families.fbs.pid import PID, parse_pid
+from hil.families.fbs.sim.models.plant_config import PLANT, parse_plant
+from hil.families.fbs.rtc_profile import RTC, parse_rtc
+from hil.families.fbs.temperature import TEMPERATURE, parse_temperature
+from hil.families.fbs.injectors.config import FAULTS, check_fault_configs
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.transport.factory import serve
@@ -27,6 +27,7 @@ class FbsFamily:
     a_title = "a FATEK FBs"
     default = True  # the harness's first family: a profile naming none, a suite without a family marker
     sections = ("rtc", "temperature", "pid", "plant")
+    declarations = (RTC, TEMPERATURE, PID, PLANT, FAULTS)
     default_volatile = ("R4128-R4135",)  # the RTC read-out: the PLC rewrites it every scan
     #: may be both writable and volatile: the guard's clock (Rtc.clock) restores them, not the journal
     clock_elements = ("R4128-R4135",)

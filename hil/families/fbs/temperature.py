@@ -16,6 +16,7 @@ from typing import Any
 
 from hil.families.fbs.address import Address, parse
 from hil.families.fbs.registers import MAX_POINTS
+from hil.bench.schema import Key, Section, located
 from hil.core.errors import AddressError, InvalidValue, ProfileError
 from hil.families.fbs.address import WORD_BANKS
 
@@ -121,6 +122,45 @@ def decode_start(word: int) -> Address | None:
 
 
 # -- the [temperature] profile section ----------------------------------------------------------------------------
+def _start_register(value: str) -> Address:
+    address = parse(value)
+    encode_start(address)  # an R or D register: the table names it in one word
+    return address
+
+
+def _unit(value: str) -> str:
+    return value.upper().removeprefix("°")
+
+
+_REGISTER = "an R or D register such as 'R3000'"
+TEMPERATURE = Section("temperature", "Where the ladder keeps the temperature table (SR, 4 + N words), the readings "
+                      "(one word per point, 0.1°) and the work block (TW, 4 + 4N words), and the modules fitted, in "
+                      "expansion order (at most 8 modules / 32 points). Add \"R4010-R4011\" to [safety] writable for the mask "
+                      "checks, the table's SR…SR+11 for the FEH/FFH/mismatch checks.", (
+    Key("table", str, f"The table's first register SR, {_REGISTER}.", required=True, convert=_start_register,
+        example="R3000"),
+    Key("readings", str, f"The first reading's register, {_REGISTER}.", required=True, convert=_start_register,
+        example="R3020"),
+    Key("work", str, f"The work block's first register TW, {_REGISTER}.", required=True, convert=_start_register,
+        example="R3060"),
+    Key("modules", list, "The modules fitted, in expansion order: [{type = \"16TC\", sensor = \"K\"}, …] "
+        f"(types {' '.join(MODULES)}; sensors {' '.join(SENSORS)}).", required=True,
+        example=[{"type": "16TC", "sensor": "K"}], json={"items": {"type": "object", "properties": {
+            "type": {"type": "string"}, "sensor": {"type": "string"}}, "required": ["type", "sensor"]}}),
+    Key("unit", str, "\"C\" or \"F\", as configured in WinProladder (not readable from the PLC).", "C",
+        check=lambda v: _unit(v) in UNITS or "must be \"C\" or \"F\"", convert=_unit),
+    Key("averaging", int, "Readings averaged: 1, 2, 4 or 8.", 1, choices=AVERAGING, hint="must be 1, 2, 4 or 8"),
+    Key("rate", str, "\"normal\" (0.1°) or \"fast\" (1° resolution): how long the suites wait for an update.",
+        "normal", choices=RATES, hint="must be \"normal\" or \"fast\""),
+    Key("sources", dict, "What the emulator's points read: {\"0\" = {kind = \"fixed\", celsius = 25.0}, "
+        "\"3\" = {kind = \"ramp\", start = 20, per_s = 0.5}}.", {}, live=False),
+    Key("reference", dict, "Points a calibrator or ice point holds at a known °C, checked within the module's "
+        "accuracy: {\"5\" = 0.0}.", {}),
+    Key("reference_tolerance", float, "The reference's own uncertainty.", 0.0, low=0, unit="°C",
+        hint="must be a number of °C ≥ 0"),
+), family="fbs")
+
+
 @dataclass(frozen=True)
 class ModuleConfig:
     type: ModuleType
@@ -135,14 +175,14 @@ class TemperatureConfig:
     readings: Address
     work: Address
     modules: tuple[ModuleConfig, ...]
-    unit: str = "C"
-    averaging: int = 1
-    rate: str = "normal"
+    unit: str = TEMPERATURE.default("unit")
+    averaging: int = TEMPERATURE.default("averaging")
+    rate: str = TEMPERATURE.default("rate")
     sources: dict[int, dict[str, Any]] = field(default_factory=dict)  # emulator only: point → source spec
     #: point → °C a reference holds it at on this bench (a calibrator, an ice point, a stable bath): the readings
     #: suite checks those points within the module's accuracy (the emulator holds them there too)
     reference: dict[int, float] = field(default_factory=dict)
-    reference_tolerance: float = 0.0  # °C: the reference's own uncertainty, added to the module's accuracy
+    reference_tolerance: float = TEMPERATURE.default("reference_tolerance")  # °C: the reference's own uncertainty, added to the module's accuracy
 
     @property
     def points(self) -> int:
@@ -167,35 +207,29 @@ class TemperatureConfig:
             m.sensor.code << 8 | m.type.code for m in self.modules]
 
 
-_KEYS = {"table", "readings", "work", "modules", "unit", "averaging", "rate", "sources", "reference",
-         "reference_tolerance"}
-
-
 def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> TemperatureConfig:
-    """Validate a ``[temperature]`` table; ProfileError names the key and the reason."""
+    """Validate a ``[temperature]`` table (:data:`TEMPERATURE`, then what spans keys: the modules, the blocks'
+    overlaps, the points named); ProfileError names the key and the reason."""
     def fail(key: str, why: str) -> ProfileError:
-        return ProfileError(f"{where}: [temperature] {key}: {why}")
+        return located(ProfileError(f"{where}: [temperature] {key}: {why}"), "temperature", key.split(".")[0])
 
-    unknown = set(section) - _KEYS
-    if unknown:
-        raise ProfileError(f"{where}: unknown key(s) in [temperature]: {', '.join(sorted(unknown))} "
-                           f"(known: {', '.join(sorted(_KEYS))})")
-    starts: dict[str, Address] = {}
-    for key in ("table", "readings", "work"):
-        if key not in section:
-            raise fail(key, "is required (an R or D register such as 'R3000')")
-        try:
-            starts[key] = parse(str(section[key]))
-            encode_start(starts[key])
-        except (AddressError, ValueError) as exc:
-            raise fail(key, f"{exc}") from None
-    raw_modules = section.get("modules")
-    if not isinstance(raw_modules, list) or not raw_modules:
+    values = TEMPERATURE.read(section, where)
+    modules = _parse_modules(values.pop("modules"), fail)
+    points = sum(m.type.points for m in modules)
+    starts = {key: values[key] for key in ("table", "readings", "work")}
+    _check_blocks(starts, {"table": 4 + len(modules), "readings": points, "work": 4 + 4 * len(modules)}, fail)
+    values["sources"] = _parse_sources(values["sources"], points, fail)
+    values["reference"] = _parse_reference(values["reference"], points, fail)
+    return TemperatureConfig(modules=modules, **values)
+
+
+def _parse_modules(raw: list, fail) -> tuple[ModuleConfig, ...]:  # noqa: ANN001
+    if not raw:
         raise fail("modules", "must be a non-empty list like [{type = \"6TC\", sensor = \"K\"}]")
-    if len(raw_modules) > MAX_MODULES:
-        raise fail("modules", f"{len(raw_modules)} modules; an FBs takes at most {MAX_MODULES}")
+    if len(raw) > MAX_MODULES:
+        raise fail("modules", f"{len(raw)} modules; an FBs takes at most {MAX_MODULES}")
     modules = []
-    for i, item in enumerate(raw_modules):
+    for i, item in enumerate(raw):
         label = f"modules[{i}]"
         if not isinstance(item, dict) or set(item) - {"type", "sensor"} or "type" not in item or "sensor" not in item:
             raise fail(label, f"must be {{type = \"6TC\", sensor = \"K\"}}, not {item!r}")
@@ -211,16 +245,11 @@ def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> Temp
     points = sum(m.type.points for m in modules)
     if points > MAX_POINTS:
         raise fail("modules", f"{points} points; an FBs measures at most {MAX_POINTS}")
-    unit = str(section.get("unit", "C")).upper().removeprefix("°")
-    if unit not in UNITS:
-        raise fail("unit", f"must be \"C\" or \"F\", not {section['unit']!r}")
-    averaging = section.get("averaging", 1)
-    if averaging not in AVERAGING or isinstance(averaging, bool):
-        raise fail("averaging", f"must be 1, 2, 4 or 8, not {averaging!r}")
-    rate = section.get("rate", "normal")
-    if rate not in RATES:
-        raise fail("rate", f"must be \"normal\" or \"fast\", not {rate!r}")
-    sizes = {"table": 4 + len(modules), "readings": points, "work": 4 + 4 * len(modules)}
+    return tuple(modules)
+
+
+def _check_blocks(starts: dict[str, Address], sizes: dict[str, int], fail) -> None:  # noqa: ANN001
+    """The table, readings and work blocks neither overlap nor run past their bank."""
     names = list(sizes)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
@@ -230,13 +259,6 @@ def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> Temp
     for key, start in starts.items():
         if start.index + sizes[key] > _bank_size(start.kind):
             raise fail(key, f"the {key} block {start}+{sizes[key]} runs past the end of the {start.kind} bank")
-    sources = _parse_sources(section.get("sources", {}), points, fail)
-    reference = _parse_reference(section.get("reference", {}), points, fail)
-    tolerance = section.get("reference_tolerance", 0.0)
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or tolerance < 0:
-        raise fail("reference_tolerance", f"must be a number of °C ≥ 0, not {tolerance!r}")
-    return TemperatureConfig(starts["table"], starts["readings"], starts["work"], tuple(modules), unit, averaging,
-                             rate, sources, reference, float(tolerance))
 
 
 def _point_table(raw: Any, points: int, fail, name: str, shape: str) -> list[tuple[str, Any]]:  # noqa: ANN001

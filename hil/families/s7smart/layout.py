@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from hil.bench.schema import Key, Section
 from hil.core.errors import AddressError, InvalidValue, ProfileError
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range
 
@@ -18,18 +19,6 @@ from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range
 NO_RTC_CPUS = ("CR40", "CR60")
 CPUS = ("SR20", "ST20", "SR30", "ST30", "SR40", "ST40", "SR60", "ST60", "CR40", "CR60", "CR20s", "CR30s",
         "CR40s", "CR60s")
-
-
-@dataclass(frozen=True)
-class S7Settings:
-    cpu: str = "ST40"
-    hold_start: int = 0  # V byte of holding register 40001 (MBUS_SLAVE HoldStart, conventionally VB0)
-    max_hold: int = 1000  # holding registers mapped (MBUS_SLAVE MaxHold)
-    start: str = "host"  # the emulator's clock at build: "host" time or "power-loss" (2000-01-01 00:00:00)
-
-    @property
-    def has_rtc(self) -> bool:
-        return self.cpu not in NO_RTC_CPUS
 
 
 @dataclass(frozen=True)
@@ -50,69 +39,93 @@ class S7RtcLayout:
 
 _BITS = ("set_trigger", "read_trigger", "eno", "set_i_trigger", "sm4_3")
 _BUFFERS = ("set_buffer", "read_buffer", "set_i_buffer")
-_REQUIRED = ("set_trigger", "read_trigger", "set_buffer", "read_buffer", "eno", "error")
+_WANT = {"bit": "a bit such as 'V100.0'", "buffer": "a byte such as 'VB110' (8 bytes from it)",
+         "word": "a word such as 'VW104'"}
+
+
+def _hold_start(raw: Any) -> int:
+    a = _operand(raw)
+    if a.area != "V" or a.is_bit or a.size != 1:
+        raise InvalidValue(f"hold_start must be a V byte such as 'VB0', not {raw!r}")
+    return a.byte
+
+
+def _operand(raw: Any) -> S7Address:
+    try:
+        return parse_s7(raw)
+    except TypeError as exc:
+        raise InvalidValue(str(exc)) from None
+
+
+def _v(shape: str) -> dict[str, Any]:
+    """The check and conversion of a V operand of ``shape`` (bit, buffer: its first byte, word)."""
+    def check(raw: Any) -> bool | str:
+        a = _operand(raw)
+        if a.area != "V":
+            return "must be in V memory (the harness reaches V)"
+        ok = a.is_bit if shape == "bit" else (not a.is_bit and a.size == (2 if shape == "word" else 1))
+        return ok or f"must be {_WANT[shape]}"
+
+    def convert(raw: Any) -> S7Address:
+        a = _operand(raw)
+        return S7Address("V", a.byte, None, 1) if shape == "buffer" else a
+    return {"check": check, "convert": convert}
+
+
+S7 = Section("s7", "The S7-200 SMART CPU and its Modbus server (MBUS_SLAVE).", (
+    Key("cpu", str, "The CPU model (CR40/CR60: no real-time clock).", "ST40", choices=CPUS,
+        hint=f"is not an S7-200 SMART CPU ({', '.join(CPUS)})"),
+    Key("hold_start", str, "MBUS_SLAVE HoldStart: the V byte of holding register 40001.", "VB0",
+        convert=_hold_start),
+    Key("max_hold", int, "MBUS_SLAVE MaxHold: holding registers mapped.", 1000, low=1, high=10240,
+        hint="must be 1–10240 registers"),
+    Key("start", str, "The emulator's clock at power-on: \"host\" time or \"power-loss\" (2000-01-01).", "host",
+        choices=("host", "power-loss"), hint="must be 'host' or 'power-loss'", live=False),
+), family="s7-200smart")
+
+_TRIGGER = "rising edge → "
+S7RTC = Section("s7rtc", "Where the test program on the PLC keeps its clock triggers, buffers and results "
+                "(V memory).", (
+    Key("set_trigger", str, _TRIGGER + "SET_RTC set_buffer (a bit).", required=True, **_v("bit"),
+        example="V100.0"),
+    Key("read_trigger", str, _TRIGGER + "READ_RTC read_buffer (a bit).", required=True, **_v("bit"),
+        example="V100.1"),
+    Key("set_buffer", str, "8 bytes, BCD, SET_RTC's input.", required=True, **_v("buffer"), example="VB110"),
+    Key("read_buffer", str, "8 bytes, BCD, READ_RTC's output.", required=True, **_v("buffer"),
+        example="VB130"),
+    Key("eno", str, "ENO of the clock instruction last executed (a bit).", required=True, **_v("bit"),
+        example="V102.0"),
+    Key("error", str, "GET_ERROR after it (a word): 0000H, 0007H …", required=True, **_v("word"),
+        example="VW104"),
+    Key("set_i_trigger", str, _TRIGGER + "SET_RTC_I set_i_buffer (a bit; with set_i_buffer).", **_v("bit"),
+        example="V100.2"),
+    Key("set_i_buffer", str, "8 bytes, plain integers, SET_RTC_I's input.", **_v("buffer"), example="VB120"),
+    Key("sm4_3", str, "A copy of SM4.3 (colliding clock access), a bit.", **_v("bit"), example="V102.1"),
+), family="s7-200smart")
+
+
+@dataclass(frozen=True)
+class S7Settings:
+    """``[s7]`` (:data:`S7` describes each key)."""
+
+    cpu: str = S7.default("cpu")
+    hold_start: int = S7.default("hold_start")  # the V byte (VB0: 0)
+    max_hold: int = S7.default("max_hold")
+    start: str = S7.default("start")
+
+    @property
+    def has_rtc(self) -> bool:
+        return self.cpu not in NO_RTC_CPUS
 
 
 def parse_s7_settings(table: dict[str, Any], where: str) -> S7Settings:
-    table = dict(table)
-    out: dict[str, Any] = {}
-    cpu = table.pop("cpu", "ST40")
-    if cpu not in CPUS:
-        raise ProfileError(f"{where}: [s7] cpu = {cpu!r} is not an S7-200 SMART CPU ({', '.join(CPUS)})")
-    out["cpu"] = cpu
-    if "hold_start" in table:
-        raw = table.pop("hold_start")
-        try:
-            a = parse_s7(raw)
-        except (AddressError, TypeError) as exc:
-            raise ProfileError(f"{where}: [s7] hold_start: {exc}") from None
-        if a.area != "V" or a.is_bit or a.size != 1:
-            raise ProfileError(f"{where}: [s7] hold_start must be a V byte such as 'VB0', not {raw!r}")
-        out["hold_start"] = a.byte
-    if "max_hold" in table:
-        n = table.pop("max_hold")
-        if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= 10240:
-            raise ProfileError(f"{where}: [s7] max_hold must be 1–10240 registers, not {n!r}")
-        out["max_hold"] = n
-    if "start" in table:
-        start = table.pop("start")
-        if start not in ("host", "power-loss"):
-            raise ProfileError(f"{where}: [s7] start must be 'host' or 'power-loss', not {start!r}")
-        out["start"] = start
-    if table:
-        raise ProfileError(f"{where}: unknown key(s) in [s7]: {', '.join(sorted(table))}")
-    return S7Settings(**out)
+    return S7Settings(**S7.read(table, where))
 
 
 def parse_s7rtc(table: dict[str, Any], where: str) -> S7RtcLayout:
-    table = dict(table)
-    out: dict[str, S7Address] = {}
-    for key in _REQUIRED:
-        if key not in table:
-            raise ProfileError(f"{where}: [s7rtc] {key} is required")
-    for key in (*_BITS, *_BUFFERS, "error"):
-        if key not in table:
-            continue
-        raw = table.pop(key)
-        try:
-            a = parse_s7(raw)
-        except (AddressError, TypeError) as exc:
-            raise ProfileError(f"{where}: [s7rtc] {key}: {exc}") from None
-        if a.area != "V":
-            raise ProfileError(f"{where}: [s7rtc] {key} = {raw!r} must be in V memory (the harness reaches V)")
-        want = "a bit such as 'V100.0'" if key in _BITS else ("a byte such as 'VB110' (8 bytes from it)"
-                                                              if key in _BUFFERS else "a word such as 'VW104'")
-        ok = a.is_bit if key in _BITS else (a.size == 1 if key in _BUFFERS else a.size == 2)
-        if not ok or (not a.is_bit and key in _BITS):
-            raise ProfileError(f"{where}: [s7rtc] {key} = {raw!r} must be {want}")
-        if key in _BUFFERS:
-            a = S7Address("V", a.byte, None, 1)
-        out[key] = a
-    if table:
-        raise ProfileError(f"{where}: unknown key(s) in [s7rtc]: {', '.join(sorted(table))}")
-    if ("set_i_trigger" in out) != ("set_i_buffer" in out):
+    layout = S7RtcLayout(**S7RTC.read(table, where))
+    if (layout.set_i_trigger is None) != (layout.set_i_buffer is None):
         raise ProfileError(f"{where}: [s7rtc] set_i_trigger and set_i_buffer go together")
-    layout = S7RtcLayout(**out)
     _check_overlaps(layout, where)
     return layout
 

@@ -8,7 +8,7 @@ from typing import Any, Iterable
 from hil.bench.family import check_wire
 from hil.core.errors import ProfileError
 from hil.families.s7smart import wires as registered  # noqa: F401 - registers the family's schemes and wires (hil.core.registry)
-from hil.families.s7smart.layout import check_s7_ranges, parse_s7_settings, parse_s7rtc
+from hil.families.s7smart.layout import S7, S7RTC, check_s7_ranges, parse_s7_settings, parse_s7rtc
 from hil.families.s7smart.address import expand_s7
 from hil.families.s7smart.sim.emulator import build_s7_emulator
 from hil.families.s7smart.bench import S7Bench
@@ -23,6 +23,7 @@ class S7SmartFamily:
     a_title = "an S7-200 SMART"
     default = False
     sections = ("s7", "s7rtc")
+    declarations = (S7, S7RTC)
     default_volatile = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
 
     def check_ranges(self, ranges: list) -> bool:
