@@ -195,3 +195,40 @@ def test_a_closed_loop_on_an_emulator_without_a_plant_says_so(tmp_path):
                "closed_loop", "--hil-run-slow", cwd=tmp_path)
     assert done.returncode == 1, done.stdout[-3000:]
     assert "this profile has no [plant], so the emulator heats nothing" in done.stdout, done.stdout[-3000:]
+
+
+@pytest.mark.parametrize("argv, usage, says", [
+    (["rnu"], "usage: hil [", "invalid choice: 'rnu'"),
+    (["run", "--bnech", "x"], "usage: hil run [", "--bnech (did you mean --bench?)"),
+    (["probe", "--bogus"], "usage: hil probe [", "hil probe: error: unrecognized arguments: --bogus"),
+    (["history", "trend", "x", "--bnech", "y"], "usage: hil history trend [", "(did you mean --bench?)"),
+], ids=["command", "run-option", "probe-option", "history-option"])
+def test_a_mistyped_command_or_option_is_answered_by_its_own_command(argv, usage, says, tmp_path: Path) -> None:
+    done = hil(*argv, cwd=tmp_path)
+    assert done.returncode == EXIT_USAGE and done.stderr.startswith(usage) and says in done.stderr, done.stderr
+    if argv == ["rnu"]:
+        assert "did you mean 'run'?" in done.stderr
+
+
+def test_hil_history_alone_lists_the_runs(tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setenv("HIL_HISTORY_URL", f"sqlite:///{tmp_path / 'history.sqlite'}")
+    done = hil("history", cwd=tmp_path)
+    assert done.returncode == 0 and done.stdout.startswith("# runs in sqlite:///"), done.stdout + done.stderr
+
+
+@pytest.mark.parametrize("argv", [["list"], ["spec"], ["history", "yield"], ["history", "list"]])
+def test_a_reader_that_leaves_early_is_not_a_failure(argv, tmp_path: Path, monkeypatch) -> None:
+    """hil … | head: the reader has closed the pipe; hil ends quietly with 0 (1 would say "tests failed", 4 a usage
+    error), no traceback, no "Broken pipe".  (The read end is closed before hil writes, so every write meets it.)"""
+    monkeypatch.setenv("HIL_HISTORY_URL", f"sqlite:///{tmp_path / 'history.sqlite'}")
+    env = {k: v for k, v in __import__("os").environ.items() if not k.startswith("PYTEST")}
+    proc = subprocess.Popen([sys.executable, "-m", "hil", *argv], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0 and "Traceback" not in err and "Broken pipe" not in err, err
+
+
+def test_hil_run_help_names_the_slow_and_destructive_options(tmp_path: Path) -> None:
+    done = hil("run", "--help", cwd=tmp_path)
+    assert "-- --hil-run-slow" in done.stdout and "-- --hil-allow-destructive" in done.stdout

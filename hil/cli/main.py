@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
+import os
+import re
 import sys
 import traceback
 from pathlib import Path
@@ -14,6 +17,7 @@ from rich.markup import escape
 from hil import __version__
 from hil.core.errors import HilError, InvalidValue
 from hil.cli.history_parser import add_parser as add_history
+from hil.cli.reference import commands
 from hil.core.paths import default_bench, project_dir
 from hil.core.registry import WIRES
 
@@ -47,7 +51,7 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: ANN201 - NoReturn
         self.print_usage(sys.stderr)
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}{_did_you_mean(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -65,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
                                 "  hil run --bench fixtures/benches/example-bench.toml --operator \"J. Doe\" "
                                 "--station rig-2\n"
                                 "  hil run --bench my-bench.toml -- -k smoke -x     (pytest arguments after --)\n"
+                                "  hil run --bench my-bench.toml -- --hil-run-slow  (the slow tests on a bench too: "
+                                "the closed loop, drift)\n"
+                                "  hil run --bench my-bench.toml -- --hil-allow-destructive  (RUN/STOP and outputs)\n"
                                 "  hil run -q --trace all | tee run.log           (plain text in a pipe)\n"
                                 "  hil run --bench my-bench.toml --lanes 2      (two lanes share a slow line)\n"
                                 "  hil run --bench lab-fbs.toml --lg-reserve \"family=fbs rtc=s35390a\"  (a labgrid "
@@ -277,24 +284,80 @@ def _add_init_command(sub: "argparse._SubParsersAction") -> None:
     init.add_argument("--force", action="store_true", help="overwrite bench.toml and tests/test_first.py")
 
 
+def _reader_left() -> int:
+    """The reader of our output left (``| head``): what it wanted it has — not a failure (1 would say "tests
+    failed"), and nothing more to say to it."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return EXIT_OK
+
+
+class _Console(Console):
+    """rich's Console, but a closed pipe ends the command as :func:`_reader_left` says, not with rich's exit 1."""
+
+    def on_broken_pipe(self) -> None:
+        raise BrokenPipeError
+
+
+def _did_you_mean(message: str) -> str:
+    """argparse's "invalid choice: 'rnu' (choose from 'run', …)", with the choice the user most likely meant."""
+    found = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+    if not found:
+        return ""
+    close = difflib.get_close_matches(found.group(1), re.findall(r"'([^']*)'", found.group(2)), n=1)
+    return f" — did you mean '{close[0]}'?" if close else ""
+
+
+def _default_action(argv: list[str]) -> list[str]:
+    """``hil history`` alone (or with only options) lists the runs, as ``hil history list`` does."""
+    if "history" in argv:
+        at = argv.index("history") + 1
+        if at == len(argv) or (argv[at].startswith("-") and argv[at] not in ("-h", "--help")):
+            return [*argv[:at], "list", *argv[at:]]
+    return argv
+
+
+def _command_parser(parser: argparse.ArgumentParser, argv: list[str]) -> argparse.ArgumentParser:
+    """The parser of the (sub-)command ``argv`` names — ``hil history trend`` — whose usage an error shows."""
+    found = parser
+    for command in commands(parser):
+        words = command.prog.split()[1:]
+        if words and [a for a in argv if not a.startswith("-")][:len(words)] == words:
+            found = command.parser
+    return found
+
+
+def _unknown(parser: argparse.ArgumentParser, argv: list[str], unknown: list[str], command: str) -> None:
+    """Options the command does not know, said by that command's parser: a close option of its own first (a
+    typo: ``--bnech`` → ``--bench``), else, for ``hil run``, that pytest's options go after ``--``."""
+    own = _command_parser(parser, argv)
+    options = [o for a in own._actions for o in a.option_strings]
+    typos = {u: difflib.get_close_matches(u.split("=")[0], options, n=1) for u in unknown if u.startswith("--")}
+    said = [f"{u} (did you mean {c[0]}?)" for u, c in typos.items() if c]
+    if said:
+        own.error(f"unrecognized arguments: {', '.join(said)}")
+    if command == "run":
+        own.error(f"unrecognized arguments: {' '.join(unknown)} — pytest's own options go after '--', "
+                  f"e.g. hil run -- {' '.join(_after_run(argv))}")
+    own.error(f"unrecognized arguments: {' '.join(unknown)}")
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = _default_action(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)
     if unknown:
-        if args.command == "run":
-            parser.error(f"unrecognized arguments: {' '.join(unknown)} — pytest's own options go after '--', "
-                         f"e.g. hil run -- {' '.join(_after_run(argv))}")
-        parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+        _unknown(parser, argv, unknown, args.command)
     if not args.debug:
         # pymodbus logs its own retries and timeouts ("No response received after 0 retries…") to stderr; the
         # command's one-line error says what failed and what to check.  --debug shows them.
         logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
-    console = Console(stderr=False)
+    console = _Console(stderr=False)
     try:
         return dispatch(args, console)
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        return _reader_left()
     except (HilError, OSError) as exc:
         # what the user can act on (a bad profile, an unreachable PLC, a missing port): one line
         if args.debug:
