@@ -232,3 +232,28 @@ def test_a_reader_that_leaves_early_is_not_a_failure(argv, tmp_path: Path, monke
 def test_hil_run_help_names_the_slow_and_destructive_options(tmp_path: Path) -> None:
     done = hil("run", "--help", cwd=tmp_path)
     assert "-- --hil-run-slow" in done.stdout and "-- --hil-allow-destructive" in done.stdout
+
+
+@pytest.mark.e2e
+def test_hil_emulate_prints_the_target_to_paste_and_the_lines_pace(tmp_path: Path) -> None:
+    """hil emulate --fatek-serial: beside the pty's path (stdout, for scripts) a line for people with the target
+    URL — the line's settings and station in it — and the pace; pasted into hil probe, it reaches the emulator."""
+    import re as _re
+    import signal as _signal
+    from tests import processes
+    proc = processes.spawn([sys.executable, "-m", "hil", "emulate", "--no-live", "--fatek-serial", "--line",
+                            "9600 7E1"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        said = []
+        for line in proc.stderr:  # hang guard: the test's own timeout
+            said.append(line)
+            if "seed" in line:
+                break
+        text = "".join(said)
+        found = _re.search(r"--target '(fatek\+serial://[^']+)' \(paced at 9600 7E1: 1\.04 ms a character\)", text)
+        assert found, text
+        assert "baudrate=9600&bytesize=7&parity=E&stopbits=1&station=1" in found.group(1)
+        done = hil("probe", found.group(1), cwd=tmp_path, timeout=120)
+        assert done.returncode == 0 and "state" in done.stdout, done.stdout + done.stderr
+    finally:
+        processes.end(proc, _signal.SIGINT, grace=30)

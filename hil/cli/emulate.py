@@ -12,6 +12,8 @@ import time
 from typing import Any
 
 from hil.core.errors import InvalidValue
+from hil.core.registry import PROTOCOLS, WIRES
+from hil.io.url import serial_target
 from hil.bench.family import build_emulator
 from hil.sim.runtime import ServerHandle
 from hil.bench.profile import Profile, load_profile
@@ -54,6 +56,42 @@ def with_timing(profile: Profile, timing: str | None, seed: int | None) -> Profi
     return dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, **changes))
 
 
+def client_target(kind: str, address: str, profile: Profile) -> str | None:
+    """The target URL a client gives (``--target``, ``[bench] target``) to reach the endpoint ``kind`` serves at
+    ``address``: the wire's scheme, a paced pty's line settings, the station the emulator answers as; None for an
+    endpoint that is no PLC wire (the fault rig)."""
+    wire = WIRES.get(kind)
+    if wire is None:
+        return None
+    query: dict[str, object] = {}
+    rate = profile.emulator.line
+    if wire.kind == "pty":
+        url = serial_target(wire.protocol, address)
+        if rate is not None:
+            query.update(baudrate=rate.baudrate, bytesize=rate.bytesize, parity=rate.parity, stopbits=rate.stopbits)
+    else:
+        url = f"{wire.protocol}+{wire.kind}://{address}"
+    param = PROTOCOLS[wire.protocol].address_param
+    if param is not None:
+        query[param] = profile.station
+    return url + ("?" + "&".join(f"{k}={v}" for k, v in query.items()) if query else "")
+
+
+def paste_line(handle: ServerHandle, profile: Profile) -> str:
+    """One endpoint for people: where it serves, the URL to paste, and a pty's pace."""
+    target = client_target(handle.kind, handle.address, profile)
+    if target is None:
+        return f"{handle.kind} at {handle.address} (a fault rig: [faults.*] target = \"modbus+tcp://{handle.address}\")"
+    said = f"{handle.kind} at {handle.address} — --target '{target}'"
+    if WIRES[handle.kind].kind != "pty":
+        return said
+    rate = profile.emulator.line
+    if rate is None:
+        return said + " (unpaced: any line settings, no character time)"
+    return said + (f" (paced at {rate.baudrate} {rate.bytesize}{rate.parity}{rate.stopbits}: "
+                   f"{1000 * rate.bits / rate.baudrate:.2f} ms a character)")
+
+
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,
             rig_modbus_tcp: str | None = None, rig_first_coil: int = 0, live: bool = False,
             line: str | None = None, timing: str | None = None, seed: int | None = None) -> int:
@@ -91,6 +129,8 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
                                 lambda: start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil))
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
+        for handle in servers:  # for people: what to paste (stdout's lines are for scripts)
+            print(f"hil emulate: {paste_line(handle, profile)}", file=sys.stderr, flush=True)
         # once it serves (a usage error stays one line): the seed in effect, to replay the run
         print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
               f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr,
