@@ -89,9 +89,12 @@ class Recorder:
         self.report = self._archive_path(reporter)
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}  # this process's hil
         try:
+            # A session of its own: a Ctrl-C (SIGINT to the terminal's foreground group) or a closed terminal
+            # (SIGHUP) stops the run, not its recording — the writer ends when its input does, once the run's end
+            # (or its process's death) has been written.
             self.writer = subprocess.Popen([sys.executable, "-m", "hil.history.writer"], stdin=subprocess.PIPE,
                                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True,
-                                           encoding="utf-8", bufsize=1)
+                                           encoding="utf-8", bufsize=1, start_new_session=True)
         except OSError as exc:
             self._warn(f"history off: cannot start its writer ({exc})")
             return
@@ -157,13 +160,23 @@ class Recorder:
                     "stopped": verdict.stopped if verdict else "the reporting plugin gave no verdict",
                     "not_run": verdict.not_run if verdict else 0, "plc_restored": verdict.plc if verdict else "",
                     "recovery": list(config.stash.get(RECOVERY_NOTES, [])), "report": report})
-        try:
-            assert self.writer.stdin is not None
-            self.writer.stdin.close()
-            self.writer.wait(timeout=2 * WAIT_S + 5)  # the run's end in the store before this process ends
-        except (OSError, subprocess.TimeoutExpired):
-            pass  # a store slower than that: the writer finishes on its own
+        self._end_writer()
         self._say_warnings()
+
+    def _end_writer(self) -> None:
+        """Close the writer's input and wait for the run's end to be in the store before this process ends; a
+        store slower than that, or a Ctrl-C meanwhile, stops only the wait (the writer finishes on its own)."""
+        writer, self.writer = self.writer, None
+        if writer is None:  # it stopped while the run's end was sent: said once already
+            return
+        try:
+            assert writer.stdin is not None
+            writer.stdin.close()
+            writer.wait(timeout=2 * WAIT_S + 5)
+        except (OSError, subprocess.TimeoutExpired):
+            pass
+        except KeyboardInterrupt:
+            self._warn("history: interrupted while its writer finished: it finishes on its own")
 
     # -- helpers ------------------------------------------------------------------------------------------------------
     def _send(self, message: dict) -> None:
