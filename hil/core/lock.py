@@ -116,6 +116,10 @@ class BenchLock:
     def held(self) -> bool:
         return self._fd is not None
 
+    def fileno(self) -> int | None:
+        """The open lock file while held (a run with lanes lends it to its workers: :mod:`hil.core.lease`)."""
+        return self._fd
+
     def acquire(self, wait: float = 0.0, poll: float = 0.1) -> "BenchLock":
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:

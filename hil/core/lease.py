@@ -1,0 +1,92 @@
+"""A run's bench locks shared with the worker processes it starts, which die with it.
+
+A run with lanes (:mod:`hil.plugin.lanes`) holds the bench's locks in its controller while its workers write to the
+PLC.  A ``flock`` belongs to an open file, not to a process: a worker given the controller's own open lock files
+(passed over a Unix socket, ``SCM_RIGHTS``) holds the very same locks, so the kernel frees them only once the
+controller *and every worker* has closed them — a controller killed no longer frees the bench while a lane still
+writes.  And a worker asks the kernel to kill it when its controller dies (``PR_SET_PDEATHSIG``), so a lane never
+goes on, nor restores anything, after its run is gone: the next run, which can take the locks only then, replays the
+lanes' journals.
+
+Each worker borrows the locks once, at its start; the lender answers any process of this user that connects (its
+socket lives in a directory only this user can enter).  Borrowed descriptors are close-on-exec: a program a worker
+starts does not hold the bench.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import shutil
+import signal
+import socket
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+from hil.core.errors import HilError
+
+_PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+_HELLO = b"hil-locks"
+_MAX_FDS = 16
+
+
+class LockLender:
+    """Lends the open lock files ``fds`` to each process that connects to :attr:`address` (a daemon thread)."""
+
+    def __init__(self, fds: list[int]) -> None:
+        self.fds = list(fds)
+        self._dir = Path(tempfile.mkdtemp(prefix="hil-lease-"))  # mode 0700: this user's processes only
+        self.address = str(self._dir / "locks")
+        self._server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self._server.bind(self.address)
+        self._server.listen()
+        threading.Thread(target=self._serve, name="hil-lock-lender", daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self._server.accept()
+            except OSError:
+                return  # closed
+            with conn:
+                with contextlib.suppress(OSError):  # a worker that died connecting: the next one is served
+                    socket.send_fds(conn, [_HELLO], self.fds)
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):
+            self._server.close()
+        shutil.rmtree(self._dir, ignore_errors=True)
+
+
+def borrow(address: str) -> list[int]:
+    """The lender's open lock files, as descriptors of this process (close-on-exec), held until it exits."""
+    try:
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
+            sock.connect(address)
+            message, fds, _, _ = socket.recv_fds(sock, len(_HELLO), _MAX_FDS, getattr(socket, "MSG_CMSG_CLOEXEC", 0))
+    except OSError as exc:
+        raise HilError(f"cannot share the run's bench locks ({address}: {exc})") from None
+    if message != _HELLO or not fds:
+        for fd in fds:
+            os.close(fd)
+        raise HilError(f"cannot share the run's bench locks: {address} sent no lock")
+    return fds
+
+
+def die_with_parent(parent: int) -> bool:
+    """Ask the kernel to SIGKILL this process when its parent dies (Linux); whether ``parent`` is still its parent
+    (it may have died before the request was made).  Elsewhere only the check."""
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
+                raise OSError(ctypes.get_errno(), os.strerror(ctypes.get_errno()))
+        except (OSError, AttributeError) as exc:
+            raise HilError(f"cannot tie this process to its parent's life (prctl PR_SET_PDEATHSIG: {exc})") from None
+    return os.getppid() == parent
+
+
+__all__ = ["LockLender", "borrow", "die_with_parent"]
