@@ -142,3 +142,10 @@ def test_an_unreachable_store_is_one_line_exit_4(tmp_path, action):
     assert said[0].startswith(f"hil history: history store postgresql+psycopg://hil:***@127.0.0.1:"), said
     assert "unreachable" in said[0] and "check that its server runs" in said[0], said
     _no_secret("hil history's error", done.stderr)
+
+
+def test_a_usage_error_that_echoes_the_url_hides_its_password(tmp_path):
+    """``--hil-history URL`` given before ``--`` (a pytest option): the hint repeats the command line."""
+    done = _hil("run", "--hil-history", FORMS["raw @"].format(where="db/h"), cwd=tmp_path)
+    assert done.returncode == 4 and "hil run -- --hil-history postgresql://hil:***@db/h" in done.stderr, done
+    _no_secret("the usage error", done.stderr)
