@@ -9,6 +9,7 @@ terminal sends it; the store is SQLite in the test's directory."""
 from __future__ import annotations
 
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -24,14 +25,14 @@ def _url(tmp: Path) -> str:
     return f"sqlite:///{tmp / 'history.sqlite'}"
 
 
-def _hil_run(tmp: Path, tests: Path, **extra: str) -> processes.subprocess.Popen:
+def _hil_run(tmp: Path, tests: Path, **extra: str) -> subprocess.Popen:
     """``hil run`` of ``tests`` on the emulator with the history on, its output in ``tmp/out.txt``."""
     out = open(tmp / "out.txt", "wb")
     return processes.spawn([sys.executable, "-m", "hil.cli.main", "run", "--bench", str(EMULATOR_BENCH),
                             "--junitxml", str(tmp / "r" / "junit.xml"), "--html", str(tmp / "r" / "report.html"),
                             "--", str(tests), "-p", "no:cacheprovider"],
-                           cwd=tmp, env=env(_url(tmp), **extra), stdout=out, stderr=processes.subprocess.STDOUT,
-                           stdin=processes.subprocess.DEVNULL)
+                           cwd=tmp, env=env(_url(tmp), **extra), stdout=out, stderr=subprocess.STDOUT,
+                           stdin=subprocess.DEVNULL)
 
 
 def _last_run(tmp: Path) -> tuple[dict, dict[str, str]] | None:

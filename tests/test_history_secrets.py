@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import json
 import signal
+import socket
+import sqlite3
+import subprocess
 import sys
 
 import pytest
@@ -64,7 +67,7 @@ FORMS = {  # how the password is given → the URL (its database's host, port an
 }
 
 
-def _hil(*args: str, cwd, **extra: str) -> processes.subprocess.CompletedProcess:
+def _hil(*args: str, cwd, **extra: str) -> subprocess.CompletedProcess:
     return processes.run([sys.executable, "-m", "hil.cli.main", *args], cwd=cwd, timeout=300,
                          env=env("off", **extra))
 
@@ -93,8 +96,8 @@ def test_the_password_is_in_no_lock_file_message_console_report_or_listing(tmp_p
         run = processes.spawn([sys.executable, "-m", "hil.cli.main", "run", "--bench", str(bench), "--junitxml",
                                str(tmp_path / "r" / "junit.xml"), "--html", str(tmp_path / "r" / "report.html"),
                                "--", str(tests), "-k", "not quick", "--hil-history", url],
-                              cwd=tmp_path, env=env("off", HIST_GO=str(go)), stdout=processes.subprocess.PIPE,
-                              stderr=processes.subprocess.STDOUT, text=True)
+                              cwd=tmp_path, env=env("off", HIST_GO=str(go)), stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
         try:
             lock = BenchLock(f"fatek+tcp://{where['fatek-tcp']}")
             record = wait_for(lambda: lock.path.exists() and lock.path.read_text(), "the run's lock record")
@@ -129,12 +132,11 @@ def test_the_password_is_in_no_lock_file_message_console_report_or_listing(tmp_p
 @pytest.mark.parametrize("action", ["list", "sync"])
 def test_an_unreachable_store_is_one_line_exit_4(tmp_path, action):
     """Nothing listens on the store's port: one line naming the store (password hidden) and what to check."""
-    with __import__("socket").socket() as s:  # a port nothing listens on (bound, never listening)
+    with socket.socket() as s:  # a port nothing listens on (bound, never listening)
         s.bind(("127.0.0.1", 0))
         url = f"postgresql://hil:Zq7xk@Wv9yq@127.0.0.1:{s.getsockname()[1]}/h"
-        spool = tmp_path / "state" / "history-unsent.sqlite"  # sync has something to upload
+        spool = tmp_path / "state" / "history-unsent.sqlite"  # sync has a spool to upload
         spool.parent.mkdir()
-        import sqlite3
         sqlite3.connect(spool).close()
         done = _hil("history", action, "--url", url, cwd=REPO, HIL_STATE_DIR=str(tmp_path / "state"))
     said = done.stderr.strip().splitlines()
