@@ -89,6 +89,21 @@ def pytest_sessionfinish(session):
             time.sleep(0.01)
 '''
 
+LAST_HOOKS = '''
+import os, signal, time
+import pytest
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_unconfigure(config):
+    """Ctrl-C in the run's very last steps (the plugins' ends), once the verdict is out."""
+    os.killpg(0, signal.SIGINT)
+    deadline = time.monotonic() + 60  # a hang guard: the signal is this process's own, raised here
+    while True:
+        assert time.monotonic() < deadline, "SIGINT never arrived"
+        time.sleep(0.01)
+'''
+
 WRITER_GONE = '''
 import os, signal, time
 import pytest
@@ -120,11 +135,13 @@ def pytest_sessionfinish(session):
 '''
 
 
-@pytest.mark.parametrize("conftest, code, verdict", [(FINISHING, 2, "INTERRUPTED"), (WRITER_GONE, 0, None)],
-                         ids=["sigint-as-the-run-finishes", "writer-gone-before-the-end"])
+@pytest.mark.parametrize("conftest, code, verdict", [(FINISHING, 2, "INTERRUPTED"), (LAST_HOOKS, 2, "PASSED"),
+                                                     (WRITER_GONE, 0, None)],
+                         ids=["sigint-as-the-run-finishes", "sigint-in-its-last-steps", "writer-gone-before-the-end"])
 def test_the_end_of_a_run_is_no_internal_error(tmp_path, conftest, code, verdict):
-    """Both tests passed; at the run's end a SIGINT to the group (recorded: INTERRUPTED, both tests), or the writer
-    killed (one warning; the run stays not finished in the store).  Never "internal error", exit 3."""
+    """Both tests passed; at the run's end a SIGINT to the group — during the last restores (recorded: INTERRUPTED,
+    both tests) or once the verdict is out (recorded as it was: PASSED) — or the writer killed (one warning; the run
+    stays not finished in the store).  Never "internal error", exit 3."""
     tests = tmp_path / "t"
     tests.mkdir()
     (tests / "conftest.py").write_text(conftest)
