@@ -322,6 +322,34 @@ def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs):
     assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
 
 
+def test_a_borrowed_lock_file_holds_the_lock_after_the_lender_closed_its_own(tmp_path):
+    """hil.core.lease: what a worker borrows is the controller's own open lock file, so the flock outlives the
+    controller's descriptor; close-on-exec, so nothing the worker starts holds it; no lender: a clear error."""
+    from hil.core.errors import HilError
+    from hil.core.lease import LockLender, borrow
+    path = tmp_path / "bench.lock"
+    own = os.open(path, os.O_RDWR | os.O_CREAT)
+    fcntl.flock(own, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    lender = LockLender([own])
+    try:
+        borrowed = borrow(lender.address)
+    finally:
+        lender.close()
+    os.close(own)  # the controller gone (its descriptor closed, no unlock)
+    other = os.open(path, os.O_RDWR)
+    try:
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert not any(os.get_inheritable(fd) for fd in borrowed)
+        for fd in borrowed:
+            os.close(fd)  # the last worker gone
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        os.close(other)
+    with pytest.raises(HilError, match="cannot share the run's bench locks"):
+        borrow(lender.address)
+
+
 HOLDING_MODULE = """
 import os
 from pathlib import Path

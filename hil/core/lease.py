@@ -41,8 +41,13 @@ class LockLender:
         self._dir = Path(tempfile.mkdtemp(prefix="hil-lease-"))  # mode 0700: this user's processes only
         self.address = str(self._dir / "locks")
         self._server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self._server.bind(self.address)
-        self._server.listen()
+        try:
+            self._server.bind(self.address)
+            self._server.listen()
+        except OSError as exc:  # e.g. a path longer than a Unix socket's 107 bytes
+            self.close()
+            raise HilError(f"cannot lend the bench's locks to the lanes ({self.address}: {exc}): set TMPDIR to a "
+                           f"short, writable directory") from None
         threading.Thread(target=self._serve, name="hil-lock-lender", daemon=True).start()
 
     def _serve(self) -> None:
@@ -66,7 +71,9 @@ def borrow(address: str) -> list[int]:
     try:
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
             sock.connect(address)
-            message, fds, _, _ = socket.recv_fds(sock, len(_HELLO), _MAX_FDS, getattr(socket, "MSG_CMSG_CLOEXEC", 0))
+            message, fds, _, _ = socket.recv_fds(sock, len(_HELLO), _MAX_FDS)
+        for fd in fds:  # (Python 3.11's recv_fds drops its flags argument: no MSG_CMSG_CLOEXEC)
+            os.set_inheritable(fd, False)
     except OSError as exc:
         raise HilError(f"cannot share the run's bench locks ({address}: {exc})") from None
     if message != _HELLO or not fds:

@@ -155,7 +155,11 @@ def lease(config: pytest.Config) -> None:
         raise pytest.UsageError(f"{recovery.summary()} — no lane starts on a PLC left changed: `hil restore` once "
                                 f"the cause is fixed")
     state.close_wire()
-    config.stash[_LENDER] = LockLender(_lock_files(state))
+    try:
+        config.stash[_LENDER] = LockLender(_lock_files(state))
+    except HilError as exc:
+        state.release()
+        raise pytest.UsageError(f"hil: {exc}") from None
     config.stash[_LANES_LEFT] = {}
     # A worker that dies is not replaced: its replacement would run beside the dead lane's journal, unreplayed
     # (the controller replays it at the end).  pytest-xdist reads --max-worker-restart when it configures, before
