@@ -14,6 +14,7 @@ import socket
 import sqlite3
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -151,3 +152,17 @@ def test_a_usage_error_that_echoes_the_url_hides_its_password(tmp_path):
     done = _hil("run", "--hil-history", FORMS["raw @"].format(where="db/h"), cwd=tmp_path)
     assert done.returncode == 4 and "hil run -- --hil-history postgresql://hil:***@db/h" in done.stderr, done
     _no_secret("the usage error", done.stderr)
+
+
+def test_a_holder_named_by_the_kernel_has_its_password_hidden():
+    """A lock held with no record is named from /proc (hil.core.lock.describe_process): its command line too."""
+    from hil.core.lock import describe_process
+    holder = processes.spawn([sys.executable, "-c", "import sys; sys.stdin.read()", "--hil-history",
+                              FORMS["user part"].format(where="db/h")], stdin=subprocess.PIPE)
+    try:
+        wait_for(lambda: Path(f"/proc/{holder.pid}/cmdline").read_bytes(), "the holder's command line (set by exec)")
+        said = describe_process(holder.pid)
+    finally:
+        processes.end(holder, signal.SIGKILL, grace=0)
+    assert "--hil-history postgresql://hil:***@db/h" in said, said
+    _no_secret("the kernel's holder", said)
