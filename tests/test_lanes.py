@@ -322,32 +322,43 @@ def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs):
     assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
 
 
+def _borrow_and_hold(address: str, inherited: int, said) -> None:  # noqa: ANN001 - a multiprocessing Queue
+    from hil.core.lease import borrow
+    os.close(inherited)  # (fork's copy of the lender's own descriptor: only what is borrowed may hold the lock)
+    fds = borrow(address)
+    said.put([os.get_inheritable(fd) for fd in fds])
+    time.sleep(60)  # killed here
+
+
 def test_a_borrowed_lock_file_holds_the_lock_after_the_lender_closed_its_own(tmp_path):
     """hil.core.lease: what a worker borrows is the controller's own open lock file, so the flock outlives the
-    controller's descriptor; close-on-exec, so nothing the worker starts holds it; no lender: a clear error."""
+    controller's descriptor until the worker is gone; close-on-exec, so nothing the worker starts holds it; lent
+    only to the lender's own children."""
     from hil.core.errors import HilError
     from hil.core.lease import LockLender, borrow
     path = tmp_path / "bench.lock"
     own = os.open(path, os.O_RDWR | os.O_CREAT)
     fcntl.flock(own, fcntl.LOCK_EX | fcntl.LOCK_NB)
     lender = LockLender([own])
-    try:
-        borrowed = borrow(lender.address)
-    finally:
-        lender.close()
-    os.close(own)  # the controller gone (its descriptor closed, no unlock)
+    ctx = multiprocessing.get_context("fork")
+    said = ctx.Queue()
+    worker = ctx.Process(target=_borrow_and_hold, args=(lender.address, own, said))
+    worker.start()
     other = os.open(path, os.O_RDWR)
     try:
+        assert said.get(timeout=60) == [False], "one lock file borrowed, close-on-exec"  # a hang guard
+        with pytest.raises(HilError, match="lends them only to its run's own workers"):
+            borrow(lender.address)  # this process is not the lender's child
+        lender.close()
+        os.close(own)  # the controller gone (its descriptor closed, no unlock)
         with pytest.raises(BlockingIOError):
             fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        assert not any(os.get_inheritable(fd) for fd in borrowed)
-        for fd in borrowed:
-            os.close(fd)  # the last worker gone
+        worker.kill()  # the last worker gone
+        worker.join(60)
         fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
     finally:
+        worker.kill()
         os.close(other)
-    with pytest.raises(HilError, match="cannot share the run's bench locks"):
-        borrow(lender.address)
 
 
 HOLDING_MODULE = """

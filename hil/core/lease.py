@@ -8,9 +8,10 @@ writes.  And a worker asks the kernel to kill it when its controller dies (``PR_
 goes on, nor restores anything, after its run is gone: the next run, which can take the locks only then, replays the
 lanes' journals.
 
-Each worker borrows the locks once, at its start; the lender answers any process of this user that connects (its
-socket lives in a directory only this user can enter).  Borrowed descriptors are close-on-exec: a program a worker
-starts does not hold the bench.
+Each worker borrows the locks once, at its start.  The lender's socket is in Linux's abstract namespace (nothing
+left on disk by a controller killed) and it answers only its own children (the peer's credentials, ``SO_PEERCRED``);
+elsewhere it is a file in a directory only this user can enter.  Borrowed descriptors are close-on-exec: a program
+a worker starts does not hold the bench.
 """
 
 from __future__ import annotations
@@ -18,9 +19,11 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import os
+import secrets
 import shutil
 import signal
 import socket
+import struct
 import sys
 import tempfile
 import threading
@@ -31,6 +34,7 @@ from hil.core.errors import HilError
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _HELLO = b"hil-locks"
 _MAX_FDS = 16
+_LINUX = sys.platform.startswith("linux")
 
 
 class LockLender:
@@ -38,8 +42,12 @@ class LockLender:
 
     def __init__(self, fds: list[int]) -> None:
         self.fds = list(fds)
-        self._dir = Path(tempfile.mkdtemp(prefix="hil-lease-"))  # mode 0700: this user's processes only
-        self.address = str(self._dir / "locks")
+        self._dir: Path | None = None
+        if _LINUX:
+            self.address = f"\0hil-lease-{os.getpid()}-{secrets.token_hex(8)}"
+        else:
+            self._dir = Path(tempfile.mkdtemp(prefix="hil-lease-"))  # mode 0700: this user's processes only
+            self.address = str(self._dir / "locks")
         self._server = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             self._server.bind(self.address)
@@ -58,12 +66,27 @@ class LockLender:
                 return  # closed
             with conn:
                 with contextlib.suppress(OSError):  # a worker that died connecting: the next one is served
-                    socket.send_fds(conn, [_HELLO], self.fds)
+                    if _child_of_mine(conn):
+                        socket.send_fds(conn, [_HELLO], self.fds)
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
             self._server.close()
-        shutil.rmtree(self._dir, ignore_errors=True)
+        if self._dir is not None:
+            shutil.rmtree(self._dir, ignore_errors=True)
+
+
+def _child_of_mine(conn: socket.socket) -> bool:
+    """The connected process is one this process started (Linux: its credentials and /proc); elsewhere the
+    socket's private directory vouches for it."""
+    if not _LINUX:
+        return True
+    pid, _, _ = struct.unpack("3i", conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i")))
+    try:
+        parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, ValueError, IndexError):
+        return False
+    return parent == os.getpid()
 
 
 def borrow(address: str) -> list[int]:
@@ -75,11 +98,12 @@ def borrow(address: str) -> list[int]:
         for fd in fds:  # (Python 3.11's recv_fds drops its flags argument: no MSG_CMSG_CLOEXEC)
             os.set_inheritable(fd, False)
     except OSError as exc:
-        raise HilError(f"cannot share the run's bench locks ({address}: {exc})") from None
+        raise HilError(f"cannot share the run's bench locks ({address.lstrip(chr(0))}: {exc})") from None
     if message != _HELLO or not fds:
         for fd in fds:
             os.close(fd)
-        raise HilError(f"cannot share the run's bench locks: {address} sent no lock")
+        raise HilError(f"cannot share the run's bench locks: {address.lstrip(chr(0))} lent none (it lends them only "
+                       f"to its run's own workers)")
     return fds
 
 
