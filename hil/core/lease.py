@@ -71,6 +71,8 @@ class LockLender:
 
     def close(self) -> None:
         with contextlib.suppress(OSError):
+            self._server.shutdown(socket.SHUT_RDWR)  # wakes the thread's accept (a close alone leaves it waiting)
+        with contextlib.suppress(OSError):
             self._server.close()
         if self._dir is not None:
             shutil.rmtree(self._dir, ignore_errors=True)
