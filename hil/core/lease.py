@@ -54,8 +54,8 @@ class LockLender:
             self._server.listen()
         except OSError as exc:  # e.g. a path longer than a Unix socket's 107 bytes
             self.close()
-            raise HilError(f"cannot lend the bench's locks to the lanes ({self.address}: {exc}): set TMPDIR to a "
-                           f"short, writable directory") from None
+            raise HilError(f"cannot lend the bench's locks to the lanes ({_named(self.address)}: {exc}): set TMPDIR "
+                           f"to a short, writable directory") from None
         threading.Thread(target=self._serve, name="hil-lock-lender", daemon=True).start()
 
     def _serve(self) -> None:
@@ -100,19 +100,24 @@ def borrow(address: str) -> list[int]:
         for fd in fds:  # (Python 3.11's recv_fds drops its flags argument: no MSG_CMSG_CLOEXEC)
             os.set_inheritable(fd, False)
     except OSError as exc:
-        raise HilError(f"cannot share the run's bench locks ({address.lstrip(chr(0))}: {exc})") from None
+        raise HilError(f"cannot share the run's bench locks ({_named(address)}: {exc})") from None
     if message != _HELLO or not fds:
         for fd in fds:
             os.close(fd)
-        raise HilError(f"cannot share the run's bench locks: {address.lstrip(chr(0))} lent none (it lends them only "
+        raise HilError(f"cannot share the run's bench locks: {_named(address)} lent none (it lends them only "
                        f"to its run's own workers)")
     return fds
+
+
+def _named(address: str) -> str:
+    """A socket's address as a message shows it (an abstract one without its leading NUL)."""
+    return address.lstrip("\0")
 
 
 def die_with_parent(parent: int) -> bool:
     """Ask the kernel to SIGKILL this process when its parent dies (Linux); whether ``parent`` is still its parent
     (it may have died before the request was made).  Elsewhere only the check."""
-    if sys.platform.startswith("linux"):
+    if _LINUX:
         try:
             libc = ctypes.CDLL(None, use_errno=True)
             if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) != 0:
