@@ -12,6 +12,7 @@ import hil.history.store  # noqa: F401,E402
 
 from hil.bench.profile import profile_from_dict
 from hil.core.errors import InvalidValue, ProfileError
+from hil.core.redact import hide_password
 from hil.history import config
 from tests.conftest import EMULATOR_BENCH
 
@@ -27,7 +28,7 @@ def test_the_command_line_then_the_environment_then_the_profile_then_sqlite_in_t
     assert config.resolve(str(tmp_path / "x.sqlite")) == f"sqlite:///{tmp_path / 'x.sqlite'}"
     with pytest.raises(InvalidValue, match="history URL is empty"):
         config.resolve(" ")
-    assert config.shown("postgresql+psycopg://hil:secret@db.lab/hil") == "postgresql+psycopg://hil:***@db.lab/hil"
+    assert hide_password("postgresql+psycopg://hil:secret@db.lab/hil") == "postgresql+psycopg://hil:***@db.lab/hil"
 
 
 def _profile(history: dict) -> dict:

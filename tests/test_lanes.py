@@ -24,7 +24,7 @@ from hil.io.shared_line import SharedLine
 from hil.io.url import parse_target
 from hil.plugin import lanes
 from tests.conftest import EMULATOR_BENCH, REPO
-from tests.external import bench_over_the_wire, emulate_process
+from tests.external import bench_over_the_wire, emulate_process, hil_emulate
 
 LINE = "115200 7E1"  # 9600 costs minutes of line time here: benchmarks/run.py measures that one
 
@@ -320,6 +320,143 @@ def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs):
     lanes._the_runs_word(session)
     assert session.exitstatus == pytest.ExitCode.TESTS_FAILED
     assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
+
+
+def _borrow_and_hold(address: str, inherited: int, said) -> None:  # noqa: ANN001 - a multiprocessing Queue
+    from hil.core.lease import borrow
+    os.close(inherited)  # (fork's copy of the lender's own descriptor: only what is borrowed may hold the lock)
+    fds = borrow(address)
+    said.put([os.get_inheritable(fd) for fd in fds])
+    time.sleep(60)  # killed here
+
+
+def test_a_borrowed_lock_file_holds_the_lock_after_the_lender_closed_its_own(tmp_path):
+    """hil.core.lease: what a worker borrows is the controller's own open lock file, so the flock outlives the
+    controller's descriptor until the worker is gone; close-on-exec, so nothing the worker starts holds it; lent
+    only to the lender's own children."""
+    from hil.core.errors import HilError
+    from hil.core.lease import LockLender, borrow
+    path = tmp_path / "bench.lock"
+    own = os.open(path, os.O_RDWR | os.O_CREAT)
+    fcntl.flock(own, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    lender = LockLender([own])
+    ctx = multiprocessing.get_context("fork")
+    said = ctx.Queue()
+    worker = ctx.Process(target=_borrow_and_hold, args=(lender.address, own, said))
+    worker.start()
+    other = os.open(path, os.O_RDWR)
+    try:
+        assert said.get(timeout=60) == [False], "one lock file borrowed, close-on-exec"  # a hang guard
+        with pytest.raises(HilError, match="lends them only to its run's own workers"):
+            borrow(lender.address)  # this process is not the lender's child
+        lender.close()
+        os.close(own)  # the controller gone (its descriptor closed, no unlock)
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        worker.kill()  # the last worker gone
+        worker.join(60)
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        worker.kill()
+        os.close(other)
+
+
+HOLDING_MODULE = """
+import os
+from pathlib import Path
+import pytest
+pytestmark = pytest.mark.lane("{lane}")
+
+def test_holds_its_lane(bench):
+    bench.plc.io.write_words("{register}", [{value}])
+    Path({ready!r}).write_text(str(os.getpid()))
+    for _ in range(1200):  # mid-test for a minute at most (a hang guard): the run is killed long before
+        bench.plc.io.read_words("{register}", 1)
+        bench.wait(0.05)
+"""
+
+
+def _gone(pid: int) -> bool:
+    """The process has exited (a zombie until its new parent reaps it, or reaped)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] in "ZX"
+    except (FileNotFoundError, ProcessLookupError):
+        return True
+
+
+def _holds_nothing(pid: int) -> bool:
+    """The process is gone, or far enough into its exit that it has closed every file (its sockets to the PLC,
+    its lock files): it can write nothing more."""
+    try:
+        return _gone(pid) or not os.listdir(f"/proc/{pid}/fd")
+    except (FileNotFoundError, ProcessLookupError):
+        return True
+
+
+def test_a_controller_killed_takes_its_lanes_with_it_and_keeps_the_bench_until_they_are_gone(private_dirs):
+    """``hil run --lanes 2`` against ``hil emulate`` (FATEK/TCP), both lanes mid-test, their values on the PLC: the
+    controller SIGKILLed alone.  The bench's lock is free only once no worker holds a file any more — a second run
+    finds it busy until then — and no worker writes after (each lane's value stays, unrestored, until the next run
+    replays the lanes' journals)."""
+    from hil.core.lock import BenchBusy, BenchLock
+    from hil.families.fbs.transport.factory import open_transport
+    from tests import processes
+    tests = private_dirs / "lanes"
+    tests.mkdir()
+    ready = {lane: private_dirs / f"{lane}.pid" for lane in ("clock", "main")}
+    for (lane, register, value) in (("clock", "R1000", 77), ("main", "R1001", 5)):
+        (tests / f"test_{lane}.py").write_text(HOLDING_MODULE.format(lane=lane, register=register, value=value,
+                                                                     ready=str(ready[lane])))
+    (private_dirs / "next").mkdir()
+    (private_dirs / "next" / "test_next.py").write_text("def test_next(bench):\n    pass\n")
+    with hil_emulate(EMULATOR_BENCH, 1.0) as where:
+        bench = private_dirs / "bench.toml"
+        bench.write_text(bench_over_the_wire(EMULATOR_BENCH.read_text(), where, 1.0))
+        url = f"fatek+tcp://{where['fatek-tcp']}"
+
+        def registers() -> list[int]:
+            with open_transport(parse_target(url), timeout=30.0) as transport:
+                return transport.read_words("R1000", 2)
+
+        run = processes.spawn([sys.executable, "-m", "hil.cli.main", "run", "--bench", str(bench), "--lanes", "2",
+                               "--junitxml", str(private_dirs / "r" / "junit.xml"), "--", str(tests), "-p",
+                               "no:cacheprovider"], cwd=private_dirs, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+        try:
+            deadline = time.monotonic() + 180  # a hang guard: two workers start and open the bench
+            while not all(path.exists() and path.read_text() for path in ready.values()):
+                assert run.poll() is None, "the run ended before both lanes were mid-test"
+                assert time.monotonic() < deadline, "hang guard: the lanes never got mid-test"
+                time.sleep(0.05)
+            workers = [int(path.read_text()) for path in ready.values()]
+            lock = BenchLock(url)
+            with pytest.raises(BenchBusy):
+                lock.acquire()
+            os.kill(run.pid, signal.SIGKILL)  # the controller alone
+            deadline = time.monotonic() + 60  # a hang guard
+            while True:
+                try:
+                    lock.acquire()
+                    break
+                except BenchBusy:
+                    assert time.monotonic() < deadline, "hang guard: the bench stayed locked"
+                    time.sleep(0.01)
+            busy = {pid for pid in workers if not _holds_nothing(pid)}
+            assert not busy, f"the bench's lock was free while worker(s) {busy} still held files"
+            left = registers()
+            assert left == [77, 5], f"a lane wrote after its controller died: {left}"
+            deadline = time.monotonic() + 60  # a hang guard: they are past closing their files
+            while not all(_gone(pid) for pid in workers):
+                assert time.monotonic() < deadline, "hang guard: a worker outlived its controller"
+                time.sleep(0.01)
+            assert registers() == left, "a worker wrote after the lock was free"
+            lock.release()
+        finally:
+            processes.end(run, signal.SIGKILL, grace=0)
+        nxt = subprocess.run([sys.executable, "-m", "pytest", str(private_dirs / "next"), "--bench", str(bench),
+                              "-p", "no:cacheprovider", "-q"], cwd=REPO, capture_output=True, text=True, timeout=120)
+        assert nxt.returncode == 0 and "hil bench recovery: a previous run" in nxt.stdout, nxt.stdout[-2000:]
+        assert registers() == [0, 0], nxt.stdout[-2000:]
 
 
 def test_a_lane_whose_controller_is_gone_stops_before_its_next_test():

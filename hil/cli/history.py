@@ -22,9 +22,10 @@ from rich.table import Table
 
 from hil.bench.profile import load_profile
 from hil.core.errors import InvalidValue
+from hil.core.redact import hide_password
 from hil.history import config
 from hil.history.analysis import compare, first_pass_yield, flaky, trend_figure
-from hil.history.store import Store
+from hil.history.store import Store, reaching
 from hil.history.sync import sync
 
 
@@ -36,7 +37,8 @@ def _store(args: argparse.Namespace) -> Any:
     url = config.resolve(args.url, profile_url)
     if url is None:
         raise InvalidValue("the history is off ($HIL_HISTORY_URL or [history] url = 'off'): give --url")
-    return Store(url)
+    with reaching(url):
+        return Store(url)
 
 
 def _date(text: str | None, what: str) -> dt.datetime | None:
@@ -98,7 +100,8 @@ def _state(run: dict[str, Any]) -> str:
 def history(args: argparse.Namespace, console: Console) -> int:
     store = _store(args)
     try:
-        return ACTIONS[args.history_command](store, args, console)
+        with reaching(store.url):  # a store that goes away while it is read: one line, as when it cannot be opened
+            return ACTIONS[args.history_command](store, args, console)
     finally:
         store.close()
 
@@ -238,15 +241,16 @@ def _sync(store: Any, args: argparse.Namespace, console: Console) -> int:
         raise InvalidValue("the store is the local spool itself: give --url (or $HIL_HISTORY_URL) of the store to "
                            "upload to")
     if not Path(spool_url.removeprefix("sqlite:///")).exists():
-        _say(console, f"nothing to upload: no local spool ({config.shown(spool_url)})")
+        _say(console, f"nothing to upload: no local spool ({hide_password(spool_url)})")
         return 0
-    spool = Store(spool_url)
+    with reaching(spool_url):
+        spool = Store(spool_url)
     try:
         done = sync(spool, store)
     finally:
         spool.close()
     _say(console, f"uploaded {done.runs} run{'s' if done.runs != 1 else ''} ({done.tests} tests) from "
-                  f"{config.shown(spool_url)} to {store.shown}")
+                  f"{hide_password(spool_url)} to {store.shown}")
     return 0
 
 

@@ -19,6 +19,7 @@ from hil.core.errors import HilError, InvalidValue
 from hil.cli.history_parser import add_parser as add_history
 from hil.cli.reference import commands
 from hil.core.paths import default_bench, project_dir
+from hil.core.redact import hide_passwords
 from hil.core.registry import WIRES
 
 # Exit codes: pytest's (``pytest.ExitCode``), so a script or CI job reads ``hil run`` and the other commands alike.
@@ -51,7 +52,8 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: ANN201 - NoReturn
         self.print_usage(sys.stderr)
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}{_did_you_mean(message)}\n")
+        # (it may echo a store's URL: its password hidden)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {hide_passwords(message)}{_did_you_mean(message)}\n")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -28,6 +28,7 @@ from pathlib import Path
 from hil.core.errors import HilError
 from hil.core.paths import (BENCH_FILE_MODE, bench_dir, bench_file_problem, prepare_bench_dir, share_with_bench,
                             user_and_uid)
+from hil.core.redact import hide_passwords
 from hil.core.registry import SCHEMES
 
 
@@ -47,7 +48,7 @@ class BenchBusy(HilError):
 
 def describe_holder(holder: dict) -> str:
     return (f"pid {holder.get('pid')} on {holder.get('host')} (user {holder.get('user')}), since "
-            f"{holder.get('started')}, running: {holder.get('command')}")
+            f"{holder.get('started')}, running: {hide_passwords(str(holder.get('command')))}")  # an older hil's record
 
 
 def lock_key(target: str) -> str:
@@ -115,6 +116,10 @@ class BenchLock:
     def held(self) -> bool:
         return self._fd is not None
 
+    def fileno(self) -> int | None:
+        """The open lock file while held (a run with lanes lends it to its workers: :mod:`hil.core.lease`)."""
+        return self._fd
+
     def acquire(self, wait: float = 0.0, poll: float = 0.1) -> "BenchLock":
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:
@@ -138,7 +143,7 @@ class BenchLock:
             self.stale = previous
         record = {"pid": os.getpid(), "host": socket.gethostname(), "user": _user(),
                   "started": dt.datetime.now().isoformat(timespec="seconds"),
-                  "command": " ".join(sys.argv) or sys.executable, "target": self.key}
+                  "command": hide_passwords(" ".join(sys.argv)) or sys.executable, "target": self.key}
         try:
             os.ftruncate(fd, 0)
             os.pwrite(fd, json.dumps(record).encode(), 0)
@@ -251,7 +256,7 @@ def describe_process(pid: int) -> str:
     except OSError:
         return f"pid {pid}"
     command = " ".join(part.decode(errors="replace") for part in raw.split(b"\0") if part)
-    return f"pid {pid} of user {owner}: {command or '?'}"
+    return f"pid {pid} of user {owner}: {hide_passwords(command) or '?'}"
 
 
 def _read(fd: int) -> dict:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from urllib.parse import quote, unquote
 
 from hil.core.errors import InvalidValue
 from hil.core.journal import state_dir
@@ -43,16 +44,23 @@ def normalise(url: str) -> str:
     """``postgresql://`` through psycopg 3 (SQLAlchemy's own default is psycopg2, not a dependency); a bare path
     is an SQLite file."""
     if url.startswith(("postgresql://", "postgres://")):
-        return "postgresql+psycopg://" + url.split("://", 1)[1]
+        url = "postgresql+psycopg://" + url.split("://", 1)[1]
     if "://" not in url:
         return sqlite_url(Path(url).expanduser())
-    return url
+    return _quote_user_part(url)
 
 
-def shown(url: str) -> str:
-    """The URL without its password, for messages and reports."""
-    from sqlalchemy.engine import make_url
-    try:
-        return make_url(url).render_as_string(hide_password=True)
-    except Exception:  # noqa: BLE001 - a URL SQLAlchemy cannot parse is shown as it was given, less any user part
-        return url.split("@")[-1]
+def _quote_user_part(url: str) -> str:
+    """A password typed with a raw '@' (``hil:p@ss@db``): its user part runs to the last '@' before the path (a host
+    has none), quoted — so the driver reaches ``db`` with the whole password, instead of host ``ss@db`` (which its
+    error message would then quote, password and all)."""
+    scheme, sep, rest = url.partition("://")
+    end = min((i for i in (rest.find("/"), rest.find("?")) if i >= 0), default=len(rest))
+    authority = rest[:end]
+    if authority.count("@") < 2:
+        return url
+    user, _, host = authority.rpartition("@")
+    name, colon, password = user.partition(":")
+    quoted = quote(unquote(name), safe="") + colon + quote(unquote(password), safe="")
+    return f"{scheme}{sep}{quoted}@{host}{rest[end:]}"
+

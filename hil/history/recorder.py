@@ -29,6 +29,7 @@ from typing import Any
 
 import pytest
 
+from hil.core import signals
 from hil.history import config as history_config
 from hil.history.annotate import Annotations
 from hil.plugin.safety import RECOVERY_NOTES
@@ -89,9 +90,12 @@ class Recorder:
         self.report = self._archive_path(reporter)
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}  # this process's hil
         try:
+            # A session of its own: a Ctrl-C (SIGINT to the terminal's foreground group) or a closed terminal
+            # (SIGHUP) stops the run, not its recording — the writer ends when its input does, once the run's end
+            # (or its process's death) has been written.
             self.writer = subprocess.Popen([sys.executable, "-m", "hil.history.writer"], stdin=subprocess.PIPE,
                                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True,
-                                           encoding="utf-8", bufsize=1)
+                                           encoding="utf-8", bufsize=1, start_new_session=True)
         except OSError as exc:
             self._warn(f"history off: cannot start its writer ({exc})")
             return
@@ -136,9 +140,21 @@ class Recorder:
         reporter.annotations = Annotations.build(last, values, reporter.records.values(), html=reporter.html_path,
                                                  store=answer["store"], spooled=answer["spooled"])
 
+    @pytest.hookimpl(tryfirst=True)  # before the other plugins' ends: a Ctrl-C in one of those skips the rest
     def pytest_unconfigure(self, config: pytest.Config) -> None:
         if self.writer is None:
             return
+        interrupted = False
+        try:
+            with signals.shielded():  # the verdict is known: a Ctrl-C now waits until the run's end is sent
+                self._send_the_end(config)
+        except KeyboardInterrupt:
+            interrupted = True  # held back until the end was sent: it stops only the wait for the writer
+        self._end_writer(wait=not interrupted)
+        self._say_warnings()
+
+    def _send_the_end(self, config: pytest.Config) -> None:
+        """The verdict and where this run's HTML report is kept (copied beside the earlier runs')."""
         reporter = self._reporter()
         verdict = getattr(reporter, "verdict", None)
         report = self.report
@@ -157,13 +173,23 @@ class Recorder:
                     "stopped": verdict.stopped if verdict else "the reporting plugin gave no verdict",
                     "not_run": verdict.not_run if verdict else 0, "plc_restored": verdict.plc if verdict else "",
                     "recovery": list(config.stash.get(RECOVERY_NOTES, [])), "report": report})
+
+    def _end_writer(self, wait: bool = True) -> None:
+        """Close the writer's input and (``wait``) wait for the run's end to be in the store before this process
+        ends; a store slower than that, or a Ctrl-C meanwhile, stops only the wait (the writer finishes on its own,
+        in a session of its own)."""
+        writer, self.writer = self.writer, None
+        if writer is None:  # it stopped while the run's end was sent: said once already
+            return
         try:
-            assert self.writer.stdin is not None
-            self.writer.stdin.close()
-            self.writer.wait(timeout=2 * WAIT_S + 5)  # the run's end in the store before this process ends
+            assert writer.stdin is not None
+            writer.stdin.close()
+            if wait:
+                writer.wait(timeout=2 * WAIT_S + 5)
         except (OSError, subprocess.TimeoutExpired):
-            pass  # a store slower than that: the writer finishes on its own
-        self._say_warnings()
+            pass
+        except KeyboardInterrupt:
+            self._warn("history: interrupted while its writer finished: it finishes on its own")
 
     # -- helpers ------------------------------------------------------------------------------------------------------
     def _send(self, message: dict) -> None:

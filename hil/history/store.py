@@ -8,24 +8,50 @@ a run killed with SIGKILL leaves every finished test behind and its row says it 
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import json
 import uuid as uuidlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Iterator, Sequence
 
 from sqlalchemy import Engine, and_, create_engine, event, func, insert, select, text, update
 from sqlalchemy.engine import make_url
+from sqlalchemy.exc import SQLAlchemyError
 
-from hil.core.errors import InvalidValue
+from hil.core.errors import HilError, InvalidValue
 from hil.core.measurement import Measurement
-from hil.history.config import shown
+from hil.core.redact import hide_password, hide_passwords
 from hil.history.schema import HEAD, measurements, metadata, recoveries, runs, tests
 
 #: seconds a writer waits for another's lock (SQLite) or for the server to answer a connection (PostgreSQL)
 WAIT_S = 5.0
 _LOCK_ID = 0x68696C  # "hil": the PostgreSQL advisory lock that serialises two hosts migrating one server
+
+
+class StoreUnreachable(HilError):
+    """A history store that cannot be opened or read: its URL (password hidden), the reason, what to check."""
+
+    def __init__(self, url: str, exc: BaseException) -> None:
+        super().__init__(f"history store {hide_password(url)} unreachable ({one_line(exc)}) — check that its server "
+                         f"runs and accepts this user, and the URL (--url, $HIL_HISTORY_URL or the profile's "
+                         f"[history] url)")
+
+
+def one_line(exc: BaseException) -> str:
+    """A store's error as one line, without SQLAlchemy's "background" link or any password the driver quoted."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return hide_passwords(text.split(" (Background on this error")[0][:300])
+
+
+@contextlib.contextmanager
+def reaching(url: str) -> Iterator[None]:
+    """What goes wrong with the store's connection, as :class:`StoreUnreachable` naming ``url``."""
+    try:
+        yield
+    except SQLAlchemyError as exc:
+        raise StoreUnreachable(url, exc) from None
 
 
 def utcnow() -> dt.datetime:
@@ -246,7 +272,7 @@ class Store:
 
     @property
     def shown(self) -> str:
-        return shown(self.url)
+        return hide_password(self.url)
 
     def tests_of(self, run_id: int) -> list[dict[str, Any]]:
         """The run's tests, each with its ``measurements`` (a list of dicts)."""
@@ -316,4 +342,4 @@ class Store:
         return last, values
 
 
-__all__ = ["Store", "RunInfo", "TestResult", "migrate", "make_engine", "current_revision", "metadata", "utcnow"]
+__all__ = ["Store", "StoreUnreachable", "one_line", "reaching", "RunInfo", "TestResult", "migrate", "make_engine", "current_revision", "metadata", "utcnow"]

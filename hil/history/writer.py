@@ -15,13 +15,9 @@ import sys
 from typing import Any, Callable
 
 from hil.core.measurement import Measurement
+from hil.core.redact import hide_password
 from hil.history import config
-from hil.history.store import RunInfo, Store, TestResult
-
-
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text.split(" (Background on this error")[0][:300]
+from hil.history.store import RunInfo, Store, TestResult, one_line
 
 
 class Writer:
@@ -56,7 +52,7 @@ class Writer:
             last, values = self.store.bench_history(bench, self.run_id or 0, n)
             found.update(last=last, values=values)
         self._try(read)
-        return {"history": found, "store": config.shown(self.url), "spooled": self.spooled}
+        return {"history": found, "store": hide_password(self.url), "spooled": self.spooled}
 
     def finish(self, **values: Any) -> None:
         self._try(lambda: self.store.finish_run(self.run_id, **values))  # type: ignore[union-attr]
@@ -89,9 +85,9 @@ class Writer:
             self._fail_over(exc, action)
 
     def _fail_over(self, exc: Exception, action: Callable[[], None]) -> None:
-        failed, spool = config.shown(self.url), config.spool_url()
+        failed, spool = hide_password(self.url), config.spool_url()
         if self.spooled or self.url == spool:
-            self._warn(f"history store {failed} failed ({_one_line(exc)}): the rest of this run is not recorded")
+            self._warn(f"history store {failed} failed ({one_line(exc)}): the rest of this run is not recorded")
             self.dead = True
             return
         try:
@@ -102,12 +98,12 @@ class Writer:
             if action != self._open_and_start:
                 action()  # a test's write sends every test the store did not take
         except Exception as again:  # noqa: BLE001
-            self._warn(f"history store {failed} unreachable ({_one_line(exc)}), and the local spool too "
-                       f"({_one_line(again)}): this run is not recorded")
+            self._warn(f"history store {failed} unreachable ({one_line(exc)}), and the local spool too "
+                       f"({one_line(again)}): this run is not recorded")
             self.dead = True
             return
-        self._warn(f"history store {failed} unreachable ({_one_line(exc)}): this run is kept in "
-                   f"{config.shown(spool)} — `hil history sync` uploads it")
+        self._warn(f"history store {failed} unreachable ({one_line(exc)}): this run is kept in "
+                   f"{hide_password(spool)} — `hil history sync` uploads it")
 
     def _warn(self, text: str) -> None:
         if not self.warned:

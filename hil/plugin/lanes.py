@@ -13,7 +13,10 @@ gaps (docs/performance.md).  What keeps it safe:
 * **One run, one lock.**  The controller opens the bench before any worker starts: it takes the locks and replays
   whatever a dead run left (its journal and every lane's), then lets go of the wire but keeps the locks to the end.
   Each worker opens the wire under that lease (``hil_lane_lease``) instead of locking, and journals what it changes
-  in its own lane journal (``journal-….lane-gwN.json``), which the next run replays with the run's own.
+  in its own lane journal (``journal-….lane-gwN.json``), which the next run replays with the run's own.  A worker
+  holds the controller's own open lock files and is killed by the kernel when its controller dies
+  (:mod:`hil.core.lease`): a controller killed leaves the bench locked until its last worker is gone, and no lane
+  writes after it — the next run replays what they left.
 * **A wire lanes can share** (the scheme's ``lanes``): TCP or UDP to the PLC, a connection each; a serial device or
   pty, taken in turn by whole exchanges (:mod:`hil.io.shared_line`), the main lane first: the other lanes fill
   the line while it waits for the PLC.  Not an RFC 2217 server (one client at a time)
@@ -30,6 +33,8 @@ from typing import Any
 
 import pytest
 
+from hil.core.errors import HilError
+from hil.core.lease import LockLender, borrow, die_with_parent
 from hil.core.registry import SCHEMES
 from hil.io.shared_line import run_in_background
 from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce, say
@@ -43,15 +48,39 @@ DEFAULT = "main"
 LEASE = "hil_lane_lease"
 #: in a worker's ``workerinput``: the controller runs ``--dist each`` (a worker's own option says "no")
 SPLIT = "hil_lanes"
+#: in a worker's ``workerinput``: where it borrows the controller's open lock files (:class:`LockLender`)
+LOCKS = "hil_lane_locks"
 #: in a worker's ``workeroutput``: what it says of the PLC at its end (:data:`hil.plugin.safety.PLC_LEFT`)
 LEFT = "hil_plc_left"
 _LANES_LEFT = pytest.StashKey[dict]()  # worker id → what it said of the PLC (None: nothing)
+_LENDER = pytest.StashKey[LockLender]()  # the controller's: its locks, lent to each worker
+_BORROWED: list[int] = []  # a worker's: the controller's lock files, held open until this process ends
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", MARKER)
     if distributed(config) and getattr(config.option, "dist", "no") == "each":
         config.pluginmanager.register(_Collected(), "hil-lanes-collected")
+    given = getattr(config, "workerinput", None)
+    if given and given.get(LEASE):
+        _hold_the_runs_locks(given)
+
+
+def _hold_the_runs_locks(given: dict) -> None:
+    """A worker, before it touches the PLC: die with the controller, and hold its locks with it."""
+    holder, lane = given[LEASE], given.get("workerid")
+    try:
+        if not die_with_parent(holder):
+            raise HilError(f"the run's controller (pid {holder}) is gone, and the bench's locks with it")
+        _BORROWED.extend(borrow(given[LOCKS]))
+    except HilError as exc:
+        raise pytest.UsageError(f"hil: lane {lane} does not start: {exc}") from None
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    lender = config.stash.get(_LENDER, None)
+    if lender is not None:
+        lender.close()
 
 
 def lane_of(item: pytest.Item) -> str:
@@ -126,6 +155,11 @@ def lease(config: pytest.Config) -> None:
         raise pytest.UsageError(f"{recovery.summary()} — no lane starts on a PLC left changed: `hil restore` once "
                                 f"the cause is fixed")
     state.close_wire()
+    try:
+        config.stash[_LENDER] = LockLender(_lock_files(state))
+    except HilError as exc:
+        state.release()
+        raise pytest.UsageError(f"hil: {exc}") from None
     config.stash[_LANES_LEFT] = {}
     # A worker that dies is not replaced: its replacement would run beside the dead lane's journal, unreplayed
     # (the controller replays it at the end).  pytest-xdist reads --max-worker-restart when it configures, before
@@ -135,10 +169,17 @@ def lease(config: pytest.Config) -> None:
         dsession._max_worker_restart = 0
 
 
+def _lock_files(state: Any) -> list[int]:
+    """The open files of the bench's locks the controller holds (its place's, its endpoint's, its PLC's)."""
+    locks = (state.place_lock, state.lock, state.plc_lock)
+    return [fd for lock in locks if lock is not None and (fd := lock.fileno()) is not None]
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
-    """A lane goes on only while the controller that holds the run's locks does: a controller killed took its locks
-    with it, and another run may take the PLC — this lane stops (its teardown still puts its writes back)."""
+    """A lane goes on only while its controller does.  On Linux the kernel kills the lane with it (its first line of
+    defence, :func:`_hold_the_runs_locks`); elsewhere the lane stops here, before its next test — it holds the run's
+    locks until it exits, so no other run takes the PLC while its teardown puts its writes back."""
     given = getattr(item.config, "workerinput", None)
     holder = given.get(LEASE) if given else None
     if holder and os.getppid() != holder:
@@ -153,6 +194,7 @@ def pytest_configure_node(node: Any) -> None:
     state = node.config.stash.get(BENCH_SESSION, None)
     if state is not None and state.leased:
         node.workerinput[LEASE] = os.getpid()
+        node.workerinput[LOCKS] = node.config.stash[_LENDER].address
 
 
 class _Collected:
