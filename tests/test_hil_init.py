@@ -3,6 +3,7 @@ placeholders for what it cannot say; against ``hil emulate`` the profile it writ
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -59,6 +60,28 @@ def test_init_writes_nothing_through_a_symbolic_link(tmp_path: Path, capsys, pla
     assert f"{work / planted} is a symbolic link (to {elsewhere / 'victim'})" in said and "remove the link" in said
     assert not (elsewhere / "victim").exists() and list(elsewhere.iterdir()) == []
     assert sorted(p.name for p in work.rglob("*") if not p.is_symlink()) == ["tests"]  # nothing written at all
+
+
+def test_init_names_the_bench_by_its_directory_and_takes_scratch_ranges(tmp_path: Path) -> None:
+    """Two profiles for one address are two benches in the history (the name keys it): the default name is the
+    directory's, not the URL.  --scratch fills [bench] scratch and the allow-list, so the smoke suite's round trips
+    run from the first run on; the hint after it is one command a line, unwrapped in a pipe (80 columns)."""
+    for where in ("oven-line-1", "oven-line-2"):
+        done = subprocess.run([sys.executable, "-m", "hil", "init", "emulator", "--dir", str(tmp_path / where),
+                               "--scratch", "R1000-R1099", "--scratch", "M1000-M1015"], capture_output=True,
+                              text=True, timeout=60, cwd=tmp_path, env={**os.environ, "COLUMNS": "80"})
+        assert done.returncode == 0, done.stdout + done.stderr
+        profile = load_profile(tmp_path / where / "bench.toml")
+        assert profile.name == where
+        assert profile.scratch == ("R1000-R1099", "M1000-M1015")
+        assert profile.can_write("R1000") and profile.can_write("M1015") and not profile.can_write("R1100")
+        lines = done.stdout.splitlines()
+        assert f"  cd {tmp_path / where} && hil run --bench bench.toml -- tests" in lines, done.stdout
+        assert f"  cd {tmp_path / where} && hil run --bench bench.toml" in lines, done.stdout
+    refused = subprocess.run([sys.executable, "-m", "hil", "init", "emulator", "--dir", str(tmp_path / "x"),
+                              "--scratch", "R99999"], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert refused.returncode == EXIT_USAGE and "--scratch 'R99999'" in refused.stderr, refused.stderr
+    assert not (tmp_path / "x" / "bench.toml").exists()
 
 
 def test_init_says_why_a_table_is_not_there(tmp_path: Path) -> None:

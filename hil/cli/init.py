@@ -85,7 +85,8 @@ def _read_table(transport: Transport, at: str, notes: list[str]) -> dict[str, ob
     return {"table": str(start), "readings": str(readings), "work": str(work), "modules": modules}
 
 
-def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0) -> str:
+def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0,
+                   scratch: tuple[str, ...] = ()) -> str:
     """The profile for what the PLC said: every declared key of the core's and the FBs family's sections (set,
     or commented out with its default), each with its description (:func:`hil.bench.schema_export.render_section`)."""
     lines = [schema_line(),
@@ -96,10 +97,13 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     if found.identity:
         lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))
     lines += [f"# {note}" for note in found.notes] + [""]
-    bench = {"name": name, "target": target, "time_scale": time_scale}
-    lines += render_section(BENCH, bench, {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {},
+    bench = {"name": name, "target": target, "time_scale": time_scale, **({"scratch": list(scratch)} if scratch else {})}
+    said = {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {}
+    lines += render_section(BENCH, bench, {**said, **({"scratch": "hil init --scratch"} if scratch else {})},
                             shown={"family": FAMILY.name})
-    lines += render_section(SAFETY, {"writable": _writable(found)}, {"writable": "add your scratch ranges"},
+    # the scratch ranges the user named are the suites' to write: in the allow-list with the clock's elements
+    lines += render_section(SAFETY, {"writable": [*_writable(found), *scratch]},
+                            {"writable": "with hil init --scratch" if scratch else "add your scratch ranges"},
                             shown={"volatile": list(FAMILY.default_volatile)})
     if found.chip is not None:
         lines += render_section(RTC, {"chip": CHIP_NAMES.get(found.chip, str(found.chip))},
@@ -173,7 +177,7 @@ def test_every_point_reads_a_temperature(temperature: Temperature) -> None:
 
 
 def init(target: str, directory: Path, console: Console, *, name: str | None = None, table: str | None = None,
-         time_scale: float = 1.0, force: bool = False) -> int:
+         time_scale: float = 1.0, force: bool = False, scratch: tuple[str, ...] = ()) -> int:
     profile, test = directory / "bench.toml", directory / "tests" / "test_first.py"
     _refuse_links(profile, test)
     existing = [p for p in (profile, test) if os.path.lexists(p)]
@@ -187,18 +191,32 @@ def init(target: str, directory: Path, console: Console, *, name: str | None = N
             parse(table)
         except HilError as exc:
             raise InvalidValue(f"--temperature-table {table!r}: {exc}") from None
+    for span in scratch:
+        try:
+            FAMILY.check_ranges([span])
+        except (HilError, ValueError) as exc:
+            raise InvalidValue(f"--scratch {span!r}: {exc} (give a range such as R1000-R1099)") from None
     with open_target(target) as opened:
         found = read_plc(opened.transport, table)
-    name = name or f"bench at {target}"
+    # the bench's name keys its run history: the directory the user chose names it, not the URL (two profiles
+    # for one address would share one trend)
+    name = name or directory.resolve().name
     test.parent.mkdir(parents=True, exist_ok=True)
-    _write(profile, render_profile(name, target, found, time_scale), force)
+    _write(profile, render_profile(name, target, found, time_scale, scratch), force)
     _write(test, FIRST_TEST.format(name=name, profile=profile.name, test=test.relative_to(directory)), force)
     console.print(f"wrote {profile} and {test}")
     for note in found.notes:
         console.print(f"  note: {note}")
     here = "" if directory.resolve() == Path.cwd().resolve() else f"cd {directory} && "
-    console.print(f"next: {here}hil run --bench {profile.name} -- tests; then the bundled suites: "
-                  f"hil run --bench {profile.name}")
+    def say(text: str) -> None:  # one command a line, never wrapped (a pipe is 80 columns): pasted as it stands
+        console.print(text, soft_wrap=True, highlight=False)
+
+    say("next, your first test, then the bundled suites:")
+    say(f"  {here}hil run --bench {profile.name} -- tests")
+    say(f"  {here}hil run --bench {profile.name}")
+    if not scratch:
+        say("  (the smoke suite's round trips need registers nobody else uses: name them in [bench] scratch and "
+            "[safety] writable, or hil init --scratch R1000-R1099 --force)")
     return 0
 
 

@@ -278,7 +278,10 @@ def _add_init_command(sub: "argparse._SubParsersAction") -> None:
     init.add_argument("url", help="target URL of the PLC (fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0, "
                                   "modbus+tcp://HOST:502?unit=1 …)")
     init.add_argument("--dir", metavar="DIR", default=".", help="where to write (default: here)")
-    init.add_argument("--name", help="the bench's name (default: 'bench at URL')")
+    init.add_argument("--name", help="the bench's name, which keys its run history (default: the directory's name)")
+    init.add_argument("--scratch", metavar="RANGE", action="append", default=[],
+                      help="registers or bits nobody else uses on this PLC (e.g. R1000-R1099; again for more): "
+                           "[bench] scratch and [safety] writable, for the smoke suite's round trips")
     init.add_argument("--temperature-table", metavar="ADDRESS",
                       help="where the ladder keeps the temperature table (SR, e.g. R3000): read and filled in")
     init.add_argument("--time-scale", metavar="N", type=float, default=1.0,
@@ -406,6 +409,7 @@ def dispatch(args: argparse.Namespace, console: Console) -> int:
     if args.command == "init":
         from hil.cli.init import init
         return init(args.url, Path(args.dir), console, name=args.name, table=args.temperature_table,
+                    scratch=tuple(args.scratch),
                     time_scale=args.time_scale, force=args.force)
     if args.command == "run":
         from hil.cli.run import run
