@@ -868,9 +868,16 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     inst, point, plain = _integrating_point(bench, pid, plain=True)
     io = bench.plc.io
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s
+    # Fresh evidence of the first PID step: the integrating point's OR leaves what an earlier test left there (a
+    # box keeps its outputs while EN is 0).  The step comes at EN's edge or (a PLC may) up to an interval, 4 s, after
+    # it; should the old OR equal the first step's, the second step moves it — both points of the box are computed
+    # at each step, so the plain point's OR is fresh then too.
+    left = pid.output(point)
+    stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1",
+                           lambda: pid.output(point) != left)
     pid.restart(inst)  # EN 0 → 1: in force from now
-    if plain is not None:  # the first PID step: at EN's edge, or (a PLC may) up to one interval, 4 s, after it
-        pid.wait_until(lambda: pid.output(plain) > 0)
+    assert stepped.within(2 * 4 + 1, every=0.1), (
+        f"point {point} (integral action at a constant error): OR stayed {left} for two PID intervals after EN 0 → 1")
     io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
     flat = pid.output(plain) if plain is not None else None  # after the first step
     held, polls = _steps(bench, pid, point, 9.0)
@@ -940,9 +947,13 @@ def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
         pytest.skip(f"{inst.name} has no second enabled point: the PWM period is timed on a point whose output "
                     f"stays constant (Ki 0), so that no output change moves Y within a period")
     bench.plc.io.write("R4005", high << 8 | low)
+    # the first PID step after EN's edge — at it or (a PLC may) up to an interval after it — as fresh evidence: the
+    # integrating point's OR leaves what an earlier test left (or, equal to that by chance, at the second step)
+    left = pid.output(point)
+    stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1",
+                           lambda: pid.output(point) != left)
     pid.restart(inst)  # in force from this EN edge
-    # the constant point's output up: its first PID step, at EN's edge or (a PLC may) up to an interval after it
-    assert pid.wait_until(lambda: pid.output(plain) > 0, steps=1.0), f"point {plain}: no PID step after EN's edge"
+    assert stepped.within(2 * LONGEST_S + 2, every=1.0), f"point {point}: no PID step after EN's edge"
     steps, polls = _steps(bench, pid, point, 2 * LONGEST_S + 6, every=1.0, witness=plain)
     gaps = [round(b - a, 1) for a, b in zip(steps, steps[1:])]
     assert len(steps) >= 2 and all(abs(g - LONGEST_S) <= 2 for g in gaps), (

@@ -116,7 +116,7 @@ def test_init_points_editors_at_the_schema_and_its_profile_loads(tmp_path: Path)
 @pytest.mark.parametrize("text, message", [
     ('[bench]\nname = "b"\n# a comment\nstation = 300\n', r"bench\.toml:4: \[bench\] station = 300 must be 1–254$"),
     ('[bench]\nname = "b"\ncolour = "red"\n', r"bench\.toml:3: unknown key\(s\) in \[bench\]: colour$"),
-    ('[bench]\nstation = 2\n', r"bench\.toml:1: \[bench\] name is required \(such as name = \"bench-1 \(FBs-24MC\)\"\)$"),
+    ('[bench]\nstation = 2\n', r"bench\.toml:1: \[bench\] name is required \(such as name = \"oven-line-1\"\)$"),
     ('[bench]\nname = "b"\ntime_scale = "fast"\n', r"bench\.toml:3: \[bench\] time_scale must be a float, not 'fast'$"),
     ('[bench]\nname = "b"\n\n[rtc]\nchip = "DS1307"\n', r"bench\.toml:5: \[rtc\] chip: chip must be 0–3 or one of"),
     ('[bench]\nname = "b"\n[safety]\nwritable = ["R99999"]\n', r"bench\.toml:4: \[safety\] writable: 'R99999' is outside"),

@@ -38,29 +38,28 @@ STRINGS = {"type": "array", "items": {"type": "string"}}
 
 BENCH = Section("bench", "Which PLC, over which wire, and how the harness paces itself on it.", (
     Key("name", str, "The bench's name, in reports and locks; benches in one run must differ.", required=True,
-        example="bench-1 (FBs-24MC)"),
-    Key("target", str, "The URL that reaches the PLC (README \"Targets\"): emulator, fatek+tcp://HOST:500, "
-        "fatek+serial:///dev/ttyUSB0, modbus+tcp://HOST:502?unit=1, s7+tcp://HOST:102 …", "emulator",
+        example="oven-line-1"),
+    Key("target", str, "The URL that reaches the PLC (docs/targets.md): emulator, or SCHEME://HOST:PORT of a wire "
+        "an installed family speaks (hil emulate --help lists them).", "emulator",
         check=_target),
-    Key("station", int, "The PLC's station number (FATEK) or Modbus unit, used on every wire and command; a target "
-        "URL naming another is refused.", None, low=1, high=254, default_doc="the target's ?station=/?unit=, else 1"),
+    Key("station", int, "The PLC's address on its wire (the station or unit id its protocol takes), used on every "
+        "wire and command; a target URL naming another is refused.", None, low=1, high=254, default_doc="the one the target names, else 1"),
     Key("time_scale", float, "Bench seconds per wall second: > 1 only for an accelerated external emulator "
         "(hil emulate --time-scale).", 1.0, above=0),
     Key("settle_scans", int, "Status round trips after a write before reading its effect (raise it on port 2, "
         "which answers within a scan).", 2, low=1),
     Key("timeout", float, "Seconds to wait for each reply.", 2.0, above=0, unit="s"),
     Key("family", str, "The controller family plug-in: picks the device layer, the emulator and the suites.",
-        choices=lambda: sorted(families()), default_doc="the installed default family (fbs)"),
+        choices=lambda: sorted(families()), default_doc="the installed default family"),
     Key("scan_counter", str, "A word register the bench ladder adds 1 to every scan (fixtures/ladder.md): proves "
-        "scans from the PLC's side.", pattern=ELEMENT, hint="must name one word register (letters, then digits)",
-        example="R3999"),
-    Key("answers_at_scan_end", bool, "The wire reaches a port that services each request at a scan's end (FBs "
-        "ports 0, 1, 3, 4): settles rely on that rule, a round trip per scan, rather than prove each scan with two "
+        "scans from the PLC's side.", pattern=ELEMENT, hint="must name one word register (letters, then digits)"),
+    Key("answers_at_scan_end", bool, "The wire reaches a port that services each request at a scan's end (the "
+        "family's manual says which ports do): settles rely on that rule, a round trip per scan, rather than prove each scan with two "
         "reads of the scan counter (which still brackets what counts scans). Leave it out for the Ethernet modules, "
         "which may answer within a scan.", False),
     Key("scratch", list, "Element ranges nobody else uses, for the smoke suite (add them to [safety] writable).",
         [], pattern=rf"{ELEMENT}(-{ELEMENT})?", hint="must be a list of element ranges (FIRST-LAST)",
-        convert=tuple, example=["R1000-R1099", "M1000-M1015"], json={"items": {"type": "string"}}),
+        convert=tuple, json={"items": {"type": "string"}}),
     Key("offers", list, "What no wire can detect and the bench's owner vouches for: "
         + "; ".join(f"{name}: {why}" for name, why in DECLARABLE.items()) + ".", [], choices=tuple(DECLARABLE),
         convert=tuple, json={"items": {"type": "string"}}),
@@ -70,10 +69,10 @@ BENCH = Section("bench", "Which PLC, over which wire, and how the harness paces 
 ))
 
 SAFETY = Section("safety", "What the harness may write: anything else is refused before a byte is sent.", (
-    Key("writable", list, "Address ranges the tests may write (\"R4128-R4134\", \"M1952-M1953\", \"D4054\"): "
+    Key("writable", list, "Element ranges the tests may write (FIRST-LAST in the family's address model): "
         "journaled first, put back and read back after each test.", [], convert=tuple, json=STRINGS),
     Key("volatile", list, "Values the PLC rewrites itself: never journaled nor restored.", convert=tuple,
-        default_doc="the family's own (FBs: the RTC read-out R4128-R4135)", json=STRINGS),
+        default_doc="the family's own (its clock's read-out)", json=STRINGS),
     Key("allow_destructive", bool, "Allow RUN/STOP and other actions that change what the PLC does.", False),
 ))
 

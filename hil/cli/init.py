@@ -100,7 +100,8 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     bench = {"name": name, "target": target, "time_scale": time_scale, **({"scratch": list(scratch)} if scratch else {})}
     said = {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {}
     lines += render_section(BENCH, bench, {**said, **({"scratch": "hil init --scratch"} if scratch else {})},
-                            shown={"family": FAMILY.name})
+                            shown={"family": FAMILY.name, "scan_counter": "R3999",
+                                   "scratch": ["R1000-R1099", "M1000-M1015"]})
     # the scratch ranges the user named are the suites' to write: in the allow-list with the clock's elements
     lines += render_section(SAFETY, {"writable": [*_writable(found), *scratch]},
                             {"writable": "with hil init --scratch" if scratch else "add your scratch ranges"},

@@ -107,16 +107,16 @@ def parse_tags(text: str | dict[str, Any]) -> tuple[tuple[str, str], ...]:
 LABGRID = Section("labgrid", "The labgrid place that holds the PLC, its wire and the fault rig (instead of "
                   "[bench] target; README \"A lab of benches\").", (
     Key("place", str, "The place's name.", pattern=r".*\S.*", hint="must not be empty",
-        example="fbs-bench-3"),
-    Key("tags", dict, "Reserve any place with these tags, e.g. {family = \"fbs\"} (instead of place).",
-        convert=parse_tags, example={"family": "fbs"}),
+        example="bench-3"),
+    Key("tags", dict, "Reserve any place with these tags, e.g. {room = \"lab-2\"} (instead of place).",
+        convert=parse_tags, example={"room": "lab-2"}),
     Key("coordinator", str, "HOST[:PORT] of the coordinator; default $LG_COORDINATOR, else labgrid's own.",
         pattern=r"[\w.\-\[\]:]+", hint="must be HOST[:PORT]",
         example="lab.example.com:20408"),
     Key("wire", str, "The resource that is the PLC's wire (default: the place's only NetworkService, else its "
         "only NetworkSerialPort).", example="plc-ethernet"),
     Key("protocol", str, "What the wire speaks (default: from a NetworkService's port).",
-        choices=lambda: tuple(PROTOCOLS), example="fatek"),
+        choices=lambda: tuple(PROTOCOLS)),
     Key("params", dict, "More query parameters for the wire's URL, e.g. {parity = \"E\"}.", {}),
     Key("rig", str, "The ModbusTCPCoil resources that make the fault rig (a glob).", "*"),
     Key("wait", float, "Seconds to wait for the place.", above=0, unit="s", hint="must be > 0 s",
