@@ -22,10 +22,10 @@ REPO = Path(__file__).resolve().parent.parent
 EXIT_USAGE, EXIT_INTERNAL = 4, 3
 
 
-def hil(*argv: str, cwd: Path, timeout: float = 120) -> subprocess.CompletedProcess:
+def hil(*argv: str, cwd: Path, timeout: float = 120, columns: int = 100) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST")}
     return subprocess.run([sys.executable, "-m", "hil", *argv], cwd=cwd, capture_output=True, text=True,
-                          timeout=timeout, env=env | {"COLUMNS": "100"})
+                          timeout=timeout, env=env | {"COLUMNS": str(columns)})
 
 
 def test_pytest_arguments_that_name_tests_replace_the_default_suites() -> None:

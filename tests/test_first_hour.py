@@ -62,8 +62,14 @@ def test_probe_names_the_users_target_not_pyserials_socket_url(tmp_path: Path) -
     from tests.external import emulate_process
     with emulate_process(REPO / "fixtures" / "benches" / "emulator.toml", 1.0, {"fatek-tcp": "--fatek-tcp"}) as where:
         done = hil("probe", f"fatek+tcp://{where['fatek-tcp']}", cwd=tmp_path)
+        long_url = f"fatek+tcp://{where['fatek-tcp']}?station=1&timeout=3.5&retries=2&fence=reads&backoff=0.05"
+        narrow = hil("probe", long_url, cwd=tmp_path, columns=80)
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"FATEK station 1 on fatek+tcp://{where['fatek-tcp']}" in done.stdout and "socket://" not in done.stdout
+    # a long target in 80 columns: whole (wrapped in its row), never cut like a panel title
+    assert narrow.returncode == 0, narrow.stdout + narrow.stderr
+    shown = "".join(line.strip("│╭╮╰╯─ ").split("target", 1)[-1].strip() for line in narrow.stdout.splitlines()[:4])
+    assert long_url.replace(" ", "") in shown.replace(" ", ""), narrow.stdout
 
 
 def test_plain_pytest_stops_the_same_way(tmp_path: Path) -> None:

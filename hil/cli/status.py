@@ -15,9 +15,11 @@ def status_panel(status: PlcStatus, description: str, **extra: str) -> Panel:
     grid = Table.grid(padding=(0, 2))
     grid.add_column(style="bold cyan", no_wrap=True)
     grid.add_column()
+    # the target as a row, not in the title: a title is cut at the panel's width, a row wraps (a long URL whole)
+    grid.add_row("target", escape(description))
     grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
     grid.add_row("via", escape(status.via or description))
     for key, value in [*extra.items(), *status.identity.items()]:
         grid.add_row(escape(key), escape(str(value)))
-    return Panel(grid, title=f"PLC at {escape(description)}", title_align="left", expand=False,
+    return Panel(grid, title="PLC", title_align="left", expand=False,
                  border_style=running)
