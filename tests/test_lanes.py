@@ -215,22 +215,25 @@ def _paced_emulator(tmp: Path):  # noqa: ANN202 - the context manager of emulate
     return emulate_process(profile, 1.0, {"fatek-serial": "--fatek-serial", "rig-modbus-tcp": "--rig-modbus-tcp"})
 
 
-def _lanes_run(tmp: Path, bench: Path, *tests: str, timeout: float = 240) -> subprocess.CompletedProcess:
+def _lanes_run(tmp: Path, bench: Path, *tests: str, timeout: float = 240, **env: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "pytest", *tests, "--bench", str(bench), "-n", "2", "--dist", "each",
                            "-v", "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
                            f"--junitxml={tmp / 'junit.xml'}"], cwd=REPO, capture_output=True, text=True,
-                          timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                          timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1", **env})
 
 
 def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dirs):
     """``hil run --lanes 2`` as pytest runs it, against ``hil emulate`` on its paced pty: the RTC suite in the clock
     lane, the smoke suite in the main lane, each lane in one worker, every test once; both lanes leave the PLC as
-    found (no journal left), and the run is PASSED."""
+    found (no journal left), and the run is PASSED.  A lane waits for the other's turns on the line however long
+    they take: the line wait ($HIL_LINE_WAIT, here 50 ms, far under one lane's busy stretch) bounds only a wait
+    for a process that is not of this run."""
     with _paced_emulator(private_dirs) as where:
         bench = _bench_on_the_paced_pty(private_dirs, where)
         # the RTC suite's sets and read-outs (its midnights and running clock are a bench second each)
         run = _lanes_run(private_dirs, bench, str(REPO / "suites" / "test_smoke.py"),
-                         str(REPO / "suites" / "test_rtc.py"), "-k", "smoke or sunday or r4135 or overwrites")
+                         str(REPO / "suites" / "test_rtc.py"), "-k", "smoke or sunday or r4135 or overwrites",
+                         HIL_LINE_WAIT="0.05")
     out = run.stdout
     assert run.returncode == 0, out[-3000:]
     assert "ended without a word on the PLC" not in out, "each lane said how it left the PLC (its safety report)"

@@ -247,6 +247,15 @@ def kernel_holders(fd: int) -> list[int]:
     return pids
 
 
+def parent_of(pid: int) -> int | None:
+    """``pid``'s parent, from /proc (None where it cannot be read: gone, or another system)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return int(stat.rsplit(")", 1)[1].split()[1])  # (after the command's parenthesis: state, then the parent)
+
+
 def describe_process(pid: int) -> str:
     """``pid 1234 of user bob (uid 1001): python3 -m hil probe …`` from /proc (the bare pid where it cannot be
     read)."""

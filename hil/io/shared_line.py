@@ -37,7 +37,7 @@ import time
 from typing import Callable
 
 from hil.core.errors import TransportError
-from hil.core.lock import describe_process, kernel_holders, lock_dir, open_lock_file, shared_dir
+from hil.core.lock import describe_process, kernel_holders, lock_dir, open_lock_file, parent_of, shared_dir
 
 #: the mark's two values (one byte at the start of the file)
 _SUSPECT, _CLEAN = b"1", b"0"
@@ -168,15 +168,28 @@ class SharedLine:
             fcntl.flock(self._want, fcntl.LOCK_UN)
 
     def _flock(self, fd: int, operation: int, deadline: float) -> None:
-        """``flock`` by tries until ``deadline`` (the kernel's own wait cannot be bounded); then name the holder."""
+        """``flock`` by tries until ``deadline`` (the kernel's own wait cannot be bounded); then name the holder —
+        unless every holder is another lane of this run, whose turns on the line are this lane's to wait out."""
         while True:
             try:
                 fcntl.flock(fd, operation | fcntl.LOCK_NB)
                 return
             except BlockingIOError:
                 if time.monotonic() >= deadline:
-                    raise self._busy(fd) from None
+                    if not self._our_lanes(kernel_holders(fd)):
+                        raise self._busy(fd) from None
+                    deadline = time.monotonic() + self._wait
                 time.sleep(POLL)
+
+    def _our_lanes(self, holders: list[int]) -> bool:
+        """In a run with lanes (a background/foreground turn), holders that are all workers of this run's
+        controller: our parent's other children (``hil run --lanes``'s workers are its only children).  None at all
+        in a lock table the kernel keeps: the holder let go since the try — try again."""
+        if self._background is None:
+            return False
+        if not holders:
+            return os.path.exists("/proc/locks")
+        return all(parent_of(pid) == os.getppid() for pid in holders)
 
     def _busy(self, fd: int) -> TransportError:
         holders = " and ".join(describe_process(pid) for pid in kernel_holders(fd)) or \
