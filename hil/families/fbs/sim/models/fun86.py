@@ -19,18 +19,19 @@ Every decision a faulty PLC could get wrong is one small method (the "seams" bel
 build broken PLCs as tiny subclasses.  The per-point ones take and return arrays over an instance's points: the
 points' state is kept in arrays (:class:`InstanceState`), stepped all at once.
 
-Time: the model asks the virtual-time engine for a scan wherever what it shows can change (:meth:`Fun86Model.
-next_event`) — each PID interval, heater-loop deadline and measurement of the temperature modules (a new PV may
-start a pre-alarm count or the heater-loop timer), every scan while a pre-alarm count is running, and each PWM edge
-unless the thermal plant integrates the published waveforms exactly (no dead time: ``pwm_exact``; the waveforms
-are in models/fun86_waveforms.py: they model no manual statement); otherwise the engine jumps.  With EN off it asks
-for nothing (the default bench's virtual day stays one jump).
+Time: the model asks the virtual-time engine for a scan wherever what it shows can change
+(:meth:`Fun86Model.next_event`) — each PID interval, heater-loop deadline and measurement of the temperature
+modules (a new PV may start a pre-alarm count or the heater-loop timer), every scan while a pre-alarm count is
+running, and each PWM edge unless the thermal plant integrates the published waveforms exactly (no dead time:
+``pwm_exact``; the waveforms are in models/fun86_waveforms.py: they model no manual statement); otherwise the
+engine jumps.  With EN off it asks for nothing (the default bench's virtual day stays one jump).  The instances'
+state between scans is in models/fun86_state.py.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -44,6 +45,7 @@ from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_sec
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
 # (the plant's waveforms, which only the emulator needs, model no manual statement: in a module of their own)
 from hil.families.fbs.sim.models.fun86_waveforms import PublishedWaveforms
+from hil.families.fbs.sim.models.fun86_state import InstanceState, View
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -55,73 +57,6 @@ _R = {name: parse(name).index for name in (reg.PID_SOURCE_KEY, reg.PID_SOURCE, r
 SOURCE_KEY = 0xA55A
 DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
-
-
-def _none() -> np.ndarray:
-    return np.zeros(0)
-
-
-@dataclass
-class InstanceState:
-    en_prev: bool = False
-    executed: bool = False  # first execution done (defaults loaded)
-    interval: float = 4.0
-    pwm: float = 2.0
-    started: float = 0.0  # EN rising edge: PWM cycles and PID intervals count from here
-    next_pid: float = math.inf
-    running: bool = False  # executing with valid Sn/Zn and every point measured
-    waiting: bool = False  # executing, but not every point measured yet
-    sn: int = 0
-    zn: int = 0
-    # per point b (point Sn + b):
-    integral: np.ndarray = field(default_factory=_none)
-    pv_prev: np.ndarray = field(default_factory=_none)  # PV at the last PID step (where has_prev)
-    has_prev: np.ndarray = field(default_factory=_none)
-    prealarm: np.ndarray = field(default_factory=_none)  # consecutive scans with PV ≥ R4008
-    loop_since: np.ndarray = field(default_factory=_none)  # when "output ≥ R4006 % and not normal" began (NaN: no)
-    #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
-    published: tuple | None = None
-    #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
-    view: "_View | None" = None
-    #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
-    weights: tuple | None = None
-
-    def new_points(self, zn: int) -> None:
-        self.view, self.weights = None, None
-        self.integral = np.zeros(zn)
-        self.pv_prev = np.zeros(zn, dtype=np.int64)
-        self.has_prev = np.zeros(zn, dtype=bool)
-        self.prealarm = np.zeros(zn, dtype=np.int64)
-        self.loop_since = np.full(zn, math.nan)
-
-    def point_states(self) -> list[tuple]:
-        """(integral, PV at the last PID step or None, pre-alarm count, heater-loop start or None) per point."""
-        return [(i, p if h else None, c, None if math.isnan(s) else s) for i, p, h, c, s in
-                zip(self.integral.tolist(), self.pv_prev.tolist(), self.has_prev.tolist(), self.prealarm.tolist(),
-                    self.loop_since.tolist())]
-
-
-@dataclass
-class _View:
-    """An instance's registers as a scan read them, and what follows from them alone: the next scan with the same
-    registers needs none of it again."""
-
-    key: tuple
-    pv: np.ndarray
-    sv: np.ndarray
-    os: np.ndarray
-    enabled: np.ndarray
-    idx: np.ndarray  # the enabled points
-    output: np.ndarray  # OR
-    every: bool  # every point enabled
-    sel: "slice | np.ndarray"  # the enabled points, as an index (a whole slice when every one is)
-    normal: np.ndarray | None = None  # (the alarms' part, filled by the scan that made the view)
-    normal_words: tuple = ()
-    out_of_band: bool = False
-    warning: np.ndarray | None = None  # the warning bits the last scan found, and their words
-    warning_words: tuple = ()
-    calm: bool = False  # no PV at or above R4008 and every pre-alarm count 0
-    waves: tuple | None = None  # (ON seconds, Y when on, Y when off)
 
 
 #: the output's bounds as 0-d arrays: numpy takes a Python number as an operand at a cost several times that of a
@@ -472,7 +407,7 @@ class Fun86Model(PublishedWaveforms, Model):
         bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, bool(np.count_nonzero(view.warning))) else 0
 
     def _view(self, mem: "Memory", inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
-              heating: bool) -> _View:
+              heating: bool) -> View:
         """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
         arrays of those unchanged otherwise)."""
         words, zn, sn = mem.words, st.zn, st.sn
@@ -493,14 +428,14 @@ class Fun86Model(PublishedWaveforms, Model):
             idx = np.flatnonzero(enabled)
         every = len(idx) == zn
         same_output = old[4] == key[4] and old[3] == key[3] and plain  # (then the same waveforms)
-        st.view = _View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
+        st.view = View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
                                for i, name in ((0, "pv"), (1, "sv"), (2, "os"))),
                         enabled, idx, view.output if old[4] == key[4] else np.array(key[4], dtype=np.int64),
                         every, slice(None) if every else idx, waves=view.waves if same_output else None)
         return st.view
 
     def drive_outputs(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
-               output: np.ndarray, view: _View | None = None) -> None:
+               output: np.ndarray, view: View | None = None) -> None:
         """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
         (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
         if view is not None and view.waves is not None:
