@@ -80,7 +80,7 @@ def outputs(emu) -> list[tuple[int, ...]]:  # noqa: ANN001
 
 def traced(emu) -> list:  # noqa: ANN001
     """Record :func:`outputs` after every scan in which they changed: (time, outputs); the scans in between saw
-    the outputs of the entry before.  An observer of the engine: it sees the scans a model runs in a batch too."""
+    the outputs of the entry before (an observer of the engine)."""
     trace: list = []
 
     def record(emu) -> None:  # noqa: ANN001
@@ -209,17 +209,6 @@ def test_pre_alarm_counting_scan_by_scan_is_the_same():
     assert python["memory"]["words"]["R"][1242] != 0  # pre-alarm warnings
 
 
-def test_a_pre_alarm_limit_exactly_at_the_readings_bound():
-    """R4008 = the highest reading the plant can ever give: still "could reach", so measurements get their scans."""
-    def drive(emu) -> None:  # noqa: ANN001
-        start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)})
-        emu.advance(30)
-        bound = emu.model(TemperatureModel).readings_upper(emu.memory, range(32))
-        emu.service(lambda mem: mem.set("R4008", int(bound)))
-        emu.advance(120)
-    against_golden(full_plc(), drive)
-
-
 def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ramp():
     """The default bench: zone-a heats points 0–9 with a broken sensor on 3 and 6 disabled; zone-b (Md 1) cools
     12–31 with point 20 not installed; point 10 is unheated and follows a ramp."""
@@ -248,8 +237,8 @@ def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
     against_golden(build, drive)
 
 
-def test_requests_between_spans():
-    """A test polling and changing set points, R4005 and the enable mask: each request, then a span."""
+def test_requests_between_jumps():
+    """A test polling and changing set points, R4005 and the enable mask: each request, then a jump."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 1200 for p in range(32)})
         for n in range(12):

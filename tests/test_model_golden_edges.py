@@ -1,7 +1,7 @@
 """Edge cases of the temperature, FUN86 and plant models against golden records (tests/test_model_golden.py), from a
 review of the (since deleted) compiled kernel: timing codes, R4006/R4007/R4008 edges, gains, negative SV/OS/PV,
 Sn ≠ 0, settable/ERR/EN-off instances next to running ones, points outside the measured modules, fitted modules the
-table does not measure, 64-bit seeds, long spans, requests right before a span, stepping on after a long span, scan
+table does not measure, 64-bit seeds, long runs, requests right before a jump, stepping on after a long jump, scan
 times, the clock's elements shared with the PID's, models in another order.
 """
 
@@ -98,7 +98,7 @@ def test_readings_over_the_rtc_registers(readings):
 @pytest.mark.parametrize("alm", ["M1952", "M1953", "M1954"])
 def test_alm_on_an_rtc_bit(alm):
     """ALM of the running instance on M1952 (RTC hold), M1953 (±30 s) or M1954 (rewritten by every RTC scan), and
-    ALM toggling inside the span: the clock sees each edge."""
+    ALM toggling between requests: the clock sees each edge."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={f"R{1000 + p}": 250 for p in range(32)}, enable=1, **{f"R{1040 + p}": 7 for p in range(32)})
         emu.advance(305)  # (ends with ALM = 0: M1954 then shows the RTC's 1)
@@ -248,8 +248,7 @@ def test_en_off_instances_that_ran_next_to_a_running_one():
 
 
 def test_instance_points_beyond_the_tables_measured_points():
-    """One 6TC measured (points 0–5); the instance controls 0–31: points 6–31 keep their reading, have no source
-    bound (readings_upper = inf: every measurement gets its scan)."""
+    """One 6TC measured (points 0–5); the instance controls 0–31: points 6–31 keep their reading."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500)
         emu.service(lambda mem: mem.write("R3026", [1000 + p for p in range(26)]))  # readings of unmeasured points
@@ -319,17 +318,18 @@ def test_seeds_within_float64_precision(seed):
     against_golden(plc(plant={"noise": 0.5}, emulator={"scan_time_ms": 10, "seed": seed}), drive)
 
 
-def test_a_virtual_day_in_one_span():
-    """A small PLC (one 2TC, one instance on both points, 32 s interval) for 24 virtual hours."""
+def test_two_virtual_hours_of_a_small_plc():
+    """A small PLC (one 2TC, one instance on both points, 32 s interval) for 2 virtual hours (a scan at each of
+    its measurements: 24 hours took a minute)."""
     pid = dict(PID_32, zn=2)
 
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv={"R1000": 1200, "R1001": 800}, R4005=0x0505)
-        emu.advance(86400)
+        emu.advance(7200)
     against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
-def test_a_span_starting_days_after_power_on():
+def test_pid_starting_days_after_power_on():
     pid = dict(PID_32, zn=2)
 
     def drive(emu) -> None:  # noqa: ANN001
@@ -339,8 +339,8 @@ def test_a_span_starting_days_after_power_on():
     against_golden(plc(modules=[{"type": "2TC", "sensor": "K"}], pid=pid, plant={"noise": 0.1}), drive)
 
 
-def test_requests_that_change_things_right_before_each_span():
-    """Each span starts right after a request that changed SV, OS, H/C, gains, R4006–R4008, the enable mask, a
+def test_requests_that_change_things_right_before_each_jump():
+    """Each jump starts right after a request that changed SV, OS, H/C, gains, R4006–R4008, the enable mask, a
     reading, an OR (even above 16383), or a source/sensor (outside a request)."""
     changes = [
         lambda mem: mem.write("R1000", [1300] * 16),
@@ -370,8 +370,8 @@ def test_requests_that_change_things_right_before_each_span():
     against_golden(full_plc(noise=0.3, tau=50.0), drive)
 
 
-def test_stepping_on_after_a_long_span():
-    """After a long span, short steps and requests (stale caches — the plant's memo, the temperature model's quiet
+def test_stepping_on_after_a_long_jump():
+    """After a long jump, short steps and requests (stale caches — the plant's memo, the temperature model's quiet
     block, the waveforms — would show there)."""
     def drive(emu) -> None:  # noqa: ANN001
         start(emu, sv=SV_1500, R4008=1480, R4005=0x0102)

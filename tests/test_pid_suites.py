@@ -346,8 +346,6 @@ class R4005ClampedInTheHighByteOnly(Fun86Model):
 class ErrLatchedUntilAnEnEdge(Fun86Model):
     """ERR, once set by a bad Sn/Zn, stays 1 while EN stays 1, whatever Sn/Zn become."""
 
-    batchable = False
-
     def scan(self, emu):
         bits = emu.memory.bits
         latched = getattr(self, "latched", set())
@@ -365,8 +363,6 @@ class ErrLatchedUntilAnEnEdge(Fun86Model):
 class HeaterLoopR4007LowByte(Fun86Model):
     """Only R4007's low byte taken as the heater-loop time (256 s → 0 s)."""
 
-    batchable = False
-
     def scan(self, emu):
         words = emu.memory.words["R"]
         saved = words[4007]
@@ -381,28 +377,22 @@ class HeaterLoopTimerNotRestarted(Fun86Model):
     """An output dip under R4006 (PV still out of band) does not restart the heater-loop timer: it runs on from the
     first rise until PV comes into the band."""
 
-    batchable = False
-
-    def track(self, st, idx, pv, at, high, valid, sv, os, limit, count=True, band=None):
-        starts = super().track(st, idx, pv, at, high, valid, sv, os, limit, count, band)
+    def track(self, st, idx, pv, high, normal, limit, now):
+        super().track(st, idx, pv, high, normal, limit, now)
         first = self.__dict__.setdefault("first", {}).setdefault(id(st), {})
-        inside = np.asarray(self.in_band(pv[-1], sv, os), dtype=bool)
         for j, p in enumerate(np.arange(st.zn)[idx]):
             since = st.loop_since[p]
-            if inside[j]:
+            if normal[j]:
                 first.pop(p, None)
             elif since == since:
                 st.loop_since[p] = first.setdefault(p, since)
-        return starts
 
 
 class HeaterLoopIgnoresTheBand(Fun86Model):
     """The heater-loop timer runs on output ≥ R4006 % alone, PV in band or not."""
 
-    batchable = False
-
-    def track(self, st, idx, pv, at, high, valid, sv, os, limit, count=True, band=None):
-        return super().track(st, idx, pv, at, high, valid, sv, os, limit, count, np.zeros(np.shape(pv), dtype=bool))
+    def track(self, st, idx, pv, high, normal, limit, now):
+        super().track(st, idx, pv, high, np.zeros(np.shape(pv), dtype=bool), limit, now)
 
 
 class BitsCountFromPoint0(Fun86Model):

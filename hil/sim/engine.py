@@ -52,9 +52,7 @@ class Engine:
         self.skipped_time = 0.0  # virtual seconds jumped over without scanning (no model needed a scan)
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
-        #: called with the engine after every scan, including the scans a model ran in a batch (see
-        #: :meth:`Model.span`): after a whole scan they see what it left in memory; after a batched one, what the
-        #: batching model wrote for it (the rest, e.g. end_scan's writes, as the batch's last scan leaves it)
+        #: called with the engine after every scan, with what it left in memory
         self.observers: list[Callable[["Engine"], None]] = []
         # Real time: requests wait here for the end of the current scan (run_realtime services them there).
         self._pending: list[_Pending] = []
@@ -82,7 +80,7 @@ class Engine:
                 observer(self)
 
     def tick(self) -> None:
-        """The clock of one scan (a model running scans in a batch ticks it for each of them)."""
+        """The clock of one scan."""
         self.now += self.scan_length()
         self.scans += 1
 
@@ -99,11 +97,6 @@ class Engine:
     def landing(self, due: float, target: float) -> float:
         """Where the next scan lands for an event at ``due``: never before the next scan nor after ``target``."""
         return min(max(due, self.now + self.scan_time), target)
-
-    def leaves_a_scan(self, landing: float, target: float) -> bool:
-        """Does a scan landing there leave room for a whole scan by ``target`` (the last one before a target is
-        always a whole scan of every model, never part of a model's batch)?"""
-        return landing + self.scan_time <= target + 1e-9
 
     def land(self, due: float, target: float) -> None:
         """Set the clock so that the next :meth:`tick` lands where :meth:`landing` says, counting the scans jumped
@@ -165,10 +158,6 @@ class Engine:
                     steps += 1
                     self.scan()
             while self.now + self.scan_time <= target + 1e-9:
-                # a model may run the coming request-free scans itself, in a batch (always leaving the last one
-                # before target to a whole scan of every model)
-                if any(m.span(self, target) for m in self.models):
-                    continue
                 self.land(min((m.next_event(self.now) for m in self.models), default=math.inf), target)
                 self.scan()
             if partial:

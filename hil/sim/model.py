@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, ClassVar, TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 
@@ -24,25 +24,6 @@ def scan_grid(t: Time, scan_time: float) -> Time:
     return np.ceil(t / step - _SLACK) * step
 
 
-def first_scan_after(at: Time, previous: Time, scan_time: float) -> Time:
-    """The scan that first sees what happened at ``at``, after the scan at ``previous``: the scan grid's next, but
-    never one at or before ``previous`` — a scan train off the grid (a jump clipped at a request's time lands
-    between two grid points, and scans follow from there) sees it at ``previous + scan_time``, not at a grid
-    point it has already passed (which would make a skipped scan of the very scan that sees it)."""
-    landed = scan_grid(at, scan_time)
-    if isinstance(landed, float):
-        return landed if landed >= previous + scan_time / 2 else previous + scan_time
-    return np.where(landed < previous + scan_time / 2, previous + scan_time, landed)
-
-
-def seen_at_skipped_scans(at: Time, previous: Time, now: Time, scan_time: float) -> tuple[Time, Time]:
-    """For what happened at ``at`` after the scan at ``previous``: (the scan that first saw it —
-    :func:`first_scan_after` —, whether that was a scan the engine skipped before the one at ``now`` rather than
-    that one itself)."""
-    landed = first_scan_after(at, previous, scan_time)
-    return landed, landed < now - scan_time / 2
-
-
 class Model:
     """Base class: override what you need.
 
@@ -51,20 +32,9 @@ class Model:
     * :meth:`next_event` — the next virtual time at which this model must see a scan; the engine fast-forwards
       to it when nothing else is pending.  ``math.inf`` means "only when a request comes".  A model that must see
       every scan (counting consecutive scans) returns ``now``.
-    * :meth:`span` — run a stretch of the coming scans itself, in a batch (optional).
-    * :meth:`footprint` — the memory elements the model reads or writes at every scan (lets another model's
-      batch know that skipping this one's scans changes nothing).
     """
 
     name = "model"
-    #: the model's scans may be computed in batches, and its seams read as this class's own code reads them: the
-    #: batchers (a family's ``span``) and caches rely on exactly this code.  Declared by each class for itself,
-    #: never inherited: a subclass that overrides a seam (a broken variant) runs scan by scan unless it says so.
-    batchable: ClassVar[bool] = False
-
-    def __init_subclass__(cls, **kwargs: object) -> None:
-        super().__init_subclass__(**kwargs)
-        cls.batchable = bool(cls.__dict__.get("batchable", False))
 
     def power_on(self, emu: "Engine") -> None:
         pass
@@ -74,14 +44,3 @@ class Model:
 
     def next_event(self, now: float) -> float:
         return math.inf
-
-    def span(self, engine: "Engine", target: float) -> bool:
-        """Run, without scanning the other models, some of the scans the engine would run from ``engine.now``
-        towards ``target`` — each landed and ticked on the engine's clock (:meth:`Engine.land`,
-        :meth:`Engine.tick`), the observers called after each — and return True; or do nothing and return False.
-        Only what no request can see in between may be batched: never the last scan before ``target``."""
-        return False
-
-    def footprint(self) -> "frozenset[tuple[str, int]] | None":
-        """The (bank, index) elements the model's scans read or write (None: unknown, anything)."""
-        return None

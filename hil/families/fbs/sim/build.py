@@ -10,7 +10,6 @@ from hil.families.fbs.sim.models.rtc import RtcModel
 from hil.families.fbs.address import parse
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.sim.models.fun86 import Fun86Model
-from hil.families.fbs.sim.models.span import Span
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.pid import PidConfig
 
@@ -37,14 +36,8 @@ def add_pid_models(emulator: Emulator, profile: Profile) -> None:
     temperature = emulator.model(TemperatureModel)
     fun86 = Fun86Model(config, temperature.config if temperature else None)
     fun86.phases = emulator.timing
-    if not emulator.timing.bench:
-        # (the scans at PID intervals between requests, in batches; bench timing scans them one by one: the
-        # batches assume the instant table and scan grid, and a second copy of them for bench phases is not worth
-        # its upkeep)
-        fun86.batcher = Span()
     if temperature is not None:
         fun86.next_measurement = temperature.next_measurement
-        fun86.temperature_model = temperature
     emulator.add_model(fun86)
     if "plant" in profile.sections:
         heaters = {p: inst.yn.offset(p - inst.sn) for inst in config.instances if not inst.settable

@@ -19,25 +19,19 @@ Every decision a faulty PLC could get wrong is one small method (the "seams" bel
 build broken PLCs as tiny subclasses.  The per-point ones take and return arrays over an instance's points: the
 points' state is kept in arrays (:class:`InstanceState`), stepped all at once.
 
-Time (the wake-up hints, the replay and the plant's waveforms are in models/fun86_wakeup.py, fun86_replay.py and
-fun86_waveforms.py: they model no manual statement): the model asks for a scan at each PID interval and heater-loop deadline, and for every scan while a
-pre-alarm count is running; otherwise the engine jumps.  In between:
-
-* PWM edges need no scan when the thermal plant integrates the published :attr:`Fun86Model.waveforms` exactly
-  (no dead time: ``pwm_exact``); otherwise the model asks for a scan at every edge.
-* measurements need no scan: the temperature model logs the readings taken between scans, and the next scan replays
-  them (pre-alarm count, heater-loop start, each at the scan that would have seen it), unless a reading of an
-  enabled point could reach R4008 (the temperature model's hard bound on its readings; the plant clips its noise at
-  6 σ for that), a pre-alarm seam is overridden, or there is no log: then every measurement gets its scan.
-
-With EN off it asks for nothing (the default bench's virtual day stays one jump).  Between requests, with the
-plant integrating the PWM, the scans at PID intervals are run in batches (:meth:`Fun86Model.span`, models/span.py).
+Time: the model asks the virtual-time engine for a scan wherever what it shows can change
+(:meth:`Fun86Model.next_event`) — each PID interval, heater-loop deadline and measurement of the temperature
+modules (a new PV may start a pre-alarm count or the heater-loop timer), every scan while a pre-alarm count is
+running, and each PWM edge unless the thermal plant integrates the published waveforms exactly (no dead time:
+``pwm_exact``; the waveforms are in models/fun86_waveforms.py: they model no manual statement); otherwise the
+engine jumps.  With EN off it asks for nothing (the default bench's virtual day stays one jump).  The instances'
+state between scans is in models/fun86_state.py.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 
 import numpy as np
@@ -45,15 +39,13 @@ import numpy as np
 from hil.families.fbs.address import Address, parse
 from hil.sim.columns import signed16 as signed
 from hil.sim.timing import INSTANT, Timing
-from hil.sim.model import Model
+from hil.sim.model import Model, scan_grid
 from hil.families.fbs import registers as reg
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
 from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
-# (what only the emulator needs — the plant's waveforms, the replay of readings between scans, the engine's
-# wake-up hints — models no manual statement: in modules of their own)
-from hil.families.fbs.sim.models.fun86_replay import ReadingsReplay
-from hil.families.fbs.sim.models.fun86_wakeup import WakeUps
+# (the plant's waveforms, which only the emulator needs, model no manual statement: in a module of their own)
 from hil.families.fbs.sim.models.fun86_waveforms import PublishedWaveforms
+from hil.families.fbs.sim.models.fun86_state import InstanceState, View
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -65,73 +57,6 @@ _R = {name: parse(name).index for name in (reg.PID_SOURCE_KEY, reg.PID_SOURCE, r
 SOURCE_KEY = 0xA55A
 DEFAULT_GAINS = (110, 17, 50)  # Kc, Ki, Td loaded at the first execution
 PREALARM_SCANS = 10
-
-
-def _none() -> np.ndarray:
-    return np.zeros(0)
-
-
-@dataclass
-class InstanceState:
-    en_prev: bool = False
-    executed: bool = False  # first execution done (defaults loaded)
-    interval: float = 4.0
-    pwm: float = 2.0
-    started: float = 0.0  # EN rising edge: PWM cycles and PID intervals count from here
-    next_pid: float = math.inf
-    running: bool = False  # executing with valid Sn/Zn and every point measured
-    waiting: bool = False  # executing, but not every point measured yet
-    sn: int = 0
-    zn: int = 0
-    # per point b (point Sn + b):
-    integral: np.ndarray = field(default_factory=_none)
-    pv_prev: np.ndarray = field(default_factory=_none)  # PV at the last PID step (where has_prev)
-    has_prev: np.ndarray = field(default_factory=_none)
-    prealarm: np.ndarray = field(default_factory=_none)  # consecutive scans with PV ≥ R4008
-    loop_since: np.ndarray = field(default_factory=_none)  # when "output ≥ R4006 % and not normal" began (NaN: no)
-    #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
-    published: tuple | None = None
-    #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
-    view: "_View | None" = None
-    #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
-    weights: tuple | None = None
-
-    def new_points(self, zn: int) -> None:
-        self.view, self.weights = None, None
-        self.integral = np.zeros(zn)
-        self.pv_prev = np.zeros(zn, dtype=np.int64)
-        self.has_prev = np.zeros(zn, dtype=bool)
-        self.prealarm = np.zeros(zn, dtype=np.int64)
-        self.loop_since = np.full(zn, math.nan)
-
-    def point_states(self) -> list[tuple]:
-        """(integral, PV at the last PID step or None, pre-alarm count, heater-loop start or None) per point."""
-        return [(i, p if h else None, c, None if math.isnan(s) else s) for i, p, h, c, s in
-                zip(self.integral.tolist(), self.pv_prev.tolist(), self.has_prev.tolist(), self.prealarm.tolist(),
-                    self.loop_since.tolist())]
-
-
-@dataclass
-class _View:
-    """An instance's registers as a scan read them, and what follows from them alone: the next scan with the same
-    registers needs none of it again."""
-
-    key: tuple
-    pv: np.ndarray
-    sv: np.ndarray
-    os: np.ndarray
-    enabled: np.ndarray
-    idx: np.ndarray  # the enabled points
-    output: np.ndarray  # OR
-    every: bool  # every point enabled
-    sel: "slice | np.ndarray"  # the enabled points, as an index (a whole slice when every one is)
-    normal: np.ndarray | None = None  # (the alarms' part, filled by the scan that made the view)
-    normal_words: tuple = ()
-    out_of_band: bool = False
-    warning: np.ndarray | None = None  # the warning bits the last scan found, and their words
-    warning_words: tuple = ()
-    calm: bool = False  # no PV at or above R4008 and every pre-alarm count 0
-    waves: tuple | None = None  # (ON seconds, Y when on, Y when off)
 
 
 #: the output's bounds as 0-d arrays: numpy takes a Python number as an operand at a cost several times that of a
@@ -153,9 +78,8 @@ class Law:
     ts: float
 
 
-class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
+class Fun86Model(PublishedWaveforms, Model):
     name = "fun86"
-    batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: PidConfig, temperature: TemperatureConfig | None) -> None:
         self.config = config
@@ -164,16 +88,11 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         self._emu: "Emulator | None" = None
         #: the temperature model's next measurement time (set by build_emulator): PV changes only there
         self.next_measurement: Callable[[], float] | None = None
-        #: the temperature model itself (set by build_emulator): its log of readings between scans, its bounds
-        self.temperature_model = None
         #: set by the thermal plant when it integrates the PWM waveforms exactly: no scans at PWM edges
         self.pwm_exact = False
         self.init_waveforms()
-        self.init_replay()
         self._wiring: list[tuple] = []  # see _scan_at_rest
         self._wiring_for: "Memory | None" = None
-        #: runs the scans at PID intervals between requests in batches (models/span.py; build_emulator fits it)
-        self.batcher = None
         #: when the PID steps begin after EN rises (hil.sim.timing; build_emulator sets the emulator's)
         self.phases: Timing = INSTANT
 
@@ -225,7 +144,7 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         """(word 0/1, bit) of the point at operand offset b (b counts from Sn): WR+0/2 for b < 16, WR+1/3 above."""
         return b // 16, b % 16
 
-    def alarm(self, enabled_not_normal, any_warning):  # noqa: ANN001, ANN201 - bools, or arrays of them over scans
+    def alarm(self, enabled_not_normal: bool, any_warning: bool) -> bool:
         """ALM: a point out of its band, or a warning."""
         return enabled_not_normal | any_warning
 
@@ -298,21 +217,57 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
 
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
-        tm = self.temperature_model
-        self.collect_log(emu, tm)
         if self._scan_at_rest(mem):
-            if tm is not None:
-                tm.log = None
-            self._last_scan = emu.now
             return
         for inst, st in zip(self.config.instances, self.states):
             self._scan_instance(emu, mem, inst, st)
             if not st.running:
                 self._drop_waveforms(inst, st)
-        if tm is not None:
-            # log the readings measured until the next scan (replayed there) while any instance runs
-            tm.log = [] if any(st.running for st in self.states) else None
-        self._last_scan = emu.now
+
+    def next_event(self, now: float) -> float:
+        """The next scan the instances need: a PID step, a heater-loop deadline, a measurement (while an instance
+        waits for its points or runs: a new PV may start a pre-alarm count or the heater-loop timer), a PWM edge the
+        plant does not integrate — every scan while a pre-alarm count runs; on the scan grid (:meth:`scan_for`)."""
+        mem = self._emu.memory if self._emu is not None else None
+        if mem is None:
+            return math.inf
+        loop_seconds = mem.words["R"][_R[reg.HEATER_LOOP_SECONDS]]
+        due, active = math.inf, False
+        for inst, st in zip(self.config.instances, self.states):
+            active = active or st.waiting or st.running
+            if not st.running:
+                continue
+            if self.counting(st):
+                return now  # counting consecutive scans: every scan matters
+            if np.count_nonzero(st.loop_since == st.loop_since):  # (a heater-loop start not NaN)
+                deadlines = st.loop_since + loop_seconds
+                pending = deadlines > now + 1e-9  # (once open, its bit is recomputed each scan)
+                if np.count_nonzero(pending):
+                    due = min(due, float(deadlines[pending].min()))
+            due = min(due, st.next_pid)
+            if not self.pwm_exact:
+                due = min(due, self.next_pwm_edge(mem, inst, st, now))
+        if active and self.next_measurement is not None:
+            due = min(due, self.next_measurement())
+        return due if due == math.inf else self.scan_for(due, now)
+
+    @staticmethod
+    def counting(st: InstanceState) -> bool:
+        """Is a pre-alarm count running (then every scan matters)?  A count past 4 × 10 scans has long set its
+        warning: it can run on unwatched."""
+        return bool(np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)))
+
+    def next_pwm_edge(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float) -> float:
+        """The next PWM edge of the instance's outputs: the next cycle's start, or a point's ON time ending."""
+        cycle = self.cycle_start(st, now)
+        edges = cycle + self.on_times(st, np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]))
+        later = edges > now + 1e-9
+        return min(cycle + st.pwm, float(edges[later].min()) if np.count_nonzero(later) else math.inf)
+
+    def scan_for(self, due: float, now: float) -> float:
+        """The first scan at or after an event at ``due``, on the scan grid: a jump then takes the very scan that
+        stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
+        return max(now, float(scan_grid(due, self._emu.scan_time)))
 
     def _scan_at_rest(self, mem: "Memory") -> bool:
         """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
@@ -334,43 +289,27 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
             alm_bank[alm_index] = 0
         return True
 
-    def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, at: np.ndarray, high: np.ndarray,
-              valid: np.ndarray | None, sv: np.ndarray, os: np.ndarray, limit: int, count: bool = True,
-              band: np.ndarray | None = None) -> np.ndarray:
-        """Points ``idx`` seeing readings ``pv`` (rows in time order, a column per point; ``at``: the scan each was
-        seen at): the pre-alarm counts (``count`` False: left alone) and when the heater-loop condition — output
-        ``high`` and PV out of band — began, as after each row (NaN: not holding).  Returns those starts, row by row.
-
-        ``valid`` False marks a row that is no reading of the point but the next one again (a point with fewer
-        readings than others): not counted, and harmless to the heater-loop start (None: every row a reading).
-        ``band``: :meth:`in_band` of the rows, if known."""
-        if count and (type(self).prealarm_count is not Fun86Model.prealarm_count or np.count_nonzero(pv >= limit)):
-            counts = st.prealarm[idx]
-            for r in range(len(pv)):
-                counts = self.prealarm_count(counts, pv[r], limit) if valid is None else np.where(
-                    valid[r], self.prealarm_count(counts, pv[r], limit), counts)
-            st.prealarm[idx] = counts
-        elif count:  # (no reading at R4008: every count back to 0, as the rule says)
+    def track(self, st: InstanceState, idx: np.ndarray, pv: np.ndarray, high: np.ndarray, normal: np.ndarray,
+              limit: int, now: float) -> None:
+        """Points ``idx`` seeing ``pv`` at the scan at ``now``: the pre-alarm counts, and when the heater-loop
+        condition — output ``high`` and PV out of band (not ``normal``) — began (NaN: not holding)."""
+        if type(self).prealarm_count is not Fun86Model.prealarm_count or np.count_nonzero(pv >= limit):
+            st.prealarm[idx] = self.prealarm_count(st.prealarm[idx], pv, limit)
+        else:  # (no reading at R4008: every count back to 0, as the rule says)
             st.prealarm[idx] = 0
-        holds = high & ~(np.asarray(self.in_band(pv, sv, os), dtype=bool) if band is None else band)
+        holds = high & ~normal
         since = st.loop_since[idx]
         if not np.count_nonzero(holds) and not np.count_nonzero(since == since):  # (nothing holding, now or before)
-            return np.full(pv.shape, math.nan)
-        before = np.concatenate((~np.isnan(since)[None], holds[:-1]))
-        # the rows' times only grow, and a start held from before is older than them: each row's start is the
-        # latest start so far
-        began = np.maximum.accumulate(np.where(holds & ~before, at, -math.inf), axis=0)
-        starts = np.where(holds, np.maximum(began, np.where(np.isnan(since), -math.inf, since)), math.nan)
-        st.loop_since[idx] = starts[-1]
-        return starts
+            return
+        st.loop_since[idx] = np.where(holds, np.where(np.isnan(since), now, since), math.nan)
 
     def bit_words(self, st: InstanceState, bits: np.ndarray) -> tuple:
-        """WR+0/1 (or WR+2/3) from a bit per point (``bits``: [scans ×] points): arrays over scans for 2-D bits."""
+        """WR+0/1 (or WR+2/3) from a bit per point."""
         if st.weights is None:  # each point's weight in word 0 and in word 1
             word, bit = self.bit_position(np.arange(st.zn))
             st.weights = np.stack((np.where(word == 0, 1 << bit, 0), np.where(word == 1, 1 << bit, 0)))
-        both = np.bitwise_or.reduce(np.where(bits[..., None, :], st.weights, 0), axis=-1) & 0xFFFF
-        return both[..., 0], both[..., 1]
+        both = np.bitwise_or.reduce(np.where(bits[None, :], st.weights, 0), axis=-1) & 0xFFFF
+        return both[0], both[1]
 
     def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
@@ -423,9 +362,6 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         pid_due = self.pid_due(st, now)
         view = self._view(mem, inst, st, start, limit, high_at, heating)
         new = view.normal is None
-        # (PVs come from the table's readings, which the temperature model logs; else from registers of the ladder's
-        # choosing (R4003/R4004), which change only at requests)
-        replayed = self.replayed_for(start, st.sn, zn, view.enabled)
         pv, sv, os, enabled, idx, before = view.pv, view.sv, view.os, view.enabled, view.idx, view.output
         after = before
         if pid_due:
@@ -441,26 +377,14 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
             st.integral[off], st.has_prev[off] = 0.0, False
             words[inst.or_.kind][inst.or_.index:inst.or_.index + zn] = after.tolist()
         self.drive_outputs(mem, inst, st, now, enabled, after, None if pid_due else view)
-        # the alarms: each reading replayed (at the output before this scan's PID step), then this scan's PV — or,
-        # with the same registers as the last scan and nothing to replay, as that scan left them
+        # the alarms: this scan's PV — or, with the same registers as the last scan, as that scan left them
         sel = view.sel
         if new:
             view.normal = enabled & np.asarray(self.in_band(pv, sv, os), dtype=bool)
             view.normal_words = self.bit_words(st, view.normal)
             view.out_of_band = bool(np.count_nonzero(enabled & ~view.normal))
-        if replayed is not None or pid_due or new:
-            high = after[sel] * 100 >= high_at
-            pv_e = pv[sel]
-            if replayed is not None:  # (a row without a reading of the point: its reading at this scan again)
-                rpv, rat, rvalid = (x[:, sel] for x in replayed)
-                rows = (np.vstack((np.where(rvalid, rpv, pv_e), pv_e)),
-                        np.vstack((np.where(rvalid, rat, now), np.full(len(pv_e), now))),
-                        np.vstack((np.where(rvalid, before[sel] * 100 >= high_at, high), high)),
-                        np.vstack((rvalid, np.ones(len(pv_e), dtype=bool))))
-                self.track(st, sel, *rows, sv[sel], os[sel], limit)
-            else:
-                self.track(st, sel, pv_e[None], np.full((1, len(pv_e)), now), high[None], None, sv[sel], os[sel],
-                           limit, band=view.normal[sel][None])
+        if pid_due or new:
+            self.track(st, sel, pv[sel], after[sel] * 100 >= high_at, view.normal[sel], limit, now)
             if not view.every:
                 off = ~enabled
                 st.prealarm[off], st.loop_since[off] = 0, math.nan
@@ -483,7 +407,7 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, bool(np.count_nonzero(view.warning))) else 0
 
     def _view(self, mem: "Memory", inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
-              heating: bool) -> _View:
+              heating: bool) -> View:
         """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
         arrays of those unchanged otherwise)."""
         words, zn, sn = mem.words, st.zn, st.sn
@@ -504,14 +428,14 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
             idx = np.flatnonzero(enabled)
         every = len(idx) == zn
         same_output = old[4] == key[4] and old[3] == key[3] and plain  # (then the same waveforms)
-        st.view = _View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
+        st.view = View(key, *(getattr(view, name) if old[i] == key[i] else signed(key[i])
                                for i, name in ((0, "pv"), (1, "sv"), (2, "os"))),
                         enabled, idx, view.output if old[4] == key[4] else np.array(key[4], dtype=np.int64),
                         every, slice(None) if every else idx, waves=view.waves if same_output else None)
         return st.view
 
     def drive_outputs(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
-               output: np.ndarray, view: _View | None = None) -> None:
+               output: np.ndarray, view: View | None = None) -> None:
         """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
         (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
         if view is not None and view.waves is not None:
@@ -561,5 +485,3 @@ class Fun86Model(PublishedWaveforms, ReadingsReplay, WakeUps, Model):
         st.loop_since.fill(math.nan)
 
 
-Fun86Model.plain = Fun86Model  # (the seams the wake-up hints assume: see WakeUps)
-Fun86Model.prealarm_scans = PREALARM_SCANS

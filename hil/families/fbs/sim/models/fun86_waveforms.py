@@ -12,7 +12,7 @@ import numpy as np
 
 if TYPE_CHECKING:
     from hil.families.fbs.pid import PidInstance
-    from hil.families.fbs.sim.models.fun86 import InstanceState
+    from hil.families.fbs.sim.models.fun86_state import InstanceState
 
 
 class PublishedWaveforms:

@@ -10,8 +10,7 @@ analytically piece by piece: the plant answers T at any time in the current scan
 catches measurements up at their scheduled, past times) and needs no scans of its own.
 
 The state of every point lives in arrays over the heated points (slots), and T is solved for many (slot, time)
-pairs at once (:func:`waved_temperature`): the temperature model measures through :meth:`ThermalPlant.measured`,
-and a batch of PID intervals (models/span.py) steps every point with the same closed form.
+pairs at once (:func:`waved_temperature`): the temperature model measures through :meth:`ThermalPlant.measured`.
 
 ``[plant]`` (emulator only; a real bench has a real oven)::
 
@@ -40,7 +39,7 @@ from hil.sim.model import Model
 from hil.core.errors import InvalidValue
 # one concept a module: the [plant] section, the noise and the closed form each have their own
 from hil.families.fbs.sim.models.plant_config import PlantConfig, PlantPoint
-from hil.families.fbs.sim.models.plant_noise import NOISE_CLIP, noise_index, normals
+from hil.families.fbs.sim.models.plant_noise import noise_index, normals
 from hil.families.fbs.sim.models.plant_solution import waved_temperature
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.sim.models.fun86 import Fun86Model
@@ -96,9 +95,9 @@ class _Heated:
 
 
 class PlantSource:
-    """A heated point as a temperature source: a callable of time (its measurement, noise included) with a hard
-    upper bound; the temperature model measures the points of one ``group`` together (:meth:`ThermalPlant.measured`
-    of their slots)."""
+    """A heated point as a temperature source: a callable of time (its measurement, noise included); the
+    temperature model measures the points of one ``group`` together (:meth:`ThermalPlant.measured` of their
+    slots)."""
 
     __slots__ = ("plant", "point", "slot")
 
@@ -112,13 +111,9 @@ class PlantSource:
     def __call__(self, t: float) -> float:
         return float(self.plant.measured(np.array([self.slot]), np.array([self.point]), np.array([t]))[0])
 
-    def upper_bound(self) -> float:
-        return self.plant.upper(self.slot)
-
 
 class ThermalPlant(Model):
     name = "plant"
-    batchable = True  # (its batches and caches are this code: hil.sim.model.Model.batchable)
 
     def __init__(self, config: PlantConfig, heaters: dict[int, Address], seed: int = 0) -> None:
         """``heaters``: temperature point → the output (Y…) that switches its heater."""
@@ -204,15 +199,6 @@ class ThermalPlant(Model):
         """The true temperature (no noise) of a heated point at ``t`` (≥ the last scan)."""
         return float(self.temperatures(np.array([self.slot[point]]), np.array([float(t)]))[0])
 
-    def lower(self) -> float:
-        """No measurement of any slot ever falls below this (T stays between its start, ambient and full power)."""
-        return float((np.minimum(self.initial, self.ambient) - NOISE_CLIP * self.noise).min())
-
-    def upper(self, slot: int) -> float:
-        """No measurement of this slot ever exceeds this (T stays between its start, ambient and full power)."""
-        ambient, noise = float(self.ambient[slot]), float(self.noise[slot])
-        return max(float(self.initial[slot]), ambient, ambient + float(self.gain[slot])) + NOISE_CLIP * noise
-
     def wave(self, slot: int) -> tuple:
         """A waved slot's waveform: ``(u,)`` constant, or ``(started, period, on, u_on, u_off, scan_time)``."""
         if not self.w_pwm[slot]:
@@ -227,15 +213,6 @@ class ThermalPlant(Model):
         return [(float(self.t0[s]), float(self.temp0[s]), self.wave(s)) for s in range(len(self.order))]
 
     # -- the engine ---------------------------------------------------------------------------------------------
-    @property
-    def driver(self) -> object:
-        """The FUN86 model whose outputs drive the heaters (None without one)."""
-        return self._fun86
-
-    def waveforms_replaced(self) -> None:
-        """The waveforms were set elsewhere (a batch of scans re-anchored them): the next scan reads the outputs."""
-        self._last_outputs = None
-
     def power_on(self, emu: "Emulator") -> None:
         temperature = emu.model(TemperatureModel)
         self._fun86 = emu.model(Fun86Model)

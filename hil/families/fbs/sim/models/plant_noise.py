@@ -1,5 +1,5 @@
 """The thermal plant's measurement noise: seeded standard normal values, clipped at ±NOISE_CLIP, indexed by point
-and time so that a measurement's noise is the same however the scans that take it are batched."""
+and time so that a measurement's noise is the same whichever scan takes it (stepping, or after a jump)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The thermal plant's closed form: first-order T through PWM cycles switching on the scan grid, for many (slot,
-time) pairs at once — what the plant answers between scans and what a batch of PID intervals (span.py) steps with."""
+time) pairs at once — what the plant answers between scans."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def _cycles_sum(rows: np.ndarray) -> np.ndarray:
     return total
 
 
-#: cycles solved one by one around a span's ends (the span's start falls in the first two, its end in the last
+#: cycles solved one by one around an interval's ends (its start falls in the first two, its end in the last
 #: three); the whole cycles between them in closed form
 _HEAD, _TAIL = 2, 3
 

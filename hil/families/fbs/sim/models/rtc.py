@@ -21,9 +21,6 @@ from hil.sim.model import Model
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import rate_for_code
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
-# (the emulator's speed-ups — the read-out skipped while the second is unchanged, the footprint a batch of scans
-# relies on — and the broken variants' invalid times model no manual statement: in a module of their own)
-from hil.families.fbs.sim.models.rtc_shortcuts import RtcShortcuts, rolled_over_seconds
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -52,10 +49,13 @@ def seconds_of(t: RtcTime) -> int:
     """
     if t.is_valid:
         return int((t.to_datetime() - EPOCH).total_seconds())
-    return rolled_over_seconds(t)
+    month = min(max(t.month, 1), 12)
+    first = dt.date(2000 + t.year % 100, month, 1)
+    days = (first - EPOCH.date()).days + t.day - 1
+    return (days * 86400 + t.hour * 3600 + t.minute * 60 + t.second) % CENTURY_SECONDS
 
 
-class RtcModel(RtcShortcuts, Model):
+class RtcModel(Model):
     """An RTC chip behind R4128–R4135, M1952–M1955, D4053, D4054.
 
     ``chip``: 0 none, 1 HT1381, 2 ISL1208, 3 S-35390A.  ``crystal_ppm``: positive = the chip runs fast.
@@ -63,13 +63,6 @@ class RtcModel(RtcShortcuts, Model):
     """
 
     name = "rtc"
-    #: no step of the scan's read-out is overridden (set per subclass below): scan() may then inline them
-    _plain = True
-
-    def __init_subclass__(cls, **kwargs: object) -> None:
-        super().__init_subclass__(**kwargs)
-        cls._plain = all(getattr(cls, name) is getattr(RtcModel, name)
-                         for name in ("publish_chip", "chip_seconds", "read_chip", "copy_out", "weekday_after"))
 
     def __init__(self, chip: int = S35390A, crystal_ppm: float = 0.0,
                  start: dt.datetime | RtcTime | None = None) -> None:
@@ -89,7 +82,6 @@ class RtcModel(RtcShortcuts, Model):
         self._rate = self.chip_rate(self._code)
         self._hold = 0  # M1952 / M1953 as of the last scan, for edge detection
         self._adjust = 0
-        self.init_read_out()
 
     # -- the engine's hooks ---------------------------------------------------------------------------------
     def power_on(self, emu: "Emulator") -> None:
@@ -104,11 +96,7 @@ class RtcModel(RtcShortcuts, Model):
     def scan(self, emu: "Emulator") -> None:
         mem = emu.memory
         m = mem.bits["M"]
-        if self._plain:  # publish_chip, inlined (it runs on every request)
-            mem.words["D"][_CHIP] = self.chip
-            m[_INSTALLED] = 1 if self.chip else 0
-        else:
-            self.publish_chip(emu)
+        self.publish_chip(emu)
         hold, adjust = m[_HOLD], m[_ADJUST]
         if self.chip:
             code = mem.words["D"][_RATE_CODE]
@@ -119,7 +107,7 @@ class RtcModel(RtcShortcuts, Model):
             if adjust and not self._adjust:
                 self.on_adjust_edge(emu)
             if not hold:
-                self._read_out(emu)
+                self.copy_out(emu, self.read_chip(emu.now))
         self._hold, self._adjust = hold, adjust
 
     # -- the chip -------------------------------------------------------------------------------------------
@@ -219,5 +207,3 @@ class RtcModel(RtcShortcuts, Model):
         return (f"<RtcModel {CHIP_NAMES[self.chip]} {self.crystal_ppm:+g} ppm "
                 f"D4054={self._code:04X}H>")
 
-
-RtcModel.plain = RtcModel  # (the steps the shortcuts assume: see RtcShortcuts)

@@ -73,7 +73,7 @@ class SensorInputs:
     def init_inputs(self, config: TemperatureConfig) -> None:
         self.sources = default_sources(config)
         self.broken = set()
-        self._sources_version = 0  # bumped by set_source (readings_upper and values cache what the sources are)
+        self._sources_version = 0  # bumped by set_source (values caches what the sources are)
         self._slots: tuple = (-1, None, None)  # (sources version, plant, slot per point): see _plant_slots
 
     def set_source(self, point: int, source: Source) -> None:
