@@ -62,7 +62,7 @@ def test_probe_names_the_users_target_not_pyserials_socket_url(tmp_path: Path) -
     from tests.external import emulate_process
     with emulate_process(REPO / "fixtures" / "benches" / "emulator.toml", 1.0, {"fatek-tcp": "--fatek-tcp"}) as where:
         done = hil("probe", f"fatek+tcp://{where['fatek-tcp']}", cwd=tmp_path)
-        long_url = f"fatek+tcp://{where['fatek-tcp']}?station=1&timeout=3.5&retries=2&fence=reads&backoff=0.05"
+        long_url = f"fatek+tcp://{where['fatek-tcp']}?station=1&timeout=3.5&retries=2&fence=reads"
         narrow = hil("probe", long_url, cwd=tmp_path, columns=80)
     assert done.returncode == 0, done.stdout + done.stderr
     assert f"FATEK station 1 on fatek+tcp://{where['fatek-tcp']}" in done.stdout and "socket://" not in done.stdout

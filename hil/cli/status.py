@@ -14,7 +14,7 @@ def status_panel(status: PlcStatus, description: str, **extra: str) -> Panel:
     running = {True: "green", False: "yellow", None: "dim"}[status.running]
     grid = Table.grid(padding=(0, 2))
     grid.add_column(style="bold cyan", no_wrap=True)
-    grid.add_column()
+    grid.add_column(overflow="fold")  # a long URL folds onto the next line, never cut
     # the target as a row, not in the title: a title is cut at the panel's width, a row wraps (a long URL whole)
     grid.add_row("target", escape(description))
     grid.add_row("state", f"[{running}]{escape(status.summary())}[/]")
