@@ -90,8 +90,8 @@ def pytest_report_header(config):
 
 def pytest_collection_modifyitems(config, items):
     """The matrix only when asked for; the modules in a shuffled order and each module's tests too (a module's
-    tests stay together: its fixtures are set up once); then the e2e tests after the rest (a stable sort), the
-    longest first."""
+    tests stay together: its fixtures are set up once); the longest e2e test first, then the unmarked tests, then
+    the other e2e tests (a stable sort)."""
     if not config.getoption("--matrix"):
         deselected = [item for item in items if item.get_closest_marker("matrix")]
         if deselected:
@@ -112,11 +112,14 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=_tier)
 
 
-def _tier(item) -> tuple[bool, bool]:  # noqa: ANN001
-    """The unmarked tests, then the e2e ones, those marked ``e2e(leads=True)`` first among them: the longest start
-    first, so that the gate does not end on one worker running a minute-long test while the others wait."""
+def _tier(item) -> int:  # noqa: ANN001
+    """``e2e(leads=True)`` first of all, then the unmarked tests, then the other e2e ones: the longest (a minute of
+    real time) starts at once on one worker while the others work through the rest, so that the gate does not end
+    on one worker running it while the others wait."""
     e2e = item.get_closest_marker("e2e")
-    return e2e is not None, not (e2e is not None and e2e.kwargs.get("leads", False))
+    if e2e is not None and e2e.kwargs.get("leads", False):
+        return 0
+    return 2 if e2e is not None else 1
 
 
 def pytest_sessionfinish(session):

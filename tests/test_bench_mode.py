@@ -89,7 +89,7 @@ def bench_timed(text: str) -> str:
     return text.replace("[emulator]\n", BENCH_TIMING, 1)
 
 
-@pytest.mark.e2e(leads=True)  # the gate's longest test (a minute): started before the other e2e tests
+@pytest.mark.e2e(leads=True)  # the gate's longest test (a minute): started first of all (tests/conftest.py)
 @pytest.mark.timeout(600)  # a hang guard
 @pytest.mark.parametrize("name, wire", [pytest.param(name, wire, marks=() if (name, wire) == GATE else pytest.mark.matrix)
                                         for name in RUNS for wire in ("fatek-tcp", "modbus-tcp")])
