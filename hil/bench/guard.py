@@ -120,9 +120,10 @@ def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClo
         passed = host.since_boot - float(booted)
         step = elapsed - passed
         if abs(step) > bound:
-            raise OriginRefused(f"the host's wall clock moved {elapsed:+.6f} s since it while its boot clock moved "
-                                f"{passed:+.6f} s: the host clock was stepped by {step:+.6f} s, beyond the "
-                                f"±{bound:.6f} s the journal's own measurement allows — its offset from host time "
+            # (to the millisecond: finer would show the reading's own noise, +42.599999 for a 42.6 s step)
+            raise OriginRefused(f"the host's wall clock moved {elapsed:+.3f} s since it while its boot clock moved "
+                                f"{passed:+.3f} s: the host clock was stepped by {step:+.3f} s, beyond the "
+                                f"±{bound:.3f} s the journal's own measurement allows — its offset from host time "
                                 f"is lost")
     return ClockOrigin(plc, timebase.now() - elapsed * scale, scale)
 
