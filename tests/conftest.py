@@ -90,8 +90,7 @@ def pytest_report_header(config):
 
 def pytest_collection_modifyitems(config, items):
     """The matrix only when asked for; the modules in a shuffled order and each module's tests too (a module's
-    tests stay together: its fixtures are set up once); the longest e2e test first, then the unmarked tests, then
-    the other e2e tests (a stable sort)."""
+    tests stay together: its fixtures are set up once); the longest e2e test first (a stable sort)."""
     if not config.getoption("--matrix"):
         deselected = [item for item in items if item.get_closest_marker("matrix")]
         if deselected:
@@ -113,13 +112,12 @@ def pytest_collection_modifyitems(config, items):
 
 
 def _tier(item) -> int:  # noqa: ANN001
-    """``e2e(leads=True)`` first of all, then the unmarked tests, then the other e2e ones: the longest (a minute of
-    real time) starts at once on one worker while the others work through the rest, so that the gate does not end
-    on one worker running it while the others wait."""
+    """``e2e(leads=True)`` first of all, then the rest in the shuffled order, e2e and unmarked mixed: the longest (a
+    minute of real time) starts at once on one worker while the others work through the rest, and the e2e tests,
+    which mostly wait for real-time processes, share the host with the unmarked ones, which compute, instead of
+    leaving it half idle at the end."""
     e2e = item.get_closest_marker("e2e")
-    if e2e is not None and e2e.kwargs.get("leads", False):
-        return 0
-    return 2 if e2e is not None else 1
+    return 0 if e2e is not None and e2e.kwargs.get("leads", False) else 1
 
 
 def pytest_sessionfinish(session):

@@ -91,7 +91,7 @@ def test_init_says_why_a_table_is_not_there(tmp_path: Path) -> None:
     assert "temperature" not in load_profile(tmp_path / "bench.toml").sections
 
 
-@pytest.mark.e2e
+@pytest.mark.matrix  # the gate runs hil init's profile against hil emulate in tests/test_docs.py (smoke)
 @pytest.mark.timeout(240)
 def test_the_profile_init_writes_against_hil_emulate_runs_the_bundled_suites(tmp_path: Path) -> None:
     python = [sys.executable, "-m", "hil"]

@@ -131,7 +131,9 @@ def test_the_store_unreachable_mid_run_leaves_the_verdict_and_warns_once(request
 
     def harness() -> None:
         try:
-            wait_for(lambda: _recorded(store_url, "test_first", "test_second"), "the first two tests in the store")
+            # (a hang guard under the test's own 120 s: on a busy host the writer's start alone took most of 60 s)
+            wait_for(lambda: _recorded(store_url, "test_first", "test_second"), "the first two tests in the store",
+                     timeout=100.0)
             restore.append(_make_unreachable(store_url, cluster))
         finally:
             go.touch()

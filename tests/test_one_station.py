@@ -93,7 +93,9 @@ def test_the_profiles_station_is_the_one_every_command_reaches(line, wire, param
 
 
 @pytest.mark.e2e
-@pytest.mark.parametrize("wire, param", [(_fatek, "station"), (_modbus, "unit")], ids=["fatek", "modbus"])
+# (one decision, plc_target, for both wires: the Modbus case of it runs in the matrix — the gate's time)
+@pytest.mark.parametrize("wire, param", [(_fatek, "station"), pytest.param(_modbus, "unit", marks=pytest.mark.matrix)],
+                         ids=["fatek", "modbus"])
 def test_a_url_naming_another_station_than_the_profile_is_a_profile_error(line, wire, param, tmp_path: Path) -> None:
     url = wire(line[1])
     bench = str(_profile(tmp_path, line[1], url))
