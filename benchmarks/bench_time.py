@@ -105,6 +105,21 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
     return out
 
 
+def record(result: dict, name: str) -> Path:
+    """``result`` with when, where and at which commit it was measured, as docs/figures/bench-time-NAME.json."""
+    import datetime as dt
+    import json
+    import os
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
+    stamped = {**result, "measured": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+               "commit": commit.stdout.strip() or "unknown", "cpus": os.cpu_count()}
+    stamped.pop("pytest_output_tail", None)
+    target = ROOT / "docs" / "figures" / f"bench-time-{name}.json"
+    target.parent.mkdir(exist_ok=True)
+    target.write_text(json.dumps(stamped, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    return target
+
+
 if __name__ == "__main__":
     import argparse
     import json
@@ -116,12 +131,17 @@ if __name__ == "__main__":
     parser.add_argument("--seed", type=int, help="hil emulate --seed")
     parser.add_argument("--scan-range", type=float, nargs=2, metavar=("MIN_MS", "MAX_MS"),
                         help="[emulator] scan_time_range (bench timing)")
+    parser.add_argument("--record", metavar="NAME",
+                        help="also write the result to docs/figures/bench-time-NAME.json, which the documentation "
+                             "site's performance page shows (docs/_ext/hil_docs.py): figures never edited by hand")
     parser.add_argument("files", nargs="*", help="suite files (default: the non-slow main set)")
     args = parser.parse_intermixed_args()
     result = bench_times(args.time_scale, files=args.files or None, line=args.line, lanes=args.lanes,
                          timing=args.timing, seed=args.seed,
                          scan_range_ms=tuple(args.scan_range) if args.scan_range else None)
     print(json.dumps(result, indent=1))
+    if args.record:
+        record(result, args.record)
     total = result["total_wall_s"]
     failures = sum(row["failures"] for row in result["per_suite"].values())
     print(f"non-slow FBs suites at time scale {result['time_scale']} ({result['wire']}, {result['timing']} timing"

@@ -5,6 +5,7 @@ declarations, :mod:`hil.bench.schema_export`)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +45,37 @@ def requirement_matrix() -> str:
         "| requirement | manual | statement | checked by |", "|---|---|---|---|", *rows, ""])
 
 
+FIGURES = Path(__file__).resolve().parent.parent / "figures"
+
+
+def bench_time_tables() -> str:
+    """The bench-time runs benchmarks/bench_time.py --record wrote (docs/figures/bench-time-*.json), a table each:
+    per suite file the tests' own time, the bytes on the wire and the round trips; the session's wall time."""
+    out = ["# Measured bench time", "",
+           "Written by `python benchmarks/bench_time.py … --record NAME` (docs/figures/bench-time-NAME.json) and "
+           "shown here as measured: no figure on this page is typed by hand.", ""]
+    for path in sorted(FIGURES.glob("bench-time-*.json")):
+        run = json.loads(path.read_text(encoding="utf-8"))
+        lanes = f", `--lanes {run['lanes']}`" if run.get("lanes", 1) > 1 else ""
+        seed = f", seed {run['seed']}" if run.get("seed") is not None else ""
+        total = run["total_wall_s"]
+        chars = any("characters_s" in row for row in run["per_suite"].values())  # a paced line's
+        out += [f"## {run['wire']}{lanes}, {run['timing']} timing{seed}, time scale {run['time_scale']:g}", "",
+                f"**{total:.0f} s** session wall time ({'within' if total <= 180 else 'over'} the 180 s target); "
+                f"measured {run['measured']} at commit `{run['commit']}` on a {run['cpus']}-core host.", "",
+                "| suite | tests | failed | skipped | tests' time | on the wire | round trips |"
+                + (" characters alone |" if chars else ""),
+                "|---|---|---|---|---|---|---|" + ("---|" if chars else "")]
+        for name, row in run["per_suite"].items():
+            cells = [f"`{name}`", row["tests"], row["failures"], row["skipped"], f"{row['test_time_s']:.1f} s",
+                     f"{row['wire_bytes'] / 1000:.1f} KB", row["requests"]]
+            if "characters_s" in row:
+                cells.append(f"{row['characters_s']:.1f} s")
+            out.append("| " + " | ".join(map(str, cells)) + " |")
+        out.append("")
+    return "\n".join(out)
+
+
 def _write(name: str, text: str) -> None:
     GENERATED.mkdir(exist_ok=True)
     target = GENERATED / name
@@ -53,6 +85,7 @@ def _write(name: str, text: str) -> None:
 
 def _generate(app: Any) -> None:
     _write("requirements.md", requirement_matrix())
+    _write("bench-time.md", bench_time_tables())
     _write("commands.md", command_reference(build_parser()))
     _write("profile-keys.md", profile_keys())
 
