@@ -262,7 +262,8 @@ def test_writes_then_dies(bench):
 """
 
 
-@pytest.mark.parametrize("who", ["worker", "run"])
+# (the gate kills the whole run; a lone worker killed is the matrix's: the gate's time)
+@pytest.mark.parametrize("who", [pytest.param("worker", marks=pytest.mark.matrix), "run"])
 def test_a_lane_killed_with_a_write_out_is_put_back(private_dirs, who):
     """A lane's worker SIGKILLed after its write: its lane journal holds the original.  ``worker``: the controller
     (still holding the locks) replays it before the run ends — the run is not PASSED, the PLC is as found.

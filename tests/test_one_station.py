@@ -73,7 +73,9 @@ def _scratch(url: str) -> int:
 
 
 @pytest.mark.e2e
-@pytest.mark.parametrize("wire, param", [(_fatek, "station"), (_modbus, "unit")], ids=["fatek", "modbus"])
+# (the Modbus wire of the one decision in the matrix: the gate's time)
+@pytest.mark.parametrize("wire, param", [(_fatek, "station"), pytest.param(_modbus, "unit", marks=pytest.mark.matrix)],
+                         ids=["fatek", "modbus"])
 def test_the_profiles_station_is_the_one_every_command_reaches(line, wire, param, tmp_path: Path) -> None:
     bench = str(_profile(tmp_path, line[3], wire(line[3])))
     (tmp_path / "test_it.py").write_text(WRITES)

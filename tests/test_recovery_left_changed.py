@@ -189,6 +189,7 @@ def test_a_host_clock_step_beyond_the_journals_bound_is_refused_with_the_figures
         _clock_back(profile)
 
 
+@pytest.mark.matrix  # the gate holds the clock check's step bound (above); this half in the matrix: the gate's time
 def test_a_clock_origin_from_another_boot_needs_accept_host_clock(plc, tmp_path, capsys):
     url, profile = _url(plc), _profile(tmp_path, plc)
     _killed_with_the_clock_set(profile, boot="another-boot-of-this-host")

@@ -32,8 +32,9 @@ WIRES = {
 
 @pytest.mark.e2e
 @pytest.mark.timeout(300)
-@pytest.mark.parametrize("protocol", [pytest.param(p, marks=pytest.mark.matrix if p == "modbus" else ())
-                                      for p in WIRES])  # the gate: the RFC 2217 path once, port 0's protocol
+# the matrix only (the gate's time): tests/test_rfc2217.py holds the RFC 2217 wire itself in the gate
+@pytest.mark.matrix
+@pytest.mark.parametrize("protocol", list(WIRES))
 def test_smoke_and_rtc_suites_pass_over_rfc2217(tmp_path, protocol):
     kind, option, scheme, query = WIRES[protocol]
     emulated = tmp_path / "emulated.toml"
