@@ -139,8 +139,11 @@ PACED_SUITES = [str(REPO / "suites" / f) for f in ("test_smoke.py", "test_rtc.py
                                                     "test_rtc_adjust.py")]
 
 
+# (the FATEK case in the matrix: the gate runs the smoke and RTC suites over hil emulate's paced pty in two lanes,
+# tests/test_lanes.py — the gate's time)
 @pytest.mark.parametrize("target, suites, least", [
-    ("emulator+fatek-serial?baudrate=115200&bytesize=7&parity=E", PACED_SUITES, 24),
+    pytest.param("emulator+fatek-serial?baudrate=115200&bytesize=7&parity=E", PACED_SUITES, 24,
+                 marks=pytest.mark.matrix),
     ("emulator+modbus-rtu?baudrate=115200&parity=E", PACED_SUITES[:1], 5)], ids=["fatek", "modbus-rtu"])
 def test_the_smoke_and_rtc_suites_pass_over_a_paced_line(pytester, target, suites, least):
     """At 115200 bit/s (9600 costs a minute of line time here: benchmarks/run.py measures that one against
