@@ -112,6 +112,7 @@ def test_a_crash_and_its_recovery_leave_the_offset_within_a_round_trip(profile, 
 
 
 # -- item 6: a host clock step moves nothing ---------------------------------------------------------------------
+@pytest.mark.matrix  # the gate holds the recovery's refusal of a stepped origin (below, and test_recovery_left_changed)
 def test_a_host_clock_step_during_a_run_does_not_move_the_plc_clock(profile, monkeypatch, pytestconfig):
     before = _offset(profile)
     bench = Bench(profile)

@@ -29,7 +29,9 @@ SUITE_TESTS = 32  # the pre-alarm scan counts bracketed with the scan counter th
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
-@pytest.mark.parametrize("target", over_targets("emulator+modbus-rtu", "emulator+fatek-serial", "emulator+modbus-tcp"))
+# (FATEK/TCP too in the matrix: the gate's bench-mode run takes every PID suite over it against hil emulate)
+@pytest.mark.parametrize("target", over_targets("emulator+modbus-rtu", "emulator+fatek-serial", "emulator+modbus-tcp",
+                                                "emulator+fatek-tcp"))
 def test_pid_suites_pass_on_every_emulator_target(pytester, target):
     result = pytester.runpytest_inprocess(*SUITES, *INNER, "--bench", str(EMULATOR_BENCH), "--target", target)
     result.assert_outcomes(passed=SUITE_TESTS)

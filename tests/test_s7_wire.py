@@ -114,7 +114,7 @@ def test_nobody_listening_is_a_clear_error():
         s7wire.SnapS7Io("127.0.0.1", port, timeout=0.5)
 
 
-@pytest.mark.e2e
+@pytest.mark.matrix  # the gate runs the S7 suites over emulator+s7-tcp (tests/test_s7_suites_catch_broken_plcs.py)
 def test_the_s7_suites_pass_against_hil_emulate_in_another_process(tmp_path):
     """``hil emulate --s7-tcp`` as a separate real-time process (time scale 20), the suites over s7+tcp://."""
     with emulate_process(S7_BENCH, 20, {"s7-tcp": "--s7-tcp"}) as endpoints:
