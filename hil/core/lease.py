@@ -30,6 +30,7 @@ import threading
 from pathlib import Path
 
 from hil.core.errors import HilError
+from hil.core.lock import parent_of
 
 _PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
 _HELLO = b"hil-locks"
@@ -84,11 +85,7 @@ def _child_of_mine(conn: socket.socket) -> bool:
     if not _LINUX:
         return True
     pid, _, _ = struct.unpack("3i", conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, struct.calcsize("3i")))
-    try:
-        parent = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-    except (OSError, ValueError, IndexError):
-        return False
-    return parent == os.getpid()
+    return parent_of(pid) == os.getpid()
 
 
 def borrow(address: str) -> list[int]:

@@ -251,9 +251,9 @@ def parent_of(pid: int) -> int | None:
     """``pid``'s parent, from /proc (None where it cannot be read: gone, or another system)."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
+        return int(stat.rsplit(")", 1)[1].split()[1])  # (after the command's parenthesis: state, then the parent)
+    except (OSError, ValueError, IndexError):
         return None
-    return int(stat.rsplit(")", 1)[1].split()[1])  # (after the command's parenthesis: state, then the parent)
 
 
 def describe_process(pid: int) -> str:
