@@ -263,3 +263,14 @@ def test_hil_emulate_prints_the_target_to_paste_and_the_lines_pace(tmp_path: Pat
         assert done.returncode == 0 and "state" in done.stdout, done.stdout + done.stderr
     finally:
         processes.end(proc, _signal.SIGINT, grace=30)
+
+
+def test_a_command_cut_short_by_a_closed_pipe_never_says_it_succeeded(tmp_path: Path) -> None:
+    """Not a listing: hil probe whose reader has gone could not show what it found — it exits 2 (interrupted),
+    never 0, and quietly."""
+    env = {k: v for k, v in __import__("os").environ.items() if not k.startswith("PYTEST")}
+    proc = subprocess.Popen([sys.executable, "-m", "hil", "probe"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env)
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 2 and "Traceback" not in err, err

@@ -289,11 +289,15 @@ def _add_init_command(sub: "argparse._SubParsersAction") -> None:
     init.add_argument("--force", action="store_true", help="overwrite bench.toml and tests/test_first.py")
 
 
-def _reader_left() -> int:
-    """The reader of our output left (``| head``): what it wanted it has — not a failure (1 would say "tests
-    failed"), and nothing more to say to it."""
+#: commands that only show what is there: a reader that left early (``| head``) has what it wanted
+LISTINGS = ("list", "spec", "history")
+
+
+def _reader_left(command: str) -> int:
+    """The reader of our output left (``| head``): nothing more to say to it.  A listing ends with 0 (1 would say
+    "tests failed"); any other command was cut short before it could say how it ended — interrupted, never 0."""
     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return EXIT_OK
+    return EXIT_OK if command in LISTINGS else EXIT_INTERRUPTED
 
 
 class _Console(Console):
@@ -362,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
     except BrokenPipeError:
-        return _reader_left()
+        return _reader_left(args.command)
     except (HilError, OSError) as exc:
         # what the user can act on (a bad profile, an unreachable PLC, a missing port): one line
         if args.debug:
