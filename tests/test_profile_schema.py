@@ -28,30 +28,28 @@ def test_the_committed_schema_is_what_the_declarations_generate() -> None:
         f"{SCHEMA_FILE} differs from the declarations: run `python -m hil.bench.schema_export` and commit it")
 
 
-def _docs_keys() -> dict[str, list[str]]:
-    """Each section's keys as the generated docs' tables list them."""
+def _keys_by_section(text: str, header: str, key: str) -> dict[str, list[str]]:
+    """Each section's keys in ``text``: a line matching ``header`` (group 1: the section) opens a section, lines
+    matching ``key`` (group 1: the key) after it list its keys."""
     out: dict[str, list[str]] = {}
     section = None
-    for line in markdown().splitlines():
-        header = re.match(r"## \[([\w.]+)\]", line)
-        if header:
-            section = out.setdefault(header.group(1), [])
-        elif section is not None and (row := re.match(r"\| `(\w+)` \|", line)):
-            section.append(row.group(1))
+    for line in text.splitlines():
+        opened = re.fullmatch(header, line)
+        if opened:
+            section = out.setdefault(opened.group(1), [])
+        elif section is not None and (found := re.match(key, line)):
+            section.append(found.group(1))
     return out
+
+
+def _docs_keys() -> dict[str, list[str]]:
+    """Each section's keys as the generated docs' tables list them."""
+    return _keys_by_section(markdown(), r"## \[([\w.]+)\].*", r"\| `(\w+)` \|")
 
 
 def _template_keys(text: str) -> dict[str, list[str]]:
     """Each section's keys as ``hil init`` writes them, set or commented out."""
-    out: dict[str, list[str]] = {}
-    section = None
-    for line in text.splitlines():
-        header = re.fullmatch(r"(?:# )?\[\[?([\w.]+)\]\]?", line)
-        if header:
-            section = out.setdefault(header.group(1), [])
-        elif section is not None and (key := re.match(r"(?:# )?(\w+) = ", line)):
-            section.append(key.group(1))
-    return out
+    return _keys_by_section(text, r"(?:# )?\[\[?([\w.]+)\]\]?", r"(?:# )?(\w+) = ")
 
 
 def test_the_keys_appear_in_one_declaration_and_everything_says_the_same() -> None:
