@@ -16,6 +16,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from hil.bench.profile import load_profile  # noqa: E402
+from hil.cli.emulate import client_target  # noqa: E402
 from hil.sim.pacing import LineRate  # noqa: E402
 from tests.external import bench_over_the_wire, emulate_process  # noqa: E402
 from tests.test_bench_mode import MAIN_SET, bench_like  # noqa: E402
@@ -55,11 +57,8 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
         wires = {"fatek-serial" if line else "fatek-tcp": "--fatek-serial" if line else "--fatek-tcp",
                  "rig-modbus-tcp": "--rig-modbus-tcp"}
         with emulate_process(emulated, time_scale, wires, seed=seed) as where:
-            url = None
-            if line:
-                rate = LineRate.parse(line)
-                url = (f"fatek+serial://{where['fatek-serial']}?baudrate={rate.baudrate}&bytesize={rate.bytesize}"
-                       f"&parity={rate.parity}&stopbits={rate.stopbits}&station=1")
+            # the paced pty's target as hil emulate tells a user to paste it (its line's settings and station)
+            url = client_target("fatek-serial", where["fatek-serial"], load_profile(emulated)) if line else None
             bench = tmp_path / "bench.toml"
             text = bench_over_the_wire(emulated.read_text(), where, time_scale, url=url)
             if line:  # the emulated port 0 services each request at a scan's end, as the manual says port 0 does
