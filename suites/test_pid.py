@@ -934,7 +934,7 @@ def _integrating_point(bench, pid, *, plain=False):
 
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
 @pytest.mark.slow  # two 32 s intervals and periods after the first step: over a minute of bench time per case
-@pytest.mark.bench_time(3 * LONGEST_S + 10, reason="three 32 s PID intervals and PWM periods")
+@pytest.mark.bench_time(4 * LONGEST_S + 20, reason="up to two 32 s intervals to the first step, then two and more")
 @pytest.mark.parametrize("low,high", LONG_CODES)
 def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
     """20.7: R4005's low byte ≥ 5 → PID every 32 s, its high byte ≥ 5 → a PWM period of 32 s.  R4005 = 6 and FFH in
@@ -1078,6 +1078,9 @@ def test_output_on_below_sv_and_off_far_above(bench, pid):
     _quickest_timing(bench)
     inst, point = _heated_point(bench, pid)
     cooled = _cooled_point(bench, pid)
+    # R4005 is in force from an EN 0 → 1 edge, and a box already on saw none: each box gets one now
+    for box in [inst] + [b for b in ([pid.of(cooled)] if cooled is not None else []) if b.name != inst.name]:
+        pid.restart(box)
     interval, pwm = _timing(bench.plc.io)
     # fresh evidence: each output seen at 0 (SV on the far side, since before the EN edge) before its rise is asked
     for p in [point] + ([cooled] if cooled is not None else []):
@@ -1119,7 +1122,7 @@ def test_a_point_disabled_with_its_prealarm_set_reports_no_warning(bench, pid):
     if len(enabled) < 2:
         pytest.skip(f"{inst.name} has fewer than two enabled points (one disabled, one kept as the witness)")
     point, witness = enabled[0], enabled[1]
-    _need(bench, "R4012" if point < 16 else "R4013")
+    _need(bench, "R4008", "R4012" if point < 16 else "R4013")
     _write_pvs(bench, block, {point: 1000, witness: 1000})
     bench.plc.io.write("R4008", 1000)  # 100.0 °: both PVs at the pre-alarm limit
     _ten_scans(bench)
