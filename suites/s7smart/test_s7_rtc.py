@@ -405,9 +405,17 @@ def test_clock_runs_under_a_held_trigger_and_each_new_edge_sets_it(bench, clock)
     clock.release()
     bench.wait(2)
     assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(4, 7), "released, 2 s later: ", since=(bench, began))
+    before = clock.read()  # the running clock just before the second edge (about :04–:06)
+    assert before.accepted, f"READ_RTC failed: {before}"
     began = bench.time.now()
     assert clock.set(SATURDAY_15_JUNE_2024).accepted
     assert_reads(clock, SATURDAY_15_JUNE_2024[:5], 7, range(0, 3), "a second edge: ", since=(bench, began))
+    # fresh evidence that the edge set it, however long the set took: a clock that ignored the edge would now read
+    # at least its earlier second plus the whole seconds since (less one for the phase); a set one restarted at :00
+    ran_on = int(f"{before.buffer[5]:02X}") + int(bench.time.now() - began) - 1
+    now = int(f"{clock.read().buffer[5]:02X}")
+    assert now < ran_on, (f"a second edge: the clock reads :{now:02d}, what it would read had the edge been ignored "
+                          f"(:{before.buffer[5]:02X} before it, {bench.time.now() - began:.1f} s since)")
 
 
 # -- power loss (emulator: power cycles on demand) -----------------------------------------------------------------
