@@ -195,6 +195,11 @@ def pytest_configure_node(node: Any) -> None:
     if state is not None and state.leased:
         node.workerinput[LEASE] = os.getpid()
         node.workerinput[LOCKS] = node.config.stash[_LENDER].address
+    # every lane started has said nothing of the PLC until it does (pytest_testnodedown): a run stopped before a
+    # worker could report (Ctrl-C, SIGTERM to the controller) replays its journal rather than call the PLC as found
+    left = node.config.stash.get(_LANES_LEFT, None)
+    if left is not None:
+        left.setdefault(node.gateway.id, None)
 
 
 class _Collected:
