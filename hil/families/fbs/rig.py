@@ -16,7 +16,7 @@ from typing import Any, Iterable
 
 from hil.bench.guard import GuardedLink
 from hil.bench.lab.resolve import ranges
-from hil.bench.replay import Recovery
+from hil.bench.replay import BACK, CHANGED, Recovery, changed_line, still_the_runs
 from hil.core.errors import RestoreError
 from hil.core.journal import Journal, run_left
 from hil.core.lock import lock_key
@@ -217,12 +217,14 @@ class GuardedRig(GuardedLink):
         back, again = [], []
         for element, value in zip(elements, now):
             entry = entries[element.key]
-            original, wrote = bool(entry["original"]), entry["wrote"]
-            if bool(value) == original:
+            # (coils as 0/1: the journal may hold them as booleans) — the one rule recovery uses for every entry
+            original, now = int(bool(entry["original"])), int(bool(value))
+            left = [int(bool(v)) for v in run_left(entry)] if entry["wrote"] is not None else None
+            verdict = still_the_runs(now, original, left)
+            if verdict == BACK:
                 back.append(element)
-            elif wrote is not None and bool(value) not in run_left(entry):
-                report.changed.append(f"rig coil {element} reads {int(value)}, the run wrote {int(wrote)} (original "
-                                      f"{int(original)})")
+            elif verdict == CHANGED:
+                report.changed.append(changed_line(f"rig coil {element}", now, left or [], original))
             else:
                 self.journal[element] = int(original)
                 again.append(element)
