@@ -172,13 +172,13 @@ def test_two_processes_take_turns_on_one_paced_line_with_no_reply_crossed(privat
 def test_a_lanes_journal_is_named_by_its_lane_and_found_beside_the_runs(tmp_path):
     key = "tcp://127.0.0.1:500"
     own = Journal(key, tmp_path)
-    assert lane_of(own.path) is None and own.lanes() == []
+    assert lane_of(own.path) is None and own.lane_names() == []
     lane = Journal(key, tmp_path, lane="gw1")
     lane.add_elements({"R1000": 5}, {"R1000": 6})
     assert lane.path == journal_path(key, tmp_path, "gw1") and lane_of(lane.path) == "gw1"
-    found = own.lanes()
+    found = [own.lane_journal(name) for name in own.lane_names()]
     assert [(j.lane, j.elements()) for j in found] == [("gw1", {"R1000": 5})]
-    assert lane.lanes() == [], "a lane's journal has no lanes of its own"
+    assert lane.lane_names() == [], "a lane's journal has no lanes of its own"
     from hil.core.journal import inspect  # what hil restore --show lists: a lane's file is a journal of the PLC too
     shown_key, shown, refused = inspect(lane.path)
     assert (shown_key, refused, shown.lane, shown.elements()) == (key, None, "gw1", {"R1000": 5})

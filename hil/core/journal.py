@@ -493,10 +493,6 @@ class Journal:
         """The journal lane ``name`` left beside this one (JournalError when it cannot be read or trusted)."""
         return Journal(self.key, self.path.parent, endpoint=self.endpoint, plc=self.plc, lane=name)
 
-    def lanes(self) -> list["Journal"]:
-        """Every lane's journal (:meth:`lane_names`); JournalError at the first that cannot be read."""
-        return [self.lane_journal(name) for name in self.lane_names()]
-
     def entries(self, *kinds: EntryKind) -> Iterable[tuple[EntryKind, str | None, Any]]:
         """Every pending entry (of ``kinds``, when given): (kind, name or None, entry), malformed ones included."""
         for kind in kinds or KINDS.values():
