@@ -64,7 +64,8 @@ def test_header_panel_gives_the_memory_sizes_one_row_and_junit_each(tmp_path):
     panel = _panel(proc.stdout.splitlines())
     assert not any(" size " in line for line in panel), panel
     assert sum("memory" in line for line in panel) == 1 and any("R 8072" in line for line in panel), panel
-    assert len(panel) <= 18, "\n".join(panel)
+    rows = [line for line in panel if re.match(r"\| \S", line)]  # a row's first line (a long path wraps onto more)
+    assert len(rows) <= 16, "\n".join(panel)
     assert not any(re.search(r"\| PLC .* via ", line) for line in panel)  # the wire has its own row
     props = {p.get("name"): p.get("value") for p in ET.parse(out / "junit.xml").iter("property")}
     assert props["hil.plc.R_size"] == "8072"  # JUnit keeps each size

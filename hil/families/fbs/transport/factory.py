@@ -152,9 +152,10 @@ def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, l
         host, _, port = server.address.rpartition(":")
         return FatekUdpTransport(host, int(port), station=station, timeout=timeout)
     if wire.startswith("fatek"):
-        port_url = f"socket://{server.address}" if wire == "fatek-tcp" else server.address
+        tcp = wire == "fatek-tcp"
+        port_url = f"socket://{server.address}" if tcp else server.address
         return FatekTransport(port_url, station=station, timeout=timeout, fence=fence, paced=line is not None,
-                              **settings)
+                              line_name=f"fatek+tcp://{server.address}" if tcp else None, **settings)
     if wire == "modbus-tcp":
         host, _, port = server.address.rpartition(":")
         return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
