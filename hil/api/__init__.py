@@ -18,7 +18,8 @@ Fixtures (``pytest --fixtures`` lists them): ``bench`` → :class:`Bench`, ``plc
 
 from __future__ import annotations
 
-from typing import Mapping, Protocol, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Protocol
 
 from hil.bench.faces import BenchTime, BenchView, FaultInjector
 from hil.core.errors import HilError, WriteRefused
@@ -27,7 +28,9 @@ from hil.core.measurement import Measurement, Outcome
 from hil.families.fbs.device.pid import AlarmWords, Sample, Trace
 from hil.families.fbs.device.rtc import RtcChip, RtcFlags, RtcSnapshot, SetResult
 from hil.families.fbs.device.temperature import TableView, WorkView
-from hil.families.fbs.faces import Bench, FbsFaults as Faults, FbsIO as PlcIO, Pid, Plc, Rtc, Temperature
+from hil.families.fbs.faces import Bench, Pid, Plc, Rtc, Temperature
+from hil.families.fbs.faces import FbsFaults as Faults
+from hil.families.fbs.faces import FbsIO as PlcIO
 from hil.families.fbs.pid import PidInstance
 from hil.families.fbs.rtc_time import RtcTime
 from hil.families.s7smart.faces import S7IO, S7Bench

@@ -9,7 +9,8 @@ import dataclasses
 import enum
 import inspect
 import sys
-from typing import Any, Callable, Iterator
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import hil.api
 from hil.bench.faces import members

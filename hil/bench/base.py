@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable, ContextManager, Generic, Protocol, Sequence, TypeVar
+from collections.abc import Callable, Sequence
+from typing import Any, ContextManager, Generic, Protocol, TypeVar
 
 from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
+from hil.bench.profile import Profile
 from hil.core.errors import HilError
 from hil.core.evidence import Expectation, expect
-from hil.bench.profile import Profile
 from hil.core.journal import Journal
-from hil.core.timebase import Timebase
-from hil.io.url import Target
 from hil.core.lock import lock_key, plc_key
 from hil.core.signals import shielded
+from hil.core.timebase import Timebase
+from hil.io.url import Target
 
 
 class RawLink(Protocol):

@@ -10,7 +10,8 @@ bench may lack (``power_cycle``, ``settings``, ``faults``) are left off the prox
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Callable, ContextManager, Protocol, TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, ContextManager, Protocol
 
 if TYPE_CHECKING:
     from hil.bench.profile import Profile

@@ -12,15 +12,16 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+from collections.abc import Iterable
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Iterable, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from hil.core.errors import InvalidValue, ProfileError
 
 if TYPE_CHECKING:
-    from hil.bench.schema import Section
     from hil.bench.base import BenchBase
     from hil.bench.profile import Profile
+    from hil.bench.schema import Section
     from hil.sim.engine import Engine
     from hil.sim.runtime import ServerHandle
 
@@ -39,7 +40,7 @@ class Family(Protocol):
     sections: tuple[str, ...]
     #: the declarations of those sections' keys (:class:`hil.bench.schema.Section`), for the JSON Schema, the
     #: template and the docs; a section not declared here is checked by its parser alone
-    declarations: tuple["Section", ...]
+    declarations: tuple[Section, ...]
     #: the family of a profile that names none (one installed family says True)
     default: bool
     #: ``[safety] volatile`` when a profile says nothing: values the PLC rewrites itself
@@ -57,13 +58,13 @@ class Family(Protocol):
     def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:
         """Refuse ``[faults.*]`` tables this family cannot inject."""
 
-    def build_emulator(self, profile: "Profile", epoch: dt.datetime) -> "Engine":
+    def build_emulator(self, profile: Profile, epoch: dt.datetime) -> Engine:
         """The emulator the profile describes, its clocks starting at ``epoch``."""
 
-    def open_bench(self, profile: "Profile", **kwargs: Any) -> "BenchBase":
+    def open_bench(self, profile: Profile, **kwargs: Any) -> BenchBase:
         """The bench for ``profile`` (its PLC behind the guard, its time, its per-test restore)."""
 
-    def serve(self, profile: "Profile", emulator: "Engine", wire: str, host: str, port: int) -> "ServerHandle":
+    def serve(self, profile: Profile, emulator: Engine, wire: str, host: str, port: int) -> ServerHandle:
         """Serve ``emulator`` on ``wire`` (one of :attr:`wires`) for other programs (``hil emulate``)."""
 
     #: the wires :meth:`serve` offers ("fatek-tcp", "modbus-tcp", "s7-tcp", …)
@@ -90,12 +91,12 @@ def default_family() -> Family:
     return chosen[0]
 
 
-def open_bench(profile: "Profile", **kwargs: Any) -> "BenchBase":
+def open_bench(profile: Profile, **kwargs: Any) -> BenchBase:
     """The bench for the profile's controller family."""
     return family(profile.family).open_bench(profile, **kwargs)
 
 
-def build_emulator(profile: "Profile", epoch: dt.datetime) -> "Engine":
+def build_emulator(profile: Profile, epoch: dt.datetime) -> Engine:
     """The emulator of the profile's controller family, as the profile describes it."""
     return family(profile.family).build_emulator(profile, epoch)
 

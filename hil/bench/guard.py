@@ -36,15 +36,16 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, ContextManager, Iterable, Iterator, Protocol, Sequence, TypeVar
+from typing import Any, ContextManager, Protocol, TypeVar
 
-from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
-from hil.core.link import Link
-from hil.io.status import PlcStatus
 from hil.bench.replay import Recovery, age_problem, identity_problem, replay_elements
+from hil.core.errors import HilError, RestoreError, TransportError, WriteRefused
 from hil.core.journal import CLOCK, COILS, Journal, JournalError, journal_path
+from hil.core.link import Link
 from hil.core.timebase import HostClocks, Timebase
+from hil.io.status import PlcStatus
 
 T = TypeVar("T")
 Failure = tuple[str, Any, str]  # (element, original, why), as RestoreError lists them
@@ -55,7 +56,7 @@ class Clock:
     """A clock the PLC keeps that a test may set, as the family declares it to the guard."""
 
     touches: frozenset  # elements a write to which may set the clock (empty: only a clock function sets it)
-    read: Callable[[], "dt.datetime | None"]  # the PLC's time now; None when it holds no valid time
+    read: Callable[[], dt.datetime | None]  # the PLC's time now; None when it holds no valid time
     #: set it to ``when()`` — ``exact``: at ``when``'s next whole second (a clock restarts its second when set),
     #: else at once, to the nearest second; HilError when the PLC refuses
     put: Callable[[Callable[[], dt.datetime], bool], None]

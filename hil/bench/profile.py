@@ -16,18 +16,20 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from hil.bench.family import Family, default_family, families, family as family_named
-from hil.bench.lab.spec import LabSpec, parse_section as parse_lab_section
+from hil.bench.family import Family, default_family, families
+from hil.bench.family import family as family_named
+from hil.bench.lab.resolve import Lab
+from hil.bench.lab.spec import LabSpec
+from hil.bench.lab.spec import parse_section as parse_lab_section
 from hil.bench.profile_keys import BENCH, EMULATOR, HISTORY, SAFETY, WIRE_FAULTS
 from hil.bench.schema import located, with_line
-from hil.core.paths import bench_path
 from hil.core.errors import AddressError, ProfileError
 from hil.core.lock import lock_key
+from hil.core.paths import bench_path
 from hil.core.registry import PROTOCOLS, SCHEMES
 from hil.io.url import Target, parse_target
-from hil.bench.lab.resolve import Lab
-from hil.sim.wire_faults import KINDS, check_rates
 from hil.sim.timing import Timing
+from hil.sim.wire_faults import KINDS, check_rates
 
 CORE_SECTIONS = ("bench", "safety", "emulator", "faults", "wire_faults", "labgrid", "history")
 

@@ -43,13 +43,13 @@ class Recovery:
     by: str = ""  # whose run left the journal (another user's, on a shared bench: :meth:`Journal.left_by`)
     planned: list[str] = field(default_factory=list)  # ``show``: what a restore would put back (nothing written)
     show: bool = False  # decide and list only: nothing is written, to the PLC or to the journal
-    parts: list["Recovery"] = field(default_factory=list)  # one per journal (the run's, each lane's), once merged
+    parts: list[Recovery] = field(default_factory=list)  # one per journal (the run's, each lane's), once merged
 
     @property
     def needed(self) -> bool:
         return bool(self.pending or self.refused)
 
-    def merge(self, other: "Recovery") -> None:
+    def merge(self, other: Recovery) -> None:
         """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lane_names`) held."""
         if other.needed:
             self.path = f"{self.path}, {other.path}" if self.needed else other.path
@@ -90,7 +90,7 @@ class Recovery:
 BACK, RESTORE, CHANGED = "back", "restore", "changed"
 
 
-def still_the_runs(now: Any, original: Any, left: "list | None") -> str:
+def still_the_runs(now: Any, original: Any, left: list | None) -> str:
     """The one rule for every entry recovery may put back (an element, a bit's enable state, RUN/STOP): BACK when
     it holds its original (nothing to write), RESTORE when it still holds what the run left (``left``:
     :func:`hil.core.journal.run_left`; None for what the PLC rewrote itself, which has no written value), else
@@ -137,7 +137,7 @@ def age_problem(entry: Any, by_hand: bool) -> str | None:
         at = dt.datetime.fromisoformat(entry["at"])
     except (KeyError, TypeError, ValueError):
         return "it has no time stamp"
-    age = (dt.datetime.now(dt.timezone.utc) - at).total_seconds()
+    age = (dt.datetime.now(dt.UTC) - at).total_seconds()
     if age > MAX_AGE:
         return f"it is {age / 86400:.0f} days old (over {MAX_AGE / 86400:.0f}); `hil restore` replays it by hand"
     return None
@@ -154,7 +154,7 @@ class Verdict:
     entry: dict = field(default_factory=dict)
 
 
-def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Verdict]:
+def element_verdicts(guard: Guard, journal: Journal, by_hand: bool) -> list[Verdict]:
     """Each element entry's verdict from the journal and the profile alone (no PLC read yet)."""
     out = []
     allowed_side: frozenset | None = None
@@ -199,7 +199,7 @@ def element_verdicts(guard: "Guard", journal: Journal, by_hand: bool) -> list[Ve
     return out
 
 
-def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand: bool) -> None:
+def replay_elements(guard: Guard, journal: Journal, report: Recovery, by_hand: bool) -> None:
     """Put back each element that still holds what the run wrote, read back; list the rest.
 
     In two passes: first the causes of the PLC's own rewrites (an EN, FUN86's Sn/Zn registers: what
@@ -224,7 +224,7 @@ def replay_elements(guard: "Guard", journal: Journal, report: Recovery, by_hand:
             _replay(guard, journal, report, stage)
 
 
-def _replay(guard: "Guard", journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
+def _replay(guard: Guard, journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
     """One pass of :func:`replay_elements`: read ``checks``, put back those that still hold what the run wrote
     (:func:`still_the_runs`); with ``report.show`` only say so."""
     try:

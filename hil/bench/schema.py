@@ -15,8 +15,9 @@ wording would be more code than the declarations it replaces, and one more compi
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 from hil.core.errors import AddressError, ProfileError, TargetError
 
@@ -46,7 +47,7 @@ class Key:
     above: float | None = None  # exclusive lower bound
     unit: str = ""  # after the range in messages and docs: "ms", "s"
     #: allowed values (of each item, for a list); a callable when the set is registered at run time
-    choices: "tuple[Any, ...] | Callable[[], Iterable[Any]]" = ()
+    choices: tuple[Any, ...] | Callable[[], Iterable[Any]] = ()
     pattern: str | None = None  # a string (each item, for a list) matches it in full
     hint: str | None = None  # the reason given when a limit above refuses the value
     check: Verdict | None = None
@@ -144,7 +145,7 @@ class Section:
         return out
 
 
-def _refuse_out_of_place(keys: tuple[Key, ...], table: dict[str, Any], at: "Place") -> None:
+def _refuse_out_of_place(keys: tuple[Key, ...], table: dict[str, Any], at: Place) -> None:
     """Refuse keys given beside a value of another key they do not go with (``Key.when``)."""
     for key in keys:
         for other, values in key.when.items():

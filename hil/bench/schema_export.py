@@ -11,8 +11,9 @@ from __future__ import annotations
 import json
 import sys
 import textwrap
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from hil.bench.family import families
 from hil.bench.profile_keys import CORE
@@ -56,7 +57,7 @@ def json_schema() -> dict[str, Any]:
 def _section_schema(section: Section) -> dict[str, Any]:
     if section.named:  # [faults.sensor_break], [faults.heater_open]: each a table of the keys
         table = _section_schema(Section(section.name, section.doc, section.keys))
-        return {"type": "object", "description": section.doc, "properties": {n: table for n in section.named},
+        return {"type": "object", "description": section.doc, "properties": dict.fromkeys(section.named, table),
                 "additionalProperties": False}
     out: dict[str, Any] = {"type": "object", "description": section.doc,
                            "properties": {k.name: _key_schema(k) for k in section.keys},

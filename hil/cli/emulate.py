@@ -11,17 +11,17 @@ import threading
 import time
 from typing import Any
 
+from hil.bench.family import build_emulator
+from hil.bench.profile import Profile, load_profile
+from hil.cli.emulate_live import LivePanel
 from hil.core.errors import InvalidValue
 from hil.core.registry import PROTOCOLS, WIRES
-from hil.io.url import serial_target
-from hil.bench.family import build_emulator
-from hil.sim.runtime import ServerHandle
-from hil.bench.profile import Profile, load_profile
-from hil.sim.timing import MODES as TIMING_MODES
-from hil.io.hosts import unresolved
-from hil.sim.pacing import LineRate
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
-from hil.cli.emulate_live import LivePanel
+from hil.io.hosts import unresolved
+from hil.io.url import serial_target
+from hil.sim.pacing import LineRate
+from hil.sim.runtime import ServerHandle
+from hil.sim.timing import MODES as TIMING_MODES
 
 
 def split_host_port(text: str) -> tuple[str, int]:

@@ -27,7 +27,7 @@ class LivePanel:
         self._live = Live(self.render(), refresh_per_second=2, transient=False)
         self._thread = threading.Thread(target=self._loop, name="hil-emulate-live", daemon=True)
 
-    def __enter__(self) -> "LivePanel":
+    def __enter__(self) -> LivePanel:
         self._live.__enter__()
         self._thread.start()
         return self

@@ -16,7 +16,7 @@ EPILOG = """examples:
 """
 
 
-def add_parser(sub: "argparse._SubParsersAction") -> None:
+def add_parser(sub: argparse._SubParsersAction) -> None:
     raw = argparse.RawDescriptionHelpFormatter
     history = sub.add_parser("history", help="the runs recorded so far: list, compare, trend, yield, flaky, export",
                              formatter_class=raw, epilog=EPILOG,

@@ -30,8 +30,14 @@ from hil.families.fbs.plugin import FAMILY
 from hil.families.fbs.rtc_profile import RTC
 from hil.families.fbs.rtc_time import CHIP_NAMES
 from hil.families.fbs.sim.models.plant_config import PLANT
-from hil.families.fbs.temperature import (MAX_MODULES, MODULE_BY_CODE, SENSOR_BY_CODE, TABLE_MARKER, TEMPERATURE,
-                                          decode_start)
+from hil.families.fbs.temperature import (
+    MAX_MODULES,
+    MODULE_BY_CODE,
+    SENSOR_BY_CODE,
+    TABLE_MARKER,
+    TEMPERATURE,
+    decode_start,
+)
 from hil.families.fbs.transport.base import Transport
 
 

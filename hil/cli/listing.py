@@ -9,9 +9,9 @@ from pathlib import Path
 from rich.console import Console
 from rich.markup import escape
 
+from hil.bench.profile import load_profile
 from hil.core.errors import HilError
 from hil.core.paths import bundled_benches, bundled_suites
-from hil.bench.profile import load_profile
 
 
 def _summary(path: Path) -> str:

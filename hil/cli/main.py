@@ -15,9 +15,9 @@ from rich.console import Console
 from rich.markup import escape
 
 from hil import __version__
-from hil.core.errors import HilError, InvalidValue
 from hil.cli.history_parser import add_parser as add_history
 from hil.cli.reference import commands
+from hil.core.errors import HilError, InvalidValue
 from hil.core.paths import default_bench, project_dir
 from hil.core.redact import hide_passwords
 from hil.core.registry import WIRES
@@ -50,7 +50,7 @@ class _Parser(argparse.ArgumentParser):
             self.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                               help="show the traceback of an error")
 
-    def error(self, message: str):  # noqa: ANN201 - NoReturn
+    def error(self, message: str):
         self.print_usage(sys.stderr)
         # (it may echo a store's URL: its password hidden)
         self.exit(EXIT_USAGE, f"{self.prog}: error: {hide_passwords(message)}{_did_you_mean(message)}\n")
@@ -194,7 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
+def _add_clock_commands(sub: argparse._SubParsersAction) -> None:
     """``hil rtc read|set|sync`` and ``hil drift code|decode|measure`` (see hil/commands/rtc.py)."""
     raw = argparse.RawDescriptionHelpFormatter
     url_help = ("target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp "
@@ -267,7 +267,7 @@ def _add_clock_commands(sub: "argparse._SubParsersAction") -> None:
     spec.add_argument("-v", "--verbose", action="store_true", help="each statement and the tests that name it")
 
 
-def _add_init_command(sub: "argparse._SubParsersAction") -> None:
+def _add_init_command(sub: argparse._SubParsersAction) -> None:
     init = sub.add_parser("init", help="write a bench profile and a first test for a PLC, from what it reads there",
                           formatter_class=argparse.RawDescriptionHelpFormatter,
                           description="Read-only: the PLC's status, identity, RTC chip (D4053) and, with "

@@ -24,14 +24,14 @@ from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from hil.core.errors import HilError
-from hil.core.lock import lock_key
 from hil.bench.profile import check_profile, lab_request
 from hil.core import signals
-from hil.plugin.reporting.verdict import status_of, Verdict
-from hil.plugin.reporting.model import records_from_json
+from hil.core.errors import HilError
+from hil.core.lock import lock_key
 from hil.plugin.reporting.html import write_html_sections
 from hil.plugin.reporting.junit import root_name
+from hil.plugin.reporting.model import records_from_json
+from hil.plugin.reporting.verdict import Verdict, status_of
 
 
 @dataclass
@@ -204,7 +204,7 @@ def _records(r: BenchRun) -> tuple[list, list[tuple[str, str]]]:
         return [], [("hil.bench", f"{r.name}: no records (exit {r.exit}; see {r.log})")]
 
 
-def verdict_of(runs: list[BenchRun]):  # noqa: ANN201 - hil.plugin.reporting.verdict.Verdict
+def verdict_of(runs: list[BenchRun]):
     """The benches' verdict together: PASSED when every run passed, else the gravest run's status, and what each
     run that did not pass says stopped it (its own verdict, from its records)."""
     grave = [3, 2, 1, 4, 5]  # internal error, interrupted, failed, usage error, no tests

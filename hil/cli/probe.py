@@ -2,25 +2,23 @@
 
 from __future__ import annotations
 
-
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from hil.families.fbs.device.plc import FbsPlc
-from hil.families.fbs.device.temperature import Temperature
-from hil.core.errors import HilError
-from hil.families.fbs.registers import pair_bit
-from hil.families.fbs.temperature import BREAK_VALUE
-from hil.bench.profile import Profile
-from hil.core.timebase import HostTimebase
-from hil.families.fbs.transport.base import Transport
+from hil.bench.profile import Profile, load_profile
+from hil.cli.probe_s7 import probe_s7
+from hil.cli.rtc import format_time
 from hil.cli.status import status_panel
 from hil.cli.target import open_target
-from hil.cli.probe_s7 import probe_s7
-from hil.bench.profile import load_profile
-from hil.cli.rtc import format_time
+from hil.core.errors import HilError
+from hil.core.timebase import HostTimebase
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.device.temperature import Temperature
+from hil.families.fbs.registers import pair_bit
 from hil.families.fbs.rtc_time import RtcTime
+from hil.families.fbs.temperature import BREAK_VALUE
+from hil.families.fbs.transport.base import Transport
 
 # (label, element) — read only where the wire can reach them.
 PROBE_REGISTERS = [

@@ -12,9 +12,9 @@ from rich.markup import escape
 from rich.table import Table
 
 from hil.bench.profile import Profile
-from hil.families.s7smart.protocol import timebuf
 from hil.cli.status import status_panel
 from hil.families.s7smart.bench import S7Bench
+from hil.families.s7smart.protocol import timebuf
 
 
 def probe_s7(profile: Profile, url: str | None, console: Console) -> int:

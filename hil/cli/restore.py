@@ -14,19 +14,20 @@ import contextlib
 import ipaddress
 import os
 import socket
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
 
-from hil.core.errors import HilError
 from hil.bench.family import open_bench
 from hil.bench.profile import Profile, load_profile
+from hil.core.errors import HilError
+from hil.core.journal import inspect, journal_dir
 from hil.core.lock import BenchLock, lock_key, plc_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
-from hil.core.journal import inspect, journal_dir
 
 if TYPE_CHECKING:
     from hil.bench.replay import Recovery
@@ -104,7 +105,7 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
     return 0
 
 
-def _plan(profile: Profile, target: str, say) -> dict[Path, "Recovery"]:  # noqa: ANN001 - a local printer
+def _plan(profile: Profile, target: str, say) -> dict[Path, Recovery]:  # noqa: ANN001 - a local printer
     """What a restore would do with each journal of the profile's PLC (by file): the restore's own decisions
     (:meth:`hil.bench.guard.Guard.recover` with ``show``), on the PLC read now under the bench's locks.  Empty,
     and said, when a run holds the bench (its PLC is not read behind that run's back)."""
@@ -121,14 +122,14 @@ def _plan(profile: Profile, target: str, say) -> dict[Path, "Recovery"]:  # noqa
     return {} if report is None else {Path(part.path): part for part in report.parts}
 
 
-def _items(report: "Recovery") -> Iterator[tuple[str, str]]:
+def _items(report: Recovery) -> Iterator[tuple[str, str]]:
     """One line per entry of a ``show`` report: what a restore would do with it."""
     for what, lines in report.sections():
         for line in lines:
             yield what, line
 
 
-def _header(path: Path, key: str, journal: "Journal") -> str:
+def _header(path: Path, key: str, journal: Journal) -> str:
     """Whose journal it is (each run's user and pid, :meth:`Journal.left_by`) and which bench's (its key, the wire
     written over)."""
     where = f", written over {journal.data['endpoint']}" if journal.data.get("endpoint") else ""

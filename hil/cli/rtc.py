@@ -12,21 +12,22 @@ import contextlib
 import datetime as dt
 import math
 import re
-from typing import Callable, Iterator, TypeVar
+from collections.abc import Callable, Iterator
+from typing import TypeVar
 
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from hil.families.fbs.device.plc import FbsPlc
-from hil.core.errors import HilError, UnreachableAddress, InvalidValue
+from hil.cli.target import open_target
+from hil.core.errors import HilError, InvalidValue, UnreachableAddress
+from hil.core.humantime import span
+from hil.core.timebase import Timebase
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for_rate, rate_for_code
+from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
-from hil.cli.target import open_target
-from hil.core.timebase import Timebase
-from hil.core.humantime import span
 
 T = TypeVar("T")
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from hil.core.paths import default_bench, suite_path, suites_dir
 from hil.bench.profile import refuse_default_for_a_plc
+from hil.core.paths import default_bench, suite_path, suites_dir
 
 #: pytest options whose value is the next argument (so that value is not a test path): ``-k rtc``, ``-m slow``…
 _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
@@ -15,7 +15,7 @@ _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignor
                 "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
                 "--timeout", "--durations", "-n", "--numprocesses", "--dist", "--max-worker-restart", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
                 "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures",
-                "--hil-records", "--hil-lock-wait", "--hil-lg-place", "--hil-lg-reserve", "--hil-lg-coordinator",
+                "--hil-records", "--hil-lg-place", "--hil-lg-reserve", "--hil-lg-coordinator",
                 "--hil-lg-wait"}
 
 

@@ -9,23 +9,23 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
-from hil.families.fbs.device.plc import FbsPlc
-from hil.families.fbs.plugin import FAMILY as FBS
-from hil.families.fbs.sim.build import build_emulator
-from hil.core.errors import HilError, InvalidValue
 from hil.bench.profile import Profile, load_profile, plc_target
+from hil.core.errors import HilError
+from hil.core.journal import Journal
+from hil.core.lock import BenchLock, lock_key, plc_key
+from hil.core.paths import default_bench
 from hil.core.timebase import Timebase, timebase_for
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.identity import read_identity
+from hil.families.fbs.plugin import FAMILY as FBS
+from hil.families.fbs.recovery import recover
+from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.transport.base import Transport
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.url import parse_target
-from hil.core.paths import default_bench
-from hil.core.lock import BenchLock, plc_key, lock_key
-from hil.core.journal import Journal
-from hil.families.fbs.identity import read_identity
-from hil.families.fbs.recovery import recover
 
 
 @dataclass

@@ -18,8 +18,8 @@ it says nothing about the PLC.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from hil.core.errors import HilError
 from hil.core.timebase import Timebase

@@ -64,14 +64,22 @@ import math
 import os
 import re
 import stat
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
 
-from hil.core.humantime import moment
 from hil.core.errors import HilError
-from hil.core.paths import (BENCH_FILE_MODE, bench_dir_problem, bench_file_problem, bench_group, prepare_bench_dir,
-                            share_with_bench, user_name)
+from hil.core.humantime import moment
+from hil.core.paths import (
+    BENCH_FILE_MODE,
+    bench_dir_problem,
+    bench_file_problem,
+    bench_group,
+    prepare_bench_dir,
+    share_with_bench,
+    user_name,
+)
 
 VERSION = 2
 #: top-level fields that are not entry sections
@@ -195,7 +203,7 @@ class EntryKind:
 
     section: str
     keyed: bool
-    check: Callable[[Any], "str | None"]  # why an entry is malformed, None when well formed
+    check: Callable[[Any], str | None]  # why an entry is malformed, None when well formed
     describe: Callable[[str, Any], str]  # one line for people: (name, entry)
     empty: Any = None  # the section's value when nothing is pending
 
@@ -218,7 +226,7 @@ def _when(text: Any) -> dt.datetime | None:
         when = dt.datetime.fromisoformat(text)
     except ValueError:
         return None
-    return when if when.tzinfo is not None else when.replace(tzinfo=dt.timezone.utc)
+    return when if when.tzinfo is not None else when.replace(tzinfo=dt.UTC)
 
 
 def _integer(value: Any, top: int = 0xFFFFFFFF) -> bool:
@@ -231,7 +239,7 @@ def _stamp_problem(entry: dict) -> str | None:
     at = _when(entry.get("at"))
     if at is None:
         return f"its time stamp {entry.get('at')!r} is not an ISO-8601 time"
-    if (at - dt.datetime.now(dt.timezone.utc)).total_seconds() > FUTURE_SLACK:
+    if (at - dt.datetime.now(dt.UTC)).total_seconds() > FUTURE_SLACK:
         return f"it is stamped {at.isoformat()}, in the future"
     return None
 
@@ -408,7 +416,7 @@ def _pending(data: dict[str, Any]) -> bool:
     return any(kind.present(data.get(kind.section)) for kind in KINDS.values())
 
 
-def inspect(path: Path) -> tuple[str | None, "Journal | None", str | None]:
+def inspect(path: Path) -> tuple[str | None, Journal | None, str | None]:
     """A journal file found in the bench directory, for ``hil restore --show``: (its bench key, the journal, why
     it is refused as a whole) — the key None when the file does not say one."""
     try:
@@ -489,7 +497,7 @@ class Journal:
         stem = journal_path(self.key, self.path.parent).name.removesuffix(".json")
         return sorted(lane for p in self.path.parent.glob(f"{stem}.lane-*.json") if (lane := lane_of(p)) is not None)
 
-    def lane_journal(self, name: str) -> "Journal":
+    def lane_journal(self, name: str) -> Journal:
         """The journal lane ``name`` left beside this one (JournalError when it cannot be read or trusted)."""
         return Journal(self.key, self.path.parent, endpoint=self.endpoint, plc=self.plc, lane=name)
 
@@ -545,7 +553,7 @@ class Journal:
     # -- writing (save before mutate: each change durable before it shows) ---------------------------------------
     def _stamp(self) -> dict[str, Any]:
         return {"test": self.test, "pid": os.getpid(), "user": user_name(os.getuid()),  # whose run, for the next user
-                "at": dt.datetime.now(dt.timezone.utc).isoformat()}
+                "at": dt.datetime.now(dt.UTC).isoformat()}
 
     def _change(self, apply: Callable[[dict[str, Any]], bool], *, adds: bool = True) -> None:
         """Apply ``apply`` to a copy of the data, save the copy, and only then take it.  ``apply`` returns False
@@ -562,7 +570,7 @@ class Journal:
             return
         if adds and fresh:  # a new journal: where and what it is about
             data.update(endpoint=self.endpoint, plc=self.plc,
-                        created=dt.datetime.now(dt.timezone.utc).isoformat())
+                        created=dt.datetime.now(dt.UTC).isoformat())
         try:
             self._save(data)
         except JournalError as exc:

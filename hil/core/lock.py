@@ -26,8 +26,14 @@ import time
 from pathlib import Path
 
 from hil.core.errors import HilError
-from hil.core.paths import (BENCH_FILE_MODE, bench_dir, bench_file_problem, prepare_bench_dir, share_with_bench,
-                            user_and_uid)
+from hil.core.paths import (
+    BENCH_FILE_MODE,
+    bench_dir,
+    bench_file_problem,
+    prepare_bench_dir,
+    share_with_bench,
+    user_and_uid,
+)
 from hil.core.redact import hide_passwords
 from hil.core.registry import SCHEMES
 
@@ -120,7 +126,7 @@ class BenchLock:
         """The open lock file while held (a run with lanes lends it to its workers: :mod:`hil.core.lease`)."""
         return self._fd
 
-    def acquire(self, wait: float = 0.0, poll: float = 0.1) -> "BenchLock":
+    def acquire(self, wait: float = 0.0, poll: float = 0.1) -> BenchLock:
         """Take the lock, waiting up to ``wait`` seconds; raise :class:`BenchBusy` naming the holder."""
         if self._fd is not None:
             return self
@@ -180,7 +186,7 @@ class BenchLock:
         finally:
             os.close(fd)
 
-    def __enter__(self) -> "BenchLock":
+    def __enter__(self) -> BenchLock:
         return self.acquire()
 
     def __exit__(self, *exc: object) -> None:

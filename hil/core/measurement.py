@@ -25,7 +25,7 @@ class Measurement:
     low: float | None = None
     high: float | None = None
 
-    def measured(self, value: float) -> "Measurement":
+    def measured(self, value: float) -> Measurement:
         """This declaration with its value."""
         return Measurement(self.name, float(value), self.unit, self.low, self.high)
 

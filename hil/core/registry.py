@@ -17,9 +17,10 @@ point — docs/architecture.md lists what each registers.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import Any, Callable, Generic, Iterator, Mapping, TypeVar
+from typing import Any, Generic, TypeVar
 
 #: the entry-point group families register under (``[project.entry-points."hil.families"]``)
 GROUP = "hil.families"

@@ -13,7 +13,7 @@ import os
 import signal
 import sys
 import threading
-from typing import Iterator
+from collections.abc import Iterator
 
 SIGNALS = tuple(s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None),
                             signal.SIGINT) if s is not None)
@@ -24,10 +24,10 @@ _installed: dict[int, object] = {}
 _stopping = False  # a signal has already been raised: the run is unwinding; later ones must not abandon that
 
 
-def _handler(signum: int, frame: object) -> None:  # noqa: ARG001
+def _handler(signum: int, frame: object) -> None:
     # pytest's traceback and its "<file>:<line>: KeyboardInterrupt" line skip this frame: they point where the run
     # was when the signal came (the test), not here
-    __tracebackhide__ = True  # noqa: F841
+    __tracebackhide__ = True
     global _pending, _stopping
     name = signal.Signals(signum).name
     if _depth or _stopping:
@@ -70,7 +70,7 @@ def uninstall() -> None:
 @contextlib.contextmanager
 def shielded() -> Iterator[None]:
     """Run a restore to its end whatever signals arrive; a signal that came meanwhile is raised afterwards."""
-    __tracebackhide__ = True  # noqa: F841 - a deferred signal is raised here: point at the restore's caller
+    __tracebackhide__ = True
     global _depth, _pending, _stopping
     main = threading.current_thread() is threading.main_thread()
     if main:

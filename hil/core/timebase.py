@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import datetime as dt
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
 
 from hil.core.errors import InvalidValue
 
@@ -61,7 +62,7 @@ class HostTimebase:
     #: A listener's chunk: long waits are slept in pieces so listeners (a progress bar, a CI log line) see them.
     LISTENER_STEP = 0.25
 
-    def add_wait_listener(self, listener: "WaitListener") -> None:
+    def add_wait_listener(self, listener: WaitListener) -> None:
         """Public callback: ``listener(seconds_done, seconds_total)`` is called at the start of every wait, after
         each piece of it and at its end (``done == total``), in bench seconds."""
         self.listeners.append(listener)
@@ -100,7 +101,7 @@ class HostClocks:
     spread: float = 0.0
 
     @classmethod
-    def now(cls) -> "HostClocks":
+    def now(cls) -> HostClocks:
         # time.time() looked up at each call: the one place hil reads the host's wall clock for a clock's origin;
         # the boot clock read either side of it, so the pair's own uncertainty is measured, not assumed
         boottime = getattr(time, "CLOCK_BOOTTIME", None)
@@ -127,14 +128,14 @@ def nearest_whole_second(when: dt.datetime) -> dt.datetime:
     return (when + dt.timedelta(microseconds=500_000)).replace(microsecond=0)
 
 
-def wait_until(timebase: "Timebase", clock: Callable[[], dt.datetime], when: dt.datetime) -> None:
+def wait_until(timebase: Timebase, clock: Callable[[], dt.datetime], when: dt.datetime) -> None:
     """Let bench time pass until ``clock()`` says ``when`` (at once if it already does)."""
     remaining = (when - clock()).total_seconds()
     if remaining > 0:
         timebase.wait(remaining)
 
 
-def timebase_for(emulator: VirtualClock | None, epoch: dt.datetime, time_scale: float = 1.0) -> "Timebase":
+def timebase_for(emulator: VirtualClock | None, epoch: dt.datetime, time_scale: float = 1.0) -> Timebase:
     """The bench's time: virtual with an in-process emulator (``emulator``), else the host's (÷ ``time_scale``
     for an accelerated external emulator).  The one place that decides it."""
     return EmulatorTimebase(emulator, epoch) if emulator is not None else HostTimebase(time_scale)

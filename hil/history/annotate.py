@@ -8,9 +8,10 @@ from __future__ import annotations
 import html
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 from urllib.parse import quote
 
 from hil.core.measurement import Measurement
@@ -28,7 +29,7 @@ class Annotations:
 
     @classmethod
     def build(cls, last: dict[str, Any] | None, values: list[dict[str, Any]], records: Iterable[Any], *,
-              html: Path | None, store: str, spooled: bool = False) -> "Annotations":
+              html: Path | None, store: str, spooled: bool = False) -> Annotations:
         records = list(records)
         series: dict[tuple[str, str], list[float | None]] = {}
         for v in values:

@@ -32,8 +32,8 @@ import pytest
 from hil.core import signals
 from hil.history import config as history_config
 from hil.history.annotate import Annotations
-from hil.plugin.safety import RECOVERY_NOTES
 from hil.plugin.reporting.outputs import RUN, RunRecord
+from hil.plugin.safety import RECOVERY_NOTES
 
 #: seconds to wait for the writer's answer (the bench's history) and for its end (as the store waits for a lock)
 WAIT_S = 5.0
@@ -101,7 +101,7 @@ class Recorder:
             return
         threading.Thread(target=self._read_replies, args=(self.writer.stdout,), daemon=True).start()
         info = {"bench": self.bench, "properties": list(reporter.properties),
-                "started_at": dt.datetime.now(dt.timezone.utc).replace(tzinfo=None).isoformat(), "uuid": str(uuid.uuid4()), "host": socket.gethostname(),
+                "started_at": dt.datetime.now(dt.UTC).replace(tzinfo=None).isoformat(), "uuid": str(uuid.uuid4()), "host": socket.gethostname(),
                 "pid": os.getpid(), "report": self.report}
         self._send({"op": "start", "url": url, "info": info})
 

@@ -5,8 +5,20 @@ Times are UTC without a zone (SQLite keeps no zone; both stores then compare the
 
 from __future__ import annotations
 
-from sqlalchemy import (Boolean, Column, DateTime, Float, ForeignKey, Index, Integer, MetaData, String, Table, Text,
-                        UniqueConstraint)
+from sqlalchemy import (
+                        Boolean,
+                        Column,
+                        DateTime,
+                        Float,
+                        ForeignKey,
+                        Index,
+                        Integer,
+                        MetaData,
+                        String,
+                        Table,
+                        Text,
+                        UniqueConstraint,
+)
 
 #: the newest Alembic revision (migrations/versions); a store at another revision is migrated when opened
 HEAD = "0002"

@@ -12,7 +12,8 @@ from __future__ import annotations
 import datetime as dt
 import json
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from hil.core.measurement import Measurement
 from hil.core.redact import hide_password

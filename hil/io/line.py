@@ -39,8 +39,8 @@ import serial
 import serial.rfc2217
 
 from hil.core.errors import TransportError
-from hil.io.serial_line import line_coding
 from hil.io.hosts import unresolved
+from hil.io.serial_line import line_coding
 
 #: How long one wait of an RFC 2217 line may block for its first byte: a reply wakes it at once (a queue's
 #: condition), so this only bounds how far a wait may overrun its deadline.

@@ -27,11 +27,11 @@ the client when it is built.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import serial
-from typing import Any, Callable, Sequence
-
 from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
@@ -40,8 +40,8 @@ from pymodbus.pdu import ModbusPDU
 from hil.core.errors import InvalidValue, PlcErrorReply, TransportError
 from hil.io.hosts import unresolved
 from hil.io.line import Line, LocalLine, line_check, open_line
-from hil.io.request_policy import RequestPolicy, Resync
 from hil.io.modbus_codes import EXCEPTION_NAMES, GATEWAY
+from hil.io.request_policy import RequestPolicy, Resync
 from hil.io.url import serial_target
 
 COILS, DISCRETE_INPUTS, HOLDING = "coil", "discrete", "holding"
@@ -162,7 +162,7 @@ class ModbusWire:
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod
     def tcp(cls, host: str, port: int, *, unit: int, timeout: float, retries: int, hint: str, probe: Probe,
-            description: str, describe: Describe | None = None) -> "ModbusWire":
+            description: str, describe: Describe | None = None) -> ModbusWire:
         return cls(lambda hooks: ModbusTcpClient(host, port=port, timeout=timeout, retries=0,
                                                  trace_packet=hooks[0], trace_pdu=hooks[1]),
                    description, unit=unit, timeout=timeout, retries=retries, hint=hint, probe=probe,
@@ -171,7 +171,7 @@ class ModbusWire:
     @classmethod
     def rtu(cls, device: str, *, baudrate: int, parity: str, bytesize: int, stopbits: int, unit: int,
             timeout: float, retries: int, hint: str, probe: Probe, label: str = "",
-            describe: Describe | None = None, fence: str = "trouble") -> "ModbusWire":
+            describe: Describe | None = None, fence: str = "trouble") -> ModbusWire:
         """Modbus RTU on ``device`` (a path, or an RFC 2217 server's ``rfc2217://HOST:PORT``); ``hint``: what to check
         on the slave's side when it does not answer (the line's own checks come first), ``label``: added to the
         description (e.g. the address map)."""

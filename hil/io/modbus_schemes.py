@@ -3,8 +3,7 @@
 
 from __future__ import annotations
 
-from hil.core.registry import (COMMON, FENCE, PROTOCOLS, SERIAL, Protocol, Scheme, Wire, register_scheme,
-                               register_wire)
+from hil.core.registry import COMMON, FENCE, PROTOCOLS, SERIAL, Protocol, Scheme, Wire, register_scheme, register_wire
 
 
 def register_modbus() -> None:

@@ -23,8 +23,9 @@ under them (the soak checks no call runs past it).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, TypeVar
+from typing import TypeVar
 
 from hil.core.errors import InvalidValue, OutcomeUnknown, ReplyTimeout, TransportError
 

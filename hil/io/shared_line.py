@@ -34,7 +34,7 @@ import hashlib
 import os
 import threading
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from hil.core.errors import TransportError
 from hil.core.lock import describe_process, kernel_holders, lock_dir, open_lock_file, parent_of, shared_dir
@@ -101,7 +101,7 @@ class SharedLine:
         self._unwant_timer: threading.Timer | None = None
         self._wait = line_wait()
 
-    def __enter__(self) -> "SharedLine":
+    def __enter__(self) -> SharedLine:
         self._thread.acquire()
         if self._depth == 0:
             if self._fd < 0:

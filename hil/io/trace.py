@@ -17,8 +17,9 @@ from __future__ import annotations
 import struct
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 #: frame decoders of the families' own protocols, by trace kind (a family registers its own)
 DESCRIBERS: dict[str, Callable[..., str]] = {}
@@ -70,7 +71,7 @@ class WireTrace:
         raw.append((time.time(), direction, bytes(data), extra))
 
     # -- attaching ------------------------------------------------------------------------------------------------
-    def attach(self, transport: Any) -> "WireTrace":
+    def attach(self, transport: Any) -> WireTrace:
         """Hook into ``transport`` (the raw one, under the guard).  Idempotent per recorder."""
         if self._detach:
             return self

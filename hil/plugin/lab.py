@@ -12,8 +12,9 @@ from __future__ import annotations
 import contextlib
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 from rich.console import Console
@@ -21,9 +22,9 @@ from rich.text import Text
 
 from hil.bench.lab.session import LabSession
 from hil.bench.lab.spec import TAGS_EXAMPLE
-from hil.core.errors import HilError
 from hil.bench.profile import check_profile, lab_request, load_profile
 from hil.core import signals
+from hil.core.errors import HilError
 from hil.core.signals import shielded
 
 #: a queued run prints a plain line this often where there is no terminal (CI logs)

@@ -14,8 +14,9 @@ Every bench test gets:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 
@@ -41,7 +42,7 @@ class WireCounter:
     def total(self) -> int:
         return self.tx + self.rx
 
-    def attach(self, transport: Any) -> "WireCounter":
+    def attach(self, transport: Any) -> WireCounter:
         if self._detach:
             return self
         self.transport = transport
@@ -109,7 +110,7 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     if call.when == "teardown":
         start = item.stash.get(_MARK, None)
         bench = _bench(item.config)

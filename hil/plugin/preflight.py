@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import pytest
 
+from hil.core import signals
 from hil.core.errors import HilError
 from hil.core.registry import examples
-from hil.core import signals
+from hil.io.url import parse_target
 from hil.plugin import lanes
 from hil.plugin.stash import BENCH_SESSION
-from hil.io.url import parse_target
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:

@@ -8,8 +8,8 @@ module's declared working state when its last test ends: :mod:`hil.plugin.workin
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 
@@ -20,26 +20,24 @@ PLUGINS = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin
            "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes"]
 pytest.register_assert_rewrite(*PLUGINS)
 
-from hil.bench.base import BenchBase as Bench  # noqa: E402 - after the plugins are marked for rewriting
+from hil.bench.base import BenchBase as Bench
+from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.bench.faces import BenchView
 from hil.bench.family import build_emulator, default_family, open_bench
+from hil.bench.profile import Profile, load_profile, plc_target, refuse_default_for_a_plc
+from hil.bench.view import suite_view
 from hil.core.errors import HilError, TransportError
 from hil.core.evidence import StaleEvidence
-from hil.bench.profile import Profile, load_profile
-from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
-from hil.plugin import bench_time
-from hil.io.url import parse_target
+from hil.core.lock import BenchLock, describe_holder, plc_key
+from hil.core.paths import default_bench
 from hil.core.registry import examples
-from hil.plugin import hookspecs, lanes, working_state
+from hil.core.signals import shielded
+from hil.io.url import parse_target
+from hil.plugin import bench_time, hookspecs, lanes, working_state
+from hil.plugin.lab import hold_place, let_go
+from hil.plugin.preflight import unreachable
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
-from hil.plugin.lab import hold_place, let_go
-from hil.core.paths import default_bench
-from hil.core.lock import describe_holder, BenchLock, plc_key
-from hil.plugin.preflight import unreachable
-from hil.core.signals import shielded
-from hil.bench.view import suite_view
-from hil.bench.profile import plc_target, refuse_default_for_a_plc
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)

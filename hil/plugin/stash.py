@@ -12,6 +12,6 @@ import pytest
 if TYPE_CHECKING:
     from hil.plugin.pytest_plugin import BenchSession
 
-BENCH_SESSION: "pytest.StashKey[BenchSession]" = pytest.StashKey()
+BENCH_SESSION: pytest.StashKey[BenchSession] = pytest.StashKey()
 
 __all__ = ["BENCH_SESSION"]

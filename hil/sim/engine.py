@@ -12,10 +12,11 @@ import collections
 import math
 import threading
 import time
-from typing import Any, Callable, Iterable, TypeVar
+from collections.abc import Callable, Iterable
+from typing import Any, TypeVar
 
-from hil.core.errors import InvalidValue
 from hil import __version__
+from hil.core.errors import InvalidValue
 from hil.sim.model import Model
 from hil.sim.timing import INSTANT, Timing
 
@@ -53,7 +54,7 @@ class Engine:
         self.running = True
         self.realtime = False  # True while run_realtime() drives the clock
         #: called with the engine after every scan, with what it left in memory
-        self.observers: list[Callable[["Engine"], None]] = []
+        self.observers: list[Callable[[Engine], None]] = []
         # Real time: requests wait here for the end of the current scan (run_realtime services them there).
         self._pending: list[_Pending] = []
         self._pending_lock = threading.Lock()

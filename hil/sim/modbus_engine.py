@@ -29,8 +29,9 @@ import asyncio
 import bisect
 import concurrent.futures
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import NoSuchIdException
@@ -341,7 +342,7 @@ def start_rtu_pty(engine: Engine, modbus_map: ModbusMap, unit: int = 1, *, fault
     return handle
 
 
-def _stopper(runtime: LoopThread, stop: Callable[[], "asyncio.Future | object"]) -> Callable[[], None]:
+def _stopper(runtime: LoopThread, stop: Callable[[], asyncio.Future | object]) -> Callable[[], None]:
     lock = threading.Lock()
 
     def run() -> None:

@@ -25,8 +25,12 @@ import struct
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusIOException, NoSuchIdException
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
-from pymodbus.pdu.bit_message import (ReadCoilsRequest, ReadDiscreteInputsRequest, WriteMultipleCoilsRequest,
-                                      WriteSingleCoilRequest)
+from pymodbus.pdu.bit_message import (
+    ReadCoilsRequest,
+    ReadDiscreteInputsRequest,
+    WriteMultipleCoilsRequest,
+    WriteSingleCoilRequest,
+)
 from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInputRegistersRequest
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
@@ -82,7 +86,7 @@ _KNOWN_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 15, 16, 17, 20, 21
 class _InOrderHandler(ServerRequestHandler):
     """One TCP connection: every complete frame of a segment decoded, then served one after another."""
 
-    def __init__(self, owner: "InOrderTcpServer", *args) -> None:  # noqa: ANN002
+    def __init__(self, owner: InOrderTcpServer, *args) -> None:  # noqa: ANN002
         super().__init__(owner, *args)
         self.pending: collections.deque[tuple[ModbusPDU, tuple | None]] = collections.deque()
         self.serving = False

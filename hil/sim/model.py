@@ -36,10 +36,10 @@ class Model:
 
     name = "model"
 
-    def power_on(self, emu: "Engine") -> None:
+    def power_on(self, emu: Engine) -> None:
         pass
 
-    def scan(self, emu: "Engine") -> None:
+    def scan(self, emu: Engine) -> None:
         pass
 
     def next_event(self, now: float) -> float:

@@ -18,8 +18,8 @@ from __future__ import annotations
 import asyncio
 import collections
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from hil.core.errors import InvalidValue
 from hil.io.serial_line import char_bits
@@ -49,7 +49,7 @@ class LineRate:
                                f"parity N/E/O, stop bits 1 or 2")
 
     @classmethod
-    def parse(cls, text: str) -> "LineRate":
+    def parse(cls, text: str) -> LineRate:
         """``"9600 7E1"`` (also ``9600,7E1``, ``9600/8E1``)."""
         match = _FRAME.match(text)
         if not match:

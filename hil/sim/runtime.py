@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import asyncio
 import threading
-from typing import Any, Callable, Coroutine, TypeVar
+from collections.abc import Callable, Coroutine
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
 
 class LoopThread:
-    _shared: "LoopThread | None" = None
+    _shared: LoopThread | None = None
     _shared_lock = threading.Lock()
 
     def __init__(self) -> None:
@@ -23,7 +24,7 @@ class LoopThread:
         self._thread.start()
 
     @classmethod
-    def shared(cls) -> "LoopThread":
+    def shared(cls) -> LoopThread:
         with cls._shared_lock:
             if cls._shared is None or not cls._shared._thread.is_alive():
                 cls._shared = cls()
@@ -50,7 +51,7 @@ class ServerHandle:
     line: Any = None  # a pty wire's served line (its pace and byte counts), else None
     ptys: Any = None  # a pty wire's pair (byte counters for tests), else None
 
-    def __init__(self, kind: str, address: str, stop: "Callable[[], None]") -> None:
+    def __init__(self, kind: str, address: str, stop: Callable[[], None]) -> None:
         self.kind = kind  # the wire's name: "fatek-tcp", "fatek-serial", "modbus-tcp", "modbus-rtu", …
         self.address = address  # "127.0.0.1:40123" or a pty path such as "/dev/pts/7"
         self._stop = stop

@@ -27,8 +27,9 @@ import asyncio
 import collections
 import random
 import threading
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable
+from typing import Any
 
 from hil.core.errors import InvalidValue
 
@@ -63,7 +64,7 @@ class WireFaults:
         self._lock = threading.Lock()
 
     @classmethod
-    def from_config(cls, table: dict[str, Any]) -> "WireFaults":
+    def from_config(cls, table: dict[str, Any]) -> WireFaults:
         """From a profile's ``[wire_faults]`` table (already validated by :func:`hil.bench.profile`)."""
         rates = {k: float(v) for k, v in table.items() if k in KINDS}
         return cls(rates=rates, seed=int(table.get("seed", 0)),

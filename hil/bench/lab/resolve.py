@@ -22,8 +22,8 @@ from typing import Any
 from hil.bench.lab.client import LabError, Place, Resource
 from hil.bench.lab.spec import LabSpec
 from hil.core.errors import ProfileError
-from hil.core.registry import PROTOCOLS, SCHEMES, lab_protocol
 from hil.core.lock import lock_key
+from hil.core.registry import PROTOCOLS, SCHEMES, lab_protocol
 
 WIRES = ("NetworkService", "NetworkSerialPort")
 RIG = "ModbusTCPCoil"
@@ -51,7 +51,7 @@ class Lab:
     acquired_at: str = ""
 
     @classmethod
-    def pending(cls, spec: LabSpec) -> "Lab":
+    def pending(cls, spec: LabSpec) -> Lab:
         """Stand-in URLs to check a profile before its place is reserved (nothing may connect to them)."""
         protocol = spec.protocol or lab_protocol()
         return cls(spec.address, spec.place or "", spec.describe(), f"{protocol}+tcp://{PENDING_HOST}",

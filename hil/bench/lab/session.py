@@ -9,7 +9,7 @@ reservation — otherwise the next run would wait for this reservation to expire
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 from hil.bench.lab.client import LabError, LabgridClient
 from hil.bench.lab.resolve import Lab, resolve

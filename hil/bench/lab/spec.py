@@ -23,8 +23,8 @@ import re
 from dataclasses import dataclass, replace
 from typing import Any
 
-from hil.core.errors import InvalidValue, ProfileError
 from hil.bench.schema import Key, Section, located
+from hil.core.errors import InvalidValue, ProfileError
 from hil.core.registry import PROTOCOLS
 
 #: labgrid's own default when neither -x nor LG_COORDINATOR says
@@ -71,7 +71,7 @@ class LabSpec:
         return f"place {self.place}" if self.place else "tags " + " ".join(f"{k}={v}" for k, v in self.tags)
 
     def overridden(self, *, place: str | None = None, tags: str | None = None, coordinator: str | None = None,
-                   wait: float | None = None) -> "LabSpec":
+                   wait: float | None = None) -> LabSpec:
         """The command line's choice over the profile's: a place given replaces tags, and tags a place."""
         spec = self
         if place:

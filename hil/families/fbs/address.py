@@ -16,9 +16,8 @@ C200–C255 are 32-bit counters on an FBs: their values are read as ``DRC200``�
 from __future__ import annotations
 
 import functools
-
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 from hil.core.errors import AddressError
 
@@ -41,11 +40,11 @@ PAIRED_32 = {"DR": "R", "DD": "D", "DRT": "RT"}
 BIT, WORD, DWORD = "bit", "word", "dword"
 
 # Digits in the frame form of each kind (the name is 5, 6 or 7 characters long).
-_FRAME_DIGITS: dict[str, int] = {k: 4 for k in BIT_BANKS}
+_FRAME_DIGITS: dict[str, int] = dict.fromkeys(BIT_BANKS, 4)
 _FRAME_DIGITS.update({"R": 5, "D": 5, "RT": 4, "RC": 4})
-_FRAME_DIGITS.update({k: 4 for k in PACKED_16})
+_FRAME_DIGITS.update(dict.fromkeys(PACKED_16, 4))
 _FRAME_DIGITS.update({"DR": 5, "DD": 5, "DRT": 4, "DRC": 4})
-_FRAME_DIGITS.update({k: 4 for k in PACKED_32})
+_FRAME_DIGITS.update(dict.fromkeys(PACKED_32, 4))
 
 # Longest prefixes first so that "DRT" is not read as "DR" + "T…".
 _KINDS = sorted(_FRAME_DIGITS, key=len, reverse=True)
@@ -88,7 +87,7 @@ class Address:
     def __str__(self) -> str:
         return f"{self.kind}{self.index}"
 
-    def offset(self, n: int) -> "Address":
+    def offset(self, n: int) -> Address:
         """The element ``n`` places on in the same kind (validated)."""
         # Step by whole values so consecutive elements never overlap: WM800, WM816 …; DR0, DR2 ….
         if self.kind in PACKED_16 or self.kind in PACKED_32:
@@ -97,7 +96,7 @@ class Address:
             step = 2 if self.kind in PAIRED_32 else 1
         return parse(f"{self.kind}{self.index + n * step}")
 
-    def elements(self) -> Iterator["Address"]:
+    def elements(self) -> Iterator[Address]:
         """The underlying bits or 16-bit words this element covers (itself for plain bits and words)."""
         if self.kind in PACKED_16 or self.kind in PACKED_32:
             bank = PACKED_16.get(self.kind) or PACKED_32[self.kind]

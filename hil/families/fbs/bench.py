@@ -6,27 +6,27 @@ The pytest plugin builds one Bench per session; suites see it as the ``bench`` f
 from __future__ import annotations
 
 import datetime as dt
-from typing import Callable
+from collections.abc import Callable
 
-from hil.families.fbs import faces
-from hil.families.fbs.address import parse_range
-from hil.families.fbs.device.plc import FbsPlc
-from hil.families.fbs.sim.plc import Emulator
-from hil.families.fbs import registers as reg
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile, plc_target
+from hil.bench.view import guarded_io
 from hil.core.timebase import Timebase, timebase_for
-from hil.families.fbs.transport.base import Transport
-from hil.families.fbs.transport.factory import open_transport
+from hil.families.fbs import faces
+from hil.families.fbs import registers as reg
+from hil.families.fbs.address import parse_range
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.faults import Faults
 from hil.families.fbs.identity import read_identity
 from hil.families.fbs.recovery import rig_steps, rig_targets
-from hil.families.fbs.transport.guard import GuardedTransport
-from hil.bench.view import guarded_io
-from hil.io.url import Target
-from hil.families.fbs.faults import Faults
 from hil.families.fbs.sim.build import build_emulator
-from hil.sim.wire_faults import WireFaults
+from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.transport.base import Transport
+from hil.families.fbs.transport.factory import open_transport
 from hil.families.fbs.transport.fatek import UNIT_TYPES
+from hil.families.fbs.transport.guard import GuardedTransport
+from hil.io.url import Target
+from hil.sim.wire_faults import WireFaults
 
 EmulatorBuilder = Callable[[Profile, dt.datetime], Emulator]
 

@@ -10,7 +10,8 @@ the FBs manual: RTC chapter 17, temperature module chapter 16, FUN86 chapter 20)
 from __future__ import annotations
 
 import datetime as dt
-from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Protocol, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Protocol
 
 from hil.bench.faces import BenchTime, BenchWithFaults, FaultInjector, Faults, PlcIO
 

@@ -49,7 +49,7 @@ class Faults:
     #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
     names = KNOWN_FAULTS
 
-    def __init__(self, bench: "Bench") -> None:
+    def __init__(self, bench: Bench) -> None:
         self.bench = bench
         self._made: dict[str, SensorBreakInjector] = {}
 

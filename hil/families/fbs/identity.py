@@ -11,6 +11,7 @@ reads no identity: None.
 from __future__ import annotations
 
 from typing import Any
+
 from hil.core.errors import HilError
 
 MARK = b"HIL"

@@ -26,10 +26,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from hil.families.fbs.address import Address, parse
-from hil.families.fbs.registers import point_bit
 from hil.bench.schema import Key, Section
 from hil.core.errors import InvalidValue, ProfileError
+from hil.families.fbs.address import Address, parse
+from hil.families.fbs.registers import point_bit
 
 MAX_POINTS = 32
 WORK_WORDS = 9  # WR … WR+8

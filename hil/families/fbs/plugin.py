@@ -3,22 +3,23 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from hil.bench.family import check_wire
 from hil.core.errors import InvalidValue
 from hil.families.fbs import entries  # noqa: F401 - its schemes, wires, report areas and plots (registered)
 from hil.families.fbs.address import parse_range
-from hil.families.fbs.transport.guard import expand
-from hil.families.fbs.transport.base import value_problem
-from hil.families.fbs.pid import PID, parse_pid
-from hil.families.fbs.sim.models.plant_config import PLANT, parse_plant
-from hil.families.fbs.rtc_profile import RTC, parse_rtc
-from hil.families.fbs.temperature import TEMPERATURE, parse_temperature
-from hil.families.fbs.injectors.config import FAULTS, check_fault_configs
-from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.bench import Bench
+from hil.families.fbs.injectors.config import FAULTS, check_fault_configs
+from hil.families.fbs.pid import PID, parse_pid
+from hil.families.fbs.rtc_profile import RTC, parse_rtc
+from hil.families.fbs.sim.build import build_emulator
+from hil.families.fbs.sim.models.plant_config import PLANT, parse_plant
+from hil.families.fbs.temperature import TEMPERATURE, parse_temperature
+from hil.families.fbs.transport.base import value_problem
 from hil.families.fbs.transport.factory import serve
+from hil.families.fbs.transport.guard import expand
 
 
 class FbsFamily:

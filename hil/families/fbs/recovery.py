@@ -11,20 +11,20 @@ transport rather than a bench.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping
+from typing import Any
 
 from hil.bench.guard import Recovery, RecoveryStep
 from hil.bench.replay import age_problem
 from hil.core.errors import HilError
 from hil.core.journal import COILS, Journal
 from hil.core.lock import lock_key
-from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.rig import GuardedRig, RigLink, rig_wire
 from hil.families.fbs.rig_identity import rig_refusal
 from hil.families.fbs.transport.guard import GuardedTransport
 from hil.io.url import parse_target
-
 
 #: a fault rig: its canonical endpoint (:func:`~hil.core.lock.lock_key`) and the unit id its URL names
 RigKey = tuple[str, int]
@@ -49,7 +49,7 @@ def rig_targets(profile: Any) -> dict[RigKey, frozenset[int]]:
     return rigs
 
 
-def rig_steps(rigs: Mapping[RigKey, frozenset[int]], not_the_plc: Callable[[str], "str | None"]) \
+def rig_steps(rigs: Mapping[RigKey, frozenset[int]], not_the_plc: Callable[[str], str | None]) \
         -> tuple[RecoveryStep, ...]:
     """The recovery step for a bench whose profile names ``rigs`` (:func:`rig_targets`); ``not_the_plc(target)``
     says why a rig may not be switched — it is the PLC under test, or that cannot be told
@@ -60,7 +60,7 @@ def rig_steps(rigs: Mapping[RigKey, frozenset[int]], not_the_plc: Callable[[str]
 
 
 def restore_rig_coils(journal: Journal, report: Recovery, by_hand: bool, rigs: Mapping[RigKey, frozenset[int]],
-                      not_the_plc: Callable[[str], "str | None"]) -> None:
+                      not_the_plc: Callable[[str], str | None]) -> None:
     """Each fault-rig coil a dead run switched, back to the state it held before (read back to verify) — only on
     one of the profile's ``rigs`` proven not to be the PLC under test, only a coil the profile lets that rig's
     injectors switch, and only while it still holds what the run switched it to — through the rig's guard

@@ -61,7 +61,7 @@ def point_bit(index: int) -> tuple[int, int]:
     return divmod(index, 16)
 
 
-def pair_bit(words: "tuple[int, ...] | list[int]", index: int) -> bool:
+def pair_bit(words: tuple[int, ...] | list[int], index: int) -> bool:
     """Point ``index``'s bit in a pair of 16-bit words (see :func:`point_bit`)."""
     word, bit = point_bit(index)
     return bool(words[word] >> bit & 1)

@@ -3,7 +3,8 @@ attach — a clock's drift and a PID loop's trace (``report.attach_drift(…)``,
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 from hil.core.registry import REPORT_AREAS, REPORT_PLOTS
 

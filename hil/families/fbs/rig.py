@@ -11,8 +11,9 @@ dead run left switched, through the same restore, only while a coil still holds 
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Iterable
+from typing import Any
 
 from hil.bench.guard import GuardedLink
 from hil.bench.lab.resolve import ranges
@@ -119,7 +120,7 @@ class CoilJournal:
     """The journal's ``coils`` section for one rig, as the guard's durable journal (``add_elements`` /
     ``drop_elements`` with coil keys; coil originals and states as booleans)."""
 
-    def __init__(self, journal: Journal, target: Target, unit: int, guard: "GuardedRig") -> None:
+    def __init__(self, journal: Journal, target: Target, unit: int, guard: GuardedRig) -> None:
         self.journal, self.target, self.unit, self.guard = journal, target, unit, guard
 
     @property
@@ -154,7 +155,7 @@ class GuardedRig(GuardedLink):
         if journal is not None:
             self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]
 
-    def coil(self, name: "int | str | RigCoil") -> RigCoil:
+    def coil(self, name: int | str | RigCoil) -> RigCoil:
         """The element for a coil number, its journal key, or itself."""
         if isinstance(name, RigCoil):
             return name

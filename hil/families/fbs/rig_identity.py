@@ -17,7 +17,8 @@ The proof reads the PLC's RTC read-out R4128–R4134 where the FBs Modbus map se
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from hil.core.errors import HilError, PlcErrorReply
 from hil.core.lock import lock_key

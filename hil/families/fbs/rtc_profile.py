@@ -7,8 +7,8 @@ import datetime as dt
 from dataclasses import dataclass
 from typing import Any
 
-from hil.core.errors import InvalidValue
 from hil.bench.schema import Key, Section
+from hil.core.errors import InvalidValue
 from hil.families.fbs.rtc_time import CHIP_NAMES
 
 CHIP_CODES = {name: code for code, name in CHIP_NAMES.items()}

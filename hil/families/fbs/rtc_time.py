@@ -8,8 +8,8 @@ raw register values on purpose, including invalid ones, so a suite can send "31 
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 from hil.core.errors import InvalidValue
 
@@ -58,7 +58,7 @@ class RtcTime:
 
     # -- conversions ----------------------------------------------------------------------------------------
     @classmethod
-    def from_datetime(cls, when: dt.datetime) -> "RtcTime":
+    def from_datetime(cls, when: dt.datetime) -> RtcTime:
         """The RTC registers for ``when`` (sub-seconds dropped, weekday from the date); year must be 2000–2099."""
         if not YEAR_BASE <= when.year <= YEAR_BASE + 99:
             raise InvalidValue(f"the FBs RTC holds years 2000–2099 only, not {when.year} ({when.isoformat()})")
@@ -71,7 +71,7 @@ class RtcTime:
         return dt.datetime(YEAR_BASE + self.year, self.month, self.day, self.hour, self.minute, self.second)
 
     @classmethod
-    def from_registers(cls, values: Sequence[int]) -> "RtcTime":
+    def from_registers(cls, values: Sequence[int]) -> RtcTime:
         """From the 7 values of R4128–R4134 (as read; unvalidated)."""
         if len(values) != 7:
             raise InvalidValue(f"R4128–R4134 are 7 registers, got {len(values)} values: {list(values)}")
@@ -85,7 +85,7 @@ class RtcTime:
         """R4135: hour in the high byte, minute in the low byte, binary (13:45 → 0x0D2D)."""
         return (self.hour & 0xFF) << 8 | (self.minute & 0xFF)
 
-    def with_weekday_from_date(self) -> "RtcTime":
+    def with_weekday_from_date(self) -> RtcTime:
         """The same time with the weekday the date implies (the date must be valid)."""
         return RtcTime(self.second, self.minute, self.hour, self.day, self.month, self.year,
                        weekday_of(self.year, self.month, self.day))

@@ -14,11 +14,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from hil.families.fbs.address import Address, parse
-from hil.families.fbs.registers import MAX_POINTS
 from hil.bench.schema import Key, Section, located
 from hil.core.errors import AddressError, InvalidValue, ProfileError
-from hil.families.fbs.address import WORD_BANKS
+from hil.families.fbs.address import WORD_BANKS, Address, parse
+from hil.families.fbs.registers import MAX_POINTS
 
 TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
 BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open

@@ -4,8 +4,7 @@
 
 from __future__ import annotations
 
-from hil.core.registry import (COMMON, FENCE, PROTOCOLS, SERIAL, Protocol, Scheme, Wire, register_scheme,
-                               register_wire)
+from hil.core.registry import COMMON, FENCE, PROTOCOLS, SERIAL, Protocol, Scheme, Wire, register_scheme, register_wire
 from hil.io.modbus_schemes import register_modbus
 
 #: the FBs's own protocol; a lab's wire that says nothing else speaks it

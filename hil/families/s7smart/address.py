@@ -7,8 +7,8 @@ words/double words as big-endian runs of bytes starting at the named byte (VW100
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable
 
 from hil.core.errors import AddressError
 
@@ -40,7 +40,7 @@ class S7Address:
         return f"{self.area}{'BWD'[(1, 2, 4).index(self.size)]}{self.byte}"
 
 
-def parse_s7(name: "str | S7Address") -> S7Address:
+def parse_s7(name: str | S7Address) -> S7Address:
     if isinstance(name, S7Address):
         return name
     text = str(name).strip().upper()

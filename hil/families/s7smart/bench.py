@@ -8,25 +8,24 @@ plugin — the bench lock, recovery first, the per-test restore — timebase and
 from __future__ import annotations
 
 import datetime as dt
-from typing import Callable
+from collections.abc import Callable
 
-from hil.core.errors import HilError, TargetError
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile, plc_target
+from hil.bench.view import guarded_io
+from hil.core.errors import HilError, TargetError
+from hil.core.timebase import Timebase, timebase_for
 from hil.families.s7smart import faces
 from hil.families.s7smart.address import parse_s7_range
 from hil.families.s7smart.device.plc import S7Plc
-from hil.families.s7smart.sim.emulator import S7Emulator
-from hil.families.s7smart.transport.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
-from hil.bench.view import guarded_io
 from hil.families.s7smart.layout import S7RtcLayout, S7Settings
 from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
-from hil.core.timebase import Timebase, timebase_for
-from hil.io.url import Target
+from hil.families.s7smart.sim.emulator import S7Emulator, build_s7_emulator
 from hil.families.s7smart.sim.serve_modbus import start_s7_modbus_tcp
-from hil.families.s7smart.transport.s7wire import DEFAULT_PORT, SnapS7Io
 from hil.families.s7smart.sim.serve_s7 import start_s7_server
-from hil.families.s7smart.sim.emulator import build_s7_emulator
+from hil.families.s7smart.transport.io import GuardedS7Io, LocalS7Io, ModbusS7Io, S7Io
+from hil.families.s7smart.transport.s7wire import DEFAULT_PORT, SnapS7Io
+from hil.io.url import Target
 
 S7EmulatorBuilder = Callable[[Profile, dt.datetime], S7Emulator]
 #: Emulator wires an S7 bench can use (the S7-200 SMART has no FATEK protocol).

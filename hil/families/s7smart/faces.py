@@ -4,7 +4,8 @@ them (:mod:`hil.bench.view`)."""
 from __future__ import annotations
 
 import datetime as dt
-from typing import TYPE_CHECKING, Any, Protocol, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 from hil.bench.faces import BenchView, PlcIO
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from hil.bench.schema import Key, Section
-from hil.core.errors import AddressError, InvalidValue, ProfileError
+from hil.core.errors import InvalidValue, ProfileError
 from hil.families.s7smart.address import S7Address, parse_s7, parse_s7_range
 
 #: CPUs without a real-time clock (no RTC, no super capacitor): the time is lost at every power cycle.

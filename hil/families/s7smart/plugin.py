@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from hil.bench.family import check_wire
 from hil.core.errors import ProfileError
 from hil.families.s7smart import wires as registered  # noqa: F401 - registers the family's schemes and wires (hil.core.registry)
-from hil.families.s7smart.layout import S7, S7RTC, check_s7_ranges, parse_s7_settings, parse_s7rtc
 from hil.families.s7smart.address import expand_s7
-from hil.families.s7smart.sim.emulator import build_s7_emulator
 from hil.families.s7smart.bench import S7Bench
+from hil.families.s7smart.layout import S7, S7RTC, check_s7_ranges, parse_s7_settings, parse_s7rtc
 from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
+from hil.families.s7smart.sim.emulator import build_s7_emulator
 from hil.families.s7smart.sim.serve_modbus import start_s7_modbus_tcp
 from hil.families.s7smart.sim.serve_s7 import start_s7_server
 

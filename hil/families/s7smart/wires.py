@@ -3,8 +3,7 @@
 
 from __future__ import annotations
 
-from hil.core.registry import (COMMON, PROTOCOLS, REPORT_AREAS, Protocol, Scheme, Wire, register_scheme,
-                               register_wire)
+from hil.core.registry import COMMON, PROTOCOLS, REPORT_AREAS, Protocol, Scheme, Wire, register_scheme, register_wire
 from hil.io.modbus_schemes import register_modbus
 
 PROTOCOLS.register("s7", Protocol("s7"))  # the CPU is named by rack and slot, and has no serial form

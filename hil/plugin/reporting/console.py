@@ -11,7 +11,8 @@ import contextlib
 import io
 import time
 from collections import Counter, defaultdict
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from rich import box
 from rich.console import Console, RenderableType

@@ -13,8 +13,9 @@ import io
 import os
 import re
 from collections import Counter, defaultdict
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes

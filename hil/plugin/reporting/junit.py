@@ -9,8 +9,8 @@ library's ElementTree.  No pytest internals are touched.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Iterable, Mapping
 
 TRACE_PROPERTY = "hil.trace_file"
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import enum
 from collections import Counter
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import PurePath
-from typing import Iterable, Mapping, Sequence
 
 from hil.core.measurement import Measurement
 from hil.core.registry import REPORT_AREAS
@@ -29,7 +29,7 @@ class Series:
     @classmethod
     def build(cls, name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]], *,
               columns: Sequence[str] | None = None, x: str | None = None, title: str = "", xlabel: str = "",
-              ylabel: str = "", secondary: Sequence[str] = (), secondary_label: str = "") -> "Series":
+              ylabel: str = "", secondary: Sequence[str] = (), secondary_label: str = "") -> Series:
         if isinstance(data, Mapping):
             cols = {str(k): [float(v) for v in vs] for k, vs in data.items()}
         else:

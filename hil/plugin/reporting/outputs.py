@@ -15,16 +15,17 @@ recorder, the requirement markers and the ``measure``/``report`` fixtures read i
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import pytest
 
 from hil.core.registry import Registry
-from hil.plugin.stash import BENCH_SESSION
 from hil.plugin.reporting.model import TestRecord
 from hil.plugin.reporting.verdict import Verdict
+from hil.plugin.stash import BENCH_SESSION
 
 
 class Moment(enum.Enum):

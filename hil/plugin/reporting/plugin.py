@@ -16,20 +16,20 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import re
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any
 
 import pytest
 
 from hil.core.registry import REPORT_PLOTS
+from hil.io.trace import WireTrace, format_trace
 from hil.plugin.reporting import builtin_outputs  # noqa: F401 - registers JUnit, HTML, records and the console
+from hil.plugin.reporting.console import WaitProgress
+from hil.plugin.reporting.identity import suite_properties
 from hil.plugin.reporting.model import Measurement, Series, TestOutcome, TestRecord, area_of
 from hil.plugin.reporting.outputs import RUN, Moment, RunRecord, emit
-from hil.plugin.reporting.verdict import Stops, Verdict, incomplete, status_of
-from hil.plugin.reporting.identity import suite_properties
-from hil.plugin.reporting.console import WaitProgress
-from hil.io.trace import WireTrace, format_trace
-from hil.plugin.reporting.verdict import describe
+from hil.plugin.reporting.verdict import Stops, Verdict, describe, incomplete, status_of
 from hil.plugin.requirements import PROPERTY as REQUIREMENTS
 from hil.plugin.safety import AS_FOUND, PLC_LEFT
 

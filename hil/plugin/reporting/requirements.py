@@ -10,7 +10,7 @@ short.
 from __future__ import annotations
 
 import html
-from typing import Iterable
+from collections.abc import Iterable
 
 from hil.plugin.reporting.model import TestOutcome, TestRecord
 from hil.plugin.requirements import load

@@ -167,7 +167,7 @@ class Stops:
         text = (f"{describe(exc)} during {when}{f' at {where}' if where else ''}: the test did not finish, so it has "
                 f"no result")
         now = time.time()
-        report = pytest.TestReport(nodeid, item.location, {k: 1 for k in item.keywords}, "failed", text, when,
+        report = pytest.TestReport(nodeid, item.location, dict.fromkeys(item.keywords, 1), "failed", text, when,
                                    duration=now - started, start=started, stop=now,
                                    user_properties=list(item.user_properties))
         self._made.add((nodeid, when))

@@ -8,16 +8,16 @@ from __future__ import annotations
 
 import csv
 import io as _io
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Iterable
+from typing import TYPE_CHECKING
 
 from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
-from hil.families.fbs.registers import signed16
-from hil.families.fbs.device.waiting import poll_until
-from hil.families.fbs.pid import (MAX_POINTS, OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig,
-                                  PidInstance, timing_seconds)
 from hil.families.fbs.address import parse
+from hil.families.fbs.device.waiting import poll_until
+from hil.families.fbs.pid import MAX_POINTS, OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig, PidInstance, timing_seconds
+from hil.families.fbs.registers import signed16
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
@@ -95,7 +95,7 @@ class Trace:
 
 
 class Pid:
-    def __init__(self, plc: "FbsPlc", config: PidConfig | None = None) -> None:
+    def __init__(self, plc: FbsPlc, config: PidConfig | None = None) -> None:
         self.plc = plc
         self._config = config
 
@@ -114,7 +114,7 @@ class Pid:
     def config(self, value: PidConfig | None) -> None:
         self._config = value
 
-    def side_effects(self, written: Iterable["Address"]) -> list["Address"]:
+    def side_effects(self, written: Iterable[Address]) -> list[Address]:
         """What the PLC rewrites itself because of these writes: on EN's rising edge FUN86 loads its default
         gains into PR/IR/DR of every point of the box (fbs-pid.md), so a test that only switches EN on still
         changes the tuned gains; while EN is on it writes OR, WR and drives Yn, and a later EN = 0 leaves them.
@@ -139,7 +139,7 @@ class Pid:
     #: on its first execution, which only a PLC just powered on shows: that test runs first, before any sets them.)
     WORKING_BLOCKS = ("sv", "os", "pr", "ir", "dr")
 
-    def idle_operands(self) -> list["Address"]:
+    def idle_operands(self) -> list[Address]:
         """The words of :attr:`WORKING_BLOCKS` of every box whose EN reads 0 now (one read of every EN): FUN86
         reads none of them while EN stays 0, and a test sets the ones it relies on before switching EN on, so
         a suite may keep them as working state between its tests (hil.plugin.working_state).  A box the ladder

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from hil.core.errors import HilError
 from hil.core.timebase import Timebase
-from hil.families.fbs.transport.base import PlcStatus, Transport
+from hil.families.fbs.device.pid import Pid
 from hil.families.fbs.device.rtc import Rtc
 from hil.families.fbs.device.temperature import Temperature
-from hil.families.fbs.device.pid import Pid
+from hil.families.fbs.transport.base import PlcStatus, Transport
 
 
 class FbsPlc:

@@ -9,8 +9,9 @@ from __future__ import annotations
 import datetime as dt
 import math
 import random
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
@@ -117,7 +118,7 @@ class Rtc:
     #: round trip takes longer; on the emulator it is what moves virtual time on between two polls).
     poll_interval = 1 / 500
 
-    def __init__(self, plc: "FbsPlc") -> None:
+    def __init__(self, plc: FbsPlc) -> None:
         self.plc = plc
         self.drift = Drift(plc, self)
         #: M1955 as last read here (None: not yet).  "An accepted set clears M1955" is the spec's [our choice]
@@ -328,7 +329,7 @@ class Rtc:
 class Drift:
     """``plc.rtc.drift``: measure the clock's rate error against the bench's reference time, and correct it."""
 
-    def __init__(self, plc: "FbsPlc", rtc: Rtc | None = None) -> None:
+    def __init__(self, plc: FbsPlc, rtc: Rtc | None = None) -> None:
         self.plc = plc
         self.rtc = rtc if rtc is not None else plc.rtc
         self._edge: float | None = None  # reference time of the last timed second transition

@@ -6,8 +6,7 @@ is for the suite to say, literally from the manual.
 
 from __future__ import annotations
 
-from typing import Callable
-
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -80,7 +79,7 @@ class WorkView:
 
 
 class Temperature:
-    def __init__(self, plc: "FbsPlc", config: TemperatureConfig | None = None) -> None:
+    def __init__(self, plc: FbsPlc, config: TemperatureConfig | None = None) -> None:
         self.plc = plc
         self._config = config
 

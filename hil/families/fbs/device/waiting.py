@@ -10,7 +10,7 @@ the limit itself.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from hil.core import evidence
 from hil.core.timebase import Timebase

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from hil.families.fbs.injectors.config import FAULT_ACTIONS
 from hil.families.fbs.injectors.injector import SensorBreakInjector

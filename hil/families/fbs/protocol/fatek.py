@@ -11,11 +11,12 @@ how to be rebuilt from request data (server side) and how to encode a reply.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar, Sequence
+from typing import ClassVar
 
-from hil.families.fbs.address import Address, DWORD, missing, parse, take_frame_name
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
+from hil.families.fbs.address import DWORD, Address, missing, parse, take_frame_name
 
 STX = 0x02
 ETX = 0x03
@@ -313,13 +314,13 @@ class Command:
     def request_data(self) -> str:
         return ""
 
-    def decode(self, data: str):  # noqa: ANN201 - each command returns its own shape
+    def decode(self, data: str):
         if data:
             raise MalformedFrame(f"command {self.code} reply should carry no data, got {data!r}")
         return None
 
     @classmethod
-    def from_request(cls, data: str) -> "Command":
+    def from_request(cls, data: str) -> Command:
         _expect_end(data, 0)
         return cls()
 
@@ -429,7 +430,7 @@ class RunStop(Command):
         return "1" if self.run else "0"
 
     @classmethod
-    def from_request(cls, data: str) -> "RunStop":
+    def from_request(cls, data: str) -> RunStop:
         if len(data) != 1:
             raise RequestError("4", f"RUN/STOP wants one character, '1' or '0', got {data!r}")
         if data not in ("0", "1"):
@@ -460,7 +461,7 @@ class BitAction(Command):
         return f"{self.action}{self.address.fatek_name}"
 
     @classmethod
-    def from_request(cls, data: str) -> "BitAction":
+    def from_request(cls, data: str) -> BitAction:
         if not data:
             raise RequestError("4", "command 42 needs an action and a bit")
         if data[0] not in "1234":
@@ -501,7 +502,7 @@ class _RangeCommand(Command):
         return _count(self.count) + self.address.fatek_name
 
     @classmethod
-    def from_request(cls, data: str) -> "_RangeCommand":
+    def from_request(cls, data: str) -> _RangeCommand:
         count = _parse_count(data[:2], f"command {cls.code}")
         address, end = _take_name(data, 2)
         _check_extent(cls, address, count)
@@ -509,7 +510,7 @@ class _RangeCommand(Command):
         return cls._checked(address, count)
 
     @classmethod
-    def _checked(cls, address: Address, count: int, *extra) -> "_RangeCommand":  # noqa: ANN002
+    def _checked(cls, address: Address, count: int, *extra) -> _RangeCommand:  # noqa: ANN002
         try:
             return cls(address, count, *extra)
         except AddressError as exc:
@@ -573,7 +574,7 @@ class _WriteRange(Command):
             _format_value(self.address, v) for v in self.values)
 
     @classmethod
-    def from_request(cls, data: str) -> "_WriteRange":
+    def from_request(cls, data: str) -> _WriteRange:
         count = _parse_count(data[:2], f"command {cls.code}")
         address, pos = _take_name(data, 2)
         _check_extent(cls, address, count)
@@ -614,7 +615,7 @@ class MixedRead(Command):
         return _count(len(self.addresses)) + "".join(a.fatek_name for a in self.addresses)
 
     @classmethod
-    def from_request(cls, data: str) -> "MixedRead":
+    def from_request(cls, data: str) -> MixedRead:
         count = _parse_count(data[:2], "command 48")
         pos, names = 2, []
         for _ in range(count):
@@ -661,7 +662,7 @@ class MixedWrite(Command):
         return _count(len(self.items)) + "".join(a.fatek_name + _format_value(a, v) for a, v in self.items)
 
     @classmethod
-    def from_request(cls, data: str) -> "MixedWrite":
+    def from_request(cls, data: str) -> MixedWrite:
         count = _parse_count(data[:2], "command 49")
         pos, items = 2, []
         for _ in range(count):
@@ -692,7 +693,7 @@ class Loopback(Command):
         return self.text
 
     @classmethod
-    def from_request(cls, data: str) -> "Loopback":
+    def from_request(cls, data: str) -> Loopback:
         if len(data) > 256:  # the dataclass check raises ValueError; a server must answer error 4 instead
             raise RequestError("4", f"loop-back text of {len(data)} characters exceeds 256")
         return cls(data)

@@ -16,11 +16,11 @@ A "unit" below is one coil or one holding register, written ``(table, pdu)``.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Iterable, Mapping
 
-from hil.families.fbs.address import LOW_WORD_FIRST, PACKED_16, PACKED_32, PAIRED_32, Address, parse
 from hil.core.errors import AddressError, InvalidValue, UnreachableAddress
+from hil.families.fbs.address import LOW_WORD_FIRST, PACKED_16, PACKED_32, PAIRED_32, Address, parse
 
 COIL, HOLDING = "coil", "holding"
 TABLES = (COIL, HOLDING)

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import datetime as dt
 
-from hil.families.fbs.sim.plc import Emulator
 from hil.bench.profile import Profile
-from hil.families.fbs.sim.models.rtc import RtcModel
 from hil.families.fbs.address import parse
-from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.pid import PidConfig
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.plant import ThermalPlant
-from hil.families.fbs.pid import PidConfig
+from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.sim.plc import Emulator
 
 
 def build_emulator(profile: Profile, epoch: dt.datetime) -> Emulator:

@@ -9,11 +9,21 @@ from a wire server or from the in-process transport alike — go through :meth:`
 from __future__ import annotations
 
 import copy
-from typing import Sequence
+from collections.abc import Sequence
 
 from hil.core.errors import PlcErrorReply
-from hil.families.fbs.address import (BIT_BANKS, COUNTER32_FIRST, LOW_WORD_FIRST, PACKED_16, PACKED_32, PAIRED_32, WORD_BANKS,
-                         Address, missing, parse)
+from hil.families.fbs.address import (
+    BIT_BANKS,
+    COUNTER32_FIRST,
+    LOW_WORD_FIRST,
+    PACKED_16,
+    PACKED_32,
+    PAIRED_32,
+    WORD_BANKS,
+    Address,
+    missing,
+    parse,
+)
 
 _COUNTER32_COUNT = 256 - COUNTER32_FIRST
 

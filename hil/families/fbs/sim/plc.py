@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from typing import Iterable
+from collections.abc import Iterable
 
 from hil.families.fbs.address import Address
 from hil.families.fbs.registers import POWER_ON_DEFAULTS

@@ -17,19 +17,19 @@ handled at scan boundaries, in order, with strict quantities, and its replies ca
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import SimDevice
 
 from hil.core.errors import InvalidValue
 from hil.families.fbs.registers import MAX_POINTS
+from hil.families.fbs.sim.models.plant import ThermalPlant
+from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.sim.plc import Emulator
 from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults
-from hil.families.fbs.sim.models.plant import ThermalPlant
-from hil.families.fbs.sim.models.temperature import TemperatureModel
 
 POINTS = MAX_POINTS  # one coil per temperature point, in each bank
 #: the rig's banks in coil order, each POINTS coils long: the fault each coil of the bank switches

@@ -29,19 +29,41 @@ import os
 import random
 import threading
 import tty
-from typing import Callable
+from collections.abc import Callable
 
 from hil.families.fbs.address import BIT_BANKS, WORD_BANKS
-from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.families.fbs.identity import emulator_status_tail
+from hil.families.fbs.protocol.fatek import (
+    BROADCAST,
+    BitAction,
+    ChecksumError,
+    Command,
+    DetailedStatus,
+    DetailedStatusReply,
+    FrameAssembler,
+    FrameError,
+    Loopback,
+    MixedRead,
+    MixedWrite,
+    ReadBits,
+    ReadEnableState,
+    ReadRegisters,
+    RequestError,
+    RunStop,
+    ShortStatus,
+    StatusReply,
+    WriteBits,
+    WriteRegisters,
+    decode_request,
+    encode_error,
+    encode_reply,
+    split_frame,
+)
 from hil.families.fbs.sim.memory import Memory, Refused
+from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.sim.pacing import LineRate, PacedSender
 from hil.sim.runtime import LoopThread, ServerHandle
 from hil.sim.wire_faults import FaultySender, WireFaults
-from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, ChecksumError, Command, DetailedStatus, DetailedStatusReply,
-                                FrameAssembler, FrameError, Loopback, MixedRead, MixedWrite, ReadBits,
-                                ReadEnableState, ReadRegisters, RequestError, RunStop, ShortStatus, StatusReply,
-                                WriteBits, WriteRegisters, decode_request, encode_error, encode_reply, split_frame)
 
 #: Sizes reported by command 53.  [our choice] ladder size of an FBs-MC (20 K words); the banks match memory.
 DETAILED_SIZES: dict[str, int] = {
@@ -351,7 +373,7 @@ def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
     return handle
 
 
-def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], "asyncio.Future | object"]) -> None:
+def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], asyncio.Future | object]) -> None:
     """Run a stop coroutine on the server loop; from the loop thread itself, schedule it instead of deadlocking."""
     if threading.current_thread() is runtime.thread:
         runtime.loop.create_task(coro_fn())

@@ -26,7 +26,7 @@ MAX_PEERS = 64
 class _Peer:
     """One client address: its bytes in order, its replies through its own fault plan's sender."""
 
-    def __init__(self, server: "_UdpServer", address: tuple) -> None:
+    def __init__(self, server: _UdpServer, address: tuple) -> None:
         self.server = server
         self.assembler: FrameAssembler = server.core.session()
         self.sender = FaultySender(server.faults, lambda data: server.send(data, address), corrupt_fatek)

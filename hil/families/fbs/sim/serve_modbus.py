@@ -11,22 +11,22 @@ wire faults, ``emulator.stats`` ``modbus_*`` counters — is the one server's.
 from __future__ import annotations
 
 import functools
-from typing import Callable
+from collections.abc import Callable
 
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import SimDevice
 
 from hil.families.fbs.address import WORD_BANKS as _WORD_BANKS
 from hil.families.fbs.address import Address
-from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, segments
+from hil.families.fbs.protocol.modbus_map import locate as _locate_uncached
 from hil.families.fbs.sim.memory import Memory
-from hil.sim.modbus_engine import Request, Tables, Values, build_device as build_engine_device, nothing, \
-    start_rtu_pty, start_tcp
+from hil.families.fbs.sim.plc import Emulator
+from hil.sim.modbus_engine import Request, Tables, Values, nothing, start_rtu_pty, start_tcp
+from hil.sim.modbus_engine import build_device as build_engine_device
 from hil.sim.pacing import LineRate
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults
-from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, segments
-from hil.families.fbs.protocol.modbus_map import locate as _locate_uncached
 
 #: (table, pdu) → (element, part): the map is fixed, and a walk of its segments per unit was a fifth of the cost
 #: of a request.  Addresses are immutable, so sharing them is safe.

@@ -8,14 +8,14 @@ serialises requests with a lock (one request on the wire at a time, as a serial 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING
 
-from hil.core.errors import InvalidValue
+from hil.core.errors import HilError, InvalidValue
 from hil.core.link import Link
-from hil.io.status import PlcStatus
 from hil.families.fbs.address import Address, parse, span
-from hil.core.errors import HilError
+from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -67,9 +67,9 @@ class Transport(Link, ABC):
     #: count with it.
     requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
-    emulator: "Emulator | None" = None
+    emulator: Emulator | None = None
     #: The emulator's server this transport talks to (an ``emulator+<wire>`` target), else None.
-    server: "ServerHandle | None" = None
+    server: ServerHandle | None = None
 
     # -- public API -------------------------------------------------------------------------------------------
     def read_words(self, address: NameLike, count: int = 1) -> list[int]:
@@ -205,7 +205,7 @@ class Transport(Link, ABC):
         return address
 
 
-def word_groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:  # noqa: ANN001
+def word_groups(items: list, budget: int, key: Callable = lambda a: a) -> Iterable[list]:
     """Split items into runs whose word cost (bit = 1, 16-bit = 1, 32-bit = 2) fits ``budget``."""
     group: list = []
     cost = 0

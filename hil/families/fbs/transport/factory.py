@@ -2,24 +2,24 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from hil.core.errors import InvalidValue
-from hil.families.fbs.sim.plc import Emulator
-from hil.sim.runtime import ServerHandle
-from hil.families.fbs.transport.base import Transport
-from hil.core.errors import TargetError
-from hil.io.url import Target, parse_target
-from hil.families.fbs.transport.modbus import ModbusTransport
-from hil.families.fbs.transport.fatek import FatekTransport
-from hil.families.fbs.transport.replay import RecordedPlc, load_recording
-from hil.sim.pacing import LineRate
-from hil.families.fbs.transport.local import LocalTransport
-from hil.families.fbs.sim.serve_fatek import start_fatek_tcp, start_fatek_pty
-from hil.families.fbs.sim.serve_modbus import start_modbus_tcp, start_modbus_rtu_pty
-from hil.families.fbs.sim.serve_fatek_udp import start_fatek_udp
-from hil.families.fbs.transport.udp import FatekUdpTransport
+from hil.core.errors import InvalidValue, TargetError
 from hil.core.registry import SCHEMES
+from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.sim.serve_fatek import start_fatek_pty, start_fatek_tcp
+from hil.families.fbs.sim.serve_fatek_udp import start_fatek_udp
+from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty, start_modbus_tcp
+from hil.families.fbs.transport.base import Transport
+from hil.families.fbs.transport.fatek import FatekTransport
+from hil.families.fbs.transport.local import LocalTransport
+from hil.families.fbs.transport.modbus import ModbusTransport
+from hil.families.fbs.transport.replay import RecordedPlc, load_recording
+from hil.families.fbs.transport.udp import FatekUdpTransport
+from hil.io.url import Target, parse_target
+from hil.sim.pacing import LineRate
+from hil.sim.runtime import ServerHandle
 
 if TYPE_CHECKING:
     from hil.sim.wire_faults import WireFaults
@@ -34,8 +34,8 @@ PTY_BAUDRATE = 115200
 
 
 def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
-                   timeout: float | None = None, wire_faults: "WireFaults | None" = None,
-                   line: "LineRate | None" = None) -> Transport:
+                   timeout: float | None = None, wire_faults: WireFaults | None = None,
+                   line: LineRate | None = None) -> Transport:
     """Open the target named by ``url``.
 
     For ``emulator…`` targets a fresh in-process emulator is built by ``emulator_factory`` (default: a plain
@@ -88,7 +88,7 @@ def _open_replay(target: Target, params: dict) -> Transport:
     return transport
 
 
-def emulator_line(target: Target, line: "LineRate | None" = None) -> "LineRate | None":
+def emulator_line(target: Target, line: LineRate | None = None) -> LineRate | None:
     """The pace of an emulator serial wire: the URL's ``baudrate`` (with its frame, else the protocol's usual one:
     FATEK 7E1, Modbus RTU 8E1), else ``line``; None (unpaced) for every other wire or when neither says."""
     if target.scheme not in ("emulator+fatek-serial", "emulator+modbus-rtu"):
@@ -103,7 +103,7 @@ def emulator_line(target: Target, line: "LineRate | None" = None) -> "LineRate |
 
 
 def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
-                   wire_faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> Transport:
+                   wire_faults: WireFaults | None = None, line: LineRate | None = None) -> Transport:
     wire = target.scheme.partition("+")[2]
     if not wire:
         return LocalTransport(emulator)
@@ -124,7 +124,7 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
 
 
 def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
-          faults: "WireFaults | None" = None, line: "LineRate | None" = None) -> ServerHandle:
+          faults: WireFaults | None = None, line: LineRate | None = None) -> ServerHandle:
     """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
     wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
     wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
@@ -144,7 +144,7 @@ def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0,
     return handle
 
 
-def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, line: "LineRate | None",
+def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, line: LineRate | None,
                 fence: str) -> Transport:
     settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
                                             stopbits=line.stopbits)

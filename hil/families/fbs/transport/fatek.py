@@ -20,17 +20,37 @@ from __future__ import annotations
 
 import os
 import time
-from typing import TYPE_CHECKING, Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING
 
 import serial
 
-from hil.families.fbs.address import Address
 from hil.core.errors import InvalidValue, PlcErrorReply, ProtocolError, ReplyTimeout, TransportError
-from hil.families.fbs.protocol.fatek import (BROADCAST, BitAction, Command, DetailedStatus, DetailedStatusReply, FrameAssembler,
-                                FrameError, Loopback, MixedRead, MixedWrite, ReadBits, ReadEnableState,
-                                ReadRegisters, RunStop, ShortStatus, StatusReply, WriteBits, WriteRegisters,
-                                check_reply, describe_frame, encode_request, show_frame)
-from hil.families.fbs.address import parse
+from hil.families.fbs.address import Address, parse
+from hil.families.fbs.protocol.fatek import (
+    BROADCAST,
+    BitAction,
+    Command,
+    DetailedStatus,
+    DetailedStatusReply,
+    FrameAssembler,
+    FrameError,
+    Loopback,
+    MixedRead,
+    MixedWrite,
+    ReadBits,
+    ReadEnableState,
+    ReadRegisters,
+    RunStop,
+    ShortStatus,
+    StatusReply,
+    WriteBits,
+    WriteRegisters,
+    check_reply,
+    describe_frame,
+    encode_request,
+    show_frame,
+)
 from hil.families.fbs.transport.base import Limits, NameLike, PlcStatus, Transport, check_value
 from hil.families.fbs.transport.plan import plan
 from hil.io.line import Line, open_line
@@ -63,7 +83,7 @@ class FatekTransport(Transport):
     limits = Limits(words=64, bits=256, mixed_read_words=64, mixed_write_words=32)
     trace_kind = "fatek"  # how wire traces decode its frames (hil.io.trace.DESCRIBERS)
     #: the recorded PLC a ``replay+fatek://`` target talks to (``.replay.verify()`` after use), else None
-    replay: "RecordedPlc | None" = None
+    replay: RecordedPlc | None = None
 
     def __init__(self, port_url: str, *, station: int = 1, baudrate: int = 9600, bytesize: int = 7,
                  parity: str = "E", stopbits: int = 1, timeout: float = 1.0, retries: int = 2,

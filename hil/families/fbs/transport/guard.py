@@ -13,14 +13,14 @@ not journaled: the clock's own declaration (:meth:`hil.families.fbs.device.rtc.R
 
 from __future__ import annotations
 
-from typing import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 from hil.bench.guard import GuardedLink
 from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
-from hil.core.errors import HilError, TransportError, WriteRefused
+from hil.core.errors import HilError, WriteRefused
 from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, run_left
-from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
+from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.transport.base import NameLike, Transport, check_value, value_problem
 
 

@@ -8,7 +8,7 @@ holding registers via FC03/FC16 — split at the protocol limits (2000/1968 coil
 
 from __future__ import annotations
 
-from typing import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 from hil.families.fbs.address import Address, parse, span
 from hil.families.fbs.protocol import modbus_map as mm
@@ -40,7 +40,7 @@ class ModbusTransport(OverModbusWire, Transport):
     # -- constructors -----------------------------------------------------------------------------------------
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0,
-            retries: int = 2) -> "ModbusTransport":
+            retries: int = 2) -> ModbusTransport:
         """Modbus/TCP to ``host:port`` (an FBs Ethernet module serves port 502, at most 8 clients)."""
         hint = (f"is the PLC powered and reachable at {host}:{port} (ping it), does its Ethernet module serve "
                 f"Modbus/TCP on that port, and are fewer than 8 clients connected?")
@@ -49,7 +49,7 @@ class ModbusTransport(OverModbusWire, Transport):
 
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
-            unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble") -> "ModbusTransport":
+            unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble") -> ModbusTransport:
         """Modbus RTU on serial ``device`` (a path such as /dev/ttyUSB0 or a pty, or a pyserial URL such as an RFC
         2217 server's ``rfc2217://HOST:PORT``); ``fence="reads"``: the line may repeat replies (every read fenced)."""
         hint = ("The PLC port must be in Modbus RTU slave mode (R4047, e.g. 5502H for port 1; "

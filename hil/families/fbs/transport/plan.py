@@ -14,12 +14,12 @@ is planned; writes keep their order (a restore writes what it must first).
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
 
 from hil.core.errors import AddressError
 from hil.families.fbs.address import Address
-from hil.families.fbs.protocol.fatek import (ReadBits, ReadRegisters, WriteBits, WriteRegisters, encode_request)
+from hil.families.fbs.protocol.fatek import ReadBits, ReadRegisters, WriteBits, WriteRegisters, encode_request
 from hil.families.fbs.transport.base import Limits, word_groups
 
 #: characters a round trip costs beyond its frames' own: about a scan (10 ms ≈ 10 characters at 9600 bit/s)

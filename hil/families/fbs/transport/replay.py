@@ -141,7 +141,7 @@ class RecordedPlc:
         while not self._stop.is_set():
             try:
                 conn, _ = self._listener.accept()
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 continue
             except OSError:
                 return
@@ -154,7 +154,7 @@ class RecordedPlc:
         while not self._stop.is_set():
             try:
                 data = conn.recv(4096)
-            except (TimeoutError, socket.timeout):
+            except TimeoutError:
                 continue
             except OSError:
                 return

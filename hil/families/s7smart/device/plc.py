@@ -9,16 +9,16 @@ buffer.  Outcomes are reported, never judged: suites decide what is right.
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Callable, Iterable
 
 from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
-from hil.families.s7smart.protocol import timebuf
-from hil.families.s7smart.address import S7Address, units
-from hil.families.s7smart.transport.io import S7Io
-from hil.families.s7smart.layout import S7RtcLayout
 from hil.core.timebase import Timebase, nearest_whole_second, next_whole_second, wait_until
+from hil.families.s7smart.address import S7Address, units
+from hil.families.s7smart.layout import S7RtcLayout
+from hil.families.s7smart.protocol import timebuf
+from hil.families.s7smart.transport.io import S7Io
 from hil.io.status import PlcStatus
 
 
@@ -41,7 +41,7 @@ class ClockResult:
 
 
 class S7Rtc:
-    def __init__(self, plc: "S7Plc", layout: S7RtcLayout) -> None:
+    def __init__(self, plc: S7Plc, layout: S7RtcLayout) -> None:
         self.plc = plc
         self.layout = layout
 

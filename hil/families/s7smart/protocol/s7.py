@@ -16,9 +16,9 @@ def snap7_module() -> Any:
     """python-snap7, or a HilError saying what to install."""
     try:
         import snap7
-        import snap7.client  # noqa: F401 - the submodules are what we use
-        import snap7.error  # noqa: F401
-        import snap7.type  # noqa: F401
+        import snap7.client
+        import snap7.error
+        import snap7.type
     except ImportError:
         raise HilError(INSTALL_HINT) from None
     return snap7

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import calendar
 import datetime as dt
-from typing import Sequence
+from collections.abc import Sequence
 
 from hil.core.errors import InvalidValue
 

@@ -9,10 +9,10 @@ import datetime as dt
 import math
 from typing import TYPE_CHECKING
 
-from hil.sim.model import Model
-from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import S7Address, parse_s7
 from hil.families.s7smart.layout import S7RtcLayout
+from hil.families.s7smart.protocol import timebuf
+from hil.sim.model import Model
 
 if TYPE_CHECKING:
     from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
@@ -86,7 +86,7 @@ class RtcTestProgram(Model):
         self._previous: dict[S7Address, int] = {}
 
     def power_on(self, emu: S7Emulator) -> None:
-        self._previous = {t: 0 for t in self.layout.triggers()}
+        self._previous = dict.fromkeys(self.layout.triggers(), 0)
 
     def power_cycle(self, emu: S7Emulator, *, backup_expired: bool) -> None:
         self.power_on(emu)
@@ -96,7 +96,7 @@ class RtcTestProgram(Model):
         return bool(now and not previous)
 
     def scan(self, emu: S7Emulator) -> None:
-        mem: "S7Memory" = emu.memory  # type: ignore[assignment]
+        mem: S7Memory = emu.memory  # type: ignore[assignment]
         clock = emu.model(S7Clock)
         if clock is None:
             return

@@ -12,11 +12,12 @@ import copy
 import datetime as dt
 from typing import TYPE_CHECKING
 
-from hil.sim.engine import Engine
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
-# the clock model (what mutation testing judges: benchmarks/mutation.py), re-exported
-from hil.families.s7smart.sim.clock import RtcTestProgram, S7Clock  # noqa: F401
 from hil.families.s7smart.layout import S7Settings
+
+# the clock model (what mutation testing judges: benchmarks/mutation.py), re-exported
+from hil.families.s7smart.sim.clock import RtcTestProgram, S7Clock
+from hil.sim.engine import Engine
 
 if TYPE_CHECKING:
     from hil.bench.profile import Profile
@@ -40,14 +41,14 @@ class S7Memory:
             raise IndexError(f"{area}B{first}…+{len(data)} is outside {area} memory")
         bank[first:first + len(data)] = data
 
-    def get(self, name: "str | S7Address") -> int:
+    def get(self, name: str | S7Address) -> int:
         a = parse_s7(name)
         bank = self.areas[a.area]
         if a.is_bit:
             return bank[a.byte] >> a.bit & 1  # type: ignore[operator]
         return int.from_bytes(bank[a.byte:a.end], "big")
 
-    def set(self, name: "str | S7Address", value: int) -> None:
+    def set(self, name: str | S7Address, value: int) -> None:
         a = parse_s7(name)
         bank = self.areas[a.area]
         if a.is_bit:
@@ -85,7 +86,7 @@ class S7Emulator(Engine):
                     model.power_on(self)
 
 
-def build_s7_emulator(profile: "Profile", epoch: dt.datetime) -> S7Emulator:
+def build_s7_emulator(profile: Profile, epoch: dt.datetime) -> S7Emulator:
     """The emulator an S7 profile describes: CPU (with or without RTC), clock start, and the [s7rtc] program."""
     settings: S7Settings = profile.sections["s7"]
     emulator = S7Emulator(scan_time=profile.emulator.scan_time_ms / 1000, station=profile.station,

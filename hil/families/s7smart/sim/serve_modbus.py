@@ -13,11 +13,11 @@ from __future__ import annotations
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import SimDevice
 
+from hil.families.s7smart.protocol.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
+from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
 from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults
-from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
-from hil.families.s7smart.protocol.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
 
 _BIT_FCS = {1: "Q", 2: "I", 5: "Q", 15: "Q"}
 _REGISTER_FCS = (3, 6, 16)
@@ -77,7 +77,7 @@ def _bits(area: str, start_address: int, address: int, count: int, registers: li
 
 
 def _holding(modbus_map: S7ModbusMap, start_address: int, address: int, count: int, registers: list[int],
-             set_values):  # noqa: ANN001, ANN202
+             set_values):  # noqa: ANN001
     first_byte = modbus_map.v_byte(address)
     if set_values is not None:
         data = from_words([int(v) for v in set_values])

@@ -17,10 +17,10 @@ import logging
 import struct
 from typing import Any
 
-from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.address import AREA_BYTES
-from hil.families.s7smart.sim.emulator import S7Clock, S7Emulator
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.protocol.s7 import V_DB, snap7_module
+from hil.families.s7smart.sim.emulator import S7Clock, S7Emulator
 from hil.sim.runtime import ServerHandle
 
 # S7 item return codes (the data section of a read/write reply)

@@ -17,15 +17,22 @@ from __future__ import annotations
 
 import datetime as dt
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Iterable, Protocol, Sequence, runtime_checkable
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from hil.bench.guard import GuardedLink
-from hil.core.link import Link
 from hil.core.errors import InvalidValue, TransportError
-from hil.families.s7smart.faces import S7IO
+from hil.core.link import Link
 from hil.families.s7smart.address import S7Address, expand_s7, parse_s7, units
-from hil.families.s7smart.protocol.modbus_map import (MAX_READ_BITS, MAX_READ_REGISTERS, MAX_WRITE_REGISTERS, S7ModbusMap,
-                                    from_words, to_words)
+from hil.families.s7smart.faces import S7IO
+from hil.families.s7smart.protocol.modbus_map import (
+    MAX_READ_BITS,
+    MAX_READ_REGISTERS,
+    MAX_WRITE_REGISTERS,
+    S7ModbusMap,
+    from_words,
+    to_words,
+)
 from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, OverModbusWire, Probe
 from hil.io.status import PlcStatus
 
@@ -36,7 +43,7 @@ if TYPE_CHECKING:
 class S7Io(Link, ABC):
     """Base: name helpers over four primitives.  One request on the wire at a time (a lock)."""
 
-    emulator: "S7Emulator | None" = None
+    emulator: S7Emulator | None = None
 
     # -- public API ---------------------------------------------------------------------------------------------
     def read_v(self, first: int, count: int) -> bytes:
@@ -48,7 +55,7 @@ class S7Io(Link, ABC):
         with self._lock:
             self._write_v(first, data)
 
-    def read(self, name: "str | S7Address") -> int:
+    def read(self, name: str | S7Address) -> int:
         """One operand: a bit (0/1), VB, VW (unsigned, big-endian) or VD; Q/I bits."""
         a = parse_s7(name)
         with self._lock:
@@ -59,7 +66,7 @@ class S7Io(Link, ABC):
             raw = self._read_v(a.byte, a.size)
             return raw[0] >> a.bit & 1 if a.is_bit else int.from_bytes(raw, "big")  # type: ignore[operator]
 
-    def write(self, name: "str | S7Address", value: int) -> None:
+    def write(self, name: str | S7Address, value: int) -> None:
         a = parse_s7(name)
         value = int(value)
         top = 1 if a.is_bit else (1 << 8 * a.size) - 1
@@ -77,7 +84,7 @@ class S7Io(Link, ABC):
             else:
                 self._write_v(a.byte, value.to_bytes(a.size, "big"))
 
-    def read_bits(self, name: "str | S7Address", count: int = 1) -> list[int]:
+    def read_bits(self, name: str | S7Address, count: int = 1) -> list[int]:
         a = parse_s7(name)
         if not a.is_bit or a.area not in ("Q", "I"):
             raise InvalidValue(f"{a}: read_bits reads Q or I bits")
@@ -88,7 +95,7 @@ class S7Io(Link, ABC):
         with self._lock:
             return self._status()
 
-    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+    def unreachable_reason(self, name: str | S7Address) -> str | None:
         parse_s7(name)
         return None
 
@@ -128,7 +135,7 @@ class ClockedS7Io(Protocol):
 class LocalS7Io(S7Io):
     """Direct calls into an in-process S7 emulator, each serviced at a scan boundary."""
 
-    def __init__(self, emulator: "S7Emulator") -> None:
+    def __init__(self, emulator: S7Emulator) -> None:
         super().__init__("s7-200smart emulator (in-process)")
         self.emulator = emulator
 
@@ -173,7 +180,7 @@ class ModbusS7Io(OverModbusWire, S7Io):
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0, retries: int = 2,
-            modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
+            modbus_map: S7ModbusMap = S7ModbusMap()) -> ModbusS7Io:
         hint = (f"is the CPU reachable at {host}:{port}, and does its program call MBUS_SLAVE (Modbus TCP server "
                 f"instruction) with this unit id and HoldStart/MaxHold matching the profile's [s7]?")
         description = f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})"
@@ -184,14 +191,14 @@ class ModbusS7Io(OverModbusWire, S7Io):
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble",
-            modbus_map: S7ModbusMap = S7ModbusMap()) -> "ModbusS7Io":
+            modbus_map: S7ModbusMap = S7ModbusMap()) -> ModbusS7Io:
         hint = "Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
                                   label="S7-200 SMART map", describe=_names(modbus_map), fence=fence),
                    modbus_map)
 
-    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+    def unreachable_reason(self, name: str | S7Address) -> str | None:
         a = parse_s7(name)
         try:
             if a.area == "V":
@@ -278,7 +285,7 @@ class GuardedS7Io(GuardedLink):
         super().__init__(inner, expand_s7(writable))
 
     # -- the guard's address model: bytes, and Q/I bits ---------------------------------------------------------
-    def split(self, name: "str | S7Address") -> list[S7Address]:
+    def split(self, name: str | S7Address) -> list[S7Address]:
         return units(parse_s7(name))
 
     def keys(self, elements: list[S7Address]) -> list[S7Address]:
@@ -310,7 +317,7 @@ class GuardedS7Io(GuardedLink):
         names = [S7Address("V", b) for b in range(first, first + len(data))]
         self.guarded(names, lambda: self.inner.write_v(first, data), dict(zip(names, data)))
 
-    def write(self, name: "str | S7Address", value: int) -> None:
+    def write(self, name: str | S7Address, value: int) -> None:
         a = parse_s7(name)
         # what each journaled element will hold (big-endian bytes; a Q bit itself); a V bit changes its byte by a
         # read-modify-write, so that byte's new value is not known here
@@ -331,7 +338,7 @@ class GuardedS7Io(GuardedLink):
         clocked = self._clocked()
         self.setting_clock(lambda: clocked.set_cpu_clock(when))
 
-    def _clocked(self) -> "ClockedS7Io":
+    def _clocked(self) -> ClockedS7Io:
         if not isinstance(self.inner, ClockedS7Io):
             raise TransportError(f"{self.inner.description} has no clock functions (the S7 protocol has them)")
         return self.inner
@@ -340,10 +347,10 @@ class GuardedS7Io(GuardedLink):
     def read_v(self, first: int, count: int) -> bytes:
         return self.inner.read_v(first, count)
 
-    def read(self, name: "str | S7Address") -> int:
+    def read(self, name: str | S7Address) -> int:
         return self.inner.read(name)
 
-    def read_bits(self, name: "str | S7Address", count: int = 1) -> list[int]:
+    def read_bits(self, name: str | S7Address, count: int = 1) -> list[int]:
         return self.inner.read_bits(name, count)
 
 

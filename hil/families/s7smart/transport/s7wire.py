@@ -12,7 +12,8 @@ and the S7 error.  python-snap7 is an optional extra (``pip install 'hil[s7]'``)
 from __future__ import annotations
 
 import datetime as dt
-from typing import Any, Callable, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 from hil.core.errors import HilError, TransportError
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
@@ -135,7 +136,7 @@ class SnapS7Io(S7Io):
         return PlcStatus(running=running, flags=["RUN"] if running else [], via="s7",
                          identity={"transport": self.description, "cpu state": str(state)})
 
-    def unreachable_reason(self, name: "str | S7Address") -> str | None:
+    def unreachable_reason(self, name: str | S7Address) -> str | None:
         a = parse_s7(name)
         if a.area not in ("V", "Q", "I"):
             return f"{a} is not reached over this wire (V memory as DB{V_DB}, Q and I bits)"

@@ -31,25 +31,27 @@ state between scans is in models/fun86_state.py.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hil.families.fbs.address import Address, parse
-from hil.sim.columns import signed16 as signed
-from hil.sim.timing import INSTANT, Timing
-from hil.sim.model import Model, scan_grid
 from hil.families.fbs import registers as reg
+from hil.families.fbs.address import Address, parse
 from hil.families.fbs.pid import OUTPUT_FULL, PidConfig, PidInstance, timing_seconds, valid_sn_zn
-from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
-# (the plant's waveforms, which only the emulator needs, model no manual statement: in a module of their own)
-from hil.families.fbs.sim.models.fun86_waveforms import PublishedWaveforms
 from hil.families.fbs.sim.models.fun86_state import InstanceState, View
 
+# (the plant's waveforms, which only the emulator needs, model no manual statement: in a module of their own)
+from hil.families.fbs.sim.models.fun86_waveforms import PublishedWaveforms
+from hil.families.fbs.temperature import EXEC_MEASURING, TemperatureConfig, decode_start
+from hil.sim.columns import signed16 as signed
+from hil.sim.model import Model, scan_grid
+from hil.sim.timing import INSTANT, Timing
+
 if TYPE_CHECKING:
-    from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
+    from hil.families.fbs.sim.plc import Emulator
 
 _R = {name: parse(name).index for name in (reg.PID_SOURCE_KEY, reg.PID_SOURCE, reg.PID_TIMING,
                                            reg.HEATER_LOOP_PERCENT, reg.HEATER_LOOP_SECONDS, reg.PREALARM_LIMIT,
@@ -85,14 +87,14 @@ class Fun86Model(PublishedWaveforms, Model):
         self.config = config
         self.temperature = temperature
         self.states = [InstanceState() for _ in config.instances]
-        self._emu: "Emulator | None" = None
+        self._emu: Emulator | None = None
         #: the temperature model's next measurement time (set by build_emulator): PV changes only there
         self.next_measurement: Callable[[], float] | None = None
         #: set by the thermal plant when it integrates the PWM waveforms exactly: no scans at PWM edges
         self.pwm_exact = False
         self.init_waveforms()
         self._wiring: list[tuple] = []  # see _scan_at_rest
-        self._wiring_for: "Memory | None" = None
+        self._wiring_for: Memory | None = None
         #: when the PID steps begin after EN rises (hil.sim.timing; build_emulator sets the emulator's)
         self.phases: Timing = INSTANT
 
@@ -105,14 +107,14 @@ class Fun86Model(PublishedWaveforms, Model):
         """(PID interval, PWM period) in seconds from R4005 (low byte, high byte)."""
         return float(timing_seconds(r4005 & 0xFF)), float(timing_seconds(r4005 >> 8))
 
-    def enabled(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
+    def enabled(self, mem: Memory, point: np.ndarray) -> np.ndarray:
         """Points' bits in R4012 (points 0–15) or R4013 (16–31)."""
         first, point = _R[reg.PID_ENABLE_LOW], np.asarray(point)
         words = np.array(mem.words["R"][first:first + int(point.max(initial=0)) // 16 + 1])  # (a point past 31 too)
         return (words[point // 16] >> (point % 16) & 1).astype(bool)
 
     @staticmethod
-    def enable_words(mem: "Memory", sn: int, zn: int) -> list[int]:
+    def enable_words(mem: Memory, sn: int, zn: int) -> list[int]:
         """The enable words (R4012, R4013, …) that hold the bits of points Sn … Sn + Zn − 1."""
         first = _R[reg.PID_ENABLE_LOW]
         return mem.words["R"][first:first + (sn + zn - 1) // 16 + 1]
@@ -132,7 +134,7 @@ class Fun86Model(PublishedWaveforms, Model):
     def prealarm(self, count: np.ndarray) -> np.ndarray:
         return count >= PREALARM_SCANS
 
-    def loop_threshold(self, mem: "Memory") -> int:
+    def loop_threshold(self, mem: Memory) -> int:
         """R4006: the heater-loop check's high output, in %."""
         return mem.words["R"][_R[reg.HEATER_LOOP_PERCENT]]
 
@@ -177,14 +179,14 @@ class Fun86Model(PublishedWaveforms, Model):
         return np.minimum(np.maximum(np.rint(proportional + integral + derivative), _ZERO), _FULL), integral
 
     # -- helpers ---------------------------------------------------------------------------------------------------
-    def sn_zn(self, mem: "Memory", inst: PidInstance) -> tuple[int, int]:
+    def sn_zn(self, mem: Memory, inst: PidInstance) -> tuple[int, int]:
         if inst.settable:
             words = mem.words
             return (reg.signed16(words[inst.sn_register.kind][inst.sn_register.index]),
                     reg.signed16(words[inst.zn_register.kind][inst.zn_register.index]))
         return inst.sn, inst.zn
 
-    def readings_start(self, mem: "Memory") -> Address | None:
+    def readings_start(self, mem: Memory) -> Address | None:
         """Where PVs are read: R4004 when R4003 = A55AH and R4004 names R0–R3839 / D0–D3999, else the table's."""
         words = mem.words["R"]
         if words[_R[reg.PID_SOURCE_KEY]] == SOURCE_KEY:
@@ -195,7 +197,7 @@ class Fun86Model(PublishedWaveforms, Model):
             return None
         return decode_start(mem.words[self.temperature.table.kind][self.temperature.table.index + 2])
 
-    def all_measured(self, mem: "Memory") -> bool:
+    def all_measured(self, mem: Memory) -> bool:
         if self.temperature is None:
             return False
         sr = self.temperature.table
@@ -212,10 +214,10 @@ class Fun86Model(PublishedWaveforms, Model):
         return True
 
     # -- the engine ---------------------------------------------------------------------------------------------
-    def power_on(self, emu: "Emulator") -> None:
+    def power_on(self, emu: Emulator) -> None:
         self._emu = emu
 
-    def scan(self, emu: "Emulator") -> None:
+    def scan(self, emu: Emulator) -> None:
         mem = emu.memory
         if self._scan_at_rest(mem):
             return
@@ -257,7 +259,7 @@ class Fun86Model(PublishedWaveforms, Model):
         warning: it can run on unwatched."""
         return bool(np.count_nonzero((st.prealarm > 0) & (st.prealarm < 4 * PREALARM_SCANS)))
 
-    def next_pwm_edge(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float) -> float:
+    def next_pwm_edge(self, mem: Memory, inst: PidInstance, st: InstanceState, now: float) -> float:
         """The next PWM edge of the instance's outputs: the next cycle's start, or a point's ON time ending."""
         cycle = self.cycle_start(st, now)
         edges = cycle + self.on_times(st, np.array(mem.words[inst.or_.kind][inst.or_.index:inst.or_.index + st.zn]))
@@ -269,7 +271,7 @@ class Fun86Model(PublishedWaveforms, Model):
         stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
         return max(now, float(scan_grid(due, self._emu.scan_time)))
 
-    def _scan_at_rest(self, mem: "Memory") -> bool:
+    def _scan_at_rest(self, mem: Memory) -> bool:
         """The scan of every instance when all are at rest — EN off, and never ran or already stopped with no
         points (the default bench's case, on every request): of _scan_instance then only ERR := 0 and ALM := 0
         change anything, and _drop_waveforms over zn = 0 outputs does nothing.  False (nothing done) otherwise."""
@@ -311,7 +313,7 @@ class Fun86Model(PublishedWaveforms, Model):
         both = np.bitwise_or.reduce(np.where(bits[None, :], st.weights, 0), axis=-1) & 0xFFFF
         return both[0], both[1]
 
-    def _scan_instance(self, emu: "Emulator", mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+    def _scan_instance(self, emu: Emulator, mem: Memory, inst: PidInstance, st: InstanceState) -> None:
         now = emu.now
         bits = mem.bits
         en = bool(bits[inst.en.kind][inst.en.index])
@@ -406,7 +408,7 @@ class Fun86Model(PublishedWaveforms, Model):
         words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*view.normal_words, *view.warning_words)]
         bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, bool(np.count_nonzero(view.warning))) else 0
 
-    def _view(self, mem: "Memory", inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
+    def _view(self, mem: Memory, inst: PidInstance, st: InstanceState, start: Address, limit: int, high_at: int,
               heating: bool) -> View:
         """The instance's registers as this scan reads them — the last scan's view while they are unchanged (the
         arrays of those unchanged otherwise)."""
@@ -434,7 +436,7 @@ class Fun86Model(PublishedWaveforms, Model):
                         every, slice(None) if every else idx, waves=view.waves if same_output else None)
         return st.view
 
-    def drive_outputs(self, mem: "Memory", inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
+    def drive_outputs(self, mem: Memory, inst: PidInstance, st: InstanceState, now: float, enabled: np.ndarray,
                output: np.ndarray, view: View | None = None) -> None:
         """Yn… at ``now`` from the outputs (ON for OR/16383 of each PWM period), and their published waveforms
         (``view``: the registers as at the last scan — its waveforms, if known, stand)."""
@@ -477,7 +479,7 @@ class Fun86Model(PublishedWaveforms, Model):
         start that lands a rounding error early is in that cycle (outputs_at and next_event agree on it)."""
         return st.started + math.floor((now - st.started) / st.pwm + 1e-9) * st.pwm
 
-    def _outputs_off(self, mem: "Memory", inst: PidInstance, st: InstanceState) -> None:
+    def _outputs_off(self, mem: Memory, inst: PidInstance, st: InstanceState) -> None:
         self._drop_waveforms(inst, st)
         ys = mem.bits[inst.yn.kind]
         ys[inst.yn.index:inst.yn.index + st.zn] = bytes(st.zn)

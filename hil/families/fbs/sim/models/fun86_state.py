@@ -34,7 +34,7 @@ class InstanceState:
     #: (on times, Y when on, Y when off) as last published in the waveforms (None: to publish whole)
     published: tuple | None = None
     #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
-    view: "View | None" = None
+    view: View | None = None
     #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
     weights: tuple | None = None
 
@@ -66,7 +66,7 @@ class View:
     idx: np.ndarray  # the enabled points
     output: np.ndarray  # OR
     every: bool  # every point enabled
-    sel: "slice | np.ndarray"  # the enabled points, as an index (a whole slice when every one is)
+    sel: slice | np.ndarray  # the enabled points, as an index (a whole slice when every one is)
     normal: np.ndarray | None = None  # (the alarms' part, filled by the scan that made the view)
     normal_words: tuple = ()
     out_of_band: bool = False

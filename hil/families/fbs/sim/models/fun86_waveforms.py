@@ -25,7 +25,7 @@ class PublishedWaveforms:
         self.waveforms_version = 0
         self._output_keys: dict[tuple, frozenset] = {}
 
-    def republish(self, inst: "PidInstance", st: "InstanceState", waves: tuple) -> None:
+    def republish(self, inst: PidInstance, st: InstanceState, waves: tuple) -> None:
         """The instance's waveforms published again if they (or the PWM cycle, or another instance's) changed."""
         last = st.published
         if last is None or last[0] != (st.started, st.pwm, self.waveforms_version) or last[1] is not waves[0]:

@@ -34,15 +34,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hil.families.fbs.address import Address
-from hil.sim.model import Model
 from hil.core.errors import InvalidValue
+from hil.families.fbs.address import Address
+from hil.families.fbs.sim.models.fun86 import Fun86Model
+
 # one concept a module: the [plant] section, the noise and the closed form each have their own
 from hil.families.fbs.sim.models.plant_config import PlantConfig, PlantPoint
 from hil.families.fbs.sim.models.plant_noise import noise_index, normals
 from hil.families.fbs.sim.models.plant_solution import waved_temperature
 from hil.families.fbs.sim.models.temperature import TemperatureModel
-from hil.families.fbs.sim.models.fun86 import Fun86Model
+from hil.sim.model import Model
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -101,11 +102,11 @@ class PlantSource:
 
     __slots__ = ("plant", "point", "slot")
 
-    def __init__(self, plant: "ThermalPlant", point: int, slot: int) -> None:
+    def __init__(self, plant: ThermalPlant, point: int, slot: int) -> None:
         self.plant, self.point, self.slot = plant, point, slot
 
     @property
-    def group(self) -> "ThermalPlant":
+    def group(self) -> ThermalPlant:
         return self.plant
 
     def __call__(self, t: float) -> float:
@@ -213,7 +214,7 @@ class ThermalPlant(Model):
         return [(float(self.t0[s]), float(self.temp0[s]), self.wave(s)) for s in range(len(self.order))]
 
     # -- the engine ---------------------------------------------------------------------------------------------
-    def power_on(self, emu: "Emulator") -> None:
+    def power_on(self, emu: Emulator) -> None:
         temperature = emu.model(TemperatureModel)
         self._fun86 = emu.model(Fun86Model)
         self._scan_time = emu.scan_time
@@ -243,7 +244,7 @@ class ThermalPlant(Model):
         self.w_pwm[changed], self.w_started[changed], self.w_period[changed] = pwm[keep], started[keep], period[keep]
         self.w_on[changed], self.w_uon[changed], self.w_uoff[changed] = on[keep], u_on[keep], u_off[keep]
 
-    def scan(self, emu: "Emulator") -> None:
+    def scan(self, emu: Emulator) -> None:
         y = emu.memory.bits
         now = emu.now
         if self._wiring is None:

@@ -7,7 +7,6 @@ import random
 
 import numpy as np
 
-
 #: measurement noise is clipped at this many standard deviations (so a reading has a hard bound: the FUN86 model
 #: can then skip the scans at measurements that can never reach the pre-alarm limit)
 NOISE_CLIP = 6.0

@@ -16,11 +16,11 @@ import math
 from typing import TYPE_CHECKING
 
 from hil.core.errors import InvalidValue
-from hil.families.fbs.address import parse
-from hil.sim.model import Model
 from hil.families.fbs import registers as reg
+from hil.families.fbs.address import parse
 from hil.families.fbs.d4054 import rate_for_code
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
+from hil.sim.model import Model
 
 if TYPE_CHECKING:
     from hil.families.fbs.sim.plc import Emulator
@@ -84,7 +84,7 @@ class RtcModel(Model):
         self._adjust = 0
 
     # -- the engine's hooks ---------------------------------------------------------------------------------
-    def power_on(self, emu: "Emulator") -> None:
+    def power_on(self, emu: Emulator) -> None:
         mem = emu.memory
         self._hold = mem.bits["M"][_HOLD]
         self._adjust = mem.bits["M"][_ADJUST]
@@ -93,7 +93,7 @@ class RtcModel(Model):
         if self.chip:
             self.copy_out(emu, self.read_chip(emu.now))
 
-    def scan(self, emu: "Emulator") -> None:
+    def scan(self, emu: Emulator) -> None:
         mem = emu.memory
         m = mem.bits["M"]
         self.publish_chip(emu)
@@ -124,7 +124,7 @@ class RtcModel(Model):
         return RtcTime(when.second, when.minute, when.hour, when.day, when.month, when.year - 2000,
                        self.weekday_after(days))
 
-    def write_chip(self, emu: "Emulator", t: RtcTime) -> None:
+    def write_chip(self, emu: Emulator, t: RtcTime) -> None:
         """Load ``t`` into the chip at ``emu.now``.  Writing restarts the chip's second: the sub-second phase is
         zero at the write, so the next tick comes one (chip) second later — what a sync at a whole second wants.
         The weekday counter takes the weekday written, whatever the date's is (RTC-VAL-5)."""
@@ -154,12 +154,12 @@ class RtcModel(Model):
         return (self._anchor_weekday + days) % 7
 
     # -- PLC behaviour ----------------------------------------------------------------------------------------
-    def publish_chip(self, emu: "Emulator") -> None:
+    def publish_chip(self, emu: Emulator) -> None:
         """D4053 = chip code (read-only for users, so rewritten every scan); M1954 = a chip is fitted."""
         emu.memory.words["D"][_CHIP] = self.chip
         emu.memory.bits["M"][_INSTALLED] = 1 if self.chip else 0
 
-    def copy_out(self, emu: "Emulator", t: RtcTime) -> None:
+    def copy_out(self, emu: Emulator, t: RtcTime) -> None:
         """Read-out: R4128–R4134 := ``t`` and R4135 := hour<<8 | minute (every scan while M1952 = 0)."""
         words = emu.memory.words["R"]
         words[_FIRST:_FIRST + 7] = t.to_registers()
@@ -169,7 +169,7 @@ class RtcModel(Model):
         """The fields the PLC finds invalid in a set request (empty = accept)."""
         return t.validate()
 
-    def on_hold_edge(self, emu: "Emulator") -> None:
+    def on_hold_edge(self, emu: Emulator) -> None:
         """Falling edge of M1952: set the chip from R4128–R4134 if valid (M1955 := 0), else leave the chip
         running on its previous time and M1955 := 1."""
         words = emu.memory.words["R"]
@@ -191,11 +191,11 @@ class RtcModel(Model):
         weekday = (t.weekday + (when.date() != t.to_datetime().date())) % 7
         return RtcTime(0, when.minute, when.hour, when.day, when.month, when.year - 2000, weekday)
 
-    def on_adjust_edge(self, emu: "Emulator") -> None:
+    def on_adjust_edge(self, emu: Emulator) -> None:
         """Rising edge of M1953: apply :meth:`apply_30s` to the chip's current time."""
         self.write_chip(emu, self.apply_30s(self.read_chip(emu.now)))
 
-    def on_rate_code(self, emu: "Emulator", code: int) -> None:
+    def on_rate_code(self, emu: Emulator, code: int) -> None:
         """A new D4054 value: re-anchor at ``emu.now`` (keeping the phase) and run at the new rate from here."""
         self._anchor_weekday = self.read_chip(emu.now).weekday
         self._anchor_s = self.chip_seconds(emu.now)

@@ -10,8 +10,8 @@ measures through — :meth:`SensorInputs.values` — and where the harness's fau
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

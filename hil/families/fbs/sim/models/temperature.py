@@ -29,25 +29,40 @@ On a real PLC the ladder/WinProladder writes the table; here :meth:`power_on` pl
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hil.sim.columns import last_of_each, occurrence
-from hil.sim.model import Model
-from hil.sim.timing import INSTANT, Timing
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import Address
+
 # (the simulated world the sensors see: no manual statement, so not here; the sources are re-exported for the
 # profile builder and the tests)
 from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, SensorInputs, Source, source_from_spec  # noqa: F401
-from hil.families.fbs.temperature import (BREAK_VALUE, EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING,
-                                 EXEC_TOO_MANY_POINTS, MAX_MODULES, MAX_POINTS, MODULE_BY_CODE, SENSOR_BY_CODE,
-                                 TABLE_MARKER, ModuleType, TemperatureConfig, decode_start, to_unit)
+from hil.families.fbs.temperature import (
+    BREAK_VALUE,
+    EXEC_BAD_MODULE_COUNT,
+    EXEC_IDLE,
+    EXEC_MEASURING,
+    EXEC_TOO_MANY_POINTS,
+    MAX_MODULES,
+    MAX_POINTS,
+    MODULE_BY_CODE,
+    SENSOR_BY_CODE,
+    TABLE_MARKER,
+    ModuleType,
+    TemperatureConfig,
+    decode_start,
+    to_unit,
+)
+from hil.sim.columns import last_of_each, occurrence
+from hil.sim.model import Model
+from hil.sim.timing import INSTANT, Timing
 
 if TYPE_CHECKING:
-    from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.memory import Memory
+    from hil.families.fbs.sim.plc import Emulator
 
 
 _MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
@@ -101,7 +116,7 @@ class TemperatureModel(SensorInputs, Model):
         self._ring[points] = 0.0
 
     # -- the seams broken variants override (arrays over measurements) ----------------------------------------------
-    def installed(self, mem: "Memory", point: np.ndarray) -> np.ndarray:
+    def installed(self, mem: Memory, point: np.ndarray) -> np.ndarray:
         """Points' bits in R4010 (points 0–15) or R4011 (16–31)."""
         mask = np.array(mem.words["R"][_MASK_LOW:_MASK_LOW + 2])
         return (mask[point // 16] >> (point % 16) & 1).astype(bool)
@@ -125,7 +140,7 @@ class TemperatureModel(SensorInputs, Model):
         return EXEC_IDLE
 
     # -- the engine ---------------------------------------------------------------------------------------------
-    def power_on(self, emu: "Emulator") -> None:
+    def power_on(self, emu: Emulator) -> None:
         if self.write_table:
             emu.memory.write(self.config.table, self.config.table_words())
         self._quiet = None
@@ -164,7 +179,7 @@ class TemperatureModel(SensorInputs, Model):
         choice] 1 s with none fitted)."""
         return max((self._cycle(m) for m in self.fitted), default=1.0)
 
-    def _table_in_effect(self, now: float, mem: "Memory") -> list[int]:
+    def _table_in_effect(self, now: float, mem: Memory) -> list[int]:
         """Bench timing: the table's words as the last table cycle at or before ``now`` read them."""
         if now + 1e-9 >= self._table_due:
             cycle = self._table_cycle()
@@ -216,7 +231,7 @@ class TemperatureModel(SensorInputs, Model):
             plan = self._plan_cache[key] = (mismatch, frozenset(expected), tuple(entries), tuple(measured))
         return plan
 
-    def scan(self, emu: "Emulator") -> None:
+    def scan(self, emu: Emulator) -> None:
         quiet = None if self.phases.bench else self._quiet  # (bench timing: the table read may change any scan)
         if quiet is not None:
             header, due, bank, first, block, words, sr = quiet
@@ -301,7 +316,7 @@ class TemperatureModel(SensorInputs, Model):
         self._mux[k] = (self._mux[k] + len(times)) % module.points
         return times, points
 
-    def _measure(self, emu: "Emulator", due: list[tuple[int, int, int]], readings: Address) -> None:
+    def _measure(self, emu: Emulator, due: list[tuple[int, int, int]], readings: Address) -> None:
         """The measurements of modules ``due`` [(k, first point, sensor code)] up to now, in one batch."""
         batches = [(*self.measure_module(emu.now, k, first), code) for k, first, code in due]
         if len(batches) == 1:
@@ -316,7 +331,7 @@ class TemperatureModel(SensorInputs, Model):
         for point, word in zip(points[last].tolist(), words[last].tolist()):
             out[base + point] = word
 
-    def take(self, mem: "Memory", times: np.ndarray, points: np.ndarray,
+    def take(self, mem: Memory, times: np.ndarray, points: np.ndarray,
              codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measure ``points`` at ``times`` (each point's in time order) with the sensors of ``codes``: the reading
         words, the samples, break bits and measured points updated as one measurement after the other would.
