@@ -1,6 +1,6 @@
-"""The documentation site: it builds with warnings as errors, its command-line reference leaves no option
-unexplained, and the commands its getting-started and bench-profile pages show run as written (against the
-emulator; the documentation's example PLC address is served by ``hil emulate``)."""
+"""The documentation site: it builds with warnings as errors, its front page fits a phone's width, its
+command-line reference leaves no option unexplained, and the commands its getting-started and bench-profile pages
+show run as written (against the emulator; the documentation's example PLC address is served by ``hil emulate``)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ import pytest
 from hil.cli.main import build_parser
 from hil.cli.reference import render, undocumented
 from tests import processes
+from tests.browser import look, needs_chromium
 from tests.external import emulate_process
 
 REPO = Path(__file__).resolve().parent.parent
@@ -48,16 +49,34 @@ def run_documented(commands: list[str], cwd: Path, plc: str) -> list[str]:
     return failed
 
 
-@pytest.mark.skipif(not SPHINX, reason="Sphinx, MyST-Parser or furo is not installed (pip install -e '.[test]')")
-def test_the_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
+needs_sphinx = pytest.mark.skipif(not SPHINX, reason="Sphinx, MyST-Parser or furo is not installed "
+                                                    "(pip install -e '.[test]')")
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The site built once for this module's tests, warnings as errors: its HTML directory."""
+    out = tmp_path_factory.mktemp("docs")
     done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
-                           "-d", str(tmp_path / "doctrees"), str(DOCS), str(tmp_path / "html")],
+                           "-d", str(out / "doctrees"), str(DOCS), str(out / "html")],
                           capture_output=True, text=True, timeout=300, cwd=REPO)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    page = (tmp_path / "html" / "_generated" / "commands.html").read_text(encoding="utf-8")
+    return out / "html"
+
+
+@needs_sphinx
+def test_the_site_builds_with_warnings_as_errors(site: Path) -> None:
+    page = (site / "_generated" / "commands.html").read_text(encoding="utf-8")
     assert "hil history trend" in page
-    matrix = (tmp_path / "html" / "_generated" / "requirements.html").read_text(encoding="utf-8")
+    matrix = (site / "_generated" / "requirements.html").read_text(encoding="utf-8")
     assert "RTC-VAL-1" in matrix and "PID-LAW-2" in matrix
+
+
+@needs_sphinx
+@needs_chromium
+def test_the_front_page_fits_a_phone_a_tablet_and_a_laptop(site: Path) -> None:
+    for width, layout in look(site / "index.html").items():
+        assert layout.fits, f"at {width} px the front page is {layout.scroll_width} px wide: {layout.offenders}"
 
 
 def test_every_command_and_option_has_a_description() -> None:
