@@ -74,9 +74,30 @@ def test_the_site_builds_with_warnings_as_errors(site: Path) -> None:
 
 @needs_sphinx
 @needs_chromium
-def test_the_front_page_fits_a_phone_a_tablet_and_a_laptop(site: Path) -> None:
-    for width, layout in look(site / "index.html").items():
-        assert layout.fits, f"at {width} px the front page is {layout.scroll_width} px wide: {layout.offenders}"
+@pytest.mark.parametrize("page", ["index.html", "architecture.html"])  # the front page; the one with a diagram
+def test_the_page_fits_a_phone_a_tablet_and_a_laptop(site: Path, page: str) -> None:
+    for width, layout in look(site / page).items():
+        assert layout.fits, f"at {width} px {page} is {layout.scroll_width} px wide: {layout.offenders}"
+
+
+def test_the_architecture_diagram_is_drawn_from_the_import_contracts(tmp_path: Path) -> None:
+    """Every layer of pyproject's contracts is in the picture, captioned by its docstring; a layer added to the
+    contract is drawn without anyone touching the page."""
+    spec = importlib.util.spec_from_file_location("layers_svg", DOCS / "_ext" / "layers_svg.py")
+    assert spec and spec.loader
+    module = sys.modules["layers_svg"] = importlib.util.module_from_spec(spec)  # (its dataclass looks itself up)
+    spec.loader.exec_module(module)  # the site's extension module, as docs/conf.py loads it (not a package)
+    layers_svg = module.layers_svg
+    svg = layers_svg(REPO / "pyproject.toml", REPO)
+    layers = ("hil.cli", "hil.history", "hil.plugin", "hil.families", "hil.bench", "hil.sim", "hil.io", "hil.core")
+    for name in (*layers, "fbs/", "s7smart/", "device", "transport", "protocol", "≠ independent: fbs, s7smart"):
+        assert f">{name}" in svg, name
+    assert ">One module per hil subcommand<" in svg  # hil/cli/__init__.py's first sentence
+    assert "No import cycles between the packages" in svg  # a contract drawn as a sentence
+    changed = tmp_path / "pyproject.toml"
+    changed.write_text((REPO / "pyproject.toml").read_text(encoding="utf-8").replace(
+        '"hil.bench", "hil.sim"', '"hil.bench", "hil.api", "hil.sim"', 1), encoding="utf-8")
+    assert ">hil.api<" in layers_svg(changed, REPO) and ">hil.api<" not in svg
 
 
 def test_every_command_and_option_has_a_description() -> None:
