@@ -70,6 +70,17 @@ def test_the_site_builds_with_warnings_as_errors(site: Path) -> None:
     assert "hil history trend" in page
     matrix = (site / "_generated" / "requirements.html").read_text(encoding="utf-8")
     assert "RTC-VAL-1" in matrix and "PID-LAW-2" in matrix
+    performance = (site / "performance.html").read_text(encoding="utf-8")  # docs/figures/device-operations.json
+    assert "rtc.adjust_30s()" in performance and "fence=reads" in performance
+
+
+def test_no_measured_figure_is_typed_into_a_page() -> None:
+    """A table of measured ratios comes from docs/figures/ (a benchmark's --record) through docs/_ext/hil_docs.py,
+    never by hand: a hand-kept one went stale with every re-measure."""
+    measured = re.compile(r"^\|.*\d\.\d\d×")
+    typed = [f"docs/{page.name}:{n}: {line}" for page in sorted(DOCS.glob("*.md"))
+             for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1) if measured.match(line)]
+    assert not typed, "\n".join(typed)
 
 
 @needs_sphinx
