@@ -6,8 +6,9 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager
 from typing import Any, Generic, Protocol, TypeVar
 
-from hil.bench.guard import GuardedLink, RecoveryStep
+from hil.bench.guard import GuardedLink
 from hil.bench.profile import Profile
+from hil.bench.recover import RecoveryStep
 from hil.bench.recovery import Recovery
 from hil.core.errors import HilError
 from hil.core.evidence import Expectation, expect

@@ -34,7 +34,7 @@ element's name in the journal; ``split(name)`` reads it back.
 The guard is the one place these meet; each part is its own module: the allow-list (:mod:`hil.bench.allow`), the
 journal writer (:mod:`hil.bench.write_journal`), the clock (:mod:`hil.bench.clock`,
 :mod:`hil.bench.clock_keeper`), the verified put-back (:mod:`hil.bench.putback`) and recovery's decisions
-(:mod:`hil.bench.replay`, reported as :class:`hil.bench.recovery.Recovery`).
+(:mod:`hil.bench.recover`, :mod:`hil.bench.replay`, reported as :class:`hil.bench.recovery.Recovery`).
 """
 
 from __future__ import annotations
@@ -49,20 +49,15 @@ from hil.bench.allow import AllowList
 from hil.bench.clock import ORIGIN_MAX_AGE, Clock, ClockOrigin, OriginRefused, origin_from_journal
 from hil.bench.clock_keeper import ClockKeeper
 from hil.bench.putback import Failure, Item, PutBack, put_back
+from hil.bench.recover import RecoveryStep, Replay, recover
 from hil.bench.recovery import Recovery
-from hil.bench.replay import identity_problem, recover_lanes, replay_elements
 from hil.bench.write_journal import WriteJournal
 from hil.core.errors import HilError, RestoreError
-from hil.core.journal import COILS, Journal, JournalError
+from hil.core.journal import Journal
 from hil.core.link import Link
 from hil.io.status import PlcStatus
 
 T = TypeVar("T")
-
-#: a family's own recovery step (e.g. a fault rig's coils): called with the journal, the report to add to and
-#: whether an operator asked for it by hand (``hil restore``: older entries too)
-RecoveryStep = Callable[[Journal, Recovery, bool], None]
-
 
 class Guard(ABC):
     """Mixed into a family's guarded link, before the link's own base class (it uses the link's ``_lock``)."""
@@ -303,62 +298,20 @@ class Guard(ABC):
     def recover(self, steps: Iterable[RecoveryStep] = (), *, by_hand: bool = False, show: bool = False,
                 accept_host_clock: bool = False) -> Recovery | None:
         """Replay what a dead run left in the durable journal (before anything else), as far as it can be proven
-        (:mod:`hil.bench.replay`): the family's ``steps`` first, then its actions, the clock (exactly) and the
+        (:mod:`hil.bench.recover`): the family's ``steps`` first, then its actions, the clock (exactly) and the
         elements — and the same for each journal a run's lanes left beside it (:meth:`Journal.lane_names`), each
         as if it were this run's own; a journal that cannot be read is named (refused) and the others still
         replayed.  ``show``: decide and list only, writing nothing (``hil restore --show``; the family's steps,
         which read another device, are listed unread).  ``accept_host_clock``: a clock origin from another boot
         of the host is carried on the host clock as it is (:func:`origin_from_journal`).  None without a durable
         journal (an in-process emulator: nothing outlives a run)."""
-        journal = self.durable
-        if journal is None:
+        if self.durable is None:
             return None
-        steps = tuple(steps)
-
-        def recover(part: Journal) -> Recovery:
-            self.durable = part  # what the replay drops, it drops from that journal's file
-            try:
-                return self._recover_journal(part, steps, by_hand, show, accept_host_clock)
-            finally:
-                self.durable = journal
-        return recover_lanes(journal, recover, show)
-
-    def _recover_journal(self, journal: Journal, steps: tuple[RecoveryStep, ...], by_hand: bool, show: bool,
-                         accept_host_clock: bool) -> Recovery:
-        try:
-            journal.data = journal.load()
-        except JournalError as exc:
-            return Recovery(journal.key, str(journal.path), refused=[str(exc)], show=show)
-        report = Recovery(journal.key, str(journal.path), journal.describe(), by=journal.left_by(), show=show)
-        if not journal.pending:
-            return report
-        mismatch = identity_problem(journal, self.identity_vouched)
-        if mismatch:
-            report.refused.append(mismatch)
-            return report
-        if show:  # a family's step reads (and writes) another device: listed as the journal holds it
-            report.planned += [f"{line} (not read by --show)" for line in journal.describe(COILS)]
-        else:
-            for step in steps:
-                step(journal, report, by_hand)
-        with self._lock:
-            try:
-                self._recover_actions(journal, report, by_hand)
-            except HilError as exc:
-                report.failures.append(f"RUN/STOP and disabled bits: {exc}")
-            self._recover_clock(journal, report, by_hand, accept_host_clock)
-            replay_elements(self, journal, report, by_hand)
-        return report
+        how = Replay(tuple(steps), by_hand, show, accept_host_clock)
+        return recover(self, how, self._recover_actions, self._lock)
 
     def _recover_actions(self, journal: Journal, report: Recovery, by_hand: bool) -> None:  # noqa: B027 - a hook
         """A family's own entries (e.g. RUN/STOP, disabled bits), each checked and read back, into ``report``."""
-
-    def _recover_clock(self, journal: Journal, report: Recovery, by_hand: bool, accept_host_clock: bool) -> None:
-        """The clock a dead run may have set, back at its offset from the host's clock (exactly), read back."""
-        origin = self.clocks.journaled_origin(journal, report, by_hand, accept_host_clock, self.writable)
-        if origin is not None:
-            with self.written.replay():  # the clock's set procedure writes through the guard: not journaled
-                self.clocks.recover(origin, self.durable, report)
 
 
 class PublicLink(Protocol):
@@ -421,7 +374,8 @@ class GuardedLink(Guard, Link):
         self.inner.close()
 
 
-# Clock, ClockOrigin, ORIGIN_MAX_AGE, OriginRefused, origin_from_journal (hil.bench.clock) and Recovery
-# (hil.bench.recovery) are named here too: families declare their clock and recovery steps to "the guard"
+# Clock, ClockOrigin, ORIGIN_MAX_AGE, OriginRefused, origin_from_journal (hil.bench.clock), Recovery
+# (hil.bench.recovery) and RecoveryStep (hil.bench.recover) are named here too: families declare their clock and
+# recovery steps to "the guard"
 __all__ = ["ORIGIN_MAX_AGE", "Clock", "ClockOrigin", "Guard", "GuardedLink", "OriginRefused", "PublicLink",
            "Recovery", "RecoveryStep", "origin_from_journal"]

@@ -22,7 +22,7 @@ from typing import Any, Protocol
 
 from hil.bench.putback import Item, PutBack
 from hil.bench.recovery import Outcome, Recovery
-from hil.core.journal import ELEMENTS, Journal, JournalError, journal_path, run_left
+from hil.core.journal import ELEMENTS, Journal, run_left
 
 MAX_AGE = 7 * 86400.0  # s: an older entry is not replayed by a run (the PLC has surely been used since)
 
@@ -260,22 +260,6 @@ def _replay(guard: Replayable, journal: Journal, report: Recovery, checks: list[
         journal.drop_elements(back)
 
 
-def recover_lanes(journal: Journal, recover: Callable[[Journal], Recovery], show: bool) -> Recovery:
-    """``recover`` the run's ``journal`` and each journal its lanes left beside it (:meth:`Journal.lane_names`), as
-    one report; a lane's journal that cannot be read is named (refused) and the others still replayed."""
-    report = Recovery(journal.key, str(journal.path), show=show)
-    report.merge(recover(journal))
-    for name in journal.lane_names():
-        try:
-            lane = journal.lane_journal(name)
-        except JournalError as exc:  # damaged or untrusted: named, kept, and the others still replayed
-            report.merge(Recovery(journal.key, str(journal_path(journal.key, journal.path.parent, name)),
-                                  refused=[str(exc)], show=show))
-            continue
-        report.merge(recover(lane))
-    return report
-
-
 __all__ = ["BACK", "CHANGED", "MAX_AGE", "RESTORE", "Recovery", "Replayable", "Verdict", "age_problem",
-           "changed_line", "element_outcome", "element_verdicts", "identity_problem", "recover_lanes",
+           "changed_line", "element_outcome", "element_verdicts", "identity_problem",
            "replay_elements", "still_the_runs"]
