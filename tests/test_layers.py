@@ -134,7 +134,9 @@ _AREA_C = pytest.mark.xfail(strict=False, reason="issue 41: area C")
 
 
 @pytest.mark.parametrize("package", [
+    "hil.core",
     "hil.bench",
+    "hil.bench.lab",
     pytest.param("hil.families.fbs.device", marks=_AREA_C),
     "hil.families.fbs.sim.models",
     pytest.param("hil.families.s7smart.sim", marks=_AREA_C),
