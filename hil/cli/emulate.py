@@ -11,7 +11,7 @@ import threading
 import time
 from typing import Any
 
-from hil.bench.family import build_emulator
+from hil.bench.family import build_emulator, family
 from hil.bench.profile import Profile, load_profile
 from hil.cli.emulate_live import LivePanel
 from hil.core.errors import InvalidValue
@@ -120,7 +120,7 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
-            handle = _listening(where, lambda: profile.plugin.serve(profile, emulator, wire, host, port))
+            handle = _listening(where, lambda: family(profile.family).serve(profile, emulator, wire, host, port))
             servers.append(handle)
             print(f"{handle.kind} {handle.address}", flush=True)
         if rig_modbus_tcp:
