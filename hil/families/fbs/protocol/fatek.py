@@ -11,9 +11,9 @@ how to be rebuilt from request data (server side) and how to encode a reply.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import ClassVar, TypeVar
 
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 from hil.families.fbs.address import DWORD, Address, missing, parse, take_frame_name
@@ -273,7 +273,7 @@ def _check_exists(address: Address, count: int) -> None:
         raise RequestError("A", reason)
 
 
-def _check_extent(cls: type, address: Address, count: int) -> None:
+def _check_extent(cls: type[_Run], address: Address, count: int) -> None:
     """The run a range command's count and start element give: the command's limit (4), the model (A)."""
     if cls.bits_only != address.is_bit:
         raise RequestError("4", f"command {cls.code} takes {'bit' if cls.bits_only else 'register'} names, "
@@ -476,27 +476,49 @@ class BitAction(Command):
         return f"{BIT_ACTIONS[self.action]} {self.address} (42)"
 
 
-@dataclass
-class _RangeCommand(Command):
-    """Shared shape of 43/44/46: N then a start element."""
+class _Run(Command):
+    """What the range commands 43–47 share: a run of ``count`` elements from ``address``, all bits or all registers
+    as ``bits_only`` says."""
 
-    address: Address = field(default_factory=lambda: parse("R0"))
-    count: int = 1
+    address: Address
     bits_only: ClassVar[bool] = True
 
-    def __post_init__(self) -> None:
-        self.address = parse(self.address)
-        self._check()
-
-    def _check(self) -> None:
+    def _check_run(self, count: int) -> None:
+        """Client side: the run fits the command (InvalidValue) and its bank (AddressError)."""
         if self.bits_only != self.address.is_bit:
             raise InvalidValue(f"command {self.code} takes {'bit' if self.bits_only else 'register'} names, "
                              f"not {self.address}")
         limit = MAX_BITS if self.bits_only else MAX_WORDS // self.address.words
-        if not 1 <= self.count <= limit:
-            raise InvalidValue(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {self.count}")
+        if not 1 <= count <= limit:
+            raise InvalidValue(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {count}")
         # Raises AddressError when the run leaves the bank.
-        self.address.offset(self.count - 1)
+        self.address.offset(count - 1)
+
+
+_C = TypeVar("_C", bound=Command)
+
+
+def _as_request_error(build: Callable[[], _C]) -> _C:
+    """Server side: a command built from a request, its client-side refusals turned into the error a PLC answers
+    (A: the run leaves its bank, 4: any other bad value)."""
+    try:
+        return build()
+    except AddressError as exc:
+        raise RequestError("A", str(exc)) from None
+    except ValueError as exc:
+        raise RequestError("4", str(exc)) from None
+
+
+@dataclass
+class _RangeCommand(_Run):
+    """Shared shape of 43/44/46: N then a start element."""
+
+    address: Address = field(default_factory=lambda: parse("R0"))
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        self.address = parse(self.address)
+        self._check_run(self.count)
 
     def request_data(self) -> str:
         return _count(self.count) + self.address.fatek_name
@@ -507,16 +529,7 @@ class _RangeCommand(Command):
         address, end = _take_name(data, 2)
         _check_extent(cls, address, count)
         _expect_end(data, end)
-        return cls._checked(address, count)
-
-    @classmethod
-    def _checked(cls, address: Address, count: int, *extra) -> _RangeCommand:  # noqa: ANN002
-        try:
-            return cls(address, count, *extra)
-        except AddressError as exc:
-            raise RequestError("A", str(exc)) from None
-        except ValueError as exc:
-            raise RequestError("4", str(exc)) from None
+        return _as_request_error(lambda: cls(address, count))
 
     def decode(self, data: str) -> list[int]:
         return _parse_values(data, self.address, self.count)
@@ -551,17 +564,16 @@ class ReadRegisters(_RangeCommand):
 
 
 @dataclass
-class _WriteRange(Command):
+class _WriteRange(_Run):
     """Shared shape of 45/47: N, start element, N values."""
 
     address: Address = field(default_factory=lambda: parse("R0"))
     values: list[int] = field(default_factory=list)
-    bits_only: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         self.address = parse(self.address)
         self.values = [int(v) for v in self.values]
-        _RangeCommand._check(self)  # type: ignore[arg-type]
+        self._check_run(self.count)
         for v in self.values:
             _format_value(self.address, v)  # range check before anything is sent
 
@@ -583,7 +595,7 @@ class _WriteRange(Command):
             value, pos = _take_value(data, pos, address)
             values.append(value)
         _expect_end(data, pos)
-        return _RangeCommand._checked.__func__(cls, address, values)  # type: ignore[attr-defined]
+        return _as_request_error(lambda: cls(address, values))
 
     def describe(self) -> str:
         return f"write {self.count} to {self.address} ({self.code})"

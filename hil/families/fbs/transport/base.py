@@ -10,7 +10,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from hil.core.errors import HilError, InvalidValue
 from hil.core.link import Link
@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from hil.sim.runtime import ServerHandle
 
 NameLike = str | Address
+_R = TypeVar("_R")
 
 
 @dataclass(frozen=True)
@@ -186,7 +187,8 @@ class Transport(Link, ABC):
     def _status(self) -> PlcStatus: ...
 
     # -- helpers ------------------------------------------------------------------------------------------------
-    def _count(self, result):  # noqa: ANN001, ANN202 - passes the primitive's result through
+    def _count(self, result: _R) -> _R:
+        """Count one request sent, passing its primitive's result through."""
         self.requests += 1
         return result
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 import serial
 
@@ -75,6 +75,19 @@ PRINTABLE.add("fatek")  # its frames are ASCII
 CHAR_BITS["fatek"] = 10  # 7E1 with its start bit
 
 
+class FatekOptions(TypedDict, total=False):
+    """The settings of a FATEK client that a target's query may give (:class:`FatekTransport`'s keywords)."""
+
+    station: int
+    baudrate: int
+    bytesize: int
+    parity: str
+    stopbits: int
+    timeout: float
+    retries: int
+    backoff: float
+
+
 class FatekTransport(Transport):
     """FATEK protocol client.  ``port_url``: ``/dev/ttyUSB0``, a pty path, ``socket://host:port`` or
     ``rfc2217://host:port``."""
@@ -107,6 +120,7 @@ class FatekTransport(Transport):
         self.timeout = float(timeout)
         self.retries = retries
         self.baudrate = baudrate
+        self._coding = (bytesize, parity, stopbits)  # the character frame a reopened line is set to again
         self.observers: list[Observer] = []  # called as (direction "tx"/"rx", frame) for wire traces
         self.discarded: list[tuple[bytes, str]] = []  # bad frames of the last exchange, with the reason
         self._identity: DetailedStatusReply | None = None
@@ -117,8 +131,6 @@ class FatekTransport(Transport):
                                                                   or is_pty(port_url))
         self._char_bits = char_bits(bytesize, parity, stopbits)
         self.fence_every_read = fence == "reads"
-        self._settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
-                              timeout=self.timeout, write_timeout=self.timeout + 1.0)
         self.backoff = float(backoff)
         self.policy = RequestPolicy(retries, float(backoff))  # one rule for every wire (hil.io.request_policy)
         self.dirty = False  # True: the line may hold a late reply; resynchronise before the next request
@@ -145,7 +157,9 @@ class FatekTransport(Transport):
     def new_line(self) -> Line:
         """The line this client talks over, opened (a serial port, a pty, TCP or RFC 2217 by its URL; a subclass
         brings another kind: :class:`~hil.families.fbs.transport.udp.FatekUdpTransport`)."""
-        return open_line(self.port_url, **self._settings, name=self.line_name)
+        bytesize, parity, stopbits = self._coding
+        return open_line(self.port_url, baudrate=self.baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
+                         timeout=self.timeout, write_timeout=self.timeout + 1.0, name=self.line_name)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
     def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
@@ -166,11 +180,11 @@ class FatekTransport(Transport):
 
     def bit_action(self, name: str | Address, action: int) -> None:
         """Command 42: 1 disable, 2 enable, 3 set, 4 reset one bit."""
-        self.request(BitAction(action, name))
+        self.request(BitAction(action, parse(name)))
 
     def read_disabled(self, name: str | Address, count: int = 1) -> list[int]:
         """Command 43: 1 for each bit that is disabled (forced)."""
-        return self.request(ReadEnableState(name, count))
+        return self.request(ReadEnableState(parse(name), count))
 
     def loopback(self, text: str) -> str:
         return self.request(Loopback(text))
@@ -206,9 +220,10 @@ class FatekTransport(Transport):
                 group = [checked[i] for i in piece.positions]
                 if piece.run:
                     write = self._write_bits if group[0][0].is_bit else self._write_words
-                    self._count(write(group[0][0], [v for _, v in group]))
+                    write(group[0][0], [v for _, v in group])
                 else:
-                    self._count(self._write_many(group))
+                    self._write_many(group)
+                self.requests += 1  # one frame sent (Transport._count, for a primitive with no result)
 
     # -- Transport primitives -----------------------------------------------------------------------------------
     def _read_words(self, first: Address, count: int) -> list[int]:
@@ -479,4 +494,4 @@ class _Stale(TransportError):
 _LOST = (ReplyTimeout, _Lost, _Stale)
 
 
-__all__ = ["FatekTransport", "READ_COMMANDS"]
+__all__ = ["READ_COMMANDS", "FatekOptions", "FatekTransport"]

@@ -183,7 +183,10 @@ class GuardedTransport(GuardedLink):
     def _put_running(self, run: bool) -> None:
         """RUN/STOP back to ``run`` and read back (command 40)."""
         if bool(self.inner.status().running) != run:
-            self.inner.set_running(run)
+            set_running = getattr(self.inner, "set_running", None)
+            if set_running is None:
+                raise WriteRefused(f"RUN/STOP is not offered by {self.inner.description}")
+            set_running(run)
         if bool(self.inner.status().running) != run:
             raise WriteRefused(f"the PLC does not read back {'RUN' if run else 'STOP'} after command 41")
 
