@@ -23,8 +23,10 @@ pytest.register_assert_rewrite(*PLUGINS)
 from hil.bench.base import BenchBase as Bench
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.bench.faces import BenchView
+from hil.bench.lab.session import LabSession
 from hil.bench.family import build_emulator, default_family, open_bench
 from hil.bench.profile import Profile, load_profile, plc_target, refuse_default_for_a_plc
+from hil.bench.replay import Recovery
 from hil.bench.view import suite_view
 from hil.core.errors import HilError, TransportError
 from hil.core.evidence import StaleEvidence
@@ -96,11 +98,13 @@ class BenchSession:
         self.bench: Bench | None = None
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
-        self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
-        self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
-        self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
-        self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
-        self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
+        self.lock: BenchLock | None = None  # on a real bench, held until unconfigure
+        self.place_lock: BenchLock | None = None  # and one keyed on the labgrid place, when the bench is one
+        self.plc_lock: BenchLock | None = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
+        self.lab: LabSession | None = None  # the labgrid place held for this session
+        self.recovery: Recovery | None = None  # what a dead run left, replayed when the bench opened
+        self.plc_line: str | None = None  # the header's "hil PLC: …" line (hil.plugin.reporting shows it)
+        self.header_panel = False  # True: the console output's panel shows that line instead (hil.plugin.reporting)
         self._profile: Profile | None = None
 
     @property
@@ -127,26 +131,26 @@ class BenchSession:
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
                                    emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e),
                                    lane=lanes.worker_lane(self.config))
-                self._recover()
+                self._recover(self.bench)
             except HilError as exc:
                 self.error = f"cannot open the bench: {exc}"
                 raise pytest.fail.Exception(self.error, pytrace=False) from None
         return self.bench
 
-    def _recover(self) -> None:
+    def _recover(self, bench: Bench) -> None:
         """Recovery first (issue 15): a journal a dead run left is replayed before any test, and said loudly."""
-        self.recovery = self.bench.recover()
-        if self.recovery is None or not self.recovery.needed:
+        self.recovery = recovery = bench.recover()
+        if recovery is None or not recovery.needed:
             return
-        announce(self.config, self.recovery)
-        if not self.recovery.ok:
-            self.dead = self.recovery.summary()
+        announce(self.config, recovery)
+        if not recovery.ok:
+            self.dead = recovery.summary()
 
     def _refuse_default_profile(self) -> None:
         """The bundled profile is the emulator's: never for a PLC named by --target alone; and a PLC only ever
         with a profile that names it, at its station (before any lock is taken or byte sent)."""
         refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
-                                 self.profile.path)
+                                 self.profile.path or resolve_bench_path(self.config))
         plc_target(self.profile, self.config.getoption("--target"))
 
     def _lock_bench(self) -> None:
@@ -323,7 +327,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
     state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)
-    if reporter is not None and session.config.get_verbosity() >= 0 and not getattr(state, "header_panel", False):
+    if reporter is not None and session.config.get_verbosity() >= 0 and not state.header_panel:
         reporter.write_line(line)
 
 

@@ -40,8 +40,9 @@ class Engine:
         #: when the models publish (hil.sim.timing); with a range of scan lengths, scan_time is its shortest: the
         #: grid the clock lands jumps on, and the room every "is there a whole scan left" test asks for
         self.timing = timing
-        self._scan_lengths = timing.stream("scan") if timing.bench and timing.scan_range else None
-        self.scan_time = timing.scan_range[0] if self._scan_lengths else scan_time
+        scan_range = timing.scan_range if timing.bench else None
+        self._scan_lengths = timing.stream("scan") if scan_range else None
+        self.scan_time = scan_range[0] if scan_range else scan_time
         self.station = station
         self.seed = seed
         self.memory = memory

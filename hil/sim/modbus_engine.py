@@ -29,7 +29,7 @@ import asyncio
 import bisect
 import concurrent.futures
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -244,18 +244,18 @@ def start_tcp(engine: Engine, modbus_map: ModbusMap, host: str = "127.0.0.1", po
     runtime = LoopThread.shared()
     aliases = {} if unit is None else tcp_unit_aliases(unit)
 
-    async def start() -> tuple[ModbusTcpServer, asyncio.AbstractServer | None]:
+    async def start() -> tuple[ModbusTcpServer, asyncio.Server | None]:
         server = InOrderTcpServer(build_device(engine, modbus_map, unit), address=(host, 0 if faults else port),
                                   trace_pdu=_make_gate(engine, modbus_map, unit, False, stats), aliases=aliases)
         await server.serve_forever(background=True)
         proxy = None
         if faults is not None:
-            inner = server.transport.sockets[0].getsockname()[1]
+            inner = _bound_port(server.transport)
             proxy = await asyncio.start_server(_fault_proxy(host, inner, faults), host, port)
         return server, proxy
 
     server, proxy = runtime.run(start())
-    actual = (proxy.sockets if proxy else server.transport.sockets)[0].getsockname()[1]
+    actual = _bound_port(proxy or server.transport)
 
     async def stop() -> None:
         if proxy is not None:
@@ -337,12 +337,20 @@ def start_rtu_pty(engine: Engine, modbus_map: ModbusMap, unit: int = 1, *, fault
             pair.close()
 
     handle = ServerHandle(kind, pair.path_b, _stopper(runtime, stop))
-    handle.ptys = pair  # type: ignore[attr-defined]  # byte counters for tests
-    handle.line = line  # type: ignore[attr-defined]
+    handle.ptys = pair  # byte counters for tests
+    handle.line = line
     return handle
 
 
-def _stopper(runtime: LoopThread, stop: Callable[[], asyncio.Future | object]) -> Callable[[], None]:
+def _bound_port(listener: object) -> int:
+    """The port a listening server is bound to (pymodbus keeps its listener, an asyncio server, as ``.transport``)."""
+    if not isinstance(listener, asyncio.Server):
+        raise TypeError(f"not a listening asyncio server: {listener!r}")
+    port: int = listener.sockets[0].getsockname()[1]
+    return port
+
+
+def _stopper(runtime: LoopThread, stop: Callable[[], Coroutine[Any, Any, None]]) -> Callable[[], None]:
     lock = threading.Lock()
 
     def run() -> None:

@@ -134,9 +134,11 @@ class _InOrderHandler(ServerRequestHandler):
             self.serving = False
 
     async def _answer(self, pdu: ModbusPDU) -> ModbusPDU | None:
-        server: InOrderTcpServer = self.server  # type: ignore[assignment]
+        server: InOrderTcpServer = self.server
         try:
-            return await pdu.datastore_update(server.context, server.aliases.get(pdu.dev_id, pdu.dev_id))
+            # pymodbus's own request handler passes the same context: a SimCore its annotation does not name
+            return await pdu.datastore_update(server.context,  # type: ignore[arg-type]
+                                              server.aliases.get(pdu.dev_id, pdu.dev_id))
         except NoSuchIdException:
             if server.ignore_missing_devices:
                 return None

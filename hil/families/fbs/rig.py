@@ -11,6 +11,7 @@ dead run left switched, through the same restore, only while a coil still holds 
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -115,6 +116,10 @@ class RigLink:
     def close(self) -> None:
         self.wire.close()
 
+    def exclusive(self) -> contextlib.AbstractContextManager[None]:
+        """Nothing to hold: a rig's wire is this link's alone, and each request on it is whole by itself."""
+        return contextlib.nullcontext()
+
 
 class CoilJournal:
     """The journal's ``coils`` section for one rig, as the guard's durable journal (``add_elements`` /
@@ -141,6 +146,11 @@ class CoilJournal:
             self.journal.drop_coil(key)
 
 
+def rig_unit(target: Target) -> int:
+    """The Modbus unit a rig's target names (``?unit=``, an int once hil.io.url has read it), else 1."""
+    return int(str(target.params.get("unit", 1)))
+
+
 class GuardedRig(GuardedLink):
     """The guard round a rig's coils: ``writable`` coil numbers only, originals journaled before the first switch,
     restored and read back."""
@@ -149,7 +159,7 @@ class GuardedRig(GuardedLink):
 
     def __init__(self, target: Target, link: RigLink, writable: Iterable[int], journal: Journal | None = None) -> None:
         self.target = target
-        self.unit = int(str(target.params.get("unit", 1)))
+        self.unit = rig_unit(target)
         self._prefix = f"{lock_key(str(target))}#unit{self.unit}/coil"
         super().__init__(link, [self.coil(c) for c in writable])
         if journal is not None:
@@ -211,12 +221,12 @@ class GuardedRig(GuardedLink):
 
     def _replay_run(self, elements: list[RigCoil], entries: dict[str, dict[str, Any]], report: Recovery) -> None:
         try:
-            now = self.read_originals(elements)
+            states = self.read_originals(elements)
         except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
             report.failures += [f"rig coil {e} (original {int(entries[e.key]['original'])}): {exc}" for e in elements]
             return
         back, again = [], []
-        for element, value in zip(elements, now):
+        for element, value in zip(elements, states):
             entry = entries[element.key]
             # (coils as 0/1: the journal may hold them as booleans) — the one rule recovery uses for every entry
             original, now = int(bool(entry["original"])), int(bool(value))
@@ -245,4 +255,4 @@ class GuardedRig(GuardedLink):
         report.verified += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in back]
 
 
-__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_wire"]
+__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_unit", "rig_wire"]

@@ -116,7 +116,7 @@ class Reporter:
         self.run = config.stash[RUN] = RunRecord(config, html_path=_path(config.getoption("--hil-html")))
         self.current = ""
         self.trace_mode: str = config.getoption("--hil-trace")
-        self.trace = None  # hil.io.trace.WireTrace once a bench is open
+        self.trace: WireTrace | None = None  # once a bench is open
         self._traced_bench: Any = None
         self.trace_dir = self._trace_dir()
         if self.trace_dir is not None:
@@ -220,7 +220,7 @@ class Reporter:
         _outcome(record, report, aborted=self.stops.aborted(report))
         ids = next((v for k, v in report.user_properties if k == REQUIREMENTS), None)
         if ids is not None:  # the IDs of its spec() marker: the HTML requirement table is built from them
-            record.requirements = ids.split()
+            record.requirements = str(ids).split()
         category = self.config.hook.pytest_report_teststatus(report=report, config=self.config)[0]
         if category:  # what pytest's summary counts this report as ("" for a passed setup or teardown)
             record.counted[category] = record.counted.get(category, 0) + 1
