@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar, TypeVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 from hil.families.fbs.address import DWORD, Address, missing, parse, take_frame_name
@@ -273,7 +273,7 @@ def _check_exists(address: Address, count: int) -> None:
         raise RequestError("A", reason)
 
 
-def _check_extent(cls: type[_Run], address: Address, count: int) -> None:
+def _check_extent(cls: type[_Run[Any]], address: Address, count: int) -> None:
     """The run a range command's count and start element give: the command's limit (4), the model (A)."""
     if cls.bits_only != address.is_bit:
         raise RequestError("4", f"command {cls.code} takes {'bit' if cls.bits_only else 'register'} names, "
@@ -306,29 +306,40 @@ def _expect_end(data: str, pos: int) -> None:
 
 
 # --- commands --------------------------------------------------------------------------------------------------
-class Command:
-    """Base of the command codecs.  ``code`` is the two-hex-digit command number."""
+_R = TypeVar("_R")  # what a command's reply decodes to
+
+
+class Command(Generic[_R]):
+    """Base of the command codecs.  ``code`` is the two-hex-digit command number; a reply decodes to ``_R``."""
 
     code: ClassVar[str]
 
     def request_data(self) -> str:
         return ""
 
-    def decode(self, data: str):
-        if data:
-            raise MalformedFrame(f"command {self.code} reply should carry no data, got {data!r}")
-        return None
+    def decode(self, data: str) -> _R:
+        """Client side: the reply's data (after the error code) as the caller's value."""
+        raise NotImplementedError(f"command {self.code} has no reply decoder")
 
     @classmethod
-    def from_request(cls, data: str) -> Command:
+    def from_request(cls, data: str) -> Command[_R]:
         _expect_end(data, 0)
         return cls()
 
-    def encode_result(self, result) -> str:  # noqa: ANN001
+    def encode_result(self, result: _R) -> str:
+        """Server side: the reply's data for ``result`` (what the PLC did with the request)."""
         return ""
 
     def describe(self) -> str:
         return f"command {self.code}"
+
+
+class _Acknowledged(Command[None]):
+    """A command whose reply carries no data (41, 42, 45, 47, 49): the reply only says it was done."""
+
+    def decode(self, data: str) -> None:
+        if data:
+            raise MalformedFrame(f"command {self.code} reply should carry no data, got {data!r}")
 
 
 @dataclass
@@ -360,7 +371,7 @@ def _parse_hex_bytes(data: str, what: str) -> list[int]:
 
 
 @dataclass
-class ShortStatus(Command):
+class ShortStatus(Command[StatusReply]):
     code: ClassVar[str] = "40"
 
     def decode(self, data: str) -> StatusReply:
@@ -398,7 +409,7 @@ class DetailedStatusReply:
 
 
 @dataclass
-class DetailedStatus(Command):
+class DetailedStatus(Command[DetailedStatusReply]):
     code: ClassVar[str] = "53"
 
     def decode(self, data: str) -> DetailedStatusReply:
@@ -422,7 +433,7 @@ class DetailedStatus(Command):
 
 
 @dataclass
-class RunStop(Command):
+class RunStop(_Acknowledged):
     code: ClassVar[str] = "41"
     run: bool = True
 
@@ -445,7 +456,7 @@ BIT_ACTIONS = {1: "disable", 2: "enable", 3: "set", 4: "reset"}
 
 
 @dataclass
-class BitAction(Command):
+class BitAction(_Acknowledged):
     code: ClassVar[str] = "42"
     action: int = 3
     address: Address = field(default_factory=lambda: parse("M0"))
@@ -476,7 +487,7 @@ class BitAction(Command):
         return f"{BIT_ACTIONS[self.action]} {self.address} (42)"
 
 
-class _Run(Command):
+class _Run(Command[_R]):
     """What the range commands 43–47 share: a run of ``count`` elements from ``address``, all bits or all registers
     as ``bits_only`` says."""
 
@@ -495,7 +506,7 @@ class _Run(Command):
         self.address.offset(count - 1)
 
 
-_C = TypeVar("_C", bound=Command)
+_C = TypeVar("_C", bound=Command[Any])
 
 
 def _as_request_error(build: Callable[[], _C]) -> _C:
@@ -510,7 +521,7 @@ def _as_request_error(build: Callable[[], _C]) -> _C:
 
 
 @dataclass
-class _RangeCommand(_Run):
+class _RangeCommand(_Run[list[int]]):
     """Shared shape of 43/44/46: N then a start element."""
 
     address: Address = field(default_factory=lambda: parse("R0"))
@@ -564,7 +575,7 @@ class ReadRegisters(_RangeCommand):
 
 
 @dataclass
-class _WriteRange(_Run):
+class _WriteRange(_Acknowledged, _Run[None]):
     """Shared shape of 45/47: N, start element, N values."""
 
     address: Address = field(default_factory=lambda: parse("R0"))
@@ -613,7 +624,7 @@ class WriteRegisters(_WriteRange):
 
 
 @dataclass
-class MixedRead(Command):
+class MixedRead(Command[list[int]]):
     code: ClassVar[str] = "48"
     addresses: list[Address] = field(default_factory=list)
 
@@ -658,7 +669,7 @@ class MixedRead(Command):
 
 
 @dataclass
-class MixedWrite(Command):
+class MixedWrite(_Acknowledged):
     code: ClassVar[str] = "49"
     items: list[tuple[Address, int]] = field(default_factory=list)
 
@@ -693,7 +704,7 @@ class MixedWrite(Command):
 
 
 @dataclass
-class Loopback(Command):
+class Loopback(Command[str]):
     code: ClassVar[str] = "4E"
     text: str = ""
 
@@ -719,16 +730,16 @@ class Loopback(Command):
         return "loop-back (4E)"
 
 
-COMMANDS: dict[str, type[Command]] = {c.code: c for c in (
+COMMANDS: dict[str, type[Command[Any]]] = {c.code: c for c in (
     ShortStatus, RunStop, BitAction, ReadEnableState, ReadBits, WriteBits, ReadRegisters, WriteRegisters,
     MixedRead, MixedWrite, Loopback, DetailedStatus)}
 
 
-def encode_request(station: int, command: Command) -> bytes:
+def encode_request(station: int, command: Command[Any]) -> bytes:
     return build_frame(station, command.code, command.request_data())
 
 
-def decode_request(frame: Frame) -> Command:
+def decode_request(frame: Frame) -> Command[Any]:
     """Server side: rebuild the command from a request frame (raises RequestError with the code to answer)."""
     cls = COMMANDS.get(frame.command)
     if cls is None:
@@ -736,7 +747,7 @@ def decode_request(frame: Frame) -> Command:
     return cls.from_request(frame.data)
 
 
-def encode_reply(station: int, command: Command, result=None, error: str = "0") -> bytes:  # noqa: ANN001
+def encode_reply(station: int, command: Command[Any], result: object = None, error: str = "0") -> bytes:
     if isinstance(command, Loopback):
         return build_frame(station, command.code, command.text)
     data = error if error != "0" else "0" + command.encode_result(result)

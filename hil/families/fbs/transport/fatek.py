@@ -18,10 +18,11 @@ request of the same command would be taken for the answer; what guards against i
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping
-from typing import TYPE_CHECKING, TypedDict
+from typing import TYPE_CHECKING, Any, TypedDict, TypeVar
 
 import serial
 
@@ -63,10 +64,11 @@ if TYPE_CHECKING:
     from hil.families.fbs.transport.replay import RecordedPlc
 
 #: Commands that only read: safe to repeat after a lost reply.
-READ_COMMANDS: tuple[type[Command], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
+READ_COMMANDS: tuple[type[Command[Any]], ...] = (ShortStatus, DetailedStatus, ReadEnableState, ReadBits, ReadRegisters,
                                             MixedRead, Loopback)
 
 Observer = Callable[[str, bytes], None]
+_R = TypeVar("_R")  # what a command's reply decodes to
 
 UNIT_TYPES = {0x01: "MC"}  # [our choice] only the code the spec names; others print as hex
 
@@ -141,7 +143,7 @@ class FatekTransport(Transport):
         self.reconnects = 0
         # before a request, after a fault: reconnect a lost connection, resynchronise with a loop-back (_probe)
         self._resync = Resync(needed=lambda: self._broken or self.dirty, probe=self._probe, failed=self._not_sent)
-        self._command: Command = Loopback("")  # the request in hand (what a resync failure names)
+        self._command: Command[Any] = Loopback("")  # the request in hand (what a resync failure names)
         if "://" not in port_url:  # a device or a pty: other processes (a run's lanes) may take turns on it
             self._lock = SharedLine(port_url, taken=self._line_taken, leaving=lambda: self.dirty)
         # opened in this client's turn: pyserial's open flushes the tty's input queue (tcflush), which on a shared
@@ -162,7 +164,7 @@ class FatekTransport(Transport):
                          timeout=self.timeout, write_timeout=self.timeout + 1.0, name=self.line_name)
 
     # -- extra FATEK operations ---------------------------------------------------------------------------------
-    def request(self, command: Command):  # noqa: ANN201 - returns what the command decodes
+    def request(self, command: Command[_R]) -> _R:
         """One command, with the retry policy of its kind; returns the decoded reply."""
         with self._lock:
             return self._count(self._exchange(command))
@@ -270,7 +272,7 @@ class FatekTransport(Transport):
         fields.update({f"{name} size": str(n) for name, n in ident.sizes.items()})
         return fields
 
-    def _exchange(self, command: Command):  # noqa: ANN202
+    def _exchange(self, command: Command[_R]) -> _R:
         """One command under the request policy (:mod:`hil.io.request_policy`): this wire supplies one try
         (:meth:`_once`, and for a read its fence), what counts as lost (a timeout, a broken connection, a reply
         that cannot be trusted) and the resynchronising loop-back (:meth:`_probe`)."""
@@ -281,10 +283,10 @@ class FatekTransport(Transport):
                 raise TransportError(f"{command.describe()} to station 00 (broadcast): a broadcast is never "
                                      f"answered, so nothing can be read")
             self._command = command
-            return self.policy.run("", lambda n, tries: self._send(frame), write=True, lost=_LOST,
-                                   resync=self._resync)
+            self.policy.run("", lambda n, tries: self._send(frame), write=True, lost=_LOST, resync=self._resync)
+            return command.decode("")  # never answered: what a reply without data decodes to (None)
 
-        def attempt(n: int, tries: int):  # noqa: ANN202 - what the command decodes
+        def attempt(n: int, tries: int) -> _R:
             result = self._once(command, frame, n, tries)
             if is_read and not self._trusted():  # something stale came with the reply: not this request's answer
                 raise _Stale(f"{command.describe()} to {self._where()}: something else came before or right after "
@@ -328,10 +330,8 @@ class FatekTransport(Transport):
     def reopen(self) -> None:
         """Close and reopen the port (a new TCP connection, the serial device opened again)."""
         with self._lock:
-            try:
+            with contextlib.suppress(serial.SerialException, OSError):  # a line already gone is closed
                 self._line.close()
-            except (serial.SerialException, OSError):
-                pass
             self._line = self.new_line()
             self._broken = False
             self.dirty = True  # a late reply may still come on a serial line
@@ -342,8 +342,8 @@ class FatekTransport(Transport):
         self._nonce += 1
         return Loopback(f"HIL{os.getpid() % 0x10000:04X}{self._nonce:06X}")
 
-    def _once(self, command: Command, frame: bytes, attempt: int, attempts: int, *,  # noqa: ANN202
-              flush: bool = True):
+    def _once(self, command: Command[_R], frame: bytes, attempt: int, attempts: int, *,
+              flush: bool = True) -> _R:
         """One request and its reply; whatever else arrives first is kept in :attr:`discarded`.  ``flush``: drop
         what waits on the line first (a late reply must not answer this request) — the fence must not."""
         self.discarded = []
@@ -457,7 +457,7 @@ class FatekTransport(Transport):
             return 0.0
         return (request_len + 508) * self._char_bits / self.baudrate
 
-    def _timeout_message(self, command: Command, frame: bytes, wait: float, attempt: int, attempts: int,
+    def _timeout_message(self, command: Command[Any], frame: bytes, wait: float, attempt: int, attempts: int,
                          assembler: FrameAssembler) -> str:
         parts = [f"no reply from station {self.station:02X} on {self.line_name} to {command.describe()} "
                  f"within {wait:.2f} s (attempt {attempt} of {attempts}); sent {show_frame(frame)}"]
