@@ -166,7 +166,7 @@ def lease(config: pytest.Config) -> None:
     # the bench is known to be a real one; its session object keeps the number.
     dsession = config.pluginmanager.getplugin("dsession")
     if dsession is not None and hasattr(dsession, "_max_worker_restart"):
-        dsession._max_worker_restart = 0
+        dsession._max_worker_restart = 0  # noqa: SLF001 - xdist has no public way to change it after configure
 
 
 def _lock_files(state: Any) -> list[int]:

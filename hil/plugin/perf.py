@@ -14,7 +14,8 @@ Every bench test gets:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any
 
@@ -110,15 +111,14 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+def pytest_runtest_makereport(item: pytest.Item,
+                              call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport, pytest.TestReport]:
     if call.when == "teardown":
         start = item.stash.get(_MARK, None)
         bench = _bench(item.config)
         if start is not None and bench is not None:
-            try:
+            with contextlib.suppress(Exception):  # counting never breaks a test
                 _record(item, start, _mark(item.config, bench))
-            except Exception:  # noqa: BLE001 - counting never breaks a test
-                pass
     return (yield)
 
 

@@ -205,10 +205,8 @@ def _make_gate(engine: Engine, modbus_map: ModbusMap, unit: int | None, serial: 
     # (function code, address, count) → verdict: it depends on nothing else (the map is fixed; every ModbusPDU
     # has address and count), and a client repeats the same few requests: check each once
     verdicts: dict[tuple[int, int, int], ExcCodes | None] = {}
-    if unit is None:
-        ours = None
-    else:  # RTU 0 = broadcast; TCP 0/FFH = this device
-        ours = {unit, 0} if serial else {unit, *tcp_unit_aliases(unit)}
+    # the unit ids this device answers (None: any): RTU 0 = broadcast; TCP 0/FFH = this device
+    ours = None if unit is None else {unit, 0} if serial else {unit, *tcp_unit_aliases(unit)}
     requests, ignored, exceptions = f"{prefix}_requests", f"{prefix}_ignored", f"{prefix}_exceptions"
 
     def gate(sending: bool, pdu: ModbusPDU) -> ModbusPDU:

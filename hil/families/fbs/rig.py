@@ -32,16 +32,22 @@ RIG_PROBE = Probe(0, 1)
 MAX_COILS = 2000  # coils one FC01 read may ask for
 
 
+def rig_unit(target: Target) -> int:
+    """The Modbus unit a rig's target names (``?unit=``, an int once hil.io.url has read it), else 1."""
+    return int(str(target.params.get("unit", 1)))
+
+
 def rig_wire(target: Target, timeout: float, retries: int = 2) -> ModbusWire:
     """The one Modbus client to a fault rig at ``target`` (``modbus+tcp://…``, ``modbus+rtu://…``, RFC 2217)."""
-    unit = int(str(target.params.get("unit", 1)))
+    unit = rig_unit(target)
     hint = "is the relay module powered and wired, and are its unit id and address right?"
     if target.scheme == "modbus+tcp":
         return ModbusWire.tcp(target.host, target.port, unit=unit, timeout=timeout, retries=retries, hint=hint,
                               probe=RIG_PROBE, description=f"{target} (fault rig)", describe=_coils)
     p = target.params
-    return ModbusWire.rtu(target.serial_port, baudrate=int(str(p.get("baudrate", 9600))), parity=str(p.get("parity", "E")),
-                          bytesize=int(str(p.get("bytesize", 8))), stopbits=int(str(p.get("stopbits", 1))), unit=unit,
+    return ModbusWire.rtu(target.serial_port, baudrate=int(str(p.get("baudrate", 9600))),
+                          parity=str(p.get("parity", "E")), bytesize=int(str(p.get("bytesize", 8))),
+                          stopbits=int(str(p.get("stopbits", 1))), unit=unit,
                           timeout=timeout, retries=retries, hint=hint, probe=RIG_PROBE, label="fault rig",
                           describe=_coils)
 
@@ -144,11 +150,6 @@ class CoilJournal:
     def drop_elements(self, names: Iterable[str]) -> None:
         for key in names:
             self.journal.drop_coil(key)
-
-
-def rig_unit(target: Target) -> int:
-    """The Modbus unit a rig's target names (``?unit=``, an int once hil.io.url has read it), else 1."""
-    return int(str(target.params.get("unit", 1)))
 
 
 class GuardedRig(GuardedLink):

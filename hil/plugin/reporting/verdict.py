@@ -16,6 +16,7 @@ so pytest's terminal counts, its JUnit file and hil's records are the same count
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -133,15 +134,13 @@ class Stops:
     def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
         try:
             return (yield)
-        except BaseException as exc:
+        except BaseException as exc:  # noqa: BLE001 - re-raised below, once the unfinished test is reported
             stop = exc
         # outside the except block: the teardown run below must not chain its own errors to the stop
         self.stopped = self.stopped or f"{describe(stop)} during {item.nodeid}"
         self._stopped_in = getattr(item, "path", None)
-        try:
+        with contextlib.suppress(Exception):  # the exception that stopped the run is the one pytest must see
             self._report_unfinished(item, stop)
-        except Exception:  # noqa: BLE001 - the exception that stopped the run is the one pytest must see
-            pass
         raise stop
 
     @pytest.hookimpl(tryfirst=True)  # before the terminal reporter keeps its picture of the interrupt

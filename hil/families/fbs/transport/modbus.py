@@ -1,8 +1,8 @@
 """ModbusTransport: an FBs reached over Modbus/TCP or Modbus RTU through the default map, with pymodbus's clients.
 
-Every request is resolved through :mod:`hil.families.fbs.protocol.modbus_map` *before* anything is sent, so an element the
-default map cannot reach (D4054, R4168…) raises :class:`~hil.core.errors.UnreachableAddress` instead of silently
-reading some other register.  Requests of any shape become contiguous runs per table — coils via FC01/FC15,
+Every request is resolved through :mod:`hil.families.fbs.protocol.modbus_map` *before* anything is sent, so an
+element the default map cannot reach (D4054, R4168…) raises :class:`~hil.core.errors.UnreachableAddress` instead
+of silently reading some other register.  Requests of any shape become contiguous runs per table — coils via FC01/FC15,
 holding registers via FC03/FC16 — split at the protocol limits (2000/1968 coils, 125/123 registers).
 """
 
