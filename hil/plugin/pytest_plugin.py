@@ -23,8 +23,8 @@ pytest.register_assert_rewrite(*PLUGINS)
 from hil.bench.base import BenchBase as Bench
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.bench.faces import BenchView
-from hil.bench.lab.session import LabSession
 from hil.bench.family import build_emulator, default_family, open_bench
+from hil.bench.lab.session import LabSession
 from hil.bench.profile import Profile, load_profile, plc_target, refuse_default_for_a_plc
 from hil.bench.replay import Recovery
 from hil.bench.view import suite_view

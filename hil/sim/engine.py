@@ -33,7 +33,7 @@ class Engine:
     #: real time: scans run one by one up to this many per tick; a host that falls further behind jumps the rest
     realtime_catch_up = 1000
 
-    def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
+    def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model[Any]] = (), station: int = 1,
                  seed: int = 0, timing: Timing = INSTANT) -> None:
         if scan_time <= 0:
             raise InvalidValue(f"scan time must be positive, not {scan_time}")
@@ -46,7 +46,7 @@ class Engine:
         self.station = station
         self.seed = seed
         self.memory = memory
-        self.models: list[Model] = []
+        self.models: list[Model[Any]] = []
         self.lock = threading.RLock()
         self.stats: collections.Counter[str] = collections.Counter()
         self.now = 0.0  # virtual seconds since power-on
@@ -62,7 +62,7 @@ class Engine:
         for model in models:
             self.add_model(model)
 
-    def add_model(self, model: Model) -> None:
+    def add_model(self, model: Model[Any]) -> None:
         with self.lock:
             model.power_on(self)
             self.models.append(model)

@@ -11,18 +11,17 @@ from hil.bench.profile import Profile
 from hil.bench.schema import Section
 from hil.core.errors import InvalidValue
 from hil.families.fbs import entries  # noqa: F401 - its schemes, wires, report areas and plots (registered)
-from hil.families.fbs.address import parse_range
+from hil.families.fbs.address import expand, parse_range
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.injectors.config import FAULTS, check_fault_configs
 from hil.families.fbs.pid import PID, parse_pid
 from hil.families.fbs.rtc_profile import RTC, parse_rtc
 from hil.families.fbs.sim.build import build_emulator
-from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.models.plant_config import PLANT, parse_plant
+from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.temperature import TEMPERATURE, parse_temperature
 from hil.families.fbs.transport.base import value_problem
 from hil.families.fbs.transport.factory import serve
-from hil.families.fbs.transport.guard import expand
 from hil.sim.engine import Engine
 from hil.sim.runtime import ServerHandle
 
@@ -53,7 +52,8 @@ class FbsFamily:
         return value_problem(element, value)
 
     def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
-        parsers: dict[str, Callable[[dict[str, Any], str], Any]] = {"rtc": parse_rtc, "temperature": parse_temperature, "pid": parse_pid, "plant": parse_plant}
+        parsers: dict[str, Callable[[dict[str, Any], str], Any]] = {
+            "rtc": parse_rtc, "temperature": parse_temperature, "pid": parse_pid, "plant": parse_plant}
         return {name: parsers[name](table, where) for name, table in tables.items()}
 
     def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:

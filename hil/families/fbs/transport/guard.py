@@ -19,18 +19,9 @@ from hil.bench.guard import GuardedLink
 from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
 from hil.core.errors import HilError, WriteRefused
 from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, run_left
-from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, parse, parse_range
+from hil.families.fbs.address import LOW_WORD_FIRST, PAIRED_32, Address, expand, parse
 from hil.families.fbs.faces import FbsIO
 from hil.families.fbs.transport.base import NameLike, Transport, check_value, value_problem
-
-
-def expand(ranges: Iterable[str]) -> frozenset[Address]:
-    """Base elements (bits and 16-bit words) named by ``["R4128-R4135", "M1952", "WM800"]``."""
-    out: set[Address] = set()
-    for text in ranges:
-        for element in parse_range(text):
-            out.update(element.elements())
-    return frozenset(out)
 
 
 def element_values(pairs: Iterable[tuple[Address, int]]) -> dict[Address, int]:
