@@ -28,7 +28,7 @@ class BenchState(Protocol):
     lock: BenchLock | None  # on a real bench, held until unconfigure
     place_lock: BenchLock | None  # keyed on the labgrid place
     plc_lock: BenchLock | None  # keyed on the profile's [bench] plc_id
-    plc_line: str | None  # the header's "hil PLC: …" line
+    plc_line: str  # the header's "hil PLC: …" line, once written ("" before)
     header_panel: bool  # the console output's panel shows that line instead
 
     @property
