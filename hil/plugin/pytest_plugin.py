@@ -8,7 +8,7 @@ module's declared working state when its last test ends: :mod:`hil.plugin.workin
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from pathlib import Path
 
 import pytest
@@ -34,7 +34,7 @@ from hil.core.lock import BenchLock, describe_holder, plc_key
 from hil.core.paths import default_bench
 from hil.core.registry import examples
 from hil.core.signals import shielded
-from hil.io.url import parse_target
+from hil.io.url import Target, parse_target
 from hil.plugin import bench_time, hookspecs, lanes, working_state
 from hil.plugin.lab import hold_place, let_go
 from hil.plugin.preflight import unreachable
@@ -103,7 +103,7 @@ class BenchSession:
         self.plc_lock: BenchLock | None = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
         self.lab: LabSession | None = None  # the labgrid place held for this session
         self.recovery: Recovery | None = None  # what a dead run left, replayed when the bench opened
-        self.plc_line: str | None = None  # the header's "hil PLC: …" line (hil.plugin.reporting shows it)
+        self.plc_line = ""  # the header's "hil PLC: …" line, once written (hil.plugin.reporting shows it)
         self.header_panel = False  # True: the console output's panel shows that line instead (hil.plugin.reporting)
         self._profile: Profile | None = None
 
@@ -262,23 +262,35 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
     items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
     _deselect_other_families(config, items, profile)
+    run_slow = target.in_process or config.getoption("--hil-run-slow")
     for item in items:
-        for marker in item.iter_markers("needs"):
-            bad = unknown(marker.args)
-            if bad or not marker.args:
-                raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
-                                        f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
-            missing = [name for name in marker.args if name not in offered]
-            if missing:
-                why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
-                offer = "; ".join(how_to_offer(name) for name in missing)
-                item.add_marker(pytest.mark.skip(
-                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
-        if item.get_closest_marker("destructive") and not destructive_ok:
-            item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
-        if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
-            item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
+        _skip_what_the_target_lacks(item, target, offered)
+        _skip_without_opt_in(item, destructive_ok=destructive_ok, run_slow=run_slow)
     bench_time.apply(items, profile, target.in_process)
+
+
+def _skip_what_the_target_lacks(item: pytest.Item, target: Target, offered: Collection[str]) -> None:
+    """A test whose ``needs(...)`` names a capability the target does not offer is skipped, saying why and how to
+    offer it; a ``needs()`` naming none, or one not known, is a usage error."""
+    for marker in item.iter_markers("needs"):
+        bad = unknown(marker.args)
+        if bad or not marker.args:
+            raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
+                                    f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
+        missing = [name for name in marker.args if name not in offered]
+        if missing:
+            why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
+            offer = "; ".join(how_to_offer(name) for name in missing)
+            item.add_marker(pytest.mark.skip(
+                reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
+
+
+def _skip_without_opt_in(item: pytest.Item, *, destructive_ok: bool, run_slow: bool) -> None:
+    """Destructive tests and, on a real bench, slow ones run only when the run opted in."""
+    if item.get_closest_marker("destructive") and not destructive_ok:
+        item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
+    if item.get_closest_marker("slow") and not run_slow:
+        item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
 
 
 _OTHER_FAMILIES = pytest.StashKey[str]()
