@@ -63,14 +63,17 @@ class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
-    #: Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids that
-    #: may repeat a reply, docs/safety.md).  Port 0 services each at the end of a scan: suites that bracket scans
-    #: count with it.
-    requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: Emulator | None = None
     #: The emulator's server this transport talks to (an ``emulator+<wire>`` target), else None.
     server: ServerHandle | None = None
+
+    @property
+    def requests_per_read(self) -> int:
+        """Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids
+        that may repeat a reply, docs/safety.md).  Port 0 services each at the end of a scan: suites that bracket
+        scans count with it."""
+        return 1
 
     # -- public API -------------------------------------------------------------------------------------------
     def read_words(self, address: NameLike, count: int = 1) -> list[int]:
