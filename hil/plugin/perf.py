@@ -21,8 +21,9 @@ from typing import Any
 
 import pytest
 
+from hil.bench.base import BenchBase
 from hil.io.trace import CHAR_BITS
-from hil.plugin.pytest_plugin import BENCH_SESSION
+from hil.plugin.stash import BENCH_SESSION
 
 BAUD = 9600
 
@@ -86,12 +87,13 @@ _MARK = pytest.StashKey[_Mark]()
 _COUNTER = pytest.StashKey[WireCounter]()
 
 
-def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
+def _bench(config: pytest.Config) -> BenchBase | None:
+    """The open bench, or None."""
     state = config.stash.get(BENCH_SESSION, None)
     return None if state is None else state.bench
 
 
-def _mark(config: pytest.Config, bench) -> _Mark:  # noqa: ANN001
+def _mark(config: pytest.Config, bench: BenchBase) -> _Mark:
     raw = bench.raw
     counter = config.stash.get(_COUNTER, None)
     if counter is None or counter.transport is not raw:  # re-attach if the bench was reopened

@@ -8,7 +8,8 @@ module's declared working state when its last test ends: :mod:`hil.plugin.workin
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator
+import datetime as dt
+from collections.abc import Collection, Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -40,6 +41,7 @@ from hil.plugin.lab import hold_place, let_go
 from hil.plugin.preflight import unreachable
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
+from hil.sim.engine import Engine
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
@@ -202,26 +204,21 @@ class BenchSession:
             if failures is not None:
                 request.node.user_properties.append(
                     ("hil_restore_failed", "; ".join(f"{a} (original {v}): {why}" for a, v, why in failures)))
-            why = _alive(bench)
+            why = bench.alive()
             if why is not None:
                 self.dead = f"restore after {request.node.nodeid} failed and the PLC does not answer: {exc}"
             raise
         failure = request.node.stash.get(_WIRE_FAILURE, None)
         if failure is not None:
-            why = _alive(bench)
+            why = bench.alive()
             if why is not None:
                 self.dead = f"the PLC stopped answering during {request.node.nodeid}: {failure}"
-
-
-def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench of the same surface
-    alive = getattr(bench, "alive", None)
-    return alive() if alive is not None else None
 
 
 _WIRE_FAILURE = pytest.StashKey[str]()
 
 
-def _default_build(profile: Profile, epoch):  # noqa: ANN001, ANN202
+def _default_build(profile: Profile, epoch: dt.datetime) -> Engine:
     return build_emulator(profile, epoch)
 
 
@@ -351,7 +348,8 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
+def pytest_runtest_makereport(item: pytest.Item,
+                              call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport, pytest.TestReport]:
     """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
     report = yield
     if call.when == "setup" and report.failed and "bench" in getattr(item, "fixturenames", ()):
@@ -364,7 +362,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa
             and "bench" in getattr(item, "fixturenames", ())):
         item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"
     if call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(StaleEvidence):
-        report.stale_evidence = True  # (a plain attribute: it travels with the report from an xdist worker)
+        # a plain attribute, as pytest lets a plugin add to a report: it travels with it from an xdist worker
+        report.stale_evidence = True  # type: ignore[attr-defined]  # pytest's TestReport declares none of these
     return report
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 
@@ -28,6 +30,6 @@ def occurrence(values: np.ndarray) -> np.ndarray:
     return out
 
 
-def signed16(words) -> np.ndarray:  # noqa: ANN001 - a list or array of 16-bit words
+def signed16(words: Sequence[int] | np.ndarray) -> np.ndarray:
     """16-bit words as signed values."""
     return (np.asarray(words, dtype=np.int64) ^ 0x8000) - 0x8000

@@ -42,6 +42,7 @@ class Engine:
         self.timing = timing
         scan_range = timing.scan_range if timing.bench else None
         self._scan_lengths = timing.stream("scan") if scan_range else None
+        self._scan_range = scan_range or (scan_time, scan_time)  # (shortest, longest) a drawn scan takes
         self.scan_time = scan_range[0] if scan_range else scan_time
         self.station = station
         self.seed = seed
@@ -90,8 +91,7 @@ class Engine:
         """How long the coming scan takes: ``scan_time``, or in bench timing a seeded draw from the range."""
         if self._scan_lengths is None:
             return self.scan_time
-        low, high = self.timing.scan_range  # type: ignore[misc]  # set with _scan_lengths
-        return self._scan_lengths.uniform(low, high)
+        return self._scan_lengths.uniform(*self._scan_range)
 
     def end_scan(self) -> None:
         """What the controller does at the end of every scan after the models (a family may add to it)."""

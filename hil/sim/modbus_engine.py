@@ -29,15 +29,16 @@ import asyncio
 import bisect
 import concurrent.futures
 import threading
-from collections.abc import Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from pymodbus.constants import ExcCodes
+from pymodbus.datastore import ModbusServerContext
 from pymodbus.exceptions import NoSuchIdException
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.simulator import DataType, SimAction, SimData, SimDevice
 
 from hil.sim.engine import Engine
 from hil.sim.modbus_server import STRICT_REQUESTS, InOrderTcpServer, tcp_unit_aliases
@@ -146,7 +147,7 @@ def build_device(engine: Engine, modbus_map: ModbusMap, unit: int | None) -> Sim
     return SimDevice(id=0 if unit is None else unit, simdata=simdata, action=_make_action(engine, modbus_map))
 
 
-def _make_action(engine: Engine, modbus_map: ModbusMap):  # noqa: ANN202 - a pymodbus SimAction
+def _make_action(engine: Engine, modbus_map: ModbusMap) -> SimAction:
     lock = engine.lock
     # A read's request depends on nothing but these arguments (the map is fixed, the staging list is the
     # device's own), and a client repeats the same few reads: build each once.
@@ -192,7 +193,7 @@ class _Refusal(ModbusPDU):
         self.function_code = request.function_code
         self.code = code  # None: stay silent
 
-    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         if self.code is None:
             raise NoSuchIdException(f"unit {device_id}")  # with ignore_missing_devices: no reply at all
         return ExceptionResponse(self.function_code, self.code)
@@ -263,7 +264,8 @@ def start_tcp(engine: Engine, modbus_map: ModbusMap, host: str = "127.0.0.1", po
     return ServerHandle(kind, f"{host}:{actual}", _stopper(runtime, stop))
 
 
-def _fault_proxy(host: str, port: int, faults: WireFaults):  # noqa: ANN202 - an asyncio client callback
+def _fault_proxy(host: str, port: int,
+                 faults: WireFaults) -> Callable[[asyncio.StreamReader, asyncio.StreamWriter], Awaitable[None]]:
     async def client(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         try:
             up_reader, up_writer = await asyncio.open_connection(host, port)

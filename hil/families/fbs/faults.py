@@ -171,7 +171,7 @@ class Faults:
         for injector in self._made.values():
             try:
                 injector.undo()
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:  # noqa: BLE001 - undo every injector, then report them all
                 errors.append(str(exc))
         if errors:
             raise FaultError("; ".join(errors))

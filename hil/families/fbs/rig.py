@@ -164,7 +164,8 @@ class GuardedRig(GuardedLink):
         self._prefix = f"{lock_key(str(target))}#unit{self.unit}/coil"
         super().__init__(link, [self.coil(c) for c in writable])
         if journal is not None:
-            self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]
+            # the guard's durable journal, for coils: the methods the guard calls, kept in the journal's coils section
+            self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]  # not a Journal
 
     def coil(self, name: int | str | RigCoil) -> RigCoil:
         """The element for a coil number, its journal key, or itself."""
