@@ -418,15 +418,26 @@ def _outcome(record: TestRecord, report: pytest.TestReport, *, aborted: bool = F
         return
     if report.skipped:
         if record.outcome in (TestOutcome.INCOMPLETE, TestOutcome.PASS):
-            reason = getattr(report, "wasxfail", None)
-            record.outcome = TestOutcome.SKIP if reason is None else TestOutcome.XFAIL  # as pytest counts them
-            if reason is not None:
-                record.message = f"xfail: {reason}" if reason else "xfail"
-            elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
-                record.message = str(report.longrepr[2]).removeprefix("Skipped: ")
-            else:
-                record.message = str(report.longrepr or "")
+            _skipped(record, report)
         return
+    _failed(record, report, aborted=aborted)
+
+
+def _skipped(record: TestRecord, report: pytest.TestReport) -> None:
+    """A skip, or an expected failure (xfail), as pytest counts them, with its reason."""
+    reason = getattr(report, "wasxfail", None)
+    record.outcome = TestOutcome.SKIP if reason is None else TestOutcome.XFAIL
+    if reason is not None:
+        record.message = f"xfail: {reason}" if reason else "xfail"
+    elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
+        record.message = str(report.longrepr[2]).removeprefix("Skipped: ")
+    else:
+        record.message = str(report.longrepr or "")
+
+
+def _failed(record: TestRecord, report: pytest.TestReport, *, aborted: bool) -> None:
+    """A failed phase: the call's failure, a setup's or teardown's error, or the run stopping inside the test —
+    never hiding a failure already shown; its message and text added to the record's."""
     crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
     text = report.longreprtext.strip()
     message = crash.message if crash is not None else (text.splitlines()[-1] if text else "failed")
