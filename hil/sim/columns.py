@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
+import numpy.typing as npt
 
 
 def last_of_each(values: np.ndarray) -> np.ndarray:
@@ -30,6 +29,6 @@ def occurrence(values: np.ndarray) -> np.ndarray:
     return out
 
 
-def signed16(words: Sequence[int] | np.ndarray) -> np.ndarray:
+def signed16(words: npt.ArrayLike) -> np.ndarray:
     """16-bit words as signed values."""
     return (np.asarray(words, dtype=np.int64) ^ 0x8000) - 0x8000
