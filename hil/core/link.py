@@ -14,7 +14,9 @@ class Link:
 
     def __init__(self, description: str) -> None:
         self.description = description
-        self._lock = threading.RLock()  # one request on the wire at a time, as a serial line demands
+        # one request on the wire at a time, as a serial line demands; a subclass may hold a line shared with other
+        # processes instead (hil.io.shared_line.SharedLine): any re-entrant context manager does
+        self._lock: contextlib.AbstractContextManager[object] = threading.RLock()
         self._closers: list[Callable[[], None]] = []
         self.requests = 0  # protocol requests sent (round trips)
         self.closed = False

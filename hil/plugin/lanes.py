@@ -29,6 +29,7 @@ gaps (docs/performance.md).  What keeps it safe:
 from __future__ import annotations
 
 import os
+from collections.abc import Generator
 from typing import Any
 
 import pytest
@@ -38,7 +39,7 @@ from hil.core.lease import LockLender, borrow, die_with_parent
 from hil.core.registry import SCHEMES
 from hil.io.shared_line import run_in_background
 from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce, say
-from hil.plugin.stash import BENCH_SESSION
+from hil.plugin.stash import BENCH_SESSION, BenchState
 
 MARKER = ("lane(name): the lane of this module's tests in a run with lanes (hil run --lanes N): tests of one lane run "
           "in one process, in order; tests of different lanes may run at the same time on one PLC, so they must "
@@ -166,10 +167,10 @@ def lease(config: pytest.Config) -> None:
     # the bench is known to be a real one; its session object keeps the number.
     dsession = config.pluginmanager.getplugin("dsession")
     if dsession is not None and hasattr(dsession, "_max_worker_restart"):
-        dsession._max_worker_restart = 0
+        dsession._max_worker_restart = 0  # noqa: SLF001 - xdist has no public way to change it after configure
 
 
-def _lock_files(state: Any) -> list[int]:
+def _lock_files(state: BenchState) -> list[int]:
     """The open files of the bench's locks the controller holds (its place's, its endpoint's, its PLC's)."""
     locks = (state.place_lock, state.lock, state.plc_lock)
     return [fd for lock in locks if lock is not None and (fd := lock.fileno()) is not None]
@@ -232,7 +233,7 @@ def pytest_testnodedown(node: Any, error: object | None) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_sessionfinish(session: pytest.Session):  # noqa: ANN201 - a wrapper
+def pytest_sessionfinish(session: pytest.Session) -> Generator[None, object, object]:
     """After every other session-end hook (the safety report's last restores among them):
 
     * a worker says how it left the PLC — inside pytest-xdist's own wrapper, which sends ``workeroutput`` once
@@ -242,7 +243,7 @@ def pytest_sessionfinish(session: pytest.Session):  # noqa: ANN201 - a wrapper
     result = yield
     config = session.config
     if worker_lane(config) is not None:
-        config.workeroutput[LEFT] = config.stash.get(PLC_LEFT, "")  # type: ignore[attr-defined]
+        config.workeroutput[LEFT] = config.stash.get(PLC_LEFT, "")  # type: ignore[attr-defined]  # xdist's, on a worker
     elif config.stash.get(_LANES_LEFT, None) is not None:
         _the_runs_word(session)
     return result

@@ -14,14 +14,16 @@ Every bench test gets:
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import contextlib
+from collections.abc import Callable, Generator
 from dataclasses import dataclass
 from typing import Any
 
 import pytest
 
+from hil.bench.base import BenchBase
 from hil.io.trace import CHAR_BITS
-from hil.plugin.pytest_plugin import BENCH_SESSION
+from hil.plugin.stash import BENCH_SESSION
 
 BAUD = 9600
 
@@ -85,12 +87,13 @@ _MARK = pytest.StashKey[_Mark]()
 _COUNTER = pytest.StashKey[WireCounter]()
 
 
-def _bench(config: pytest.Config):  # noqa: ANN202 - the open Bench, or None
+def _bench(config: pytest.Config) -> BenchBase | None:
+    """The open bench, or None."""
     state = config.stash.get(BENCH_SESSION, None)
     return None if state is None else state.bench
 
 
-def _mark(config: pytest.Config, bench) -> _Mark:  # noqa: ANN001
+def _mark(config: pytest.Config, bench: BenchBase) -> _Mark:
     raw = bench.raw
     counter = config.stash.get(_COUNTER, None)
     if counter is None or counter.transport is not raw:  # re-attach if the bench was reopened
@@ -110,15 +113,14 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+def pytest_runtest_makereport(item: pytest.Item,
+                              call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport, pytest.TestReport]:
     if call.when == "teardown":
         start = item.stash.get(_MARK, None)
         bench = _bench(item.config)
         if start is not None and bench is not None:
-            try:
+            with contextlib.suppress(Exception):  # counting never breaks a test
                 _record(item, start, _mark(item.config, bench))
-            except Exception:  # noqa: BLE001 - counting never breaks a test
-                pass
     return (yield)
 
 

@@ -19,7 +19,7 @@ from hil.core.errors import HilError
 from hil.core.registry import examples
 from hil.io.url import parse_target
 from hil.plugin import lanes
-from hil.plugin.stash import BENCH_SESSION
+from hil.plugin.stash import BENCH_SESSION, BenchState
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -52,7 +52,7 @@ def pytest_sessionstart(session: pytest.Session) -> None:
             lanes.lease(config)  # the locks stay with this run; each worker opens the wire as a lane
 
 
-def unreachable(state, exc: BaseException, target: str | None = None) -> str:  # noqa: ANN001 - the bench state
+def unreachable(state: BenchState, exc: BaseException, target: str | None = None) -> str:
     """One line: the bench, the target and the reason (which says what to check)."""
     reason = " ".join(str(getattr(exc, "msg", None) or exc).split())
     reason = reason.removeprefix("cannot open the bench: ")

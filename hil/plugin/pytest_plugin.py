@@ -8,7 +8,8 @@ module's declared working state when its last test ends: :mod:`hil.plugin.workin
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import datetime as dt
+from collections.abc import Collection, Generator, Iterator
 from pathlib import Path
 
 import pytest
@@ -24,7 +25,9 @@ from hil.bench.base import BenchBase as Bench
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.bench.faces import BenchView
 from hil.bench.family import build_emulator, default_family, open_bench
+from hil.bench.lab.session import LabSession
 from hil.bench.profile import Profile, load_profile, plc_target, refuse_default_for_a_plc
+from hil.bench.replay import Recovery
 from hil.bench.view import suite_view
 from hil.core.errors import HilError, TransportError
 from hil.core.evidence import StaleEvidence
@@ -32,12 +35,13 @@ from hil.core.lock import BenchLock, describe_holder, plc_key
 from hil.core.paths import default_bench
 from hil.core.registry import examples
 from hil.core.signals import shielded
-from hil.io.url import parse_target
+from hil.io.url import Target, parse_target
 from hil.plugin import bench_time, hookspecs, lanes, working_state
 from hil.plugin.lab import hold_place, let_go
 from hil.plugin.preflight import unreachable
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
+from hil.sim.engine import Engine
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
@@ -96,11 +100,13 @@ class BenchSession:
         self.bench: Bench | None = None
         self.error: str | None = None
         self.dead: str | None = None  # set when the PLC stopped answering: later tests error with this reason
-        self.lock = None  # hil.core.lock.BenchLock on a real bench, held until unconfigure
-        self.place_lock = None  # and one keyed on the labgrid place, when the bench is one
-        self.plc_lock = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
-        self.lab = None  # hil.bench.lab.session.LabSession: the labgrid place held for this session
-        self.recovery = None  # hil.bench.guard.Recovery: what a dead run left, replayed when the bench opened
+        self.lock: BenchLock | None = None  # on a real bench, held until unconfigure
+        self.place_lock: BenchLock | None = None  # and one keyed on the labgrid place, when the bench is one
+        self.plc_lock: BenchLock | None = None  # and one keyed on the profile's [bench] plc_id, when it names the PLC
+        self.lab: LabSession | None = None  # the labgrid place held for this session
+        self.recovery: Recovery | None = None  # what a dead run left, replayed when the bench opened
+        self.plc_line = ""  # the header's "hil PLC: …" line, once written (hil.plugin.reporting shows it)
+        self.header_panel = False  # True: the console output's panel shows that line instead (hil.plugin.reporting)
         self._profile: Profile | None = None
 
     @property
@@ -127,26 +133,26 @@ class BenchSession:
                                    allow_destructive=self.config.getoption("--hil-allow-destructive"),
                                    emulator_builder=lambda p, e: hook(profile=p, epoch=e) or _default_build(p, e),
                                    lane=lanes.worker_lane(self.config))
-                self._recover()
+                self._recover(self.bench)
             except HilError as exc:
                 self.error = f"cannot open the bench: {exc}"
                 raise pytest.fail.Exception(self.error, pytrace=False) from None
         return self.bench
 
-    def _recover(self) -> None:
+    def _recover(self, bench: Bench) -> None:
         """Recovery first (issue 15): a journal a dead run left is replayed before any test, and said loudly."""
-        self.recovery = self.bench.recover()
-        if self.recovery is None or not self.recovery.needed:
+        self.recovery = recovery = bench.recover()
+        if recovery is None or not recovery.needed:
             return
-        announce(self.config, self.recovery)
-        if not self.recovery.ok:
-            self.dead = self.recovery.summary()
+        announce(self.config, recovery)
+        if not recovery.ok:
+            self.dead = recovery.summary()
 
     def _refuse_default_profile(self) -> None:
         """The bundled profile is the emulator's: never for a PLC named by --target alone; and a PLC only ever
         with a profile that names it, at its station (before any lock is taken or byte sent)."""
         refuse_default_for_a_plc(self.config.getoption("--target"), self.config.getoption("--bench"),
-                                 self.profile.path)
+                                 self.profile.path or resolve_bench_path(self.config))
         plc_target(self.profile, self.config.getoption("--target"))
 
     def _lock_bench(self) -> None:
@@ -198,26 +204,21 @@ class BenchSession:
             if failures is not None:
                 request.node.user_properties.append(
                     ("hil_restore_failed", "; ".join(f"{a} (original {v}): {why}" for a, v, why in failures)))
-            why = _alive(bench)
+            why = bench.alive()
             if why is not None:
                 self.dead = f"restore after {request.node.nodeid} failed and the PLC does not answer: {exc}"
             raise
         failure = request.node.stash.get(_WIRE_FAILURE, None)
         if failure is not None:
-            why = _alive(bench)
+            why = bench.alive()
             if why is not None:
                 self.dead = f"the PLC stopped answering during {request.node.nodeid}: {failure}"
-
-
-def _alive(bench) -> str | None:  # noqa: ANN001 - a Bench or a family's bench of the same surface
-    alive = getattr(bench, "alive", None)
-    return alive() if alive is not None else None
 
 
 _WIRE_FAILURE = pytest.StashKey[str]()
 
 
-def _default_build(profile: Profile, epoch):  # noqa: ANN001, ANN202
+def _default_build(profile: Profile, epoch: dt.datetime) -> Engine:
     return build_emulator(profile, epoch)
 
 
@@ -258,23 +259,35 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
     items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
     _deselect_other_families(config, items, profile)
+    run_slow = target.in_process or config.getoption("--hil-run-slow")
     for item in items:
-        for marker in item.iter_markers("needs"):
-            bad = unknown(marker.args)
-            if bad or not marker.args:
-                raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
-                                        f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
-            missing = [name for name in marker.args if name not in offered]
-            if missing:
-                why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
-                offer = "; ".join(how_to_offer(name) for name in missing)
-                item.add_marker(pytest.mark.skip(
-                    reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
-        if item.get_closest_marker("destructive") and not destructive_ok:
-            item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
-        if item.get_closest_marker("slow") and not target.in_process and not config.getoption("--hil-run-slow"):
-            item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
+        _skip_what_the_target_lacks(item, target, offered)
+        _skip_without_opt_in(item, destructive_ok=destructive_ok, run_slow=run_slow)
     bench_time.apply(items, profile, target.in_process)
+
+
+def _skip_what_the_target_lacks(item: pytest.Item, target: Target, offered: Collection[str]) -> None:
+    """A test whose ``needs(...)`` names a capability the target does not offer is skipped, saying why and how to
+    offer it; a ``needs()`` naming none, or one not known, is a usage error."""
+    for marker in item.iter_markers("needs"):
+        bad = unknown(marker.args)
+        if bad or not marker.args:
+            raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
+                                    f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
+        missing = [name for name in marker.args if name not in offered]
+        if missing:
+            why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
+            offer = "; ".join(how_to_offer(name) for name in missing)
+            item.add_marker(pytest.mark.skip(
+                reason=f"needs {', '.join(missing)}: {why} (target {target} does not offer it; {offer})"))
+
+
+def _skip_without_opt_in(item: pytest.Item, *, destructive_ok: bool, run_slow: bool) -> None:
+    """Destructive tests and, on a real bench, slow ones run only when the run opted in."""
+    if item.get_closest_marker("destructive") and not destructive_ok:
+        item.add_marker(pytest.mark.skip(reason="destructive: pass --hil-allow-destructive to run it"))
+    if item.get_closest_marker("slow") and not run_slow:
+        item.add_marker(pytest.mark.skip(reason="slow on a real bench: pass --hil-run-slow to run it"))
 
 
 _OTHER_FAMILIES = pytest.StashKey[str]()
@@ -323,7 +336,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
     state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)
-    if reporter is not None and session.config.get_verbosity() >= 0 and not getattr(state, "header_panel", False):
+    if reporter is not None and session.config.get_verbosity() >= 0 and not state.header_panel:
         reporter.write_line(line)
 
 
@@ -335,7 +348,8 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 
 
 @pytest.hookimpl(wrapper=True)
-def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa: ANN201
+def pytest_runtest_makereport(item: pytest.Item,
+                              call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport, pytest.TestReport]:
     """Remember a wire failure in a bench test: its teardown checks whether the PLC still answers."""
     report = yield
     if call.when == "setup" and report.failed and "bench" in getattr(item, "fixturenames", ()):
@@ -348,7 +362,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):  # noqa
             and "bench" in getattr(item, "fixturenames", ())):
         item.stash[_WIRE_FAILURE] = f"{call.excinfo.typename}: {call.excinfo.value}"
     if call.when == "call" and call.excinfo is not None and call.excinfo.errisinstance(StaleEvidence):
-        report.stale_evidence = True  # (a plain attribute: it travels with the report from an xdist worker)
+        # a plain attribute, as pytest lets a plugin add to a report: it travels with it from an xdist worker
+        report.stale_evidence = True  # type: ignore[attr-defined]  # pytest's TestReport declares none of these
     return report
 
 

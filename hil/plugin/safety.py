@@ -12,9 +12,13 @@ ends non-zero naming every element it could not put back.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
+from typing import Any
 
 import pytest
 
+from hil.bench.base import BenchBase
+from hil.bench.replay import Recovery
 from hil.core import signals
 from hil.plugin.stash import BENCH_SESSION
 
@@ -36,7 +40,7 @@ def say(config: pytest.Config, text: str, **markup: bool) -> None:
         print(text, file=sys.stderr)
 
 
-def announce(config: pytest.Config, recovery) -> None:  # noqa: ANN001 - hil.bench.guard.Recovery
+def announce(config: pytest.Config, recovery: Recovery) -> None:
     text = recovery.summary()
     config.stash.setdefault(RECOVERY_NOTES, []).append(text)
     say(config, text, bold=True, red=not recovery.ok, yellow=recovery.ok)
@@ -49,7 +53,7 @@ class BenchRecoveryFailed(Exception):
 class BenchRecoveryItem(pytest.Item):
     """The ``bench_recovery`` testcase: fails when a dead run's leftovers could not be restored."""
 
-    def __init__(self, *, recovery, **kwargs) -> None:  # noqa: ANN001, ANN003
+    def __init__(self, *, recovery: Recovery, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self.recovery = recovery
         self.user_properties.append(("hil_bench_recovery", recovery.summary()))
@@ -58,10 +62,10 @@ class BenchRecoveryItem(pytest.Item):
         if not self.recovery.ok:
             raise BenchRecoveryFailed(self.recovery.summary())
 
-    def repr_failure(self, excinfo, style=None) -> str:  # noqa: ANN001
+    def repr_failure(self, excinfo: pytest.ExceptionInfo[BaseException], style: str | None = None) -> str:
         return str(excinfo.value)
 
-    def reportinfo(self):  # noqa: ANN201
+    def reportinfo(self) -> tuple[Path, None, str]:
         return self.path, None, "bench_recovery"
 
 
@@ -92,11 +96,11 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         try:
             if retried:
                 bench.end_test()  # idempotent: faults, the clock, then the journaled elements, each verified
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:  # noqa: BLE001 - said below, with what stays unrestored
             error = exc
         try:
             bench.finish()  # what each test put back only approximately (the clock's phase), now exactly
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:  # noqa: BLE001 - said below, with what stays unrestored
             error = exc
     left = _unrestored(bench)
     session.config.stash[PLC_LEFT] = AS_FOUND if not left else (
@@ -118,7 +122,7 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
-def _unrestored(bench, exact: bool = True) -> list[str]:  # noqa: ANN001
+def _unrestored(bench: BenchBase, exact: bool = True) -> list[str]:
     """What is still not as it was found; ``exact=False`` leaves out a clock put back to within half a second
     (the session's end makes it exact) and a working state held still (the run stopped inside a module that holds
     one: its end puts that back, no failed restore left it)."""

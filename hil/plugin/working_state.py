@@ -14,6 +14,7 @@ still goes back after each test.  The kinds a bench knows are its family's (:met
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from typing import Any
 
 import pytest
@@ -66,7 +67,7 @@ def end(bench: Any, config: pytest.Config) -> None:
 
 
 @pytest.hookimpl(wrapper=True, tryfirst=True)
-def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None):  # noqa: ANN201
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, object, object]:
     """Tell the bench fixture's teardown which test comes next (pytest runs the teardown inside this hook)."""
     item.stash[_NEXT] = nextitem
     return (yield)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 
 def last_of_each(values: np.ndarray) -> np.ndarray:
@@ -28,6 +29,6 @@ def occurrence(values: np.ndarray) -> np.ndarray:
     return out
 
 
-def signed16(words) -> np.ndarray:  # noqa: ANN001 - a list or array of 16-bit words
+def signed16(words: npt.ArrayLike) -> np.ndarray:
     """16-bit words as signed values."""
     return (np.asarray(words, dtype=np.int64) ^ 0x8000) - 0x8000

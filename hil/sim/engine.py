@@ -33,19 +33,21 @@ class Engine:
     #: real time: scans run one by one up to this many per tick; a host that falls further behind jumps the rest
     realtime_catch_up = 1000
 
-    def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model] = (), station: int = 1,
+    def __init__(self, memory: Any, *, scan_time: float = 0.01, models: Iterable[Model[Any]] = (), station: int = 1,
                  seed: int = 0, timing: Timing = INSTANT) -> None:
         if scan_time <= 0:
             raise InvalidValue(f"scan time must be positive, not {scan_time}")
         #: when the models publish (hil.sim.timing); with a range of scan lengths, scan_time is its shortest: the
         #: grid the clock lands jumps on, and the room every "is there a whole scan left" test asks for
         self.timing = timing
-        self._scan_lengths = timing.stream("scan") if timing.bench and timing.scan_range else None
-        self.scan_time = timing.scan_range[0] if self._scan_lengths else scan_time
+        scan_range = timing.scan_range if timing.bench else None
+        self._scan_lengths = timing.stream("scan") if scan_range else None
+        self._scan_range = scan_range or (scan_time, scan_time)  # (shortest, longest) a drawn scan takes
+        self.scan_time = scan_range[0] if scan_range else scan_time
         self.station = station
         self.seed = seed
         self.memory = memory
-        self.models: list[Model] = []
+        self.models: list[Model[Any]] = []
         self.lock = threading.RLock()
         self.stats: collections.Counter[str] = collections.Counter()
         self.now = 0.0  # virtual seconds since power-on
@@ -61,7 +63,7 @@ class Engine:
         for model in models:
             self.add_model(model)
 
-    def add_model(self, model: Model) -> None:
+    def add_model(self, model: Model[Any]) -> None:
         with self.lock:
             model.power_on(self)
             self.models.append(model)
@@ -89,8 +91,7 @@ class Engine:
         """How long the coming scan takes: ``scan_time``, or in bench timing a seeded draw from the range."""
         if self._scan_lengths is None:
             return self.scan_time
-        low, high = self.timing.scan_range  # type: ignore[misc]  # set with _scan_lengths
-        return self._scan_lengths.uniform(low, high)
+        return self._scan_lengths.uniform(*self._scan_range)
 
     def end_scan(self) -> None:
         """What the controller does at the end of every scan after the models (a family may add to it)."""

@@ -29,15 +29,16 @@ import asyncio
 import bisect
 import concurrent.futures
 import threading
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from pymodbus.constants import ExcCodes
+from pymodbus.datastore import ModbusServerContext
 from pymodbus.exceptions import NoSuchIdException
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
-from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.simulator import DataType, SimAction, SimData, SimDevice
 
 from hil.sim.engine import Engine
 from hil.sim.modbus_server import STRICT_REQUESTS, InOrderTcpServer, tcp_unit_aliases
@@ -146,7 +147,7 @@ def build_device(engine: Engine, modbus_map: ModbusMap, unit: int | None) -> Sim
     return SimDevice(id=0 if unit is None else unit, simdata=simdata, action=_make_action(engine, modbus_map))
 
 
-def _make_action(engine: Engine, modbus_map: ModbusMap):  # noqa: ANN202 - a pymodbus SimAction
+def _make_action(engine: Engine, modbus_map: ModbusMap) -> SimAction:
     lock = engine.lock
     # A read's request depends on nothing but these arguments (the map is fixed, the staging list is the
     # device's own), and a client repeats the same few reads: build each once.
@@ -192,7 +193,7 @@ class _Refusal(ModbusPDU):
         self.function_code = request.function_code
         self.code = code  # None: stay silent
 
-    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         if self.code is None:
             raise NoSuchIdException(f"unit {device_id}")  # with ignore_missing_devices: no reply at all
         return ExceptionResponse(self.function_code, self.code)
@@ -205,10 +206,8 @@ def _make_gate(engine: Engine, modbus_map: ModbusMap, unit: int | None, serial: 
     # (function code, address, count) → verdict: it depends on nothing else (the map is fixed; every ModbusPDU
     # has address and count), and a client repeats the same few requests: check each once
     verdicts: dict[tuple[int, int, int], ExcCodes | None] = {}
-    if unit is None:
-        ours = None
-    else:  # RTU 0 = broadcast; TCP 0/FFH = this device
-        ours = {unit, 0} if serial else {unit, *tcp_unit_aliases(unit)}
+    # the unit ids this device answers (None: any): RTU 0 = broadcast; TCP 0/FFH = this device
+    ours = None if unit is None else {unit, 0} if serial else {unit, *tcp_unit_aliases(unit)}
     requests, ignored, exceptions = f"{prefix}_requests", f"{prefix}_ignored", f"{prefix}_exceptions"
 
     def gate(sending: bool, pdu: ModbusPDU) -> ModbusPDU:
@@ -244,18 +243,18 @@ def start_tcp(engine: Engine, modbus_map: ModbusMap, host: str = "127.0.0.1", po
     runtime = LoopThread.shared()
     aliases = {} if unit is None else tcp_unit_aliases(unit)
 
-    async def start() -> tuple[ModbusTcpServer, asyncio.AbstractServer | None]:
+    async def start() -> tuple[ModbusTcpServer, asyncio.Server | None]:
         server = InOrderTcpServer(build_device(engine, modbus_map, unit), address=(host, 0 if faults else port),
                                   trace_pdu=_make_gate(engine, modbus_map, unit, False, stats), aliases=aliases)
         await server.serve_forever(background=True)
         proxy = None
         if faults is not None:
-            inner = server.transport.sockets[0].getsockname()[1]
+            inner = _bound_port(server.transport)
             proxy = await asyncio.start_server(_fault_proxy(host, inner, faults), host, port)
         return server, proxy
 
     server, proxy = runtime.run(start())
-    actual = (proxy.sockets if proxy else server.transport.sockets)[0].getsockname()[1]
+    actual = _bound_port(proxy or server.transport)
 
     async def stop() -> None:
         if proxy is not None:
@@ -265,7 +264,8 @@ def start_tcp(engine: Engine, modbus_map: ModbusMap, host: str = "127.0.0.1", po
     return ServerHandle(kind, f"{host}:{actual}", _stopper(runtime, stop))
 
 
-def _fault_proxy(host: str, port: int, faults: WireFaults):  # noqa: ANN202 - an asyncio client callback
+def _fault_proxy(host: str, port: int,
+                 faults: WireFaults) -> Callable[[asyncio.StreamReader, asyncio.StreamWriter], Awaitable[None]]:
     async def client(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         try:
             up_reader, up_writer = await asyncio.open_connection(host, port)
@@ -337,12 +337,20 @@ def start_rtu_pty(engine: Engine, modbus_map: ModbusMap, unit: int = 1, *, fault
             pair.close()
 
     handle = ServerHandle(kind, pair.path_b, _stopper(runtime, stop))
-    handle.ptys = pair  # type: ignore[attr-defined]  # byte counters for tests
-    handle.line = line  # type: ignore[attr-defined]
+    handle.ptys = pair  # byte counters for tests
+    handle.line = line
     return handle
 
 
-def _stopper(runtime: LoopThread, stop: Callable[[], asyncio.Future | object]) -> Callable[[], None]:
+def _bound_port(listener: object) -> int:
+    """The port a listening server is bound to (pymodbus keeps its listener, an asyncio server, as ``.transport``)."""
+    if not isinstance(listener, asyncio.Server):
+        raise TypeError(f"not a listening asyncio server: {listener!r}")
+    port: int = listener.sockets[0].getsockname()[1]
+    return port
+
+
+def _stopper(runtime: LoopThread, stop: Callable[[], Coroutine[Any, Any, None]]) -> Callable[[], None]:
     lock = threading.Lock()
 
     def run() -> None:

@@ -21,8 +21,10 @@ from __future__ import annotations
 
 import collections
 import struct
+from typing import Any
 
 from pymodbus.constants import ExcCodes
+from pymodbus.datastore import ModbusServerContext
 from pymodbus.exceptions import ModbusIOException, NoSuchIdException
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.pdu.bit_message import (
@@ -44,13 +46,14 @@ def _any_quantity(base: type[ModbusPDU]) -> type[ModbusPDU]:
     """``base`` whose decode keeps a quantity outside 1…limit (pymodbus raises), and whose reply to one is
     exception 3 of its own function code."""
 
-    def decode(self, data: bytes) -> None:  # noqa: ANN001
+    # (self: an instance of the subclass of ``base`` made below, which adds out_of_range)
+    def decode(self: Any, data: bytes) -> None:
         try:
             base.decode(self, data)
         except ValueError:
             self.out_of_range = True  # address and count are set before pymodbus checks the count
 
-    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+    async def datastore_update(self: Any, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         if getattr(self, "out_of_range", False) or not 1 <= self.count <= QUANTITY_LIMITS[self.function_code]:
             return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
         return await base.datastore_update(self, context, device_id)
@@ -68,7 +71,7 @@ class StrictWriteSingleCoilRequest(WriteSingleCoilRequest):
         super().decode(data)
         self.raw_value = struct.unpack(">H", data[2:4])[0]
 
-    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         if self.raw_value not in (COIL_ON, COIL_OFF):
             return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
         return await super().datastore_update(context, device_id)
@@ -86,7 +89,7 @@ _KNOWN_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 15, 16, 17, 20, 21
 class _InOrderHandler(ServerRequestHandler):
     """One TCP connection: every complete frame of a segment decoded, then served one after another."""
 
-    def __init__(self, owner: InOrderTcpServer, *args) -> None:  # noqa: ANN002
+    def __init__(self, owner: InOrderTcpServer, *args: Any) -> None:
         super().__init__(owner, *args)
         self.pending: collections.deque[tuple[ModbusPDU, tuple | None]] = collections.deque()
         self.serving = False
@@ -134,9 +137,12 @@ class _InOrderHandler(ServerRequestHandler):
             self.serving = False
 
     async def _answer(self, pdu: ModbusPDU) -> ModbusPDU | None:
-        server: InOrderTcpServer = self.server  # type: ignore[assignment]
+        server: InOrderTcpServer = self.server
         try:
-            return await pdu.datastore_update(server.context, server.aliases.get(pdu.dev_id, pdu.dev_id))
+            # pymodbus's own request handler passes the same context, which may be a SimCore
+            context = server.context
+            return await pdu.datastore_update(context,  # type: ignore[arg-type]  # its annotation names no SimCore
+                                              server.aliases.get(pdu.dev_id, pdu.dev_id))
         except NoSuchIdException:
             if server.ignore_missing_devices:
                 return None
@@ -153,7 +159,7 @@ class _Canned(ModbusPDU):
         self.function_code = reply.function_code
         self.reply = reply
 
-    async def datastore_update(self, context, device_id: int) -> ModbusPDU:  # noqa: ANN001
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         return self.reply
 
 
@@ -161,7 +167,7 @@ class InOrderTcpServer(ModbusTcpServer):
     """``ModbusTcpServer`` that answers every request of a segment in order, with :data:`STRICT_REQUESTS`;
     ``aliases`` maps unit ids to the device that serves them (``{0: 1, 255: 1}``)."""
 
-    def __init__(self, *args, aliases: dict[int, int] | None = None, **kwargs) -> None:  # noqa: ANN002, ANN003
+    def __init__(self, *args: Any, aliases: dict[int, int] | None = None, **kwargs: Any) -> None:
         kwargs["custom_pdu"] = [*STRICT_REQUESTS, *(kwargs.get("custom_pdu") or ())]
         super().__init__(*args, **kwargs)
         self.aliases = dict(aliases or {})

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, TypeVar
+from typing import Generic, TypeVar
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from hil.sim.engine import Engine
-
+#: the engine a model is scanned by: a family's emulator (a subclass of :class:`hil.sim.engine.Engine`), whose
+#: memory and models the family's own models know — so this module names no engine, and the engine imports it
+EngineT = TypeVar("EngineT")
 
 Time = TypeVar("Time", float, np.ndarray)
 _SLACK = np.array(1e-6)
@@ -24,7 +24,7 @@ def scan_grid(t: Time, scan_time: float) -> Time:
     return np.ceil(t / step - _SLACK) * step
 
 
-class Model:
+class Model(Generic[EngineT]):
     """Base class: override what you need.
 
     * :meth:`power_on` — set the model's registers to their power-on values.
@@ -36,10 +36,10 @@ class Model:
 
     name = "model"
 
-    def power_on(self, emu: Engine) -> None:
+    def power_on(self, emu: EngineT) -> None:
         pass
 
-    def scan(self, emu: Engine) -> None:
+    def scan(self, emu: EngineT) -> None:
         pass
 
     def next_event(self, now: float) -> float:

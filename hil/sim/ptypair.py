@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import contextlib
 import errno
 import os
 import tty
@@ -131,10 +132,8 @@ class PtyPair:
 
     def _close_fds(self) -> None:
         for fd in self._fds:
-            try:
+            with contextlib.suppress(OSError):  # already closed: nothing to release
                 os.close(fd)
-            except OSError:
-                pass
         self._fds = []
 
 

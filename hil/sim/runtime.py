@@ -23,10 +23,15 @@ class LoopThread:
         self._thread = threading.Thread(target=self._run, name="hil-emulator-loop", daemon=True)
         self._thread.start()
 
+    @property
+    def alive(self) -> bool:
+        """Its thread still runs the loop."""
+        return self._thread.is_alive()
+
     @classmethod
     def shared(cls) -> LoopThread:
         with cls._shared_lock:
-            if cls._shared is None or not cls._shared._thread.is_alive():
+            if cls._shared is None or not cls._shared.alive:
                 cls._shared = cls()
             return cls._shared
 

@@ -1,8 +1,8 @@
 """Wire faults for the emulator's servers: what a noisy serial line or a flaky gateway does to a reply.
 
 One :class:`WireFaults` plan (a seeded ``random.Random`` with per-kind probabilities, and/or a scripted queue)
-is consulted by a server each time it sends a reply.  Every kind but ``echo`` keeps replies **in order**, as a real slave that
-handles one request at a time must — so a client can always resynchronise:
+is consulted by a server each time it sends a reply.  Every kind but ``echo`` keeps replies **in order**, as a real
+slave that handles one request at a time must — so a client can always resynchronise:
 
 ============ ====================================================================================================
 ``drop``      the reply is never sent (the request was executed: a write may have landed)
@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import contextlib
 import random
 import threading
 from collections.abc import Callable, Iterable
@@ -109,7 +110,7 @@ def check_rates(rates: dict[str, float]) -> None:
         raise InvalidValue(f"fault probabilities add up to {sum(rates.values()):g}, more than 1")
 
 
-# -- corruption per protocol (a family's own protocol brings its own: FaultySender's corrupt) ----------------------------------------------------------------------------------------
+# -- corruption per protocol (a family's own protocol brings its own: FaultySender's corrupt) ---------------------
 def corrupt_crc(reply: bytes, rng: random.Random) -> bytes:
     """Flip bits of the CRC (Modbus RTU)."""
     if len(reply) < 2:
@@ -169,19 +170,15 @@ class FaultySender:
         assert self._queue is not None and self.faults is not None
         while not self.closed:
             reply = await self._queue.get()
-            try:
+            with contextlib.suppress(OSError, RuntimeError):  # the peer went away: nothing to answer
                 await self._one(reply)
-            except (OSError, RuntimeError):
-                pass  # the peer went away: nothing to answer
 
     def _echo(self, reply: bytes) -> None:
         if self.splitting:  # a sender writes whole frames: never inside another one
             self.echoes.append(reply)
         elif not self.closed:
-            try:
+            with contextlib.suppress(OSError, RuntimeError):  # the peer went away: nothing to echo to
                 self.write(reply)
-            except (OSError, RuntimeError):
-                pass
 
     async def _one(self, reply: bytes) -> None:
         faults = self.faults

@@ -162,6 +162,7 @@ def _refuse_each(bench, clock, cases: dict[str, bytes], *, error_code: bool) -> 
     began = bench.time.now()
     assert clock.set(SATURDAY_15_JUNE_2024).accepted
     start = _decode(SATURDAY_15_JUNE_2024)
+    assert start is not None, "SATURDAY_15_JUNE_2024 is not a date: the suite's constant is wrong"
     wrong = []
     for case, buffer in cases.items():
         result = clock.set(buffer)

@@ -16,7 +16,7 @@ C200–C255 are 32-bit counters on an FBs: their values are read as ``DRC200``�
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 from hil.core.errors import AddressError
@@ -90,10 +90,7 @@ class Address:
     def offset(self, n: int) -> Address:
         """The element ``n`` places on in the same kind (validated)."""
         # Step by whole values so consecutive elements never overlap: WM800, WM816 …; DR0, DR2 ….
-        if self.kind in PACKED_16 or self.kind in PACKED_32:
-            step = self.bits
-        else:
-            step = 2 if self.kind in PAIRED_32 else 1
+        step = self.bits if self.kind in PACKED_16 or self.kind in PACKED_32 else 2 if self.kind in PAIRED_32 else 1
         return parse(f"{self.kind}{self.index + n * step}")
 
     def elements(self) -> Iterator[Address]:
@@ -188,6 +185,15 @@ def parse_range(text: str) -> list[Address]:
     return [Address(a.kind, i) for i in range(a.index, b.index + 1)]
 
 
+def expand(ranges: Iterable[str]) -> frozenset[Address]:
+    """Base elements (bits and 16-bit words) named by ``["R4128-R4135", "M1952", "WM800"]``."""
+    out: set[Address] = set()
+    for text in ranges:
+        for element in parse_range(text):
+            out.update(element.elements())
+    return frozenset(out)
+
+
 def missing(address: Address, count: int = 1) -> str | None:
     """Why a run of ``count`` elements from ``address`` touches elements an FBs does not have (R4168–R4999,
     which the flat R block keeps as slots), or None.  The one rule: the emulator's memory refuses such a request
@@ -211,7 +217,7 @@ def is_valid(name: str) -> bool:
     return True
 
 
-__all__ = ["Address", "parse", "take_frame_name", "span", "parse_range", "is_valid", "BIT", "WORD", "DWORD",
+__all__ = ["Address", "parse", "take_frame_name", "span", "parse_range", "expand", "is_valid", "BIT", "WORD", "DWORD",
            "BIT_BANKS", "WORD_BANKS", "PACKED_16", "PACKED_32", "PAIRED_32", "LOW_WORD_FIRST", "MISSING_R", "missing"]
 
 

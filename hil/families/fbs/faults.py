@@ -26,8 +26,9 @@ This module is the bench's set of injectors (:class:`Faults`); each kind lives i
 from __future__ import annotations
 
 import sys
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+from hil.bench.profile import Profile
 from hil.families.fbs.address import parse
 from hil.families.fbs.injectors.config import KNOWN_FAULTS, PLANT_FAULTS
 from hil.families.fbs.injectors.emulator import EmulatorPlantFault, EmulatorSensorBreak
@@ -38,9 +39,37 @@ from hil.families.fbs.injectors.plc_bit import PlcBitSensorBreak
 from hil.families.fbs.rig_identity import rig_refusal
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import TemperatureModel
+from hil.families.fbs.transport.base import Transport
+from hil.io.url import Target
 
-if TYPE_CHECKING:
-    from hil.families.fbs.bench import Bench
+
+class _HasIO(Protocol):
+    @property
+    def io(self) -> Any: ...  # the guarded I/O a plc-bit injector drives its bits through
+
+
+class FaultBench(Protocol):
+    """What the fault injectors use of the FBs bench (:class:`hil.families.fbs.bench.Bench`, which builds them)."""
+
+    @property
+    def profile(self) -> Profile: ...
+
+    @property
+    def target(self) -> Target: ...
+
+    @property
+    def raw(self) -> Transport: ...
+
+    @property
+    def plc(self) -> _HasIO: ...
+
+    @property
+    def is_emulator(self) -> bool: ...
+
+    @property
+    def allow_destructive(self) -> bool: ...
+
+    def cannot_reach(self, *names: str) -> str | None: ...
 
 
 class Faults:
@@ -49,7 +78,7 @@ class Faults:
     #: the faults a suite reaches by name (``bench.faults.sensor_break``; hil.bench.view.faults_view)
     names = KNOWN_FAULTS
 
-    def __init__(self, bench: Bench) -> None:
+    def __init__(self, bench: FaultBench) -> None:
         self.bench = bench
         self._made: dict[str, SensorBreakInjector] = {}
 
@@ -142,7 +171,7 @@ class Faults:
         for injector in self._made.values():
             try:
                 injector.undo()
-            except Exception as exc:  # noqa: BLE001
+            except Exception as exc:  # noqa: BLE001 - undo every injector, then report them all
                 errors.append(str(exc))
         if errors:
             raise FaultError("; ".join(errors))

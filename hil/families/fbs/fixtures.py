@@ -23,8 +23,9 @@ def rtc(bench: Bench) -> Rtc:
     """The PLC's real-time clock (``hil.api.Rtc``): ``rtc.read().to_datetime()``, ``rtc.set(datetime)``,
     ``rtc.read_hour_minute()`` (R4135) … — compare it with ``bench.time.calendar()``, the bench's time (virtual on
     the in-process emulator), never with ``datetime.now()``.  The clock is put back at its original offset after
-    the test (after the module's last, where the module declares ``pytest.mark.working_state("clock")``).  Skips with the reason when the profile says there is no RTC (``[rtc] chip = 0``) or the bench cannot
-    write R4128–R4134 and M1952."""
+    the test (after the module's last, where the module declares ``pytest.mark.working_state("clock")``).  Skips
+    with the reason when the profile says there is no RTC (``[rtc] chip = 0``) or the bench cannot write
+    R4128–R4134 and M1952."""
     rtc_section = bench.profile.rtc
     if rtc_section is not None and rtc_section.chip == 0:
         pytest.skip("the bench profile says this PLC has no RTC ([rtc] chip = 0)")

@@ -11,6 +11,7 @@ dead run left switched, through the same restore, only while a coil still holds 
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
@@ -31,16 +32,22 @@ RIG_PROBE = Probe(0, 1)
 MAX_COILS = 2000  # coils one FC01 read may ask for
 
 
+def rig_unit(target: Target) -> int:
+    """The Modbus unit a rig's target names (``?unit=``, an int once hil.io.url has read it), else 1."""
+    return int(str(target.params.get("unit", 1)))
+
+
 def rig_wire(target: Target, timeout: float, retries: int = 2) -> ModbusWire:
     """The one Modbus client to a fault rig at ``target`` (``modbus+tcp://…``, ``modbus+rtu://…``, RFC 2217)."""
-    unit = int(str(target.params.get("unit", 1)))
+    unit = rig_unit(target)
     hint = "is the relay module powered and wired, and are its unit id and address right?"
     if target.scheme == "modbus+tcp":
         return ModbusWire.tcp(target.host, target.port, unit=unit, timeout=timeout, retries=retries, hint=hint,
                               probe=RIG_PROBE, description=f"{target} (fault rig)", describe=_coils)
     p = target.params
-    return ModbusWire.rtu(target.serial_port, baudrate=int(str(p.get("baudrate", 9600))), parity=str(p.get("parity", "E")),
-                          bytesize=int(str(p.get("bytesize", 8))), stopbits=int(str(p.get("stopbits", 1))), unit=unit,
+    return ModbusWire.rtu(target.serial_port, baudrate=int(str(p.get("baudrate", 9600))),
+                          parity=str(p.get("parity", "E")), bytesize=int(str(p.get("bytesize", 8))),
+                          stopbits=int(str(p.get("stopbits", 1))), unit=unit,
                           timeout=timeout, retries=retries, hint=hint, probe=RIG_PROBE, label="fault rig",
                           describe=_coils)
 
@@ -115,6 +122,10 @@ class RigLink:
     def close(self) -> None:
         self.wire.close()
 
+    def exclusive(self) -> contextlib.AbstractContextManager[None]:
+        """Nothing to hold: a rig's wire is this link's alone, and each request on it is whole by itself."""
+        return contextlib.nullcontext()
+
 
 class CoilJournal:
     """The journal's ``coils`` section for one rig, as the guard's durable journal (``add_elements`` /
@@ -149,11 +160,12 @@ class GuardedRig(GuardedLink):
 
     def __init__(self, target: Target, link: RigLink, writable: Iterable[int], journal: Journal | None = None) -> None:
         self.target = target
-        self.unit = int(str(target.params.get("unit", 1)))
+        self.unit = rig_unit(target)
         self._prefix = f"{lock_key(str(target))}#unit{self.unit}/coil"
         super().__init__(link, [self.coil(c) for c in writable])
         if journal is not None:
-            self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]
+            # the guard's durable journal, for coils: the methods the guard calls, kept in the journal's coils section
+            self.durable = CoilJournal(journal, target, self.unit, self)  # type: ignore[assignment]  # not a Journal
 
     def coil(self, name: int | str | RigCoil) -> RigCoil:
         """The element for a coil number, its journal key, or itself."""
@@ -211,12 +223,12 @@ class GuardedRig(GuardedLink):
 
     def _replay_run(self, elements: list[RigCoil], entries: dict[str, dict[str, Any]], report: Recovery) -> None:
         try:
-            now = self.read_originals(elements)
+            states = self.read_originals(elements)
         except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
             report.failures += [f"rig coil {e} (original {int(entries[e.key]['original'])}): {exc}" for e in elements]
             return
         back, again = [], []
-        for element, value in zip(elements, now):
+        for element, value in zip(elements, states):
             entry = entries[element.key]
             # (coils as 0/1: the journal may hold them as booleans) — the one rule recovery uses for every entry
             original, now = int(bool(entry["original"])), int(bool(value))
@@ -245,4 +257,4 @@ class GuardedRig(GuardedLink):
         report.verified += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in back]
 
 
-__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_wire"]
+__all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_unit", "rig_wire"]

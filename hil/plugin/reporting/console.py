@@ -12,6 +12,7 @@ import io
 import time
 from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 from typing import Any
 
 from rich import box
@@ -63,45 +64,71 @@ def header_panel(items: Iterable[tuple[str, str]], *, color: bool, title: str = 
 def summary_table(records: Iterable[TestRecord], *, color: bool) -> RenderableType:
     """Pass/fail/skip counts and measurements by area, then each distinct skip reason with its count."""
     from rich.console import Group
-    by_area: dict[str, Counter] = defaultdict(Counter)
-    skips: Counter = Counter()
-    measurements: Counter = Counter()
-    for r in records:
-        by_area[r.area].update(outcome_counts([r]))
-        if r.outcome == "skipped":
-            skips[(r.area, r.message or "no reason given")] += 1
-        for m in r.measurements:
-            if m.value is not None:
-                measurements[(r.area, "in limits" if m.passed else "out")] += 1
-            elif r.outcome not in ("skipped", "xfailed"):  # a skipped test measures nothing: not a missing value
-                measurements[(r.area, "not measured")] += 1
+    tally = _Tally.of(records)
+    table = _areas_table(tally, color)
+    return Group(table, _reasons_table(tally.skips, color)) if tally.skips else table
+
+
+@dataclass
+class _Tally:
+    """What the summary counts: outcomes by area, skips by (area, reason), measurements by (area, kind)."""
+
+    by_area: defaultdict[str, Counter[str]] = field(default_factory=lambda: defaultdict(Counter))
+    skips: Counter[tuple[str, str]] = field(default_factory=Counter)
+    measurements: Counter[tuple[str, str]] = field(default_factory=Counter)
+
+    @classmethod
+    def of(cls, records: Iterable[TestRecord]) -> _Tally:
+        tally = cls()
+        for r in records:
+            tally.by_area[r.area].update(outcome_counts([r]))
+            if r.outcome == "skipped":
+                tally.skips[(r.area, r.message or "no reason given")] += 1
+            for m in r.measurements:
+                if m.value is not None:
+                    tally.measurements[(r.area, "in limits" if m.passed else "out")] += 1
+                elif r.outcome not in ("skipped", "xfailed"):  # a skipped test measures nothing: not a missing one
+                    tally.measurements[(r.area, "not measured")] += 1
+        return tally
+
+    def measured(self, area: str | None = None) -> dict[str, int]:
+        """Measurements by kind, in ``area`` (None: everywhere)."""
+        out: Counter[str] = Counter()
+        for (a, kind), n in self.measurements.items():
+            if area is None or a == area:
+                out[kind] += n
+        return out
+
+
+def _areas_table(tally: _Tally, color: bool) -> Table:
+    """One row per area (its count of each outcome that occurs, its measurements), then the totals."""
     table = Table(title="hil results by area", box=_box(color), title_justify="left")
     table.add_column("area", no_wrap=True)
-    outcomes = shown_outcomes(Counter(o for counts in by_area.values() for o in counts.elements()))
+    outcomes = shown_outcomes(Counter(o for counts in tally.by_area.values() for o in counts.elements()))
     for outcome in outcomes:
         table.add_column(outcome, justify="right")
     table.add_column("measurements", justify="right")
-    total: Counter = Counter()
-    for area in sorted(by_area):
-        counts = by_area[area]
+    total: Counter[str] = Counter()
+    for area in sorted(tally.by_area):
+        counts = tally.by_area[area]
         total.update(counts)
         cells = [Text(str(counts.get(o, 0)), style=_STYLE[o] if (counts.get(o) and color) else "")
                  for o in outcomes]
-        table.add_row(Text(area), *cells, _measured({k: n for (a, k), n in measurements.items() if a == area}))
+        table.add_row(Text(area), *cells, _measured(tally.measured(area)))
     table.add_section()
-    everywhere: Counter = Counter()
-    for (_, kind), n in measurements.items():
-        everywhere[kind] += n
-    table.add_row("all", *(str(total.get(o, 0)) for o in outcomes), _measured(everywhere))
-    if not skips:
-        return table
+    table.add_row("all", *(str(total.get(o, 0)) for o in outcomes), _measured(tally.measured()))
+    return table
+
+
+def _reasons_table(skips: Counter[tuple[str, str]], color: bool) -> Table:
+    """Each distinct skip reason, by area, the commonest first."""
     reasons = Table(title="skip reasons", box=_box(color), title_justify="left")
     reasons.add_column("area", no_wrap=True)
     reasons.add_column("tests", justify="right")
     reasons.add_column("reason")
     for (area, why), n in sorted(skips.items(), key=lambda kv: (kv[0][0], -kv[1])):
         reasons.add_row(Text(area), str(n), Text(why))  # "[pid]" in a reason is the section to add, not markup
-    return Group(table, reasons)
+    return reasons
 
 
 def _measured(counts: dict[str, int]) -> str:

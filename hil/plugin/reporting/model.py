@@ -30,33 +30,45 @@ class Series:
     def build(cls, name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]], *,
               columns: Sequence[str] | None = None, x: str | None = None, title: str = "", xlabel: str = "",
               ylabel: str = "", secondary: Sequence[str] = (), secondary_label: str = "") -> Series:
-        if isinstance(data, Mapping):
-            cols = {str(k): [float(v) for v in vs] for k, vs in data.items()}
-        else:
-            if not columns:
-                raise ValueError(f"series {name!r}: rows need columns=(…) naming each position")
-            rows = [tuple(r) for r in data]
-            if any(len(r) != len(columns) for r in rows):
-                raise ValueError(f"series {name!r}: every row must have {len(columns)} values ({', '.join(columns)})")
-            cols = {c: [float(r[i]) for r in rows] for i, c in enumerate(columns)}
-        if not cols:
-            raise ValueError(f"series {name!r} has no columns")
-        lengths = {len(v) for v in cols.values()}
-        if len(lengths) != 1:
-            raise ValueError(f"series {name!r}: columns differ in length ({sorted(lengths)})")
-        x = x or next(iter(cols))
-        if x not in cols:
-            raise ValueError(f"series {name!r}: x column {x!r} not among {list(cols)}")
-        if len(cols) < 2:
-            raise ValueError(f"series {name!r}: needs a y column besides {x!r}")
-        unknown = [c for c in secondary if c not in cols]
-        if unknown:
-            raise ValueError(f"series {name!r}: secondary columns {unknown} not among {list(cols)}")
+        """A series from named columns or from rows (``columns`` naming each position); ``x`` defaults to the first
+        column.  ValueError saying what is wrong with the shape."""
+        cols = _columns_of(name, data, columns)
+        x = x or next(iter(cols), "")
+        _check_shape(name, cols, x, secondary)
         return cls(name, cols, x, title or name, xlabel or x, ylabel, tuple(secondary), secondary_label)
 
     @property
     def points(self) -> int:
         return len(self.columns[self.x])
+
+
+def _columns_of(name: str, data: Mapping[str, Sequence[float]] | Sequence[Sequence[float]],
+                columns: Sequence[str] | None) -> dict[str, list[float]]:
+    """The data as named columns of floats: a mapping already is; rows are turned, named by ``columns``."""
+    if isinstance(data, Mapping):
+        return {str(k): [float(v) for v in vs] for k, vs in data.items()}
+    if not columns:
+        raise ValueError(f"series {name!r}: rows need columns=(…) naming each position")
+    rows = [tuple(r) for r in data]
+    if any(len(r) != len(columns) for r in rows):
+        raise ValueError(f"series {name!r}: every row must have {len(columns)} values ({', '.join(columns)})")
+    return {c: [float(r[i]) for r in rows] for i, c in enumerate(columns)}
+
+
+def _check_shape(name: str, cols: dict[str, list[float]], x: str, secondary: Sequence[str]) -> None:
+    """Plottable: columns of one length, ``x`` among them with a y column beside it, the secondary ones known."""
+    if not cols:
+        raise ValueError(f"series {name!r} has no columns")
+    lengths = {len(v) for v in cols.values()}
+    if len(lengths) != 1:
+        raise ValueError(f"series {name!r}: columns differ in length ({sorted(lengths)})")
+    if x not in cols:
+        raise ValueError(f"series {name!r}: x column {x!r} not among {list(cols)}")
+    if len(cols) < 2:
+        raise ValueError(f"series {name!r}: needs a y column besides {x!r}")
+    unknown = [c for c in secondary if c not in cols]
+    if unknown:
+        raise ValueError(f"series {name!r}: secondary columns {unknown} not among {list(cols)}")
 
 
 class TestOutcome(enum.StrEnum):

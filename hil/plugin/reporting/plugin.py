@@ -118,7 +118,7 @@ class Reporter:
         self.run = config.stash[RUN] = RunRecord(config, html_path=_path(config.getoption("--hil-html")))
         self.current = ""
         self.trace_mode: str = config.getoption("--hil-trace")
-        self.trace = None  # hil.io.trace.WireTrace once a bench is open
+        self.trace: WireTrace | None = None  # once a bench is open
         self._traced_bench: Any = None
         self.trace_dir = self._trace_dir()
         if self.trace_dir is not None:
@@ -222,7 +222,7 @@ class Reporter:
         _outcome(record, report, aborted=self.stops.aborted(report))
         ids = next((v for k, v in report.user_properties if k == REQUIREMENTS), None)
         if ids is not None:  # the IDs of its spec() marker: the HTML requirement table is built from them
-            record.requirements = ids.split()
+            record.requirements = str(ids).split()
         category = self.config.hook.pytest_report_teststatus(report=report, config=self.config)[0]
         if category:  # what pytest's summary counts this report as ("" for a passed setup or teardown)
             record.counted[category] = record.counted.get(category, 0) + 1
@@ -420,15 +420,26 @@ def _outcome(record: TestRecord, report: pytest.TestReport, *, aborted: bool = F
         return
     if report.skipped:
         if record.outcome in (TestOutcome.INCOMPLETE, TestOutcome.PASS):
-            reason = getattr(report, "wasxfail", None)
-            record.outcome = TestOutcome.SKIP if reason is None else TestOutcome.XFAIL  # as pytest counts them
-            if reason is not None:
-                record.message = f"xfail: {reason}" if reason else "xfail"
-            elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
-                record.message = str(report.longrepr[2]).removeprefix("Skipped: ")
-            else:
-                record.message = str(report.longrepr or "")
+            _skipped(record, report)
         return
+    _failed(record, report, aborted=aborted)
+
+
+def _skipped(record: TestRecord, report: pytest.TestReport) -> None:
+    """A skip, or an expected failure (xfail), as pytest counts them, with its reason."""
+    reason = getattr(report, "wasxfail", None)
+    record.outcome = TestOutcome.SKIP if reason is None else TestOutcome.XFAIL
+    if reason is not None:
+        record.message = f"xfail: {reason}" if reason else "xfail"
+    elif isinstance(report.longrepr, tuple) and len(report.longrepr) == 3:
+        record.message = str(report.longrepr[2]).removeprefix("Skipped: ")
+    else:
+        record.message = str(report.longrepr or "")
+
+
+def _failed(record: TestRecord, report: pytest.TestReport, *, aborted: bool) -> None:
+    """A failed phase: the call's failure, a setup's or teardown's error, or the run stopping inside the test —
+    never hiding a failure already shown; its message and text added to the record's."""
     crash = getattr(getattr(report, "longrepr", None), "reprcrash", None)
     text = report.longreprtext.strip()
     message = crash.message if crash is not None else (text.splitlines()[-1] if text else "failed")

@@ -16,10 +16,11 @@ so pytest's terminal counts, its JUnit file and hil's records are the same count
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import pytest
 
@@ -27,7 +28,8 @@ import pytest
 STATUS = {0: "PASSED", 1: "FAILED", 2: "INTERRUPTED", 3: "INTERNAL ERROR", 4: "USAGE ERROR", 5: "NO TESTS RAN"}
 #: what a report says before its run has finished, and keeps saying when the run died without finishing it
 INCOMPLETE = "INCOMPLETE"
-_PHASES = ("setup", "call", "teardown")
+Phase = Literal["setup", "call", "teardown"]  # a test's phases, as pytest.TestReport.when names them
+_PHASES: tuple[Phase, ...] = ("setup", "call", "teardown")
 
 
 def status_of(exit_status: int | None) -> str:
@@ -96,7 +98,7 @@ class Stops:
         self.config = config
         self.stopped = ""
         self._stopped_in: Path | None = None  # the file of the test the run stopped in
-        self._phase: tuple[str, str, float] | None = None  # (nodeid, phase, started) of the phase under way
+        self._phase: tuple[str, Phase, float] | None = None  # (nodeid, phase, started) of the phase under way
         self._reported: set[tuple[str, str]] = set()
         self._ran: set[str] = set()
         self._made: set[tuple[str, str]] = set()  # (nodeid, phase) of the reports given to stopped tests
@@ -108,7 +110,7 @@ class Stops:
     def not_run(self, items: list[pytest.Item]) -> int:
         return sum(1 for item in items if item.nodeid not in self._ran)
 
-    def _enter(self, item: pytest.Item, when: str) -> None:
+    def _enter(self, item: pytest.Item, when: Phase) -> None:
         self._phase = (item.nodeid, when, time.time())
 
     @pytest.hookimpl(tryfirst=True)
@@ -132,15 +134,13 @@ class Stops:
     def pytest_runtest_protocol(self, item: pytest.Item, nextitem: pytest.Item | None) -> Any:
         try:
             return (yield)
-        except BaseException as exc:
+        except BaseException as exc:  # noqa: BLE001 - re-raised below, once the unfinished test is reported
             stop = exc
         # outside the except block: the teardown run below must not chain its own errors to the stop
         self.stopped = self.stopped or f"{describe(stop)} during {item.nodeid}"
         self._stopped_in = getattr(item, "path", None)
-        try:
+        with contextlib.suppress(Exception):  # the exception that stopped the run is the one pytest must see
             self._report_unfinished(item, stop)
-        except Exception:  # noqa: BLE001 - the exception that stopped the run is the one pytest must see
-            pass
         raise stop
 
     @pytest.hookimpl(tryfirst=True)  # before the terminal reporter keeps its picture of the interrupt
@@ -157,8 +157,9 @@ class Stops:
         self.stopped = self.stopped or describe(excinfo.value)  # returns None: pytest still prints it
 
     def _report_unfinished(self, item: pytest.Item, exc: BaseException) -> None:
-        nodeid, when, started = self._phase if self._phase and self._phase[0] == item.nodeid else \
+        phase: tuple[str, Phase, float] = self._phase if self._phase and self._phase[0] == item.nodeid else \
             (item.nodeid, "setup", time.time())
+        nodeid, when, started = phase
         while (nodeid, when) in self._reported:  # that phase reported; the run stopped in the next one
             if when == "teardown":
                 return  # the test finished: what stopped the run came after it

@@ -17,9 +17,9 @@ from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
 from hil.core.timebase import nearest_whole_second, next_whole_second, wait_until
 from hil.families.fbs import registers as reg
+from hil.families.fbs.address import expand
 from hil.families.fbs.d4054 import code_for_rate
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
-from hil.families.fbs.transport.guard import expand
 
 if TYPE_CHECKING:
     from hil.families.fbs.device.plc import FbsPlc

@@ -52,8 +52,8 @@ class SensorBreakInjector(ABC):
         if errors:
             raise FaultError(f"{self.kind} sensor-break injector could not repair: {'; '.join(errors)}")
 
-    def close(self) -> None:
-        pass
+    def close(self) -> None:  # noqa: B027 - a hook, not abstract: most injectors hold nothing to release
+        """Release what the injector holds (a rig's wire) when the bench closes."""
 
     def openable(self, points: list[int]) -> list[int]:
         """Which of ``points`` this injector can open (all of them, unless a rig's allow-list or a person's hands

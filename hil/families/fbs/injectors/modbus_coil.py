@@ -11,7 +11,7 @@ from hil.core.errors import HilError, PlcErrorReply, ProfileError, TransportErro
 from hil.core.lock import lock_key
 from hil.families.fbs.injectors.injector import FaultError, SensorBreakInjector
 from hil.families.fbs.registers import MAX_POINTS
-from hil.families.fbs.rig import GuardedRig, RigLink, rig_wire
+from hil.families.fbs.rig import GuardedRig, RigLink, rig_unit, rig_wire
 from hil.io.url import parse_target
 
 
@@ -27,7 +27,7 @@ class ModbusCoilSensorBreak(SensorBreakInjector):
         super().__init__()
         self.target = parse_target(target)
         self.first_coil = first_coil
-        self.unit = int(self.target.params.get("unit", 1))
+        self.unit = rig_unit(self.target)
         self.timeout = timeout
         self.retries = retries
         self.journal = journal  # hil.core.journal.Journal: each coil's original is on disk before it is switched

@@ -11,9 +11,9 @@ how to be rebuilt from request data (server side) and how to encode a reply.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 from hil.core.errors import AddressError, InvalidValue, PlcErrorReply, ProtocolError
 from hil.families.fbs.address import DWORD, Address, missing, parse, take_frame_name
@@ -273,7 +273,7 @@ def _check_exists(address: Address, count: int) -> None:
         raise RequestError("A", reason)
 
 
-def _check_extent(cls: type, address: Address, count: int) -> None:
+def _check_extent(cls: type[_Run[Any]], address: Address, count: int) -> None:
     """The run a range command's count and start element give: the command's limit (4), the model (A)."""
     if cls.bits_only != address.is_bit:
         raise RequestError("4", f"command {cls.code} takes {'bit' if cls.bits_only else 'register'} names, "
@@ -306,29 +306,40 @@ def _expect_end(data: str, pos: int) -> None:
 
 
 # --- commands --------------------------------------------------------------------------------------------------
-class Command:
-    """Base of the command codecs.  ``code`` is the two-hex-digit command number."""
+_R = TypeVar("_R")  # what a command's reply decodes to
+
+
+class Command(Generic[_R]):
+    """Base of the command codecs.  ``code`` is the two-hex-digit command number; a reply decodes to ``_R``."""
 
     code: ClassVar[str]
 
     def request_data(self) -> str:
         return ""
 
-    def decode(self, data: str):
-        if data:
-            raise MalformedFrame(f"command {self.code} reply should carry no data, got {data!r}")
-        return None
+    def decode(self, data: str) -> _R:
+        """Client side: the reply's data (after the error code) as the caller's value."""
+        raise NotImplementedError(f"command {self.code} has no reply decoder")
 
     @classmethod
-    def from_request(cls, data: str) -> Command:
+    def from_request(cls, data: str) -> Command[_R]:
         _expect_end(data, 0)
         return cls()
 
-    def encode_result(self, result) -> str:  # noqa: ANN001
+    def encode_result(self, result: _R) -> str:
+        """Server side: the reply's data for ``result`` (what the PLC did with the request)."""
         return ""
 
     def describe(self) -> str:
         return f"command {self.code}"
+
+
+class _Acknowledged(Command[None]):
+    """A command whose reply carries no data (41, 42, 45, 47, 49): the reply only says it was done."""
+
+    def decode(self, data: str) -> None:
+        if data:
+            raise MalformedFrame(f"command {self.code} reply should carry no data, got {data!r}")
 
 
 @dataclass
@@ -360,7 +371,7 @@ def _parse_hex_bytes(data: str, what: str) -> list[int]:
 
 
 @dataclass
-class ShortStatus(Command):
+class ShortStatus(Command[StatusReply]):
     code: ClassVar[str] = "40"
 
     def decode(self, data: str) -> StatusReply:
@@ -398,7 +409,7 @@ class DetailedStatusReply:
 
 
 @dataclass
-class DetailedStatus(Command):
+class DetailedStatus(Command[DetailedStatusReply]):
     code: ClassVar[str] = "53"
 
     def decode(self, data: str) -> DetailedStatusReply:
@@ -422,7 +433,7 @@ class DetailedStatus(Command):
 
 
 @dataclass
-class RunStop(Command):
+class RunStop(_Acknowledged):
     code: ClassVar[str] = "41"
     run: bool = True
 
@@ -445,7 +456,7 @@ BIT_ACTIONS = {1: "disable", 2: "enable", 3: "set", 4: "reset"}
 
 
 @dataclass
-class BitAction(Command):
+class BitAction(_Acknowledged):
     code: ClassVar[str] = "42"
     action: int = 3
     address: Address = field(default_factory=lambda: parse("M0"))
@@ -476,27 +487,49 @@ class BitAction(Command):
         return f"{BIT_ACTIONS[self.action]} {self.address} (42)"
 
 
-@dataclass
-class _RangeCommand(Command):
-    """Shared shape of 43/44/46: N then a start element."""
+class _Run(Command[_R]):
+    """What the range commands 43–47 share: a run of ``count`` elements from ``address``, all bits or all registers
+    as ``bits_only`` says."""
 
-    address: Address = field(default_factory=lambda: parse("R0"))
-    count: int = 1
+    address: Address
     bits_only: ClassVar[bool] = True
 
-    def __post_init__(self) -> None:
-        self.address = parse(self.address)
-        self._check()
-
-    def _check(self) -> None:
+    def _check_run(self, count: int) -> None:
+        """Client side: the run fits the command (InvalidValue) and its bank (AddressError)."""
         if self.bits_only != self.address.is_bit:
             raise InvalidValue(f"command {self.code} takes {'bit' if self.bits_only else 'register'} names, "
                              f"not {self.address}")
         limit = MAX_BITS if self.bits_only else MAX_WORDS // self.address.words
-        if not 1 <= self.count <= limit:
-            raise InvalidValue(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {self.count}")
+        if not 1 <= count <= limit:
+            raise InvalidValue(f"command {self.code} moves 1–{limit} {self.address.kind} elements, not {count}")
         # Raises AddressError when the run leaves the bank.
-        self.address.offset(self.count - 1)
+        self.address.offset(count - 1)
+
+
+_C = TypeVar("_C", bound=Command[Any])
+
+
+def _as_request_error(build: Callable[[], _C]) -> _C:
+    """Server side: a command built from a request, its client-side refusals turned into the error a PLC answers
+    (A: the run leaves its bank, 4: any other bad value)."""
+    try:
+        return build()
+    except AddressError as exc:
+        raise RequestError("A", str(exc)) from None
+    except ValueError as exc:
+        raise RequestError("4", str(exc)) from None
+
+
+@dataclass
+class _RangeCommand(_Run[list[int]]):
+    """Shared shape of 43/44/46: N then a start element."""
+
+    address: Address = field(default_factory=lambda: parse("R0"))
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        self.address = parse(self.address)
+        self._check_run(self.count)
 
     def request_data(self) -> str:
         return _count(self.count) + self.address.fatek_name
@@ -507,16 +540,7 @@ class _RangeCommand(Command):
         address, end = _take_name(data, 2)
         _check_extent(cls, address, count)
         _expect_end(data, end)
-        return cls._checked(address, count)
-
-    @classmethod
-    def _checked(cls, address: Address, count: int, *extra) -> _RangeCommand:  # noqa: ANN002
-        try:
-            return cls(address, count, *extra)
-        except AddressError as exc:
-            raise RequestError("A", str(exc)) from None
-        except ValueError as exc:
-            raise RequestError("4", str(exc)) from None
+        return _as_request_error(lambda: cls(address, count))
 
     def decode(self, data: str) -> list[int]:
         return _parse_values(data, self.address, self.count)
@@ -551,17 +575,16 @@ class ReadRegisters(_RangeCommand):
 
 
 @dataclass
-class _WriteRange(Command):
+class _WriteRange(_Acknowledged, _Run[None]):
     """Shared shape of 45/47: N, start element, N values."""
 
     address: Address = field(default_factory=lambda: parse("R0"))
     values: list[int] = field(default_factory=list)
-    bits_only: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         self.address = parse(self.address)
         self.values = [int(v) for v in self.values]
-        _RangeCommand._check(self)  # type: ignore[arg-type]
+        self._check_run(self.count)
         for v in self.values:
             _format_value(self.address, v)  # range check before anything is sent
 
@@ -583,7 +606,7 @@ class _WriteRange(Command):
             value, pos = _take_value(data, pos, address)
             values.append(value)
         _expect_end(data, pos)
-        return _RangeCommand._checked.__func__(cls, address, values)  # type: ignore[attr-defined]
+        return _as_request_error(lambda: cls(address, values))
 
     def describe(self) -> str:
         return f"write {self.count} to {self.address} ({self.code})"
@@ -601,7 +624,7 @@ class WriteRegisters(_WriteRange):
 
 
 @dataclass
-class MixedRead(Command):
+class MixedRead(Command[list[int]]):
     code: ClassVar[str] = "48"
     addresses: list[Address] = field(default_factory=list)
 
@@ -646,7 +669,7 @@ class MixedRead(Command):
 
 
 @dataclass
-class MixedWrite(Command):
+class MixedWrite(_Acknowledged):
     code: ClassVar[str] = "49"
     items: list[tuple[Address, int]] = field(default_factory=list)
 
@@ -681,7 +704,7 @@ class MixedWrite(Command):
 
 
 @dataclass
-class Loopback(Command):
+class Loopback(Command[str]):
     code: ClassVar[str] = "4E"
     text: str = ""
 
@@ -707,16 +730,16 @@ class Loopback(Command):
         return "loop-back (4E)"
 
 
-COMMANDS: dict[str, type[Command]] = {c.code: c for c in (
+COMMANDS: dict[str, type[Command[Any]]] = {c.code: c for c in (
     ShortStatus, RunStop, BitAction, ReadEnableState, ReadBits, WriteBits, ReadRegisters, WriteRegisters,
     MixedRead, MixedWrite, Loopback, DetailedStatus)}
 
 
-def encode_request(station: int, command: Command) -> bytes:
+def encode_request(station: int, command: Command[Any]) -> bytes:
     return build_frame(station, command.code, command.request_data())
 
 
-def decode_request(frame: Frame) -> Command:
+def decode_request(frame: Frame) -> Command[Any]:
     """Server side: rebuild the command from a request frame (raises RequestError with the code to answer)."""
     cls = COMMANDS.get(frame.command)
     if cls is None:
@@ -724,7 +747,7 @@ def decode_request(frame: Frame) -> Command:
     return cls.from_request(frame.data)
 
 
-def encode_reply(station: int, command: Command, result=None, error: str = "0") -> bytes:  # noqa: ANN001
+def encode_reply(station: int, command: Command[Any], result: object = None, error: str = "0") -> bytes:
     if isinstance(command, Loopback):
         return build_frame(station, command.code, command.text)
     data = error if error != "0" else "0" + command.encode_result(result)

@@ -242,16 +242,11 @@ def coalesce(addresses: Iterable[str | Address], *, limits: Mapping[str, int] = 
 
 def _runs_of(table: str, pdus: list[int], limit: int) -> list[Run]:
     runs: list[Run] = []
-    start = prev = None
     for pdu in pdus:
-        if start is not None and pdu == prev + 1 and pdu - start < limit:
-            prev = pdu
-            continue
-        if start is not None:
-            runs.append(Run(table, start, prev - start + 1))
-        start = prev = pdu
-    if start is not None:
-        runs.append(Run(table, start, prev - start + 1))
+        if runs and pdu == runs[-1].end and runs[-1].count < limit:  # the next unit, and the request has room
+            runs[-1] = Run(table, runs[-1].pdu, runs[-1].count + 1)
+        else:
+            runs.append(Run(table, pdu, 1))
     return runs
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 from hil.core.errors import HilError, InvalidValue
 from hil.core.link import Link
@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from hil.sim.runtime import ServerHandle
 
 NameLike = str | Address
+_R = TypeVar("_R")
 
 
 @dataclass(frozen=True)
@@ -62,14 +63,17 @@ class Transport(Link, ABC):
     """Base of every transport.  Use it as a context manager, or call :meth:`close`."""
 
     limits = Limits()
-    #: Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids that
-    #: may repeat a reply, docs/safety.md).  Port 0 services each at the end of a scan: suites that bracket scans
-    #: count with it.
-    requests_per_read = 1
     #: The in-process emulator behind an ``emulator…`` target, else None.
     emulator: Emulator | None = None
     #: The emulator's server this transport talks to (an ``emulator+<wire>`` target), else None.
     server: ServerHandle | None = None
+
+    @property
+    def requests_per_read(self) -> int:
+        """Requests one read takes: 2 where every read is fenced by a second one (a line without transaction ids
+        that may repeat a reply, docs/safety.md).  Port 0 services each at the end of a scan: suites that bracket
+        scans count with it."""
+        return 1
 
     # -- public API -------------------------------------------------------------------------------------------
     def read_words(self, address: NameLike, count: int = 1) -> list[int]:
@@ -186,7 +190,8 @@ class Transport(Link, ABC):
     def _status(self) -> PlcStatus: ...
 
     # -- helpers ------------------------------------------------------------------------------------------------
-    def _count(self, result):  # noqa: ANN001, ANN202 - passes the primitive's result through
+    def _count(self, result: _R) -> _R:
+        """Count one request sent, passing its primitive's result through."""
         self.requests += 1
         return result
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict, cast
 
 from hil.core.errors import InvalidValue, TargetError
 from hil.core.registry import SCHEMES
@@ -12,7 +12,7 @@ from hil.families.fbs.sim.serve_fatek import start_fatek_pty, start_fatek_tcp
 from hil.families.fbs.sim.serve_fatek_udp import start_fatek_udp
 from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty, start_modbus_tcp
 from hil.families.fbs.transport.base import Transport
-from hil.families.fbs.transport.fatek import FatekTransport
+from hil.families.fbs.transport.fatek import FatekOptions, FatekTransport
 from hil.families.fbs.transport.local import LocalTransport
 from hil.families.fbs.transport.modbus import ModbusTransport
 from hil.families.fbs.transport.replay import RecordedPlc, load_recording
@@ -33,6 +33,33 @@ SPEAKS = ("fatek", "modbus", "local")
 PTY_BAUDRATE = 115200
 
 
+# What each scheme's query may say (hil.families.fbs.wires, hil.io.modbus_schemes): hil.io.url has already
+# converted every value with the type its scheme registers, so a query is cast to its scheme's shape, not checked.
+class FatekQuery(FatekOptions, total=False):
+    """A ``fatek+…``/``replay+fatek`` target's query: the client's settings and the line's fence."""
+
+    fence: str
+
+
+class ModbusTcpQuery(TypedDict, total=False):
+    unit: int
+    timeout: float
+    retries: int
+
+
+class SerialQuery(TypedDict, total=False):
+    """A serial line's settings (the emulator's pty wires are given their pace in the same keys)."""
+
+    baudrate: int
+    bytesize: int
+    parity: str
+    stopbits: int
+
+
+class ModbusRtuQuery(ModbusTcpQuery, SerialQuery, total=False):
+    fence: str
+
+
 def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | None = None,
                    timeout: float | None = None, wire_faults: WireFaults | None = None,
                    line: LineRate | None = None) -> Transport:
@@ -48,8 +75,9 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     target = url if isinstance(url, Target) else parse_target(url)
     if target.protocol not in SPEAKS:  # another family's protocol: its own profile reaches it
         raise TargetError(f"target {target} speaks the {target.protocol} protocol, not one of an FBs; an FBs is "
-                          f"reached with fatek+tcp://, fatek+udp://, fatek+serial://, fatek+rfc2217://, modbus+tcp://, modbus+rtu:// "
-                          f"or modbus+rfc2217:// (or an emulator+fatek-…/emulator+modbus-… target); another PLC "
+                          f"reached with fatek+tcp://, fatek+udp://, fatek+serial://, fatek+rfc2217://, "
+                          f"modbus+tcp://, modbus+rtu:// or modbus+rfc2217:// (or an emulator+fatek-…/"
+                          f"emulator+modbus-… target); another PLC "
                           f"needs a profile of its family, e.g. --bench s7-200smart (the bundled S7 emulator) or your "
                           f"copy of example-s7-200smart (hil list shows the bundled profiles)")
     if target.in_process:
@@ -58,25 +86,29 @@ def open_transport(url: str | Target, *, emulator_factory: EmulatorFactory | Non
     if timeout is not None:
         params.setdefault("timeout", timeout)
     if target.scheme == "replay+fatek":
-        return _open_replay(target, params)
+        return _open_replay(target, cast(FatekQuery, params))
     if not SCHEMES[target.scheme].ordered:  # datagrams may come twice or out of order: fence every read
         params.setdefault("fence", "reads")
     if target.scheme == "fatek+udp":
-        return FatekUdpTransport(target.host, target.port, description=str(target), **params)
+        return FatekUdpTransport(target.host, target.port, description=str(target), **cast(FatekQuery, params))
     if target.protocol == "fatek":
-        port_url = f"socket://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else target.serial_port
-        if target.scheme == "fatek+serial" and "baudrate" in params:
-            params["paced"] = True  # a pty with a baud rate of its own is a paced one (hil emulate --line)
-        line = f"fatek+tcp://{target.host}:{target.port}" if target.scheme == "fatek+tcp" else port_url
-        return FatekTransport(port_url, description=str(target), line_name=line, **params)
+        tcp = target.scheme == "fatek+tcp"
+        port_url = f"socket://{target.host}:{target.port}" if tcp else target.serial_port
+        # a pty with a baud rate of its own is a paced one (hil emulate --line)
+        paced = True if target.scheme == "fatek+serial" and "baudrate" in params else None
+        return FatekTransport(port_url, description=str(target), paced=paced,
+                              line_name=f"fatek+tcp://{target.host}:{target.port}" if tcp else port_url,
+                              **cast(FatekQuery, params))
     if target.scheme == "modbus+tcp":
-        return ModbusTransport.tcp(target.host, target.port, **params)
-    return ModbusTransport.rtu(target.serial_port, **params)  # a device, or an RFC 2217 server's line
+        return ModbusTransport.tcp(target.host, target.port, **cast(ModbusTcpQuery, params))
+    # a device, or an RFC 2217 server's line
+    return ModbusTransport.rtu(target.serial_port, **cast(ModbusRtuQuery, params))
 
 
-def _open_replay(target: Target, params: dict) -> Transport:
-    """A FATEK client talking to a :class:`~hil.families.fbs.transport.replay.RecordedPlc` serving the recording on loopback; the
-    transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport stops it."""
+def _open_replay(target: Target, params: FatekQuery) -> Transport:
+    """A FATEK client talking to a :class:`~hil.families.fbs.transport.replay.RecordedPlc` serving the recording
+    on loopback; the transport's ``.replay`` is that peer (``.replay.verify()`` after use), closing the transport
+    stops it."""
     peer = RecordedPlc(load_recording(target.device))
     try:
         transport = FatekTransport(f"socket://{peer.address}", description=str(target), **params)
@@ -93,13 +125,13 @@ def emulator_line(target: Target, line: LineRate | None = None) -> LineRate | No
     FATEK 7E1, Modbus RTU 8E1), else ``line``; None (unpaced) for every other wire or when neither says."""
     if target.scheme not in ("emulator+fatek-serial", "emulator+modbus-rtu"):
         return None
-    params = target.params
+    params = cast(SerialQuery, target.params)
     if "baudrate" not in params:
         if any(k in params for k in ("bytesize", "parity", "stopbits")):
             raise InvalidValue(f"target {target}: a character frame without a baudrate — give baudrate= too")
         return line
-    return LineRate(int(params["baudrate"]), int(params.get("bytesize", 7 if "fatek" in target.scheme else 8)),
-                    str(params.get("parity", "E")), int(params.get("stopbits", 1)))
+    return LineRate(params["baudrate"], params.get("bytesize", 7 if "fatek" in target.scheme else 8),
+                    params.get("parity", "E"), params.get("stopbits", 1))
 
 
 def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
@@ -125,9 +157,9 @@ def _open_emulator(target: Target, emulator: Emulator, timeout: float | None,
 
 def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0, *,
           faults: WireFaults | None = None, line: LineRate | None = None) -> ServerHandle:
-    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu"); ``faults``: a
-    wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace of a pty
-    wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
+    """Put ``emulator`` on ``wire`` ("fatek-tcp", "fatek-udp", "fatek-serial", "modbus-tcp", "modbus-rtu");
+    ``faults``: a wire-fault plan every reply goes through (the handle keeps it as ``.faults``); ``line``: the pace
+    of a pty wire (:mod:`hil.sim.pacing`; the TCP wires have none)."""
     if wire == "fatek-tcp":
         handle = start_fatek_tcp(emulator, host, port, faults=faults)
     elif wire == "fatek-udp":
@@ -146,8 +178,8 @@ def serve(emulator: Emulator, wire: str, host: str = "127.0.0.1", port: int = 0,
 
 def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, line: LineRate | None,
                 fence: str) -> Transport:
-    settings = {} if line is None else dict(baudrate=line.baudrate, bytesize=line.bytesize, parity=line.parity,
-                                            stopbits=line.stopbits)
+    settings: SerialQuery = {} if line is None else {"baudrate": line.baudrate, "bytesize": line.bytesize,
+                                                     "parity": line.parity, "stopbits": line.stopbits}
     if wire == "fatek-udp":  # every read fenced, whatever the target says (hil.families.fbs.transport.udp)
         host, _, port = server.address.rpartition(":")
         return FatekUdpTransport(host, int(port), station=station, timeout=timeout)
@@ -159,5 +191,5 @@ def _client_for(wire: str, server: ServerHandle, station: int, timeout: float, l
     if wire == "modbus-tcp":
         host, _, port = server.address.rpartition(":")
         return ModbusTransport.tcp(host, int(port), unit=station, timeout=timeout)
-    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout, fence=fence,
-                               **(settings or {"baudrate": PTY_BAUDRATE}))
+    paced: SerialQuery = settings or {"baudrate": PTY_BAUDRATE}
+    return ModbusTransport.rtu(server.address, unit=station, timeout=timeout, fence=fence, **paced)

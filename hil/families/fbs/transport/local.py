@@ -7,6 +7,7 @@ are checked by the base class before any transport sends (tests/test_emulator_pa
 from __future__ import annotations
 
 from hil.families.fbs.address import Address
+from hil.families.fbs.sim.memory import Memory
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
 
@@ -14,6 +15,7 @@ from hil.families.fbs.transport.base import Limits, PlcStatus, Transport
 class LocalTransport(Transport):
     # No wire, but keep the FATEK limits so request counts (and the splitting code) match the real protocol.
     limits = Limits()
+    emulator: Emulator  # always: the one it calls into
 
     def __init__(self, emulator: Emulator) -> None:
         super().__init__("emulator (in-process)")
@@ -32,7 +34,7 @@ class LocalTransport(Transport):
         return self.emulator.service(lambda mem: [mem.get(a) for a in addresses])
 
     def _write_many(self, items: list[tuple[Address, int]]) -> None:
-        def apply(mem) -> None:  # noqa: ANN001
+        def apply(mem: Memory) -> None:
             for address, value in items:
                 mem.set(address, value)
         self.emulator.service(apply)

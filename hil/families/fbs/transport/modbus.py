@@ -1,14 +1,15 @@
 """ModbusTransport: an FBs reached over Modbus/TCP or Modbus RTU through the default map, with pymodbus's clients.
 
-Every request is resolved through :mod:`hil.families.fbs.protocol.modbus_map` *before* anything is sent, so an element the
-default map cannot reach (D4054, R4168…) raises :class:`~hil.core.errors.UnreachableAddress` instead of silently
-reading some other register.  Requests of any shape become contiguous runs per table — coils via FC01/FC15,
+Every request is resolved through :mod:`hil.families.fbs.protocol.modbus_map` *before* anything is sent, so an
+element the default map cannot reach (D4054, R4168…) raises :class:`~hil.core.errors.UnreachableAddress` instead
+of silently reading some other register.  Requests of any shape become contiguous runs per table — coils via FC01/FC15,
 holding registers via FC03/FC16 — split at the protocol limits (2000/1968 coils, 125/123 registers).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from typing import TypeVar
 
 from hil.families.fbs.address import Address, parse, span
 from hil.families.fbs.protocol import modbus_map as mm
@@ -19,6 +20,7 @@ from hil.io.modbus_client import ModbusWire, OverModbusWire, Probe
 #: A cheap read that proves the PLC answers: R4128 (RTC seconds), always mapped; R4128–R4135 are, so a
 #: resynchronising read picks its quantity in 1–8.
 PROBE = Probe(4128, 8)
+_R = TypeVar("_R")
 
 
 class ModbusTransport(OverModbusWire, Transport):
@@ -130,8 +132,8 @@ class ModbusTransport(OverModbusWire, Transport):
                          identity={"transport": self.description, "unit": str(self.unit),
                                    "probe": f"R4128 = {seconds}"})
 
-    def _count(self, result):  # noqa: ANN001, ANN202 - requests are counted per Modbus frame in _exchange
-        return result
+    def _count(self, result: _R) -> _R:
+        return result  # requests are counted per Modbus frame, by the wire
 
     # -- runs -------------------------------------------------------------------------------------------------
     def _read_addresses(self, addresses: Sequence[Address]) -> list[int]:

@@ -74,11 +74,11 @@ def _range_pays(addresses: Sequence[Address], run: list[int], limits: Limits, va
     for chunk in _chunks(run, _range_limit(first, limits)):
         start = addresses[chunk[0]]
         if values is None:
-            command = (ReadBits if start.is_bit else ReadRegisters)(start, len(chunk))
-            framed += len(encode_request(1, command)) + _REPLY + len(chunk) * _value_chars(start)
+            read = (ReadBits if start.is_bit else ReadRegisters)(start, len(chunk))
+            framed += len(encode_request(1, read)) + _REPLY + len(chunk) * _value_chars(start)
         else:
-            command = (WriteBits if start.is_bit else WriteRegisters)(start, [values[i] for i in chunk])
-            framed += len(encode_request(1, command)) + _REPLY
+            write = (WriteBits if start.is_bit else WriteRegisters)(start, [values[i] for i in chunk])
+            framed += len(encode_request(1, write)) + _REPLY
         framed += ROUND_TRIP
     return framed < named
 

@@ -9,11 +9,13 @@ raises :class:`ReplayMismatch` for it, or for recorded requests never sent.
 
 Loop-backs (command 4E) are the transport's own, not the procedure's: the fence after a read (where reads are
 fenced) and the resynchronisation after a fault (:mod:`hil.families.fbs.transport.fatek`) carry a nonce unique to
-the run that sent them.  A recording keeps none of them, and the recorded PLC echoes each one it gets, as any FATEK PLC does.
+the run that sent them.  A recording keeps none of them, and the recorded PLC echoes each one it gets, as any
+FATEK PLC does.
 
-Uses: ``replay+fatek:///path/to/trace.txt`` is a target (:func:`hil.families.fbs.transport.open_transport`), so a failing
-bench test's trace can be replayed through the device layer on a machine with no PLC; ``fixtures/frames/`` pins the
-exact frames of the device procedures (tests/test_replay.py), next to the manual's test vectors.
+Uses: ``replay+fatek:///path/to/trace.txt`` is a target (:func:`hil.families.fbs.transport.open_transport`), so a
+failing bench test's trace can be replayed through the device layer on a machine with no PLC;
+``fixtures/frames/`` pins the exact frames of the device procedures (tests/test_replay.py), next to the manual's
+test vectors.
 """
 
 from __future__ import annotations
@@ -131,7 +133,8 @@ class RecordedPlc:
         self._lock = threading.Lock()
         self._listener = socket.create_server((host, port))
         self._listener.settimeout(0.2)
-        self.address = "%s:%d" % self._listener.getsockname()[:2]
+        bound = self._listener.getsockname()  # (host, port), and more for IPv6
+        self.address = f"{bound[0]}:{bound[1]}"
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="hil-recorded-plc", daemon=True)
         self._thread.start()

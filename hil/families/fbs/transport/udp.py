@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import select
 import socket
+from typing import Unpack
 
 from hil.core.errors import InvalidValue, TransportError
-from hil.families.fbs.transport.fatek import FatekTransport
+from hil.families.fbs.transport.fatek import FatekOptions, FatekTransport
 from hil.io.line import Line
 
 #: the largest datagram read at once (a FATEK frame is at most a few hundred bytes)
@@ -34,7 +35,7 @@ class UdpLine(Line):
             raise TransportError(f"cannot open udp://{host}:{port}: {exc.strerror or exc} — check the host "
                                  f"name and that this host has a route to it") from exc
         sock.setblocking(False)
-        super().__init__(sock, None)  # type: ignore[arg-type] - a socket in the port's place: no write timeout
+        super().__init__(sock, None)  # a socket in the port's place: no write timeout
         self.sock = sock
 
     def write(self, data: bytes) -> None:
@@ -67,13 +68,14 @@ class UdpLine(Line):
 class FatekUdpTransport(FatekTransport):
     """The FATEK client over :class:`UdpLine`; every read fenced (datagrams may come twice or out of order)."""
 
-    def __init__(self, host: str, port: int, *, fence: str = "reads", **kwargs: object) -> None:
+    def __init__(self, host: str, port: int, *, fence: str = "reads", description: str | None = None,
+                 **options: Unpack[FatekOptions]) -> None:
         if fence != "reads":
             raise InvalidValue(f"fence={fence} relies on replies arriving once and in order, which UDP does not "
                                f"promise: a FATEK line over UDP fences every read (leave fence out)")
         self.host, self.port = host, port
-        kwargs.setdefault("description", f"fatek+udp://{host}:{port}")
-        super().__init__(f"udp://{host}:{port}", fence="reads", paced=False, **kwargs)  # type: ignore[arg-type]
+        super().__init__(f"udp://{host}:{port}", fence="reads", paced=False,
+                         description=description or f"fatek+udp://{host}:{port}", **options)
 
     def new_line(self) -> Line:
         return UdpLine(self.host, self.port)
