@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, TypeVar
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 import numpy as np
 
@@ -12,6 +12,8 @@ if TYPE_CHECKING:
 
 
 Time = TypeVar("Time", float, np.ndarray)
+#: the engine a model runs in: a family's models take its emulator (``Model["Emulator"]``), whose memory they read
+EngineT = TypeVar("EngineT", bound="Engine")
 _SLACK = np.array(1e-6)
 
 
@@ -24,7 +26,7 @@ def scan_grid(t: Time, scan_time: float) -> Time:
     return np.ceil(t / step - _SLACK) * step
 
 
-class Model:
+class Model(Generic[EngineT]):
     """Base class: override what you need.
 
     * :meth:`power_on` — set the model's registers to their power-on values.
@@ -36,10 +38,10 @@ class Model:
 
     name = "model"
 
-    def power_on(self, emu: Engine) -> None:
+    def power_on(self, emu: EngineT) -> None:
         pass
 
-    def scan(self, emu: Engine) -> None:
+    def scan(self, emu: EngineT) -> None:
         pass
 
     def next_event(self, now: float) -> float:

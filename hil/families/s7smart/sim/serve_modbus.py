@@ -14,7 +14,8 @@ from pymodbus.constants import ExcCodes
 from pymodbus.simulator import SimDevice
 
 from hil.families.s7smart.protocol.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
-from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
+from hil.families.s7smart.sim.cpu import S7Emulator
+from hil.families.s7smart.sim.memory import S7Memory
 from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults

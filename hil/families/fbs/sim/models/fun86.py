@@ -67,7 +67,7 @@ def _unchanged(view: View | None, key: tuple, part: int) -> View | None:
     return view if view is not None and view.key[part] == key[part] else None
 
 
-class Fun86Model(ControlLaw, AlarmBits, PwmOutputs, Model):
+class Fun86Model(ControlLaw, AlarmBits, PwmOutputs, Model["Emulator"]):
     name = "fun86"
 
     def __init__(self, config: PidConfig, temperature: TemperatureConfig | None) -> None:

@@ -113,7 +113,7 @@ class PlantSource:
         return float(self.plant.measured(np.array([self.slot]), np.array([self.point]), np.array([t]))[0])
 
 
-class ThermalPlant(Model):
+class ThermalPlant(Model["Emulator"]):
     name = "plant"
 
     def __init__(self, config: PlantConfig, heaters: dict[int, Address], seed: int = 0) -> None:
