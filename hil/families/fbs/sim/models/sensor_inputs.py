@@ -64,8 +64,8 @@ def default_sources(config: TemperatureConfig) -> dict[int, Source]:
 
 
 class SensorInputs:
-    """The sources and open circuits of a temperature model's points (mixed into :class:`TemperatureModel`, whose
-    ``_forget`` drops a re-sourced point's samples)."""
+    """The sources and open circuits of a temperature model's points (under the readings' pipeline,
+    models/temperature_readings.py, whose :meth:`forget` drops a re-sourced point's samples)."""
 
     sources: dict[int, Source]
     broken: set[int]
@@ -80,7 +80,10 @@ class SensorInputs:
         self._check_point(point)
         self.sources[point] = source
         self._sources_version += 1
-        self._forget(np.array([point]))
+        self.forget(np.array([point]))
+
+    def forget(self, points: np.ndarray) -> None:
+        """Drop what is kept of ``points``' earlier measurements (nothing here: the readings keep samples)."""
 
     def open(self, point: int) -> None:
         """Open point's sensor circuit (a broken thermocouple); seen at the point's next measurement."""
