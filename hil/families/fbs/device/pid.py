@@ -42,10 +42,10 @@ class Pid(faces.Pid):
 
     @property
     def config(self) -> PidConfig:
-        if not self.configured:
+        if self._config is None or not self._config.instances:  # (not configured)
             raise HilError("the bench profile has no [pid] section: say where the ladder's FUN86 operands are "
                            "(see fixtures/benches/example-bench.toml)")
-        return self._config  # type: ignore[return-value]
+        return self._config
 
     @config.setter
     def config(self, value: PidConfig | None) -> None:
@@ -154,7 +154,8 @@ class Pid(faces.Pid):
         self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
 
     def gains(self, point: int) -> tuple[int, int, int]:
-        return tuple(self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")]))  # type: ignore[return-value]
+        kc, ki, td = self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")])
+        return kc, ki, td
 
     def gains_of(self, inst: PidInstance) -> dict[int, tuple[int, int, int]]:
         """(Kc, Ki, Td) of every point of ``inst``: PR, IR and DR each read as one block."""
@@ -208,8 +209,8 @@ class Pid(faces.Pid):
 
     # -- alarm words ------------------------------------------------------------------------------------------------
     def alarm_words(self, inst: PidInstance, sn: int | None = None) -> AlarmWords:
-        words = tuple(self.plc.io.read_words(str(inst.wr), 4))
-        return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
+        w0, w1, w2, w3 = self.plc.io.read_words(str(inst.wr), 4)
+        return AlarmWords(inst, (w0, w1, w2, w3), inst.sn if sn is None else sn)
 
     def alarms(self, instances: Iterable[PidInstance]) -> dict[str, AlarmWords]:
         """WR+0 … WR+3 and ALM of every box in ``instances``, by name, in one planned read — the fewest frames
@@ -220,8 +221,8 @@ class Pid(faces.Pid):
         values = self.plc.io.read_many(names)
         out = {}
         for k, inst in enumerate(instances):
-            *words, alm = values[5 * k:5 * k + 5]
-            out[inst.name] = AlarmWords(inst, tuple(words), inst.sn, bool(alm))  # type: ignore[arg-type]
+            w0, w1, w2, w3, alm = values[5 * k:5 * k + 5]
+            out[inst.name] = AlarmWords(inst, (w0, w1, w2, w3), inst.sn, bool(alm))
         return out
 
     # -- timing -----------------------------------------------------------------------------------------------------

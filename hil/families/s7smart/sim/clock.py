@@ -114,8 +114,10 @@ class RtcTestProgram(Model["S7Emulator"]):
                     mem.write_bytes("V", lay.read_buffer.byte, data)
             elif trigger == lay.set_trigger:
                 error = clock.set_rtc(emu.now, mem.read_bytes("V", lay.set_buffer.byte, 8))
+            elif lay.set_i_buffer is not None:  # (SET_RTC_I's trigger: the profile names its buffer with it)
+                error = clock.set_rtc_i(emu.now, mem.read_bytes("V", lay.set_i_buffer.byte, 8))
             else:
-                error = clock.set_rtc_i(emu.now, mem.read_bytes("V", lay.set_i_buffer.byte, 8))  # type: ignore[union-attr]
+                continue
             mem.set(lay.eno, 1 if error == timebuf.ERROR_NONE else 0)
             mem.set(lay.error, error)
             if lay.sm4_3 is not None:

@@ -3,8 +3,11 @@ models that run in it (clock.py) and the builder that fits them (emulator.py).""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from hil.families.s7smart.sim.memory import S7Memory
 from hil.sim.engine import Engine
+from hil.sim.model import Model
 
 
 class S7Emulator(Engine):
@@ -12,7 +15,8 @@ class S7Emulator(Engine):
 
     family = "s7-200smart"
 
-    def __init__(self, *, scan_time: float = 0.01, models=(), station: int = 1, seed: int = 0,  # noqa: ANN001
+    def __init__(self, *, scan_time: float = 0.01, models: Iterable[Model[S7Emulator]] = (), station: int = 1,
+                 seed: int = 0,
                  cpu: str = "ST40") -> None:
         super().__init__(S7Memory(), scan_time=scan_time, station=station, seed=seed)
         self.cpu = cpu

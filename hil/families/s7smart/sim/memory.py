@@ -31,14 +31,14 @@ class S7Memory:
         a = parse_s7(name)
         bank = self.areas[a.area]
         if a.is_bit:
-            return bank[a.byte] >> a.bit & 1  # type: ignore[operator]
+            return bank[a.byte] >> a.bit_in_byte & 1
         return int.from_bytes(bank[a.byte:a.end], "big")
 
     def set(self, name: str | S7Address, value: int) -> None:
         a = parse_s7(name)
         bank = self.areas[a.area]
         if a.is_bit:
-            mask = 1 << a.bit  # type: ignore[operator]
+            mask = 1 << a.bit_in_byte
             bank[a.byte] = bank[a.byte] | mask if value else bank[a.byte] & ~mask
         else:
             bank[a.byte:a.end] = (int(value) & ((1 << 8 * a.size) - 1)).to_bytes(a.size, "big")

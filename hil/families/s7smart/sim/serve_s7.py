@@ -107,8 +107,8 @@ def _clock_time(raw: bytes) -> dt.datetime:
     """The time in a set-clock request (10 bytes as :func:`_clock_bytes`; the year is bytes 2, 1990–2089)."""
     if len(raw) != 10:
         raise ValueError(f"a clock is 10 bytes, not {len(raw)}")
-    digits = [timebuf.from_bcd(b) for b in raw[2:8]]
-    if any(d is None for d in digits):
+    digits = [d for d in (timebuf.from_bcd(b) for b in raw[2:8]) if d is not None]
+    if len(digits) != 6:
         raise ValueError("not BCD")
-    year, month, day, hour, minute, second = digits  # type: ignore[misc]
+    year, month, day, hour, minute, second = digits
     return dt.datetime(2000 + year if year < 90 else 1900 + year, month, day, hour, minute, second)

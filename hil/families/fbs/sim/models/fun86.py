@@ -108,10 +108,10 @@ class Fun86Model(ControlLaw, AlarmBits, PwmOutputs, Model["Emulator"]):
 
     # -- helpers ---------------------------------------------------------------------------------------------------
     def sn_zn(self, mem: Memory, inst: PidInstance) -> tuple[int, int]:
-        if inst.settable:
+        sn, zn = inst.sn_register, inst.zn_register
+        if sn is not None and zn is not None:  # (settable: the ladder takes Sn/Zn from these registers)
             words = mem.words
-            return (reg.signed16(words[inst.sn_register.kind][inst.sn_register.index]),
-                    reg.signed16(words[inst.zn_register.kind][inst.zn_register.index]))
+            return reg.signed16(words[sn.kind][sn.index]), reg.signed16(words[zn.kind][zn.index])
         return inst.sn, inst.zn
 
     def readings_start(self, mem: Memory) -> Address | None:
@@ -184,6 +184,8 @@ class Fun86Model(ControlLaw, AlarmBits, PwmOutputs, Model["Emulator"]):
     def scan_for(self, due: float, now: float) -> float:
         """The first scan at or after an event at ``due``, on the scan grid: a jump then takes the very scan that
         stepping scan by scan would (PID samples, PWM edges and PVs seen at the same scans either way)."""
+        if self._emu is None:  # (not powered on: no scan grid yet)
+            return max(now, due)
         return max(now, float(scan_grid(due, self._emu.scan_time)))
 
     def _scan_at_rest(self, mem: Memory) -> bool:

@@ -102,7 +102,7 @@ class AlarmBits:
             self._warning_bits(mem, st, view, held if timing else None, limit, now)
         wr = inst.wr
         mem.words[wr.kind][wr.index:wr.index + 4] = [int(w) for w in (*view.normal_words, *view.warning_words)]
-        any_warning = bool(np.count_nonzero(view.warning))
+        any_warning = view.warning is not None and bool(np.count_nonzero(view.warning))
         mem.bits[inst.alm.kind][inst.alm.index] = 1 if self.alarm(view.out_of_band, any_warning) else 0
 
     def _normal_bits(self, st: InstanceState, view: View) -> np.ndarray:

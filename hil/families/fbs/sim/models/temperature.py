@@ -40,7 +40,7 @@ from hil.families.fbs.address import Address
 
 # (the simulated world the sensors see: no manual statement, so not here; the sources are re-exported for the
 # profile builder and the tests)
-from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, Source, source_from_spec  # noqa: F401
+from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, Source, source_from_spec
 from hil.families.fbs.sim.models.temperature_readings import Readings
 from hil.families.fbs.temperature import (
     BREAK_VALUE,
@@ -178,7 +178,7 @@ class TemperatureModel(Readings, Model["Emulator"]):
         key = (tuple(codes), readings_word, tuple(id(m) for m in self.fitted))
         plan = self._plan_cache.get(key)
         if plan is None:
-            mismatch, expected, entries, measured = 0, set(), [], []
+            mismatch, expected, entries, measured = 0, set[int](), list[int](), list[tuple[int, int, int]]()
             first = 0
             for k, (code, tm) in enumerate(zip(codes, table_modules)):
                 points = tm.points if tm else 0
@@ -215,7 +215,7 @@ class TemperatureModel(Readings, Model["Emulator"]):
             return
         self.state = state
         measuring = self.state == "measuring" and readings is not None
-        mismatch, expected, entries = 0, frozenset[int](), []
+        mismatch, expected, entries = 0, frozenset[int](), list[int]()
         if measuring:
             mismatch, expected, entries = self._measure_table(emu, codes, table_modules, words[sr + 2], readings)
         all_measured = bool(expected) and expected <= self._measured
@@ -405,11 +405,15 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
         return np.empty(0), at
     count = int((limit - at) / step) + 2
     if count <= 8:  # (a few: added in Python, the same additions without numpy's overhead)
-        times = [at]
+        few = [at]
         while at + step <= limit:
             at += step
-            times.append(at)
-        return np.array(times), at + step
+            few.append(at)
+        return np.array(few), at + step
     times = np.add.accumulate(np.concatenate(([at], np.full(count, step))))
     n = int(np.searchsorted(times, limit, side="right"))
     return times[:n], float(times[n])
+
+
+__all__ = ["Fixed", "Ramp", "Source", "TemperatureModel", "resume_after_jump", "schedule", "source_from_spec",
+           "table_layout"]

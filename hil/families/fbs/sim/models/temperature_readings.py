@@ -52,7 +52,7 @@ class Readings(SensorInputs):
     def in_unit(self, celsius: np.ndarray, low: np.ndarray | None, high: np.ndarray | None) -> np.ndarray:
         """Sensor values within the sensors' range (``low``, ``high``; None: known to be within), in the configured
         unit."""
-        if low is not None:
+        if low is not None and high is not None:
             celsius = np.minimum(np.maximum(celsius, low), high)
         return to_unit(celsius, self.config.unit)
 
