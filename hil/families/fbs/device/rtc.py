@@ -266,6 +266,12 @@ class Drift:
         self._edge = None  # a new measurement learns the phase afresh (the clock may have been set since)
         if duration < transitions + 2:
             raise InvalidValue(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
+        return _fit(self._timed_transitions(duration, transitions, checkpoints, timeout))
+
+    def _timed_transitions(self, duration: float, transitions: int, checkpoints: int,
+                           timeout: float) -> list[tuple[float, int, float]]:
+        """``transitions`` second transitions timed at the start and at the end of ``duration`` bench seconds, and
+        one at each of ``checkpoints`` evenly spaced moments between (as :meth:`transition` times them)."""
         # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
         # phases of the chip's second (on the emulator they would otherwise land identically every time).
         step = self.rtc.poll_interval / transitions
@@ -275,7 +281,7 @@ class Drift:
         # last group ends at first + duration.  A short measurement has room for fewer checkpoints (none at 10 s).
         clock, t0 = self.plc.time, first[0][0]
         last_start = t0 + duration - (transitions - 1) - 0.5
-        middle = []
+        middle: list[tuple[float, int, float]] = []
         for k in range(1, checkpoints + 1):
             at = t0 + k * duration / (checkpoints + 1) - 0.5
             if at <= clock.now() or at + 1.5 > last_start:
@@ -285,25 +291,7 @@ class Drift:
         if last_start > clock.now():
             clock.wait(last_start - clock.now())
         last = [self.transition(timeout, i * step) for i in range(transitions)]
-
-        t0, s0, _ = first[0]
-        samples = []
-        for t, s, _ in first + middle + last:
-            shown = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
-            samples.append((t - t0, shown - (t - t0)))
-        xs = [x for x, _ in samples]
-        ys = [y for _, y in samples]
-        mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
-        slope = sum((x - mx) * (y - my) for x, y in samples) / sum((x - mx) ** 2 for x in xs)
-        reference_elapsed = xs[-1]
-        plc_elapsed = reference_elapsed + ys[-1]
-        # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
-        # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
-        # host) weighs only as much as its sample does, not as the whole measurement's worst case.
-        widths = [width for _, _, width in first + middle + last]
-        sxx = sum((x - mx) ** 2 for x in xs)
-        bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
-        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
+        return first + middle + last
 
     def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
                       checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
@@ -382,6 +370,29 @@ class Drift:
         started = self.plc.time.now()
         shown = self.rtc.read()
         return shown, (started + self.plc.time.now()) / 2
+
+
+def _fit(timed: list[tuple[float, int, float]]) -> DriftMeasurement:
+    """The clock's rate error from its timed transitions (bench time, PLC seconds, bracket width): the
+    least-squares slope of (PLC − reference) over them, so polling jitter averages out, with its worst-case error."""
+    t0, s0, _ = timed[0]
+    samples = []
+    for t, s, _ in timed:
+        shown = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
+        samples.append((t - t0, shown - (t - t0)))
+    xs = [x for x, _ in samples]
+    ys = [y for _, y in samples]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    sxx = sum((x - mx) ** 2 for x in xs)
+    slope = sum((x - mx) * (y - my) for x, y in samples) / sxx
+    reference_elapsed = xs[-1]
+    plc_elapsed = reference_elapsed + ys[-1]
+    # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
+    # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
+    # host) weighs only as much as its sample does, not as the whole measurement's worst case.
+    widths = [width for _, _, width in timed]
+    bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
+    return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
 
 
 def _weekday_after(sent: RtcTime, shown: RtcTime) -> int | None:
