@@ -25,14 +25,14 @@ from hil.bench.faces import BenchTime, BenchView, FaultInjector
 from hil.core.errors import HilError, WriteRefused
 from hil.core.evidence import Expectation, StaleEvidence
 from hil.core.measurement import Measurement, Outcome
-from hil.families.fbs.device.pid import AlarmWords, Sample, Trace
-from hil.families.fbs.device.rtc import RtcChip, RtcFlags, RtcSnapshot, SetResult
-from hil.families.fbs.device.temperature import TableView, WorkView
 from hil.families.fbs.faces import Bench, Pid, Plc, Rtc, Temperature
 from hil.families.fbs.faces import FbsFaults as Faults
 from hil.families.fbs.faces import FbsIO as PlcIO
 from hil.families.fbs.pid import PidInstance
+from hil.families.fbs.pid_records import AlarmWords, Sample, Trace
+from hil.families.fbs.rtc_records import RtcChip, RtcFlags, RtcSnapshot, SetResult
 from hil.families.fbs.rtc_time import RtcTime
+from hil.families.fbs.temperature_records import TableView, WorkView
 from hil.families.s7smart.faces import S7IO, S7Bench
 
 

@@ -49,29 +49,51 @@ def _signature(fn: Callable[..., Any]) -> str:
     return f"({', '.join(parts)})" + (f" -> {_annotation(returns)}" if returns is not inspect.Signature.empty else "")
 
 
-def _member_lines(klass: type) -> Iterator[str]:
+def _public_members(klass: type) -> list[str]:
+    """The names of a class's own public methods and properties, in definition order."""
+    return [n for n, v in vars(klass).items() if not n.startswith("_") and (callable(v) or isinstance(v, property))]
+
+
+def _member_names(klass: type) -> list[str]:
+    """What the reference lists of ``klass``: a Protocol's members (its ``__call__`` first), a dataclass's fields
+    then its methods and properties, or a class's methods and properties — each once."""
     if getattr(klass, "_is_protocol", False):
         names = (["__call__"] if "__call__" in vars(klass) else []) + list(members(klass))
     elif dataclasses.is_dataclass(klass):
-        names = [f.name for f in dataclasses.fields(klass)] + [
-            n for n, v in vars(klass).items() if not n.startswith("_") and (callable(v) or isinstance(v, property))]
+        names = [f.name for f in dataclasses.fields(klass)] + _public_members(klass)
     else:
-        names = [n for n, v in vars(klass).items() if not n.startswith("_") and (callable(v) or isinstance(v, property))]
+        names = _public_members(klass)
+    return list(dict.fromkeys(names))
+
+
+def _described(text: str, documented: object) -> str:
+    """``text`` followed by ``documented``'s docstring on one line, when it has one."""
+    doc = _doc(documented)
+    return text + (f": {' '.join(doc.split())}" if doc else "")
+
+
+def _member_line(member: object, name: str) -> str | None:
+    """One member's line: a property with what it returns, a method with its signature (None for a value)."""
+    if isinstance(member, property):
+        returns = member.fget.__annotations__.get("return", "") if member.fget else ""
+        return _described(f"- `{name}` → `{returns}` (property)", member)
+    if isinstance(member, (staticmethod, classmethod)):
+        return _described(f"- `{name}{_signature(member.__func__)}`", member.__func__)
+    if callable(member):
+        return _described(f"- `{name}{_signature(member)}`", member)
+    return None
+
+
+def _member_lines(klass: type) -> Iterator[str]:
     fields = {f.name: f for f in dataclasses.fields(klass)} if dataclasses.is_dataclass(klass) else {}
-    for name in dict.fromkeys(names):
-        member = inspect.getattr_static(klass, name, None)
+    for name in _member_names(klass):
         if name in fields:
             kind = getattr(fields[name].type, "__name__", fields[name].type)
             yield f"- `{name}: {kind}`"
             continue
-        if isinstance(member, property):
-            returns = (member.fget.__annotations__.get("return", "") if member.fget else "")
-            yield f"- `{name}` → `{returns}` (property)" + (f": {' '.join(_doc(member).split())}" if _doc(member) else "")
-        elif isinstance(member, (staticmethod, classmethod)):
-            fn = member.__func__
-            yield f"- `{name}{_signature(fn)}`" + (f": {' '.join(_doc(fn).split())}" if _doc(fn) else "")
-        elif callable(member):
-            yield f"- `{name}{_signature(member)}`" + (f": {' '.join(_doc(member).split())}" if _doc(member) else "")
+        line = _member_line(inspect.getattr_static(klass, name, None), name)
+        if line is not None:
+            yield line
 
 
 def render() -> str:

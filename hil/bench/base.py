@@ -113,10 +113,6 @@ class BenchBase(Generic[PlcT, LinkT]):
         """Which PLC the wire reaches, as far as it can tell (None: it cannot); the family's."""
         return None
 
-    def close(self) -> None:
-        """Close the wire (and an emulator's server); the family's bench knows what it opened."""
-        raise NotImplementedError
-
     def recover(self, *, by_hand: bool = False, show: bool = False,
                 accept_host_clock: bool = False) -> Recovery | None:
         """Replay what a dead run left in this PLC's journal — before anything else, with the lock held (``show``:

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, ContextManager, Protocol
+from contextlib import AbstractContextManager
+from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
     from hil.bench.profile import Profile
@@ -166,7 +167,7 @@ class BenchView(Protocol):
         :class:`hil.core.evidence.StaleEvidence` (reported as a test error naming ``what``) is raised instead."""
         ...
 
-    def exclusive(self) -> ContextManager[None]:
+    def exclusive(self) -> AbstractContextManager[None]:
         """``with bench.exclusive():`` — the wire is this test's across several requests: in a run with lanes
         (``hil run --lanes``) no other lane's request comes between them, for a step whose timing matters (a set
         and an edge within one second of the PLC's clock).  Elsewhere it changes nothing."""

@@ -27,7 +27,7 @@ def _view(title: str, members: dict[str, Any]) -> Any:
     return type(title.replace(" ", "_"), (), namespace)()
 
 
-def _frozen(self, name: str, value: object) -> None:  # noqa: ANN001
+def _frozen(self: object, name: str, value: object) -> None:
     raise AttributeError(f"a suite cannot change the bench ({name})")
 
 

@@ -1,10 +1,10 @@
 """What a test sees of an FBs bench, as Protocols (``hil.api`` re-exports them under short names).
 
-They are the stable, documented surface: the guard-enforcing proxy of the bench and of the PLC's I/O is built
-from them (:mod:`hil.bench.view`), and the concrete classes (``hil.families.fbs.device.*``) are checked against
-them by the type check in CI (``tests/test_public_api.py``).  Units: temperatures in 0.1 ° of the profile's
-``[temperature] unit``; outputs OR 0–16383 (= 100 %); bench seconds.  Sections: ``spec/fbs-*.md`` (restated from
-the FBs manual: RTC chapter 17, temperature module chapter 16, FUN86 chapter 20).
+They are the stable, documented surface, written once: the guard-enforcing proxy of the bench and of the PLC's I/O
+is built from them (:mod:`hil.bench.view`), and the areas (``hil.families.fbs.device``) subclass them, so ``mypy``
+checks each against its Protocol where it is defined and the areas inherit these docstrings.  Units: temperatures
+in 0.1 ° of the profile's ``[temperature] unit``; outputs OR 0–16383 (= 100 %); bench seconds.  Sections:
+``spec/fbs-*.md`` (restated from the FBs manual: RTC chapter 17, temperature module chapter 16, FUN86 chapter 20).
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ from hil.bench.faces import BenchTime, BenchWithFaults, FaultInjector, Faults, P
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
-    from hil.families.fbs.device.pid import AlarmWords, Trace
-    from hil.families.fbs.device.rtc import RtcChip, RtcFlags, RtcSnapshot, SetResult
-    from hil.families.fbs.device.temperature import TableView, WorkView
     from hil.families.fbs.pid import PidConfig, PidInstance
+    from hil.families.fbs.pid_records import AlarmWords, Trace
+    from hil.families.fbs.rtc_records import RtcChip, RtcFlags, RtcSnapshot, SetResult
     from hil.families.fbs.rtc_time import RtcTime
     from hil.families.fbs.temperature import TemperatureConfig
+    from hil.families.fbs.temperature_records import TableView, WorkView
     from hil.families.fbs.transport.base import Limits
     from hil.io.status import PlcStatus
 

@@ -113,7 +113,8 @@ PID = Section("pid", "The ladder's FUN86 (TPCTL) boxes: one box's keys directly 
               "[[pid.instances]] each with the same keys (a missing key takes the manual's example program).",
               (*_INSTANCE_KEYS,
                Key("instances", list, "Several boxes: one [[pid.instances]] table each, with the keys above "
-                   "(then no box keys directly in [pid]).", [], json={"items": {"$ref": "#/properties/pid"}},  # each box: [pid]'s keys
+                   "(then no box keys directly in [pid]).", [],
+                   json={"items": {"$ref": "#/properties/pid"}},  # each box: [pid]'s keys
                    example=[{"name": "oven", "en": "M20", "sv": "R2000", "sn": 4, "zn": 2}])),
               family="fbs")
 #: one of several boxes, [[pid.instances]]: the same keys
@@ -262,9 +263,9 @@ def _check_overlaps(instances: list[PidInstance], where: str) -> None:
             if ka == kb and fa <= eb and fb <= ea:
                 raise ProfileError(f"{where}: [pid] {lb} ({kb}{fb}–{kb}{eb}) overlaps {la} ({ka}{fa}–{ka}{ea})")
     fixed = [i for i in instances if not i.settable]
-    for n, a in enumerate(fixed):
-        for b in fixed[n + 1:]:
-            common = set(a.points) & set(b.points)
+    for n, one in enumerate(fixed):
+        for other in fixed[n + 1:]:
+            common = set(one.points) & set(other.points)
             if common:
-                raise ProfileError(f"{where}: [pid] {a.name} and {b.name} both control points "
+                raise ProfileError(f"{where}: [pid] {one.name} and {other.name} both control points "
                                    f"{min(common)}–{max(common)} (each point belongs to one FUN86)")

@@ -11,13 +11,22 @@ the order in which the manual lists the modules in 20.3 (①6TC ②6RTD ③16TC 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from hil.bench.schema import Key, Section, located
 from hil.core.errors import AddressError, InvalidValue, ProfileError
 from hil.families.fbs.address import WORD_BANKS, Address, parse
 from hil.families.fbs.registers import MAX_POINTS
+
+if TYPE_CHECKING:
+    import numpy as np
+
+#: how a section's parser says a key is wrong: ``raise fail(key, why)`` (the error names the file and the line)
+Fail = Callable[[str, str], ProfileError]
+#: a temperature: one value, or an array of them (the emulator converts measurements in batches)
+Degrees = TypeVar("Degrees", float, "np.ndarray")
 
 TABLE_MARKER = 0xA556  # SR+0: the table is valid only with this value
 BREAK_VALUE = 28767  # reading of a fitted point whose sensor is open
@@ -93,7 +102,7 @@ def module_type(name: str) -> ModuleType:
     return MODULES[key]
 
 
-def to_unit(celsius: float, unit: str) -> float:
+def to_unit(celsius: Degrees, unit: str) -> Degrees:
     return celsius if unit == "C" else celsius * 9 / 5 + 32
 
 
@@ -134,8 +143,8 @@ def _unit(value: str) -> str:
 _REGISTER = "an R or D register such as 'R3000'"
 TEMPERATURE = Section("temperature", "Where the ladder keeps the temperature table (SR, 4 + N words), the readings "
                       "(one word per point, 0.1°) and the work block (TW, 4 + 4N words), and the modules fitted, in "
-                      "expansion order (at most 8 modules / 32 points). Add \"R4010-R4011\" to [safety] writable for the mask "
-                      "checks, the table's SR…SR+11 for the FEH/FFH/mismatch checks.", (
+                      "expansion order (at most 8 modules / 32 points). Add \"R4010-R4011\" to [safety] writable "
+                      "for the mask checks, the table's SR…SR+11 for the FEH/FFH/mismatch checks.", (
     Key("table", str, f"The table's first register SR, {_REGISTER}.", required=True, convert=_start_register,
         example="R3000"),
     Key("readings", str, f"The first reading's register, {_REGISTER}.", required=True, convert=_start_register,
@@ -181,7 +190,8 @@ class TemperatureConfig:
     #: point → °C a reference holds it at on this bench (a calibrator, an ice point, a stable bath): the readings
     #: suite checks those points within the module's accuracy (the emulator holds them there too)
     reference: dict[int, float] = field(default_factory=dict)
-    reference_tolerance: float = TEMPERATURE.default("reference_tolerance")  # °C: the reference's own uncertainty, added to the module's accuracy
+    #: °C: the reference's own uncertainty, added to the module's accuracy
+    reference_tolerance: float = TEMPERATURE.default("reference_tolerance")
 
     @property
     def points(self) -> int:
@@ -222,7 +232,7 @@ def parse_temperature(section: dict[str, Any], where: str = "<profile>") -> Temp
     return TemperatureConfig(modules=modules, **values)
 
 
-def _parse_modules(raw: list, fail) -> tuple[ModuleConfig, ...]:  # noqa: ANN001
+def _parse_modules(raw: list, fail: Fail) -> tuple[ModuleConfig, ...]:
     if not raw:
         raise fail("modules", "must be a non-empty list like [{type = \"6TC\", sensor = \"K\"}]")
     if len(raw) > MAX_MODULES:
@@ -247,7 +257,7 @@ def _parse_modules(raw: list, fail) -> tuple[ModuleConfig, ...]:  # noqa: ANN001
     return tuple(modules)
 
 
-def _check_blocks(starts: dict[str, Address], sizes: dict[str, int], fail) -> None:  # noqa: ANN001
+def _check_blocks(starts: dict[str, Address], sizes: dict[str, int], fail: Fail) -> None:
     """The table, readings and work blocks neither overlap nor run past their bank."""
     names = list(sizes)
     for i, a in enumerate(names):
@@ -260,7 +270,7 @@ def _check_blocks(starts: dict[str, Address], sizes: dict[str, int], fail) -> No
             raise fail(key, f"the {key} block {start}+{sizes[key]} runs past the end of the {start.kind} bank")
 
 
-def _point_table(raw: Any, points: int, fail, name: str, shape: str) -> list[tuple[str, Any]]:  # noqa: ANN001
+def _point_table(raw: Any, points: int, fail: Fail, name: str, shape: str) -> list[tuple[str, Any]]:
     """A profile table keyed by configured point ("0" … points − 1): its (key, value) pairs, or the key that is not
     one, named."""
     if not isinstance(raw, dict):
@@ -271,7 +281,7 @@ def _point_table(raw: Any, points: int, fail, name: str, shape: str) -> list[tup
     return list(raw.items())
 
 
-def _parse_reference(raw: Any, points: int, fail) -> dict[int, float]:  # noqa: ANN001
+def _parse_reference(raw: Any, points: int, fail: Fail) -> dict[int, float]:
     """``reference = {"10" = 28.0, "11" = 28.3}``: point → °C."""
     out = {}
     for key, celsius in _point_table(raw, points, fail, "reference", "°C, like {\"10\" = 25.0}"):
@@ -285,7 +295,7 @@ def _bank_size(kind: str) -> int:
     return WORD_BANKS[kind]
 
 
-def _parse_sources(raw: Any, points: int, fail) -> dict[int, dict[str, Any]]:  # noqa: ANN001
+def _parse_sources(raw: Any, points: int, fail: Fail) -> dict[int, dict[str, Any]]:
     """``sources = {"0" = {kind = "fixed", celsius = 25.0}, "3" = {kind = "ramp", start = 20, per_s = 0.5}}``."""
     out = {}
     for key, spec in _point_table(raw, points, fail, "sources", "{kind = \"fixed\" | \"ramp\", …}"):

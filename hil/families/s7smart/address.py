@@ -1,7 +1,7 @@
 """S7-200 SMART operand names: ``VB110``, ``VW104``, ``VD200``, ``V100.0``, ``I0.3``, ``Q1.7``, ``IB0``, ``SM4.3``.
 
-Kept apart from :mod:`hil.families.fbs.address` (FBs element names): the S7 addresses bytes, with bits as ``byte.bit`` and
-words/double words as big-endian runs of bytes starting at the named byte (VW100 = VB100 high, VB101 low).
+Kept apart from :mod:`hil.families.fbs.address` (FBs element names): the S7 addresses bytes, with bits as ``byte.bit``
+and words/double words as big-endian runs of bytes starting at the named byte (VW100 = VB100 high, VB101 low).
 """
 
 from __future__ import annotations
@@ -30,6 +30,13 @@ class S7Address:
         return self.bit is not None
 
     @property
+    def bit_in_byte(self) -> int:
+        """A bit operand's bit, 0–7 (AddressError for a byte, word or double word)."""
+        if self.bit is None:
+            raise AddressError(f"{self} is not a bit operand")
+        return self.bit
+
+    @property
     def end(self) -> int:
         """First byte after this operand."""
         return self.byte + self.size
@@ -48,10 +55,8 @@ def parse_s7(name: str | S7Address) -> S7Address:
     if not m:
         raise AddressError(f"{name!r} is not an S7-200 SMART operand (e.g. VB110, VW104, V100.0, Q0.1, I0.0, SM4.3)")
     area, kind, byte_s, bit_byte, bit = m.groups()
-    if kind:
-        address = S7Address(area, int(byte_s), None, _SIZES[kind])
-    else:
-        address = S7Address(area, int(bit_byte), int(bit), 1)
+    address = (S7Address(area, int(byte_s), None, _SIZES[kind]) if kind
+               else S7Address(area, int(bit_byte), int(bit), 1))
     if address.end > AREA_BYTES[area]:
         raise AddressError(f"{name!r} is outside {area} memory (0–{AREA_BYTES[area] - 1})")
     return address
@@ -67,7 +72,7 @@ def parse_s7_range(text: str) -> list[S7Address]:
     if (first.area, first.is_bit, first.size) != (last.area, last.is_bit, last.size):
         raise AddressError(f"range {text!r} mixes {first} and {last}")
     if first.is_bit:
-        lo, hi = first.byte * 8 + first.bit, last.byte * 8 + last.bit  # type: ignore[operator]
+        lo, hi = first.byte * 8 + first.bit_in_byte, last.byte * 8 + last.bit_in_byte
         if hi < lo:
             raise AddressError(f"range {text!r} runs backwards")
         return [S7Address(first.area, n // 8, n % 8) for n in range(lo, hi + 1)]

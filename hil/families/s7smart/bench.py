@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Callable
+from typing import Any
 
 from hil.bench.base import BenchBase
 from hil.bench.profile import Profile, plc_target
@@ -58,21 +59,21 @@ def open_s7_io(target: Target, settings: S7Settings, *, station: int, timeout: f
         io.description = f"emulator+modbus-tcp ({io.description})"
         io.on_close(server.stop)
         return io
-    params = dict(target.params)
+    params: dict[str, Any] = dict(target.params)  # (converted by hil.io.url to the scheme's registered types)
     params.setdefault("timeout", timeout)
     params.setdefault("unit", station)
     if target.scheme == "modbus+tcp":
-        return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
-    return ModbusS7Io.rtu(target.serial_port, modbus_map=modbus_map, **params)  # type: ignore[arg-type]
+        return ModbusS7Io.tcp(target.host, target.port, modbus_map=modbus_map, **params)
+    return ModbusS7Io.rtu(target.serial_port, modbus_map=modbus_map, **params)
 
 
 def _open_s7_wire(target: Target, timeout: float, emulator_factory: Callable[[], S7Emulator]) -> S7Io:
     """``s7+tcp://`` (python-snap7's client), or ``emulator+s7-tcp``: the emulator served over the S7 protocol on
     loopback and reached by that same client."""
-    params = dict(target.params)
+    params: dict[str, Any] = dict(target.params)  # (converted by hil.io.url to the scheme's registered types)
     params.setdefault("timeout", timeout)
     if not target.in_process:
-        return SnapS7Io(target.host, target.port or DEFAULT_PORT, **params)  # type: ignore[arg-type]
+        return SnapS7Io(target.host, target.port or DEFAULT_PORT, **params)
     emulator = emulator_factory()
     server = start_s7_server(emulator)
     try:

@@ -144,8 +144,8 @@ def _check_overlaps(layout: S7RtcLayout, where: str) -> None:
             spans.append((key, a.byte, a.byte + 1))
     for i, (k1, s1, e1) in enumerate(spans):
         for k2, s2, e2 in spans[i + 1:]:
-            bits = k1 in _BITS and k2 in _BITS
-            if s1 < e2 and s2 < e1 and not bits:
+            both_bits = k1 in _BITS and k2 in _BITS
+            if s1 < e2 and s2 < e1 and not both_bits:
                 raise ProfileError(f"{where}: [s7rtc] {k1} and {k2} overlap in V memory")
     bits = [getattr(layout, k) for k in _BITS if getattr(layout, k) is not None]
     if len(set(bits)) != len(bits):

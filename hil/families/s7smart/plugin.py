@@ -7,6 +7,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from hil.bench.family import check_wire
+from hil.bench.schema import Section
 from hil.core.errors import ProfileError
 from hil.families.s7smart import wires as registered  # noqa: F401 - registers the family's schemes and wires (hil.core.registry)
 from hil.families.s7smart.address import expand_s7
@@ -23,9 +24,9 @@ class S7SmartFamily:
     title = "S7-200 SMART"
     a_title = "an S7-200 SMART"
     default = False
-    sections = ("s7", "s7rtc")
-    declarations = (S7, S7RTC)
-    default_volatile = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
+    sections: tuple[str, ...] = ("s7", "s7rtc")
+    declarations: tuple[Section, ...] = (S7, S7RTC)
+    default_volatile: tuple[str, ...] = ()  # S7 operand names (VB100-VB139); no read-out the CPU rewrites on its own
 
     def check_ranges(self, ranges: list) -> bool:
         return check_s7_ranges(ranges)
@@ -50,7 +51,7 @@ class S7SmartFamily:
     def open_bench(self, profile: Any, **kwargs: Any) -> Any:
         return S7Bench(profile, **kwargs)
 
-    wires = ("s7-tcp", "modbus-tcp")
+    wires: tuple[str, ...] = ("s7-tcp", "modbus-tcp")
 
     def serve(self, profile: Any, emulator: Any, wire: str, host: str, port: int) -> Any:
         check_wire(self, wire)

@@ -6,97 +6,34 @@ Configured by the bench from the profile's ``[pid]`` (see :mod:`hil.families.fbs
 
 from __future__ import annotations
 
-import csv
-import io as _io
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from hil.core.errors import HilError, InvalidValue
+from hil.core.errors import HilError
+from hil.families.fbs import faces
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import parse
+from hil.families.fbs.device.temperature import Temperature
 from hil.families.fbs.device.waiting import poll_until
-from hil.families.fbs.pid import MAX_POINTS, OUTPUT_FULL, WR_NORMAL, WR_WARNING, PidConfig, PidInstance, timing_seconds
+from hil.families.fbs.pid import MAX_POINTS, PidConfig, PidInstance, timing_seconds
+from hil.families.fbs.pid_records import AlarmWords, Sample, Trace
 from hil.families.fbs.registers import signed16
+from hil.families.fbs.transport.base import NameLike
 
 if TYPE_CHECKING:
     from hil.families.fbs.address import Address
-    from hil.families.fbs.device.plc import FbsPlc
+    from hil.families.fbs.device.core import PlcCore
 
 
-@dataclass(frozen=True)
-class AlarmWords:
-    """WR+0 … WR+3 of one instance, decoded per point (bit b counts from Sn)."""
+class Pid(faces.Pid):
+    """``plc.pid``: the FUN86 boxes of one FBs PLC (contract and documentation: :class:`hil.families.fbs.faces.Pid`).
 
-    instance: PidInstance
-    words: tuple[int, int, int, int]
-    sn: int
-    alm: bool | None = None  # the box's ALM, where it was read in the same frame (:meth:`Pid.alarms`)
+    ``temperature`` is the PLC's temperature area: FUN86 takes its PVs from the readings it names unless R4003/R4004
+    say otherwise (:meth:`readings_start`)."""
 
-    def _flag(self, pair: tuple[int, int], point: int) -> bool:
-        b = point - self.sn
-        if not 0 <= b < reg.MAX_POINTS:
-            raise InvalidValue(f"point {point} is outside this FUN86's points (Sn = {self.sn})")
-        return reg.pair_bit([self.words[i] for i in pair], b)
-
-    def normal(self, point: int) -> bool:
-        return self._flag(WR_NORMAL, point)
-
-    def warning(self, point: int) -> bool:
-        return self._flag(WR_WARNING, point)
-
-    def normal_points(self) -> list[int]:
-        return [self.sn + b for b in range(reg.MAX_POINTS) if reg.pair_bit([self.words[i] for i in WR_NORMAL], b)]
-
-    def warning_points(self) -> list[int]:
-        return [self.sn + b for b in range(reg.MAX_POINTS) if reg.pair_bit([self.words[i] for i in WR_WARNING], b)]
-
-
-@dataclass(frozen=True)
-class Sample:
-    t: float  # bench seconds since the recording started
-    pv: int  # 0.1°
-    sv: int  # 0.1°
-    output: int  # OR, 0–16383
-
-    @property
-    def output_percent(self) -> float:
-        return self.output * 100 / OUTPUT_FULL
-
-
-@dataclass
-class Trace:
-    """A closed-loop recording of one point, plot-ready: ``columns()`` gives t, PV, SV, output lists."""
-
-    point: int
-    samples: list[Sample] = field(default_factory=list)
-
-    def columns(self) -> dict[str, list[float]]:
-        return {"t": [s.t for s in self.samples], "pv": [s.pv / 10 for s in self.samples],
-                "sv": [s.sv / 10 for s in self.samples], "output": [s.output_percent for s in self.samples]}
-
-    def to_csv(self) -> str:
-        out = _io.StringIO()
-        writer = csv.writer(out)
-        writer.writerow(["t_s", "pv", "sv", "output_percent"])
-        for s in self.samples:
-            writer.writerow([f"{s.t:.3f}", s.pv / 10, s.sv / 10, f"{s.output_percent:.2f}"])
-        return out.getvalue()
-
-    def settled_at(self, band: int) -> float | None:
-        """The first time after which PV stayed within ±band (0.1°) of SV to the end, or None."""
-        since = None
-        for s in self.samples:
-            if abs(s.pv - s.sv) <= band:
-                since = s.t if since is None else since
-            else:
-                since = None
-        return since
-
-
-class Pid:
-    def __init__(self, plc: FbsPlc, config: PidConfig | None = None) -> None:
+    def __init__(self, plc: PlcCore, temperature: Temperature, config: PidConfig | None = None) -> None:
         self.plc = plc
+        self.temperature = temperature
         self._config = config
 
     @property
@@ -105,10 +42,10 @@ class Pid:
 
     @property
     def config(self) -> PidConfig:
-        if not self.configured:
+        if self._config is None or not self._config.instances:  # (not configured)
             raise HilError("the bench profile has no [pid] section: say where the ladder's FUN86 operands are "
                            "(see fixtures/benches/example-bench.toml)")
-        return self._config  # type: ignore[return-value]
+        return self._config
 
     @config.setter
     def config(self, value: PidConfig | None) -> None:
@@ -178,14 +115,12 @@ class Pid:
 
     # -- EN, H/C, ERR, ALM ------------------------------------------------------------------------------------------
     def enable(self, inst: PidInstance, on: bool = True, heating: bool | None = True) -> None:
-        """Set EN (and H/C: 1 heating, 0 cooling, None leaves it)."""
-        items = {str(inst.en): int(on)}
+        items: dict[NameLike, int] = {str(inst.en): int(on)}
         if heating is not None:
             items[str(inst.hc)] = int(heating)
         self.plc.io.write_many(items)
 
     def restart(self, inst: PidInstance) -> None:
-        """EN 0 → 1 (a new R4005 takes effect only then)."""
         self.plc.io.write(str(inst.en), 0)
         self.plc.settle()  # the 0 held across whole scans (proved by the scan counter where declared)
         self.plc.io.write(str(inst.en), 1)
@@ -201,7 +136,8 @@ class Pid:
         if not inst.settable:
             raise HilError(f"FUN86 {inst.name!r} takes Sn/Zn as constants: the profile names no sn_register/"
                            f"zn_register")
-        self.plc.io.write_many({str(inst.sn_register): sn & 0xFFFF, str(inst.zn_register): zn & 0xFFFF})
+        registers: dict[NameLike, int] = {str(inst.sn_register): sn & 0xFFFF, str(inst.zn_register): zn & 0xFFFF}
+        self.plc.io.write_many(registers)
 
     # -- per point ------------------------------------------------------------------------------------------------
     def _reg(self, key: str, point: int, inst: PidInstance | None = None) -> str:
@@ -218,8 +154,8 @@ class Pid:
         self.plc.io.write(self._reg("os", point), tenths & 0xFFFF)
 
     def gains(self, point: int) -> tuple[int, int, int]:
-        """(Kc, Ki, Td) from PR/IR/DR, in one request."""
-        return tuple(self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")]))  # type: ignore[return-value]
+        kc, ki, td = self.plc.io.read_many([self._reg(k, point) for k in ("pr", "ir", "dr")])
+        return kc, ki, td
 
     def gains_of(self, inst: PidInstance) -> dict[int, tuple[int, int, int]]:
         """(Kc, Ki, Td) of every point of ``inst``: PR, IR and DR each read as one block."""
@@ -227,14 +163,14 @@ class Pid:
         return {p: (blocks[0][i], blocks[1][i], blocks[2][i]) for i, p in enumerate(inst.points)}
 
     def set_gains(self, point: int, kc: int, ki: int, td: int) -> None:
-        self.plc.io.write_many({self._reg("pr", point): kc, self._reg("ir", point): ki, self._reg("dr", point): td})
+        gains: dict[NameLike, int] = {self._reg(key, point): value
+                                      for key, value in (("pr", kc), ("ir", ki), ("dr", td))}
+        self.plc.io.write_many(gains)
 
     def output(self, point: int) -> int:
-        """OR of the point, 0–16383."""
         return self.plc.io.read(self._reg("or_", point))
 
     def output_bit(self, point: int) -> int:
-        """The point's PWM output Yn + (point − Sn)."""
         return self.plc.io.read(self._reg("yn", point))
 
     def output_and_bit(self, point: int) -> tuple[int, int]:
@@ -251,7 +187,7 @@ class Pid:
         key, code = self.plc.io.read_words(reg.PID_SOURCE_KEY, 2)
         if key == 0xA55A and (10000 <= code <= 13839 or 20000 <= code <= 23999):
             return f"R{code - 10000}" if code < 20000 else f"D{code - 20000}"
-        return str(self.plc.temperature.config.readings)
+        return str(self.temperature.config.readings)
 
     def pv(self, point: int) -> int:
         return signed16(self.plc.io.read(str(parse(self.readings_start()).offset(point))))
@@ -273,8 +209,8 @@ class Pid:
 
     # -- alarm words ------------------------------------------------------------------------------------------------
     def alarm_words(self, inst: PidInstance, sn: int | None = None) -> AlarmWords:
-        words = tuple(self.plc.io.read_words(str(inst.wr), 4))
-        return AlarmWords(inst, words, inst.sn if sn is None else sn)  # type: ignore[arg-type]
+        w0, w1, w2, w3 = self.plc.io.read_words(str(inst.wr), 4)
+        return AlarmWords(inst, (w0, w1, w2, w3), inst.sn if sn is None else sn)
 
     def alarms(self, instances: Iterable[PidInstance]) -> dict[str, AlarmWords]:
         """WR+0 … WR+3 and ALM of every box in ``instances``, by name, in one planned read — the fewest frames
@@ -285,13 +221,12 @@ class Pid:
         values = self.plc.io.read_many(names)
         out = {}
         for k, inst in enumerate(instances):
-            *words, alm = values[5 * k:5 * k + 5]
-            out[inst.name] = AlarmWords(inst, tuple(words), inst.sn, bool(alm))  # type: ignore[arg-type]
+            w0, w1, w2, w3, alm = values[5 * k:5 * k + 5]
+            out[inst.name] = AlarmWords(inst, (w0, w1, w2, w3), inst.sn, bool(alm))
         return out
 
     # -- timing -----------------------------------------------------------------------------------------------------
     def timing(self) -> tuple[int, int]:
-        """(PID interval, PWM period) in seconds, from R4005 (one read)."""
         word = self.plc.io.read(reg.PID_TIMING)
         return timing_seconds(word & 0xFF), timing_seconds(word >> 8)
 
@@ -305,7 +240,6 @@ class Pid:
 
     # -- closed loop ----------------------------------------------------------------------------------------------
     def record(self, point: int, seconds: float, every: float = 5.0) -> Trace:
-        """Sample (t, PV, SV, output) of ``point`` every ``every`` bench seconds for ``seconds``."""
         inst = self.of(point)
         trace = Trace(point)
         time = self.plc.time

@@ -10,89 +10,20 @@ import datetime as dt
 import math
 import random
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
 from hil.core.timebase import nearest_whole_second, next_whole_second, wait_until
+from hil.families.fbs import faces
 from hil.families.fbs import registers as reg
 from hil.families.fbs.address import expand
 from hil.families.fbs.d4054 import code_for_rate
+from hil.families.fbs.rtc_records import DriftMeasurement, RtcChip, RtcFlags, RtcSnapshot, SetResult
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, CHIP_NAMES, EPOCH, RtcTime
 
 if TYPE_CHECKING:
-    from hil.families.fbs.device.plc import FbsPlc
-
-
-@dataclass(frozen=True)
-class RtcFlags:
-    """M1952–M1955."""
-
-    hold: bool  # M1952: read-out frozen / set trigger
-    adjust_30s: bool  # M1953
-    installed: bool  # M1954
-    set_error: bool  # M1955: the last set was refused
-
-
-@dataclass(frozen=True)
-class RtcChip:
-    """D4053: the chip code and its name ("none", "HT1381", "ISL1208", "S-35390A", or "unknown (n)")."""
-
-    code: int
-    name: str
-
-    def __int__(self) -> int:
-        return self.code
-
-    @property
-    def has_rate_adjust(self) -> bool:
-        """Only the S-35390A takes a D4054 rate code."""
-        return self.code == 3
-
-
-@dataclass(frozen=True)
-class SetResult:
-    """The outcome of :meth:`Rtc.set`: what was sent, whether the PLC took it (M1955 = 0)."""
-
-    sent: RtcTime
-    accepted: bool
-    problems: tuple[str, ...]  # the fields *we* find invalid in ``sent`` (the PLC's verdict is ``accepted``)
-    #: R4128–R4134 as read with M1955, in the same frame, from a scan after the set's falling edge: what the clock
-    #: shows right after the set (a suite's read-back without another round trip)
-    shown: RtcTime
-
-    @property
-    def refused(self) -> bool:
-        return not self.accepted
-
-    def __bool__(self) -> bool:
-        return self.accepted
-
-
-@dataclass(frozen=True)
-class DriftMeasurement:
-    """Clock error over a measurement; positive = the PLC clock runs fast."""
-
-    s_per_day: float
-    reference_elapsed: float  # bench seconds between the first and last timed second transitions
-    plc_elapsed: float  # PLC seconds between them (whole seconds)
-    #: (reference t since the first transition, PLC − reference in seconds) at each timed transition
-    samples: list[tuple[float, float]] = field(default_factory=list)
-    resolution: float = 0.0  # s/day: worst-case error of the rate from the transitions' polling brackets
-
-    @property
-    def ppm(self) -> float:
-        return self.s_per_day / 86400 * 1e6
-
-
-@dataclass(frozen=True)
-class RtcSnapshot:
-    """R4128–R4135 and M1952–M1955 as one scan left them (:meth:`Rtc.read_all`)."""
-
-    time: RtcTime
-    hour_minute: int  # R4135
-    flags: RtcFlags
+    from hil.families.fbs.device.core import PlcCore
 
 
 class RtcError(HilError):
@@ -111,14 +42,14 @@ _SNAPSHOT_NAMES = (*reg.RTC_FIELDS, reg.RTC_HOUR_MINUTE, "W" + reg.RTC_HOLD)
 TOUCHES = expand(list(reg.RTC_FIELDS) + [reg.RTC_HOLD, reg.RTC_ADJUST_30S, reg.RTC_RATE_CODE])
 
 
-class Rtc:
-    """``plc.rtc``: the RTC of one FBs PLC."""
+class Rtc(faces.Rtc):
+    """``plc.rtc``: the RTC of one FBs PLC (its contract and documentation: :class:`hil.families.fbs.faces.Rtc`)."""
 
     #: Bench time between polls of R4128 while a second transition is due (back to back on a real wire, where a
     #: round trip takes longer; on the emulator it is what moves virtual time on between two polls).
     poll_interval = 1 / 500
 
-    def __init__(self, plc: FbsPlc) -> None:
+    def __init__(self, plc: PlcCore) -> None:
         self.plc = plc
         self.drift = Drift(plc, self)
         #: M1955 as last read here (None: not yet).  "An accepted set clears M1955" is the spec's [our choice]
@@ -128,23 +59,19 @@ class Rtc:
 
     # -- reading --------------------------------------------------------------------------------------------
     def read(self) -> RtcTime:
-        """R4128–R4134 in one register read (one request, so the fields come from one scan).
-
-        A plain 46 read, not a 48 mixed read: the same one round trip, with 6 characters per name saved
-        (16 request bytes instead of 52 on FATEK; one FC03 either way on Modbus)."""
+        # A plain 46 read, not a 48 mixed read: the same one round trip, with 6 characters per name saved
+        # (16 request bytes instead of 52 on FATEK; one FC03 either way on Modbus).
         return RtcTime.from_registers(self.plc.io.read_words(reg.RTC_SECOND, len(reg.RTC_FIELDS)))
 
     def read_all(self) -> RtcSnapshot:
-        """Time, R4135 and the flags M1952–M1955 in one round trip (one FATEK 48 frame), so they come from one
-        scan: R4128–R4135 and WM1952 (M1952–M1967 packed in one word, 6 characters in the request instead of
-        20 for four bit names).  Over Modbus the map coalesces it into one FC03 and one FC01."""
+        # One FATEK 48 frame: R4128–R4135 and WM1952 (M1952–M1967 packed in one word, 6 characters in the request
+        # instead of 20 for four bit names).  Over Modbus the map coalesces it into one FC03 and one FC01.
         *fields, hour_minute, packed = self.plc.io.read_many(_SNAPSHOT_NAMES)
         flags = RtcFlags(*(bool(packed >> b & 1) for b in range(4)))
         self._set_error = flags.set_error
         return RtcSnapshot(RtcTime.from_registers(fields), hour_minute, flags)
 
     def read_hour_minute(self) -> int:
-        """R4135 (hour << 8 | minute)."""
         return self.plc.io.read(reg.RTC_HOUR_MINUTE)
 
     def read_flags(self) -> RtcFlags:
@@ -154,12 +81,10 @@ class Rtc:
 
     @property
     def installed(self) -> bool:
-        """M1954."""
         return bool(self.plc.io.read(reg.RTC_INSTALLED))
 
     @property
     def chip(self) -> RtcChip:
-        """D4053."""
         code = self.plc.io.read(reg.RTC_CHIP)
         return RtcChip(code, CHIP_NAMES.get(code, f"unknown ({code})"))
 
@@ -170,7 +95,6 @@ class Rtc:
 
     @property
     def rate_code(self) -> int:
-        """D4054 (S-35390A rate adjustment; see :mod:`hil.families.fbs.d4054`)."""
         return self.plc.io.read(reg.RTC_RATE_CODE)
 
     @rate_code.setter
@@ -179,12 +103,9 @@ class Rtc:
 
     # -- setting --------------------------------------------------------------------------------------------
     def set(self, time: dt.datetime | RtcTime, *, pulse: bool = False) -> SetResult:
-        """The manual's procedure: M1952 := 1, write R4128–R4134, M1952 := 0, then read M1955.
-
-        An :class:`RtcTime` is sent as is, invalid or not, so suites can check that the PLC refuses it.
-        ``pulse``: M1952 := 0 in the very next request, as briefly as the wire allows (no settle between): on a port
-        that services each request at the end of a scan the PLC sees the 1 for one scan only.
-        """
+        """:meth:`hil.families.fbs.faces.Rtc.set`; ``pulse``: M1952 := 0 in the very next request, as briefly as
+        the wire allows (no settle between): on a port that services each request at the end of a scan the PLC
+        sees the 1 for one scan only."""
         value = RtcTime.from_datetime(time) if isinstance(time, dt.datetime) else time
         self._begin_set(value)
         return self._finish_set(value, settled=pulse)
@@ -207,37 +128,30 @@ class Rtc:
         return Clock(TOUCHES, read, put, self.plc.time, self.time_transition)
 
     def time_transition(self, timeout: float = 3.0) -> tuple[dt.datetime, float, float]:
-        """The clock's next second transition, timed as the drift measurement times them
-        (:meth:`Drift._transition`): (the time it shows from then on, the bench time it happened, the width of the
-        bracket that time is the middle of)."""
+        # Timed as the drift measurement times them (Drift.transition): the middle of a bracket.
         # Polls come back to back, so on a PLC that answers at the ends of its scans they would meet the scans at
         # the same phase every time, and the clock a set left on the scans' grid would be timed with the same bias
         # every time (adding up run after run): start after a random fraction of a round trip.
         # A bracket much wider than a read (a busy host, a retried request) is timed again, up to twice.
-        best: tuple[float, int, float] | None = None
+        timed: list[tuple[float, int, float]] = []
         for _ in range(3):
             started = self.plc.time.now()
             self.read()
             trip = self.plc.time.now() - started
             self.plc.time.wait(random.uniform(0, trip))
-            edge, seconds, width = Drift(self.plc, self)._transition(timeout)
-            if best is None or width < best[2]:
-                best = (edge, seconds, width)
-            if width <= 3 * trip:
+            timed.append(Drift(self.plc, self).transition(timeout))
+            if timed[-1][2] <= 3 * trip:
                 break
-        edge, seconds, width = best
+        edge, seconds, width = min(timed, key=lambda one: one[2])  # the narrowest bracket (the first of equals)
         return EPOCH + dt.timedelta(seconds=seconds), edge, width
 
     def sync_to_host(self) -> SetResult:
-        """Set the clock to the bench's calendar time at the next whole second.
-
-        The registers are loaded with M1952 = 1 first and the set fires (M1952 := 0) once that second has come,
-        because the chip restarts its second at the set: this lines up its second boundaries with the host's.
-        """
+        # The registers are loaded with M1952 = 1 first and the set fires (M1952 := 0) once that second has come,
+        # because the chip restarts its second at the set: this lines up its second boundaries with the host's.
         return self.sync_to(self.plc.time.calendar)
 
     def sync_to(self, clock: Callable[[], dt.datetime]) -> SetResult:
-        """Set the clock to what ``clock()`` says, at its next whole second (see :meth:`sync_to_host`).
+        """:meth:`hil.families.fbs.faces.Rtc.sync_to`, as :meth:`sync_to_host` does it.
 
         The bench restores a clock a test set with this: ``clock`` is then the PLC's original time carried
         forward (its original offset from the host's wall clock, whatever the host's time zone)."""
@@ -310,7 +224,7 @@ class Rtc:
         return result
 
     def adjust_30s(self) -> None:
-        """Fire the ±30 s correction: M1953 0 → 1 (rising edge), settle, back to 0.
+        """:meth:`hil.families.fbs.faces.Rtc.adjust_30s`: M1953 0 → 1 (rising edge), settle, back to 0.
 
         The PLC must see a 0 before the 1.  A settled read of M1953 that shows 0 proves it: the read is from a frame
         a whole scan after every earlier request (the scan counter in the same frame, where the bench declares one;
@@ -329,9 +243,9 @@ class Rtc:
 class Drift:
     """``plc.rtc.drift``: measure the clock's rate error against the bench's reference time, and correct it."""
 
-    def __init__(self, plc: FbsPlc, rtc: Rtc | None = None) -> None:
+    def __init__(self, plc: PlcCore, rtc: Rtc) -> None:
         self.plc = plc
-        self.rtc = rtc if rtc is not None else plc.rtc
+        self.rtc = rtc
         self._edge: float | None = None  # reference time of the last timed second transition
 
     def measure(self, duration: float, *, transitions: int = 3, checkpoints: int = 8,
@@ -352,44 +266,32 @@ class Drift:
         self._edge = None  # a new measurement learns the phase afresh (the clock may have been set since)
         if duration < transitions + 2:
             raise InvalidValue(f"a drift measurement needs more than {transitions + 2} s, not {duration} s")
+        return _fit(self._timed_transitions(duration, transitions, checkpoints, timeout))
+
+    def _timed_transitions(self, duration: float, transitions: int, checkpoints: int,
+                           timeout: float) -> list[tuple[float, int, float]]:
+        """``transitions`` second transitions timed at the start and at the end of ``duration`` bench seconds, and
+        one at each of ``checkpoints`` evenly spaced moments between (as :meth:`transition` times them)."""
         # Stagger the start of each timing by a fraction of the poll interval so that the polls fall at different
         # phases of the chip's second (on the emulator they would otherwise land identically every time).
         step = self.rtc.poll_interval / transitions
-        first = [self._transition(timeout, i * step) for i in range(transitions)]
+        first = [self.transition(timeout, i * step) for i in range(transitions)]
         # Scheduled on the bench clock from the first transition, so the measurement spans the duration asked
         # (to the PLC's whole second): each timing starts half a second before the second it is to catch, and the
         # last group ends at first + duration.  A short measurement has room for fewer checkpoints (none at 10 s).
         clock, t0 = self.plc.time, first[0][0]
         last_start = t0 + duration - (transitions - 1) - 0.5
-        middle = []
+        middle: list[tuple[float, int, float]] = []
         for k in range(1, checkpoints + 1):
             at = t0 + k * duration / (checkpoints + 1) - 0.5
             if at <= clock.now() or at + 1.5 > last_start:
                 continue
             clock.wait(at - clock.now())
-            middle.append(self._transition(timeout))
+            middle.append(self.transition(timeout))
         if last_start > clock.now():
             clock.wait(last_start - clock.now())
-        last = [self._transition(timeout, i * step) for i in range(transitions)]
-
-        t0, s0, _ = first[0]
-        samples = []
-        for t, s, _ in first + middle + last:
-            plc_elapsed = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
-            samples.append((t - t0, plc_elapsed - (t - t0)))
-        xs = [x for x, _ in samples]
-        ys = [y for _, y in samples]
-        mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
-        slope = sum((x - mx) * (y - my) for x, y in samples) / sum((x - mx) ** 2 for x in xs)
-        reference_elapsed = xs[-1]
-        plc_elapsed = reference_elapsed + ys[-1]
-        # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
-        # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
-        # host) weighs only as much as its sample does, not as the whole measurement's worst case.
-        widths = [width for _, _, width in first + middle + last]
-        sxx = sum((x - mx) ** 2 for x in xs)
-        bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
-        return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
+        last = [self.transition(timeout, i * step) for i in range(transitions)]
+        return first + middle + last
 
     def measure_until(self, resolution: float, max_duration: float, *, transitions: int = 3,
                       checkpoints: int = 8, timeout: float = 3.0) -> DriftMeasurement:
@@ -402,7 +304,7 @@ class Drift:
         more than that (a PLC whose scans differ in length, a busy wire): a measurement that comes out too coarse
         is taken once more, as much longer as its resolution says (resolution falls as 1/duration), within
         ``max_duration``."""
-        _, _, width = self._transition(timeout)
+        _, _, width = self.transition(timeout)
         needed = 2 * max(width, self.rtc.poll_interval) * 86400 / resolution
         duration = min(max_duration, max(needed, transitions + 3.0))
         result = self.measure(duration, transitions=transitions, checkpoints=checkpoints, timeout=timeout)
@@ -427,7 +329,7 @@ class Drift:
     lead = 0.05
     lead_per_second = 5e-4
 
-    def _transition(self, timeout: float, phase: float = 0.0) -> tuple[float, int, float]:
+    def transition(self, timeout: float, phase: float = 0.0) -> tuple[float, int, float]:
         """The next second transition: (reference time, PLC seconds since 2000 just after it, bracket width).
 
         The reference time is the middle of the bracket between the last poll that showed the old second and
@@ -470,6 +372,29 @@ class Drift:
         return shown, (started + self.plc.time.now()) / 2
 
 
+def _fit(timed: list[tuple[float, int, float]]) -> DriftMeasurement:
+    """The clock's rate error from its timed transitions (bench time, PLC seconds, bracket width): the
+    least-squares slope of (PLC − reference) over them, so polling jitter averages out, with its worst-case error."""
+    t0, s0, _ = timed[0]
+    samples = []
+    for t, s, _ in timed:
+        shown = (s - s0) % CENTURY_SECONDS  # the chip's year may wrap 2099 → 2000 mid-measurement
+        samples.append((t - t0, shown - (t - t0)))
+    xs = [x for x, _ in samples]
+    ys = [y for _, y in samples]
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    sxx = sum((x - mx) ** 2 for x in xs)
+    slope = sum((x - mx) * (y - my) for x, y in samples) / sxx
+    reference_elapsed = xs[-1]
+    plc_elapsed = reference_elapsed + ys[-1]
+    # Each transition is known to ± half its bracket, so the least-squares slope is off by at most
+    # Σ |x − x̄| · width / 2 / Σ (x − x̄)²: a hard bound, in which one wide bracket (a slow round trip on a busy
+    # host) weighs only as much as its sample does, not as the whole measurement's worst case.
+    widths = [width for _, _, width in timed]
+    bound = sum(abs(x - mx) * w / 2 for x, w in zip(xs, widths)) / sxx
+    return DriftMeasurement(slope * 86400, reference_elapsed, plc_elapsed, samples, resolution=bound * 86400)
+
+
 def _weekday_after(sent: RtcTime, shown: RtcTime) -> int | None:
     """The weekday R4134 must show at ``shown`` after a set of ``sent``: the one sent, advanced by one for each day
     the clock has run into since.  None when ``sent`` carried a weekday its date does not have: the manual does not say
@@ -489,4 +414,5 @@ def _seconds(t: RtcTime) -> int:
     return int((t.to_datetime() - EPOCH).total_seconds())
 
 
-__all__ = ["Rtc", "Drift", "RtcFlags", "RtcSnapshot", "RtcChip", "SetResult", "DriftMeasurement", "RtcError", "RtcSetLost"]
+__all__ = ["Drift", "DriftMeasurement", "Rtc", "RtcChip", "RtcError", "RtcFlags", "RtcSetLost", "RtcSnapshot",
+           "SetResult"]

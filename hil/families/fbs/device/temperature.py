@@ -7,79 +7,25 @@ is for the suite to say, literally from the manual.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from hil.core.errors import HilError
+from hil.families.fbs import faces
 from hil.families.fbs import registers as reg
 from hil.families.fbs.device.waiting import POLLS_PER_PERIOD, poll_until
 from hil.families.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
 from hil.families.fbs.temperature import TemperatureConfig
+from hil.families.fbs.temperature_records import TableView, WorkView
 
 if TYPE_CHECKING:
-    from hil.families.fbs.device.plc import FbsPlc
+    from hil.families.fbs.device.core import PlcCore
 
 
-@dataclass(frozen=True)
-class TableView:
-    """SR+0 … SR+3+N as read from the PLC."""
+class Temperature(faces.Temperature):
+    """``plc.temperature``: the temperature modules of one FBs PLC (contract and documentation:
+    :class:`hil.families.fbs.faces.Temperature`)."""
 
-    words: list[int]
-
-    @property
-    def marker(self) -> int:
-        return self.words[0]
-
-    @property
-    def module_count(self) -> int:
-        return self.words[1]
-
-    @property
-    def modules(self) -> list[tuple[int, int]]:
-        """(sensor-kind code, module-name code) per module entry."""
-        return [(w >> 8, w & 0xFF) for w in self.words[4:]]
-
-
-@dataclass(frozen=True)
-class WorkView:
-    """TW+0 … TW+3+4N as read from the PLC."""
-
-    words: list[int]
-
-    @property
-    def execution_code(self) -> int:
-        return self.words[0] >> 8
-
-    @property
-    def mismatch_bits(self) -> int:
-        return self.words[0] & 0xFF
-
-    @property
-    def break_words(self) -> tuple[int, int]:
-        """(TW+1, TW+2): break bits of points 0–15 and 16–31."""
-        return self.words[1], self.words[2]
-
-    @property
-    def break_points(self) -> list[int]:
-        low, high = self.break_words
-        bits = high << 16 | low
-        return [p for p in range(reg.MAX_POINTS) if bits >> p & 1]
-
-    @property
-    def total_points(self) -> int:
-        return self.words[3] >> 8
-
-    @property
-    def module_count(self) -> int:
-        return self.words[3] & 0xFF
-
-    def entry(self, k: int) -> list[int]:
-        """The four words of module k (0-based): sensor/DO, points/AI, readings start, multiplexer index."""
-        return self.words[4 + 4 * k:8 + 4 * k]
-
-
-class Temperature:
-    def __init__(self, plc: FbsPlc, config: TemperatureConfig | None = None) -> None:
+    def __init__(self, plc: PlcCore, config: TemperatureConfig | None = None) -> None:
         self.plc = plc
         self._config = config
 
@@ -110,7 +56,6 @@ class Temperature:
         return self.plc.io.read(str(self.config.work)) >> 8
 
     def readings(self) -> list[int]:
-        """Every configured point's reading, signed, in 0.1° of the configured unit."""
         return [signed(w) for w in self.plc.io.read_words(self.config.readings, self.config.points)]
 
     def reading(self, point: int) -> int:
@@ -127,7 +72,6 @@ class Temperature:
 
     # -- time -----------------------------------------------------------------------------------------------------
     def update_period(self) -> float:
-        """Bench seconds in which every point is measured once (the slowest module at the configured rate)."""
         return self.config.update_period()
 
     def wait_for_update(self, periods: float = 1.5) -> None:

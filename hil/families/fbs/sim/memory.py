@@ -1,4 +1,5 @@
-"""The emulator's element memory, sized like an FBs main unit, with access by :class:`~hil.families.fbs.address.Address`.
+"""The emulator's element memory, sized like an FBs main unit, with access by
+:class:`~hil.families.fbs.address.Address`.
 
 Models reach the banks directly (``mem.words["R"][4128]``, ``mem.bits["M"][1952]``) for speed; requests —
 from a wire server or from the in-process transport alike — go through :meth:`Memory.read` / :meth:`Memory.write`

@@ -24,12 +24,14 @@ memory — nor even advance the scan clock.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import errno
 import os
 import random
 import threading
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine
+from typing import Any
 
 from hil.families.fbs.address import BIT_BANKS, WORD_BANKS
 from hil.families.fbs.identity import emulator_status_tail
@@ -104,8 +106,8 @@ class FatekServerCore:
         """Feed received bytes; return the replies to send, in order."""
         dropped, overlong = assembler.dropped, assembler.overlong
         frames = assembler.feed(data)
-        self._count("fatek_garbage_bytes", assembler.dropped - dropped)
-        self._count("fatek_malformed", assembler.overlong - overlong)
+        self.count("fatek_garbage_bytes", assembler.dropped - dropped)
+        self.count("fatek_malformed", assembler.overlong - overlong)
         replies = []
         for frame in frames:
             reply = self.handle_frame(frame)
@@ -118,30 +120,30 @@ class FatekServerCore:
         try:
             request = split_frame(frame)
         except ChecksumError:
-            self._count("fatek_bad_checksum")
+            self.count("fatek_bad_checksum")
             return None
         except FrameError:
-            self._count("fatek_malformed")
+            self.count("fatek_malformed")
             return None
         station = self.emulator.station
         broadcast = request.station == BROADCAST
         if request.station != station and not broadcast:
-            self._count("fatek_wrong_station")
+            self.count("fatek_wrong_station")
             return None
-        self._count("fatek_requests")
+        self.count("fatek_requests")
         if broadcast:
-            self._count("fatek_broadcast")
+            self.count("fatek_broadcast")
         try:
             command = decode_request(request)
             result = self.emulator.service(lambda mem: self._execute(command, mem))
         except (RequestError, Refused) as exc:  # the decoder's refusals, and the memory's (the same rule)
             return None if broadcast else self._error(station, request.command, exc.code)
         except Exception:  # noqa: BLE001 - a bug here must not kill the server; answer "cannot execute"
-            self._count("fatek_internal_error")
+            self.count("fatek_internal_error")
             return None if broadcast else self._error(station, request.command, "4")
         if broadcast:
             return None
-        self._count("fatek_replies")
+        self.count("fatek_replies")
         return encode_reply(station, command, result)
 
     # -- commands -----------------------------------------------------------------------------------------------
@@ -184,10 +186,11 @@ class FatekServerCore:
             mem.set(a, 1 if command.action == 3 else 0)
 
     def _error(self, station: int, command_code: str, code: str) -> bytes:
-        self._count(f"fatek_error_{code}")
+        self.count(f"fatek_error_{code}")
         return encode_error(station, command_code, code)
 
-    def _count(self, key: str, n: int = 1) -> None:
+    def count(self, key: str, n: int = 1) -> None:
+        """Add ``n`` to the emulator's wire statistic ``key`` (the servers around the core count what they drop)."""
         if n:
             with self.emulator.lock:  # Counter updates from several loops/threads
                 self.emulator.stats[key] += n
@@ -228,7 +231,7 @@ def start_fatek_tcp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, 
             writers.discard(writer)
             writer.close()
 
-    async def start() -> asyncio.AbstractServer:
+    async def start() -> asyncio.Server:
         return await asyncio.start_server(client, host, port)
 
     server = runtime.run(start())
@@ -296,7 +299,7 @@ class _PtyServer:
         # real time: the request waits for the end of a scan — not on the shared loop (pacing timers, other
         # servers), and one at a time so replies keep their order
         if sum(map(len, self._inbox)) + len(data) > _MAX_PENDING_INPUT:
-            self.core._count("fatek_input_dropped", len(data))  # a flood in real time: drop, don't grow
+            self.core.count("fatek_input_dropped", len(data))  # a flood in real time: drop, don't grow
             return
         self._inbox.append(data)
         if self._worker is None:
@@ -314,7 +317,7 @@ class _PtyServer:
 
     def _queue_output(self, reply: bytes) -> None:
         if len(self.pending) + len(reply) > _MAX_PENDING_OUTPUT:
-            self.core._count("fatek_output_dropped")  # a client that stopped reading: drop, don't grow
+            self.core.count("fatek_output_dropped")  # a client that stopped reading: drop, don't grow
             return
         self.pending += reply
         self._writable()
@@ -346,10 +349,8 @@ class _PtyServer:
         self.loop.remove_reader(self.master)
         self.loop.remove_writer(self.master)
         for fd in (self.master, self.slave):
-            try:
+            with contextlib.suppress(OSError):  # (already closed)
                 os.close(fd)
-            except OSError:
-                pass
 
 
 def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
@@ -369,11 +370,11 @@ def start_fatek_pty(emulator: Emulator, *, faults: WireFaults | None = None,
         pty.close()
 
     handle = ServerHandle("fatek-serial", pty.path, lambda: _run_on_loop(runtime, stop))
-    handle.line = line  # type: ignore[attr-defined]
+    handle.line = line
     return handle
 
 
-def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], asyncio.Future | object]) -> None:
+def _run_on_loop(runtime: LoopThread, coro_fn: Callable[[], Coroutine[Any, Any, None]]) -> None:
     """Run a stop coroutine on the server loop; from the loop thread itself, schedule it instead of deadlocking."""
     if threading.current_thread() is runtime.thread:
         runtime.loop.create_task(coro_fn())

@@ -12,6 +12,7 @@ lands after the next request, ``duplicate`` two frames in one datagram — what 
 from __future__ import annotations
 
 import asyncio
+from typing import cast
 
 from hil.families.fbs.protocol.fatek import FrameAssembler
 from hil.families.fbs.sim.plc import Emulator
@@ -57,7 +58,7 @@ class _UdpServer(asyncio.DatagramProtocol):
         self.transport: asyncio.DatagramTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.DatagramTransport, transport)  # (the endpoint's: a datagram transport)
 
     def datagram_received(self, data: bytes, addr: tuple) -> None:
         peer = self.peers.get(addr)
@@ -89,7 +90,7 @@ def start_fatek_udp(emulator: Emulator, host: str = "127.0.0.1", port: int = 0, 
     runtime = LoopThread.shared()
 
     async def start() -> tuple[asyncio.DatagramTransport, _UdpServer]:
-        return await asyncio.get_running_loop().create_datagram_endpoint(  # type: ignore[return-value]
+        return await asyncio.get_running_loop().create_datagram_endpoint(
             lambda: _UdpServer(emulator, faults), local_addr=(host, port))
 
     transport, server = runtime.run(start())

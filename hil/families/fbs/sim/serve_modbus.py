@@ -81,7 +81,7 @@ def _coil_slots(first_reg: int, count: int) -> tuple[tuple[int, int, str, int], 
 def _holding_slots(address: int, n: int) -> tuple[tuple[str, int, int | None], ...]:
     """(kind, index, part) of each of ``n`` registers from ``address``; part is None for a 16-bit element, 0/1 for
     the low/high word of a DRC; kind "" for a hole (the gate refuses those; stay safe regardless)."""
-    slots = []
+    slots: list[tuple[str, int, int | None]] = []
     for i in range(n):
         found = locate(HOLDING, address + i)
         if found is None:

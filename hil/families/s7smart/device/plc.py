@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as dt
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import cast
 
 from hil.bench.guard import Clock
 from hil.core.errors import HilError, InvalidValue
@@ -18,8 +19,13 @@ from hil.core.timebase import Timebase, nearest_whole_second, next_whole_second,
 from hil.families.s7smart.address import S7Address, units
 from hil.families.s7smart.layout import S7RtcLayout
 from hil.families.s7smart.protocol import timebuf
-from hil.families.s7smart.transport.io import S7Io
+from hil.families.s7smart.transport.io import ClockedS7Io, S7Io
 from hil.io.status import PlcStatus
+
+
+def clock_functions(io: S7Io) -> ClockedS7Io | None:
+    """The wire's clock functions (the S7 protocol's: ``has_cpu_clock``), or None on a wire without them."""
+    return cast(ClockedS7Io, io) if getattr(io, "has_cpu_clock", False) else None
 
 
 @dataclass(frozen=True)
@@ -85,14 +91,15 @@ class S7Rtc:
     # -- the CPU's own clock functions (over the S7 protocol; None where the wire has none) ----------------------
     def cpu_clock(self) -> dt.datetime | None:
         """The time-of-day clock read with the protocol's clock function, or None on a wire without one."""
-        io = self.plc.io
-        return io.cpu_clock() if getattr(io, "has_cpu_clock", False) else None
+        clocked = clock_functions(self.plc.io)
+        return clocked.cpu_clock() if clocked is not None else None
 
     def set_cpu_clock(self, when: dt.datetime) -> None:
         """Set the clock with the protocol's clock function (HilError on a wire without one)."""
-        if not getattr(self.plc.io, "has_cpu_clock", False):
+        clocked = clock_functions(self.plc.io)
+        if clocked is None:
             raise HilError(f"{self.plc.io.description} has no clock functions (use s7+tcp://)")
-        self.plc.io.set_cpu_clock(when)
+        clocked.set_cpu_clock(when)
 
     def sync_to_host(self) -> ClockResult:
         """Set the clock to the bench's calendar time, at its next whole second."""
@@ -166,15 +173,16 @@ class S7Plc:
         io, rtc = self.io, self.rtc
         touches = frozenset(a for t in (rtc.layout.set_trigger, rtc.layout.set_i_trigger) if t is not None
                             for a in units(t)) if rtc is not None else frozenset()
-        if getattr(io, "has_cpu_clock", False):
+        clocked = clock_functions(io)
+        if clocked is not None:
             def put(when: Callable[[], dt.datetime], exact: bool) -> None:
                 if not exact:
-                    io.set_cpu_clock(nearest_whole_second(when()))
+                    clocked.set_cpu_clock(nearest_whole_second(when()))
                     return
                 target = next_whole_second(when())
                 wait_until(self.time, when, target)
-                io.set_cpu_clock(target)
-            return Clock(touches, io.cpu_clock, put, self.time)
+                clocked.set_cpu_clock(target)
+            return Clock(touches, clocked.cpu_clock, put, self.time)
         if rtc is None:
             return None
 

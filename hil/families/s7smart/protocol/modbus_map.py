@@ -53,7 +53,7 @@ class S7ModbusMap:
         """PDU coil (Q) or discrete input (I) number of a bit operand."""
         if not address.is_bit or address.area not in ("Q", "I"):
             raise InvalidValue(f"{address} is not a Q or I bit")
-        n = address.byte * 8 + address.bit  # type: ignore[operator]
+        n = address.byte * 8 + address.bit_in_byte
         if n >= BITS:
             raise UnreachableAddress(str(address), "Modbus (S7-200 SMART map)", "only Q0.0–Q31.7 and I0.0–I31.7 "
                                      "are mapped")

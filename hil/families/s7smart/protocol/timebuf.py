@@ -84,7 +84,8 @@ def decode(buffer: bytes | Sequence[int], *, check_weekday: bool = False) -> dt.
     found = problems(values, check_weekday=check_weekday)
     if found:
         raise TimeBufferError(found)
-    year, month, day, hour, minute, second = values[:6]
+    # (every field BCD: problems() found none that is not)
+    year, month, day, hour, minute, second = (v for v in values[:6] if v is not None)
     return dt.datetime(2000 + year, month, day, hour, minute, second)
 
 

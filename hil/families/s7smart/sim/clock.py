@@ -1,6 +1,6 @@
 """The S7-200 SMART's clock model (manual: READ_RTC / SET_RTC / SET_RTC_I; spec/s7-200smart-rtc.md): the CPU's
 time-of-day clock and its instructions (:class:`S7Clock`), and the bench's clock test program that runs them on
-rising edges of its trigger bits (:class:`RtcTestProgram`).  The memory and the engine are emulator.py's.
+rising edges of its trigger bits (:class:`RtcTestProgram`).  The memory is memory.py's, the engine cpu.py's.
 """
 
 from __future__ import annotations
@@ -15,12 +15,13 @@ from hil.families.s7smart.protocol import timebuf
 from hil.sim.model import Model
 
 if TYPE_CHECKING:
-    from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
+    from hil.families.s7smart.sim.cpu import S7Emulator
+    from hil.families.s7smart.sim.memory import S7Memory
 
 SM4_3 = parse_s7("SM4.3")  # set when READ_RTC/SET_RTC collide (main program vs interrupt)
 
 
-class S7Clock(Model):
+class S7Clock(Model["S7Emulator"]):
     """The CPU's time-of-day clock and the clock instructions.  Time is an anchor plus virtual seconds."""
 
     name = "s7-clock"
@@ -75,7 +76,7 @@ class S7Clock(Model):
         return timebuf.encode(when)
 
 
-class RtcTestProgram(Model):
+class RtcTestProgram(Model["S7Emulator"]):
     """The bench's clock test program: on a rising edge of a trigger bit run the instruction on its buffer, then
     put ENO and the error code (GET_ERROR) where the layout says, and copy SM4.3."""
 
@@ -96,7 +97,7 @@ class RtcTestProgram(Model):
         return bool(now and not previous)
 
     def scan(self, emu: S7Emulator) -> None:
-        mem: S7Memory = emu.memory  # type: ignore[assignment]
+        mem: S7Memory = emu.memory
         clock = emu.model(S7Clock)
         if clock is None:
             return
@@ -113,8 +114,10 @@ class RtcTestProgram(Model):
                     mem.write_bytes("V", lay.read_buffer.byte, data)
             elif trigger == lay.set_trigger:
                 error = clock.set_rtc(emu.now, mem.read_bytes("V", lay.set_buffer.byte, 8))
+            elif lay.set_i_buffer is not None:  # (SET_RTC_I's trigger: the profile names its buffer with it)
+                error = clock.set_rtc_i(emu.now, mem.read_bytes("V", lay.set_i_buffer.byte, 8))
             else:
-                error = clock.set_rtc_i(emu.now, mem.read_bytes("V", lay.set_i_buffer.byte, 8))  # type: ignore[union-attr]
+                continue
             mem.set(lay.eno, 1 if error == timebuf.ERROR_NONE else 0)
             mem.set(lay.error, error)
             if lay.sm4_3 is not None:

@@ -10,11 +10,14 @@ faults are the one server's, as for the FBs.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from pymodbus.constants import ExcCodes
 from pymodbus.simulator import SimDevice
 
 from hil.families.s7smart.protocol.modbus_map import BITS, INPUT_REGISTERS, S7ModbusMap, from_words, to_words
-from hil.families.s7smart.sim.emulator import S7Emulator, S7Memory
+from hil.families.s7smart.sim.cpu import S7Emulator
+from hil.families.s7smart.sim.memory import S7Memory
 from hil.sim.modbus_engine import Request, Tables, Values, build_device, nothing, start_tcp
 from hil.sim.runtime import ServerHandle
 from hil.sim.wire_faults import WireFaults
@@ -48,11 +51,12 @@ def build_s7_device(emulator: S7Emulator, unit: int, modbus_map: S7ModbusMap) ->
     return build_device(emulator, S7ServedMap(modbus_map), unit)
 
 
-def _bits(area: str, start_address: int, address: int, count: int, registers: list[int], set_values):  # noqa: ANN001, ANN202
+def _bits(area: str, start_address: int, address: int, count: int, registers: list[int],
+          set_values: Values) -> Request:
     if set_values is not None:
         values = [1 if v else 0 for v in set_values]
 
-        def write(mem: S7Memory):  # noqa: ANN202
+        def write(mem: S7Memory) -> Callable[[], None]:
             bank = mem.areas[area]
             for n, v in enumerate(values, address):
                 bank[n // 8] = bank[n // 8] | 1 << n % 8 if v else bank[n // 8] & ~(1 << n % 8)
@@ -61,7 +65,7 @@ def _bits(area: str, start_address: int, address: int, count: int, registers: li
     first_reg = address // 16  # pymodbus hands bit tables to the action as packed 16-bit registers
     offset = first_reg - start_address
 
-    def read(mem: S7Memory):  # noqa: ANN202
+    def read(mem: S7Memory) -> Callable[[], None]:
         bank = mem.areas[area]
         words = [0] * count
         for r in range(count):
@@ -77,18 +81,18 @@ def _bits(area: str, start_address: int, address: int, count: int, registers: li
 
 
 def _holding(modbus_map: S7ModbusMap, start_address: int, address: int, count: int, registers: list[int],
-             set_values):  # noqa: ANN001
+             set_values: Values) -> Request:
     first_byte = modbus_map.v_byte(address)
     if set_values is not None:
         data = from_words([int(v) for v in set_values])
 
-        def write(mem: S7Memory):  # noqa: ANN202
+        def write(mem: S7Memory) -> Callable[[], None]:
             mem.write_bytes("V", first_byte, data)
             return nothing
         return write
     offset = address - start_address
 
-    def read(mem: S7Memory):  # noqa: ANN202
+    def read(mem: S7Memory) -> Callable[[], None]:
         words = to_words(mem.read_bytes("V", first_byte, 2 * count))
 
         def fill() -> None:

@@ -3,7 +3,7 @@
 The memory is the emulator's, not the server's: every read and write of V (DB 1), Q (PA) and I (PE) runs through
 :meth:`hil.sim.engine.Engine.service`, so it is handled at a scan boundary like any other request, and a client
 sees exactly what the Modbus view shows.  The protocol's clock functions read and set the emulator's CPU clock
-(:class:`~hil.families.s7smart.sim.emulator.S7Clock`), the same clock READ_RTC reads.
+(:class:`~hil.families.s7smart.sim.clock.S7Clock`), the same clock READ_RTC reads.
 
 python-snap7's server keeps its memory in registered buffers and answers the clock from the host; the three
 hooks overridden below (``_read_from_memory_area``, ``_write_to_memory_area``, the clock handlers) are its
@@ -20,7 +20,8 @@ from typing import Any
 from hil.families.s7smart.address import AREA_BYTES
 from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.protocol.s7 import V_DB, snap7_module
-from hil.families.s7smart.sim.emulator import S7Clock, S7Emulator
+from hil.families.s7smart.sim.clock import S7Clock
+from hil.families.s7smart.sim.cpu import S7Emulator
 from hil.sim.runtime import ServerHandle
 
 # S7 item return codes (the data section of a read/write reply)
@@ -106,8 +107,8 @@ def _clock_time(raw: bytes) -> dt.datetime:
     """The time in a set-clock request (10 bytes as :func:`_clock_bytes`; the year is bytes 2, 1990–2089)."""
     if len(raw) != 10:
         raise ValueError(f"a clock is 10 bytes, not {len(raw)}")
-    digits = [timebuf.from_bcd(b) for b in raw[2:8]]
-    if any(d is None for d in digits):
+    digits = [d for d in (timebuf.from_bcd(b) for b in raw[2:8]) if d is not None]
+    if len(digits) != 6:
         raise ValueError("not BCD")
-    year, month, day, hour, minute, second = digits  # type: ignore[misc]
+    year, month, day, hour, minute, second = digits
     return dt.datetime(2000 + year if year < 90 else 1900 + year, month, day, hour, minute, second)

@@ -1,12 +1,12 @@
 """How the harness reaches an S7-200 SMART's memory: V bytes, and Q/I bits — in process, or over Modbus.
 
-Why not :class:`hil.families.fbs.transport.base.Transport`: that API is keyed by FBs element names all the way down (parse,
-value checks, request splitting, the guard's allow-list and the Modbus map decode FBs names), and S7 operands
-(VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small:
-byte-run primitives plus name helpers, with the same error types, the same guard (:class:`hil.bench.guard.Guard`,
-given the S7 address model here) and the same "an address the wire cannot reach is an error naming both" rule.
-Over Modbus it maps operands to register/coil runs through :class:`~hil.families.s7smart.protocol.modbus_map.S7ModbusMap`
-and sends them through the one Modbus client, :class:`~hil.io.modbus_client.ModbusWire`.
+Why not :class:`hil.families.fbs.transport.base.Transport`: that API is keyed by FBs element names all the way down
+(parse, value checks, request splitting, the guard's allow-list and the Modbus map decode FBs names), and S7 operands
+(VB110, V100.0) would have to bend every one of them.  This layer is the S7 counterpart, deliberately small: byte-run
+primitives plus name helpers, with the same error types, the same guard (:class:`hil.bench.guard.Guard`, given the S7
+address model here) and the same "an address the wire cannot reach is an error naming both" rule.  Over Modbus it maps
+operands to register/coil runs through :class:`~hil.families.s7smart.protocol.modbus_map.S7ModbusMap` and sends them
+through the one Modbus client, :class:`~hil.io.modbus_client.ModbusWire`.
 
 Over Modbus, V is reached in 16-bit holding registers: writing one byte (or one V bit) reads the register and
 writes it back whole, so the other byte of that word must not be something the PLC program writes meanwhile —
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import datetime as dt
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Protocol, TypeVar, runtime_checkable
 
 from hil.bench.guard import GuardedLink
 from hil.core.errors import InvalidValue, TransportError
@@ -37,7 +37,12 @@ from hil.io.modbus_client import COILS, DISCRETE_INPUTS, HOLDING, ModbusWire, Ov
 from hil.io.status import PlcStatus
 
 if TYPE_CHECKING:
-    from hil.families.s7smart.sim.emulator import S7Emulator
+    from hil.families.s7smart.sim.cpu import S7Emulator
+    from hil.families.s7smart.sim.memory import S7Memory
+
+T = TypeVar("T")  # what a request run in the emulator returns
+#: the MBUS_SLAVE library's defaults (HoldStart VB0, MaxHold 1000 …): a profile's [s7] says otherwise
+DEFAULT_MAP = S7ModbusMap()
 
 
 class S7Io(Link, ABC):
@@ -60,11 +65,11 @@ class S7Io(Link, ABC):
         a = parse_s7(name)
         with self._lock:
             if a.area in ("Q", "I") and a.is_bit:
-                return self._read_bits(a.area, a.byte * 8 + a.bit, 1)[0]  # type: ignore[operator]
+                return self._read_bits(a.area, a.byte * 8 + a.bit_in_byte, 1)[0]
             if a.area != "V":
                 raise InvalidValue(f"{a}: only V memory and Q/I bits are reachable")
             raw = self._read_v(a.byte, a.size)
-            return raw[0] >> a.bit & 1 if a.is_bit else int.from_bytes(raw, "big")  # type: ignore[operator]
+            return raw[0] >> a.bit_in_byte & 1 if a.is_bit else int.from_bytes(raw, "big")
 
     def write(self, name: str | S7Address, value: int) -> None:
         a = parse_s7(name)
@@ -74,12 +79,12 @@ class S7Io(Link, ABC):
             raise InvalidValue(f"value {value} for {a} is outside 0–{top}")
         with self._lock:
             if a.area == "Q" and a.is_bit:
-                self._write_bits("Q", a.byte * 8 + a.bit, [value])  # type: ignore[operator]
+                self._write_bits("Q", a.byte * 8 + a.bit_in_byte, [value])
             elif a.area != "V":
                 raise InvalidValue(f"{a}: only V memory and Q bits are writable")
             elif a.is_bit:  # read-modify-write of the byte: S7 memory has no single-bit write over these wires
                 old = self._read_v(a.byte, 1)[0]
-                mask = 1 << a.bit  # type: ignore[operator]
+                mask = 1 << a.bit_in_byte
                 self._write_v(a.byte, bytes([old | mask if value else old & ~mask]))
             else:
                 self._write_v(a.byte, value.to_bytes(a.size, "big"))
@@ -89,7 +94,7 @@ class S7Io(Link, ABC):
         if not a.is_bit or a.area not in ("Q", "I"):
             raise InvalidValue(f"{a}: read_bits reads Q or I bits")
         with self._lock:
-            return self._read_bits(a.area, a.byte * 8 + a.bit, count)  # type: ignore[operator]
+            return self._read_bits(a.area, a.byte * 8 + a.bit_in_byte, count)
 
     def status(self) -> PlcStatus:
         with self._lock:
@@ -135,13 +140,15 @@ class ClockedS7Io(Protocol):
 class LocalS7Io(S7Io):
     """Direct calls into an in-process S7 emulator, each serviced at a scan boundary."""
 
+    emulator: S7Emulator  # (always one, in process)
+
     def __init__(self, emulator: S7Emulator) -> None:
         super().__init__("s7-200smart emulator (in-process)")
         self.emulator = emulator
 
-    def _service(self, request):  # noqa: ANN001, ANN202
+    def _service(self, request: Callable[[S7Memory], T]) -> T:
         self.requests += 1
-        return self.emulator.service(request)  # type: ignore[union-attr]
+        return self.emulator.service(request)
 
     def _read_v(self, first: int, count: int) -> bytes:
         return self._service(lambda mem: mem.read_bytes("V", first, count))
@@ -153,16 +160,16 @@ class LocalS7Io(S7Io):
         return self._service(lambda mem: [mem.areas[area][n // 8] >> n % 8 & 1 for n in range(first, first + count)])
 
     def _write_bits(self, area: str, first: int, values: list[int]) -> None:
-        def apply(mem) -> None:  # noqa: ANN001
+        def apply(mem: S7Memory) -> None:
             for n, v in enumerate(values, first):
                 mem.set(S7Address(area, n // 8, n % 8), v)
         self._service(apply)
 
     def _status(self) -> PlcStatus:
         emu = self.emulator
-        running = self._service(lambda mem: emu.running)  # type: ignore[union-attr]
+        running = self._service(lambda mem: emu.running)
         return PlcStatus(running=running, flags=["RUN"] if running else [], via="in-process",
-                         identity={"unit": "emulator", "version": emu.version, "cpu": emu.cpu})  # type: ignore[union-attr]
+                         identity={"unit": "emulator", "version": emu.version, "cpu": emu.cpu})
 
 
 # -- over Modbus ----------------------------------------------------------------------------------------------------
@@ -180,7 +187,7 @@ class ModbusS7Io(OverModbusWire, S7Io):
 
     @classmethod
     def tcp(cls, host: str, port: int = 502, *, unit: int = 1, timeout: float = 1.0, retries: int = 2,
-            modbus_map: S7ModbusMap = S7ModbusMap()) -> ModbusS7Io:
+            modbus_map: S7ModbusMap = DEFAULT_MAP) -> ModbusS7Io:
         hint = (f"is the CPU reachable at {host}:{port}, and does its program call MBUS_SLAVE (Modbus TCP server "
                 f"instruction) with this unit id and HoldStart/MaxHold matching the profile's [s7]?")
         description = f"modbus+tcp://{host}:{port}?unit={unit} (S7-200 SMART map, HoldStart VB{modbus_map.hold_start})"
@@ -191,7 +198,7 @@ class ModbusS7Io(OverModbusWire, S7Io):
     @classmethod
     def rtu(cls, device: str, *, baudrate: int = 9600, parity: str = "E", bytesize: int = 8, stopbits: int = 1,
             unit: int = 1, timeout: float = 1.0, retries: int = 2, fence: str = "trouble",
-            modbus_map: S7ModbusMap = S7ModbusMap()) -> ModbusS7Io:
+            modbus_map: S7ModbusMap = DEFAULT_MAP) -> ModbusS7Io:
         hint = "Is the CPU's RS485 port running MBUS_SLAVE (MBUS_INIT) at these settings?"
         return cls(ModbusWire.rtu(device, baudrate=baudrate, parity=parity, bytesize=bytesize, stopbits=stopbits,
                                   unit=unit, timeout=timeout, retries=retries, hint=hint, probe=_probe(modbus_map),
@@ -296,7 +303,7 @@ class GuardedS7Io(GuardedLink):
         v: dict[int, int] = {}
         for first, count in _runs(sorted({e.byte for e in elements if e.area == "V"})):
             v.update(enumerate(self.inner.read_v(first, count), first))
-        return [(v[e.byte] >> e.bit & 1 if e.is_bit else v[e.byte]) if e.area == "V"  # type: ignore[operator]
+        return [(v[e.byte] >> e.bit_in_byte & 1 if e.is_bit else v[e.byte]) if e.area == "V"
                 else self.inner.read(e) for e in elements]
 
     def write_back(self, items: list[tuple[S7Address, int]]) -> None:

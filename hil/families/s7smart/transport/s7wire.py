@@ -11,6 +11,7 @@ and the S7 error.  python-snap7 is an optional extra (``pip install 'hil[s7]'``)
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -88,10 +89,8 @@ class SnapS7Io(S7Io):
                 raise _Lost(str(exc)) from None
 
         def recover() -> None:
-            try:
+            with contextlib.suppress(Exception):  # already broken: whatever disconnecting it raises
                 self.client.disconnect()
-            except Exception:  # noqa: BLE001 - already broken
-                pass
         return self.policy.run(f"{what} on {self.description}", attempt, write=write, lost=(_Lost,), recover=recover,
                                one_try=self.timeout)
 

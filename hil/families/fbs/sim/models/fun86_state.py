@@ -36,7 +36,7 @@ class InstanceState:
     #: what the last scan read and derived from it (see Fun86Model._view), while those registers stay as they are
     view: View | None = None
     #: the WR+0/1 (or +2/3) weight of each point (bit_words), for the seams' bit positions
-    weights: tuple | None = None
+    weights: np.ndarray | None = None
 
     def new_points(self, zn: int) -> None:
         self.view, self.weights = None, None

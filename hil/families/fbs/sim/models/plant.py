@@ -113,7 +113,7 @@ class PlantSource:
         return float(self.plant.measured(np.array([self.slot]), np.array([self.point]), np.array([t]))[0])
 
 
-class ThermalPlant(Model):
+class ThermalPlant(Model["Emulator"]):
     name = "plant"
 
     def __init__(self, config: PlantConfig, heaters: dict[int, Address], seed: int = 0) -> None:
@@ -143,10 +143,10 @@ class ThermalPlant(Model):
         self.w_started, self.w_period, self.w_on = np.zeros(n), np.ones(n), np.zeros(n)
         self.w_uon, self.w_uoff = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
         self.heated: list[_Heated] = []  # with dead time
-        self._wiring: list | None = None  # (slot, point, bit bank, index) per heater, built at the first scan
+        self._wiring: list[tuple] | None = None  # (slot, point, bit bank, index) per heater: _wire
         self._spans: list = []  # (bit bank, first, end) covering every heater output
         self._last_outputs: object = None  # those outputs (and FUN86's waveforms version) at the last fast-path scan
-        self._fun86 = None
+        self._fun86: Fun86Model | None = None
         self._scan_time = 0.01
 
     # -- faults (injectors) ------------------------------------------------------------------------------------------
@@ -245,58 +245,69 @@ class ThermalPlant(Model):
         self.w_on[changed], self.w_uon[changed], self.w_uoff[changed] = on[keep], u_on[keep], u_off[keep]
 
     def scan(self, emu: Emulator) -> None:
-        y = emu.memory.bits
-        now = emu.now
-        if self._wiring is None:
-            self._wiring = [(slot, point, y[self.heaters[point].kind], self.heaters[point].index)
-                            for point, slot in self.slot.items()]
-            kinds = {self.heaters[p].kind for p in self.order}
-            self._spans = [(y[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
-                            max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
+        """The heaters follow the outputs as this scan left them: as waveforms (no dead time), else switch by
+        switch — the faults and the power seam as they say, or the outputs themselves (``plain``)."""
+        wiring = self._wiring if self._wiring is not None else self._wire(emu.memory.bits)
         plain = type(self).power is ThermalPlant.power and not any(self.faults.values())
         if self.waved:
-            # each point's waveform follows from its output, FUN86's published waveform and the faults: with all
-            # three as at the last scan, every waveform is as it is
-            key = None
-            if plain:
-                key = ([bytes(bank[lo:hi]) for bank, lo, hi in self._spans],
-                       self._fun86.waveforms_version if self._fun86 is not None else 0)
-                if key == self._last_outputs:
-                    return
-            self._last_outputs = key
-            self.set_waves(now, *self.waveforms())
-            return
+            self._follow_waveforms(emu.now, plain)
+        elif plain:
+            self._follow_outputs(emu.now, wiring)
+        else:
+            self._last_outputs = None
+            for slot, point, bank, index in wiring:
+                self.heated[slot].advance(emu.now, self.power(point, bool(bank[index])))
+
+    def _wire(self, bits: dict[str, bytearray]) -> list[tuple]:
+        """(slot, point, bit bank, index) of each heater's output, and the spans of the banks covering them: the
+        banks are fixed for the memory's life, so looked up once, at the first scan."""
+        self._wiring = [(slot, point, bits[self.heaters[point].kind], self.heaters[point].index)
+                        for point, slot in self.slot.items()]
+        kinds = {self.heaters[p].kind for p in self.order}
+        self._spans = [(bits[kind], min(a.index for a in self.heaters.values() if a.kind == kind),
+                        max(a.index for a in self.heaters.values() if a.kind == kind) + 1) for kind in kinds]
+        return self._wiring
+
+    def _follow_waveforms(self, now: float, plain: bool) -> None:
+        """Without dead time: each point's waveform follows from its output, FUN86's published waveform and the
+        faults — with all three as at the last scan (``plain``: no faults), every waveform is as it is."""
+        key = None
         if plain:
-            # the common case, without a call per point: u is the output itself; a point whose u is unchanged
-            # keeps its anchor (what _Heated.advance would do), so outputs unchanged since the last such scan
-            # mean nothing to do
-            # (one bytes for all spans — each has a fixed length, so the concatenation tells them apart — built
-            # without a comprehension: this runs on every request)
-            outputs = b""
-            for bank, lo, hi in self._spans:
-                outputs += bank[lo:hi]
-            if outputs == self._last_outputs:
+            key = ([bytes(bank[lo:hi]) for bank, lo, hi in self._spans],
+                   self._fun86.waveforms_version if self._fun86 is not None else 0)
+            if key == self._last_outputs:
                 return
-            heated = self.heated
-            for slot, _point, bank, index in self._wiring:
-                if bank[index] != heated[slot].history[-1][1]:
-                    heated[slot].advance(now, 1 if bank[index] else 0)
-            self._last_outputs = outputs
+        self._last_outputs = key
+        self.set_waves(now, *self.waveforms())
+
+    def _follow_outputs(self, now: float, wiring: list[tuple]) -> None:
+        """With dead time and no faults — the common case, without a call per point: u is the output itself; a
+        point whose u is unchanged keeps its anchor (what _Heated.advance would do), so outputs unchanged since the
+        last such scan mean nothing to do."""
+        # (one bytes for all spans — each has a fixed length, so the concatenation tells them apart — built
+        # without a comprehension: this runs on every request)
+        outputs = b""
+        for bank, lo, hi in self._spans:
+            outputs += bank[lo:hi]
+        if outputs == self._last_outputs:
             return
-        self._last_outputs = None
-        for slot, point, bank, index in self._wiring:
-            self.heated[slot].advance(now, self.power(point, bool(bank[index])))
+        heated = self.heated
+        for slot, _point, bank, index in wiring:
+            if bank[index] != heated[slot].history[-1][1]:
+                heated[slot].advance(now, 1 if bank[index] else 0)
+        self._last_outputs = outputs
 
     def waveforms(self) -> tuple[np.ndarray, ...]:
         """(slots, pwm, started, period, on, u_on, u_off) of every slot from its output, FUN86's published
         waveform of that output and the faults."""
-        waves = self._fun86.waveforms if self._fun86 is not None else {}
+        waves: dict[tuple[str, int], tuple] = self._fun86.waveforms if self._fun86 is not None else {}
+        wiring = self._wiring if self._wiring is not None else []
         power = self.power
-        n = len(self._wiring)
+        n = len(wiring)
         waved = np.zeros(n, dtype=bool)
         started, period, on = np.zeros(n), np.ones(n), np.zeros(n)
         lit, dark = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
-        for slot, point, bank, index in self._wiring:
+        for slot, point, bank, index in wiring:
             w = waves.get((self.heaters[point].kind, index))
             if w is None:  # no waveform published: the output as it is
                 dark[slot] = power(point, bool(bank[index]))

@@ -12,7 +12,8 @@ from hil.sim.model import scan_grid as grid
 _ZERO = np.array(0.0)
 
 
-def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
+def cycle_terms(a: np.ndarray, t: np.ndarray, starts: np.ndarray, t_off: np.ndarray, lift: np.ndarray,
+                rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The part of :func:`cycles_temperature` that does not depend on when the heater switches off (nor on T(a)):
     (e^(−(t−a)/τ), T_off·(1 − e^(−(t−a)/τ)) − lift·Σ over the cycles of e^(−(t − lo)/τ), lo each cycle's start
     clipped to [a, t]).  ``t``, ``starts`` and ``rate`` (1/τ): a row per cycle (axis 0), or one row for every
@@ -22,11 +23,13 @@ def cycle_terms(a, t, starts, t_off, lift, rate):  # noqa: ANN001, ANN201
     return decay, t_off - t_off * decay - lift * _cycles_sum(begins)
 
 
-def cycles_temperature(temp_a, a, t, offs, lift, rate, terms, out=None):  # noqa: ANN001, ANN201
+def cycles_temperature(temp_a: np.ndarray, a: np.ndarray, t: np.ndarray, offs: np.ndarray, lift: np.ndarray,
+                       rate: np.ndarray, terms: tuple[np.ndarray, np.ndarray],
+                       out: np.ndarray | None = None) -> np.ndarray:
     """T at ``t`` from ``temp_a`` at ``a`` while the heater is on over [starts[c], offs[c]] of every cycle c (a row
-    each: ``offs``; ``t`` and ``rate`` (1/τ) too, or one row for all; ``terms``: :func:`cycle_terms` of the starts) and off otherwise — the
-    cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how much higher the
-    plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
+    each: ``offs``; ``t`` and ``rate`` (1/τ) too, or one row for all; ``terms``: :func:`cycle_terms` of the starts) and
+    off otherwise — the cycles may be any that cover (a, t): one wholly outside adds exactly nothing.  ``lift``: how
+    much higher the plant settles with the heater on than off; ``out``: where the result goes, if anywhere.
 
     A first-order plant: T(t) = T_off + (T(a) − T_off)·e^(−(t−a)/τ) + lift·Σ over the on-segments [lo, hi] within
     [a, t] of e^(−(t−hi)/τ) − e^(−(t−lo)/τ)."""
@@ -48,7 +51,9 @@ def _cycles_sum(rows: np.ndarray) -> np.ndarray:
 _HEAD, _TAIL = 2, 3
 
 
-def waved_temperature(t0, temp0, t, pwm, started, period, on, t_on, t_off, tau, st: float):  # noqa: ANN001, ANN201
+def waved_temperature(t0: np.ndarray, temp0: np.ndarray, t: np.ndarray, pwm: np.ndarray, started: np.ndarray,
+                      period: np.ndarray, on: np.ndarray, t_on: np.ndarray, t_off: np.ndarray, tau: np.ndarray,
+                      st: float) -> np.ndarray:
     """T at ``t`` (≥ t0) of points anchored at (t0, temp0) whose heater follows a waveform on the scan grid: ``pwm``
     False — constant, at T_off; True — on from grid(started + k·period) to grid(started + k·period + on), off for
     the rest of each cycle.  All arguments are arrays over the points (or broadcast), solved at once.

@@ -55,7 +55,7 @@ def seconds_of(t: RtcTime) -> int:
     return (days * 86400 + t.hour * 3600 + t.minute * 60 + t.second) % CENTURY_SECONDS
 
 
-class RtcModel(Model):
+class RtcModel(Model["Emulator"]):
     """An RTC chip behind R4128–R4135, M1952–M1955, D4053, D4054.
 
     ``chip``: 0 none, 1 HT1381, 2 ISL1208, 3 S-35390A.  ``crystal_ppm``: positive = the chip runs fast.

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -19,6 +20,16 @@ from hil.core.errors import InvalidValue
 from hil.families.fbs.temperature import MAX_POINTS, TemperatureConfig
 
 Source = Callable[[float], float]  # virtual seconds since power-on → true temperature, °C
+
+
+class GroupMember(Protocol):
+    """A source measured together with the others of its ``group`` (a thermal plant's point, its ``slot`` there):
+    ``group.measured(slots, points, times)``."""
+
+    group: Any
+    slot: int
+
+    def __call__(self, t: float) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -64,8 +75,8 @@ def default_sources(config: TemperatureConfig) -> dict[int, Source]:
 
 
 class SensorInputs:
-    """The sources and open circuits of a temperature model's points (mixed into :class:`TemperatureModel`, whose
-    ``_forget`` drops a re-sourced point's samples)."""
+    """The sources and open circuits of a temperature model's points (under the readings' pipeline,
+    models/temperature_readings.py, whose :meth:`forget` drops a re-sourced point's samples)."""
 
     sources: dict[int, Source]
     broken: set[int]
@@ -80,7 +91,10 @@ class SensorInputs:
         self._check_point(point)
         self.sources[point] = source
         self._sources_version += 1
-        self._forget(np.array([point]))
+        self.forget(np.array([point]))
+
+    def forget(self, points: np.ndarray) -> None:
+        """Drop what is kept of ``points``' earlier measurements (nothing here: the readings keep samples)."""
 
     def open(self, point: int) -> None:
         """Open point's sensor circuit (a broken thermocouple); seen at the point's next measurement."""
@@ -107,15 +121,16 @@ class SensorInputs:
         out = np.empty(len(points))
         sources = [self.sources[p] for p in points.tolist()]
         plants: dict[int, list[int]] = {}
+        members = cast(list[GroupMember], sources)  # (those with a group: the others are not asked for one)
         for i, source in enumerate(sources):
             if getattr(source, "group", None) is not None:
-                plants.setdefault(id(source.group), []).append(i)
+                plants.setdefault(id(members[i].group), []).append(i)
             else:
                 out[i] = source(float(times[i]))
         for columns in plants.values():
             cols = np.array(columns)
-            group = sources[columns[0]].group
-            out[cols] = group.measured(np.array([sources[i].slot for i in columns]), points[cols], times[cols])
+            group = members[columns[0]].group
+            out[cols] = group.measured(np.array([members[i].slot for i in columns]), points[cols], times[cols])
         return out
 
     def _plant_slots(self) -> tuple:
@@ -137,6 +152,6 @@ class SensorInputs:
         slots = np.full(MAX_POINTS, -1)
         for point, source in self.sources.items():
             if group is not None and getattr(source, "group", None) is group:
-                slots[point] = source.slot
+                slots[point] = cast(GroupMember, source).slot
         return slots
 

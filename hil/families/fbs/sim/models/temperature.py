@@ -28,6 +28,7 @@ On a real PLC the ladder/WinProladder writes the table; here :meth:`power_on` pl
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
@@ -39,7 +40,8 @@ from hil.families.fbs.address import Address
 
 # (the simulated world the sensors see: no manual statement, so not here; the sources are re-exported for the
 # profile builder and the tests)
-from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, SensorInputs, Source, source_from_spec  # noqa: F401
+from hil.families.fbs.sim.models.sensor_inputs import Fixed, Ramp, Source, source_from_spec
+from hil.families.fbs.sim.models.temperature_readings import Readings
 from hil.families.fbs.temperature import (
     BREAK_VALUE,
     EXEC_BAD_MODULE_COUNT,
@@ -49,14 +51,12 @@ from hil.families.fbs.temperature import (
     MAX_MODULES,
     MAX_POINTS,
     MODULE_BY_CODE,
-    SENSOR_BY_CODE,
     TABLE_MARKER,
     ModuleType,
     TemperatureConfig,
     decode_start,
-    to_unit,
 )
-from hil.sim.columns import last_of_each, occurrence
+from hil.sim.columns import last_of_each
 from hil.sim.model import Model
 from hil.sim.timing import INSTANT, Timing
 
@@ -66,10 +66,9 @@ if TYPE_CHECKING:
 
 
 _MASK_LOW = int(reg.INSTALLED_LOW[1:])  # R4010
-_TEN = np.array(10.0)  # (a 0-d array: cheaper as a numpy operand than a Python number)
 
 
-class TemperatureModel(SensorInputs, Model):
+class TemperatureModel(Readings, Model["Emulator"]):
     name = "temperature"
 
     def __init__(self, config: TemperatureConfig, *, fitted: Sequence[ModuleType] | None = None,
@@ -83,12 +82,8 @@ class TemperatureModel(SensorInputs, Model):
         #: The modules physically plugged in, in expansion order (default: those the profile names).
         self.fitted: list[ModuleType] = list(fitted if fitted is not None else (m.type for m in config.modules))
         self.write_table = write_table
-        self.init_inputs(config)
+        self.init_readings(config)
         self.state = "idle"
-        #: the last ``averaging`` samples of each point (in the unit), oldest first and right-aligned: the valid
-        #: ones are the last _count[point] of its row (the others 0.0, so adding the row in order is their sum)
-        self._ring = np.zeros((MAX_POINTS, config.averaging))
-        self._count = np.zeros(MAX_POINTS, dtype=np.int64)
         self._measured: set[int] = set()
         self._next: list[float] = [0.0] * len(self.fitted)  # virtual time of each fitted module's next point
         #: the fitted modules the table had measured at the last full scan (a mismatched or unlisted module's
@@ -98,22 +93,11 @@ class TemperatureModel(SensorInputs, Model):
         self._breaks = 0  # 32 break bits as the model last wrote them
         self._break_key: int | None = None  # _breaks for which _break_value was computed
         self._break_value = (0, 0)
-        self._layout_cache: dict[tuple[int, ...], tuple] = {}
         self._plan_cache: dict[tuple, tuple] = {}
         #: the last scan's result while nothing can change it: (table words, next measurement due, bank, first
         #: index, block) — a scan with the same table before that time only rewrites the block (see scan)
         self._quiet: tuple | None = None
         self._installed: tuple = (None, None)  # (R4010/R4011, every point's installed bit)
-
-    def samples(self) -> dict[int, list[float]]:
-        """Each point's samples (oldest first) of the averaging, for the points that have any."""
-        n = self.config.averaging
-        return {p: self._ring[p, n - c:].tolist() for p, c in enumerate(self._count.tolist()) if c}
-
-    def _forget(self, points: np.ndarray) -> None:
-        """Drop points' samples ([our choice] a repaired or re-sourced sensor reads its live value at once)."""
-        self._count[points] = 0
-        self._ring[points] = 0.0
 
     # -- the seams broken variants override (arrays over measurements) ----------------------------------------------
     def installed(self, mem: Memory, point: np.ndarray) -> np.ndarray:
@@ -188,33 +172,13 @@ class TemperatureModel(SensorInputs, Model):
             self._table_read = list(words[sr:sr + 4 + min(words[sr + 1], MAX_MODULES)])
         return self._table_read
 
-    def _layout(self, key: tuple[int, ...]) -> tuple:
-        """The table's decoded layout (state, readings, work, codes, modules, total), cached on its raw words."""
-        cached = self._layout_cache.get(key)
-        if cached is None:
-            count = key[1]
-            readings, work = decode_start(key[2]), decode_start(key[3])
-            codes = list(key[4:])
-            table_modules = [MODULE_BY_CODE.get(c & 0xFF) for c in codes]
-            total = sum(m.points for m in table_modules if m)
-            if count == 0 or count > MAX_MODULES:
-                state = "bad_module_count"
-            elif total > MAX_POINTS:
-                state = "too_many_points"
-            else:
-                state = "measuring"
-            if len(self._layout_cache) > 64:
-                self._layout_cache.clear()
-            cached = self._layout_cache[key] = (state, readings, work, codes, table_modules, total)
-        return cached
-
     def _plan(self, codes: list[int], table_modules: list, readings_word: int) -> tuple:
         """(mismatch bits, points expected, TW entries with the mux words 0, [(k, first point, code)] measured),
         cached on the table and the fitted modules."""
         key = (tuple(codes), readings_word, tuple(id(m) for m in self.fitted))
         plan = self._plan_cache.get(key)
         if plan is None:
-            mismatch, expected, entries, measured = 0, set(), [], []
+            mismatch, expected, entries, measured = 0, set[int](), list[int](), list[tuple[int, int, int]]()
             first = 0
             for k, (code, tm) in enumerate(zip(codes, table_modules)):
                 points = tm.points if tm else 0
@@ -232,62 +196,86 @@ class TemperatureModel(SensorInputs, Model):
         return plan
 
     def scan(self, emu: Emulator) -> None:
-        quiet = None if self.phases.bench else self._quiet  # (bench timing: the table read may change any scan)
-        if quiet is not None:
-            header, due, bank, first, block, words, sr = quiet
-            # (the table's words equal to the recorded header, marker and count included — equal count, equal
-            # length — is the same test as the full path's header comparison below)
-            if emu.now + 1e-9 < due and words[sr:sr + len(header)] == header:
-                # Same table, no measurement due: the model's state (mux, breaks, measured points) cannot have
-                # changed since the last scan, so neither has the block — rewrite it (the host may have scribbled
-                # over it).
-                bank[first:first + len(block)] = block
-                return
+        """One scan of the OS's temperature routine: read the table, check it, take the measurements due, write
+        the work block (execution code, mismatch and break bits, the module entries)."""
+        if self._still_quiet(emu.now):
+            return
         mem = emu.memory
-        if self.phases.bench:
-            words, sr = self._table_in_effect(emu.now, mem), 0
-        else:
-            words, sr = mem.words[self.config.table.kind], self.config.table.index
+        words, sr = self._table_words(emu.now, mem)
         self._active = ()
-        if words[sr] != TABLE_MARKER:
+        if words[sr] != TABLE_MARKER:  # without A556H at SR+0 nothing is measured
             self.state = "idle"
             return
         count = words[sr + 1]
         header = tuple(words[sr:sr + 4 + min(count, MAX_MODULES)])
         self._quiet = None
-        state, readings, work, codes, table_modules, total = self._layout(header)
+        state, readings, work, codes, table_modules, total = table_layout(header)
         if work is None:  # nowhere to report anything
             self.state = "idle"
             return
         self.state = state
-        mismatch = 0
-        expected: frozenset[int] = frozenset()
-        entries: list[int] = []
-        if self.state == "measuring" and readings is not None:
-            plan = self._plan(codes, table_modules, words[sr + 2])
-            mismatch, expected, entries, measured = plan
-            self._active = tuple(k for k, _first, _code in measured)
-            now = emu.now
-            due = [(k, first, code >> 8) for k, first, code in measured if self._next[k] <= now + 1e-9]
-            if due:
-                self._measure(emu, due, readings)
-            entries = list(entries)
-            for k in range(min(len(codes), len(self._mux))):
-                entries[4 * k + 3] = self._mux[k]
+        measuring = self.state == "measuring" and readings is not None
+        mismatch, expected, entries = 0, frozenset[int](), list[int]()
+        if measuring:
+            mismatch, expected, entries = self._measure_table(emu, codes, table_modules, words[sr + 2], readings)
         all_measured = bool(expected) and expected <= self._measured
         head = self.execution_code(self.state, all_measured) << 8 | mismatch
         low, high = self._break_words()
         block = [head, low, high, (total if self.state != "bad_module_count" else 0) << 8 | count & 0xFF]
-        block += entries
+        self._write_work(mem, work, block + entries, (list(header), words, sr) if measuring else None)
+
+    def _still_quiet(self, now: float) -> bool:
+        """Same table, no measurement due since the last scan: the model's state (mux, breaks, measured points)
+        cannot have changed, so neither has the work block — rewritten as it was (the host may have scribbled
+        over it).  False (nothing done) when anything may have changed, or in bench timing (the table read may
+        change any scan)."""
+        quiet = None if self.phases.bench else self._quiet
+        if quiet is None:
+            return False
+        header, due, bank, first, block, words, sr = quiet
+        # (the table's words equal to the recorded header, marker and count included — equal count, equal
+        # length — is the same test as the full path's header comparison)
+        if now + 1e-9 >= due or words[sr:sr + len(header)] != header:
+            return False
+        bank[first:first + len(block)] = block
+        return True
+
+    def _table_words(self, now: float, mem: Memory) -> tuple[Sequence[int], int]:
+        """The bank the table is read from and SR's index in it: the memory (instant timing), or the words the
+        last table cycle read (bench timing)."""
+        if self.phases.bench:
+            return self._table_in_effect(now, mem), 0
+        return mem.words[self.config.table.kind], self.config.table.index
+
+    def _measure_table(self, emu: Emulator, codes: list[int], table_modules: list, readings_word: int,
+                       readings: Address) -> tuple[int, frozenset[int], list[int]]:
+        """A valid table's scan: the measurements due of the modules that match it, taken.  Returns its mismatch
+        bits, the points it expects measured and the work block's module entries (each module's multiplexer
+        index as it now is)."""
+        mismatch, expected, entries, measured = self._plan(codes, table_modules, readings_word)
+        self._active = tuple(k for k, _first, _code in measured)
+        now = emu.now
+        due = [(k, first, code >> 8) for k, first, code in measured if self._next[k] <= now + 1e-9]
+        if due:
+            self._measure(emu, due, readings)
+        entries = list(entries)
+        for k in range(min(len(codes), len(self._mux))):
+            entries[4 * k + 3] = self._mux[k]
+        return mismatch, expected, entries
+
+    def _write_work(self, mem: Memory, work: Address, block: list[int], table: tuple | None) -> None:
+        """The work block at TW; while a valid table (``table``: its header, bank and SR) is measured, recorded for
+        :meth:`_still_quiet` until the next measurement is due."""
         bank = mem.words.get(work.kind)
-        if bank is not None:
-            block = [v & 0xFFFF for v in block]
-            bank[work.index:work.index + len(block)] = block
-            if self.state == "measuring" and readings is not None:
-                due = min((self._next[k] for k, _first, _code in measured), default=math.inf)
-                self._quiet = (list(header), due, bank, work.index, block, words, sr)
-        else:
+        if bank is None:
             mem.write(work, block)
+            return
+        block = [v & 0xFFFF for v in block]
+        bank[work.index:work.index + len(block)] = block
+        if table is not None:
+            header, words, sr = table
+            due = min((self._next[k] for k in self._active), default=math.inf)
+            self._quiet = (header, due, bank, work.index, block, words, sr)
 
     def _break_words(self) -> tuple[int, int]:
         """TW+1 and TW+2 from the break bits, each placed where :meth:`break_position` says."""
@@ -337,7 +325,8 @@ class TemperatureModel(SensorInputs, Model):
         words, the samples, break bits and measured points updated as one measurement after the other would.
         Returns the words and the index of each point's last measurement."""
         cls = type(self)
-        if cls.installed is TemperatureModel.installed:  # (a variant's seam may read more than R4010/R4011)  # every point's installed bit, for these R4010/R4011
+        # every point's installed bit, kept for these R4010/R4011 (a variant's seam may read more than them)
+        if cls.installed is TemperatureModel.installed:
             mask = mem.words["R"][_MASK_LOW:_MASK_LOW + 2]
             if self._installed[0] != mask:
                 self._installed = (mask, np.asarray(self.installed(mem, np.arange(MAX_POINTS)), dtype=bool))
@@ -354,8 +343,9 @@ class TemperatureModel(SensorInputs, Model):
             live = np.zeros(len(points))
             if np.count_nonzero(good):
                 live[good] = self._live(times[good], points[good], codes[good])
-            self._forget(points[~good])  # (a point is good or not for all its measurements of one scan)
-        if good is None and cls.point_result is TemperatureModel.point_result:  # (point_result of good measurements: the live readings, no break bit)
+            self.forget(points[~good])  # (a point is good or not for all its measurements of one scan)
+        # (point_result of good measurements: the live readings, no break bit)
+        if good is None and cls.point_result is TemperatureModel.point_result:
             reading, flagged = live, np.zeros(len(points), dtype=bool)
         else:
             if broken is None:
@@ -377,51 +367,23 @@ class TemperatureModel(SensorInputs, Model):
         self._breaks = breaks
         self._measured.update(points)
 
-    def _live(self, times: np.ndarray, points: np.ndarray, codes: np.ndarray,
-              last: np.ndarray | None = None) -> np.ndarray:
-        """The readings of working sensors: source → sensor range → unit → averaging → resolution, in 0.1°
-        (``last``: each point's last measurement, if known)."""
-        return self.resolution(self.average(points, self.in_unit(self.values(times, points), SENSOR_LOW[codes],
-                                                                 SENSOR_HIGH[codes]), last))
-
-    def in_unit(self, celsius: np.ndarray, low: np.ndarray | None, high: np.ndarray | None) -> np.ndarray:
-        """Sensor values within the sensors' range (``low``, ``high``; None: known to be within), in the configured
-        unit."""
-        if low is not None:
-            celsius = np.minimum(np.maximum(celsius, low), high)
-        return to_unit(celsius, self.config.unit)
-
-    def resolution(self, mean: np.ndarray) -> np.ndarray:
-        """Averaged values as readings in 0.1° (the fast rate has 1° resolution, still shown in 0.1° units): whole
-        numbers, as floats."""
-        if self.config.rate == "fast":
-            return np.rint(mean) * _TEN
-        return np.rint(mean * _TEN)
-
-    def average(self, points: np.ndarray, value: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
-        """Each value's mean with the point's samples before it (the last ``averaging``), the samples updated.
-
-        The sum runs oldest first from 0.0 (not sum(), whose float algorithm changed in Python 3.12: the same
-        profile gives the same readings on every Python).  ``last``: each point's last value, if known."""
-        ring, count, n = self._ring, self._count, self.config.averaging
-        if n == 1:
-            last = last_of_each(points) if last is None else last
-            ring[points[last], 0] = value[last]
-            count[points[last]] = 1
-            return value
-        mean = np.empty(len(points))
-        rounds = occurrence(points)
-        for r in range(int(rounds.max()) + 1 if len(points) else 0):
-            cols = np.flatnonzero(rounds == r)
-            pts = points[cols]
-            ring[pts, :-1] = ring[pts, 1:]
-            ring[pts, -1] = value[cols]
-            count[pts] = np.minimum(count[pts] + 1, n)
-            total = np.zeros(len(cols))
-            for c in range(n):
-                total = total + ring[pts, c]
-            mean[cols] = total / count[pts]
-        return mean
+@functools.lru_cache(maxsize=64)
+def table_layout(header: tuple[int, ...]) -> tuple:
+    """The table's words decoded and checked (state, readings, work, codes, modules, total points): module count
+    1–8 (else "bad_module_count": FEH), at most 32 points (else "too_many_points": FFH).  Cached on the words:
+    the OS reads the table every scan, a ladder rewrites it seldom."""
+    count = header[1]
+    readings, work = decode_start(header[2]), decode_start(header[3])
+    codes = list(header[4:])
+    table_modules = [MODULE_BY_CODE.get(c & 0xFF) for c in codes]
+    total = sum(m.points for m in table_modules if m)
+    if count == 0 or count > MAX_MODULES:
+        state = "bad_module_count"
+    elif total > MAX_POINTS:
+        state = "too_many_points"
+    else:
+        state = "measuring"
+    return state, readings, work, codes, table_modules, total
 
 
 def resume_after_jump(next_due: float, now: float, cycle: float, averaging: int) -> float:
@@ -443,18 +405,15 @@ def schedule(at: float, step: float, limit: float) -> tuple[np.ndarray, float]:
         return np.empty(0), at
     count = int((limit - at) / step) + 2
     if count <= 8:  # (a few: added in Python, the same additions without numpy's overhead)
-        times = [at]
+        few = [at]
         while at + step <= limit:
             at += step
-            times.append(at)
-        return np.array(times), at + step
+            few.append(at)
+        return np.array(few), at + step
     times = np.add.accumulate(np.concatenate(([at], np.full(count, step))))
     n = int(np.searchsorted(times, limit, side="right"))
     return times[:n], float(times[n])
 
 
-#: each sensor code's measuring range, °C (unbounded for a code no sensor has)
-SENSOR_LOW, SENSOR_HIGH = np.full(256, -math.inf), np.full(256, math.inf)
-for _code, _sensor in SENSOR_BY_CODE.items():
-    SENSOR_LOW[_code], SENSOR_HIGH[_code] = _sensor.low_c, _sensor.high_c
-
+__all__ = ["Fixed", "Ramp", "Source", "TemperatureModel", "resume_after_jump", "schedule", "source_from_spec",
+           "table_layout"]
