@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import datetime as dt
 import math
@@ -11,10 +12,14 @@ import threading
 import time
 from typing import Any
 
+from rich.console import Console
+
 from hil.bench.family import build_emulator
 from hil.bench.profile import Profile, load_profile
 from hil.cli.emulate_live import LivePanel
+from hil.cli.parser import Subparsers
 from hil.core.errors import InvalidValue
+from hil.core.paths import default_bench
 from hil.core.registry import PROTOCOLS, WIRES
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
 from hil.io.hosts import unresolved
@@ -151,3 +156,63 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
             handle.stop()
     print(f"emulator stopped after {emulator.stats['requests']} requests", file=sys.stderr)
     return 0
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    emulate = sub.add_parser("emulate", help=summary,
+                             epilog="examples:\n  hil emulate --fatek-tcp 127.0.0.1:5000 --modbus-tcp 127.0.0.1:5020\n"
+                                    "  hil emulate --fatek-serial --time-scale 60\n"
+                                    "  hil emulate --bench fixtures/benches/emulator.toml --fatek-tcp 0.0.0.0:500\n"
+                                    "Prints one line per endpoint, '<kind> <address-or-pty-path>', once it listens; "
+                                    "on a terminal a live panel (clock, temperatures, requests) follows. Ctrl-C "
+                                    "stops.")
+    emulate.add_argument("--no-live", action="store_true", help="no live panel, even on a terminal")
+    emulate.add_argument("--bench", metavar="FILE", help="bench profile that configures the emulator")
+    for wire in WIRES.values():  # every registered emulator wire: --NAME HOST:PORT, or --NAME for a pty
+        if wire.kind == "pty":
+            emulate.add_argument(wire.option, action="store_true", dest=f"wire:{wire.name}", help=wire.help)
+            for alias in wire.aliases:
+                emulate.add_argument(f"--{alias}", action="store_true", dest=f"wire:{wire.name}",
+                                     help=argparse.SUPPRESS)
+        else:
+            emulate.add_argument(wire.option, metavar="HOST:PORT", dest=f"wire:{wire.name}", help=wire.help)
+    emulate.add_argument("--line", metavar="'BAUD FRAME'",
+                         help="pace the pseudo-terminals' characters at this line rate, e.g. '9600 7E1' (port 0's "
+                              "factory setting; default: the profile's [emulator] line, else unpaced)")
+    emulate.add_argument("--rig-modbus-tcp", metavar="HOST:PORT",
+                         help="also serve a fault rig, a Modbus/TCP relay module: coil FIRST+point = 1 opens the "
+                              "point's sensor, FIRST+32+point its heater circuit, FIRST+64+point shorts its SSR "
+                              "(profile: [faults.sensor_break|heater_open|ssr_short] kind = \"modbus-coil\", "
+                              "first_coil = FIRST, FIRST+32, FIRST+64)")
+    emulate.add_argument("--rig-first-coil", type=int, default=0, metavar="FIRST",
+                         help="the rig's first coil: temperature point 0's sensor (default 0)")
+    emulate.add_argument("--time-scale", type=float, default=1.0, metavar="X",
+                         help="virtual seconds per wall second (default 1)")
+    emulate.add_argument("--timing", choices=("instant", "bench"),
+                         help="'bench': readings, table rewrites and PID steps as late as the manual allows, scans "
+                              "of varying length, at seeded phases (default: the profile's [emulator] timing)")
+    emulate.add_argument("--seed", type=int, metavar="N",
+                         help="the emulator's seed (timing phases, plant noise; default: the profile's [emulator] "
+                              "seed); hil emulate prints the one in effect at start")
+
+    emulate.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return emulate(args.bench or str(default_bench()), asked_endpoints(args), args.time_scale, args.rig_modbus_tcp,
+                   args.rig_first_coil, live=not args.no_live and console.is_terminal, line=args.line,
+                   timing=args.timing, seed=args.seed)
+
+
+def asked_endpoints(args: argparse.Namespace) -> list[tuple[str, str | None]]:
+    """The wires the command line asks to serve: (wire, HOST:PORT) for TCP first, then (wire, None) per pty."""
+    given = {name: getattr(args, f"wire:{name}") for name in WIRES}
+    tcp = [w for w in WIRES.values() if w.kind != "pty"]  # TCP endpoints first, then the ptys (their order)
+    found: list[tuple[str, str | None]] = [(w.name, given[w.name]) for w in tcp if given[w.name]]
+    found += [(w.name, None) for w in WIRES.values() if w.kind == "pty" and given[w.name]]
+    if not found:
+        flags = [w.option + ("" if w.kind == "pty" else " HOST:PORT") for w in WIRES.values()]
+        raise InvalidValue(f"nothing to serve: give {', '.join(flags[:-1])} or {flags[-1]} (the profile's "
+                           f"family serves some of them)")
+    return found

@@ -8,6 +8,7 @@ error (status 4, pytest's usage error, with the test and the ID).
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import io
 import sys
@@ -18,6 +19,8 @@ import pytest
 from rich.console import Console
 from rich.markup import escape
 
+from hil.cli.parser import Subparsers
+from hil.core.paths import project_dir
 from hil.plugin import requirements
 from hil.plugin.requirements import REQUIREMENTS_FILE, Requirement, item_ids, load
 
@@ -131,3 +134,19 @@ def spec(suites: Path, console: Console, *, verbose: bool = False) -> int:
     for req in matrix.missing():
         console.print(f"[bold red]hil spec:[/] {req.id} has neither a test nor a reason", highlight=False)
     return 0 if matrix.ok else 1
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    parser = sub.add_parser("spec", help=summary,
+                            epilog="examples:\n  hil spec\n  hil spec -v            (statements and test names)\n"
+                                   "Exit 1 when a statement has neither a test nor a reason; 4 when a test names an ID "
+                                   "not in hil/requirements.toml.\n")
+    parser.add_argument("--suites", metavar="DIR", help="the suites to read the spec() markers of (default: suites/ "
+                                                        "here, else the bundled suites)")
+    parser.add_argument("-v", "--verbose", action="store_true", help="each statement and the tests that name it")
+    parser.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return spec(Path(args.suites) if args.suites else project_dir("suites"), console, verbose=args.verbose)

@@ -102,7 +102,7 @@ def parse_target(url: str) -> Target:
     if mark and scheme in in_process:
         return Target(scheme, params=_params(url, scheme, query))
     if text.startswith("emulator"):
-        raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(in_process)}")
+        raise TargetError(f"unknown emulator target {url!r} — use one of: {', '.join(in_process)}")
     try:
         parts = urlsplit(text)
     except ValueError as exc:  # "Invalid IPv6 URL": an unclosed [
@@ -110,13 +110,14 @@ def parse_target(url: str) -> Target:
                           f"{text.partition('://')[0]}://[::1]:PORT)") from None
     scheme = parts.scheme
     if scheme not in SCHEMES or SCHEMES[scheme].in_process:
-        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {forms()}")
+        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r} — write one of "
+                          f"these forms: {forms()}")
     entry = SCHEMES[scheme]
     params = _params(url, scheme, parts.query)
     if entry.network:
         example_port = entry.default_port or 3001
         if not parts.hostname:
-            raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{example_port})")
+            raise TargetError(f"target {url!r} names no host — give one, e.g. {scheme}://192.168.1.3:{example_port}")
         try:
             port = parts.port or entry.default_port or 0
         except ValueError:
