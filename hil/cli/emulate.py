@@ -10,6 +10,8 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from rich.console import Console
@@ -21,9 +23,11 @@ from hil.cli.parser import Subparsers
 from hil.core.errors import InvalidValue
 from hil.core.paths import default_bench
 from hil.core.registry import PROTOCOLS, WIRES
+from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
 from hil.io.hosts import unresolved
 from hil.io.url import serial_target
+from hil.sim.engine import Engine
 from hil.sim.pacing import LineRate
 from hil.sim.runtime import ServerHandle
 from hil.sim.timing import MODES as TIMING_MODES
@@ -40,7 +44,7 @@ def split_host_port(text: str) -> tuple[str, int]:
     return host or "127.0.0.1", int(port)
 
 
-def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's start, its handle
+def _listening(where: str | None, start: Callable[[], ServerHandle]) -> ServerHandle:
     """Start a server; an address this host cannot listen on is the user's to fix: one line saying which."""
     try:
         return start()
@@ -49,6 +53,24 @@ def _listening(where: str | None, start):  # noqa: ANN001, ANN202 - a server's s
         why = f"the host name {host!r} does not resolve" if unresolved(host) else (exc.strerror or str(exc))
         raise InvalidValue(f"cannot listen on {where or 'a pseudo-terminal'}: {why} — give an address of this host "
                            f"(127.0.0.1, 0.0.0.0 for all) and a free port (0 lets the OS choose)") from None
+
+
+def _emulator_profile(bench: str, line: str | None, timing: str | None, seed: int | None) -> Profile:
+    """The bench profile with the command line's ``--line``, ``--timing`` and ``--seed`` over its own."""
+    profile = load_profile(bench)
+    if line is not None:
+        rate = LineRate.parse(line)
+        profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
+    return with_timing(profile, timing, seed)
+
+
+def _serve_rig(emulator: Engine, where: str, first_coil: int) -> ServerHandle:
+    """The FBs fault rig (sensor break, heater open, SSR short as Modbus/TCP coils) beside the emulator."""
+    if not isinstance(emulator, Emulator):
+        raise InvalidValue(f"--rig-modbus-tcp serves the FBs fault rig: this profile's emulator is "
+                           f"{type(emulator).__name__}, not an FBs PLC — leave --rig-modbus-tcp out")
+    host, port = split_host_port(where)
+    return _listening(where, partial(start_rig_modbus_tcp, emulator, host, port, first_coil=first_coil))
 
 
 def with_timing(profile: Profile, timing: str | None, seed: int | None) -> Profile:
@@ -113,11 +135,7 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     """
     if not (math.isfinite(time_scale) and time_scale > 0):  # before any endpoint line: scripts wait for those
         raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
-    profile = load_profile(bench)
-    if line is not None:
-        rate = LineRate.parse(line)
-        profile = dataclasses.replace(profile, emulator=dataclasses.replace(profile.emulator, line=rate))
-    profile = with_timing(profile, timing, seed)
+    profile = _emulator_profile(bench, line, timing, seed)
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []
@@ -125,15 +143,11 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
-            handle = _listening(where, lambda: profile.plugin.serve(profile, emulator, wire, host, port))
-            servers.append(handle)
-            print(f"{handle.kind} {handle.address}", flush=True)
+            servers.append(_listening(where, partial(profile.plugin.serve, profile, emulator, wire, host, port)))
+            print(f"{servers[-1].kind} {servers[-1].address}", flush=True)
         if rig_modbus_tcp:
-            host, port = split_host_port(rig_modbus_tcp)
-            handle = _listening(rig_modbus_tcp,
-                                lambda: start_rig_modbus_tcp(emulator, host, port, first_coil=rig_first_coil))
-            servers.append(handle)
-            print(f"{handle.kind} {handle.address}", flush=True)
+            servers.append(_serve_rig(emulator, rig_modbus_tcp, rig_first_coil))
+            print(f"{servers[-1].kind} {servers[-1].address}", flush=True)
         for handle in servers:  # for people: what to paste (stdout's lines are for scripts)
             print(f"hil emulate: {paste_line(handle, profile)}", file=sys.stderr, flush=True)
         # once it serves (a usage error stays one line): the seed in effect, to replay the run

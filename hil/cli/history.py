@@ -68,7 +68,7 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def _emit(console: Console, title: str, columns: Sequence[str], rows: list[Sequence[Any]]) -> None:
+def _emit(console: Console, title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
     """A rich table on a terminal; tab-separated lines under a header in a pipe."""
     if console.is_terminal:
         table = Table(title=title, title_justify="left")
@@ -83,6 +83,13 @@ def _emit(console: Console, title: str, columns: Sequence[str], rows: list[Seque
     for line in [columns, *rows]:
         out.write("\t".join(_cell(v).replace("\t", " ").replace("\n", " ") for v in line) + "\n")
     out.flush()
+
+
+def _change(a: dict[str, Any] | None, b: dict[str, Any] | None) -> str:
+    """B − A of a measurement both runs have a value of, else nothing."""
+    if a is None or b is None or a["value"] is None or b["value"] is None:
+        return ""
+    return f"{b['value'] - a['value']:+g}"
 
 
 def _say(console: Console, text: str) -> None:
@@ -160,9 +167,7 @@ def _compare(store: Any, args: argparse.Namespace, console: Console) -> int:
             return "not measured (UNSET)"
         return f"{_cell(m['value'])}{' ' + m['unit'] if m['unit'] else ''} {m['outcome']}"
     _emit(console, f"measurements that moved ({len(c.measurements)})", ("test", "measurement", "A", "B", "change"),
-          [(n, name, side(x), side(y),
-            "" if x is None or y is None or x["value"] is None or y["value"] is None else f"{y['value'] - x['value']:+g}")
-           for n, name, x, y in c.measurements])
+          [(n, name, side(x), side(y), _change(x, y)) for n, name, x, y in c.measurements])
     return 0
 
 

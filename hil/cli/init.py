@@ -105,7 +105,8 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     if found.identity:
         lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))
     lines += [f"# {note}" for note in found.notes] + [""]
-    bench = {"name": name, "target": target, "time_scale": time_scale, **({"scratch": list(scratch)} if scratch else {})}
+    bench = {"name": name, "target": target, "time_scale": time_scale,
+             **({"scratch": list(scratch)} if scratch else {})}
     said = {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {}
     lines += render_section(BENCH, bench, {**said, **({"scratch": "hil init --scratch"} if scratch else {})},
                             shown={"family": FAMILY.name, "scan_counter": "R3999",
@@ -120,7 +121,8 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     else:
         lines += render_section(RTC, active=False)
     lines += _temperature(found.temperature)
-    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] writable.",
+    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] "
+              "writable.",
               "# [[pid.instances]]   # several boxes: one such table each, with the keys of [pid] below"]
     lines += render_section(PID, active=False)
     lines += render_section(FAULTS, active=False)

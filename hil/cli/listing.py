@@ -48,8 +48,8 @@ def list_all(console: Console) -> int:
 
 # -- the command line -----------------------------------------------------------------------------------------------
 def add_parser(sub: Subparsers, summary: str) -> None:
-    listing = sub.add_parser("list", help=summary,
-                             epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n  hil run -- rtc rtc_adjust\n")
+    listing = sub.add_parser("list", help=summary, epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n"
+                                                          "  hil run -- rtc rtc_adjust\n")
     listing.set_defaults(func=command)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from rich.console import Console
 from rich.markup import escape
@@ -32,12 +33,8 @@ PROBE_REGISTERS = [
 _COUNTS = {"R4010": 2, "R4012": 2}
 
 
-def _probe_s7(profile: object, url: str | None, console: Console) -> int:
-    return probe_s7(profile, url, console)
-
-
 #: families whose probe is not the FBs one below (by the name their plug-in is registered under)
-_OTHER_FAMILIES = {"s7-200smart": _probe_s7}
+_OTHER_FAMILIES: dict[str, Callable[[Profile, str | None, Console], int]] = {"s7-200smart": probe_s7}
 
 
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:

@@ -18,7 +18,8 @@ from hil.core.paths import default_bench, suite_path, suites_dir
 _TAKES_VALUE = {"-k", "-m", "-p", "-o", "-c", "-W", "-r", "--deselect", "--ignore", "--ignore-glob", "--rootdir",
                 "--confcutdir", "--basetemp", "--bench", "--target", "--junitxml", "--junit-xml", "--hil-html",
                 "--operator", "--station", "--hil-trace", "--hil-trace-dir", "--hil-lock-wait", "--maxfail",
-                "--timeout", "--durations", "-n", "--numprocesses", "--dist", "--max-worker-restart", "--tb", "--color", "--log-level", "--override-ini", "--pyargs",
+                "--timeout", "--durations", "-n", "--numprocesses", "--dist", "--max-worker-restart", "--tb", "--color",
+                "--log-level", "--override-ini", "--pyargs",
                 "--import-mode", "--capture", "--cache-show", "--lfnf", "--last-failed-no-failures",
                 "--hil-records", "--hil-lg-place", "--hil-lg-reserve", "--hil-lg-coordinator",
                 "--hil-lg-wait"}
@@ -157,8 +158,9 @@ def add_parser(sub: Subparsers, summary: str) -> None:
                      help="where the HTML report goes (default reports/report.html)")
     run.add_argument("--lanes", metavar="N", type=int, default=None,
                      help="run the suites' lanes at the same time, in N processes sharing the bench (pytest-xdist "
-                          "-n N --dist each; hil.plugin.lanes): the RTC suites beside the temperature and PID ones; on port 0 at "
-                          "9600 bit/s one fills the line while the other waits for the PLC (docs/performance.md)")
+                          "-n N --dist each; hil.plugin.lanes): the RTC suites beside the temperature and PID ones; on "
+                          "port 0 at 9600 bit/s one fills the line while the other waits for the PLC "
+                          "(docs/performance.md)")
     run.add_argument("--operator", metavar="NAME", help="who runs the tests (default $HIL_OPERATOR or login name)")
     run.add_argument("--station", metavar="NAME", help="test station (default $HIL_STATION or host name)")
     run.add_argument("--trace", choices=("failures", "all", "off"), default=None,

@@ -17,7 +17,8 @@ it (:data:`hil.core.registry.SCHEMES`: its parameters, default port, protocol); 
                                               exporter), its line settings sent over the protocol (hil.io.line)
     s7+tcp://host:102?rack=0&slot=1           an S7-200 SMART over its own protocol (ISO-on-TCP)
     emulator+s7-tcp                           the in-process S7 emulator served over that protocol
-    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.families.fbs.transport.replay)
+    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame
+                                              (hil.families.fbs.transport.replay)
 """
 
 from __future__ import annotations
