@@ -111,7 +111,7 @@ def _refuse_empty_urls(args: argparse.Namespace) -> None:
     for name, what in (("url", "the target URL"), ("target", "--target")):
         value = getattr(args, name, None)
         if value is not None and not value.strip():
-            raise InvalidValue(f"{what} is empty: give a target URL (e.g. emulator+fatek-tcp, fatek+tcp://HOST:500), "
+            raise InvalidValue(f"{what} is empty — give a target URL (e.g. emulator+fatek-tcp, fatek+tcp://HOST:500), "
                                f"or leave it out to use the bench profile's target")
 
 
