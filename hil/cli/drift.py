@@ -32,7 +32,7 @@ def parse_rate(text: str) -> float:
     except ValueError:
         rate = math.nan
     if not math.isfinite(rate):
-        raise InvalidValue(f"cannot read {text!r} as a clock error: give s/day as a number, positive = the PLC clock "
+        raise InvalidValue(f"cannot read {text!r} as a clock error — give s/day as a number, positive = the PLC clock "
                          f"runs fast (e.g. 3.38 or -5.62; range {RATE_MIN}…+{RATE_MAX})")
     if not RATE_MIN <= round(rate, 9) <= RATE_MAX:  # {:g}: 1e308 stays short, not 309 digits
         raise InvalidValue(f"clock error {rate:+g} s/day is outside the S-35390A setting range {RATE_MIN}…+{RATE_MAX} "
@@ -43,7 +43,7 @@ def parse_rate(text: str) -> float:
 def parse_code(text: str) -> int:
     match = _CODE_RE.match(text.strip())
     if not match:
-        raise InvalidValue(f"cannot read {text!r} as a D4054 code: give {CODE_FORMATS}")
+        raise InvalidValue(f"cannot read {text!r} as a D4054 code — give {CODE_FORMATS}")
     code = int(match.group(1), 16)
     try:
         rate_for_code(code)
@@ -113,8 +113,8 @@ MAX_DURATION = 366 * 86400.0
 def drift_measure(url: str, duration: float, console: Console, bench: str | None = None,
                   apply: bool = False) -> int:
     if not math.isfinite(duration) or not 5 < duration <= MAX_DURATION:
-        raise InvalidValue(f"--duration {duration:g} s: give more than 5 s and at most {MAX_DURATION:.0f} s (366 days; "
-                           f"the PLC's calendar holds 2000–2099 only)")
+        raise InvalidValue(f"--duration {duration:g} s — give more than 5 s and at most {MAX_DURATION:.0f} s "
+                           f"(366 days; the PLC's calendar holds 2000–2099 only)")
     with open_plc(url, bench, writing=apply) as plc:
         if apply:  # fail before a long measurement, not after it
             plc.io.require([reg.RTC_RATE_CODE, reg.RTC_CHIP], "write the compensating code")

@@ -36,9 +36,9 @@ from hil.sim.timing import MODES as TIMING_MODES
 def split_host_port(text: str) -> tuple[str, int]:
     host, sep, port = text.rpartition(":")
     if not sep or not port.isascii() or not port.isdigit():
-        raise InvalidValue(f"{text!r} is not HOST:PORT (e.g. 127.0.0.1:5000; port 0 lets the OS choose)")
+        raise InvalidValue(f"{text!r} is not HOST:PORT — give e.g. 127.0.0.1:5000 (port 0 lets the OS choose)")
     if int(port) > 65535:
-        raise InvalidValue(f"{text!r}: port {port} is not a TCP port (0–65535; 0 lets the OS choose)")
+        raise InvalidValue(f"{text!r}: port {port} is not a TCP port — give 0–65535 (0 lets the OS choose)")
     if host.startswith("[") and host.endswith("]"):  # [::1]:5000
         host = host[1:-1]
     return host or "127.0.0.1", int(port)
@@ -76,7 +76,7 @@ def _serve_rig(emulator: Engine, where: str, first_coil: int) -> ServerHandle:
 def with_timing(profile: Profile, timing: str | None, seed: int | None) -> Profile:
     """``profile`` with the command line's ``--timing`` and ``--seed`` over its ``[emulator]`` keys."""
     if timing is not None and timing not in TIMING_MODES:
-        raise InvalidValue(f"--timing {timing}: must be one of {', '.join(TIMING_MODES)}")
+        raise InvalidValue(f"--timing {timing} is not a timing — give one of {', '.join(TIMING_MODES)}")
     changes: dict[str, Any] = {k: v for k, v in (("timing", timing), ("seed", seed)) if v is not None}
     if changes.get("timing") == "instant" and profile.emulator.scan_time_range_ms is not None:
         changes["scan_time_range_ms"] = None  # (the profile's scan range varies bench scans only)
@@ -134,7 +134,7 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     hil.families.fbs.sim.rig).
     """
     if not (math.isfinite(time_scale) and time_scale > 0):  # before any endpoint line: scripts wait for those
-        raise InvalidValue(f"--time-scale {time_scale:g}: give a positive number of virtual seconds per wall second")
+        raise InvalidValue(f"--time-scale {time_scale:g} — give a positive number of virtual seconds per wall second")
     profile = _emulator_profile(bench, line, timing, seed)
     epoch = dt.datetime.now().replace(microsecond=0)
     emulator = build_emulator(profile, epoch)
@@ -227,6 +227,6 @@ def asked_endpoints(args: argparse.Namespace) -> list[tuple[str, str | None]]:
     found += [(w.name, None) for w in WIRES.values() if w.kind == "pty" and given[w.name]]
     if not found:
         flags = [w.option + ("" if w.kind == "pty" else " HOST:PORT") for w in WIRES.values()]
-        raise InvalidValue(f"nothing to serve: give {', '.join(flags[:-1])} or {flags[-1]} (the profile's "
+        raise InvalidValue(f"nothing to serve — give {', '.join(flags[:-1])} or {flags[-1]} (the profile's "
                            f"family serves some of them)")
     return found

@@ -38,7 +38,7 @@ def _store(args: argparse.Namespace) -> Any:
         profile_url = load_profile(args.profile).history_url
     url = config.resolve(args.url, profile_url)
     if url is None:
-        raise InvalidValue("the history is off ($HIL_HISTORY_URL or [history] url = 'off'): give --url")
+        raise InvalidValue("the history is off ($HIL_HISTORY_URL or [history] url = 'off') — give --url")
     with reaching(url):
         return Store(url)
 
@@ -49,7 +49,7 @@ def _date(text: str | None, what: str) -> dt.datetime | None:
     try:
         return dt.datetime.fromisoformat(text.strip())
     except ValueError:
-        raise InvalidValue(f"{what} {text!r}: write YYYY-MM-DD or YYYY-MM-DD HH:MM (UTC)") from None
+        raise InvalidValue(f"{what} {text!r} — write YYYY-MM-DD or YYYY-MM-DD HH:MM (UTC)") from None
 
 
 def _filters(args: argparse.Namespace) -> dict[str, Any]:
@@ -245,7 +245,7 @@ def _export(store: Any, args: argparse.Namespace, console: Console) -> int:
 def _sync(store: Any, args: argparse.Namespace, console: Console) -> int:
     spool_url = config.spool_url()
     if store.url == spool_url:
-        raise InvalidValue("the store is the local spool itself: give --url (or $HIL_HISTORY_URL) of the store to "
+        raise InvalidValue("the store is the local spool itself — give --url (or $HIL_HISTORY_URL) of the store to "
                            "upload to")
     if not Path(spool_url.removeprefix("sqlite:///")).exists():
         _say(console, f"nothing to upload: no local spool ({hide_password(spool_url)})")

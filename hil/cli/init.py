@@ -196,7 +196,7 @@ def init(target: str, directory: Path, console: Console, *, name: str | None = N
         raise InvalidValue(f"{', '.join(map(str, existing))} already exist{'s' if len(existing) == 1 else ''}: "
                            f"pass --force to overwrite")
     if not time_scale > 0:
-        raise InvalidValue(f"--time-scale {time_scale:g}: must be > 0")
+        raise InvalidValue(f"--time-scale {time_scale:g} — give a number above 0")
     if table is not None:
         try:
             parse(table)

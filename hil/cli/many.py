@@ -73,7 +73,7 @@ def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[B
         profile = check_profile(path, lab)
         name = slug(profile.name)
         if name in names:
-            raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r}: give each "
+            raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r} — give each "
                            f"[bench] name its own value (reports are named after it)")
         names[name] = path
         url = target or profile.target

@@ -145,10 +145,11 @@ def parse_time(text: str) -> RtcTime:
     the PLC and can be refused).  The weekday comes from the date when the date exists, else 0."""
     match = _TIME_RE.match(text.strip())
     if not match:
-        raise InvalidValue(f"cannot read {text!r} as a time: give {TIME_FORMATS}")
+        raise InvalidValue(f"cannot read {text!r} as a time — give {TIME_FORMATS}")
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in match.groups())
     if not YEAR_BASE <= year <= YEAR_BASE + 99:
-        raise InvalidValue(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year}")
+        raise InvalidValue(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year} — give a date in "
+                           f"those years")
     value = RtcTime(second, minute, hour, day, month, year - YEAR_BASE, 0)
     try:
         return value.with_weekday_from_date()

@@ -214,5 +214,5 @@ def _lanes(lanes: int | None) -> list[str]:
     if lanes is None or lanes == 1:
         return []
     if lanes < 1:
-        raise InvalidValue(f"--lanes {lanes}: give 1 or more (1: one process, as without --lanes)")
+        raise InvalidValue(f"--lanes {lanes} — give 1 or more (1: one process, as without --lanes)")
     return ["-n", str(lanes), "--dist", "each"]

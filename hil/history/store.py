@@ -271,7 +271,7 @@ class Store:
             if ref == "last" or ref.startswith("last~"):
                 back = int(ref[5:] or 0) if ref[5:].isdigit() or not ref[5:] else -1
                 if back < 0:
-                    raise InvalidValue(f"run {ref!r}: write last, or last~N with N a number")
+                    raise InvalidValue(f"run {ref!r} — write last, or last~N with N a number")
                 found = rows(conn, select(runs).order_by(runs.c.started_at.desc(), runs.c.id.desc())
                              .offset(back).limit(1))
             elif ref.isdigit():
@@ -279,9 +279,9 @@ class Store:
             else:
                 found = rows(conn, select(runs).where(runs.c.uuid.startswith(ref.lower())).limit(2))
         if not found:
-            raise InvalidValue(f"no run {ref!r} in the history ({self.shown}): `hil history list` shows the runs")
+            raise InvalidValue(f"no run {ref!r} in the history ({self.shown}) — `hil history list` shows the runs")
         if len(found) > 1:
-            raise InvalidValue(f"run {ref!r} is the start of more than one run's UUID: give more of it")
+            raise InvalidValue(f"run {ref!r} is the start of more than one run's UUID — give more of it")
         return found[0]
 
     @property

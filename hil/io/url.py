@@ -122,7 +122,7 @@ def parse_target(url: str) -> Target:
         try:
             port = parts.port or entry.default_port or 0
         except ValueError:
-            raise TargetError(f"target {url!r} has an invalid port") from None
+            raise TargetError(f"target {url!r} has an invalid port — give 1–65535") from None
         if not port:
             raise TargetError(f"target {url!r} names no port: an RFC 2217 server has no standard one — give the "
                               f"port of its telnet(rfc2217) accepter (e.g. {scheme}://{parts.hostname}:{example_port})")
