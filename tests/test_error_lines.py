@@ -82,7 +82,7 @@ def test_hil_runs_usage_error_inside_pytest_has_the_one_form(tmp_path: Path) -> 
     target = f"fatek+tcp://127.0.0.1:{_refused_port()}"
     done = hil("run", "--bench", _bench_for(target, tmp_path), cwd=tmp_path)
     line = the_error_line(done)
-    assert f"cannot open bench " in line and f"at {target}:" in line, line
+    assert "cannot open bench " in line and f"at {target}:" in line, line
     assert "ERROR:" not in done.stderr + done.stdout
 
 
