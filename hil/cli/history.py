@@ -212,34 +212,48 @@ def _flaky(store: Any, args: argparse.Namespace, console: Console) -> int:
 
 def _export(store: Any, args: argparse.Namespace, console: Console) -> int:
     found = store.runs(**_filters(args), newest_first=False)
-    if args.what == "runs":
-        rows = [{k: v for k, v in r.items() if k != "counts"} | {"tests": _counts(r["counts"])} for r in found]
+    rows = _run_rows(found) if args.what == "runs" else _test_rows(store, found, measurements=args.what != "tests")
+    text = _as_json(rows) if args.format == "json" else _as_csv(rows)
+    if args.output:
+        Path(args.output).write_text(text, encoding="utf-8")
+        _say(console, f"{len(rows)} {args.what} written to {args.output}")
     else:
-        rows = []
-        for r in found:
-            for t in store.tests_of(r["id"]):
-                base = {"run": r["id"], "run_uuid": r["uuid"], "started_at": r["started_at"], "bench": r["bench"],
-                        "plc": r["plc"]}
-                if args.what == "tests":
-                    rows.append(base | {k: v for k, v in t.items() if k not in ("measurements", "run_id")})
-                else:
-                    rows += [base | {"nodeid": t["nodeid"]} | {k: v for k, v in m.items()
-                                                               if k not in ("test_id", "run_id")}
-                             for m in t["measurements"]]
+        sys.stdout.write(text)
+    return 0
+
+
+def _run_rows(found: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """A row per run, its test counts in one column."""
+    return [{k: v for k, v in r.items() if k != "counts"} | {"tests": _counts(r["counts"])} for r in found]
+
+
+def _test_rows(store: Any, found: list[dict[str, Any]], *, measurements: bool) -> list[dict[str, Any]]:
+    """A row per test of each run (``measurements``: per measurement of each test), with its run's identity."""
+    rows = []
+    for r in found:
+        run = {"run": r["id"], "run_uuid": r["uuid"], "started_at": r["started_at"], "bench": r["bench"],
+               "plc": r["plc"]}
+        for t in store.tests_of(r["id"]):
+            if not measurements:
+                rows.append(run | {k: v for k, v in t.items() if k not in ("measurements", "run_id")})
+                continue
+            rows += [run | {"nodeid": t["nodeid"]} | {k: v for k, v in m.items() if k not in ("test_id", "run_id")}
+                     for m in t["measurements"]]
+    return rows
+
+
+def _as_json(rows: list[dict[str, Any]]) -> str:
+    return json.dumps(rows, indent=1, default=_cell) + "\n"
+
+
+def _as_csv(rows: list[dict[str, Any]]) -> str:
+    """CSV with a header row (nothing at all for no rows: there are no columns to name)."""
     out = io.StringIO()
-    if args.format == "json":
-        json.dump(rows, out, indent=1, default=_cell)
-        out.write("\n")
-    elif rows:
+    if rows:
         writer = csv.DictWriter(out, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows({k: _cell(v) for k, v in row.items()} for row in rows)
-    if args.output:
-        Path(args.output).write_text(out.getvalue(), encoding="utf-8")
-        _say(console, f"{len(rows)} {args.what} written to {args.output}")
-    else:
-        sys.stdout.write(out.getvalue())
-    return 0
+    return out.getvalue()
 
 
 def _sync(store: Any, args: argparse.Namespace, console: Console) -> int:

@@ -75,16 +75,9 @@ def pytest_args(bench: str | None, target: str | None, junitxml: str, extra: lis
     cache = Path.cwd() / ".pytest_cache"
     args = [*paths, "--bench", bench or str(default_bench()), f"--junitxml={junitxml}",
             "-o", "junit_family=xunit1", "-o", f"cache_dir={cache}"]
-    if target:
-        args += ["--target", target]
-    if html:
-        args += ["--hil-html", html]
-    if operator:
-        args += ["--operator", operator]
-    if station:
-        args += ["--station", station]
-    if trace:
-        args += ["--hil-trace", trace]
+    given = {"--target": target, "--hil-html": html, "--operator": operator, "--station": station,
+             "--hil-trace": trace}
+    args += [arg for option, value in given.items() if value for arg in (option, value)]
     if verbosity:
         args.append("-" + ("v" if verbosity > 0 else "q") * abs(verbosity))
     if color:
