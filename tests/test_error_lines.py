@@ -86,6 +86,11 @@ def test_hil_runs_usage_error_inside_pytest_has_the_one_form(tmp_path: Path) -> 
     assert "ERROR:" not in done.stderr + done.stdout
 
 
+def test_pytests_own_usage_error_under_hil_run_has_the_one_form(tmp_path: Path) -> None:
+    line = the_error_line(hil("run", "--", "no_such_test.py", cwd=tmp_path))
+    assert "file or directory not found: no_such_test.py — check the arguments after '--'" in line
+
+
 def test_plain_pytest_says_hils_usage_error_in_the_one_form_too(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-m", "pytest", str(REPO / "suites" / "test_smoke.py"), "--target", "", "-p",
                            "no:cacheprovider"], cwd=tmp_path, capture_output=True, text=True, timeout=120)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Generator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from rich.console import Console
@@ -11,7 +13,7 @@ from rich.console import Console
 from hil.bench.profile import check_profile, lab_request, refuse_default_for_a_plc
 from hil.cli.many import run_many
 from hil.cli.parser import Subparsers
-from hil.core.errors import InvalidValue
+from hil.core.errors import ERROR_PREFIX, InvalidValue, error_line
 from hil.core.paths import default_bench, suite_path, suites_dir
 
 #: pytest options whose value is the next argument (so that value is not a test path): ``-k rtc``, ``-m slow``…
@@ -101,14 +103,30 @@ def given(extra: list[str], option: str) -> str | None:
     return found
 
 
-def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: object) -> int:
+def run(bench: str | None, target: str | None, junitxml: str, extra: list[str], **options: Any) -> int:
+    """The suites in this process, by pytest; ``options``: :func:`pytest_args`'s."""
     # before pytest is given the default by name; `hil run -- --target URL` names a PLC as much as --target does
     refuse_default_for_a_plc(given(extra, "--target") or target, given(extra, "--bench") or bench, default_bench())
     Path(junitxml).parent.mkdir(parents=True, exist_ok=True)
     for own in (junitxml, options.get("html")):  # an earlier run's result must not pass for this one's, even if
         if own:  # this one dies before its reports say INCOMPLETE (hil.plugin.reporting.verdict)
             Path(str(own)).unlink(missing_ok=True)
-    return int(pytest.main(pytest_args(bench, target, junitxml, extra, **options)))  # type: ignore[arg-type]
+    return int(pytest.main(pytest_args(bench, target, junitxml, extra, **options), plugins=[PytestsUsageErrors()]))
+
+
+class PytestsUsageErrors:
+    """Under ``hil run``, pytest's own usage errors found in its run (a test path that does not exist) are said in
+    hil's one error line too: the user typed hil's command.  (hil.plugin.usage's wrapper, outside this one, prints
+    it.)"""
+
+    @pytest.hookimpl(wrapper=True)
+    def pytest_cmdline_main(self, config: pytest.Config) -> Generator[None, object, object]:
+        try:
+            return (yield)
+        except pytest.UsageError as exc:
+            raise pytest.UsageError(*(error_line(f"pytest: {line}", "check the arguments after '--' (hil run --help)")
+                                      if not str(line).startswith(ERROR_PREFIX) else line
+                                      for line in exc.args)) from None
 
 
 # -- the command line -----------------------------------------------------------------------------------------------
