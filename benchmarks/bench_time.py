@@ -16,6 +16,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.figures import record as record_figure  # noqa: E402
 from hil.bench.profile import load_profile  # noqa: E402
 from hil.cli.emulate import client_target  # noqa: E402
 from hil.sim.pacing import LineRate  # noqa: E402
@@ -105,18 +106,8 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
 
 
 def record(result: dict, name: str) -> Path:
-    """``result`` with when, where and at which commit it was measured, as docs/figures/bench-time-NAME.json."""
-    import datetime as dt
-    import json
-    import os
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True)
-    stamped = {**result, "measured": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-               "commit": commit.stdout.strip() or "unknown", "cpus": os.cpu_count()}
-    stamped.pop("pytest_output_tail", None)
-    target = ROOT / "docs" / "figures" / f"bench-time-{name}.json"
-    target.parent.mkdir(exist_ok=True)
-    target.write_text(json.dumps(stamped, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-    return target
+    """``result`` as docs/figures/bench-time-NAME.json (:func:`benchmarks.figures.record`)."""
+    return record_figure({k: v for k, v in result.items() if k != "pytest_output_tail"}, f"bench-time-{name}")
 
 
 if __name__ == "__main__":

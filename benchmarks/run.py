@@ -47,6 +47,7 @@ sys.path.insert(0, str(ROOT))
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
+from benchmarks.figures import record as record_figure  # noqa: E402
 from hil.plugin.perf import WireCounter  # noqa: E402
 from hil.bench.profile import load_profile, profile_from_dict  # noqa: E402
 
@@ -181,13 +182,38 @@ def cheapest_request(frame: bytes) -> int:
     return best
 
 
+#: where the per-operation bytes are measured: a direct line (the PLC's Ethernet module; port 0 alike), and a line
+#: that may repeat replies (every read fenced)
+DEVICE_OPERATIONS_TARGET = "emulator+fatek-tcp"
+DEVICE_OPERATIONS_FENCED = "emulator+fatek-serial?fence=reads"
+
+
 def device_operations() -> list[dict]:
     """Bytes a device procedure puts on a FATEK wire, against the fewest its steps need: on a direct line (the
     PLC's own Ethernet module; port 0 alike) and on a line that may repeat replies, where every read is fenced."""
-    rows = _device_operations("emulator+fatek-tcp")
-    for row, fenced in zip(rows, _device_operations("emulator+fatek-serial?fence=reads")):
+    rows = _device_operations(DEVICE_OPERATIONS_TARGET)
+    for row, fenced in zip(rows, _device_operations(DEVICE_OPERATIONS_FENCED)):
         row.update(fenced_bytes=fenced["bytes"], fenced_ratio=fenced["ratio"])
     return rows
+
+
+def device_operations_figure(*, record: bool) -> list[dict]:
+    """The per-operation table on the terminal; with ``record``, also as docs/figures/device-operations.json."""
+    ops = device_operations()
+    t = Table(title="FATEK bytes per device operation (request + reply frames; target ≤ 1.3× the fewest)")
+    for col in ("operation", "round trips", "bytes", "fewest bytes", "ratio", "ms at 9600 7E1",
+                "fence=reads: bytes", "ratio"):
+        t.add_column(col, justify="right" if col != "operation" else "left")
+    for r in ops:
+        t.add_row(r["operation"], f"{r['round_trips']} (min {r['min_round_trips']})", str(r["bytes"]),
+                  str(r["min_bytes"]), f"{r['ratio']:.2f}", f"{r['line_9600_ms']:.0f}", str(r["fenced_bytes"]),
+                  f"{r['fenced_ratio']:.2f}")
+    console.print(t)
+    if record:
+        where = record_figure({"direct": DEVICE_OPERATIONS_TARGET, "fenced": DEVICE_OPERATIONS_FENCED,
+                               "operations": ops}, "device-operations")
+        console.print(f"recorded: {where.relative_to(ROOT)}")
+    return ops
 
 
 def _device_operations(url: str) -> list[dict]:
@@ -621,10 +647,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bench-time-only", action="store_true",
                         help="only the bench time of the non-slow FBs suites at time scale 1, over FATEK/TCP and "
                              "over the paced serial line (--line; about 3 + 5 min)")
+    parser.add_argument("--device-operations-only", action="store_true",
+                        help="only the FATEK bytes per device operation (seconds, in process)")
+    parser.add_argument("--record", action="store_true",
+                        help="also write the FATEK bytes per device operation to docs/figures/device-operations.json, "
+                             "which the documentation site's performance page shows (docs/_ext/hil_docs.py)")
     parser.add_argument("--line", default="9600 7E1",
                         help="the paced pty's line rate for the bench-time figure (default '9600 7E1', port 0's "
                              "factory setting; '' for TCP only)")
     args = parser.parse_args(argv)
+    if args.device_operations_only:
+        device_operations_figure(record=args.record)
+        return 0
     if args.bench_time_only:
         bt = bench_time_table(args.line)
         out = Path(args.json).with_name("bench_time.json")
@@ -664,16 +698,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"{m['round_ratio_range'][0]:.2f}–{m['round_ratio_range'][1]:.2f}×; best rounds "
                   f"{m['hil_requests_per_s']:,.0f} vs {m['bare_requests_per_s']:,.0f} req/s ({m['best_round_ratio']:.2f}×)")
 
-    results["device_operations"] = ops = device_operations()
-    t = Table(title="FATEK bytes per device operation (request + reply frames; target ≤ 1.3× the fewest)")
-    for col in ("operation", "round trips", "bytes", "fewest bytes", "ratio", "ms at 9600 7E1",
-                "fence=reads: bytes", "ratio"):
-        t.add_column(col, justify="right" if col != "operation" else "left")
-    for r in ops:
-        t.add_row(r["operation"], f"{r['round_trips']} (min {r['min_round_trips']})", str(r["bytes"]),
-                  str(r["min_bytes"]), f"{r['ratio']:.2f}", f"{r['line_9600_ms']:.0f}", str(r["fenced_bytes"]),
-                  f"{r['fenced_ratio']:.2f}")
-    console.print(t)
+    results["device_operations"] = device_operations_figure(record=args.record)
 
     results["suites"] = s = suite_efficiency()
     t = Table(title="Suites over FATEK (emulator+fatek-tcp): per suite file")

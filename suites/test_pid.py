@@ -910,6 +910,11 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
 #: and 6 in the other, each way round (a PLC that clamps one byte only, or neither, misses 32 s in one of them)
 LONG_CODES = [pytest.param(0xFF, 6, id="R4005-06FFH"), pytest.param(6, 0xFF, id="R4005-FF06H")]
 LONGEST_S = 32
+#: the table's other codes, 1, 3 and 4 (2, 8 and 16 s), each once in each byte (0 and 2 — 1 s and the default
+#: 4 s — are timed by the non-slow test above): a PLC that reads a bit of either byte wrongly (bit 0 dropped, the
+#: high byte taken modulo 8 …) gives one of them another interval or period
+TABLE_CODES = [pytest.param(1, 3, id="R4005-0301H"), pytest.param(3, 4, id="R4005-0403H"),
+               pytest.param(4, 1, id="R4005-0104H")]
 
 
 def _integrating_point(bench, pid, *, plain=False):
@@ -933,15 +938,17 @@ def _integrating_point(bench, pid, *, plain=False):
 
 
 @pytest.mark.spec("PID-R4005-1", "PID-R4005-2", "PID-PWM-1")
-@pytest.mark.slow  # two 32 s intervals and periods after the first step: over a minute of bench time per case
+@pytest.mark.slow  # two intervals and periods after the first step, each up to 32 s: up to two minutes per case
 @pytest.mark.bench_time(4 * LONGEST_S + 20, reason="up to two 32 s intervals to the first step, then two and more")
-@pytest.mark.parametrize("low,high", LONG_CODES)
-def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
-    """20.7: R4005's low byte ≥ 5 → PID every 32 s, its high byte ≥ 5 → a PWM period of 32 s.  R4005 = 6 and FFH in
-    one byte, the other in the other, EN 0 → 1: OR (integral action at a constant error) steps 32 s apart, and the Y
-    of a second point at the same error with no integral (ON for its constant OR/16383 of each period) switches on
-    every 32 s.  Polled every second: a step or a rise is placed
-    within a poll and a read, so the gaps are held to 32 ± 2 s (the next codes' 16 s and 64 s stay far out)."""
+@pytest.mark.parametrize("low,high", TABLE_CODES + LONG_CODES)
+def test_each_r4005_code_gives_its_interval_and_pwm_period(bench, pid, low, high):
+    """20.7: R4005's low byte is the PID interval, its high byte the PWM period — code 0…4 → 1, 2, 4, 8, 16 s,
+    ≥ 5 → 32 s.  R4005 written with one code in each byte, EN 0 → 1: OR (integral action at a constant error) steps
+    an interval apart, and the Y of a second point at the same error with no integral (ON for its constant
+    OR/16383 of each period) switches on once per period.  Polled at a sixteenth of the shorter of the two (a
+    second at most): a step or a rise is placed within a poll and a read, so each gap is held to within a quarter
+    of what the code gives — the neighbouring codes' half and double stay out."""
+    interval, period = INTERVAL_S.get(low, LONGEST_S), PWM_S.get(high, LONGEST_S)
     inst, point, plain = _integrating_point(bench, pid, plain=True)
     if plain is None:
         pytest.skip(f"{inst.name} has no second enabled point: the PWM period is timed on a point whose output "
@@ -953,17 +960,18 @@ def test_r4005_codes_above_5_give_32_s_in_both_bytes(bench, pid, low, high):
     stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1",
                            lambda: pid.output(point) != left)
     pid.restart(inst)  # in force from this EN edge
-    assert stepped.within(2 * LONGEST_S + 2, every=1.0), f"point {point}: no PID step after EN's edge"
-    steps, polls = _steps(bench, pid, point, 2 * LONGEST_S + 6, every=1.0, witness=plain)
-    gaps = [round(b - a, 1) for a, b in zip(steps, steps[1:])]
-    assert len(steps) >= 2 and all(abs(g - LONGEST_S) <= 2 for g in gaps), (
-        f"R4005 low byte {low:02X}H (≥ 5): PID every {LONGEST_S} s, so OR steps {LONGEST_S} s apart; saw "
+    every = min(1.0, min(interval, period) / 16)
+    assert stepped.within(2 * interval + 2, every=every), f"point {point}: no PID step after EN's edge"
+    steps, polls = _steps(bench, pid, point, 2 * max(interval, period) + 6, every=every, witness=plain)
+    gaps = [round(b - a, 2) for a, b in zip(steps, steps[1:])]
+    assert len(steps) >= 2 and all(abs(g - interval) <= interval / 4 for g in gaps), (
+        f"R4005 low byte {low:02X}H: PID every {interval} s, so OR steps {interval} s apart; saw "
         f"{len(steps)} steps, gaps {gaps} s")
     # the constant point's Y rises at each period start (its output no longer changes within a period)
     rises = [t for (*_, before), (_, _, t, y) in zip(polls, polls[1:]) if y and not before]
-    periods = [round(b - a, 1) for a, b in zip(rises, rises[1:])]
-    assert len(rises) >= 2 and all(abs(p - LONGEST_S) <= 2 for p in periods), (
-        f"R4005 high byte {high:02X}H (≥ 5): a PWM period of {LONGEST_S} s, so Y switches on every {LONGEST_S} s; "
+    periods = [round(b - a, 2) for a, b in zip(rises, rises[1:])]
+    assert len(rises) >= 2 and all(abs(p - period) <= period / 4 for p in periods), (
+        f"R4005 high byte {high:02X}H: a PWM period of {period} s, so Y switches on every {period} s; "
         f"saw {len(rises)} rises, {periods} s apart")
 
 

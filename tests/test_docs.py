@@ -1,6 +1,6 @@
-"""The documentation site: it builds with warnings as errors, its command-line reference leaves no option
-unexplained, and the commands its getting-started and bench-profile pages show run as written (against the
-emulator; the documentation's example PLC address is served by ``hil emulate``)."""
+"""The documentation site: it builds with warnings as errors, its front page fits a phone's width, its
+command-line reference leaves no option unexplained, and the commands its getting-started and bench-profile pages
+show run as written (against the emulator; the documentation's example PLC address is served by ``hil emulate``)."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ import pytest
 from hil.cli.main import build_parser
 from hil.cli.reference import render, undocumented
 from tests import processes
+from tests.browser import look, needs_chromium
 from tests.external import emulate_process
 
 REPO = Path(__file__).resolve().parent.parent
@@ -48,16 +49,66 @@ def run_documented(commands: list[str], cwd: Path, plc: str) -> list[str]:
     return failed
 
 
-@pytest.mark.skipif(not SPHINX, reason="Sphinx, MyST-Parser or furo is not installed (pip install -e '.[test]')")
-def test_the_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
+needs_sphinx = pytest.mark.skipif(not SPHINX, reason="Sphinx, MyST-Parser or furo is not installed "
+                                                    "(pip install -e '.[test]')")
+
+
+@pytest.fixture(scope="module")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The site built once for this module's tests, warnings as errors: its HTML directory."""
+    out = tmp_path_factory.mktemp("docs")
     done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "--keep-going", "-E", "-q", "-b", "html",
-                           "-d", str(tmp_path / "doctrees"), str(DOCS), str(tmp_path / "html")],
+                           "-d", str(out / "doctrees"), str(DOCS), str(out / "html")],
                           capture_output=True, text=True, timeout=300, cwd=REPO)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-3000:]
-    page = (tmp_path / "html" / "_generated" / "commands.html").read_text(encoding="utf-8")
+    return out / "html"
+
+
+@needs_sphinx
+def test_the_site_builds_with_warnings_as_errors(site: Path) -> None:
+    page = (site / "_generated" / "commands.html").read_text(encoding="utf-8")
     assert "hil history trend" in page
-    matrix = (tmp_path / "html" / "_generated" / "requirements.html").read_text(encoding="utf-8")
+    matrix = (site / "_generated" / "requirements.html").read_text(encoding="utf-8")
     assert "RTC-VAL-1" in matrix and "PID-LAW-2" in matrix
+    performance = (site / "performance.html").read_text(encoding="utf-8")  # docs/figures/device-operations.json
+    assert "rtc.adjust_30s()" in performance and "fence=reads" in performance
+
+
+def test_no_measured_figure_is_typed_into_a_page() -> None:
+    """A table of measured ratios comes from docs/figures/ (a benchmark's --record) through docs/_ext/hil_docs.py,
+    never by hand: a hand-kept one went stale with every re-measure."""
+    measured = re.compile(r"^\|.*\d\.\d\d×")
+    typed = [f"docs/{page.name}:{n}: {line}" for page in sorted(DOCS.glob("*.md"))
+             for n, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1) if measured.match(line)]
+    assert not typed, "\n".join(typed)
+
+
+@needs_sphinx
+@needs_chromium
+@pytest.mark.parametrize("page", ["index.html", "architecture.html"])  # the front page; the one with a diagram
+def test_the_page_fits_a_phone_a_tablet_and_a_laptop(site: Path, page: str) -> None:
+    for width, layout in look(site / page).items():
+        assert layout.fits, f"at {width} px {page} is {layout.scroll_width} px wide: {layout.offenders}"
+
+
+def test_the_architecture_diagram_is_drawn_from_the_import_contracts(tmp_path: Path) -> None:
+    """Every layer of pyproject's contracts is in the picture, captioned by its docstring; a layer added to the
+    contract is drawn without anyone touching the page."""
+    spec = importlib.util.spec_from_file_location("layers_svg", DOCS / "_ext" / "layers_svg.py")
+    assert spec and spec.loader
+    module = sys.modules["layers_svg"] = importlib.util.module_from_spec(spec)  # (its dataclass looks itself up)
+    spec.loader.exec_module(module)  # the site's extension module, as docs/conf.py loads it (not a package)
+    layers_svg = module.layers_svg
+    svg = layers_svg(REPO / "pyproject.toml", REPO)
+    layers = ("hil.cli", "hil.history", "hil.plugin", "hil.families", "hil.bench", "hil.sim", "hil.io", "hil.core")
+    for name in (*layers, "fbs/", "s7smart/", "device", "transport", "protocol", "≠ independent: fbs, s7smart"):
+        assert f">{name}" in svg, name
+    assert ">One module per hil subcommand<" in svg  # hil/cli/__init__.py's first sentence
+    assert "No import cycles between the packages" in svg  # a contract drawn as a sentence
+    changed = tmp_path / "pyproject.toml"
+    changed.write_text((REPO / "pyproject.toml").read_text(encoding="utf-8").replace(
+        '"hil.bench", "hil.sim"', '"hil.bench", "hil.api", "hil.sim"', 1), encoding="utf-8")
+    assert ">hil.api<" in layers_svg(changed, REPO) and ">hil.api<" not in svg
 
 
 def test_every_command_and_option_has_a_description() -> None:

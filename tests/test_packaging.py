@@ -21,10 +21,14 @@ def test_wheel_install_runs_the_bundled_suites_from_anywhere(installed_hil: Inst
     where = subprocess.run([str(python), "-c", "import hil; print(hil.__file__)"], cwd=elsewhere, env=env,
                            capture_output=True, text=True, check=True).stdout
     assert where.startswith(site), where  # the wheel's hil, not the checkout's
-    done = subprocess.run([str(fresh / "bin" / "hil"), "run", "-q", "--", "-k", "smoke"], cwd=elsewhere, env=env,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run([str(fresh / "bin" / "hil"), "run", "-v", "--", "-k", "smoke", "-rA"], cwd=elsewhere,
+                          env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "5 passed" in done.stdout, done.stdout
+    # the console names each test as `hil run -- ID` takes it back, not by a path up to the installed package
+    assert "\nsuites/test_smoke.py::test_plc_answers_status PASSED" in done.stdout, done.stdout
+    assert "PASSED suites/test_smoke.py::test_plc_answers_status" in done.stdout, done.stdout  # -rA's summary
+    assert "_data/suites/test_smoke.py::" not in done.stdout, done.stdout
     cases = list(ET.parse(elsewhere / "reports" / "junit.xml").iter("testcase"))
     assert cases and all("smoke" in (c.get("name", "") + c.get("classname", "")) or c.find("skipped") is not None
                          for c in cases)

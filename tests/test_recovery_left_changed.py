@@ -12,12 +12,14 @@ import datetime as dt
 import json
 import os
 import pwd
+import re
 import signal
 from pathlib import Path
 
 import pytest
 
 from hil.bench.profile import load_profile
+from hil.bench.recovery import Outcome
 from hil.core.journal import Journal, journal_path
 from hil.core.lock import lock_key
 from hil.families.fbs.bench import Bench
@@ -244,3 +246,51 @@ def test_show_lists_every_journal_and_what_a_restore_would_do_writing_nothing(pl
             t.write_many({"R1000": found[0], "R1001": found[1]})
         for path in files:
             path.unlink(missing_ok=True)
+
+
+# -- issue 41: one verdict per entry, whoever replays the journal --------------------------------------------------
+def _verdicts(text: str) -> dict[str, Outcome]:
+    """Element → what became of it, read from a recovery's summary (the run's line, ``hil restore``'s) or from
+    ``hil restore --show``'s lines: each entry's line follows its outcome's label."""
+    labels = sorted({label for o in Outcome for label in (o.done, o.shown)}, key=len, reverse=True)
+    pieces = re.split(f"({'|'.join(map(re.escape, labels))}): ", text)
+    found: dict[str, Outcome] = {}
+    for label, lines in zip(pieces[1::2], pieces[2::2]):
+        for line in lines.split("\n")[0].removesuffix(" — ").split("; "):
+            name = re.match(r"[RM]\d+", line)
+            if name:
+                found[name.group()] = Outcome.labelled(label)
+    return found
+
+
+def test_a_journal_gets_the_same_verdicts_from_the_next_run_and_from_hil_restore(plc, tmp_path, capsys):
+    url, wide = _url(plc), _profile(tmp_path, plc)
+    narrow = tmp_path / "narrow.toml"  # R1002 no longer writable: refused, by both
+    narrow.write_text(wide.read_text().replace('"R1000-R1099"', '"R1000-R1001", "R1003-R1099"'))
+    with _plc(plc) as t:
+        found = t.read_words("R1000", 4)
+    ran = [found[0] ^ 0x55, found[1] ^ 0x66, found[2] ^ 0x77, found[3] ^ 0x11]
+    journal = _died_writing(wide, dict(zip(("R1000", "R1001", "R1002", "R1003"), ran))).path
+    left = [ran[0], 4321, ran[2], found[3]]  # an operator, after the crash: R1001 changed, R1003 put back
+    with _plc(plc) as t:
+        t.write_words("R1000", left)
+    kept = journal.read_bytes()
+    expected = {"R1000": Outcome.RESTORED, "R1001": Outcome.CHANGED, "R1002": Outcome.REFUSED,
+                "R1003": Outcome.RESTORED}
+    try:
+        _, lines = _restore(capsys, "--show", "--bench", str(narrow))
+        shown = _verdicts("\n".join(lines))
+        assert shown == {**expected, "R1000": Outcome.PLANNED}, lines
+        run = _session(tmp_path, narrow, "pass")
+        by_run = _verdicts(next(line for line in run.stdout.splitlines() if "hil bench recovery" in line))
+        assert by_run == expected, run.stdout
+        with _plc(plc) as t:  # the same PLC and the same journal again, for hil restore
+            assert t.read_words("R1000", 4) == [found[0], *left[1:]]
+            t.write_words("R1000", left)
+        journal.write_bytes(kept)
+        code, lines = _restore(capsys, url, "--bench", str(narrow))
+        assert code == 1 and _verdicts(" ".join(lines)) == by_run, lines
+    finally:
+        with _plc(plc) as t:
+            t.write_words("R1000", found)
+        journal.unlink(missing_ok=True)

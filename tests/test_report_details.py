@@ -1,20 +1,18 @@
 """Report details a user reads: outcomes counted as pytest counts them, the suite named after the bench, the HTML
-page's layout at 1280 and 800 px (in headless chromium when it is installed), its status filter and sections."""
+page's layout at 390, 800 and 1280 px (in headless Chromium when it is installed), its status filter and sections."""
 
 from __future__ import annotations
 
 import re
-import shutil
-import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy  # noqa: F401 - pytester's in-process runs restore sys.modules, and numpy cannot load twice in a process
-import pytest
 
-from hil.plugin.reporting.html import write_html, write_html_sections
+from hil.plugin.reporting.html import plot_figure, write_html, write_html_sections
 from hil.plugin.reporting.model import Measurement, Series
 from hil.plugin.reporting.model import TestRecord as Record
+from tests.browser import look, needs_chromium
 
 EMULATOR_BENCH = Path(__file__).resolve().parent.parent / "fixtures" / "benches" / "emulator.toml"
 
@@ -93,45 +91,52 @@ def test_merged_html_has_a_section_per_bench(tmp_path: Path) -> None:
     assert "5 tests" in page
 
 
-_PROBE = """<script>
-window.addEventListener('load', () => {
-  const root = document.documentElement, view = root.clientWidth;
-  let widest = 0;
-  for (const el of document.querySelectorAll('table, pre, img, details, h3')) {
-    widest = Math.max(widest, el.getBoundingClientRect().right);
-  }
-  // a badge is one word on one line: one taller than the shortest has wrapped ("passe" / "d"); every section open
-  document.querySelectorAll('details').forEach(d => { d.open = true; });
+# a badge is one word on one line: one taller than the shortest has wrapped ("passe" / "d"); then the status filter
+_REPORT_CHECKS = """
   const badges = [...document.querySelectorAll('.badge')].filter(e => e.offsetParent !== null);
   const line = Math.min(...badges.map(e => e.offsetHeight));
-  const wrapped = badges.filter(e => e.offsetHeight > 1.5 * line).length;
   const passed = () => [...document.querySelectorAll('.passed-row')].filter(e => e.offsetParent !== null).length;
   const before = passed();
   const box = document.querySelector('.filters input[value="passed"]');
   box.checked = false; box.dispatchEvent(new Event('change'));
-  document.body.setAttribute('data-probe',
-    [view, root.scrollWidth, Math.ceil(widest), before, passed(), badges.length, wrapped].join(','));
-});
-</script></body>"""
+  return {badges: badges.length, wrapped: badges.filter(e => e.offsetHeight > 1.5 * line).length,
+          shown_before: before, shown_after: passed()};
+"""
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None and shutil.which("chromium-browser") is None,
-                    reason="no headless chromium here (apt-get install -y chromium); the CSS rules are checked above")
-@pytest.mark.parametrize("width", [1280, 800])
-def test_html_fits_the_window_in_headless_chromium(tmp_path: Path, width: int) -> None:
-    page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
-    probe = tmp_path / "probe.html"
-    probe.write_text(page.replace("</body>", _PROBE, 1), encoding="utf-8")
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    done = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", f"--window-size={width},900",
-                           "--virtual-time-budget=3000", "--dump-dom", probe.as_uri()],
-                          capture_output=True, text=True, timeout=90)
-    found = re.search(r'data-probe="([\d,]+)"', done.stdout)
-    assert found, done.stdout[-500:] + done.stderr[-500:]
-    view, scroll, widest, shown_before, shown_after, badges, wrapped = map(int, found.group(1).split(","))
-    assert scroll <= view and widest <= view, (view, scroll, widest)  # nothing runs off the right edge
-    assert badges > 40 and wrapped == 0, f"{wrapped} of {badges} outcome badges broken over two lines at {width} px"
-    assert shown_before > 0 and shown_after == 0  # the status filter hides the passed tests
+@needs_chromium
+def test_html_fits_the_window_in_headless_chromium(tmp_path: Path) -> None:
+    page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")])
+    for width, layout in look(page, extra_js=_REPORT_CHECKS).items():
+        assert layout.fits, f"at {width} px the page is {layout.scroll_width} px wide: {layout.offenders}"
+        checks = layout.extra
+        assert checks["badges"] > 40 and checks["wrapped"] == 0, f"badges broken over two lines at {width} px: {checks}"
+        assert checks["shown_before"] > 0 and checks["shown_after"] == 0  # the status filter hides the passed tests
+
+
+def test_the_report_plots_legend_is_inside_the_picture_and_clear_of_the_axis_label() -> None:
+    """The PID trace's legend sits below the axes (inside, it would cover the trace), whole and over no label."""
+    series = next(r for r in _records() if r.series).series[0]
+    fig = plot_figure(series)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legend = fig.axes[0].get_legend().get_window_extent(renderer)
+    picture, label = fig.bbox, fig.axes[0].xaxis.label.get_window_extent(renderer)
+    assert picture.x0 <= legend.x0 and legend.x1 <= picture.x1 and picture.y0 <= legend.y0, (legend, picture)
+    assert not legend.overlaps(label), (legend, label)
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["PV", "SV", "output"]
+
+
+@needs_chromium
+def test_the_layout_probe_names_what_runs_off_the_edge(tmp_path: Path) -> None:
+    """The probe that passes the report finds an element wider than a phone, and lets a table scroll in its box."""
+    page = tmp_path / "wide.html"
+    page.write_text('<!DOCTYPE html><html><body><p>fits</p><div id="wide" style="width:600px">too wide</div>'
+                    '<div style="overflow-x:auto"><table style="width:900px"><tr><td>scrolls in its box</td></tr>'
+                    "</table></div></body></html>", encoding="utf-8")
+    layouts = look(page)
+    assert not layouts[390].fits and layouts[390].offenders == ["div#wide reaches 608 px"], layouts[390]
+    assert layouts[800].fits and layouts[1280].offenders == [], layouts  # the table's box scrolls, the page does not
 
 
 REPO = Path(__file__).resolve().parent.parent

@@ -1,7 +1,8 @@
 """Pages of the documentation site generated from the code when Sphinx starts, so none is kept by hand: the
 requirement matrix (``hil spec``'s, from the catalogue and the suites' ``spec()`` markers), the command-line
-reference (from the argparse parsers, :mod:`hil.cli.reference`) and the bench profile's keys (from their
-declarations, :mod:`hil.bench.schema_export`)."""
+reference (from the argparse parsers, :mod:`hil.cli.reference`), the bench profile's keys (from their
+declarations, :mod:`hil.bench.schema_export`), the architecture's diagram (from the import-linter contracts,
+layers_svg.py) and the measured figures (the JSON the benchmark scripts write into docs/figures/)."""
 
 from __future__ import annotations
 
@@ -9,13 +10,16 @@ import json
 from pathlib import Path
 from typing import Any
 
+from layers_svg import layers_svg
+
 from hil.bench.schema_export import markdown as profile_keys
 from hil.cli.main import build_parser
 from hil.cli.reference import render as command_reference
 from hil.cli.spec import build
 from hil.core.paths import suites_dir
 
-GENERATED = Path(__file__).resolve().parent.parent / "_generated"
+DOCS = Path(__file__).resolve().parent.parent
+GENERATED = DOCS / "_generated"
 
 
 def _cell(text: str) -> str:
@@ -45,7 +49,7 @@ def requirement_matrix() -> str:
         "| requirement | manual | statement | checked by |", "|---|---|---|---|", *rows, ""])
 
 
-FIGURES = Path(__file__).resolve().parent.parent / "figures"
+FIGURES = DOCS / "figures"
 
 
 def bench_time_tables() -> str:
@@ -76,6 +80,20 @@ def bench_time_tables() -> str:
     return "\n".join(out)
 
 
+def device_operations_table() -> str:
+    """The FATEK bytes per device operation ``benchmarks/run.py --record`` measured (docs/figures/
+    device-operations.json): per procedure its round trips and bytes against the fewest the frame format allows, on a
+    direct line and with every read fenced."""
+    run = json.loads((FIGURES / "device-operations.json").read_text(encoding="utf-8"))
+    rows = [f"| `{op['operation']}` | {op['round_trips']} | {op['bytes']} ({op['min_bytes']}) | {op['ratio']:.2f}× | "
+            f"{op['fenced_ratio']:.2f}× |" for op in run["operations"]]
+    return "\n".join([
+        f"Measured {run['measured']} at commit `{run['commit']}` on the in-process emulator: `{run['direct']}` for a "
+        f"direct line, `{run['fenced']}` for a line that may repeat replies.", "",
+        "| operation | round trips | bytes (fewest) | direct line | `fence=reads` |", "|---|---|---|---|---|",
+        *rows, ""])
+
+
 def _write(name: str, text: str) -> None:
     GENERATED.mkdir(exist_ok=True)
     target = GENERATED / name
@@ -86,8 +104,10 @@ def _write(name: str, text: str) -> None:
 def _generate(app: Any) -> None:
     _write("requirements.md", requirement_matrix())
     _write("bench-time.md", bench_time_tables())
+    _write("device-operations.md", device_operations_table())
     _write("commands.md", command_reference(build_parser()))
     _write("profile-keys.md", profile_keys())
+    _write("layers.svg", layers_svg(DOCS.parent / "pyproject.toml", DOCS.parent))
 
 
 def setup(app: Any) -> dict[str, Any]:

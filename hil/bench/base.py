@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any, ContextManager, Generic, Protocol, TypeVar
+from contextlib import AbstractContextManager
+from typing import Any, Generic, Protocol, TypeVar
 
-from hil.bench.guard import GuardedLink, Recovery, RecoveryStep
+from hil.bench.guard import GuardedLink
 from hil.bench.profile import Profile
+from hil.bench.recover import RecoveryStep
+from hil.bench.recovery import Recovery
 from hil.core.errors import HilError
 from hil.core.evidence import Expectation, expect
 from hil.core.journal import Journal
@@ -67,6 +70,10 @@ class BenchBase(Generic[PlcT, LinkT]):
         """What the family adds to the PLC's identity in reports (e.g. an FBs's RTC chip); never raises."""
         return {}
 
+    def close(self) -> None:
+        """Close the guarded link (a family closes what else it opened, e.g. its fault rig, first)."""
+        self.io.close()
+
     def finish(self) -> None:
         """The session ends: put back exactly what was put back only approximately after each test (the clock's
         phase).  Raises :class:`hil.core.errors.RestoreError` when the PLC refuses."""
@@ -85,8 +92,9 @@ class BenchBase(Generic[PlcT, LinkT]):
         if it already holds."""
         return expect(self.time, what, condition)
 
-    def exclusive(self) -> ContextManager[None]:
-        """Hold the wire across several requests (no other lane's between them: :meth:`hil.core.link.Link.exclusive`)."""
+    def exclusive(self) -> AbstractContextManager[None]:
+        """Hold the wire across several requests (no other lane's between them:
+        :meth:`hil.core.link.Link.exclusive`)."""
         return self.io.exclusive()
 
     # -- safety (issue 15): the durable journal, recovery first, the per-test restore ---------------------------

@@ -11,57 +11,26 @@ here, by name, so it imports none of them; adding a family is one package plus o
 from __future__ import annotations
 
 import datetime as dt
-import functools
-from collections.abc import Iterable
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol
 
-from hil.core.errors import InvalidValue, ProfileError
+from hil.bench.family_registry import GROUP, FamilySections, installed, named, the_default
+from hil.core.errors import InvalidValue
 
 if TYPE_CHECKING:
     from hil.bench.base import BenchBase
     from hil.bench.profile import Profile
-    from hil.bench.schema import Section
     from hil.sim.engine import Engine
     from hil.sim.runtime import ServerHandle
 
-GROUP = "hil.families"
 
-
-class Family(Protocol):
-    """What a controller family plug-in provides (see :mod:`hil.families.fbs.plugin` for one)."""
-
-    #: ``[bench] family = …`` in a profile
-    name: str
-    #: for people: "FATEK FBs", "S7-200 SMART"; with its article: "a FATEK FBs", "an S7-200 SMART"
-    title: str
-    a_title: str
-    #: the profile sections this family reads (parsed by :meth:`parse_sections`)
-    sections: tuple[str, ...]
-    #: the declarations of those sections' keys (:class:`hil.bench.schema.Section`), for the JSON Schema, the
-    #: template and the docs; a section not declared here is checked by its parser alone
-    declarations: tuple[Section, ...]
-    #: the family of a profile that names none (one installed family says True)
-    default: bool
-    #: ``[safety] volatile`` when a profile says nothing: values the PLC rewrites itself
-    default_volatile: tuple[str, ...]
-
-    def check_ranges(self, ranges: list) -> bool:
-        """True if every item is an address range of this family; else raise ValueError/AddressError."""
-
-    def elements(self, ranges: Iterable[str]) -> frozenset:
-        """The single elements the ranges cover (the guard's unit of permission)."""
-
-    def parse_sections(self, tables: dict[str, dict[str, Any]], where: str) -> dict[str, Any]:
-        """This family's sections as typed records (refusing bad ones with the file and key named)."""
-
-    def check_faults(self, faults: dict[str, dict[str, Any]], where: str) -> None:
-        """Refuse ``[faults.*]`` tables this family cannot inject."""
+class Family(FamilySections, Protocol):
+    """What a controller family plug-in provides (see :mod:`hil.families.fbs.plugin` for one): what a profile
+    needs of it (:class:`~hil.bench.family_registry.FamilySections`), and its emulator, bench and servers."""
 
     def build_emulator(self, profile: Profile, epoch: dt.datetime) -> Engine:
         """The emulator the profile describes, its clocks starting at ``epoch``."""
 
-    def open_bench(self, profile: Profile, **kwargs: Any) -> BenchBase:
+    def open_bench(self, profile: Profile, **kwargs: Any) -> BenchBase[Any, Any]:
         """The bench for ``profile`` (its PLC behind the guard, its time, its per-test restore)."""
 
     def serve(self, profile: Profile, emulator: Engine, wire: str, host: str, port: int) -> ServerHandle:
@@ -71,27 +40,23 @@ class Family(Protocol):
     wires: tuple[str, ...]
 
 
-@functools.cache
 def families() -> dict[str, Family]:
     """Every installed family, by name."""
-    found: dict[str, Family] = {}
-    for entry in entry_points(group=GROUP):
-        plugin = entry.load()
-        found[plugin.name] = plugin
-    return found
+    return installed()
 
 
 def default_family() -> Family:
     """The family a profile without ``[bench] family`` and a bench test without a ``family`` marker are for: the
     one installed family that says ``default = True``."""
-    chosen = [plugin for plugin in families().values() if getattr(plugin, "default", False)]
-    if len(chosen) != 1:
-        raise ProfileError(f"{len(chosen)} installed controller families claim to be the default "
-                           f"({', '.join(p.name for p in chosen) or 'none'}): give [bench] family in the profile")
-    return chosen[0]
+    return the_default()
 
 
-def open_bench(profile: Profile, **kwargs: Any) -> BenchBase:
+def family(name: str) -> Family:
+    """The family registered as ``name``; a ProfileError listing the installed ones otherwise."""
+    return named(name)
+
+
+def open_bench(profile: Profile, **kwargs: Any) -> BenchBase[Any, Any]:
     """The bench for the profile's controller family."""
     return family(profile.family).open_bench(profile, **kwargs)
 
@@ -108,11 +73,4 @@ def check_wire(plugin: Family, wire: str) -> None:
                            f"{', '.join(plugin.wires)}; the profile's [bench] family picks the controller)")
 
 
-def family(name: str) -> Family:
-    """The family registered as ``name``; a ProfileError listing the installed ones otherwise."""
-    known = families()
-    if name not in known:
-        raise ProfileError(f"unknown controller family {name!r} (installed: {', '.join(sorted(known)) or 'none'}; "
-                           f"a family is registered under the {GROUP!r} entry-point group — reinstall hil if "
-                           f"this list is empty)")
-    return known[name]
+__all__ = ["GROUP", "Family", "build_emulator", "check_wire", "default_family", "families", "family", "open_bench"]

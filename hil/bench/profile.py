@@ -16,8 +16,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from hil.bench.family import Family, default_family, families
-from hil.bench.family import family as family_named
+from hil.bench.family_registry import FamilySections, installed, named, the_default
 from hil.bench.lab.resolve import Lab
 from hil.bench.lab.spec import LabSpec
 from hil.bench.lab.spec import parse_section as parse_lab_section
@@ -103,8 +102,8 @@ class Profile:
         return self.sections.get("rtc")
 
     @property
-    def plugin(self) -> Family:
-        return family_named(self.family)
+    def plugin(self) -> FamilySections:
+        return named(self.family)
 
     def can_write(self, name: str) -> bool:
         try:
@@ -175,9 +174,9 @@ def profile_from_dict(data: dict[str, Any], *, path: Path | None = None, digest:
     owner = _section_owners(data, where)
     if "bench" not in data:
         raise ProfileError(f"{where}: missing the [bench] section (name, target, station, time_scale)")
-    bench = BENCH.read(data["bench"], where, defaults={"family": default_family().name})
+    bench = BENCH.read(data["bench"], where, defaults={"family": the_default().name})
     bench["station"] = _one_station(where, parse_target(bench["target"]), bench["station"])
-    plugin = family_named(bench["family"])
+    plugin = named(bench["family"])
     _refuse_other_family(data, owner, plugin, where)
     areas = {s: _table(data, s, where) for s in plugin.sections if s in data}
     return Profile(
@@ -271,7 +270,7 @@ def refuse_default_for_a_plc(target: str | None, bench: str | None, default: Pat
                            f"with a profile for this PLC (`hil init {target}` writes one)")
 
 
-def _check_overlap(plugin: Family, safety: Safety, where: str) -> None:
+def _check_overlap(plugin: FamilySections, safety: Safety, where: str) -> None:
     """Refuse an element both ``writable`` and ``volatile``: a volatile element is never journaled, so a test's
     write to it would stay on the PLC.  The family's clock elements may be both: the clock restore puts them back."""
     both = (plugin.elements(safety.writable) & plugin.elements(safety.volatile)) - plugin.elements(
@@ -297,9 +296,9 @@ def _placed(data: dict[str, Any], where: str, lab: Any) -> dict[str, Any]:
     return data if lab is None else lab.apply(data, where)
 
 
-def _section_owners(data: dict[str, Any], where: str) -> dict[str, Family]:
+def _section_owners(data: dict[str, Any], where: str) -> dict[str, FamilySections]:
     """Which installed family reads each family section, refusing a section nobody reads."""
-    owner = {section: plugin for plugin in families().values() for section in plugin.sections}
+    owner = {section: plugin for plugin in installed().values() for section in plugin.sections}
     for section in data:
         if section not in CORE_SECTIONS and section not in owner:
             known = sorted({*CORE_SECTIONS, *owner})
@@ -307,7 +306,8 @@ def _section_owners(data: dict[str, Any], where: str) -> dict[str, Family]:
     return owner
 
 
-def _refuse_other_family(data: dict[str, Any], owner: dict[str, Family], plugin: Family, where: str) -> None:
+def _refuse_other_family(data: dict[str, Any], owner: dict[str, FamilySections], plugin: FamilySections,
+                         where: str) -> None:
     for section in data:
         if section in owner and owner[section] is not plugin:
             other = owner[section]
@@ -322,7 +322,7 @@ def _table(data: dict[str, Any], section: str, where: str) -> dict[str, Any]:
     return dict(table)
 
 
-def _safety(data: dict[str, Any], plugin: Family, where: str) -> Safety:
+def _safety(data: dict[str, Any], plugin: FamilySections, where: str) -> Safety:
     """``[safety]``, its ranges in the family's addresses (its clock read-out volatile unless the profile says)."""
     ranges = {"writable": plugin.check_ranges, "volatile": plugin.check_ranges}
     safety = Safety(**SAFETY.read(data.get("safety", {}), where, checks=ranges,
@@ -339,7 +339,7 @@ def _emulator(data: dict[str, Any], where: str) -> EmulatorSettings:
     return emulator
 
 
-def _faults(data: dict[str, Any], plugin: Family, where: str) -> dict[str, dict[str, Any]]:
+def _faults(data: dict[str, Any], plugin: FamilySections, where: str) -> dict[str, dict[str, Any]]:
     """``[faults.<name>]`` tables, checked by the family that injects them."""
     faults = {}
     for fault, table in _table(data, "faults", where).items():

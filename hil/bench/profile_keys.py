@@ -1,12 +1,13 @@
 """The core sections of a bench profile, declared once (:mod:`hil.bench.schema`): [bench], [safety], [emulator],
-[wire_faults] and [history] (and [labgrid], declared by the lab in :mod:`hil.bench.lab.spec`).  The families declare theirs beside their parsers ([rtc], [s7], …)."""
+[wire_faults] and [history] (and [labgrid], declared by the lab in :mod:`hil.bench.lab.spec`).  The families
+declare theirs beside their parsers ([rtc], [s7], …)."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from hil.bench.capabilities import DECLARABLE
-from hil.bench.family import families
+from hil.bench.family_registry import installed
 from hil.bench.lab.spec import LABGRID
 from hil.bench.schema import Key, Section
 from hil.io.url import parse_target
@@ -43,20 +44,21 @@ BENCH = Section("bench", "Which PLC, over which wire, and how the harness paces 
         "an installed family speaks (hil emulate --help lists them).", "emulator",
         check=_target),
     Key("station", int, "The PLC's address on its wire (the station or unit id its protocol takes), used on every "
-        "wire and command; a target URL naming another is refused.", None, low=1, high=254, default_doc="the one the target names, else 1"),
+        "wire and command; a target URL naming another is refused.", None, low=1, high=254,
+        default_doc="the one the target names, else 1"),
     Key("time_scale", float, "Bench seconds per wall second: > 1 only for an accelerated external emulator "
         "(hil emulate --time-scale).", 1.0, above=0),
     Key("settle_scans", int, "Status round trips after a write before reading its effect (raise it on port 2, "
         "which answers within a scan).", 2, low=1),
     Key("timeout", float, "Seconds to wait for each reply.", 2.0, above=0, unit="s"),
     Key("family", str, "The controller family plug-in: picks the device layer, the emulator and the suites.",
-        choices=lambda: sorted(families()), default_doc="the installed default family"),
+        choices=lambda: sorted(installed()), default_doc="the installed default family"),
     Key("scan_counter", str, "A word register the bench ladder adds 1 to every scan (fixtures/ladder.md): proves "
         "scans from the PLC's side.", pattern=ELEMENT, hint="must name one word register (letters, then digits)"),
     Key("answers_at_scan_end", bool, "The wire reaches a port that services each request at a scan's end (the "
-        "family's manual says which ports do): settles rely on that rule, a round trip per scan, rather than prove each scan with two "
-        "reads of the scan counter (which still brackets what counts scans). Leave it out for the Ethernet modules, "
-        "which may answer within a scan.", False),
+        "family's manual says which ports do): settles rely on that rule, a round trip per scan, rather than prove "
+        "each scan with two reads of the scan counter (which still brackets what counts scans). Leave it out for "
+        "the Ethernet modules, which may answer within a scan.", False),
     Key("scratch", list, "Element ranges nobody else uses, for the smoke suite (add them to [safety] writable).",
         [], pattern=rf"{ELEMENT}(-{ELEMENT})?", hint="must be a list of element ranges (FIRST-LAST)",
         convert=tuple, json={"items": {"type": "string"}}),

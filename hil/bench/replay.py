@@ -16,74 +16,40 @@ in the journal; the report's "verified" list is exactly what was read back equal
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+from hil.bench.putback import Item, PutBack
+from hil.bench.recovery import Outcome, Recovery
 from hil.core.journal import ELEMENTS, Journal, run_left
-
-if TYPE_CHECKING:  # the guard imports this module
-    from hil.bench.guard import Guard
 
 MAX_AGE = 7 * 86400.0  # s: an older entry is not replayed by a run (the PLC has surely been used since)
 
 
-@dataclass
-class Recovery:
-    """What :meth:`hil.bench.guard.Guard.recover` found in a dead run's journal, and what became of each entry —
-    or, with ``show`` (``hil restore --show``), what it would become: the same decisions, nothing written."""
-
-    bench: str
-    path: str
-    pending: list[str] = field(default_factory=list)  # what the journal held, one line each
-    verified: list[str] = field(default_factory=list)  # put back (or found back) and read back equal
-    refused: list[str] = field(default_factory=list)  # not replayed, each with why (kept in the journal)
-    changed: list[str] = field(default_factory=list)  # someone changed it since the run: left as it is (kept)
-    failures: list[str] = field(default_factory=list)  # a restore that failed (kept)
-    notes: list[str] = field(default_factory=list)  # dropped without a write, and why (volatile)
-    by: str = ""  # whose run left the journal (another user's, on a shared bench: :meth:`Journal.left_by`)
-    planned: list[str] = field(default_factory=list)  # ``show``: what a restore would put back (nothing written)
-    show: bool = False  # decide and list only: nothing is written, to the PLC or to the journal
-    parts: list[Recovery] = field(default_factory=list)  # one per journal (the run's, each lane's), once merged
+class Replayable(Protocol):
+    """What a replay needs of the guarded link (:class:`hil.bench.guard.Guard`): its allow-list, its family's
+    address model and range check, what the PLC rewrites itself, and the verified put-back."""
 
     @property
-    def needed(self) -> bool:
-        return bool(self.pending or self.refused)
-
-    def merge(self, other: Recovery) -> None:
-        """Add what another journal of the same PLC (a lane's, :meth:`hil.core.journal.Journal.lane_names`) held."""
-        if other.needed:
-            self.path = f"{self.path}, {other.path}" if self.needed else other.path
-            self.by = "; ".join(dict.fromkeys(b for b in (self.by if self.needed else "", other.by) if b))
-        for name in ("pending", "verified", "refused", "changed", "failures", "notes", "planned"):
-            getattr(self, name).extend(getattr(other, name))
-        self.parts.append(other)
+    def writable(self) -> frozenset[Any]: ...
 
     @property
-    def ok(self) -> bool:
-        return not (self.failures or self.refused or self.changed)
+    def volatile(self) -> frozenset[Any]: ...
 
-    def sections(self) -> list[tuple[str, list[str]]]:
-        """What became (``show``: would become) of the entries: (what, the entries' lines), by kind of outcome."""
-        show = self.show
-        return [("would restore", self.planned),
-                ("already back (read)" if show else "restored and verified (read back)", self.verified),
-                ("would drop" if show else "dropped", self.notes),
-                ("changed since — left", self.changed),
-                ("refused", self.refused),
-                ("cannot tell (reading it failed)" if show else "restore failed", self.failures)]
+    side_effects: Callable[[list[Any]], Iterable[Any]] | None
 
-    def summary(self) -> str:
-        if not self.needed:
-            return f"hil bench recovery: nothing pending for {self.bench}"
-        parts = [f"{what}: " + "; ".join(lines) for what, lines in self.sections() if lines]
-        if self.ok:
-            return (f"hil bench recovery: a previous run on {self.bench}{self._whose()} died leaving "
-                    f"{len(self.pending)} entry(s) — " + " — ".join(parts))
-        return (f"hil bench recovery FAILED on {self.bench}{self._whose()} (what is left is kept in {self.path}; "
-                f"`hil restore --show` lists it): " + " — ".join(parts))
+    def split(self, name: Any) -> list[Any]: ...
 
-    def _whose(self) -> str:
-        return f" ({self.by}; its journal {self.path})" if self.by else ""
+    def keys(self, elements: list[Any]) -> list[Any]: ...
+
+    def value_problem(self, element: Any, value: int) -> str | None: ...
+
+    def causes_side_effects(self, element: Any) -> bool: ...
+
+    def read_originals(self, elements: list[Any]) -> list[int]: ...
+
+    def put_back(self, items: list[Item]) -> PutBack: ...
 
 
 #: what recovery does with an entry, from what it holds now (:func:`still_the_runs`)
@@ -145,61 +111,111 @@ def age_problem(entry: Any, by_hand: bool) -> str | None:
 
 @dataclass
 class Verdict:
-    """What the next replay does with one element entry (also for ``hil restore --show``)."""
+    """What the next replay does with one element entry, from the journal and the profile alone (also for ``hil
+    restore --show``)."""
 
     name: str
     action: str  # "restore", "drop" (volatile), "refuse", or "check" (restore if it still holds what was written)
     why: str = ""
     element: Any = None
-    entry: dict = field(default_factory=dict)
+    entry: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def original(self) -> Any:
+        return self.entry["original"]
+
+    @property
+    def left(self) -> list[Any] | None:
+        """What the run left in it (None: the PLC rewrote it itself, there is no written value)."""
+        return run_left(self.entry) if self.entry["wrote"] is not None else None
 
 
-def element_verdicts(guard: Guard, journal: Journal, by_hand: bool) -> list[Verdict]:
+def element_verdicts(guard: Replayable, journal: Journal, by_hand: bool) -> list[Verdict]:
     """Each element entry's verdict from the journal and the profile alone (no PLC read yet)."""
+    rewritten = _Rewritten(guard)
     out = []
-    allowed_side: frozenset | None = None
     for name, entry in journal.data["elements"].items():
-        problem = ELEMENTS.check(entry)
-        if problem:
-            out.append(Verdict(name, "refuse", f"malformed: {problem}"))
-            continue
-        try:
-            elements = guard.split(name)
-        except Exception as exc:  # noqa: BLE001 - any bad name is refused by name
-            out.append(Verdict(name, "refuse", f"not an element of this PLC: {exc}"))
-            continue
-        if len(elements) != 1 or str(elements[0]) != name:
-            out.append(Verdict(name, "refuse", "not one base element (a journal names bits and words)"))
-            continue
-        element = elements[0]
-        if element in guard.volatile:
+        element, why = _element(guard, name, entry)
+        if element is None:
+            out.append(Verdict(name, "refuse", why))
+        elif element in guard.volatile:
             out.append(Verdict(name, "drop", "volatile in the profile: the PLC rewrites it itself"))
-            continue
-        bad = next(filter(None, (guard.value_problem(element, v) for v in [entry["original"], *run_left(entry)])),
-                   None)
-        if bad:
-            out.append(Verdict(name, "refuse", f"malformed: {bad}"))
-            continue
-        if element not in guard.writable:
-            if entry["wrote"] is not None:
-                out.append(Verdict(name, "refuse", "not in the profile's [safety] writable"))
-                continue
-            if allowed_side is None:  # what the PLC itself rewrites because of a write the profile allows
-                allowed_side = frozenset(guard.keys(list(guard.side_effects(sorted(guard.writable, key=str))))) \
-                    if guard.side_effects is not None else frozenset()
-            if element not in allowed_side:
-                out.append(Verdict(name, "refuse", "neither in [safety] writable nor rewritten by the PLC after a "
-                                                   "write it allows"))
-                continue
-        old = age_problem(entry, by_hand)
-        if old:
-            out.append(Verdict(name, "refuse", old))
-            continue
-        out.append(Verdict(name, "check", "", element, entry))
+        else:
+            why = _value_problem(guard, element, entry) or _not_allowed(guard, element, entry, rewritten) \
+                or age_problem(entry, by_hand) or ""
+            out.append(Verdict(name, "refuse", why) if why else Verdict(name, "check", "", element, entry))
     return out
 
 
-def replay_elements(guard: Guard, journal: Journal, report: Recovery, by_hand: bool) -> None:
+def _element(guard: Replayable, name: str, entry: Any) -> tuple[Any, str]:
+    """The one base element a well-formed entry names, or (None, why not)."""
+    problem = ELEMENTS.check(entry)
+    if problem:
+        return None, f"malformed: {problem}"
+    try:
+        elements = guard.split(name)
+    except Exception as exc:  # noqa: BLE001 - any bad name is refused by name
+        return None, f"not an element of this PLC: {exc}"
+    if len(elements) != 1 or str(elements[0]) != name:
+        return None, "not one base element (a journal names bits and words)"
+    return elements[0], ""
+
+
+def _value_problem(guard: Replayable, element: Any, entry: dict[str, Any]) -> str | None:
+    bad = next(filter(None, (guard.value_problem(element, v) for v in [entry["original"], *run_left(entry)])), None)
+    return f"malformed: {bad}" if bad else None
+
+
+class _Rewritten:
+    """What the PLC itself rewrites because of a write the profile allows (its side effects), read once."""
+
+    def __init__(self, guard: Replayable) -> None:
+        self.guard = guard
+        self._elements: frozenset[Any] | None = None
+
+    def __contains__(self, element: Any) -> bool:
+        if self._elements is None:
+            guard = self.guard
+            self._elements = frozenset(guard.keys(list(guard.side_effects(sorted(guard.writable, key=str))))) \
+                if guard.side_effects is not None else frozenset()
+        return element in self._elements
+
+
+def _not_allowed(guard: Replayable, element: Any, entry: dict[str, Any], rewritten: _Rewritten) -> str | None:
+    """Why the profile does not let recovery put ``element`` back (None: it does)."""
+    if element in guard.writable:
+        return None
+    if entry["wrote"] is not None:
+        return "not in the profile's [safety] writable"
+    if element not in rewritten:
+        return "neither in [safety] writable nor rewritten by the PLC after a write it allows"
+    return None
+
+
+def element_outcome(verdict: Verdict, now: Any = None, done: PutBack | None = None) -> tuple[Outcome, str]:
+    """The one decision of what became of an element entry, and its line in the report — for a run's recovery,
+    ``hil restore`` and ``hil restore --show`` alike: refused or dropped by its :class:`Verdict`; else, from what
+    it holds ``now``, back already, changed since (left), or to restore — which ``done`` (the put-back, None for
+    ``--show``) says was restored or failed."""
+    name = verdict.name
+    if verdict.action == "refuse":
+        return Outcome.REFUSED, f"{name}: {verdict.why}"
+    if verdict.action == "drop":
+        return Outcome.DROPPED, f"{name}: {verdict.why}"
+    original = verdict.original
+    decision = still_the_runs(now, original, verdict.left)
+    if decision == CHANGED:
+        return Outcome.CHANGED, changed_line(name, now, verdict.left or [], original)
+    if decision == RESTORE and done is None:
+        whose = ", the PLC's own)" if verdict.left is None else ", as the run left it)"
+        return Outcome.PLANNED, f"{name} to {original} (reads {now}{whose}"
+    why = done.why(verdict.element) if decision == RESTORE and done is not None else None
+    if why is not None:
+        return Outcome.FAILED, f"{name} (original {original}): {why}"
+    return Outcome.RESTORED, f"{name} = {original}"
+
+
+def replay_elements(guard: Replayable, journal: Journal, report: Recovery, by_hand: bool) -> None:
     """Put back each element that still holds what the run wrote, read back; list the rest.
 
     In two passes: first the causes of the PLC's own rewrites (an EN, FUN86's Sn/Zn registers: what
@@ -208,12 +224,9 @@ def replay_elements(guard: Guard, journal: Journal, report: Recovery, by_hand: b
     happened to hold its original would be taken as back, and the PLC's next rewrite would stay."""
     checks, causes = [], []
     for verdict in element_verdicts(guard, journal, by_hand):
-        label = f"{verdict.name}"
-        if verdict.action == "refuse":
-            report.refused.append(f"{label}: {verdict.why}")
-        elif verdict.action == "drop":
-            report.notes.append(f"{label}: {verdict.why}")
-            if not report.show:
+        if verdict.action != "check":
+            report.add(*element_outcome(verdict))
+            if verdict.action == "drop" and not report.show:
                 journal.drop_elements([verdict.name])
         elif guard.causes_side_effects(verdict.element):
             causes.append(verdict)
@@ -224,41 +237,29 @@ def replay_elements(guard: Guard, journal: Journal, report: Recovery, by_hand: b
             _replay(guard, journal, report, stage)
 
 
-def _replay(guard: Guard, journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
+def _replay(guard: Replayable, journal: Journal, report: Recovery, checks: list[Verdict]) -> None:
     """One pass of :func:`replay_elements`: read ``checks``, put back those that still hold what the run wrote
     (:func:`still_the_runs`); with ``report.show`` only say so."""
     try:
         now = guard.read_originals([v.element for v in checks])
     except Exception as exc:  # noqa: BLE001 - nothing is written without knowing what is there
-        report.failures += [f"{v.name} (original {v.entry['original']}): reading it failed: {exc}" for v in checks]
+        report.failures += [f"{v.name} (original {v.original}): reading it failed: {exc}" for v in checks]
         return
-    back, restore = [], []
+    done = None
+    if not report.show:
+        restore = [(v.element, v.original) for v, value in zip(checks, now)
+                   if still_the_runs(value, v.original, v.left) == RESTORE]
+        done = guard.put_back(restore)
+    back = []
     for verdict, value in zip(checks, now):
-        original = verdict.entry["original"]
-        left = run_left(verdict.entry) if verdict.entry["wrote"] is not None else None
-        decision = still_the_runs(value, original, left)
-        if decision == BACK:
-            back.append(verdict)
-        elif decision == RESTORE:
-            restore.append(verdict)
-            if report.show:
-                report.planned.append(f"{verdict.name} to {original} (reads {value}"
-                                      + (", the PLC's own)" if left is None else ", as the run left it)"))
-        else:
-            report.changed.append(changed_line(verdict.name, value, left or [], original))
-    if report.show:
-        report.verified += [f"{v.name} = {v.entry['original']}" for v in back]
-        return
-    bad = {str(name): why for name, _, why in guard._put_back([(v.element, v.entry["original"]) for v in restore])} \
-        if restore else {}
-    for verdict in restore:
-        if verdict.name in bad:
-            report.failures.append(f"{verdict.name} (original {verdict.entry['original']}): {bad[verdict.name]}")
-        else:
-            back.append(verdict)
-    report.verified += [f"{v.name} = {v.entry['original']}" for v in back]
-    journal.drop_elements(v.name for v in back)
+        outcome, line = element_outcome(verdict, value, done)
+        report.add(outcome, line)
+        if outcome is Outcome.RESTORED:
+            back.append(verdict.name)
+    if not report.show:
+        journal.drop_elements(back)
 
 
-__all__ = ["BACK", "CHANGED", "MAX_AGE", "RESTORE", "Recovery", "Verdict", "age_problem", "changed_line",
-           "element_verdicts", "identity_problem", "replay_elements", "still_the_runs"]
+__all__ = ["BACK", "CHANGED", "MAX_AGE", "RESTORE", "Recovery", "Replayable", "Verdict", "age_problem",
+           "changed_line", "element_outcome", "element_verdicts", "identity_problem",
+           "replay_elements", "still_the_runs"]

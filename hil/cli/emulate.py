@@ -16,7 +16,7 @@ from typing import Any
 
 from rich.console import Console
 
-from hil.bench.family import build_emulator
+from hil.bench.family import build_emulator, family
 from hil.bench.profile import Profile, load_profile
 from hil.cli.emulate_live import LivePanel
 from hil.cli.parser import Subparsers
@@ -143,7 +143,8 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
-            servers.append(_listening(where, partial(profile.plugin.serve, profile, emulator, wire, host, port)))
+            serve = partial(family(profile.family).serve, profile, emulator, wire, host, port)
+            servers.append(_listening(where, serve))
             print(f"{servers[-1].kind} {servers[-1].address}", flush=True)
         if rig_modbus_tcp:
             servers.append(_serve_rig(emulator, rig_modbus_tcp, rig_first_coil))

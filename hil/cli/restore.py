@@ -15,25 +15,21 @@ import contextlib
 import ipaddress
 import os
 import socket
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from rich.console import Console
 from rich.markup import escape
 
 from hil.bench.family import open_bench
 from hil.bench.profile import Profile, load_profile
+from hil.bench.recovery import Recovery
 from hil.cli.parser import Subparsers
 from hil.core.errors import HilError
-from hil.core.journal import inspect, journal_dir
+from hil.core.journal import Journal, inspect, journal_dir
 from hil.core.lock import BenchLock, lock_key, plc_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
-
-if TYPE_CHECKING:
-    from hil.bench.replay import Recovery
-    from hil.core.journal import Journal
 
 
 def restore(url: str | None, bench: str | None, console: Console, *, show: bool = False,
@@ -51,7 +47,8 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
         finally:
             opened.close()
     if report is None:
-        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)", highlight=False, soft_wrap=True)
+        console.print(f"nothing pending: {target} is an in-process emulator (no run outlives itself)",
+                      highlight=False, soft_wrap=True)
         return 0
     console.print(escape(report.summary()), highlight=False, soft_wrap=True)
     return 0 if report.ok else 1
@@ -67,6 +64,9 @@ def _locked(profile: Profile, target: str) -> Iterator[str]:
         yield target
 
 
+Say = Callable[..., None]  # a line on the console: say(text, style="")
+
+
 def _show(url: str | None, bench: str | None, console: Console) -> int:
     """Every journal found, whose and which bench's, and — for the profile's PLC — what a restore would do with
     each entry on what the PLC holds now (read, nothing written); a refused file in one line."""
@@ -78,36 +78,46 @@ def _show(url: str | None, bench: str | None, console: Console) -> int:
         profile = load_profile(bench or default_bench())
         planned = _plan(profile, url or profile.target, say)
     shown = 0
-    for path in sorted(journal_dir().glob("journal-*.json")):
-        key, journal, refused = inspect(path)
-        if url and bench is None and journal is not None and lock_key(url) not in (key, journal.data.get("endpoint")):
-            continue  # only the journals of the PLC at URL
-        if refused:
-            shown += 1
-            say(f"refused {refused}", "bold red")
-            continue
-        assert journal is not None
-        if not journal.pending:
-            continue
+    for path, key, journal, refused in _journals(url, bench):
         shown += 1
-        say(_header(path, str(key), journal), "bold")
-        part = planned.get(path)
-        if part is not None:
-            for label, item in _items(part):
-                say(f"  {label}: {item}")
-        else:
-            for line in journal.describe():
-                say(f"  {line}")
-            say("  what a restore would do: needs the PLC's profile to read it — hil restore --show --bench FILE",
-                "yellow")
-        for note in _gone(str(journal.data.get("endpoint") or key), journal.data):
-            say(f"  {note}", "yellow")
+        if refused:
+            say(f"refused {refused}", "bold red")
+        elif journal is not None:
+            _show_journal(say, path, key, journal, planned.get(path))
     if not shown:
         say("nothing pending: no run left a PLC changed")
     return 0
 
 
-def _plan(profile: Profile, target: str, say) -> dict[Path, Recovery]:  # noqa: ANN001 - a local printer
+def _journals(url: str | None, bench: str | None) -> Iterator[tuple[Path, str, Journal | None, str | None]]:
+    """Each journal file to list: (its path, its key, the journal or None, why it is refused or None) — one left
+    pending or refused; with a URL and no profile, only the journals of the PLC at that URL."""
+    for path in sorted(journal_dir().glob("journal-*.json")):
+        key, journal, refused = inspect(path)
+        if url and bench is None and journal is not None and lock_key(url) not in (key, journal.data.get("endpoint")):
+            continue
+        if refused or (journal is not None and journal.pending):
+            yield path, str(key), journal, refused
+
+
+def _show_journal(say: Say, path: Path, key: str, journal: Journal, part: Recovery | None) -> None:
+    """One journal: whose, what a restore would do with each entry (``part``: decided by the restore's own code,
+    :meth:`hil.bench.guard.Guard.recover` with ``show``) or, without the PLC's profile, what it holds."""
+    say(_header(path, key, journal), "bold")
+    if part is not None:
+        for label, lines in part.sections():
+            for line in lines:
+                say(f"  {label}: {line}")
+    else:
+        for line in journal.describe():
+            say(f"  {line}")
+        say("  what a restore would do: needs the PLC's profile to read it — hil restore --show --bench FILE",
+            "yellow")
+    for note in _gone(str(journal.data.get("endpoint") or key), journal.data):
+        say(f"  {note}", "yellow")
+
+
+def _plan(profile: Profile, target: str, say: Say) -> dict[Path, Recovery]:
     """What a restore would do with each journal of the profile's PLC (by file): the restore's own decisions
     (:meth:`hil.bench.guard.Guard.recover` with ``show``), on the PLC read now under the bench's locks.  Empty,
     and said, when a run holds the bench (its PLC is not read behind that run's back)."""
@@ -122,13 +132,6 @@ def _plan(profile: Profile, target: str, say) -> dict[Path, Recovery]:  # noqa: 
         say(f"{target} not read ({exc}): its journals are listed as they are", "yellow")
         return {}
     return {} if report is None else {Path(part.path): part for part in report.parts}
-
-
-def _items(report: Recovery) -> Iterator[tuple[str, str]]:
-    """One line per entry of a ``show`` report: what a restore would do with it."""
-    for what, lines in report.sections():
-        for line in lines:
-            yield what, line
 
 
 def _header(path: Path, key: str, journal: Journal) -> str:
@@ -193,7 +196,6 @@ def _listening(host: str, port: int) -> bool:
             return True
     except OSError:
         return False
-
 
 
 __all__ = ["restore"]

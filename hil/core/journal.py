@@ -604,10 +604,10 @@ class Journal:
                 if name not in entries:
                     entries[name] = {"original": int(value), "wrote": wrote.get(name), **stamp}
                     changed = True
-            for name, value in wrote.items():
+            for name, written in wrote.items():
                 old = entries.get(name)
-                if old is not None and value is not None and old.get("wrote") != value:
-                    entries[name] = {**old, "wrote": int(value), **_earlier(old)}
+                if old is not None and written is not None and old.get("wrote") != written:
+                    entries[name] = {**old, "wrote": int(written), **_earlier(old)}
                     changed = True
             return changed
         self._change(apply)
@@ -728,6 +728,6 @@ class Journal:
                                f"without its originals on disk") from None
 
 
-__all__ = ["DISABLED", "ELEMENTS", "ENABLE", "CLOCK", "COILS", "EntryKind", "Journal", "JournalError", "JournalRefused",
-           "KINDS", "RUN", "VERSION", "entry_id", "inspect", "journal_path", "lane_of", "parse", "register_kind", "run_left",
-           "journal_dir", "state_dir"]
+__all__ = ["CLOCK", "COILS", "DISABLED", "ELEMENTS", "ENABLE", "KINDS", "RUN", "VERSION", "EntryKind", "Journal",
+           "JournalError", "JournalRefused", "entry_id", "inspect", "journal_dir", "journal_path", "lane_of", "parse",
+           "register_kind", "run_left", "state_dir"]

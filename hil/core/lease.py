@@ -65,10 +65,10 @@ class LockLender:
                 conn, _ = self._server.accept()
             except OSError:
                 return  # closed
-            with conn:
-                with contextlib.suppress(OSError):  # a worker that died connecting: the next one is served
-                    if _child_of_mine(conn):
-                        socket.send_fds(conn, [_HELLO], self.fds)
+            # a worker that died connecting: the next one is served
+            with conn, contextlib.suppress(OSError):
+                if _child_of_mine(conn):
+                    socket.send_fds(conn, [_HELLO], self.fds)
 
     def close(self) -> None:
         with contextlib.suppress(OSError):

@@ -13,6 +13,7 @@ In-process ``emulator…`` targets need no lock: each run builds its own emulato
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import fcntl
 import getpass
@@ -24,6 +25,7 @@ import stat
 import sys
 import time
 from pathlib import Path
+from urllib.parse import urlsplit
 
 from hil.core.errors import HilError
 from hil.core.paths import (
@@ -79,22 +81,26 @@ def lock_key(target: str) -> str:
             device = "/" + device
         return f"serial://{os.path.realpath(device)}"
     if network:  # an RFC 2217 server too: the key is the endpoint it listens on
-        from urllib.parse import urlsplit
-        parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
-        host = (parts.hostname or "").lower()
-        try:
-            port = parts.port or (entry.default_port if entry is not None else None) or 0
-        except ValueError:
-            port = 0
-        try:
-            infos = socket.getaddrinfo(host, port or None, type=socket.SOCK_STREAM)
-            address = sorted(infos, key=lambda i: i[0] != socket.AF_INET)[0][4][0]
-        except (OSError, IndexError, UnicodeError):
-            address = host
-        if address in ("::1", "0.0.0.0", "::") or address.startswith("127."):
-            address = "127.0.0.1"  # every spelling of this host's loopback is one host
-        return f"tcp://{address}:{port}"
+        return _endpoint_key(scheme, rest, entry.default_port if entry is not None else None)
     return f"{scheme}://{rest.rstrip('/')}"
+
+
+def _endpoint_key(scheme: str, rest: str, default_port: int | None) -> str:
+    """``tcp://ADDRESS:PORT`` for a network URL's ``rest`` (host[:port][/…]): the host resolved, the loopback one."""
+    parts = urlsplit(f"{scheme}://{rest.rstrip('/')}")
+    host = (parts.hostname or "").lower()
+    try:
+        port = parts.port or default_port or 0
+    except ValueError:
+        port = 0
+    try:
+        infos = socket.getaddrinfo(host, port or None, type=socket.SOCK_STREAM)
+        address = str(sorted(infos, key=lambda i: i[0] != socket.AF_INET)[0][4][0])
+    except (OSError, IndexError, UnicodeError):
+        address = host
+    if address in ("::1", "0.0.0.0", "::") or address.startswith("127."):
+        address = "127.0.0.1"  # every spelling of this host's loopback is one host
+    return f"tcp://{address}:{port}"
 
 
 def plc_key(target: str, plc_id: str | None = None) -> str:
@@ -167,10 +173,9 @@ class BenchLock:
             return
         fd, self._fd = self._fd, None
         try:
-            try:
+            # opened read-only (another user's file): there is no record of ours to clear
+            with contextlib.suppress(OSError):
                 os.ftruncate(fd, 0)
-            except OSError:
-                pass  # opened read-only (another user's file): there is no record of ours to clear
             fcntl.flock(fd, fcntl.LOCK_UN)
         finally:
             os.close(fd)

@@ -212,9 +212,8 @@ def bench_dir_problem(directory: Path, group: int | None = None) -> str | None:
     if mode & stat.S_ISVTX and mode & 0o020:
         return (f"{shown} has the sticky bit — refusing it: one user of the bench could not put back or clear "
                 f"another's journal; chmod 2770 {directory}")
-    if info.st_uid not in (os.getuid(), 0):
-        if info.st_gid not in _my_groups() or not mode & 0o070:
-            return f"{shown} belongs to another user and is not shared with a group of yours — refusing it; {fix}"
+    if info.st_uid not in (os.getuid(), 0) and (info.st_gid not in _my_groups() or not mode & 0o070):
+        return f"{shown} belongs to another user and is not shared with a group of yours — refusing it; {fix}"
     if group is not None and info.st_gid != group:
         return (f"{shown} is not the bench group {_group_name(group)}'s ({BENCH_GROUP_ENV}) — refusing it; "
                 f"chgrp {group} {directory} && chmod 2770 {directory}")

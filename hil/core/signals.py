@@ -33,10 +33,8 @@ def _handler(signum: int, frame: object) -> None:
     if _depth or _stopping:
         if _pending is None and not _stopping:
             _pending = signum
-        try:
+        with contextlib.suppress(OSError):  # no stderr to say it on: the restore goes on regardless
             os.write(2, f"\nhil: {name} received — restoring the PLC first, then stopping\n".encode())
-        except OSError:
-            pass
         return
     _stopping = True
     raise KeyboardInterrupt(f"{name} received")
@@ -60,10 +58,8 @@ def uninstall() -> None:
     global _stopping
     _stopping = False
     for signum, previous in list(_installed.items()):
-        try:
-            signal.signal(signum, previous)  # type: ignore[arg-type]
-        except (ValueError, OSError, TypeError):
-            pass
+        with contextlib.suppress(ValueError, OSError, TypeError):  # not the main thread, or a handler set in C
+            signal.signal(signum, previous)  # type: ignore[arg-type]  # None: a handler not set from Python
         del _installed[signum]
 
 

@@ -15,13 +15,17 @@ import re
 from collections import Counter, defaultdict
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from hil.plugin.reporting.console import plural, shown_outcomes
 from hil.plugin.reporting.model import Series, TestRecord, outcome_counts
 from hil.plugin.reporting.requirements import requirements_section
 from hil.plugin.reporting.verdict import INCOMPLETE, Verdict
+
+if TYPE_CHECKING:  # matplotlib loads when a plot is drawn, not when a report module is imported
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
 MAX_TRACE_LINES = 400  # per test in the page; the full trace is in reports/traces/
 
@@ -30,14 +34,16 @@ body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;
 h1{margin:0 0 4px;font-size:24px} h2{margin-top:28px;border-bottom:1px solid #d8dee4;padding-bottom:4px}
 .meta{color:#57606a;margin-bottom:16px}
 table{border-collapse:collapse;margin:8px 0;background:#fff;max-width:100%}
-table.other{table-layout:fixed;width:100%} table.other col.o{width:7em} table.other col.a{width:8em}
+table.other{table-layout:fixed;width:100%;min-width:36em} table.other col.o{width:7em} table.other col.a{width:8em}
 table.other col.s{width:5em} table.other col.t{width:45%}
 table.other td code{overflow-wrap:anywhere}
 td{overflow-wrap:anywhere}
 th,td{border:1px solid #d8dee4;padding:4px 10px;text-align:left;vertical-align:top;font-size:14px}
 th{background:#f1f3f5}
 td.n{text-align:right;font-variant-numeric:tabular-nums}
-.badge{display:inline-block;white-space:nowrap;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;color:#fff}
+.scroll{overflow-x:auto;max-width:100%}
+.badge{display:inline-block;white-space:nowrap;padding:1px 8px;border-radius:10px;font-size:12px;font-weight:600;
+color:#fff}
 .passed{background:#1a7f37}.failed,.error{background:#cf222e}.skipped,.xfailed{background:#9a6700}
 .aborted,.incomplete{background:#6639ba}
 .FAIL{color:#cf222e;font-weight:600}.PASS{color:#1a7f37;font-weight:600}.UNSET{color:#9a6700;font-weight:600}
@@ -58,11 +64,13 @@ pre{background:#f6f8fa;border:1px solid #d8dee4;padding:8px;overflow-x:auto;font
 img.plot{max-width:100%;border:1px solid #d8dee4;background:#fff;margin:6px 0}
 details summary{cursor:pointer;color:#0969da}
 .filters{margin:8px 0;position:sticky;top:0;background:#fafbfc;padding:6px 0;z-index:1}
+@media (max-width:600px){body{margin:10px}}
 """
 
 
-def plot_png(series: Series) -> bytes:
-    """The series as a PNG: each column against ``x``; ``secondary`` columns on a right-hand axis."""
+def plot_figure(series: Series) -> Figure:
+    """The series drawn: each column against ``x``; ``secondary`` columns on a right-hand axis; the legend below
+    the axes, inside the picture."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -71,10 +79,10 @@ def plot_png(series: Series) -> bytes:
     ax = fig.add_subplot(1, 1, 1)
     xs = series.columns[series.x]
     right = ax.twinx() if series.secondary else None
-    lines = []
+    lines: list[Line2D] = []
     colors = ["#0969da", "#cf222e", "#1a7f37", "#8250df", "#bc4c00", "#57606a"]
     for i, (name, ys) in enumerate((c, v) for c, v in series.columns.items() if c != series.x):
-        target = right if name in series.secondary else ax
+        target = right if right is not None and name in series.secondary else ax
         style = "--" if target is right else "-"
         marker = "o" if len(xs) <= 40 else None
         lines += target.plot(xs, ys, style, color=colors[i % len(colors)], marker=marker, markersize=3,
@@ -86,11 +94,16 @@ def plot_png(series: Series) -> bytes:
     ax.set_title(series.title, fontsize=11)
     ax.grid(True, alpha=0.3)
     # below the axes: a legend inside covers the data (a PID trace fills the whole box)
-    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper center", bbox_to_anchor=(0.5, -0.2),
-              ncol=max(1, len(lines)), fontsize=8, frameon=False)
+    ax.legend(handles=lines, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=max(1, len(lines)), fontsize=8,
+              frameon=False)
     fig.tight_layout()
+    return fig
+
+
+def plot_png(series: Series) -> bytes:
+    """The series as a PNG (:func:`plot_figure`)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png")
+    plot_figure(series).savefig(buf, format="png")
     return buf.getvalue()
 
 
@@ -131,50 +144,72 @@ def _summary(records: list[TestRecord]) -> str:
     cells = "".join(f'<td class="n"><b>{total.get(o, 0)}</b></td>' for o in outcomes)
     rows.append(f"<tr><td><b>all</b></td>{cells}<td></td></tr>")
     head = "".join(f"<th>{o}</th>" for o in outcomes)
-    return f"<table><tr><th>area</th>{head}<th>skip reasons</th></tr>{''.join(rows)}</table>"
+    return _scrolling(f"<table><tr><th>area</th>{head}<th>skip reasons</th></tr>{''.join(rows)}</table>")
 
 
 def _test(record: TestRecord, base: Path, history: Any = None) -> str:
+    """One test's card: its heading, then whatever it left — measurements, the failure or skip reason, plots,
+    attachments, the wire trace."""
     opened = " open" if record.outcome.bad or record.series else ""
     parts = [f'<details class="test {record.outcome} {record.outcome}-row" id="{_e(record.nodeid)}"{opened}>',
              f'<summary><h3 style="display:inline"><span class="badge {record.outcome}">{record.outcome}</span> '
              f'{_id(record.nodeid)}</h3></summary>',
-             f'<div class="meta">area {_e(record.area)} · {record.duration:.3f} s</div>']
-    if record.measurements:
-        rows = "".join(
-            f"<tr><td>{_e(m.name)}</td><td class='n'>{'—' if m.value is None else f'{m.value:g}'}</td>"
-            f"<td>{_e(m.unit)}</td>"
-            f"<td class='n'>{'' if m.low is None else f'{m.low:g}'}</td>"
-            f"<td class='n'>{'' if m.high is None else f'{m.high:g}'}</td>"
-            f"<td class='{m.outcome}'>{m.outcome}</td>"
-            + (f"<td>{history.beside(record.nodeid, m)}</td>" if history is not None else "") + "</tr>"
-            for m in record.measurements)
-        more = f"<th>{_e(history.label)}</th>" if history is not None else ""  # hil.history.annotate
-        parts.append("<table><tr><th>measurement</th><th>value</th><th>unit</th><th>low</th><th>high</th>"
-                     f"<th>outcome</th>{more}</tr>{rows}</table>")
+             f'<div class="meta">area {_e(record.area)} · {record.duration:.3f} s</div>',
+             _measurements(record, history), _why(record), *(_plot(series) for series in record.series),
+             *(f"<div>attached: {_link(attached, base)}</div>" for attached in record.attachments),
+             _trace(record), "</details>"]
+    return "\n".join(part for part in parts if part)
+
+
+def _number(value: float | None) -> str:
+    return "" if value is None else f"{value:g}"
+
+
+def _measurements(record: TestRecord, history: Any) -> str:
+    """The test's measurements with their limits and outcome; beside each, its history
+    (:class:`hil.history.annotate.Annotations`) when the bench has earlier runs."""
+    if not record.measurements:
+        return ""
+    rows = "".join(
+        f"<tr><td>{_e(m.name)}</td><td class='n'>{_number(m.value) or '—'}</td><td>{_e(m.unit)}</td>"
+        f"<td class='n'>{_number(m.low)}</td><td class='n'>{_number(m.high)}</td>"
+        f"<td class='{m.outcome}'>{m.outcome}</td>"
+        + (f"<td>{history.beside(record.nodeid, m)}</td>" if history is not None else "") + "</tr>"
+        for m in record.measurements)
+    more = f"<th>{_e(history.label)}</th>" if history is not None else ""
+    return _scrolling("<table><tr><th>measurement</th><th>value</th><th>unit</th><th>low</th><th>high</th>"
+                      f"<th>outcome</th>{more}</tr>{rows}</table>")
+
+
+def _why(record: TestRecord) -> str:
+    """What a failed test reported (its traceback), or why it was skipped or expected to fail."""
     if record.outcome.bad and (record.longrepr or record.message):
-        parts.append(f"<pre>{_e(record.longrepr or record.message)}</pre>")
-    elif record.outcome in ("skipped", "xfailed") and record.message:
-        parts.append(f"<div>{record.outcome}: {_e(record.message)}</div>")
-    for series in record.series:
-        try:
-            data = base64.b64encode(plot_png(series)).decode("ascii")
-            parts.append(f'<img class="plot" alt="{_e(series.title)}" src="data:image/png;base64,{data}">')
-        except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the report
-            parts.append(f"<div>plot {_e(series.name)} could not be drawn: {_e(exc)}</div>")
-    for attached in record.attachments:
-        parts.append(f"<div>attached: {_link(attached, base)}</div>")
-    if record.trace:
-        lines = record.trace.splitlines()
-        shown = "\n".join(lines[:MAX_TRACE_LINES])
-        more = (f"\n… {len(lines) - MAX_TRACE_LINES} more lines in {record.trace_file}"
-                if len(lines) > MAX_TRACE_LINES else "")
-        where = f" — {_e(record.trace_file)}" if record.trace_file else ""
-        unit = "calls" if "(calls)" in lines[0] else "frames"  # the in-process target records calls, not frames
-        parts.append(f"<details{' open' if record.outcome.bad else ''}><summary>wire trace "
-                     f"({plural(len(lines) - 1, unit[:-1])}){where}</summary><pre>{_e(shown + more)}</pre></details>")
-    parts.append("</details>")
-    return "\n".join(parts)
+        return f"<pre>{_e(record.longrepr or record.message)}</pre>"
+    if record.outcome in ("skipped", "xfailed") and record.message:
+        return f"<div>{record.outcome}: {_e(record.message)}</div>"
+    return ""
+
+
+def _plot(series: Series) -> str:
+    try:
+        data = base64.b64encode(plot_png(series)).decode("ascii")
+    except Exception as exc:  # noqa: BLE001 - a broken plot must not lose the report
+        return f"<div>plot {_e(series.name)} could not be drawn: {_e(exc)}</div>"
+    return f'<img class="plot" alt="{_e(series.title)}" src="data:image/png;base64,{data}">'
+
+
+def _trace(record: TestRecord) -> str:
+    """The wire trace's first lines, open when the test went wrong; the whole trace is in ``record.trace_file``."""
+    if not record.trace:
+        return ""
+    lines = record.trace.splitlines()
+    shown = "\n".join(lines[:MAX_TRACE_LINES])
+    more = (f"\n… {len(lines) - MAX_TRACE_LINES} more lines in {record.trace_file}"
+            if len(lines) > MAX_TRACE_LINES else "")
+    where = f" — {_e(record.trace_file)}" if record.trace_file else ""
+    unit = "call" if "(calls)" in lines[0] else "frame"  # the in-process target records calls, not frames
+    return (f"<details{' open' if record.outcome.bad else ''}><summary>wire trace "
+            f"({plural(len(lines) - 1, unit)}){where}</summary><pre>{_e(shown + more)}</pre></details>")
 
 
 def _section(records: list[TestRecord], properties: list[tuple[str, str]], base: Path, history: Any = None) -> str:
@@ -190,13 +225,21 @@ def _section(records: list[TestRecord], properties: list[tuple[str, str]], base:
                        f'<td>{_e(r.area)}</td><td><code>{_id(r.nodeid)}</code></td>'
                        f'<td class="n">{r.duration:.3f}</td>'
                        f'<td>{_e(r.message if r.outcome in ("skipped", "xfailed") else "")}</td></tr>' for r in plain)
-        tests += _collapsible("Other tests", '<table class="other"><colgroup><col class="o"><col class="a">'
-                              '<col class="t"><col class="s"><col></colgroup><tr><th>outcome</th><th>area</th>'
-                              f'<th>test</th><th>s</th><th>reason</th></tr>{rows}</table>', level=3)
-    return (_collapsible("Bench and PLC", f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
+        tests += _collapsible("Other tests", _scrolling(
+            '<table class="other"><colgroup><col class="o"><col class="a"><col class="t"><col class="s"><col>'
+            f'</colgroup><tr><th>outcome</th><th>area</th><th>test</th><th>s</th><th>reason</th></tr>{rows}</table>'),
+            level=3)
+    bench = _scrolling(f"<table>{props or '<tr><td>no bench was used</td></tr>'}</table>")
+    return (_collapsible("Bench and PLC", bench)
             + _collapsible("Summary by area", _summary(records))
-            + (_collapsible("Requirements", table) if (table := requirements_section(records)) else "")
+            + (_collapsible("Requirements", _scrolling(table)) if (table := requirements_section(records)) else "")
             + _collapsible("Tests", tests or "<p>no tests ran</p>"))
+
+
+def _scrolling(table: str) -> str:
+    """A table in a box of its own that scrolls sideways when the window is narrower than the table (a phone),
+    so the page itself never does."""
+    return f'<div class="scroll">{table}</div>'
 
 
 def _collapsible(title: str, body: str, *, level: int = 2, opened: bool = True) -> str:
@@ -235,7 +278,7 @@ def write_html_sections(path: Path, sections: list[tuple[str, list[TestRecord], 
 
     The badge is ``verdict``'s; without one (a page made outside a session) it is read from the records."""
     everything = [r for _, records, _ in sections for r in records]
-    counts = Counter(r.outcome for r in everything)
+    counts = Counter(str(r.outcome) for r in everything)
     if verdict is None:
         verdict = Verdict("FAILED" if any(r.outcome.bad for r in everything) else "PASSED")
     if len(sections) == 1 and not sections[0][0]:

@@ -29,6 +29,7 @@ from hil.plugin.reporting.console import WaitProgress
 from hil.plugin.reporting.identity import suite_properties
 from hil.plugin.reporting.model import Measurement, Series, TestOutcome, TestRecord, area_of
 from hil.plugin.reporting.outputs import RUN, Moment, RunRecord, emit
+from hil.plugin.reporting.suite_ids import show_suite_ids_from_their_root
 from hil.plugin.reporting.verdict import Stops, Verdict, describe, incomplete, status_of
 from hil.plugin.requirements import PROPERTY as REQUIREMENTS
 from hil.plugin.safety import AS_FOUND, PLC_LEFT
@@ -55,6 +56,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 @pytest.hookimpl(trylast=True)
 def pytest_configure(config: pytest.Config) -> None:
+    show_suite_ids_from_their_root(config)
     if getattr(config, "workerinput", None) is not None:
         return  # an xdist worker: the controller reports
     plugin = Reporter(config)
