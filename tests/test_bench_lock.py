@@ -157,7 +157,7 @@ def test_plugin_refuses_a_bench_another_run_holds(tmp_path, pytester):
                                               "no:cacheprovider")
         # before anything is collected: one line naming the holder, exit 4 (hil.plugin.preflight)
         assert result.ret == 4
-        result.stderr.fnmatch_lines([f"ERROR: hil: cannot open bench *bench {TARGET}*is in use by pid {proc.pid} on "
+        result.stderr.fnmatch_lines([f"hil: error: cannot open bench *bench {TARGET}*is in use by pid {proc.pid} on "
                                      f"*waited*"])
     finally:
         _end(proc)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.cli import main as cli
+from hil.cli import drift
 from hil.cli.main import main
 from hil.cli.run import pytest_args, selects_tests
 
@@ -92,9 +92,9 @@ def test_exit_codes_are_pytests(capsys, tmp_path: Path) -> None:
 
 
 def test_a_bug_shows_its_traceback(capsys, monkeypatch) -> None:
-    def broken(args, console):  # noqa: ANN001, ANN202
+    def broken(rate, console):  # noqa: ANN001, ANN202
         raise ZeroDivisionError("a bug")
-    monkeypatch.setattr(cli, "dispatch", broken)
+    monkeypatch.setattr(drift, "drift_code", broken)
     assert main(["drift", "code", "3.38"]) == EXIT_INTERNAL
     err = capsys.readouterr().err
     assert "Traceback" in err and "ZeroDivisionError: a bug" in err and "internal error" in err

@@ -205,9 +205,9 @@ def test_a_closed_loop_on_an_emulator_without_a_plant_says_so(tmp_path):
 
 @pytest.mark.parametrize("argv, usage, says", [
     (["rnu"], "usage: hil [", "invalid choice: 'rnu'"),
-    (["run", "--bnech", "x"], "usage: hil run [", "--bnech (did you mean --bench?)"),
-    (["probe", "--bogus"], "usage: hil probe [", "hil probe: error: unrecognized arguments: --bogus"),
-    (["history", "trend", "x", "--bnech", "y"], "usage: hil history trend [", "(did you mean --bench?)"),
+    (["run", "--bnech", "x"], "usage: hil run [", "--bnech — did you mean --bench?"),
+    (["probe", "--bogus"], "usage: hil probe [", "hil: error: unrecognized arguments: --bogus — see hil probe --help"),
+    (["history", "trend", "x", "--bnech", "y"], "usage: hil history trend [", "— did you mean --bench?"),
 ], ids=["command", "run-option", "probe-option", "history-option"])
 def test_a_mistyped_command_or_option_is_answered_by_its_own_command(argv, usage, says, tmp_path: Path) -> None:
     done = hil(*argv, cwd=tmp_path)

@@ -129,7 +129,7 @@ def test_the_password_is_in_no_lock_file_message_console_report_or_listing(tmp_p
     else:
         said = listed.stderr.strip().splitlines()
         assert listed.returncode == 4 and len(said) == 1 and "Traceback" not in listed.stderr, listed
-        assert said[0].startswith("hil history: history store postgresql+psycopg://hil@") and "unreachable" in said[0]
+        assert said[0].startswith("hil: error: history store postgresql+psycopg://hil@") and "unreachable" in said[0]
         assert "password=***" in said[0] and "check that its server runs" in said[0], said
 
 
@@ -145,7 +145,7 @@ def test_an_unreachable_store_is_one_line_exit_4(tmp_path, action):
         done = _hil("history", action, "--url", url, cwd=REPO, HIL_STATE_DIR=str(tmp_path / "state"))
     said = done.stderr.strip().splitlines()
     assert done.returncode == 4 and len(said) == 1 and not done.stdout.strip(), done
-    assert said[0].startswith(f"hil history: history store postgresql+psycopg://hil:***@127.0.0.1:"), said
+    assert said[0].startswith(f"hil: error: history store postgresql+psycopg://hil:***@127.0.0.1:"), said
     assert "unreachable" in said[0] and "check that its server runs" in said[0], said
     _no_secret("hil history's error", done.stderr)
 

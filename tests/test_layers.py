@@ -43,15 +43,16 @@ def test_families_are_registered_through_entry_points() -> None:
 
 def test_user_errors_are_one_line_and_bugs_show_their_traceback(capsys, monkeypatch):
     """A HilError (here a value the manual does not allow) is one line; an unexpected exception is a bug."""
+    from hil.cli import drift
     from hil.cli import main as cli
 
     assert cli.main(["drift", "code", "99"]) == 4  # pytest's usage error (issue 18: exit codes as pytest's)
     err = capsys.readouterr().err
-    assert err.startswith("hil drift:") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert err.startswith("hil: error: ") and len(err.strip().splitlines()) == 1 and "Traceback" not in err
 
     def broken(*_args, **_kwargs):
         raise ZeroDivisionError("a bug")
-    monkeypatch.setattr(cli, "dispatch", broken)
+    monkeypatch.setattr(drift, "drift_code", broken)
     assert cli.main(["drift", "code", "1"]) == 3
     err = capsys.readouterr().err
     assert "Traceback" in err and "ZeroDivisionError: a bug" in err and "internal error" in err

@@ -361,7 +361,7 @@ def test_an_fbs_emulator_on_an_s7_bench_is_refused(pytester):
     result = pytester.runpytest_inprocess(str(S7_SUITES / "test_s7_smoke.py"), "--bench", str(S7_BENCH),
                                           "-p", "no:cacheprovider", plugins=[WrongFamily()])
     assert result.ret == 4  # the bench never opens: one line with the reason, before anything is collected
-    result.stderr.fnmatch_lines(["ERROR: hil: cannot open bench *needs an S7 emulator*"])
+    result.stderr.fnmatch_lines(["hil: error: cannot open bench *needs an S7 emulator*"])
     assert len([line for line in result.stderr.lines if line.strip()]) == 1, result.stderr.lines
 
 

@@ -22,6 +22,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from hil.bench.profile import load_profile
+from hil.cli.parser import Subparsers
 from hil.core.errors import InvalidValue
 from hil.core.redact import hide_password
 from hil.history import config
@@ -37,7 +38,7 @@ def _store(args: argparse.Namespace) -> Any:
         profile_url = load_profile(args.profile).history_url
     url = config.resolve(args.url, profile_url)
     if url is None:
-        raise InvalidValue("the history is off ($HIL_HISTORY_URL or [history] url = 'off'): give --url")
+        raise InvalidValue("the history is off ($HIL_HISTORY_URL or [history] url = 'off') — give --url")
     with reaching(url):
         return Store(url)
 
@@ -48,7 +49,7 @@ def _date(text: str | None, what: str) -> dt.datetime | None:
     try:
         return dt.datetime.fromisoformat(text.strip())
     except ValueError:
-        raise InvalidValue(f"{what} {text!r}: write YYYY-MM-DD or YYYY-MM-DD HH:MM (UTC)") from None
+        raise InvalidValue(f"{what} {text!r} — write YYYY-MM-DD or YYYY-MM-DD HH:MM (UTC)") from None
 
 
 def _filters(args: argparse.Namespace) -> dict[str, Any]:
@@ -67,7 +68,7 @@ def _cell(value: Any) -> str:
     return str(value)
 
 
-def _emit(console: Console, title: str, columns: Sequence[str], rows: list[Sequence[Any]]) -> None:
+def _emit(console: Console, title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
     """A rich table on a terminal; tab-separated lines under a header in a pipe."""
     if console.is_terminal:
         table = Table(title=title, title_justify="left")
@@ -82,6 +83,13 @@ def _emit(console: Console, title: str, columns: Sequence[str], rows: list[Seque
     for line in [columns, *rows]:
         out.write("\t".join(_cell(v).replace("\t", " ").replace("\n", " ") for v in line) + "\n")
     out.flush()
+
+
+def _change(a: dict[str, Any] | None, b: dict[str, Any] | None) -> str:
+    """B − A of a measurement both runs have a value of, else nothing."""
+    if a is None or b is None or a["value"] is None or b["value"] is None:
+        return ""
+    return f"{b['value'] - a['value']:+g}"
 
 
 def _say(console: Console, text: str) -> None:
@@ -159,9 +167,7 @@ def _compare(store: Any, args: argparse.Namespace, console: Console) -> int:
             return "not measured (UNSET)"
         return f"{_cell(m['value'])}{' ' + m['unit'] if m['unit'] else ''} {m['outcome']}"
     _emit(console, f"measurements that moved ({len(c.measurements)})", ("test", "measurement", "A", "B", "change"),
-          [(n, name, side(x), side(y),
-            "" if x is None or y is None or x["value"] is None or y["value"] is None else f"{y['value'] - x['value']:+g}")
-           for n, name, x, y in c.measurements])
+          [(n, name, side(x), side(y), _change(x, y)) for n, name, x, y in c.measurements])
     return 0
 
 
@@ -206,40 +212,54 @@ def _flaky(store: Any, args: argparse.Namespace, console: Console) -> int:
 
 def _export(store: Any, args: argparse.Namespace, console: Console) -> int:
     found = store.runs(**_filters(args), newest_first=False)
-    if args.what == "runs":
-        rows = [{k: v for k, v in r.items() if k != "counts"} | {"tests": _counts(r["counts"])} for r in found]
+    rows = _run_rows(found) if args.what == "runs" else _test_rows(store, found, measurements=args.what != "tests")
+    text = _as_json(rows) if args.format == "json" else _as_csv(rows)
+    if args.output:
+        Path(args.output).write_text(text, encoding="utf-8")
+        _say(console, f"{len(rows)} {args.what} written to {args.output}")
     else:
-        rows = []
-        for r in found:
-            for t in store.tests_of(r["id"]):
-                base = {"run": r["id"], "run_uuid": r["uuid"], "started_at": r["started_at"], "bench": r["bench"],
-                        "plc": r["plc"]}
-                if args.what == "tests":
-                    rows.append(base | {k: v for k, v in t.items() if k not in ("measurements", "run_id")})
-                else:
-                    rows += [base | {"nodeid": t["nodeid"]} | {k: v for k, v in m.items()
-                                                               if k not in ("test_id", "run_id")}
-                             for m in t["measurements"]]
+        sys.stdout.write(text)
+    return 0
+
+
+def _run_rows(found: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """A row per run, its test counts in one column."""
+    return [{k: v for k, v in r.items() if k != "counts"} | {"tests": _counts(r["counts"])} for r in found]
+
+
+def _test_rows(store: Any, found: list[dict[str, Any]], *, measurements: bool) -> list[dict[str, Any]]:
+    """A row per test of each run (``measurements``: per measurement of each test), with its run's identity."""
+    rows = []
+    for r in found:
+        run = {"run": r["id"], "run_uuid": r["uuid"], "started_at": r["started_at"], "bench": r["bench"],
+               "plc": r["plc"]}
+        for t in store.tests_of(r["id"]):
+            if not measurements:
+                rows.append(run | {k: v for k, v in t.items() if k not in ("measurements", "run_id")})
+                continue
+            rows += [run | {"nodeid": t["nodeid"]} | {k: v for k, v in m.items() if k not in ("test_id", "run_id")}
+                     for m in t["measurements"]]
+    return rows
+
+
+def _as_json(rows: list[dict[str, Any]]) -> str:
+    return json.dumps(rows, indent=1, default=_cell) + "\n"
+
+
+def _as_csv(rows: list[dict[str, Any]]) -> str:
+    """CSV with a header row (nothing at all for no rows: there are no columns to name)."""
     out = io.StringIO()
-    if args.format == "json":
-        json.dump(rows, out, indent=1, default=_cell)
-        out.write("\n")
-    elif rows:
+    if rows:
         writer = csv.DictWriter(out, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows({k: _cell(v) for k, v in row.items()} for row in rows)
-    if args.output:
-        Path(args.output).write_text(out.getvalue(), encoding="utf-8")
-        _say(console, f"{len(rows)} {args.what} written to {args.output}")
-    else:
-        sys.stdout.write(out.getvalue())
-    return 0
+    return out.getvalue()
 
 
 def _sync(store: Any, args: argparse.Namespace, console: Console) -> int:
     spool_url = config.spool_url()
     if store.url == spool_url:
-        raise InvalidValue("the store is the local spool itself: give --url (or $HIL_HISTORY_URL) of the store to "
+        raise InvalidValue("the store is the local spool itself — give --url (or $HIL_HISTORY_URL) of the store to "
                            "upload to")
     if not Path(spool_url.removeprefix("sqlite:///")).exists():
         _say(console, f"nothing to upload: no local spool ({hide_password(spool_url)})")
@@ -257,3 +277,70 @@ def _sync(store: Any, args: argparse.Namespace, console: Console) -> int:
 
 ACTIONS = {"list": _list, "show": _show, "compare": _compare, "trend": _trend, "yield": _yield, "flaky": _flaky,
            "export": _export, "sync": _sync}
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+EPILOG = """examples:
+  hil history list --bench emulator --verdict failed
+  hil history show last
+  hil history compare last~1 last           (tests that changed outcome, measurements that moved)
+  hil history trend drift_uncompensated --bench emulator --plot drift.png
+  hil history yield   |   hil history flaky
+  hil history export --what measurements --format csv -o measurements.csv
+  hil history sync                          (upload what was kept locally while the store was unreachable)
+"""
+
+
+def add_parser(sub: Subparsers, summary: str) -> None:
+    parser = sub.add_parser("history", help=summary, epilog=EPILOG,
+                            description="Every run is recorded (bench, PLC identity, profile hash, suites commit, "
+                                        "each test and measurement) in SQLite in hil's state directory, or a "
+                                        "lab's PostgreSQL server ([history] url, $HIL_HISTORY_URL).")
+    parser.set_defaults(func=history)
+    actions = parser.add_subparsers(dest="history_command", metavar="ACTION", required=True)
+
+    def action(name: str, text: str) -> argparse.ArgumentParser:
+        p = actions.add_parser(name, help=text)
+        p.add_argument("--url", metavar="URL", help="the store (default $HIL_HISTORY_URL, else --profile's [history] "
+                                                     "url, else SQLite in hil's state directory)")
+        p.add_argument("--profile", metavar="FILE", help="a bench profile whose [history] url names the store")
+        return p
+
+    def filters(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--bench", metavar="NAME", help="runs of this bench ([bench] name)")
+        p.add_argument("--plc", metavar="TEXT", help="runs of PLCs whose identity contains TEXT (e.g. an OS version)")
+        p.add_argument("--verdict", metavar="V", help="PASSED, FAILED, INTERRUPTED …, or 'not finished'")
+        p.add_argument("--since", metavar="DATE", help="runs started on or after DATE (YYYY-MM-DD[ HH:MM], UTC)")
+        p.add_argument("--until", metavar="DATE", help="runs started before DATE")
+
+    p = action("list", "the runs, newest first")
+    filters(p)
+    p.add_argument("--limit", type=int, default=50, metavar="N", help="at most N runs (default 50; 0: all)")
+    p = action("show", "one run: identity, verdict, tests, measurements")
+    p.add_argument("run", metavar="RUN", help="its number, UUID (or its start), last, or last~N")
+    p = action("compare", "two runs: what differs in identity, the tests that changed outcome, measurements moved")
+    p.add_argument("a", metavar="A", help="the run compared from (changes read B − A): its number, UUID (or its "
+                                          "start), last, or last~N")
+    p.add_argument("b", metavar="B", help="the run compared with, written as A")
+    p.add_argument("--tolerance", type=float, default=None, metavar="REL",
+                   help="measurements within this relative difference are not named (default: any difference the "
+                        "reports show, at six significant digits)")
+    p = action("trend", "one measurement over the runs: a table and a plot (value against date, with its limits)")
+    p.add_argument("measurement", metavar="MEASUREMENT",
+                   help="the measurement's name as the reports show it (e.g. drift_residual, pid_settle_time)")
+    p.add_argument("--bench", metavar="NAME", help="this bench's runs only")
+    p.add_argument("--test", metavar="NODEID", help="this test's measurement only (where several measure the name)")
+    p.add_argument("--plot", metavar="PNG", help="where the plot goes (default reports/trend-MEASUREMENT.png; "
+                                                 "'none': no plot)")
+    p = action("yield", "first-pass yield per test: of the runs that decided it, how many passed it first time")
+    p.add_argument("--bench", metavar="NAME", help="this bench's runs only")
+    p = action("flaky", "tests whose outcome changed while the bench, the PLC's identity and the profile did not")
+    p.add_argument("--bench", metavar="NAME", help="this bench's runs only")
+    p = action("export", "runs, tests or measurements as CSV or JSON")
+    filters(p)
+    p.add_argument("--what", choices=("runs", "tests", "measurements"), default="runs",
+                   help="a row per run (default), per test of each run, or per measurement of each test")
+    p.add_argument("--format", choices=("csv", "json"), default="csv",
+                   help="CSV with a header row (default) or a JSON array of objects")
+    p.add_argument("-o", "--output", metavar="FILE", help="write here (default: standard output)")
+    action("sync", "upload the runs kept in the local spool (while the store was unreachable) to the store")

@@ -9,6 +9,7 @@ placeholders saying what to fill in.  Nothing is overwritten unless ``--force``.
 
 from __future__ import annotations
 
+import argparse
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from rich.console import Console
 from hil.bench.lab.spec import LABGRID
 from hil.bench.profile_keys import BENCH, EMULATOR, HISTORY, SAFETY, WIRE_FAULTS
 from hil.bench.schema_export import render_section, schema_line
+from hil.cli.parser import Subparsers
 from hil.cli.target import open_target
 from hil.core.errors import HilError, InvalidValue
 from hil.families.fbs import registers as reg
@@ -103,7 +105,8 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     if found.identity:
         lines.append("# PLC identity (FATEK command 53): " + ", ".join(f"{k} {v}" for k, v in found.identity.items()))
     lines += [f"# {note}" for note in found.notes] + [""]
-    bench = {"name": name, "target": target, "time_scale": time_scale, **({"scratch": list(scratch)} if scratch else {})}
+    bench = {"name": name, "target": target, "time_scale": time_scale,
+             **({"scratch": list(scratch)} if scratch else {})}
     said = {"time_scale": "an accelerated hil emulate's"} if time_scale != 1 else {}
     lines += render_section(BENCH, bench, {**said, **({"scratch": "hil init --scratch"} if scratch else {})},
                             shown={"family": FAMILY.name, "scan_counter": "R3999",
@@ -118,7 +121,8 @@ def render_profile(name: str, target: str, found: Found, time_scale: float = 1.0
     else:
         lines += render_section(RTC, active=False)
     lines += _temperature(found.temperature)
-    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] writable.",
+    lines += ["# Your FUN86 (TPCTL) boxes (fixtures/benches/example-bench.toml); add their operands to [safety] "
+              "writable.",
               "# [[pid.instances]]   # several boxes: one such table each, with the keys of [pid] below"]
     lines += render_section(PID, active=False)
     lines += render_section(FAULTS, active=False)
@@ -192,7 +196,7 @@ def init(target: str, directory: Path, console: Console, *, name: str | None = N
         raise InvalidValue(f"{', '.join(map(str, existing))} already exist{'s' if len(existing) == 1 else ''}: "
                            f"pass --force to overwrite")
     if not time_scale > 0:
-        raise InvalidValue(f"--time-scale {time_scale:g}: must be > 0")
+        raise InvalidValue(f"--time-scale {time_scale:g} — give a number above 0")
     if table is not None:
         try:
             parse(table)
@@ -250,3 +254,31 @@ def _write(path: Path, text: str, force: bool) -> None:
 
 
 __all__ = ["Found", "init", "read_plc", "render_profile"]
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    parser = sub.add_parser("init", help=summary,
+                            description="Read-only: the PLC's status, identity, RTC chip (D4053) and, with "
+                                        "--temperature-table, its temperature table; writes DIR/bench.toml and "
+                                        "DIR/tests/test_first.py, with commented placeholders for the rest.",
+                            epilog="examples:\n  hil init fatek+tcp://192.168.1.5:500 --temperature-table R3000\n"
+                                   "  hil init fatek+serial:///dev/ttyUSB0 --dir my-bench --name \"line 3\"\n")
+    parser.add_argument("url", help="target URL of the PLC (fatek+tcp://HOST:500, fatek+serial:///dev/ttyUSB0, "
+                                    "modbus+tcp://HOST:502?unit=1 …)")
+    parser.add_argument("--dir", metavar="DIR", default=".", help="where to write (default: here)")
+    parser.add_argument("--name", help="the bench's name, which keys its run history (default: the directory's name)")
+    parser.add_argument("--scratch", metavar="RANGE", action="append", default=[],
+                        help="registers or bits nobody else uses on this PLC (e.g. R1000-R1099; again for more): "
+                             "[bench] scratch and [safety] writable, for the smoke suite's round trips")
+    parser.add_argument("--temperature-table", metavar="ADDRESS",
+                        help="where the ladder keeps the temperature table (SR, e.g. R3000): read and filled in")
+    parser.add_argument("--time-scale", metavar="N", type=float, default=1.0,
+                        help="[bench] time_scale: 1 for a PLC; N for a hil emulate --time-scale N (default 1)")
+    parser.add_argument("--force", action="store_true", help="overwrite bench.toml and tests/test_first.py")
+    parser.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return init(args.url, Path(args.dir), console, name=args.name, table=args.temperature_table,
+                scratch=tuple(args.scratch), time_scale=args.time_scale, force=args.force)

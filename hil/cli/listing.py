@@ -3,6 +3,7 @@ from a checkout or an installed wheel alike."""
 
 from __future__ import annotations
 
+import argparse
 import ast
 from pathlib import Path
 
@@ -10,6 +11,7 @@ from rich.console import Console
 from rich.markup import escape
 
 from hil.bench.profile import load_profile
+from hil.cli.parser import Subparsers
 from hil.core.errors import HilError
 from hil.core.paths import bundled_benches, bundled_suites
 
@@ -42,3 +44,14 @@ def list_all(console: Console) -> int:
     for line in out:
         console.print(escape(line), highlight=False, soft_wrap=True)
     return 0
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    listing = sub.add_parser("list", help=summary, epilog="examples:\n  hil list\n  hil run --bench s7-200smart\n"
+                                                          "  hil run -- rtc rtc_adjust\n")
+    listing.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return list_all(console)

@@ -73,7 +73,7 @@ def plan(benches: list[str], junitxml: str, target: str | None = None) -> list[B
         profile = check_profile(path, lab)
         name = slug(profile.name)
         if name in names:
-            raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r}: give each "
+            raise HilError(f"benches {names[name]} and {path} are both named {profile.name!r} — give each "
                            f"[bench] name its own value (reports are named after it)")
         names[name] = path
         url = target or profile.target
@@ -204,7 +204,7 @@ def _records(r: BenchRun) -> tuple[list, list[tuple[str, str]]]:
         return [], [("hil.bench", f"{r.name}: no records (exit {r.exit}; see {r.log})")]
 
 
-def verdict_of(runs: list[BenchRun]):
+def verdict_of(runs: list[BenchRun]) -> Verdict:
     """The benches' verdict together: PASSED when every run passed, else the gravest run's status, and what each
     run that did not pass says stopped it (its own verdict, from its records)."""
     grave = [3, 2, 1, 4, 5]  # internal error, interrupted, failed, usage error, no tests

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Callable
+
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from hil.bench.profile import Profile, load_profile
+from hil.cli.parser import Subparsers
 from hil.cli.probe_s7 import probe_s7
 from hil.cli.rtc import format_time
 from hil.cli.status import status_panel
@@ -29,12 +33,8 @@ PROBE_REGISTERS = [
 _COUNTS = {"R4010": 2, "R4012": 2}
 
 
-def _probe_s7(profile: object, url: str | None, console: Console) -> int:
-    return probe_s7(profile, url, console)
-
-
 #: families whose probe is not the FBs one below (by the name their plug-in is registered under)
-_OTHER_FAMILIES = {"s7-200smart": _probe_s7}
+_OTHER_FAMILIES: dict[str, Callable[[Profile, str | None, Console], int]] = {"s7-200smart": probe_s7}
 
 
 def probe(url: str | None, console: Console, bench: str | None = None) -> int:
@@ -100,3 +100,26 @@ def temperature_table(transport: Transport, profile: Profile) -> Table:
                      f"{work.execution_code:02X}H, mismatch bits {work.mismatch_bits:08b}, "
                      f"{work.total_points} points / {work.module_count} modules")
     return table
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    probe = sub.add_parser("probe", help=summary,
+                           description="Connect, ask the PLC what it is (FATEK command 53 where the wire has it) "
+                                       "and show its state and key registers. Reads only.",
+                           epilog="examples:\n  hil probe fatek+tcp://192.168.1.5:500\n"
+                                  "  hil probe fatek+serial:///dev/ttyUSB0?baudrate=19200\n"
+                                  "  hil probe modbus+tcp://192.168.1.5:502?unit=1\n"
+                                  "  hil probe fatek+rfc2217://exporter:3001   (port 0 behind ser2net / labgrid)\n"
+                                  "  hil probe --bench fixtures/benches/emulator.toml   (the profile's target, "
+                                  "with its temperature points)\n")
+    probe.add_argument("url", nargs="?", help="target URL, e.g. fatek+serial:///dev/ttyUSB0 or emulator+modbus-tcp "
+                                              "(default: the --bench profile's target, else the emulator, as hil run)")
+    probe.add_argument("--bench", metavar="FILE",
+                       help="bench profile: its [temperature] section adds the temperature points to the report "
+                            "(and configures an emulator… target)")
+    probe.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return probe(args.url, console, bench=args.bench)

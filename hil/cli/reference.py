@@ -9,6 +9,20 @@ import argparse
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+#: argparse keeps a parser's arguments and sub-commands under private names only (``_actions``,
+#: ``_SubParsersAction`` …); these few lines are the one place hil reads them
+Subparsers = argparse._SubParsersAction  # noqa: SLF001 - add_subparsers()'s type, public under no other name
+
+
+def actions(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    """The parser's arguments, in the order ``--help`` shows them."""
+    return parser._actions  # noqa: SLF001 - argparse offers no public accessor
+
+
+def options(parser: argparse.ArgumentParser) -> list[str]:
+    """Every option string the parser takes: ``-h``, ``--help``, ``--bench`` …"""
+    return [option for action in actions(parser) for option in action.option_strings]
+
 
 @dataclass(frozen=True)
 class Command:
@@ -21,9 +35,9 @@ class Command:
 def commands(parser: argparse.ArgumentParser, summary: str = "") -> Iterator[Command]:
     """``parser`` and every sub-command under it, depth first, in the order ``--help`` lists them."""
     yield Command(parser.prog, summary, parser)
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            helps = {a.dest: a.help or "" for a in action._choices_actions}
+    for action in actions(parser):
+        if isinstance(action, Subparsers):
+            helps = {a.dest: a.help or "" for a in action._choices_actions}  # noqa: SLF001 - as actions()
             for name, sub in action.choices.items():
                 if sub.prog.split()[-1] == name:  # (an alias points at the same parser: listed once)
                     yield from commands(sub, helps.get(name, ""))
@@ -31,7 +45,7 @@ def commands(parser: argparse.ArgumentParser, summary: str = "") -> Iterator[Com
 
 def documented(action: argparse.Action) -> bool:
     """Shown in ``--help`` (an option whose help is SUPPRESS is hidden on purpose)."""
-    return action.help is not argparse.SUPPRESS and not isinstance(action, argparse._SubParsersAction)
+    return action.help is not argparse.SUPPRESS and not isinstance(action, Subparsers)
 
 
 def undocumented(parser: argparse.ArgumentParser) -> list[str]:
@@ -40,7 +54,7 @@ def undocumented(parser: argparse.ArgumentParser) -> list[str]:
     for command in commands(parser):
         if not (command.parser.description or command.summary):
             missing.append(f"{command.prog}: (the command itself)")
-        for action in command.parser._actions:
+        for action in actions(command.parser):
             if documented(action) and not (action.help or "").strip():
                 missing.append(f"{command.prog}: {', '.join(action.option_strings) or action.dest}")
     return missing
@@ -57,6 +71,12 @@ def _option(action: argparse.Action) -> str:
     return names
 
 
+def _help(action: argparse.Action) -> str:
+    """The option's help as ``--help`` prints it (``%(default)s`` filled in)."""
+    text = action.help or ""
+    return text % vars(action) if "%(" in text else text
+
+
 def render(parser: argparse.ArgumentParser) -> str:
     """The reference as Markdown (MyST): a section per command."""
     out = ["# Every command and option", "",
@@ -69,8 +89,8 @@ def render(parser: argparse.ArgumentParser) -> str:
             out += [" ".join(text.split()), ""]
         usage = command.parser.format_usage().removeprefix("usage: ").strip()
         out += ["```text", usage, "```", ""]
-        rows = [f"| {_option(a)} | {_cell(a.help % vars(a) if '%(' in (a.help or '') else a.help or '')} |"
-                for a in command.parser._actions if documented(a) and not isinstance(a, argparse._HelpAction)]
+        rows = [f"| {_option(a)} | {_cell(_help(a))} |" for a in actions(command.parser)
+                if documented(a) and "--help" not in a.option_strings]
         if rows:
             out += ["| option | what it does |", "|---|---|", *rows, ""]
         if command.parser.epilog:

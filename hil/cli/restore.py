@@ -10,6 +10,7 @@ what the PLC holds now.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import ipaddress
 import os
@@ -23,6 +24,7 @@ from rich.markup import escape
 from hil.bench.family import open_bench
 from hil.bench.profile import Profile, load_profile
 from hil.bench.recovery import Recovery
+from hil.cli.parser import Subparsers
 from hil.core.errors import HilError
 from hil.core.journal import Journal, inspect, journal_dir
 from hil.core.lock import BenchLock, lock_key, plc_key
@@ -197,3 +199,29 @@ def _listening(host: str, port: int) -> bool:
 
 
 __all__ = ["restore"]
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    parser = sub.add_parser("restore", help=summary,
+                            description="Every run journals each value before it first writes it (on disk, "
+                                        "fsync'd); a run that dies leaves the journal behind and the next run on "
+                                        "that PLC replays it first. This does it by hand, holding the bench lock.",
+                            epilog="examples:\n  hil restore --bench my-bench.toml\n"
+                                   "  hil restore --show                 (every bench's pending journal)\n"
+                                   "  hil restore --show --bench my-bench.toml   (and what a restore would do, "
+                                   "read from the PLC)\n"
+                                   "  hil restore --show fatek+tcp://192.168.1.5\n")
+    parser.add_argument("url", nargs="?", help="target URL (default: the --bench profile's target)")
+    parser.add_argument("--bench", metavar="FILE", help="bench profile (its target, timeout and time scale)")
+    parser.add_argument("--show", action="store_true",
+                        help="list every journal (whose, which bench) and, with --bench, what a restore would do "
+                             "with each entry on the PLC as it reads now; write nothing")
+    parser.add_argument("--accept-host-clock", action="store_true",
+                        help="set the PLC's clock from a journal written during another boot of this host, on the "
+                             "host clock as it is now (whether it was stepped since cannot be checked)")
+    parser.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return restore(args.url, args.bench, console, show=args.show, accept_host_clock=args.accept_host_clock)

@@ -1,4 +1,4 @@
-"""``hil rtc read|set|sync URL`` and ``hil drift code|decode|measure``: the PLC's clock from the command line.
+"""``hil rtc read|set|sync URL``: the PLC's clock from the command line (``hil drift``: :mod:`hil.cli.drift`).
 
 The commands drive :class:`hil.families.fbs.device.rtc.Rtc` over a *direct* transport, not the bench's guarded one: the
 operator named the PLC and asked for the write on the command line, so there is no profile whitelist to consult
@@ -10,23 +10,22 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
-import math
 import re
 from collections.abc import Callable, Iterator
 from typing import TypeVar
 
 from rich.console import Console
 from rich.markup import escape
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from hil.cli.parser import Subparsers
 from hil.cli.target import open_target
-from hil.core.errors import HilError, InvalidValue, UnreachableAddress
+from hil.core.errors import InvalidValue, UnreachableAddress
 from hil.core.humantime import span
-from hil.core.timebase import Timebase
 from hil.families.fbs import registers as reg
-from hil.families.fbs.d4054 import RATE_MAX, RATE_MIN, TABLE, RateCode, code_for_rate, rate_for_code
+from hil.families.fbs.d4054 import RateCode, rate_for_code
 from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.device.rtc import SetResult
 from hil.families.fbs.rtc_time import YEAR_BASE, RtcTime, weekday_of
 
 T = TypeVar("T")
@@ -36,8 +35,9 @@ WEEKDAYS = ("Sunday", "Monday", "Tuesday", "Wednesday", "Thursday", "Friday", "S
 TIME_FORMATS = "YYYY-MM-DD HH:MM:SS (or YYYY-MM-DDTHH:MM:SS, seconds optional, date alone = midnight)"
 _TIME_RE = re.compile(r"^(\d{4})-(\d{1,2})-(\d{1,2})(?:[T ](\d{1,2}):(\d{1,2})(?::(\d{1,2})(?:\.\d+)?)?)?$")
 
-CODE_FORMATS = "a D4054 code in hex: 56E5, 56E5H or 0x56E5 (0000H = no correction, else 5600H–56FFH)"
-_CODE_RE = re.compile(r"^(?:0x)?([0-9a-f]{1,4})h?$", re.IGNORECASE)
+URL_HELP = ("target URL, e.g. fatek+tcp://192.168.1.5:500, fatek+serial:///dev/ttyUSB0 or emulator+fatek-tcp "
+            "(default: the --bench profile's target, else the emulator)")
+BENCH_HELP = "bench profile for an emulator… target (default fixtures/benches/emulator.toml: an S-35390A RTC)"
 
 
 # -- opening a PLC --------------------------------------------------------------------------------------------------
@@ -49,17 +49,12 @@ def open_plc(url: str, bench: str | None = None, *, writing: bool = False) -> It
         yield opened.plc()
 
 
-def _reachable(read: Callable[[], T]) -> T | UnreachableAddress:
+def reachable(read: Callable[[], T]) -> T | UnreachableAddress:
     """``read()``, or the UnreachableAddress the transport raised before sending anything."""
     try:
         return read()
     except UnreachableAddress as exc:
         return exc
-
-
-def _require(plc: FbsPlc, addresses: list[str], action: str) -> None:
-    """Refuse, before writing anything, an action whose addresses this wire cannot reach."""
-    plc.io.require(addresses, action)
 
 
 # -- formatting ---------------------------------------------------------------------------------------------------
@@ -87,7 +82,7 @@ def format_rate(rate: RateCode) -> str:
     return f"{rate.mode}, {rate.steps:+d} steps, {rate.s_per_day:+.3f} s/day ({rate.ppm:+.2f} ppm)"
 
 
-def _not_reachable(exc: UnreachableAddress) -> str:
+def not_reachable(exc: UnreachableAddress) -> str:
     return f"[dim]not reachable over {escape(exc.via)}[/dim]"
 
 
@@ -108,7 +103,7 @@ def rtc_read(url: str, console: Console, bench: str | None = None) -> int:
         snapshot = rtc.read_all()  # time, R4135 and M1952–M1955: one round trip
         now, flags, hour_minute = snapshot.time, snapshot.flags, snapshot.hour_minute
         host = plc.time.calendar()
-        chip_and_code = _reachable(rtc.read_chip_and_rate_code)  # D4053–D4054: one round trip
+        chip_and_code = reachable(rtc.read_chip_and_rate_code)  # D4053–D4054: one round trip
         chip, code = ((chip_and_code, chip_and_code) if isinstance(chip_and_code, UnreachableAddress)
                       else chip_and_code)
 
@@ -116,20 +111,20 @@ def rtc_read(url: str, console: Console, bench: str | None = None) -> int:
         table.add_column("item")
         table.add_column("value")
         table.add_row("time R4128–R4134", format_time(now))
-        table.add_row("chip D4053", _not_reachable(chip) if isinstance(chip, UnreachableAddress)
+        table.add_row("chip D4053", not_reachable(chip) if isinstance(chip, UnreachableAddress)
                       else f"{chip.name} ({chip.code})")
         if isinstance(flags, UnreachableAddress):
-            table.add_row("M1954 / M1955", _not_reachable(flags))
+            table.add_row("M1954 / M1955", not_reachable(flags))
         else:
             table.add_row("M1954 installed", f"{int(flags.installed)} ({'yes' if flags.installed else 'no'})")
             table.add_row("M1955 set error", f"{int(flags.set_error)} "
                           f"({'the last set was refused' if flags.set_error else 'no error'})")
             if flags.hold:
                 table.add_row("M1952 hold", "[yellow]1: read-out frozen (a set is pending)[/yellow]")
-        table.add_row("R4135 hour/minute", _not_reachable(hour_minute) if isinstance(hour_minute, UnreachableAddress)
+        table.add_row("R4135 hour/minute", not_reachable(hour_minute) if isinstance(hour_minute, UnreachableAddress)
                       else f"{hour_minute:04X}H")
         if isinstance(code, UnreachableAddress):
-            table.add_row("rate code D4054", _not_reachable(code))
+            table.add_row("rate code D4054", not_reachable(code))
         else:
             try:
                 decoded = format_rate(rate_for_code(code))
@@ -150,10 +145,11 @@ def parse_time(text: str) -> RtcTime:
     the PLC and can be refused).  The weekday comes from the date when the date exists, else 0."""
     match = _TIME_RE.match(text.strip())
     if not match:
-        raise InvalidValue(f"cannot read {text!r} as a time: give {TIME_FORMATS}")
+        raise InvalidValue(f"cannot read {text!r} as a time — give {TIME_FORMATS}")
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in match.groups())
     if not YEAR_BASE <= year <= YEAR_BASE + 99:
-        raise InvalidValue(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year}")
+        raise InvalidValue(f"the FBs RTC holds years {YEAR_BASE}–{YEAR_BASE + 99} only, not {year} — give a date in "
+                           f"those years")
     value = RtcTime(second, minute, hour, day, month, year - YEAR_BASE, 0)
     try:
         return value.with_weekday_from_date()
@@ -161,7 +157,7 @@ def parse_time(text: str) -> RtcTime:
         return value
 
 
-def _report_set(console: Console, plc: FbsPlc, result) -> int:
+def _report_set(console: Console, plc: FbsPlc, result: SetResult) -> int:
     sent = format_time(result.sent)
     if result.accepted:
         console.print(f"[green]accepted[/green] (M1955 = 0): set to {escape(sent)}", highlight=False)
@@ -186,13 +182,13 @@ _SET_ADDRESSES = [reg.RTC_HOLD, *reg.RTC_FIELDS, reg.RTC_SET_ERROR]
 def rtc_set(url: str, when: str, console: Console, bench: str | None = None) -> int:
     value = parse_time(when)
     with open_plc(url, bench, writing=True) as plc:
-        _require(plc, _SET_ADDRESSES, "set the RTC")  # a failure after M1952 := 1 would leave the clock frozen
+        plc.io.require(_SET_ADDRESSES, "set the RTC")  # a failure after M1952 := 1 would leave the clock frozen
         return _report_set(console, plc, plc.rtc.set(value))
 
 
 def rtc_sync(url: str, console: Console, bench: str | None = None) -> int:
     with open_plc(url, bench, writing=True) as plc:
-        _require(plc, _SET_ADDRESSES, "set the RTC")
+        plc.io.require(_SET_ADDRESSES, "set the RTC")
         result = plc.rtc.sync_to_host()
         host = plc.time.calendar()
         code = _report_set(console, plc, result)
@@ -201,161 +197,34 @@ def rtc_sync(url: str, console: Console, bench: str | None = None) -> int:
         return code
 
 
-# -- hil drift ----------------------------------------------------------------------------------------------------
-def parse_rate(text: str) -> float:
-    cleaned = text.strip().replace("\u2212", "-").removesuffix("s/day").strip()
-    try:
-        rate = float(cleaned)
-    except ValueError:
-        rate = math.nan
-    if not math.isfinite(rate):
-        raise InvalidValue(f"cannot read {text!r} as a clock error: give s/day as a number, positive = the PLC clock "
-                         f"runs fast (e.g. 3.38 or -5.62; range {RATE_MIN}…+{RATE_MAX})")
-    if not RATE_MIN <= round(rate, 9) <= RATE_MAX:  # {:g}: 1e308 stays short, not 309 digits
-        raise InvalidValue(f"clock error {rate:+g} s/day is outside the S-35390A setting range {RATE_MIN}…+{RATE_MAX} "
-                         f"s/day (manual ch. 15); D4054 cannot correct it")
-    return rate
+__all__ = ["rtc_read", "rtc_set", "rtc_sync", "open_plc", "parse_time", "format_time", "format_rate", "reachable",
+           "not_reachable", "WEEKDAYS"]
 
 
-def parse_code(text: str) -> int:
-    match = _CODE_RE.match(text.strip())
-    if not match:
-        raise InvalidValue(f"cannot read {text!r} as a D4054 code: give {CODE_FORMATS}")
-    code = int(match.group(1), 16)
-    try:
-        rate_for_code(code)
-    except ValueError as exc:
-        raise InvalidValue(str(exc)) from None
-    return code
-
-
-def _listed_rate(code: int) -> float | None:
-    return next((rate for rate, c in TABLE if c == code), None)
-
-
-def drift_code(rate_text: str, console: Console) -> int:
-    rate = parse_rate(rate_text)
-    code = code_for_rate(rate)
-    listed = _listed_rate(code)
-    console.print(f"[bold]{code:04X}H[/bold]", highlight=False)
-    console.print(f"  {format_rate(rate_for_code(code))}", highlight=False)
-    console.print(f"  manual Table 1 row {listed:+.2f} s/day, nearest to a clock {abs(rate):g} s/day "
-                  f"{'fast' if rate >= 0 else 'slow'}", highlight=False)
-    return 0
-
-
-def drift_decode(code_text: str, console: Console) -> int:
-    code = parse_code(code_text)
-    rate = rate_for_code(code)
-    table = Table(title=f"D4054 = {code:04X}H", show_header=False)
-    table.add_column("item")
-    table.add_column("value")
-    table.add_row("mode", rate.mode if rate.mode != "none" else "none (no correction)")
-    table.add_row("steps", f"{rate.steps:+d}")
-    table.add_row("rate", f"{rate.s_per_day:+.4f} s/day (for a PLC clock that runs fast; negative = slow)")
-    table.add_row("ppm", f"{rate.ppm:+.3f}")
-    listed = _listed_rate(code)
-    if listed is not None:
-        table.add_row("manual Table 1", f"{listed:+.2f} s/day")
-    console.print(table)
-    return 0
-
-
-class _ProgressTimebase:
-    """A host timebase whose waits tick a rich progress bar (bench seconds since ``start``)."""
-
-    virtual = False
-
-    def __init__(self, inner: Timebase, progress: Progress, task, total: float) -> None:
-        self.inner, self.progress, self.task, self.total = inner, progress, task, total
-        self.start = inner.now()
-
-    def now(self) -> float:
-        return self.inner.now()
-
-    def calendar(self) -> dt.datetime:
-        return self.inner.calendar()
-
-    def wait(self, seconds: float) -> None:
-        end = self.inner.now() + seconds
-        while (left := end - self.inner.now()) > 0:
-            self.inner.wait(min(left, 0.25))
-            self.progress.update(self.task, completed=min(self.inner.now() - self.start, self.total))
-
-
-#: The longest measurement: the FBs calendar holds 2000–2099, and a year is already far finer than any use.
-MAX_DURATION = 366 * 86400.0
-
-
-def drift_measure(url: str, duration: float, console: Console, bench: str | None = None,
-                  apply: bool = False) -> int:
-    if not math.isfinite(duration) or not 5 < duration <= MAX_DURATION:
-        raise InvalidValue(f"--duration {duration:g} s: give more than 5 s and at most {MAX_DURATION:.0f} s (366 days; "
-                           f"the PLC's calendar holds 2000–2099 only)")
-    with open_plc(url, bench, writing=apply) as plc:
-        if apply:  # fail before a long measurement, not after it
-            _require(plc, [reg.RTC_RATE_CODE, reg.RTC_CHIP], "write the compensating code")
-            chip = plc.rtc.chip
-            if not chip.has_rate_adjust:
-                raise HilError(f"cannot write the compensating code: D4053 = {chip.code} ({chip.name}); only an "
-                               f"S-35390A (3) takes a D4054 rate code (nothing was written)")
-        current = _reachable(lambda: plc.rtc.rate_code)
-        if plc.time.virtual or not console.is_terminal:
-            measurement = plc.rtc.drift.measure(duration)
-        else:
-            columns = (TextColumn("measuring drift"), BarColumn(),
-                       TextColumn("{task.completed:.0f}/{task.total:.0f} s"), TimeRemainingColumn())
-            with Progress(*columns, console=console, transient=True) as progress:
-                task = progress.add_task("drift", total=duration)
-                host = plc.time
-                plc.time = _ProgressTimebase(host, progress, task, duration)
-                try:
-                    measurement = plc.rtc.drift.measure(duration)
-                finally:
-                    plc.time = host
-
-        table = Table(title=f"RTC drift of {escape(plc.io.description)}", show_header=False)
-        table.add_column("item")
-        table.add_column("value")
-        side = "fast" if measurement.s_per_day >= 0 else "slow"
-        table.add_row("drift", f"{measurement.s_per_day:+.3f} s/day (PLC clock runs {side})")
-        table.add_row("ppm", f"{measurement.ppm:+.3f}")
-        table.add_row("resolution", f"±{measurement.resolution:.3f} s/day")
-        table.add_row("measured over", f"{measurement.reference_elapsed:.1f} s bench time, "
-                      f"{len(measurement.samples)} timed second transitions")
-        # The compensating code is for the clock's own error: add back whatever correction D4054 applied.
-        correction = 0.0
-        if isinstance(current, UnreachableAddress):
-            table.add_row("D4054 now", _not_reachable(current) + " (assumed 0000H)")
-        else:
-            try:
-                correction = rate_for_code(current).s_per_day
-                table.add_row("D4054 now", f"{current:04X}H: {format_rate(rate_for_code(current))}")
-            except ValueError:
-                table.add_row("D4054 now", f"{current:04X}H [red]not a valid code (assumed 0000H)[/red]")
-        raw = measurement.s_per_day + correction
-        code = None
-        try:
-            code = code_for_rate(raw)
-            table.add_row("compensating code", f"[bold]{code:04X}H[/bold]: {format_rate(rate_for_code(code))}"
-                          + (f" (for {raw:+.3f} s/day without correction)" if correction else ""))
-        except ValueError:
-            table.add_row("compensating code", f"[red]none: {raw:+.3f} s/day is outside the S-35390A range "
-                                               f"{RATE_MIN}…+{RATE_MAX} s/day[/red]")
-        vague = abs(measurement.s_per_day) < measurement.resolution
-        if vague:
-            table.add_row("note", "[yellow]the drift is within the resolution: measure longer before writing a "
-                                  "code[/yellow]")
-        console.print(table)
-        if not apply:
-            return 0
-        if code is None or vague:
-            console.print("[bold red]not applied[/bold red]: D4054 left as it was", highlight=False)
-            return 1
-        plc.rtc.rate_code = code  # direct write: the operator asked for it with --apply
-        console.print(f"[green]written[/green]: D4054 = {code:04X}H (was {current:04X}H)", highlight=False)
-    return 0
-
-
-__all__ = ["rtc_read", "rtc_set", "rtc_sync", "drift_code", "drift_decode", "drift_measure", "open_plc",
-           "parse_time", "parse_code", "parse_rate", "format_time", "WEEKDAYS"]
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    rtc = sub.add_parser("rtc", help=summary,
+                         description="The PLC's real-time clock (R4128–R4135, M1952–M1955, D4053/D4054). Writes go "
+                                     "straight to the PLC: no bench profile guards them.",
+                         epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                "  hil rtc set fatek+serial:///dev/ttyUSB0 \"2024-02-29 12:00:00\"\n"
+                                "  hil rtc sync emulator+modbus-tcp\n")
+    rtc_sub = rtc.add_subparsers(dest="rtc_command", metavar="ACTION", required=True)
+    read = rtc_sub.add_parser("read", help="the time, chip, flags and rate code, and the difference from host time",
+                              epilog="examples:\n  hil rtc read fatek+tcp://192.168.1.5:500\n"
+                                     "  hil rtc read emulator+modbus-tcp    (D4053/D4054 are not on the Modbus map)\n")
+    set_ = rtc_sub.add_parser("set", help="set the clock (M1952 procedure); exit 1 if the PLC refuses (M1955 = 1)",
+                              epilog="examples:\n  hil rtc set fatek+tcp://192.168.1.5:500 \"2024-02-29 12:00:00\"\n"
+                                     "  hil rtc set emulator 2024-02-29T12:00\n"
+                                     "An invalid date (2023-02-29) is sent as is, so you see whether the PLC takes "
+                                     "it.\n")
+    sync = rtc_sub.add_parser("sync", help="set the clock to host time, on a whole second",
+                              epilog="example:\n  hil rtc sync fatek+serial:///dev/ttyUSB0\n")
+    for p in (read, set_, sync):
+        p.add_argument("url", metavar="URL", nargs="?", help=URL_HELP)
+    set_.add_argument("time", metavar="TIME", help="YYYY-MM-DD HH:MM:SS (ISO; 'T' or space; seconds optional)")
+    for p in (read, set_, sync):
+        p.add_argument("--bench", metavar="FILE", help=BENCH_HELP)
+    read.set_defaults(func=lambda args, console: rtc_read(args.url, console, bench=args.bench))
+    set_.set_defaults(func=lambda args, console: rtc_set(args.url, args.time, console, bench=args.bench))
+    sync.set_defaults(func=lambda args, console: rtc_sync(args.url, console, bench=args.bench))

@@ -8,6 +8,7 @@ error (status 4, pytest's usage error, with the test and the ID).
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import io
 import sys
@@ -18,6 +19,9 @@ import pytest
 from rich.console import Console
 from rich.markup import escape
 
+from hil.cli.parser import Subparsers
+from hil.core.errors import error_line
+from hil.core.paths import project_dir
 from hil.plugin import requirements
 from hil.plugin.requirements import REQUIREMENTS_FILE, Requirement, item_ids, load
 
@@ -93,41 +97,77 @@ def spec(suites: Path, console: Console, *, verbose: bool = False) -> int:
     code, matrix, output = build(suites)
     if code not in (0, 5):  # 5: nothing collected (an empty suites directory still lists the catalogue)
         console.print(escape(output.rstrip()), highlight=False)
-        console.print(f"[bold red]hil spec:[/] collecting {escape(str(suites))} failed (pytest exit {code})",
-                      highlight=False)
+        _say(console, error_line(f"collecting {suites} failed (pytest exit {code})", "see pytest's output above"))
         return code
     for req in matrix.requirements.values():
-        tests = matrix.tests.get(req.id, [])
-        tag = " [our choice]" if req.choice else ""
-        if tests:
-            status = f"{len(tests)} test{'s' if len(tests) != 1 else ''}"
-        elif req.untested:
-            status = f"no test: {req.untested_kind} — {req.untested_reason}"
-        else:
-            status = "MISSING: neither a test nor a reason"
-        console.print(f"{escape(req.id):<14} {escape(req.manual)}{escape(tag)}: {escape(status)}", highlight=False,
-                      soft_wrap=True)
-        if verbose:
-            console.print(f"    {escape(req.statement)}", highlight=False, soft_wrap=True)
-            for test in tests:
-                console.print(f"    - {escape(test)}", highlight=False, soft_wrap=True)
-        if req.gap and tests:
-            console.print(f"    gap: {escape(req.gap)}", highlight=False, soft_wrap=True)
-    tested = sum(1 for r in matrix.requirements.values() if matrix.tests.get(r.id))
-    untested = sum(1 for r in matrix.requirements.values() if r.untested and not matrix.tests.get(r.id))
-    console.print(f"{len(matrix.requirements)} requirements: {tested} with tests, {untested} with a reason, "
-                  f"{len(matrix.missing())} with neither ({sum(len(t) for t in matrix.tests.values())} test marks "
-                  f"in {suites})", highlight=False, soft_wrap=True)
-    if matrix.unmarked:
-        console.print(f"{len(matrix.unmarked)} collected tests name no requirement"
-                      + (": " + ", ".join(matrix.unmarked) if verbose else " (-v lists them)"), highlight=False,
-                      soft_wrap=True)
-    for req in matrix.stale():
-        console.print(f"note: {req.id} is still 'pending' in the catalogue but tests name it: "
-                      f"{', '.join(matrix.tests[req.id])}", highlight=False, soft_wrap=True)
-    for req in matrix.contradicted():
-        console.print(f"[bold red]hil spec:[/] {req.id} says '{req.untested_kind}' (no test) but tests name it: "
-                      f"{escape(', '.join(matrix.tests[req.id]))}", highlight=False, soft_wrap=True)
-    for req in matrix.missing():
-        console.print(f"[bold red]hil spec:[/] {req.id} has neither a test nor a reason", highlight=False)
+        _print_requirement(console, req, matrix.tests.get(req.id, []), verbose)
+    _print_totals(console, matrix, suites, verbose)
+    _print_problems(console, matrix)
     return 0 if matrix.ok else 1
+
+
+def _say(console: Console, text: str) -> None:
+    console.print(escape(text), highlight=False, soft_wrap=True)
+
+
+def _status(req: Requirement, tests: list[str]) -> str:
+    """How the statement is covered: its tests, the reason it has none, or neither."""
+    if tests:
+        return f"{len(tests)} test{'s' if len(tests) != 1 else ''}"
+    if req.untested:
+        return f"no test: {req.untested_kind} — {req.untested_reason}"
+    return "MISSING: neither a test nor a reason"
+
+
+def _print_requirement(console: Console, req: Requirement, tests: list[str], verbose: bool) -> None:
+    """One statement's line (with ``verbose``, its text and its tests below it) and its gap, if tested."""
+    tag = " [our choice]" if req.choice else ""
+    _say(console, f"{req.id:<14} {req.manual}{tag}: {_status(req, tests)}")
+    if verbose:
+        _say(console, f"    {req.statement}")
+        for test in tests:
+            _say(console, f"    - {test}")
+    if req.gap and tests:
+        _say(console, f"    gap: {req.gap}")
+
+
+def _print_totals(console: Console, matrix: Matrix, suites: Path, verbose: bool) -> None:
+    requirements = matrix.requirements.values()
+    tested = sum(1 for r in requirements if matrix.tests.get(r.id))
+    untested = sum(1 for r in requirements if r.untested and not matrix.tests.get(r.id))
+    marks = sum(len(t) for t in matrix.tests.values())
+    _say(console, f"{len(matrix.requirements)} requirements: {tested} with tests, {untested} with a reason, "
+                  f"{len(matrix.missing())} with neither ({marks} test marks in {suites})")
+    if matrix.unmarked:
+        _say(console, f"{len(matrix.unmarked)} collected tests name no requirement"
+                      + (": " + ", ".join(matrix.unmarked) if verbose else " (-v lists them)"))
+
+
+def _print_problems(console: Console, matrix: Matrix) -> None:
+    """What makes the matrix fail (exit 1), one error line each, after a note on what is only out of date."""
+    for req in matrix.stale():
+        _say(console, f"note: {req.id} is still 'pending' in the catalogue but tests name it: "
+                      f"{', '.join(matrix.tests[req.id])}")
+    for req in matrix.contradicted():
+        _say(console, error_line(f"{req.id} says '{req.untested_kind}' (no test) but tests name it: "
+                                 f"{', '.join(matrix.tests[req.id])}",
+                                 f"drop its reason from {REQUIREMENTS_FILE.name}, or the tests' spec() marks"))
+    for req in matrix.missing():
+        _say(console, error_line(f"{req.id} has neither a test nor a reason",
+                                 f'mark a test with spec("{req.id}"), or give a reason in {REQUIREMENTS_FILE.name}'))
+
+
+# -- the command line -----------------------------------------------------------------------------------------------
+def add_parser(sub: Subparsers, summary: str) -> None:
+    parser = sub.add_parser("spec", help=summary,
+                            epilog="examples:\n  hil spec\n  hil spec -v            (statements and test names)\n"
+                                   "Exit 1 when a statement has neither a test nor a reason; 4 when a test names an ID "
+                                   "not in hil/requirements.toml.\n")
+    parser.add_argument("--suites", metavar="DIR", help="the suites to read the spec() markers of (default: suites/ "
+                                                        "here, else the bundled suites)")
+    parser.add_argument("-v", "--verbose", action="store_true", help="each statement and the tests that name it")
+    parser.set_defaults(func=command)
+
+
+def command(args: argparse.Namespace, console: Console) -> int:
+    return spec(Path(args.suites) if args.suites else project_dir("suites"), console, verbose=args.verbose)

@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import partial
 
 from hil.bench.profile import Profile, load_profile, plc_target
 from hil.core.errors import HilError
@@ -46,38 +48,46 @@ def open_target(url: str | None, bench: str | None = None, *, writing: bool = Fa
     A command that writes (``writing``) holds the bench lock while it runs (keyed by the canonical endpoint:
     a test run on the same PLC, however spelt, makes it refuse) and first replays what a dead run left in the
     bench's journal (:meth:`hil.bench.guard.Guard.recover`)."""
-    given = load_profile(bench) if bench else None
-    if given is not None and given.plugin.name != FBS.name:  # rtc, drift: commands of the FBs family
-        raise HilError(f"bench {given.name!r} ({bench}) is {given.plugin.a_title} (family {given.family!r}); this "
-                       f"command works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows "
-                       f"it, hil run --bench {bench} runs its suites")
+    given = _fbs_profile(bench)
     if url is None and given is None:  # as hil run: the default profile's target, the emulator
         given = load_profile(default_bench())
     # a profile's PLC at its station (and a URL the profile does not name refused); a bare URL as it stands
     target = plc_target(given, url) if given is not None else parse_target(url or "")
     profile = given if given is not None or not target.in_process else load_profile(default_bench())
     epoch = dt.datetime.now().replace(microsecond=0)
-    factory = None
-    if target.in_process:
-        factory = lambda: build_emulator(profile, epoch)  # noqa: E731
-    timeout = given.timeout if given is not None else None
+    factory = partial(build_emulator, profile, epoch) if profile is not None and target.in_process else None
     with contextlib.ExitStack() as stack:
-        plc_id = given.plc_id if given is not None else None
         if writing and not target.in_process:
-            stack.enter_context(BenchLock(str(target)).acquire())
-            if plc_id:
-                stack.enter_context(BenchLock(str(target), key=plc_key(str(target), plc_id)).acquire())
-        transport = stack.enter_context(open_transport(target, emulator_factory=factory, timeout=timeout))
+            _hold_locks(stack, str(target), given.plc_id if given is not None else None)
+        transport = stack.enter_context(open_transport(target, emulator_factory=factory,
+                                                       timeout=given.timeout if given is not None else None))
         timebase = timebase_for(transport.emulator, epoch, given.time_scale if given is not None else 1.0)
         if writing and not target.in_process:
             recover_first(str(target), transport, timebase, given)
         yield OpenTarget(transport, timebase, profile)
 
 
+def _fbs_profile(bench: str | None) -> Profile | None:
+    """The ``--bench`` profile, refused unless an FBs PLC's: rtc and drift are commands of the FBs family."""
+    given = load_profile(bench) if bench else None
+    if given is not None and given.plugin.name != FBS.name:
+        raise HilError(f"bench {given.name!r} ({bench}) is {given.plugin.a_title} (family {given.family!r}); this "
+                       f"command works an FBs PLC (M1952, R4128…). For that bench: hil probe --bench {bench} shows "
+                       f"it, hil run --bench {bench} runs its suites")
+    return given
+
+
+def _hold_locks(stack: contextlib.ExitStack[bool | None], target: str, plc_id: str | None) -> None:
+    """The bench lock of the endpoint (and of the PLC's identity, where the profile names one) until ``stack``
+    closes: a test run on the same PLC, however spelt, makes this command refuse."""
+    stack.enter_context(BenchLock(target).acquire())
+    if plc_id:
+        stack.enter_context(BenchLock(target, key=plc_key(target, plc_id)).acquire())
+
+
 def recover_first(target: str, transport: Transport, timebase: Timebase, profile: Profile | None = None) -> None:
     """Replay a journal a dead run left for this PLC (under ``profile``'s allow-list; without one nothing is
     replayed), saying so on stderr; refuse to go on if that failed."""
-    import sys
     journal = Journal(plc_key(target, profile.plc_id if profile is not None else None), endpoint=lock_key(target),
                       plc=read_identity(transport))
     if not journal.pending:

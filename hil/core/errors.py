@@ -74,3 +74,16 @@ class ProfileError(HilError):
 class TargetError(HilError, ValueError):
     """A target URL that cannot be understood; the message lists the forms that are."""
 
+
+
+#: Where every error line starts, so a user (and a script) finds hil's complaint whatever printed it.
+ERROR_PREFIX = "hil: error: "
+
+
+def error_line(what: str, next_step: str = "") -> str:
+    """The one form of every error line hil prints: ``hil: error: <what was wrong> — <what to do next>``, on one
+    line.  ``what`` may already say what to do (hil's messages mostly do); ``next_step`` is added where the caller
+    knows it separately (argparse's messages do not: "see hil run --help", "did you mean …")."""
+    text = " ".join(what.split()).removeprefix(ERROR_PREFIX).removeprefix("hil: ")
+    step = " ".join(next_step.split())
+    return ERROR_PREFIX + text + (f" — {step}" if step else "")

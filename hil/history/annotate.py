@@ -11,7 +11,7 @@ import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 from urllib.parse import quote
 
 from hil.core.measurement import Measurement
@@ -82,38 +82,59 @@ def sparkline(values: list[float | None], low: float | None, high: float | None,
     """An inline SVG: the values oldest to newest (the newest, this run's, as a dot), the limits as a band."""
     # a run that measured nothing keeps its place and breaks the line: no value is drawn where none was read
     measured = {i: v for i, v in enumerate(values) if v is not None and not math.isnan(v)}
-    shown = list(measured.values())
-    if not shown:
+    if not measured:
         return "<span class='meta'>—</span>"
-    bounds = [*shown, *(x for x in (low, high) if x is not None)]
-    lo, hi = min(bounds), max(bounds)
-    if hi - lo <= 1e-9 * max(abs(lo), abs(hi)):  # equal but for float noise: a flat line, not noise blown up
-        half = max(abs(lo), 1.0) * 0.1
-        lo, hi = lo - half, hi + half
-    span = hi - lo
-    pad = 3
-
-    def y(v: float) -> float:
-        return round(pad + (height - 2 * pad) * (1 - (v - lo) / span), 1)
-
-    step = (width - 2 * pad) / max(1, len(values) - 1)
-    parts = []
-    if low is not None or high is not None:
-        top, bottom = y(high if high is not None else hi), y(low if low is not None else lo)
-        parts.append(f'<rect x="0" y="{top}" width="{width}" height="{max(0.5, bottom - top)}" fill="#1a7f37" '
-                     f'fill-opacity="0.12"/>')
+    plot = _Plot(width, height, *_value_range([*measured.values(), *(x for x in (low, high) if x is not None)]),
+                 step=(width - 2 * _Plot.pad) / max(1, len(values) - 1))
+    parts = [_band(plot, low, high)] if low is not None or high is not None else []
     for run in _stretches(sorted(measured)):
-        points = " ".join(f"{round(pad + i * step, 1)},{y(measured[i])}" for i in run)
+        points = " ".join(f"{plot.x(i)},{plot.y(measured[i])}" for i in run)
         parts.append(f'<polyline fill="none" stroke="#0969da" stroke-width="1.3" points="{points}"/>')
     newest = len(values) - 1
     if newest in measured:  # this run's dot; none when this run measured nothing (the title says "—")
-        last = measured[newest]
-        inside = (low is None or last >= low) and (high is None or last <= high)
-        parts.append(f'<circle cx="{round(pad + newest * step, 1)}" cy="{y(last)}" r="2.5" '
-                     f'fill="{"#1a7f37" if inside else "#cf222e"}"/>')
+        parts.append(_dot(plot, newest, measured[newest], low, high))
     title = " → ".join("—" if v is None else f"{v:g}" for v in values)
     return (f'<svg class="spark" width="{width}" height="{height}" viewBox="0 0 {width} {height}" role="img">'
             f"<title>{_e(title)}</title>{''.join(parts)}</svg>")
+
+
+def _band(plot: _Plot, low: float | None, high: float | None) -> str:
+    """The limits as a green band (one open side reaches the box's edge)."""
+    top, bottom = plot.y(high if high is not None else plot.hi), plot.y(low if low is not None else plot.lo)
+    return (f'<rect x="0" y="{top}" width="{plot.width}" height="{max(0.5, bottom - top)}" fill="#1a7f37" '
+            f'fill-opacity="0.12"/>')
+
+
+def _dot(plot: _Plot, index: int, value: float, low: float | None, high: float | None) -> str:
+    """This run's value: green within its limits, red outside."""
+    inside = (low is None or value >= low) and (high is None or value <= high)
+    return f'<circle cx="{plot.x(index)}" cy="{plot.y(value)}" r="2.5" fill="{"#1a7f37" if inside else "#cf222e"}"/>'
+
+
+def _value_range(bounds: list[float]) -> tuple[float, float]:
+    """The values' range, widened around a value that does not change (a flat line, not float noise blown up)."""
+    lo, hi = min(bounds), max(bounds)
+    if hi - lo <= 1e-9 * max(abs(lo), abs(hi)):
+        half = max(abs(lo), 1.0) * 0.1
+        lo, hi = lo - half, hi + half
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class _Plot:
+    """Where a value and a run's index go in the sparkline's box (SVG y grows downwards)."""
+    width: int
+    height: int
+    lo: float
+    hi: float
+    step: float
+    pad: ClassVar[int] = 3
+
+    def x(self, index: int) -> float:
+        return round(self.pad + index * self.step, 1)
+
+    def y(self, value: float) -> float:
+        return round(self.pad + (self.height - 2 * self.pad) * (1 - (value - self.lo) / (self.hi - self.lo)), 1)
 
 
 def _stretches(indexes: list[int]) -> list[list[int]]:

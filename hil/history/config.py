@@ -34,7 +34,7 @@ def resolve(option: str | None = None, profile_url: str | None = None) -> str | 
             continue
         given = given.strip()
         if not given:
-            raise InvalidValue(f"the history URL is empty (--hil-history, ${ENV} or [history] url): give a URL "
+            raise InvalidValue(f"the history URL is empty (--hil-history, ${ENV} or [history] url) — give a URL "
                                f"(sqlite:///PATH, postgresql://USER@HOST/DB) or 'off'")
         return None if given.lower() == OFF else normalise(given)
     return default_url()

@@ -101,8 +101,8 @@ class Recorder:
             return
         threading.Thread(target=self._read_replies, args=(self.writer.stdout,), daemon=True).start()
         info = {"bench": self.bench, "properties": list(reporter.properties),
-                "started_at": dt.datetime.now(dt.UTC).replace(tzinfo=None).isoformat(), "uuid": str(uuid.uuid4()), "host": socket.gethostname(),
-                "pid": os.getpid(), "report": self.report}
+                "started_at": dt.datetime.now(dt.UTC).replace(tzinfo=None).isoformat(), "uuid": str(uuid.uuid4()),
+                "host": socket.gethostname(), "pid": os.getpid(), "report": self.report}
         self._send({"op": "start", "url": url, "info": info})
 
     # -- each test ----------------------------------------------------------------------------------------------
@@ -172,7 +172,7 @@ class Recorder:
         self._send({"op": "finish", "verdict": verdict.status if verdict else "INTERNAL ERROR",
                     "stopped": verdict.stopped if verdict else "the reporting plugin gave no verdict",
                     "not_run": verdict.not_run if verdict else 0, "plc_restored": verdict.plc if verdict else "",
-                    "recovery": list(config.stash.get(RECOVERY_NOTES, [])), "report": report})
+                    "recovery": _recovery_notes(config), "report": report})
 
     def _end_writer(self, wait: bool = True) -> None:
         """Close the writer's input and (``wait``) wait for the run's end to be in the store before this process
@@ -259,3 +259,7 @@ class Recorder:
             print(f"hil: {text}", file=sys.stderr)
 
 
+def _recovery_notes(config: pytest.Config) -> list[str]:
+    """What the safety plugin's recovery said during the run (nothing when it had nothing to replay)."""
+    notes: list[str] = config.stash.get(RECOVERY_NOTES, [])
+    return list(notes)

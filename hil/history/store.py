@@ -18,8 +18,9 @@ from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Engine, and_, create_engine, event, func, insert, select, text, update
-from sqlalchemy.engine import make_url
+from sqlalchemy.engine import Connection, CursorResult, make_url
 from sqlalchemy.exc import SQLAlchemyError
+from sqlalchemy.sql import Executable
 
 from hil.core.errors import HilError, InvalidValue
 from hil.core.measurement import Measurement
@@ -29,6 +30,19 @@ from hil.history.schema import HEAD, measurements, metadata, recoveries, runs, t
 #: seconds a writer waits for another's lock (SQLite) or for the server to answer a connection (PostgreSQL)
 WAIT_S = 5.0
 _LOCK_ID = 0x68696C  # "hil": the PostgreSQL advisory lock that serialises two hosts migrating one server
+
+
+def rows(conn: Connection, query: Executable) -> list[dict[str, Any]]:
+    """The query's rows as dicts, column name → value."""
+    return [dict(row) for row in conn.execute(query).mappings()]
+
+
+def inserted_id(result: CursorResult[Any]) -> int:
+    """The primary key an insert of one row gave it."""
+    key = result.inserted_primary_key
+    if key is None:  # only an executemany (a list of rows) has none
+        raise TypeError("inserted_id() takes the result of a one-row insert")
+    return int(key[0])
 
 
 class StoreUnreachable(HilError):
@@ -178,17 +192,17 @@ class Store:
     # -- writing a run ---------------------------------------------------------------------------------------------
     def start_run(self, info: RunInfo) -> int:
         with self.engine.begin() as conn:
-            return int(conn.execute(insert(runs).values(info.row())).inserted_primary_key[0])
+            return inserted_id(conn.execute(insert(runs).values(info.row())))
 
     def add_test(self, run_id: int, result: TestResult, conn: Any = None) -> int:
         if conn is None:
             with self.engine.begin() as conn:
                 return self.add_test(run_id, result, conn)
-        test_id = int(conn.execute(insert(tests).values(
+        test_id = inserted_id(conn.execute(insert(tests).values(
             run_id=run_id, nodeid=result.nodeid, area=result.area, outcome=result.outcome,
             duration=result.duration, attempt=result.attempt, requirements=" ".join(result.requirements),
             message=result.message[:4000], properties=json.dumps(result.properties) if result.properties else None,
-            recorded_at=utcnow())).inserted_primary_key[0])
+            recorded_at=utcnow())))
         rows = [{"test_id": test_id, "run_id": run_id, "name": m.name, "value": m.value, "unit": m.unit,
                  "low": m.low, "high": m.high, "outcome": str(m.outcome)} for m in result.measurements]
         if rows:
@@ -234,7 +248,7 @@ class Store:
         if limit:
             query = query.limit(limit)
         with self.engine.connect() as conn:
-            found = [dict(r._mapping) for r in conn.execute(query)]
+            found = rows(conn, query)
             counts = self._counts(conn, [r["id"] for r in found])
         for r in found:
             r["counts"] = counts.get(r["id"], {})
@@ -257,19 +271,18 @@ class Store:
             if ref == "last" or ref.startswith("last~"):
                 back = int(ref[5:] or 0) if ref[5:].isdigit() or not ref[5:] else -1
                 if back < 0:
-                    raise InvalidValue(f"run {ref!r}: write last, or last~N with N a number")
-                row = conn.execute(select(runs).order_by(runs.c.started_at.desc(), runs.c.id.desc())
-                                   .offset(back).limit(1)).first()
-                found = [row] if row is not None else []
+                    raise InvalidValue(f"run {ref!r} — write last, or last~N with N a number")
+                found = rows(conn, select(runs).order_by(runs.c.started_at.desc(), runs.c.id.desc())
+                             .offset(back).limit(1))
             elif ref.isdigit():
-                found = list(conn.execute(select(runs).where(runs.c.id == int(ref))))
+                found = rows(conn, select(runs).where(runs.c.id == int(ref)))
             else:
-                found = list(conn.execute(select(runs).where(runs.c.uuid.startswith(ref.lower())).limit(2)))
+                found = rows(conn, select(runs).where(runs.c.uuid.startswith(ref.lower())).limit(2))
         if not found:
-            raise InvalidValue(f"no run {ref!r} in the history ({self.shown}): `hil history list` shows the runs")
+            raise InvalidValue(f"no run {ref!r} in the history ({self.shown}) — `hil history list` shows the runs")
         if len(found) > 1:
-            raise InvalidValue(f"run {ref!r} is the start of more than one run's UUID: give more of it")
-        return dict(found[0]._mapping)
+            raise InvalidValue(f"run {ref!r} is the start of more than one run's UUID — give more of it")
+        return found[0]
 
     @property
     def shown(self) -> str:
@@ -278,12 +291,11 @@ class Store:
     def tests_of(self, run_id: int) -> list[dict[str, Any]]:
         """The run's tests, each with its ``measurements`` (a list of dicts)."""
         with self.engine.connect() as conn:
-            found = [dict(r._mapping) for r in conn.execute(select(tests).where(tests.c.run_id == run_id)
-                                                            .order_by(tests.c.id))]
+            found = rows(conn, select(tests).where(tests.c.run_id == run_id).order_by(tests.c.id))
             by_test: dict[int, list[dict[str, Any]]] = {}
-            for m in conn.execute(select(measurements).where(measurements.c.run_id == run_id)
-                                  .order_by(measurements.c.id)):
-                by_test.setdefault(m.test_id, []).append(dict(m._mapping))
+            for m in rows(conn, select(measurements).where(measurements.c.run_id == run_id)
+                          .order_by(measurements.c.id)):
+                by_test.setdefault(m["test_id"], []).append(m)
         for t in found:
             t["measurements"] = by_test.get(t["id"], [])
         return found
@@ -308,7 +320,7 @@ class Store:
         if run_ids is not None:
             query = query.where(runs.c.id.in_(list(run_ids)))
         with self.engine.connect() as conn:
-            return [dict(r._mapping) for r in conn.execute(query)]
+            return rows(conn, query)
 
     def test_history(self, *, bench: str | None = None, nodeid: str | None = None) -> list[dict[str, Any]]:
         """Every recorded test result, oldest run first, with its run's bench, PLC identity and profile hash."""
@@ -320,27 +332,28 @@ class Store:
         if nodeid:
             query = query.where(tests.c.nodeid == nodeid)
         with self.engine.connect() as conn:
-            return [dict(r._mapping) for r in conn.execute(query)]
+            return rows(conn, query)
 
     def bench_history(self, bench: str, before_id: int, n: int) -> tuple[dict[str, Any] | None, list[dict[str, Any]]]:
         """For the HTML report: the last run on ``bench`` before run ``before_id`` with its tests' outcomes, and the
         measurements of the last ``n`` runs there (oldest first)."""
         with self.engine.connect() as conn:
-            earlier = [dict(r._mapping) for r in conn.execute(
-                select(runs).where(runs.c.bench == bench, runs.c.id != before_id)
-                .order_by(runs.c.started_at.desc(), runs.c.id.desc()).limit(n))]
+            earlier = rows(conn, select(runs).where(runs.c.bench == bench, runs.c.id != before_id)
+                           .order_by(runs.c.started_at.desc(), runs.c.id.desc()).limit(n))
             if not earlier:
                 return None, []
             last = earlier[0]
             last["outcomes"] = {t.nodeid: t.outcome for t in conn.execute(
                 select(tests.c.nodeid, tests.c.outcome).where(tests.c.run_id == last["id"]).order_by(tests.c.id))}
-            values = [dict(r._mapping) for r in conn.execute(
-                select(measurements.c.name, measurements.c.value, measurements.c.low, measurements.c.high,
-                       tests.c.nodeid, runs.c.started_at, runs.c.id.label("run_id"))
-                .join(tests, tests.c.id == measurements.c.test_id).join(runs, runs.c.id == measurements.c.run_id)
-                .where(measurements.c.run_id.in_([r["id"] for r in earlier]))
-                .order_by(runs.c.started_at, runs.c.id))]
+            values = rows(conn, select(measurements.c.name, measurements.c.value, measurements.c.low,
+                                       measurements.c.high, tests.c.nodeid, runs.c.started_at,
+                                       runs.c.id.label("run_id"))
+                          .join(tests, tests.c.id == measurements.c.test_id)
+                          .join(runs, runs.c.id == measurements.c.run_id)
+                          .where(measurements.c.run_id.in_([r["id"] for r in earlier]))
+                          .order_by(runs.c.started_at, runs.c.id))
         return last, values
 
 
-__all__ = ["Store", "StoreUnreachable", "one_line", "reaching", "RunInfo", "TestResult", "migrate", "make_engine", "current_revision", "metadata", "utcnow"]
+__all__ = ["Store", "StoreUnreachable", "one_line", "reaching", "RunInfo", "TestResult", "migrate", "make_engine",
+           "current_revision", "metadata", "utcnow", "rows", "inserted_id"]

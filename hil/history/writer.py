@@ -49,14 +49,17 @@ class Writer:
         found: dict[str, Any] = {"last": None, "values": []}
 
         def read() -> None:
-            assert self.store is not None
+            assert self.store is not None  # (_try refuses an action before the store is opened)
             last, values = self.store.bench_history(bench, self.run_id or 0, n)
             found.update(last=last, values=values)
         self._try(read)
         return {"history": found, "store": hide_password(self.url), "spooled": self.spooled}
 
     def finish(self, **values: Any) -> None:
-        self._try(lambda: self.store.finish_run(self.run_id, **values))  # type: ignore[union-attr]
+        def write() -> None:
+            store, run_id = self._started()
+            store.finish_run(run_id, **values)
+        self._try(write)
 
     def close(self) -> None:
         if self.store is not None:
@@ -64,14 +67,23 @@ class Writer:
 
     # -- failing over to the spool ------------------------------------------------------------------------------------
     def _open_and_start(self) -> None:
+        if self.info is None:
+            raise RuntimeError("a run's records came before its start")
         self.store = Store(self.url)
-        self.run_id = self.store.start_run(self.info)  # type: ignore[arg-type]
+        self.run_id = self.store.start_run(self.info)
+
+    def _started(self) -> tuple[Store, int]:
+        """The store and this run's row in it (both set by :meth:`_open_and_start`, which :meth:`_try` runs
+        before anything else reaches the store)."""
+        if self.store is None or self.run_id is None:
+            raise RuntimeError("the store was never opened")
+        return self.store, self.run_id
 
     def _flush(self) -> None:
-        assert self.store is not None
-        with self.store.engine.begin() as conn:
+        store, run_id = self._started()
+        with store.engine.begin() as conn:
             for result in self.unsent:
-                self.store.add_test(self.run_id, result, conn)  # type: ignore[arg-type]
+                store.add_test(run_id, result, conn)
         self.unsent.clear()
 
     def _try(self, action: Callable[[], None]) -> None:

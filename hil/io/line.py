@@ -24,6 +24,7 @@ not sent again).
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import re
 import select
@@ -89,10 +90,8 @@ class Line(ABC):
             port.close()
             return
         port.is_open = False
-        try:
+        with contextlib.suppress(OSError):
             sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
         sock.close()
         if thread is not None:
             thread.join(2)
@@ -156,7 +155,7 @@ def open_line(url: str, *, baudrate: int, bytesize: int, parity: str, stopbits: 
     ``timeout`` bounds how long an RFC 2217 server may take to acknowledge the settings at open; ``write_timeout``
     is for local ports only (an RFC 2217 port has none).  Raises :class:`TransportError` naming the cause."""
     bytesize, parity, stopbits = line_coding(url, bytesize, parity, stopbits)
-    settings = dict(baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
+    settings = {"baudrate": baudrate, "bytesize": bytesize, "parity": parity, "stopbits": stopbits}
     try:
         if is_rfc2217(url):
             return Rfc2217Line(_open_rfc2217(url, timeout, settings), None)

@@ -27,6 +27,7 @@ the client when it is built.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -281,10 +282,8 @@ class ModbusWire:
         port, of the client's queue — a purge on the server would cost a round trip of its own)."""
         line = getattr(self.client, "line", None)
         if line is not None:
-            try:
+            with contextlib.suppress(OSError, ValueError, serial.SerialException):
                 line.discard()
-            except (OSError, ValueError, serial.SerialException):
-                pass
 
     def _fence(self, fc: int, count: int) -> None:
         """On RTU, after a read's reply passed :meth:`_check`: prove it was not a late or repeated reply to an earlier

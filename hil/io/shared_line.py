@@ -15,12 +15,12 @@ reply — or was killed in the middle of an exchange — makes the next one resy
 than take another lane's late reply for its own answer.
 
 Turns are not equal in a run with lanes: a process is in the foreground (the main lane) or the background (its
-named lanes), as :func:`run_in_background` says; a process that says neither takes plain turns.  A background client takes the line only while no foreground client
-wants it: a foreground one holds a shared lock on a second file (``….want``) from before it asks for the line
-until :data:`LINGER` after it let go of it (so across back-to-back exchanges), and a background one must take that
-file's lock exclusively before it asks.  So the main lane runs as it would alone but for a background exchange
-already on the line when it asks (one frame, tens of milliseconds at 9600 bit/s), and the background lanes fill the
-line's idle time: the main lane's waits for the PLC.
+named lanes), as :func:`run_in_background` says; a process that says neither takes plain turns.  A background
+client takes the line only while no foreground client wants it: a foreground one holds a shared lock on a second
+file (``….want``) from before it asks for the line until :data:`LINGER` after it let go of it (so across
+back-to-back exchanges), and a background one must take that file's lock exclusively before it asks.  So the main
+lane runs as it would alone but for a background exchange already on the line when it asks (one frame, tens of
+milliseconds at 9600 bit/s), and the background lanes fill the line's idle time: the main lane's waits for the PLC.
 
 A wait for the line is bounded (:data:`WAIT`, ``$HIL_LINE_WAIT`` seconds): a process that keeps it longer — another
 user's run, a stuck tool — is named (pid, user, command, from the kernel's lock table) instead of hanging the
@@ -29,6 +29,7 @@ command with no output.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
 import os
@@ -223,10 +224,9 @@ class SharedLine:
 
 
 def _mark(fd: int, value: bytes) -> None:
-    try:
+    # another user's lock file, opened read-only: the next holder resynchronises anyway (an empty mark)
+    with contextlib.suppress(OSError):
         os.pwrite(fd, value, 0)
-    except OSError:
-        pass  # another user's lock file, opened read-only: the next holder resynchronises anyway (an empty mark)
 
 
 __all__ = ["SharedLine", "run_in_background"]

@@ -19,6 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 #: frame decoders of the families' own protocols, by trace kind (a family registers its own)
@@ -103,7 +104,7 @@ class WireTrace:
                 return result
 
             setattr(transport, name, wrapped)
-            self._detach.append(lambda name=name: transport.__dict__.pop(name, None))
+            self._detach.append(partial(transport.__dict__.pop, name, None))
 
     # -- meaning ----------------------------------------------------------------------------------------------------
     def _meaning(self, direction: str, data: bytes, extra: Any) -> str:

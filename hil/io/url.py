@@ -17,7 +17,8 @@ it (:data:`hil.core.registry.SCHEMES`: its parameters, default port, protocol); 
                                               exporter), its line settings sent over the protocol (hil.io.line)
     s7+tcp://host:102?rack=0&slot=1           an S7-200 SMART over its own protocol (ISO-on-TCP)
     emulator+s7-tcp                           the in-process S7 emulator served over that protocol
-    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame (hil.families.fbs.transport.replay)
+    replay+fatek:///path/to/trace.txt?station=1  a recorded FATEK wire trace, answered frame by frame
+                                              (hil.families.fbs.transport.replay)
 """
 
 from __future__ import annotations
@@ -102,7 +103,7 @@ def parse_target(url: str) -> Target:
     if mark and scheme in in_process:
         return Target(scheme, params=_params(url, scheme, query))
     if text.startswith("emulator"):
-        raise TargetError(f"unknown emulator target {url!r}; use one of: {', '.join(in_process)}")
+        raise TargetError(f"unknown emulator target {url!r} — use one of: {', '.join(in_process)}")
     try:
         parts = urlsplit(text)
     except ValueError as exc:  # "Invalid IPv6 URL": an unclosed [
@@ -110,17 +111,18 @@ def parse_target(url: str) -> Target:
                           f"{text.partition('://')[0]}://[::1]:PORT)") from None
     scheme = parts.scheme
     if scheme not in SCHEMES or SCHEMES[scheme].in_process:
-        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r}. Targets look like: {forms()}")
+        raise TargetError(f"cannot use target {url!r}: unknown scheme {scheme!r} — write one of "
+                          f"these forms: {forms()}")
     entry = SCHEMES[scheme]
     params = _params(url, scheme, parts.query)
     if entry.network:
         example_port = entry.default_port or 3001
         if not parts.hostname:
-            raise TargetError(f"target {url!r} names no host (e.g. {scheme}://192.168.1.3:{example_port})")
+            raise TargetError(f"target {url!r} names no host — give one, e.g. {scheme}://192.168.1.3:{example_port}")
         try:
             port = parts.port or entry.default_port or 0
         except ValueError:
-            raise TargetError(f"target {url!r} has an invalid port") from None
+            raise TargetError(f"target {url!r} has an invalid port — give 1–65535") from None
         if not port:
             raise TargetError(f"target {url!r} names no port: an RFC 2217 server has no standard one — give the "
                               f"port of its telnet(rfc2217) accepter (e.g. {scheme}://{parts.hostname}:{example_port})")

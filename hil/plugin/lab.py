@@ -26,6 +26,7 @@ from hil.bench.profile import check_profile, lab_request, load_profile
 from hil.core import signals
 from hil.core.errors import HilError
 from hil.core.signals import shielded
+from hil.plugin.usage import usage_error
 
 #: a queued run prints a plain line this often where there is no terminal (CI logs)
 LOG_EVERY = 30.0
@@ -57,7 +58,7 @@ def hold_place(config: pytest.Config, state: Any, bench_path: Callable[[], Path]
         if spec is None:
             return
         if config.getoption("--target"):
-            raise pytest.UsageError(f"--target and {spec.describe()} both say where the PLC is: give one of them")
+            raise usage_error(f"--target and {spec.describe()} both say where the PLC is", "give one of them")
         station = check_profile(bench_path(), spec).station
         signals.install()  # Ctrl-C, SIGTERM, SIGHUP while queued: the reservation is cancelled on the way out
         progress = _Progress(config)
@@ -69,7 +70,7 @@ def hold_place(config: pytest.Config, state: Any, bench_path: Callable[[], Path]
             progress.stop()  # the status line, however the wait ended
         load_profile(bench_path(), lab=lab)  # what the place resolved to fits the profile (a rig for its faults…)
     except HilError as exc:
-        raise pytest.UsageError(str(exc)) from None
+        raise usage_error(str(exc)) from None
 
 
 def let_go(config: pytest.Config, session: LabSession) -> None:

@@ -40,6 +40,7 @@ from hil.core.registry import SCHEMES
 from hil.io.shared_line import run_in_background
 from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce, say
 from hil.plugin.stash import BENCH_SESSION, BenchState
+from hil.plugin.usage import usage_error
 
 MARKER = ("lane(name): the lane of this module's tests in a run with lanes (hil run --lanes N): tests of one lane run "
           "in one process, in order; tests of different lanes may run at the same time on one PLC, so they must "
@@ -75,7 +76,7 @@ def _hold_the_runs_locks(given: dict) -> None:
             raise HilError(f"the run's controller (pid {holder}) is gone, and the bench's locks with it")
         _BORROWED.extend(borrow(given[LOCKS]))
     except HilError as exc:
-        raise pytest.UsageError(f"hil: lane {lane} does not start: {exc}") from None
+        raise usage_error(f"hil: lane {lane} does not start: {exc}") from None
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -153,14 +154,14 @@ def lease(config: pytest.Config) -> None:
     recovery = state.recovery
     if recovery is not None and not recovery.ok:
         state.release()
-        raise pytest.UsageError(f"{recovery.summary()} — no lane starts on a PLC left changed: `hil restore` once "
-                                f"the cause is fixed")
+        raise usage_error(f"{recovery.summary()} — no lane starts on a PLC left changed: `hil restore` once "
+                          f"the cause is fixed")
     state.close_wire()
     try:
         config.stash[_LENDER] = LockLender(_lock_files(state))
     except HilError as exc:
         state.release()
-        raise pytest.UsageError(f"hil: {exc}") from None
+        raise usage_error(f"hil: {exc}") from None
     config.stash[_LANES_LEFT] = {}
     # A worker that dies is not replaced: its replacement would run beside the dead lane's journal, unreplayed
     # (the controller replays it at the end).  pytest-xdist reads --max-worker-restart when it configures, before

@@ -20,6 +20,7 @@ from hil.core.registry import examples
 from hil.io.url import parse_target
 from hil.plugin import lanes
 from hil.plugin.stash import BENCH_SESSION, BenchState
+from hil.plugin.usage import usage_error
 
 
 def pytest_sessionstart(session: pytest.Session) -> None:
@@ -27,8 +28,8 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     config = session.config
     given = config.getoption("--target")
     if given is not None and not given.strip():
-        raise pytest.UsageError(f"hil: --target is empty: give a target URL (e.g. {examples()}), or leave it out "
-                                f"to use the bench profile's target")
+        raise usage_error("--target is empty", f"give a target URL (e.g. {examples()}), or leave it out to use the "
+                                               f"bench profile's target")
     if config.option.collectonly or not (config.getoption("--bench") or config.getoption("--target")):
         return
     state = config.stash[BENCH_SESSION]
@@ -38,14 +39,14 @@ def pytest_sessionstart(session: pytest.Session) -> None:
         bench = state.open()
         bench.plc.status()  # a wire that connects but never answers is as unreachable as a refused port
     except HilError as exc:
-        raise pytest.UsageError(unreachable(state, exc)) from None
+        raise usage_error(unreachable(state, exc)) from None
     except pytest.fail.Exception as exc:  # state.open() says why in pytest's own form
-        raise pytest.UsageError(unreachable(state, exc, target)) from None
+        raise usage_error(unreachable(state, exc, target)) from None
     if lanes.distributed(config):  # a pytest-xdist controller runs no test: it checked, its workers open the bench
         problem = lanes.check_run(config, parse_target(target))
         if problem is not None:
             state.release()
-            raise pytest.UsageError(f"hil: {problem}")
+            raise usage_error(f"hil: {problem}")
         if state.lock is None:
             state.release()  # each worker builds its own emulator
         else:

@@ -18,7 +18,7 @@ import pytest
 #: plugin; this module imports some of them first, so they are marked before those imports — otherwise, from an
 #: editable install (whose files pytest cannot list), each import warns "already imported so cannot be rewritten"
 PLUGINS = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements", "hil.plugin.preflight",
-           "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes"]
+           "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes", "hil.plugin.usage"]
 pytest.register_assert_rewrite(*PLUGINS)
 
 from hil.bench.base import BenchBase as Bench
@@ -41,6 +41,7 @@ from hil.plugin.lab import hold_place, let_go
 from hil.plugin.preflight import unreachable
 from hil.plugin.safety import announce
 from hil.plugin.stash import BENCH_SESSION
+from hil.plugin.usage import usage_error
 from hil.sim.engine import Engine
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
@@ -231,7 +232,7 @@ def resolve_bench_path(config: pytest.Config) -> Path:
             return base / DEFAULT_BENCH
     if default_bench().is_file():  # the bundled default (a checkout or an installed wheel)
         return default_bench()
-    raise pytest.UsageError(f"no bench profile given and {DEFAULT_BENCH} not found; pass --bench FILE")
+    raise usage_error(f"no bench profile given and {DEFAULT_BENCH} not found", "pass --bench FILE")
 
 
 def pytest_report_header(config: pytest.Config) -> list[str] | None:
@@ -241,7 +242,7 @@ def pytest_report_header(config: pytest.Config) -> list[str] | None:
     try:
         profile = state.profile
     except HilError as exc:
-        raise pytest.UsageError(str(exc)) from None
+        raise usage_error(str(exc)) from None
     return [f"hil bench: {profile.name} ({profile.path})", f"hil target: {state.target}"]
 
 
@@ -253,7 +254,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         target = parse_target(state.target)
         profile = state.profile
     except HilError as exc:
-        raise pytest.UsageError(str(exc)) from None
+        raise usage_error(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
     offered = bench_capabilities(target, profile.scan_counter, profile.offers)
     # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
@@ -272,8 +273,8 @@ def _skip_what_the_target_lacks(item: pytest.Item, target: Target, offered: Coll
     for marker in item.iter_markers("needs"):
         bad = unknown(marker.args)
         if bad or not marker.args:
-            raise pytest.UsageError(f"{item.nodeid}: needs() takes capabilities among "
-                                    f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
+            raise usage_error(f"{item.nodeid}: needs() takes capabilities among "
+                              f"{', '.join(CAPABILITIES)}, not {', '.join(bad) or 'nothing'}")
         missing = [name for name in marker.args if name not in offered]
         if missing:
             why = marker.kwargs.get("reason") or "; ".join(CAPABILITIES[name] for name in missing)
@@ -332,7 +333,7 @@ def pytest_collection_finish(session: pytest.Session) -> None:
             line += f" (took over a stale bench lock left by {describe_holder(state.lock.stale)})"
     except (HilError, pytest.fail.Exception) as exc:
         if state.bench is None:  # never opened (not opened before collection either): one line, exit 4
-            raise pytest.UsageError(unreachable(state, exc)) from None
+            raise usage_error(unreachable(state, exc)) from None
         line = f"hil PLC: unreachable — {exc}"
         state.error = state.error or line
     state.plc_line = line  # hil.plugin.reporting shows it in its header panel (which replaces this line)

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from hil.core.errors import HilError
+from hil.plugin.usage import usage_error
 
 #: the catalogue shipped in the package
 REQUIREMENTS_FILE = Path(__file__).resolve().parent.parent / "requirements.toml"
@@ -107,7 +108,7 @@ def marked_ids(item: pytest.Item) -> tuple[str, ...]:
     ids: list[str] = []
     for marker in item.iter_markers("spec"):
         if not marker.args or marker.kwargs:
-            raise pytest.UsageError(f"{item.nodeid}: spec() takes requirement IDs only, e.g. spec(\"RTC-SET-1\")")
+            raise usage_error(f"{item.nodeid}: spec() takes requirement IDs only, e.g. spec(\"RTC-SET-1\")")
         ids.extend(a for a in marker.args if a not in ids)
     return tuple(ids)
 
@@ -131,15 +132,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     try:
         catalogue = load()
     except HilError as exc:
-        raise pytest.UsageError(str(exc)) from None
+        raise usage_error(str(exc)) from None
     for item in items:
         ids = marked_ids(item)
         if not ids:
             continue
         unknown = [i for i in ids if i not in catalogue]
         if unknown:
-            raise pytest.UsageError(f"{item.nodeid}: spec() names {', '.join(unknown)}, not in the requirement "
-                                    f"catalogue {REQUIREMENTS_FILE} (`hil spec` lists the IDs)")
+            raise usage_error(f"{item.nodeid}: spec() names {', '.join(unknown)}, not in the requirement "
+                              f"catalogue {REQUIREMENTS_FILE} (`hil spec` lists the IDs)")
         item.stash[_IDS] = ids
         item.user_properties.append((PROPERTY, " ".join(ids)))
         choices = [i for i in ids if catalogue[i].choice]

@@ -33,6 +33,7 @@ from hil.plugin.reporting.suite_ids import show_suite_ids_from_their_root
 from hil.plugin.reporting.verdict import Stops, Verdict, describe, incomplete, status_of
 from hil.plugin.requirements import PROPERTY as REQUIREMENTS
 from hil.plugin.safety import AS_FOUND, PLC_LEFT
+from hil.plugin.usage import usage_error
 
 TRACE_MODES = ("failures", "all", "off")
 
@@ -188,7 +189,7 @@ class Reporter:
         try:
             emit(Moment.STARTED, self.run)  # the report files say INCOMPLETE until the session's end replaces them
         except OSError as exc:
-            raise pytest.UsageError(f"cannot write the reports: {exc}") from None
+            raise usage_error(f"cannot write the reports: {exc}") from None
 
     def _attach(self, state: Any) -> None:
         """Hook the trace recorder (and, on a real bench's terminal, the wait bar) into the open bench."""
@@ -367,8 +368,8 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     record = _record_of(item)
     for marker in markers:
         if len(marker.args) != 1 or not isinstance(marker.args[0], str):
-            raise pytest.UsageError(f"{item.nodeid}: measures() takes the measurement's name, then unit=, low=, "
-                                    f"high= (got {marker.args!r})")
+            raise usage_error(f"{item.nodeid}: measures() takes the measurement's name, then unit=, low=, "
+                              f"high= (got {marker.args!r})")
         name = marker.args[0]
         _check_name(name)
         low, high = marker.kwargs.get("low"), marker.kwargs.get("high")
