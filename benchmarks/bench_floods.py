@@ -26,8 +26,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -151,7 +151,7 @@ def _modbus_read() -> tuple[bytes, Callable[[bytes], bool]]:
             lambda got: len(got) >= 6 and len(got) >= 6 + int.from_bytes(got[4:6], "big"))
 
 
-def _latency(sock: socket.socket, n: int, until=None, request=_fatek_ping) -> list[float]:  # noqa: ANN001
+def _latency(sock: socket.socket, n: int, until=None, request=_fatek_ping) -> list[float]:
     frame, complete = request()
     out = []
     for _ in range(n):
@@ -167,7 +167,7 @@ def _latency(sock: socket.socket, n: int, until=None, request=_fatek_ping) -> li
 
 
 def flood_latency(label: str, wires: dict[str, str], client_wire: str, flood_script: str, flood_wire: str,
-                  request, idle_n: int) -> dict:  # noqa: ANN001
+                  request, idle_n: int) -> dict:
     from tests.external import emulate_process
     with tempfile.TemporaryDirectory() as tmp:
         profile = Path(tmp) / "emulated.toml"

@@ -35,8 +35,8 @@ import tempfile
 import threading
 import time
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -162,11 +162,12 @@ def _fatek_timeout(timeout: float, retries: int, write: bool = False) -> float:
 
 
 def _modbus_silence() -> float:
+    import logging
+
     from hil.core.errors import ReplyTimeout
     from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty
     from hil.families.fbs.transport.modbus import ModbusTransport
-    import logging
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # its "no response" lines are the point here
     server = start_modbus_rtu_pty(Emulator(), unit=1)
     try:
@@ -229,6 +230,7 @@ def _lock_taken_after_release() -> float:
 
 def _bench_wait_in_pieces() -> float:
     import contextlib
+
     from hil.core.timebase import HostTimebase
     from hil.plugin.reporting.console import WaitProgress
     timebase = HostTimebase()
@@ -282,6 +284,7 @@ def paced_line(rounds: int) -> dict:
 # -- 4. an idle pty server --------------------------------------------------------------------------------------------
 def idle_pty_cpu(seconds: float) -> dict:
     import serial
+
     from hil.families.fbs.address import parse
     from hil.families.fbs.protocol.fatek import MixedWrite, encode_request
     from hil.families.fbs.sim.plc import Emulator

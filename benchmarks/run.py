@@ -48,8 +48,8 @@ from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
 from benchmarks.figures import record as record_figure  # noqa: E402
-from hil.plugin.perf import WireCounter  # noqa: E402
 from hil.bench.profile import load_profile, profile_from_dict  # noqa: E402
+from hil.plugin.perf import WireCounter  # noqa: E402
 
 BENCH = ROOT / "fixtures" / "benches" / "emulator.toml"
 TARGETS = ["emulator", "emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]
@@ -57,7 +57,7 @@ EPOCH = dt.datetime(2024, 2, 28, 12, 0, 0)
 console = Console()
 
 
-def rate(fn, seconds: float) -> tuple[float, int]:  # noqa: ANN001
+def rate(fn, seconds: float) -> tuple[float, int]:
     """Calls of ``fn`` per second over about ``seconds`` (after a short warm-up)."""
     for _ in range(5):
         fn()
@@ -99,12 +99,11 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
     from pymodbus.server import ModbusTcpServer
     from pymodbus.simulator import DataType, SimData, SimDevice
 
+    from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, segments
     from hil.families.fbs.sim.build import build_emulator
+    from hil.families.fbs.sim.plc import Emulator
     from hil.families.fbs.sim.serve_modbus import start_modbus_tcp
     from hil.sim.runtime import LoopThread
-    from hil.families.fbs.protocol.modbus_map import COIL, HOLDING, segments
-
-    from hil.families.fbs.sim.plc import Emulator
     emulator = build_emulator(load_profile(BENCH), EPOCH) if models else Emulator()
     ours = start_modbus_tcp(emulator)
     runtime = LoopThread.shared()
@@ -136,7 +135,7 @@ def bench_modbus_servers(seconds: float, rounds: int = 20, models: bool = True) 
         for r in range(rounds):
             order = list(clients.items()) if r % 2 == 0 else list(reversed(clients.items()))
             for name, client in order:
-                def once(client=client) -> None:  # noqa: ANN001
+                def once(client=client) -> None:
                     rr = client.read_holding_registers(4128, count=8, device_id=1)
                     assert not rr.isError(), rr
                 per_round[name].append(rate(once, seconds / rounds / 2)[0])
@@ -160,8 +159,18 @@ def reply_len(data_chars: int) -> int:
 
 def cheapest_request(frame: bytes) -> int:
     """The shortest request frame that asks the same thing of the PLC (same elements, same values)."""
-    from hil.families.fbs.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, WriteBits,
-                                    WriteRegisters, decode_request, encode_request, split_frame)
+    from hil.families.fbs.protocol.fatek import (
+        BitAction,
+        MixedRead,
+        MixedWrite,
+        ReadBits,
+        ReadRegisters,
+        WriteBits,
+        WriteRegisters,
+        decode_request,
+        encode_request,
+        split_frame,
+    )
     cmd = decode_request(split_frame(frame))
     best = len(frame)
     if isinstance(cmd, WriteBits) and len(cmd.values) == 1:
@@ -217,11 +226,18 @@ def device_operations_figure(*, record: bool) -> list[dict]:
 
 
 def _device_operations(url: str) -> list[dict]:
-    from hil.families.fbs.device.plc import FbsPlc
-    from hil.families.fbs.sim.build import build_emulator
-    from hil.families.fbs.protocol.fatek import (BitAction, MixedRead, MixedWrite, ReadBits, ReadRegisters, ShortStatus,
-                                    encode_request)
     from hil.core.timebase import EmulatorTimebase
+    from hil.families.fbs.device.plc import FbsPlc
+    from hil.families.fbs.protocol.fatek import (
+        BitAction,
+        MixedRead,
+        MixedWrite,
+        ReadBits,
+        ReadRegisters,
+        ShortStatus,
+        encode_request,
+    )
+    from hil.families.fbs.sim.build import build_emulator
     from hil.families.fbs.transport.factory import open_transport
 
     profile = load_profile(BENCH)
@@ -274,7 +290,7 @@ def _device_operations(url: str) -> list[dict]:
     return rows
 
 
-def plc_readings(profile) -> str:  # noqa: ANN001
+def plc_readings(profile) -> str:
     from hil.families.fbs.temperature import parse_temperature
     return str(parse_temperature(profile.areas["temperature"], str(BENCH)).readings)
 
@@ -287,7 +303,7 @@ class FrameRecorder:
         self._current: str | None = None
         self._attached = None
 
-    def pytest_runtest_setup(self, item) -> None:  # noqa: ANN001
+    def pytest_runtest_setup(self, item) -> None:
         from hil.plugin.perf import _bench
         bench = _bench(item.config)
         if bench is not None and self._attached is not bench.raw and hasattr(bench.raw, "observers"):
@@ -295,7 +311,7 @@ class FrameRecorder:
             self._attached = bench.raw
         self._current = item.nodeid
 
-    def pytest_runtest_logfinish(self, nodeid, location) -> None:  # noqa: ANN001
+    def pytest_runtest_logfinish(self, nodeid, location) -> None:
         self._current = None
 
     def _observe(self, direction: str, frame: bytes) -> None:
@@ -360,7 +376,7 @@ def full_profile() -> tuple[object, str]:
         return profile_from_dict(data), f"8 modules, 32 points, no PID ({type(exc).__name__}: {exc})"
 
 
-def start_pid(emulator) -> None:  # noqa: ANN001
+def start_pid(emulator) -> None:
     mem = emulator.memory
     mem.set("M0", 1)  # EN
     mem.set("M1", 1)  # H/C = heating (0 would be cooling: PV 25 °C is far below SV, so the output would stay 0)
@@ -376,7 +392,7 @@ def virtual_time(quick: bool) -> list[dict]:
     full, full_note = full_profile()
     pid = "no PID" not in full_note
 
-    def full_plc():  # noqa: ANN202
+    def full_plc():
         emulator = build_emulator(full, EPOCH)
         if pid:
             start_pid(emulator)
@@ -436,7 +452,7 @@ def virtual_time_table(quick: bool) -> list[dict]:
     return vt
 
 
-def full_plc_against_floor(build, hours: float, rounds: int) -> tuple[list[float], list[float], list[float]]:  # noqa: ANN001
+def full_plc_against_floor(build, hours: float, rounds: int) -> tuple[list[float], list[float], list[float]]:
     """``hours`` of the full PLC and of the arithmetic floor, alternately, ``rounds`` times: (full PLC walls,
     floor walls, the per-round ratios sorted).  A shared machine's speed swings from one second to the next, and
     not alike for numpy's calls and plain CPython's loop, so each full-PLC run is set against the floor run next to
@@ -451,7 +467,7 @@ def full_plc_against_floor(build, hours: float, rounds: int) -> tuple[list[float
     return fulls, floors, sorted(f / g for f, g in zip(fulls, floors))
 
 
-def advance_timed(emulator, hours: float) -> float:  # noqa: ANN001
+def advance_timed(emulator, hours: float) -> float:
     """Wall seconds for ``hours`` of virtual time and the scan at their end."""
     start = time.perf_counter()
     emulator.advance(hours * 3600)

@@ -14,7 +14,7 @@ from hil import __version__  # noqa: E402
 
 project = "hil"
 author = "the hil developers"
-copyright = "2026, the hil developers"  # noqa: A001 - Sphinx's name
+copyright = "2026, the hil developers"
 release = version = __version__
 
 extensions = ["myst_parser", "hil_docs"]

@@ -545,7 +545,7 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         _write_pvs(bench, (bank, index), fake, held)
         io.write_many({"R4003": KEY, "R4004": _code(bank, index)})
         for inst in instances:
-            _set_band(bench, inst, fake, {p: 0 for p in inst.points}, held)
+            _set_band(bench, inst, fake, dict.fromkeys(inst.points, 0), held)
         bench.settle()
         for inst in instances:
             assert not missing(inst), (f"R4003 = A55AH, R4004 = {_code(bank, index)}: points {missing(inst)} of "
@@ -560,7 +560,7 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
         value = 1234 + 10 * k  # (a PLC still reading the last code's register sees 1.0 ° or more off: not normal)
         io.write_many({name: value, "R4003": KEY, "R4004": code})
         held.pop(name, None)  # (it may lie in a block written through `held`)
-        _set_band(bench, first, {p: value for p in first.points}, {p: 0 for p in first.points}, held)
+        _set_band(bench, first, dict.fromkeys(first.points, value), dict.fromkeys(first.points, 0), held)
         bench.settle()
         assert p0 in pid.alarm_words(first).normal_points(), (
             f"R4004 = {code} names {bank}{index}: point {p0} must read its PV ({value}) from {name}")
@@ -583,7 +583,7 @@ def test_pvs_come_from_where_r4003_and_r4004_say(bench, pid):
                     held.pop(name, None)
         io.write_many({"R4003": key, "R4004": code})
         for inst in instances:
-            _set_band(bench, inst, {p: real[p] for p in inst.points}, {p: 50 for p in inst.points}, held)
+            _set_band(bench, inst, {p: real[p] for p in inst.points}, dict.fromkeys(inst.points, 50), held)
         bench.settle()
         for inst in instances:
             assert not missing(inst), (f"R4003 = {key:04X}H, R4004 = {code}: FUN86 must read the table's readings; "
@@ -634,14 +634,14 @@ def test_prealarm_of_every_point_at_r4008(bench, pid):
     def warn_round(pvs, r4008=None):
         _write_pvs(bench, block, pvs, held)
         for inst in instances:
-            _set_band(bench, inst, pvs, {p: 0 for p in inst.points}, held)
+            _set_band(bench, inst, pvs, dict.fromkeys(inst.points, 0), held)
         if r4008 is not None:
             bench.plc.io.write("R4008", r4008)
         _ten_scans(bench)
 
     every = [p for inst in instances for p in inst.points]
     enabled_of = {inst.name: _enabled_points(bench, inst) for inst in instances}  # nothing here writes R4012/R4013
-    warn_round({p: 32767 for p in every}, 40000)
+    warn_round(dict.fromkeys(every, 32767), 40000)
     alarms = pid.alarms(instances)
     for inst in instances:
         words = _only(alarms[inst.name].words[2:], inst, enabled_of[inst.name])
@@ -756,7 +756,7 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
     if at_r4008:
         block = _pv_source(bench)
         limit = 1000  # 100.0 °
-        _write_pvs(bench, block, {p: limit for p in inst.points})
+        _write_pvs(bench, block, dict.fromkeys(inst.points, limit))
     _all_in_band(bench, pid, inst)
     points = _enabled_points(bench, inst)
     assert min(pid.pvs(points).values()) >= limit, f"the points must read ≥ {limit / 10} ° for R4008 = {limit}"
@@ -930,7 +930,7 @@ def _integrating_point(bench, pid, *, plain=False):
         pytest.skip(f"every point of {inst.name} is disabled in R4012/R4013")
     point, other = enabled[0], (enabled[1] if plain and len(enabled) > 1 else None)
     gains = {p: ki for p, ki in ((point, 100), (other, 0)) if p is not None}
-    _write_pvs(bench, block, {p: 1000 for p in gains})
+    _write_pvs(bench, block, dict.fromkeys(gains, 1000))
     for p, ki in gains.items():
         bench.plc.io.write_many({str(inst.operand("sv", p)): 1020, str(inst.operand("os", p)): 0})
         pid.set_gains(p, 100, ki, 0)
@@ -1161,7 +1161,7 @@ def test_disabled_point_output_is_forced_off(bench, pid):
                                  if p >= 16 and p % 16 != points[0] % 16), None),) if p is not None]
     registers = sorted({"R4012" if p < 16 else "R4013" for p in points})
     _need(bench, *registers)
-    _write_pvs(bench, block, {p: 500 for p in points})
+    _write_pvs(bench, block, dict.fromkeys(points, 500))
     for p in points:
         pid.set_set_point(p, 1000)
         pid.set_gains(p, 110, 17, 50)

@@ -233,7 +233,7 @@ def test_heater_loop_threshold_is_r4006(bench, pid, heater_open, r4006, warns):
         pytest.skip(f"this PLC's output for Kc 14 × 100 ° is {percent:.1f} %, not between 80 and 95 %")
     lowest, highest = _hold_error(bench, pid, point, error, LOOP_S + 5)
     outputs = pid.output(point) * 100 / FULL
-    assert 80 <= lowest and highest < 95, (
+    assert lowest >= 80 and highest < 95, (
         f"output left 80–95 % while SV − PV was held at {error / 10} °: {lowest:.1f}–{highest:.1f} %")
     assert pid.alarm_words(inst).warning(point) is warns, (
         f"output {outputs:.1f} % for {LOOP_S + 5} s with R4006 = {r4006} %: warning expected {warns}")

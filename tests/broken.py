@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -20,7 +20,7 @@ class BrokenEmulator:
     def __init__(self, breakage: Callable[[Emulator, object, object], None]) -> None:
         self.breakage = breakage
 
-    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+    def pytest_hil_make_emulator(self, profile, epoch):
         emulator = build_emulator(profile, epoch)
         self.breakage(emulator, profile, epoch)
         return emulator

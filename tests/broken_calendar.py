@@ -4,7 +4,7 @@ calendar table is wrong shows after running ``seconds`` from a time that was set
 from __future__ import annotations
 
 import calendar
-from typing import Callable
+from collections.abc import Callable
 
 #: (two-digit year, month) → days in that month, as a broken chip counts them
 DaysIn = Callable[[int, int], int]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import threading
-from typing import Callable
+from collections.abc import Callable
 
 
 def run_clients(work: Callable[[int], None], clients: int, join_timeout: float) -> None:

@@ -6,6 +6,7 @@ import random
 from pathlib import Path
 
 import numpy  # noqa: F401 - before any pytester run: its in-process runs put sys.modules back as they found it,
+
 # and numpy's C core cannot be loaded a second time in one process (the report's plots then silently go missing)
 import pytest
 
@@ -111,7 +112,7 @@ def pytest_collection_modifyitems(config, items):
     items.sort(key=_tier)
 
 
-def _tier(item) -> int:  # noqa: ANN001
+def _tier(item) -> int:
     """``e2e(leads=True)`` first of all, then the rest in the shuffled order, e2e and unmarked mixed: the longest (a
     minute of real time) starts at once on one worker while the others work through the rest, and the e2e tests,
     which mostly wait for real-time processes, share the host with the unmarked ones, which compute, instead of

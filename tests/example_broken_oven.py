@@ -12,11 +12,11 @@ from hil.families.fbs.sim.models.temperature import TemperatureModel
 
 
 class PrealarmNever(Fun86Model):
-    def prealarm(self, count):  # noqa: ANN001, ANN201
+    def prealarm(self, count):
         return np.zeros_like(count, dtype=bool)
 
 
-def pytest_hil_make_emulator(profile, epoch):  # noqa: ANN001, ANN201
+def pytest_hil_make_emulator(profile, epoch):
     emulator = build_emulator(profile, epoch)
     good = emulator.model(Fun86Model)
     broken = PrealarmNever(good.config, good.temperature)

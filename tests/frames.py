@@ -9,12 +9,13 @@ procedure's frames (another command, an extra round trip) fails those tests unti
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
+from hil.core.timebase import HostTimebase
 from hil.families.fbs.device.plc import FbsPlc
 from hil.families.fbs.rtc_time import RtcTime
-from hil.core.timebase import HostTimebase
 from tests.conftest import EMULATOR_BENCH, REPO
 
 FRAMES = REPO / "fixtures" / "frames"
@@ -22,8 +23,8 @@ EPOCH = dt.datetime(2024, 2, 28, 12, 0, 0)  # a Wednesday, the day before a leap
 
 
 def _temperature(plc: FbsPlc) -> Any:
-    from hil.families.fbs.temperature import parse_temperature
     from hil.bench.profile import load_profile
+    from hil.families.fbs.temperature import parse_temperature
     plc.temperature.config = parse_temperature(load_profile(EMULATOR_BENCH).areas["temperature"], "<frames>")
     work = plc.temperature.read_work()
     return work.execution_code, work.total_points, work.break_points, plc.temperature.readings()[:2]
@@ -64,8 +65,8 @@ def plc_on(transport: Any) -> FbsPlc:
 
 def record(names: list[str] | None = None) -> list[Path]:
     """Run each scenario against the emulator over FATEK/TCP and save its frames as a wire trace."""
-    from hil.families.fbs.sim.build import build_emulator
     from hil.bench.profile import load_profile
+    from hil.families.fbs.sim.build import build_emulator
     from hil.families.fbs.transport.factory import open_transport
     from hil.io.trace import WireTrace, format_trace
     written = []

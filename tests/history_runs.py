@@ -71,7 +71,7 @@ def pytest_run(args: list[str], url: str, cwd: Path, **extra: str) -> subprocess
                             env=env(url, **extra), stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
 
 
-def wait_for(check, what: str, timeout: float = 60.0):  # noqa: ANN001, ANN201
+def wait_for(check, what: str, timeout: float = 60.0):
     """Poll ``check()`` until it returns something true (no timing is asserted: the timeout only ends a hang)."""
     deadline = time.monotonic() + timeout
     while True:

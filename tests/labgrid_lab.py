@@ -15,10 +15,10 @@ import shutil
 import signal
 import subprocess
 import time
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 from tests import processes
 from tests.conftest import REPO
@@ -42,8 +42,8 @@ def ser2net() -> str | None:
 
 
 MISSING = (None if labgrid_bin() else
-           f"labgrid is not installed: python3 -m venv .venv-labgrid && .venv-labgrid/bin/pip install -e '.[labgrid]' "
-           f"(as scripts/e2e_matrix.py does), or set HIL_LABGRID_BIN") or \
+           "labgrid is not installed: python3 -m venv .venv-labgrid && .venv-labgrid/bin/pip install -e '.[labgrid]' "
+           "(as scripts/e2e_matrix.py does), or set HIL_LABGRID_BIN") or \
           (None if ser2net() else "ser2net is not installed (apt-get install ser2net, as .ci/run does)")
 
 

@@ -21,14 +21,13 @@ import tempfile
 import termios
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Iterator
 
 import serial
 import serial.rfc2217
 
 from hil.io.serial_line import is_pty
-
 from tests import processes
 
 SER2NET = shutil.which("ser2net") or shutil.which("ser2net", path="/usr/sbin:/usr/local/sbin:/sbin")
@@ -252,7 +251,7 @@ class TelnetTap:
                     if done:
                         break
 
-    def _parser(self, side: str):  # noqa: ANN202 - a closure fed with each chunk of one direction
+    def _parser(self, side: str):
         state = {"iac": False, "sb": None}
 
         def feed(data: bytes) -> None:

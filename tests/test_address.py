@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from hil.families.fbs.address import Address, is_valid, parse, parse_range, span, take_frame_name
 from hil.core.errors import AddressError
+from hil.families.fbs.address import Address, is_valid, parse, parse_range, span, take_frame_name
 
 # (human name, kind, index, frame form, width in bits)
 KINDS = [

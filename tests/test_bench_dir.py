@@ -66,7 +66,7 @@ def _user_env(home: Path) -> dict[str, str]:
     return {**env, "HOME": str(home), "HIL_STATE_DIR": str(home / "state"), "PYTHONUNBUFFERED": "1"}
 
 
-def _pytest(tests: Path, profile: Path, env: dict[str, str], **kwargs) -> subprocess.Popen:  # noqa: ANN003
+def _pytest(tests: Path, profile: Path, env: dict[str, str], **kwargs) -> subprocess.Popen:
     return processes.spawn([sys.executable, "-m", "pytest", str(tests), "--bench", str(profile), "-q", "-s",
                             "-p", "no:cacheprovider", "-p", "no:hypothesispytest"], cwd=REPO, env=env, text=True,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, **kwargs)

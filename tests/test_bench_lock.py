@@ -70,7 +70,7 @@ def test_second_run_waits_for_the_first(tmp_path, monkeypatch):
     decided = threading.Event()  # … or acquire() came back
     flock = fcntl.flock
 
-    def counting_flock(fd, operation):  # noqa: ANN001, ANN202 - fcntl.flock, seen by hil.core.lock only
+    def counting_flock(fd, operation):
         try:
             return flock(fd, operation)
         except BlockingIOError:

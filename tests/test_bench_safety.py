@@ -17,10 +17,10 @@ import pytest
 
 from hil.bench.profile import load_profile
 from hil.core.errors import HilError, RestoreError
+from hil.core.journal import Journal
 from hil.core.lock import BenchBusy, BenchLock, lock_dir, lock_key
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.rtc_time import RtcTime
-from hil.core.journal import Journal
 from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
@@ -163,7 +163,7 @@ def test_a_restore_that_fails_while_the_plc_is_away_is_completed_when_it_returns
 def _offset(bench) -> float:
     """The PLC clock minus the host's wall clock (UTC), seconds."""
     plc = RtcTime.from_registers(bench.raw.read_words("R4128", 7)).to_datetime()
-    host = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
+    host = dt.datetime.now(dt.UTC).replace(tzinfo=None)
     return (plc - host).total_seconds()
 
 
@@ -190,9 +190,8 @@ def test_a_far_time_zone_leaves_the_clocks_offset_unchanged(tmp_path, emulated, 
                                    "fatek+tcp://LOCALHOST/?station=1"])
 def test_two_spellings_of_one_plc_are_one_bench(other):
     assert lock_key(other) == lock_key("fatek+tcp://127.0.0.1:500")
-    with BenchLock("fatek+tcp://127.0.0.1:500").acquire():
-        with pytest.raises(BenchBusy):
-            BenchLock(other).acquire()
+    with BenchLock("fatek+tcp://127.0.0.1:500").acquire(), pytest.raises(BenchBusy):
+        BenchLock(other).acquire()
 
 
 def test_different_ports_are_different_benches():
@@ -411,17 +410,17 @@ def test_delayed_duplicates_never_make_a_wrong_original_or_a_false_verified_rest
 # -- signals -------------------------------------------------------------------------------------------------------
 def test_a_signal_during_a_restore_waits_for_it_and_a_second_one_changes_nothing():
     import signal as sig
+
     from hil.core import signals
     signals.install()
     finished = []
     try:
-        with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
-            with signals.shielded():
-                os.kill(os.getpid(), sig.SIGTERM)
-                time.sleep(0.05)
-                os.kill(os.getpid(), sig.SIGHUP)  # a second signal while the restore runs
-                time.sleep(0.05)
-                finished.append("restore")
+        with pytest.raises(KeyboardInterrupt, match="SIGTERM"), signals.shielded():
+            os.kill(os.getpid(), sig.SIGTERM)
+            time.sleep(0.05)
+            os.kill(os.getpid(), sig.SIGHUP)  # a second signal while the restore runs
+            time.sleep(0.05)
+            finished.append("restore")
         assert finished == ["restore"]
         os.kill(os.getpid(), sig.SIGTERM)  # the run is unwinding: later signals do not abandon that
         time.sleep(0.05)

@@ -15,7 +15,6 @@ import pytest
 from hil.cli import drift
 from hil.cli.main import main
 from hil.cli.run import pytest_args, selects_tests
-
 from tests import processes
 
 REPO = Path(__file__).resolve().parent.parent
@@ -92,7 +91,7 @@ def test_exit_codes_are_pytests(capsys, tmp_path: Path) -> None:
 
 
 def test_a_bug_shows_its_traceback(capsys, monkeypatch) -> None:
-    def broken(rate, console):  # noqa: ANN001, ANN202
+    def broken(rate, console):
         raise ZeroDivisionError("a bug")
     monkeypatch.setattr(drift, "drift_code", broken)
     assert main(["drift", "code", "3.38"]) == EXIT_INTERNAL
@@ -145,8 +144,8 @@ def test_emulate_refuses_time_scale_zero_before_any_endpoint_line(tmp_path: Path
 
 @pytest.mark.e2e
 def test_emulate_clock_starts_at_host_time(tmp_path: Path) -> None:
-    from hil.families.fbs.device.plc import FbsPlc
     from hil.core.timebase import HostTimebase
+    from hil.families.fbs.device.plc import FbsPlc
     from hil.families.fbs.transport.factory import open_transport
     proc = processes.spawn([sys.executable, "-m", "hil", "emulate", "--fatek-tcp", "127.0.0.1:0", "--no-live"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)

@@ -12,7 +12,6 @@ import pytest
 
 from hil.cli.main import main
 
-
 HIL = Path(sys.executable).parent / "hil"
 EMULATOR_BENCH = Path(__file__).resolve().parent.parent / "fixtures" / "benches" / "emulator.toml"
 MODBUS_MAP = "the default FBs Modbus map"

@@ -12,7 +12,7 @@ import contextlib
 import datetime as dt
 import socket
 import time
-from typing import Iterator
+from collections.abc import Iterator
 
 import pytest
 
@@ -64,7 +64,7 @@ def _offset(profile) -> float:
     try:
         plc, at, _ = FbsPlc(bench.raw, bench.time).rtc.time_transition()
         wall = REAL_TIME() - (bench.time.now() - at)  # time_scale 1: bench seconds are host seconds
-        return plc.replace(tzinfo=dt.timezone.utc).timestamp() - wall
+        return plc.replace(tzinfo=dt.UTC).timestamp() - wall
     finally:
         bench.close()
 

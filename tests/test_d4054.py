@@ -7,8 +7,16 @@ from pathlib import Path
 
 import pytest
 
-from hil.families.fbs.d4054 import (COARSE_STEP, FINE_STEP, MISPRINTS, TABLE, RateCode, code_for_rate, code_for_steps,
-                           rate_for_code)
+from hil.families.fbs.d4054 import (
+    COARSE_STEP,
+    FINE_STEP,
+    MISPRINTS,
+    TABLE,
+    RateCode,
+    code_for_rate,
+    code_for_steps,
+    rate_for_code,
+)
 from hil.families.fbs.d4054_table import ROWS
 
 # The manual's Table 1 with our decoding of every code (a copy of shared/data/d4054_s35390a.csv), kept with the

@@ -8,8 +8,15 @@ from __future__ import annotations
 import pytest
 
 from hil.core.errors import HilError
-from hil.families.fbs.address import BIT_BANKS, COUNTER32_FIRST, COUNTER32_LAST, PACKED_16, PACKED_32, PAIRED_32, \
-    WORD_BANKS
+from hil.families.fbs.address import (
+    BIT_BANKS,
+    COUNTER32_FIRST,
+    COUNTER32_LAST,
+    PACKED_16,
+    PACKED_32,
+    PAIRED_32,
+    WORD_BANKS,
+)
 from hil.families.fbs.transport.factory import open_transport
 
 WIRES = ["emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]
@@ -50,14 +57,14 @@ WRITES = [("R4167", None), ("R4168", None), ("R4999", None), ("R5000", None), ("
           ("DR100", 1 << 32), ("WM0", 0x10000), ("D0", 1.5)]
 
 
-def _outcome(call):  # noqa: ANN001, ANN202
+def _outcome(call):
     try:
         return ("value", call())
     except HilError:
         return ("refused",)
 
 
-def _run(transport) -> dict:  # noqa: ANN001
+def _run(transport) -> dict:
     outcomes: dict = {}
     for op, name, count in REQUESTS:
         if op == "bits":
@@ -77,7 +84,7 @@ def _run(transport) -> dict:  # noqa: ANN001
     return outcomes
 
 
-def _reachable(transport, key) -> bool:  # noqa: ANN001
+def _reachable(transport, key) -> bool:
     """Whether the wire's address map can name every element of the request (the default Modbus map reaches no
     R4168–R4999, R5999+, D2999+ …: such a request is refused by the client, and is compared only as refused)."""
     op, name, count = key

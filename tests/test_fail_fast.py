@@ -13,7 +13,7 @@ def test_remaining_tests_error_at_once_when_the_plc_stops_answering(pytester, mo
     asked: list[str] = []
     exchange = FatekTransport._exchange
 
-    def counted(self, command):  # noqa: ANN001, ANN202
+    def counted(self, command):
         asked.append(os.environ.get("PYTEST_CURRENT_TEST", ""))
         return exchange(self, command)
 

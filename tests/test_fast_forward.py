@@ -6,8 +6,8 @@ import datetime as dt
 
 import pytest
 
-from hil.families.fbs.sim.build import build_emulator
 from hil.bench.profile import load_profile, profile_from_dict
+from hil.families.fbs.sim.build import build_emulator
 from tests.conftest import EMULATOR_BENCH
 
 EPOCH = dt.datetime(2024, 2, 28, 23, 0, 0)

@@ -6,14 +6,44 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hil.families.fbs.address import parse
 from hil.core.errors import PlcErrorReply
-from hil.families.fbs.protocol.fatek import (ERROR_CODES, MAX_FRAME, BitAction, ChecksumError, CommandMismatch, DetailedStatus,
-                                DetailedStatusReply, Frame, FrameAssembler, Loopback, MalformedFrame, MixedRead,
-                                MixedWrite, OverlongFrame, ReadBits, ReadEnableState, ReadRegisters, RequestError,
-                                RunStop, ShortStatus, StationMismatch, StatusReply, TruncatedFrame, WriteBits,
-                                WriteRegisters, build_frame, check_reply, checksum, decode_request, describe_frame,
-                                encode_error, encode_reply, encode_request, split_frame)
+from hil.families.fbs.address import parse
+from hil.families.fbs.protocol.fatek import (
+    ERROR_CODES,
+    MAX_FRAME,
+    BitAction,
+    ChecksumError,
+    CommandMismatch,
+    DetailedStatus,
+    DetailedStatusReply,
+    Frame,
+    FrameAssembler,
+    Loopback,
+    MalformedFrame,
+    MixedRead,
+    MixedWrite,
+    OverlongFrame,
+    ReadBits,
+    ReadEnableState,
+    ReadRegisters,
+    RequestError,
+    RunStop,
+    ShortStatus,
+    StationMismatch,
+    StatusReply,
+    TruncatedFrame,
+    WriteBits,
+    WriteRegisters,
+    build_frame,
+    check_reply,
+    checksum,
+    decode_request,
+    describe_frame,
+    encode_error,
+    encode_reply,
+    encode_request,
+    split_frame,
+)
 
 R12_REQUEST = b"\x02014603R0001275\x03"
 R12_REPLY = b"\x020146010A57FC4000189\x03"

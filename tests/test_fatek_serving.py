@@ -21,16 +21,25 @@ from typing import ClassVar
 import pytest
 import serial
 
+from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError
+from hil.families.fbs.address import parse
+from hil.families.fbs.protocol.fatek import (
+    Command,
+    FrameAssembler,
+    MixedWrite,
+    ReadRegisters,
+    WriteRegisters,
+    build_frame,
+    encode_error,
+    encode_request,
+    split_frame,
+)
 from hil.families.fbs.sim import serve_fatek
 from hil.families.fbs.sim.plc import OS_VERSION, UNIT_TYPE_MC, Emulator
 from hil.families.fbs.sim.serve_fatek import start_fatek_pty, start_fatek_tcp
-from hil.sim.runtime import LoopThread
-from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError
-from hil.families.fbs.protocol.fatek import (Command, FrameAssembler, MixedWrite, ReadRegisters, WriteRegisters, build_frame,
-                                encode_error, encode_request, split_frame)
-from hil.families.fbs.address import parse
 from hil.families.fbs.transport.fatek import FatekTransport
 from hil.io.line import open_hint
+from hil.sim.runtime import LoopThread
 from tests.concurrency import run_clients
 
 STATUS_REQUEST = b"\x020140C7\x03"
@@ -92,7 +101,7 @@ class RawTcp:
             self.sock.settimeout(left)
             try:
                 data = self.sock.recv(4096)
-            except socket.timeout:
+            except TimeoutError:
                 break
             if not data:
                 break
@@ -310,9 +319,9 @@ def test_pty_survives_clients_closing_mid_frame(emulator, monkeypatch):
     # one of them; host time does not enter: its CPU time while idle is a benchmark's figure,
     # benchmarks/bench_host_time.py)
     empty_wakeups: list[int] = []
-    readable = serve_fatek._PtyServer._readable  # noqa: SLF001 - the reader the loop calls
+    readable = serve_fatek._PtyServer._readable
 
-    def counting(self) -> None:  # noqa: ANN001
+    def counting(self) -> None:
         try:
             waiting = struct.unpack("i", fcntl.ioctl(self.master, termios.FIONREAD, b"\0\0\0\0"))[0]
         except OSError:  # EIO: nothing to read either
@@ -321,7 +330,7 @@ def test_pty_survives_clients_closing_mid_frame(emulator, monkeypatch):
             empty_wakeups.append(1)
         readable(self)
 
-    monkeypatch.setattr(serve_fatek._PtyServer, "_readable", counting)  # noqa: SLF001
+    monkeypatch.setattr(serve_fatek._PtyServer, "_readable", counting)
     pty = start_fatek_pty(emulator)
     try:
         for _ in range(3):

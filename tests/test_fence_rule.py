@@ -12,7 +12,7 @@ from hil.families.fbs.transport.fatek import FatekTransport
 from hil.sim.wire_faults import WireFaults
 
 
-def _sent(transport) -> list[str]:  # noqa: ANN001
+def _sent(transport) -> list[str]:
     codes: list[str] = []
     transport.observers.append(lambda d, f: d == "tx" and codes.append(decode_request(split_frame(bytes(f))).code))
     return codes

@@ -143,6 +143,7 @@ def test_probe_shows_the_clock_as_a_date(tmp_path: Path) -> None:
 
 def test_offsets_and_host_times_read_as_durations_and_dates() -> None:
     import datetime as dt
+
     from hil.cli.rtc import _vs_host
     from hil.core.journal import Journal
     host = dt.datetime(2026, 12, 1, 20, 0, 0)
@@ -246,6 +247,7 @@ def test_hil_emulate_prints_the_target_to_paste_and_the_lines_pace(tmp_path: Pat
     URL — the line's settings and station in it — and the pace; pasted into hil probe, it reaches the emulator."""
     import re as _re
     import signal as _signal
+
     from tests import processes
     proc = processes.spawn([sys.executable, "-m", "hil", "emulate", "--no-live", "--fatek-serial", "--line",
                             "9600 7E1"], cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -15,7 +15,7 @@ import asyncio
 import socket
 import subprocess
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 import pytest
 
@@ -70,11 +70,11 @@ class _CountingBuffer(bytearray):
         self.searches += 1
         self.scannable += (len(self) if end is None else min(end, len(self))) - (start or 0)
 
-    def find(self, sub, start=None, end=None):  # noqa: ANN001, ANN201
+    def find(self, sub, start=None, end=None):
         self._count(start, end)
         return super().find(sub, start, end)
 
-    def rfind(self, sub, start=None, end=None):  # noqa: ANN001, ANN201
+    def rfind(self, sub, start=None, end=None):
         self._count(start, end)
         return super().rfind(sub, start, end)
 
@@ -83,7 +83,7 @@ def test_an_stx_flood_is_dropped_in_linear_time():
     """Each 64 kB of STX costs a few searches of the buffer (it was one pass per STX: quadratic), and the buffer
     never keeps more than a frame's worth."""
     assembler = FrameAssembler()
-    buffer = assembler._buf = _CountingBuffer()  # noqa: SLF001 - the buffer the assembler searches
+    buffer = assembler._buf = _CountingBuffer()
     fed = 0
     for _ in range(FLOOD_MB * 16):
         before = buffer.searches
@@ -112,9 +112,9 @@ def test_rtu_junk_is_dropped_in_linear_time(monkeypatch):
         megabytes = 64
         for _ in range(megabytes * 256):
             gate.feed(chunk)
-            assert len(gate._buffer) <= MAX_FRAME  # noqa: SLF001 - only the last frame's worth is kept
-        timers = len(loop._scheduled)  # noqa: SLF001 - the timers the flood left waiting
-        gate._flush()  # noqa: SLF001 - the silence that ends the flood, without waiting for it
+            assert len(gate._buffer) <= MAX_FRAME
+        timers = len(loop._scheduled)
+        gate._flush()
         gate.close()
     finally:
         loop.close()
@@ -137,7 +137,7 @@ def _modbus_read() -> tuple[bytes, Callable[[bytes], bool], Callable[[bytes], bo
             lambda got: got[:2] == b"\x00\x01" and got[6:9] == b"\x01\x03\x02" and len(got) == 11)
 
 
-def _answered(sock: socket.socket, n: int, request=_fatek_ping) -> int:  # noqa: ANN001
+def _answered(sock: socket.socket, n: int, request=_fatek_ping) -> int:
     """``n`` requests one after another on ``sock``, each waiting for its whole reply (a hang guard on each): how
     many were answered right."""
     frame, complete, right = request()
@@ -149,7 +149,7 @@ def _answered(sock: socket.socket, n: int, request=_fatek_ping) -> int:  # noqa:
         while not complete(got):
             try:
                 data = sock.recv(4096)
-            except socket.timeout:
+            except TimeoutError:
                 raise AssertionError(f"hang guard: no reply within {HANG_GUARD:.0f} s (got {got!r})") from None
             assert data, f"the server closed the other client's connection (got {got!r})"
             got += data

@@ -6,16 +6,28 @@ import socket
 import time
 
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
+from hil.bench.profile import load_profile, profile_from_dict
+from hil.core.errors import AddressError, HilError, ProfileError
 from hil.families.fbs.address import parse, parse_range
+from hil.families.fbs.protocol.fatek import (
+    STX,
+    FrameAssembler,
+    FrameError,
+    ReadRegisters,
+    RequestError,
+    WriteRegisters,
+    build_frame,
+    check_reply,
+    checksum,
+    decode_request,
+    encode_request,
+    split_frame,
+)
 from hil.families.fbs.sim import Emulator
 from hil.families.fbs.sim.serve_fatek import FatekServerCore, start_fatek_pty, start_fatek_tcp
-from hil.core.errors import AddressError, HilError, ProfileError
-from hil.bench.profile import load_profile, profile_from_dict
-from hil.families.fbs.protocol.fatek import (STX, ChecksumError, FrameAssembler, FrameError, ReadRegisters, RequestError,
-                                WriteRegisters, build_frame, check_reply, checksum, decode_request,
-                                encode_request, split_frame)
 
 FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 VALID = [encode_request(1, ReadRegisters("R0", 3)), encode_request(1, WriteRegisters("R1000", [5, 6])),

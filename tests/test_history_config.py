@@ -7,9 +7,8 @@ import pytest
 
 # imported before any in-process session (pytester) can import them first: pytester drops what a session imported,
 # and numpy's and SQLAlchemy's compiled parts cannot be loaded twice in one process
-import hil.families.fbs.sim  # noqa: F401,E402
-import hil.history.store  # noqa: F401,E402
-
+import hil.families.fbs.sim
+import hil.history.store  # noqa: F401
 from hil.bench.profile import profile_from_dict
 from hil.core.errors import InvalidValue, ProfileError
 from hil.core.redact import hide_password

@@ -145,7 +145,7 @@ def test_an_unreachable_store_is_one_line_exit_4(tmp_path, action):
         done = _hil("history", action, "--url", url, cwd=REPO, HIL_STATE_DIR=str(tmp_path / "state"))
     said = done.stderr.strip().splitlines()
     assert done.returncode == 4 and len(said) == 1 and not done.stdout.strip(), done
-    assert said[0].startswith(f"hil: error: history store postgresql+psycopg://hil:***@127.0.0.1:"), said
+    assert said[0].startswith("hil: error: history store postgresql+psycopg://hil:***@127.0.0.1:"), said
     assert "unreachable" in said[0] and "check that its server runs" in said[0], said
     _no_secret("hil history's error", done.stderr)
 

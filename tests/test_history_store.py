@@ -14,9 +14,8 @@ import pytest
 
 # imported before any in-process session (pytester) can import them first: pytester drops what a session imported,
 # and numpy's and SQLAlchemy's compiled parts cannot be loaded twice in one process
-import hil.families.fbs.sim  # noqa: F401,E402
-import hil.history.store  # noqa: F401,E402
-
+import hil.families.fbs.sim
+import hil.history.store
 from tests.history_runs import bench_profile, hil, history, pytest_run, wait_for, write_tests
 from tests.pg_server import NO_POSTGRES, Cluster
 

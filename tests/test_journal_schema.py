@@ -46,7 +46,7 @@ def test_a_failed_save_changes_nothing_and_refuses_every_later_entry(tmp_path, m
     journal.add_elements({"R1": 0}, {"R1": 1})
     on_disk = journal.path.read_bytes()
 
-    def full(self, data):  # noqa: ANN001, ANN202
+    def full(self, data):
         raise JournalError("disk full")
     monkeypatch.setattr(Journal, "_save", full)
     with pytest.raises(JournalError):

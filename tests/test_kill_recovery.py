@@ -21,12 +21,12 @@ from pathlib import Path
 
 import pytest
 
-from hil.families.fbs.rtc_time import RtcTime
-from hil.families.fbs.transport.factory import open_transport
-from hil.io.url import parse_target
 from hil.core.journal import Journal
 from hil.core.lock import lock_key
 from hil.families.fbs.address import MISSING_R
+from hil.families.fbs.rtc_time import RtcTime
+from hil.families.fbs.transport.factory import open_transport
+from hil.io.url import parse_target
 from tests import processes
 from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate

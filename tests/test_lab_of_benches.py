@@ -128,6 +128,7 @@ def fatek_status_through_ser2net(lab: RunningLab) -> str:
     emulator's pty through the ser2net the exporter started (pyserial's RFC 2217 client, 7E1 set over the protocol),
     and the PLC answers a FATEK status request (command 40)."""
     import serial
+
     from hil.bench.lab.client import LabgridClient
     from hil.bench.lab.session import LabSession
     from hil.bench.lab.spec import LabSpec

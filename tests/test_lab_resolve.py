@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from hil.bench.lab.client import LabError, Place, Resource, parse_places
-from hil.bench.lab.resolve import Lab, ranges, resolve
+from hil.bench.lab.resolve import ranges, resolve
 from hil.bench.lab.spec import LabSpec, parse_tags
 from hil.bench.profile import check_profile, lab_request, load_profile, profile_from_dict
 from hil.core.errors import HilError, ProfileError

@@ -38,7 +38,7 @@ def private_dirs(tmp_path, monkeypatch):
 
 
 # -- the shared line ----------------------------------------------------------------------------------------------
-def _hold_and_die(device: str, ready) -> None:  # noqa: ANN001 - a multiprocessing Event
+def _hold_and_die(device: str, ready) -> None:
     line = SharedLine(device, taken=lambda suspect: None, leaving=lambda: False)
     line.__enter__()  # in the middle of an exchange…
     ready.set()
@@ -74,7 +74,7 @@ class _Timers:
     def __init__(self) -> None:
         self.made: list[_Timer] = []
 
-    def __call__(self, interval: float, function) -> "_Timer":  # noqa: ANN001
+    def __call__(self, interval: float, function) -> _Timer:
         timer = _Timer(interval, function)
         self.made.append(timer)
         return timer
@@ -83,7 +83,7 @@ class _Timers:
 class _Timer:
     daemon = False
 
-    def __init__(self, interval: float, function) -> None:  # noqa: ANN001
+    def __init__(self, interval: float, function) -> None:
         self.interval, self.function = interval, function
         self.started = self.cancelled = False
 
@@ -135,7 +135,7 @@ def test_a_foreground_client_keeps_the_line_across_back_to_back_exchanges(privat
     back.close()
 
 
-def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:  # noqa: ANN001 - a Queue
+def _exchange_own_register(url: str, register: str, rounds: int, out) -> None:
     from hil.families.fbs.transport.factory import open_transport
     wrong = 0
     # a reply timeout of 30 s is a hang guard: on a busy host the other process's turn and hil emulate's reply may
@@ -209,7 +209,7 @@ def _bench_on_the_paced_pty(tmp: Path, where: dict[str, str]) -> Path:
     return bench
 
 
-def _paced_emulator(tmp: Path):  # noqa: ANN202 - the context manager of emulate_process
+def _paced_emulator(tmp: Path):
     profile = tmp / "emulated.toml"
     profile.write_text(EMULATOR_BENCH.read_text().replace("[emulator]\n", f'[emulator]\nline = "{LINE}"\n', 1))
     return emulate_process(profile, 1.0, {"fatek-serial": "--fatek-serial", "rig-modbus-tcp": "--rig-modbus-tcp"})
@@ -326,7 +326,7 @@ def test_a_lane_that_leaves_the_plc_changed_fails_the_run(private_dirs):
     assert config.stash[PLC_LEFT].startswith("lane gw1: the PLC is NOT as it was found")
 
 
-def _borrow_and_hold(address: str, inherited: int, said) -> None:  # noqa: ANN001 - a multiprocessing Queue
+def _borrow_and_hold(address: str, inherited: int, said) -> None:
     from hil.core.lease import borrow
     os.close(inherited)  # (fork's copy of the lender's own descriptor: only what is borrowed may hold the lock)
     fds = borrow(address)

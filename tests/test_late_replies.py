@@ -9,8 +9,8 @@ import pytest
 from pymodbus.server import ModbusTcpServer
 
 from hil.core.errors import TransportError
-from hil.families.fbs.sim.serve_modbus import build_device
 from hil.families.fbs.sim.plc import Emulator
+from hil.families.fbs.sim.serve_modbus import build_device
 from hil.families.fbs.transport.factory import open_transport
 from hil.families.fbs.transport.modbus import ModbusTransport
 from hil.sim.runtime import LoopThread

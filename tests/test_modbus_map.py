@@ -4,10 +4,21 @@ from __future__ import annotations
 
 import pytest
 
-from hil.families.fbs.address import parse
 from hil.core.errors import AddressError, UnreachableAddress
-from hil.families.fbs.protocol.modbus_map import (MAP_NAME, ModbusRef, Run, coalesce, coalesce_writes, decode, encode,
-                                     from_modbus, locate, to_modbus, unmapped_in)
+from hil.families.fbs.address import parse
+from hil.families.fbs.protocol.modbus_map import (
+    MAP_NAME,
+    ModbusRef,
+    Run,
+    coalesce,
+    coalesce_writes,
+    decode,
+    encode,
+    from_modbus,
+    locate,
+    to_modbus,
+    unmapped_in,
+)
 
 # Every row of the spec's table: (first element, last element, table, first pdu, last pdu).
 ROWS = [

@@ -12,8 +12,8 @@ from hil.bench.profile import load_profile
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
-from hil.families.s7smart.sim.emulator import S7Emulator
 from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
+from hil.families.s7smart.sim.emulator import S7Emulator
 from hil.families.s7smart.sim.serve_modbus import start_s7_modbus_tcp
 from hil.sim.modbus_engine import Tables
 from hil.sim.wire_faults import WireFaults

@@ -9,17 +9,17 @@ import socket
 import struct
 import threading
 import time
-from typing import Iterator
+from collections.abc import Iterator
 
 import pytest
 import serial
 from pymodbus.client import ModbusTcpClient
 
+from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError, UnreachableAddress
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.sim.serve_modbus import start_modbus_rtu_pty, start_modbus_tcp
-from hil.sim.runtime import ServerHandle
-from hil.core.errors import PlcErrorReply, ReplyTimeout, TransportError, UnreachableAddress
 from hil.families.fbs.transport.modbus import ModbusTransport
+from hil.sim.runtime import ServerHandle
 from tests.concurrency import run_clients
 
 WIRES = ["tcp", "rtu"]
@@ -172,7 +172,7 @@ def test_status_proves_the_plc_answers(plc: ModbusTransport, emulator: Emulator)
     lambda t: t.write_many([("R0", 1), ("R4168", 1)]),
 ])
 def test_out_of_map_raises_and_sends_nothing(plc: ModbusTransport, server: ServerHandle, emulator: Emulator,
-                                             call) -> None:  # noqa: ANN001
+                                             call) -> None:
     snapshot = emulator.memory.snapshot()
     requests, sent = emulator.stats["modbus_requests"], plc.requests
     wire = dict(server.ptys.stats) if server.kind == "modbus-rtu" else None

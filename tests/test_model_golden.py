@@ -19,11 +19,11 @@ from pathlib import Path
 
 import pytest
 
+from hil.bench.profile import load_profile, profile_from_dict
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.plant import ThermalPlant
 from hil.families.fbs.sim.models.temperature import Ramp, TemperatureModel
-from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 
 EPOCH = dt.datetime(2024, 2, 28, 23, 0, 0)
@@ -35,7 +35,7 @@ PID_32 = {"en": "M0", "sn": 0, "zn": 32, "yn": "Y0", "sv": "R1000", "os": "R1040
 GOLDEN_REFERENCE = {"10": 28.0, "11": 28.3}
 
 
-def profile(modules=None, plant=None, pid=None, **temperature):  # noqa: ANN001, ANN201
+def profile(modules=None, plant=None, pid=None, **temperature):
     base = load_profile(EMULATOR_BENCH)
     # (the reference points the golden records were made with: the bench's point 11 has since gone below zero)
     area = dict(base.areas["temperature"], **{"reference": GOLDEN_REFERENCE, **temperature})
@@ -47,7 +47,7 @@ def profile(modules=None, plant=None, pid=None, **temperature):  # noqa: ANN001,
                               "plant": plant if plant is not None else {}})
 
 
-def state(emu) -> dict:  # noqa: ANN001
+def state(emu) -> dict:
     """Everything a scan can change: memory (its non-zero elements), the clock, and each model's state."""
     tm, fun86, plant = emu.model(TemperatureModel), emu.model(Fun86Model), emu.model(ThermalPlant)
     snap = emu.memory.snapshot()
@@ -65,7 +65,7 @@ def state(emu) -> dict:  # noqa: ANN001
     }
 
 
-def outputs(emu) -> list[tuple[int, ...]]:  # noqa: ANN001
+def outputs(emu) -> list[tuple[int, ...]]:
     """Per running FUN86 instance: WR+0…3, ALM, Yn… as a bit mask, the sum of OR — what a request would see."""
     mem, fun86 = emu.memory, emu.model(Fun86Model)
     rows = []
@@ -78,12 +78,12 @@ def outputs(emu) -> list[tuple[int, ...]]:  # noqa: ANN001
     return rows
 
 
-def traced(emu) -> list:  # noqa: ANN001
+def traced(emu) -> list:
     """Record :func:`outputs` after every scan in which they changed: (time, outputs); the scans in between saw
     the outputs of the entry before (an observer of the engine)."""
     trace: list = []
 
-    def record(emu) -> None:  # noqa: ANN001
+    def record(emu) -> None:
         rows = outputs(emu)
         if not trace or trace[-1][1] != rows:
             trace.append((emu.now, rows))
@@ -91,7 +91,7 @@ def traced(emu) -> list:  # noqa: ANN001
     return trace
 
 
-def _plain(value):  # noqa: ANN001, ANN202
+def _plain(value):
     """``value`` as JSON gives it back (tuples → lists, int keys → str): what a golden record holds."""
     return json.loads(json.dumps(value))
 
@@ -100,7 +100,7 @@ def _golden_key() -> str:
     return os.environ["PYTEST_CURRENT_TEST"].split(" ")[0].split("::", 1)[1]
 
 
-def against_golden(build, drive) -> dict:  # noqa: ANN001
+def against_golden(build, drive) -> dict:
     """Run ``drive(emu)`` on a fresh emulator and compare it with the golden record of this test: the outputs of
     every scan (when each changed, to what) and the final state — memory, clock and every model's state.
 
@@ -133,7 +133,7 @@ def against_golden(build, drive) -> dict:  # noqa: ANN001
     return final
 
 
-def _close(got, expected) -> bool:  # noqa: ANN001
+def _close(got, expected) -> bool:
     """Equal, floats up to rounding: the plant's closed form over whole PWM periods (an affine map raised to a
     power) rounds differently from the period-by-period stepping the records were taken with, in the last digits
     of a temperature (seen: 148.48270539996054 vs …037) and so of the samples and PID integrals that follow from
@@ -166,7 +166,7 @@ def _load_golden() -> dict:
         return json.load(f)
 
 
-def start(emu, en: str = "M0", hc: str = "M1", heating: bool = True, sv: dict | None = None,  # noqa: ANN001
+def start(emu, en: str = "M0", hc: str = "M1", heating: bool = True, sv: dict | None = None,
           enable: int = 0xFFFFFFFF, **registers: int) -> None:
     mem = emu.memory
     mem.set(en, 1)
@@ -179,12 +179,12 @@ def start(emu, en: str = "M0", hc: str = "M1", heating: bool = True, sv: dict | 
         mem.set(name, value)
 
 
-def full_plc(**plant):  # noqa: ANN003, ANN201
+def full_plc(**plant):
     return lambda: build_emulator(profile(FULL_MODULES, plant=plant, pid=PID_32), EPOCH)
 
 
 def test_the_full_plc_for_an_hour():
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)})
         emu.advance(3600)
     python = against_golden(full_plc(), drive)
@@ -193,7 +193,7 @@ def test_the_full_plc_for_an_hour():
 
 def test_the_heater_loop_timer_opens_the_same_way():
     """Gain 50 °C: 150.0 °C is out of reach, the output stays at 100 % and the heater-loop warning comes on."""
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4006=80, R4007=90)
         emu.advance(900)
     python = against_golden(full_plc(gain=50.0), drive)
@@ -202,7 +202,7 @@ def test_the_heater_loop_timer_opens_the_same_way():
 
 def test_pre_alarm_counting_scan_by_scan_is_the_same():
     """R4008 below the set point: readings cross it, so every measurement gets its scan and the count runs."""
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)}, R4008=1400)
         emu.advance(1800)
     python = against_golden(full_plc(), drive)
@@ -212,13 +212,13 @@ def test_pre_alarm_counting_scan_by_scan_is_the_same():
 def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ramp():
     """The default bench: zone-a heats points 0–9 with a broken sensor on 3 and 6 disabled; zone-b (Md 1) cools
     12–31 with point 20 not installed; point 10 is unheated and follows a ramp."""
-    def build():  # noqa: ANN202
+    def build():
         emu = build_emulator(profile(), EPOCH)
         emu.model(TemperatureModel).set_source(10, Ramp(20.0, 0.05, high=90.0))
         emu.model(TemperatureModel).open(3)
         return emu
 
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{100 + b}": 800 + 10 * b for b in range(10)}, enable=0xFFFFFFFF & ~(1 << 6))
         start(emu, en="M2", hc="M3", heating=False, sv={f"R{400 + b}": 300 for b in range(20)},
               enable=0xFFFFFFFF & ~(1 << 6), R4011=0xFFFF & ~(1 << 4))
@@ -229,7 +229,7 @@ def test_two_instances_with_disabled_broken_and_missing_points_cooling_and_a_ram
 @pytest.mark.parametrize("unit, rate, averaging", [("F", "normal", 1), ("C", "fast", 1), ("F", "fast", 1),
                                                     ("C", "normal", 4), ("F", "fast", 8), ("C", "normal", 2)])
 def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 2200 if unit == "F" else 1200 for p in range(32)}, R4008=1150)
         emu.advance(900)
     build = lambda: build_emulator(profile(FULL_MODULES, pid=PID_32, unit=unit, rate=rate,  # noqa: E731
@@ -239,7 +239,7 @@ def test_fahrenheit_the_fast_rate_and_averaging(unit, rate, averaging):
 
 def test_requests_between_jumps():
     """A test polling and changing set points, R4005 and the enable mask: each request, then a jump."""
-    def drive(emu) -> None:  # noqa: ANN001
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 1200 for p in range(32)})
         for n in range(12):
             emu.advance(47.3)
@@ -255,8 +255,8 @@ def test_requests_between_jumps():
 
 
 # -- configurations the compiled kernel stepped aside for (the models' behaviour there is pinned down all the same) --
-def scenario(build, action=None):  # noqa: ANN001, ANN201
-    def drive(emu) -> None:  # noqa: ANN001
+def scenario(build, action=None):
+    def drive(emu) -> None:
         start(emu, sv={f"R{1000 + p}": 1500 for p in range(32)})
         if action:
             action(emu)
@@ -281,7 +281,7 @@ def test_a_broken_variant_that_never_counts_pre_alarms():
         def prealarm_count(self, count: int, pv: int, limit: int) -> int:
             return count
 
-    def swap(emu) -> None:  # noqa: ANN001
+    def swap(emu) -> None:
         old = emu.model(Fun86Model)
         new = SlowCount(old.config, old.temperature)
         new.__dict__.update(old.__dict__)

@@ -7,13 +7,13 @@ import tomllib
 
 import pytest
 
+from hil.bench.profile import load_profile, profile_from_dict
+from hil.core.errors import ProfileError
 from hil.families.fbs.bench import Bench
+from hil.families.fbs.pid import PidInstance, parse_pid
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.plant import ThermalPlant
-from hil.core.errors import ProfileError
-from hil.families.fbs.pid import PidInstance, parse_pid
-from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH, EMULATOR_TARGETS
 
 EPOCH = dt.datetime(2024, 5, 1, 8, 0, 0)

@@ -9,14 +9,14 @@ import time
 import numpy as np
 import pytest
 
-import hil.families.fbs.device.pid  # noqa: F401 - imported outside the inner runs (see test_temperature_suites)
-import hil.families.fbs.sim.serve_fatek  # noqa: F401
-import hil.families.fbs.sim.serve_modbus  # noqa: F401
-import hil.families.fbs.faults  # noqa: F401
+import hil.families.fbs.device.pid
+import hil.families.fbs.faults
+import hil.families.fbs.sim.serve_fatek
+import hil.families.fbs.sim.serve_modbus
+import hil.families.fbs.transport.fatek
+import hil.families.fbs.transport.local
+import hil.families.fbs.transport.modbus
 import hil.plugin.pytest_plugin  # noqa: F401
-import hil.families.fbs.transport.fatek  # noqa: F401
-import hil.families.fbs.transport.local  # noqa: F401
-import hil.families.fbs.transport.modbus  # noqa: F401
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.fun86 import Fun86Model
 from hil.families.fbs.sim.models.temperature import TemperatureModel
@@ -421,7 +421,7 @@ class Variant:
     def __init__(self, model_class: type[Fun86Model]) -> None:
         self.model_class = model_class
 
-    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+    def pytest_hil_make_emulator(self, profile, epoch):
         emulator = build_emulator(profile, epoch)
         good = emulator.model(Fun86Model)
         broken = self.model_class(good.config, good.temperature)

@@ -14,7 +14,7 @@ class KeepEmulator:
     def __init__(self) -> None:
         self.emulator: Emulator | None = None
 
-    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+    def pytest_hil_make_emulator(self, profile, epoch):
         from hil.families.fbs.sim.build import build_emulator
         self.emulator = build_emulator(profile, epoch)
         return self.emulator
@@ -40,7 +40,7 @@ def test_failing_test_leaves_the_emulator_as_it_found_it(pytester):
     original = {"R1000": 5, "R1001": 6, "M1001": 1}
 
     class Seed(KeepEmulator):
-        def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        def pytest_hil_make_emulator(self, profile, epoch):
             emulator = KeepEmulator.pytest_hil_make_emulator(keep, profile, epoch)
             for name, value in original.items():
                 emulator.memory.set(name, value)

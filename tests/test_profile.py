@@ -2,8 +2,8 @@ import re
 
 import pytest
 
-from hil.core.errors import ProfileError
 from hil.bench.profile import load_profile, profile_from_dict
+from hil.core.errors import ProfileError
 from tests.conftest import REPO
 
 

@@ -13,8 +13,14 @@ import pytest
 from hil.bench.family import families
 from hil.bench.profile import CORE_SECTIONS, load_profile
 from hil.bench.profile_keys import CORE
-from hil.bench.schema_export import (SCHEMA_FILE, declared_sections, generated, json_schema, markdown,
-                                     undeclared_sections)
+from hil.bench.schema_export import (
+    SCHEMA_FILE,
+    declared_sections,
+    generated,
+    json_schema,
+    markdown,
+    undeclared_sections,
+)
 from hil.cli.init import Found, render_profile
 from hil.core.errors import ProfileError
 from tests.conftest import REPO

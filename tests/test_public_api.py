@@ -15,6 +15,7 @@ import hil.api
 from hil.api.reference import render
 from hil.bench.faces import BenchView, FaultInjector, members
 from hil.families.fbs import faces
+
 # loaded before pytester's inner run, which forgets what it imports (numpy loads once per process)
 from hil.families.fbs.sim import build  # noqa: F401
 from tests.conftest import REPO

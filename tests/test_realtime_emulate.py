@@ -10,10 +10,10 @@ import time
 
 import pytest
 
+from hil.bench.profile import load_profile
 from hil.families.fbs.rtc_time import RtcTime
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.transport.factory import open_transport
-from hil.bench.profile import load_profile
 from tests.conftest import EMULATOR_BENCH
 from tests.external import hil_emulate
 

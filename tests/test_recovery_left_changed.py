@@ -162,7 +162,7 @@ def _killed_with_the_clock_set(profile: Path, **change: float | str) -> Path:
     return path
 
 
-def _year(plc) -> int:  # noqa: ANN001
+def _year(plc) -> int:
     with _plc(plc) as t:
         return t.read("R4133")
 

@@ -62,7 +62,7 @@ def _profile(tmp_path: Path, where: dict, name: str = "bench", *, wire: str = "f
     return path
 
 
-def _plc(where: dict):  # noqa: ANN202 - a direct FATEK transport: what an operator's tool would see
+def _plc(where: dict):
     return open_transport(parse_target(_url(where)), timeout=2.0)
 
 
@@ -78,7 +78,7 @@ def _state(where: dict) -> dict:
 
 def _stamp(entry: dict) -> dict:
     import datetime as dt
-    return {"test": "planted", "pid": 1, "at": dt.datetime.now(dt.timezone.utc).isoformat(), **entry}
+    return {"test": "planted", "pid": 1, "at": dt.datetime.now(dt.UTC).isoformat(), **entry}
 
 
 def _journal(key: str, where: dict, **sections) -> dict:
@@ -499,10 +499,10 @@ def test_the_verified_list_is_exactly_what_was_read_back(plc, tmp_path, capsys):
         assert t.read("R1002") == 0 and t.status().running and t.read_disabled("M1001", 1) == [0]
 
 
-def never_enables(emulator, profile, epoch) -> None:  # noqa: ANN001 - a defect for tests.broken_emulate
+def never_enables(emulator, profile, epoch) -> None:
     """A PLC that acknowledges command 42 "enable" and keeps the bit disabled."""
     class Sticky(bytearray):
-        def __setitem__(self, index, value):  # noqa: ANN001
+        def __setitem__(self, index, value):
             if value:
                 super().__setitem__(index, value)
     emulator.memory.disabled["M"] = Sticky(emulator.memory.disabled["M"])

@@ -8,8 +8,8 @@ import socket
 import pytest
 
 from hil.core.errors import HilError, TargetError
-from hil.families.fbs.transport.replay import RecordedPlc, ReplayError, ReplayMismatch, load_recording
 from hil.families.fbs.transport.factory import open_transport
+from hil.families.fbs.transport.replay import RecordedPlc, ReplayError, ReplayMismatch, load_recording
 from hil.io.url import parse_target
 from tests.frames import FRAMES, SCENARIOS, plc_on
 

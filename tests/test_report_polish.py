@@ -134,6 +134,7 @@ def test_many_benches_summary_in_a_pipe_keeps_whole_paths_and_names_the_failed_t
     import io
 
     from rich.console import Console
+
     from hil.cli.many import print_summary
     runs = [_bench_run(tmp_path, "emulator-a", 0, [Record("suites/test_smoke.py::test_ok", "smoke")]),
             _bench_run(tmp_path, "emulator-b", 1, [
@@ -154,6 +155,7 @@ def test_many_benches_status_on_a_terminal_is_one_line_updated_in_place(tmp_path
     import io
 
     from rich.console import Console
+
     from hil.cli.many import BenchRun, _wait_with_counts
     runs = []
     for name, seconds in (("a", 0.3), ("b", 1.2)):

@@ -13,9 +13,9 @@ import numpy  # noqa: F401 - pytester's in-process runs restore sys.modules, and
 import pytest
 from junitparser import JUnitXml
 
+from hil.io.trace import describe_modbus
 from hil.plugin.reporting.identity import public_url
 from hil.plugin.reporting.model import Measurement, Series, area_of
-from hil.io.trace import describe_modbus
 from tests.conftest import EMULATOR_BENCH
 
 ANSI = re.compile(r"\x1b\[|\x1b\]|\x1b[()]")
@@ -51,7 +51,7 @@ def test_hil_run_writes_junit_with_suite_properties_and_measurements(hil_run):
     assert suite.tests >= 1 and suite.failures == 0 and suite.errors == 0
     limited = {}
     for case in suite:  # junitparser has no testcase properties API: read them from its element
-        for p in case._elem.iter("property"):  # noqa: SLF001
+        for p in case._elem.iter("property"):
             limited[p.get("name")] = p.get("value")
     assert "hil.measure.drift_residual" in limited, sorted(limited)
     assert limited["hil.measure.drift_residual.unit"] == "s/day"

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import pytest
 
+from hil.bench.profile import load_profile
 from hil.core.errors import InvalidValue, OutcomeUnknown, PlcErrorReply, ReplyTimeout, TransportError
 from hil.families.fbs.transport.factory import open_transport
 from hil.families.s7smart.sim.emulator import build_s7_emulator
-from hil.families.s7smart.transport.s7wire import SnapS7Io
 from hil.families.s7smart.sim.serve_s7 import start_s7_server
-from hil.bench.profile import load_profile
+from hil.families.s7smart.transport.s7wire import SnapS7Io
 from hil.io.request_policy import RequestPolicy, Resync
 from tests.test_s7_wire import EPOCH, S7_BENCH
 

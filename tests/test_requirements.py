@@ -9,9 +9,9 @@ import pytest
 
 from hil.cli.main import main
 from hil.core.errors import HilError
-from hil.plugin.requirements import load, parse
 from hil.plugin.reporting import model
 from hil.plugin.reporting.requirements import requirements_section, verdict
+from hil.plugin.requirements import load, parse
 from tests.conftest import EMULATOR_BENCH, REPO
 
 MARKED = """

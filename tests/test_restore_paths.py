@@ -6,10 +6,10 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from hil.sim.wire_faults import WireFaults
 from hil.core.errors import OutcomeUnknown, RestoreError
 from hil.families.fbs.transport.factory import open_transport
 from hil.families.fbs.transport.guard import GuardedTransport
+from hil.sim.wire_faults import WireFaults
 from tests.conftest import EMULATOR_BENCH
 
 WIRES = ["emulator+fatek-tcp", "emulator+fatek-serial", "emulator+modbus-tcp", "emulator+modbus-rtu"]

@@ -160,7 +160,7 @@ class _RewritesAtItsNextInterval(Model):
     def __init__(self) -> None:
         self.scans_on = 0
 
-    def scan(self, emu) -> None:  # noqa: ANN001
+    def scan(self, emu) -> None:
         self.scans_on = self.scans_on + 1 if emu.memory.get("M1010") else 0
         if self.scans_on == 2:
             emu.memory.write("R1050", [7] * 8)

@@ -19,8 +19,18 @@ import pytest
 from hil.core.errors import TransportError
 from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.transport.factory import open_transport, serve
-from tests.rfc2217_servers import (NO_SER2NET, SER2NET, free_port, SET_BAUDRATE, SET_DATASIZE, SET_PARITY,
-                                   SET_STOPSIZE, TelnetTap, port_manager, ser2net)
+from tests.rfc2217_servers import (
+    NO_SER2NET,
+    SER2NET,
+    SET_BAUDRATE,
+    SET_DATASIZE,
+    SET_PARITY,
+    SET_STOPSIZE,
+    TelnetTap,
+    free_port,
+    port_manager,
+    ser2net,
+)
 
 SERVERS = [pytest.param("ser2net", marks=pytest.mark.skipif(SER2NET is None, reason=NO_SER2NET)), "pyserial"]
 PARITY_EVEN = 3  # RFC 2217's code for E

@@ -13,8 +13,8 @@ from hil.bench.replay import Recovery
 from hil.core.journal import Journal
 from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
 from hil.families.fbs.recovery import restore_rig_coils, rig_key
-from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.rig_identity import rig_refusal
+from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.rig import start_rig_modbus_tcp
 from hil.families.fbs.transport.factory import open_transport
 from hil.io.modbus_client import ModbusWire

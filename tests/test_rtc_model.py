@@ -11,14 +11,14 @@ from types import SimpleNamespace
 
 import pytest
 
-from hil.families.fbs.device.plc import FbsPlc
-from hil.families.fbs.device.rtc import RtcError, RtcFlags
-from hil.families.fbs.sim.plc import Emulator
-from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.core.timebase import EmulatorTimebase
 from hil.families.fbs import registers as reg
 from hil.families.fbs.d4054 import rate_for_code
+from hil.families.fbs.device.plc import FbsPlc
+from hil.families.fbs.device.rtc import RtcError, RtcFlags
 from hil.families.fbs.rtc_time import RtcTime
-from hil.core.timebase import EmulatorTimebase
+from hil.families.fbs.sim.models.rtc import RtcModel
+from hil.families.fbs.sim.plc import Emulator
 from hil.families.fbs.transport.local import LocalTransport
 
 START = dt.datetime(2024, 3, 10, 8, 0, 0)

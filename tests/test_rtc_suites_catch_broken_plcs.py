@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import datetime as dt
-from dataclasses import replace
 import math
+from dataclasses import replace
 
 import pytest
 
-from hil.families.fbs.sim.models.rtc import RtcModel
 from hil.families.fbs.rtc_time import CENTURY_SECONDS, FIELDS, RtcTime
+from hil.families.fbs.sim.models.rtc import RtcModel
 from tests import broken_calendar as cal
 from tests.broken import BrokenEmulator, replace_model, run_suites
 from tests.conftest import EMULATOR_BENCH
@@ -210,9 +209,7 @@ class ValidatesMonthsAlternate(RtcModel):
 
     def validate(self, t):
         problems = [p for p in super().validate(t) if p != "day"]
-        if 1 <= t.month <= 12 and t.month != 2 and not 1 <= t.day <= 30 + t.month % 2:
-            problems.append("day")
-        elif t.month == 2 and "day" in super().validate(t):
+        if 1 <= t.month <= 12 and t.month != 2 and not 1 <= t.day <= 30 + t.month % 2 or t.month == 2 and "day" in super().validate(t):
             problems.append("day")
         return problems
 

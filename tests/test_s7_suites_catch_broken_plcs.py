@@ -29,7 +29,7 @@ class BrokenS7:
     def __init__(self, clock_cls: type[S7Clock] = S7Clock, program_cls: type[RtcTestProgram] = RtcTestProgram):
         self.clock_cls, self.program_cls = clock_cls, program_cls
 
-    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+    def pytest_hil_make_emulator(self, profile, epoch):
         emulator = build_s7_emulator(profile, epoch)
         for i, model in enumerate(emulator.models):
             if type(model) is S7Clock and self.clock_cls is not S7Clock:
@@ -45,7 +45,7 @@ def broken_s7(defect: type) -> BrokenS7:
     return BrokenS7(program_cls=defect) if issubclass(defect, RtcTestProgram) else BrokenS7(defect)
 
 
-def run_s7(pytester, *args: str, plugin: object | None = None, bench=S7_BENCH):  # noqa: ANN001, ANN201
+def run_s7(pytester, *args: str, plugin: object | None = None, bench=S7_BENCH):
     recorder = pytester.inline_run(str(S7_SUITES), "--bench", str(bench), "-p", "no:cacheprovider", *args,
                                    plugins=[plugin] if plugin else [])
     passed, skipped, failed = recorder.listoutcomes()
@@ -58,13 +58,13 @@ class WeekdayFromBuffer(S7Clock):
 
     written: int | None = None
 
-    def set_rtc(self, now, buffer):  # noqa: ANN001, ANN201
+    def set_rtc(self, now, buffer):
         error = super().set_rtc(now, buffer)
         if error == 0:
             self.written = buffer[7]
         return error
 
-    def encode(self, when):  # noqa: ANN001, ANN201
+    def encode(self, when):
         data = super().encode(when)
         return data[:7] + bytes([self.written]) if self.written is not None else data
 
@@ -72,7 +72,7 @@ class WeekdayFromBuffer(S7Clock):
 class LeapDayAlways(S7Clock):
     """Accepts 29 February in every year (loads 1 March in common years)."""
 
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         try:
             return super().decode(buffer)
         except timebuf.TimeBufferError:
@@ -85,34 +85,34 @@ class LeapDayAlways(S7Clock):
 class BcdNibbleUnchecked(S7Clock):
     """Reads each byte as 10·high + low nibble without checking the nibbles are 0–9 (16#1A → 20)."""
 
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         fixed = bytes(timebuf.to_bcd(min(99, (b >> 4) * 10 + (b & 0xF))) for b in buffer)
         return super().decode(fixed)
 
 
 class ReservedByteUnchecked(S7Clock):
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         return super().decode(buffer[:6] + b"\x00" + buffer[7:])
 
 
 class LevelTriggered(RtcTestProgram):
     """Runs the clock instructions on every scan while the trigger is 1 (no EU)."""
 
-    def fires(self, previous, now):  # noqa: ANN001, ANN201
+    def fires(self, previous, now):
         return bool(now)
 
 
 class SetRtcIWithoutConversion(S7Clock):
     """SET_RTC_I hands its integers to SET_RTC as if they were BCD."""
 
-    def set_rtc_i(self, now, buffer):  # noqa: ANN001, ANN201
+    def set_rtc_i(self, now, buffer):
         return self.set_rtc(now, buffer)
 
 
 class SetRtcITakesBytesModulo100(S7Clock):
     """SET_RTC_I converts each integer modulo 100: a byte above 99 becomes a valid one (minute 100 → 00)."""
 
-    def set_rtc_i(self, now, buffer):  # noqa: ANN001, ANN201
+    def set_rtc_i(self, now, buffer):
         return self.set_rtc(now, bytes(timebuf.to_bcd(b % 100) for b in bytes(buffer)))
 
 
@@ -120,7 +120,7 @@ class NoClockStartsAtTheHostTime(S7Clock):
     """A CPU without a clock (CR40/CR60) starts at the host's time at power-on instead of 2000-01-01 (a power
     cycle still loses it)."""
 
-    def power_on(self, emu):  # noqa: ANN001, ANN201
+    def power_on(self, emu):
         super().power_on(emu)
         if not self.has_rtc:
             self._anchor = dt.datetime.now().replace(microsecond=0)
@@ -129,7 +129,7 @@ class NoClockStartsAtTheHostTime(S7Clock):
 class PowerLossKeepsTime(S7Clock):
     """After the back-up ran out the clock restarts at its build time instead of 2000-01-01."""
 
-    def power_cycle(self, emu, *, backup_expired):  # noqa: ANN001, ANN201
+    def power_cycle(self, emu, *, backup_expired):
         pass
 
 
@@ -151,7 +151,7 @@ HOUR_MONTH_SECOND = (1, 3, 5)  # the buffer bytes the first suite never gave a n
 class BcdUncheckedInHourMonthSecond(S7Clock):
     """Checks the nibbles of year, day and minute, but reads month, hour and second as 10·high + low (16#0A → 10)."""
 
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         fixed = bytes(timebuf.to_bcd(min(99, (b >> 4) * 10 + (b & 0xF))) if i in HOUR_MONTH_SECOND else b
                       for i, b in enumerate(buffer))
         return super().decode(fixed)
@@ -160,7 +160,7 @@ class BcdUncheckedInHourMonthSecond(S7Clock):
 class NonBcdHourMonthSecondGives0006(S7Clock):
     """Refuses a non-BCD month, hour or second with error 0006H instead of 0007H."""
 
-    def set_rtc(self, now, buffer):  # noqa: ANN001, ANN201
+    def set_rtc(self, now, buffer):
         if any(timebuf.from_bcd(buffer[i]) is None for i in HOUR_MONTH_SECOND):
             return timebuf.ERROR_INDIRECT
         return super().set_rtc(now, buffer)
@@ -169,7 +169,7 @@ class NonBcdHourMonthSecondGives0006(S7Clock):
 class DayRangeOffByOne(S7Clock):
     """Takes day 32 for the 1st of the next month (the day's range checked as 01–32)."""
 
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         if buffer[2] == 0x32:
             return super().decode(buffer[:2] + b"\x31" + buffer[3:]) + dt.timedelta(days=1)
         return super().decode(buffer)
@@ -178,7 +178,7 @@ class DayRangeOffByOne(S7Clock):
 class ValidatesMonthsAlternate(S7Clock):
     """Checks the day against a month table of 30 + month % 2 (31 September accepted as 1 October)."""
 
-    def decode(self, buffer):  # noqa: ANN001, ANN201
+    def decode(self, buffer):
         month, day = timebuf.from_bcd(buffer[1]), timebuf.from_bcd(buffer[2])
         if month in range(1, 13) and month != 2 and day == 31:
             if 30 + month % 2 < 31:
@@ -192,7 +192,7 @@ class _CalendarClock(S7Clock):
 
     days_in = staticmethod(cal.true_days)
 
-    def read_rtc(self, now):  # noqa: ANN001, ANN201
+    def read_rtc(self, now):
         a = self._anchor
         elapsed = math.floor(now - self._anchor_now + 1e-9)
         fields, days = cal.count_on(a.year - 2000, a.month, a.day, a.hour, a.minute, a.second, elapsed,
@@ -223,7 +223,7 @@ class RunningEveryMonth30(_CalendarClock):
 class FiresOnBothEdges(RtcTestProgram):
     """Runs the clock instructions on the trigger's rise and again on its fall (a P and an N contact)."""
 
-    def fires(self, previous, now):  # noqa: ANN001, ANN201
+    def fires(self, previous, now):
         return bool(now) != bool(previous)
 
 
@@ -232,10 +232,10 @@ class _CenturyRunsOn(S7Clock):
     """A clock that counts on past 2099-12-31 23:59:59 into 2100 (no two-digit wrap); ``show_2100`` is what
     READ_RTC makes of a time in 2100."""
 
-    def time(self, now):  # noqa: ANN001, ANN201
+    def time(self, now):
         return self._anchor + dt.timedelta(seconds=math.floor(now - self._anchor_now + 1e-9))
 
-    def encode(self, when):  # noqa: ANN001, ANN201
+    def encode(self, when):
         return super().encode(when) if when.year < 2100 else self.show_2100(when)
 
     def show_2100(self, when: dt.datetime) -> bytes:
@@ -245,7 +245,7 @@ class _CenturyRunsOn(S7Clock):
 class YearCarriesInto2100(_CenturyRunsOn):
     """The BCD year counter carries past 99: 2100-01-01 reads as year 16#A0, with 2100's weekday (Friday, 6)."""
 
-    def show_2100(self, when):  # noqa: ANN001, ANN201
+    def show_2100(self, when):
         in_2000 = super().encode(when.replace(year=when.year - 100))
         return bytes([0xA0]) + in_2000[1:7] + bytes([timebuf.weekday(when.date())])
 
@@ -253,7 +253,7 @@ class YearCarriesInto2100(_CenturyRunsOn):
 class WeekdayCountsOnInto2100(_CenturyRunsOn):
     """The year shows 00, but the weekday is counted on from 2099-12-31: 2100-01-01's Friday (6), not Saturday."""
 
-    def show_2100(self, when):  # noqa: ANN001, ANN201
+    def show_2100(self, when):
         in_2000 = super().encode(when.replace(year=when.year - 100))
         return in_2000[:7] + bytes([timebuf.weekday(when.date())])
 
@@ -261,7 +261,7 @@ class WeekdayCountsOnInto2100(_CenturyRunsOn):
 class ClockStopsAtTheEndOf2099(_CenturyRunsOn):
     """The clock stands at 2099-12-31 23:59:59 once it gets there."""
 
-    def time(self, now):  # noqa: ANN001, ANN201
+    def time(self, now):
         return min(super().time(now), dt.datetime(2099, 12, 31, 23, 59, 59))
 
 
@@ -345,7 +345,7 @@ def test_cr40_loses_the_time_at_every_power_cycle(pytester, tmp_path):
     assert failed == [] and len(passed) == 3
 
     class KeepsTime(S7Clock):  # a CR40 that behaves as if it had an RTC
-        def power_cycle(self, emu, *, backup_expired):  # noqa: ANN001, ANN201
+        def power_cycle(self, emu, *, backup_expired):
             if backup_expired:
                 super().power_cycle(emu, backup_expired=True)
 
@@ -355,7 +355,7 @@ def test_cr40_loses_the_time_at_every_power_cycle(pytester, tmp_path):
 
 def test_an_fbs_emulator_on_an_s7_bench_is_refused(pytester):
     class WrongFamily:
-        def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        def pytest_hil_make_emulator(self, profile, epoch):
             from hil.families.fbs.sim import Emulator
             return Emulator()
     result = pytester.runpytest_inprocess(str(S7_SUITES / "test_s7_smoke.py"), "--bench", str(S7_BENCH),
@@ -377,7 +377,7 @@ def test_whole_domain_checks_catch_their_broken_cpu(pytester, defect, catcher):
     assert any(catcher in f for f in failed), f"{catcher} did not catch {defect.__name__}"
 
 
-def _against_hil_emulate(defect: type, catcher: str, tmp_path) -> tuple[str, bool, str]:  # noqa: ANN001
+def _against_hil_emulate(defect: type, catcher: str, tmp_path) -> tuple[str, bool, str]:
     spec = f"tests.test_s7_suites_catch_broken_plcs:broken_s7:{defect.__name__}"  # importable by hil emulate
     name = f"{defect.__name__}-{catcher}"
     served = S7_BENCH

@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from hil.core.errors import AddressError, ProfileError, UnreachableAddress
 from hil.bench.profile import load_profile, profile_from_dict
-from hil.families.s7smart.protocol import timebuf
+from hil.core.errors import AddressError, ProfileError, UnreachableAddress
 from hil.families.s7smart.address import parse_s7, parse_s7_range
+from hil.families.s7smart.protocol import timebuf
 from hil.families.s7smart.protocol.modbus_map import S7ModbusMap
 from tests.conftest import REPO
 

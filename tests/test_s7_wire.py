@@ -14,9 +14,9 @@ from hil.bench.family import open_bench
 from hil.bench.profile import load_profile
 from hil.core.errors import HilError, TargetError
 from hil.families.s7smart.protocol import timebuf
-from hil.families.s7smart.transport import s7wire
 from hil.families.s7smart.sim.emulator import build_s7_emulator
 from hil.families.s7smart.sim.serve_s7 import start_s7_server
+from hil.families.s7smart.transport import s7wire
 from hil.io.url import parse_target
 from tests.conftest import REPO
 from tests.external import emulate_process
@@ -35,7 +35,7 @@ def served():
     server.stop()
 
 
-def independent_client(host: str, port: int):  # noqa: ANN201 - python-snap7's own client, not hil's code path
+def independent_client(host: str, port: int):
     client = snap7.client.Client()
     client.connect(host, 0, 1, port)
     return client

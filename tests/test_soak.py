@@ -23,10 +23,10 @@ import time
 
 import pytest
 
-from hil.families.fbs.address import parse
-from hil.sim.wire_faults import KINDS, WireFaults
 from hil.core.errors import HilError
+from hil.families.fbs.address import parse
 from hil.families.fbs.transport.factory import open_transport
+from hil.sim.wire_faults import KINDS, WireFaults
 
 WIRES = ("emulator+fatek-tcp", "emulator+fatek-udp", "emulator+fatek-serial", "emulator+modbus-tcp",
          "emulator+modbus-rtu")

@@ -6,11 +6,11 @@ import datetime as dt
 
 import pytest
 
+from hil.bench.profile import load_profile, profile_from_dict
 from hil.families.fbs.bench import Bench
 from hil.families.fbs.sim import Emulator
 from hil.families.fbs.sim.models.temperature import Fixed, Ramp, TemperatureModel
 from hil.families.fbs.temperature import MODULES, parse_temperature
-from hil.bench.profile import load_profile, profile_from_dict
 from tests.conftest import EMULATOR_BENCH
 
 SR, RD, TW = 3000, 3020, 3060
@@ -269,8 +269,8 @@ def test_manual_injector_asks_the_operator():
 
 
 def test_unreachable_relay_module_is_reported():
-    from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
     from hil.families.fbs.injectors.injector import FaultError
+    from hil.families.fbs.injectors.modbus_coil import ModbusCoilSensorBreak
     injector = ModbusCoilSensorBreak("modbus+tcp://127.0.0.1:9?unit=1", timeout=0.2)
     with pytest.raises(FaultError, match="cannot reach the sensor-break relay module"):
         injector.open(0)

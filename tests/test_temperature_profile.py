@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from hil.core.errors import ProfileError
-from hil.families.fbs.temperature import MODULES, SENSORS, decode_start, encode_start, parse_temperature
-from hil.families.fbs.address import parse
 from hil.bench.profile import load_profile, profile_from_dict
+from hil.core.errors import ProfileError
+from hil.families.fbs.address import parse
+from hil.families.fbs.temperature import MODULES, SENSORS, decode_start, encode_start, parse_temperature
 from tests.conftest import EMULATOR_BENCH, REPO
 
 

@@ -11,14 +11,14 @@ import pytest
 # Imported here, outside the inner runs: pytester restores sys.modules after each inner run, so whatever the
 # inner run imports first is imported (and assertion-rewritten, being part of the plugin's distribution) again
 # in every run — seconds per run.
-import hil.families.fbs.device.temperature  # noqa: F401
-import hil.families.fbs.sim.serve_fatek  # noqa: F401
-import hil.families.fbs.sim.serve_modbus  # noqa: F401
-import hil.families.fbs.faults  # noqa: F401
+import hil.families.fbs.device.temperature
+import hil.families.fbs.faults
+import hil.families.fbs.sim.serve_fatek
+import hil.families.fbs.sim.serve_modbus
+import hil.families.fbs.transport.fatek
+import hil.families.fbs.transport.local
+import hil.families.fbs.transport.modbus
 import hil.plugin.pytest_plugin  # noqa: F401
-import hil.families.fbs.transport.fatek  # noqa: F401
-import hil.families.fbs.transport.local  # noqa: F401
-import hil.families.fbs.transport.modbus  # noqa: F401
 from hil.families.fbs.sim.build import build_emulator
 from hil.families.fbs.sim.models.temperature import TemperatureModel
 from hil.families.fbs.temperature import EXEC_BAD_MODULE_COUNT, EXEC_IDLE, EXEC_MEASURING, TABLE_MARKER
@@ -228,7 +228,7 @@ class Variant:
     def __init__(self, model_class: type[TemperatureModel]) -> None:
         self.model_class = model_class
 
-    def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+    def pytest_hil_make_emulator(self, profile, epoch):
         emulator = build_emulator(profile, epoch)
         good = emulator.model(TemperatureModel)
         emulator.models.remove(good)

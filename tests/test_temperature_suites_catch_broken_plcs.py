@@ -45,7 +45,7 @@ class EveryModuleOnTheSlowestCycle(TemperatureModel):
 def _with(model_class: type[TemperatureModel]) -> BrokenEmulator:
     """The profile's emulator with ``model_class`` in place of its temperature model."""
 
-    def swap(emulator, profile, epoch):  # noqa: ANN001
+    def swap(emulator, profile, epoch):
         replace_model(emulator, TemperatureModel, model_class(emulator.model(TemperatureModel).config))
 
     return BrokenEmulator(swap)

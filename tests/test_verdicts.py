@@ -9,8 +9,8 @@ import os
 import re
 import signal
 import subprocess
-import time
 import sys
+import time
 from collections import Counter
 from pathlib import Path
 

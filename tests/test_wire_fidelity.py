@@ -53,7 +53,7 @@ def exchange(address: tuple[str, int], data: bytes, replies: int = 1) -> list[by
                     size = 6 + int.from_bytes(buffer[4:6], "big")
                     out.append(buffer[:size])
                     buffer = buffer[size:]
-        except socket.timeout:
+        except TimeoutError:
             pass
     return out
 

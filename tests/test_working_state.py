@@ -56,8 +56,8 @@ def test_the_sessions_end_puts_held_words_back_whatever_hold_is_left(emulator):
 
 def test_a_held_clock_goes_back_when_the_hold_ends_not_after_each_test(emulator):
     from hil.bench.base import BenchBase
-    from hil.families.fbs.bench import Bench
     from hil.bench.profile import load_profile
+    from hil.families.fbs.bench import Bench
     from hil.families.fbs.rtc_time import RtcTime
     bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
     assert isinstance(bench, BenchBase)
@@ -78,8 +78,8 @@ def test_a_held_clock_goes_back_when_the_hold_ends_not_after_each_test(emulator)
 
 
 def test_pid_working_state_is_the_inputs_of_the_boxes_that_are_off():
-    from hil.families.fbs.bench import Bench
     from hil.bench.profile import load_profile
+    from hil.families.fbs.bench import Bench
     bench = Bench(load_profile(EMULATOR_BENCH), target="emulator")
     bench.raw.emulator.memory.set("M2", 1)  # zone-b (EN M2) runs: the ladder's, its words go back every test
     held, clock = bench.working_state(["pid", "scratch"])
@@ -116,7 +116,7 @@ def test_a_marked_module_holds_its_words_until_its_last_test_and_the_next_module
     keep = KeepEmulator()
 
     class Seed:
-        def pytest_hil_make_emulator(self, profile, epoch):  # noqa: ANN001, ANN201
+        def pytest_hil_make_emulator(self, profile, epoch):
             emulator = keep.pytest_hil_make_emulator(profile, epoch)
             emulator.memory.set("R1000", 5)
             return emulator

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.family("s7-200smart")
 T_DATA_ERROR = 0x0007
 
 
-def T(text: str) -> bytes:  # noqa: N802 - the manual's name for the buffer
+def T(text: str) -> bytes:
     """A time buffer written as a status chart shows it: ``T("24 06 15 08 30 00 00 07")``."""
     data = bytes.fromhex(text)
     assert len(data) == 8, text
