@@ -1,5 +1,8 @@
 """Fixtures every bench has, whatever its family (the family's own — ``rtc``, ``pid``, ``temperature`` for an FBs —
-come with the family: :mod:`hil.families.fbs.fixtures`).  ``pytest --fixtures`` lists them with these docstrings."""
+come with the family: :mod:`hil.families.fbs.fixtures`).  ``pytest --fixtures`` lists them with these docstrings.
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

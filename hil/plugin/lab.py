@@ -5,7 +5,10 @@ pytest runs however the session ends (failures, errors, Ctrl-C; SIGTERM and SIGH
 :mod:`hil.core.signals`).
 
 The pytest options are ``--hil-lg-…``: labgrid's own pytest plugin (installed with it, ``-p no:labgrid`` keeps it
-out) already has ``--lg-coordinator``."""
+out) already has ``--lg-coordinator``.
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

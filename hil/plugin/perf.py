@@ -10,7 +10,9 @@ Every bench test gets:
   character), i.e. wire bytes × 10 / 9600 plus the bench time above; on Modbus RTU the same at 8E1 (11 bits).
 
 :class:`WireCounter` is usable on its own (the benchmarks count bytes with it).
-"""
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

@@ -8,7 +8,9 @@ The bench is opened (lock, wire, recovery of a dead run's journal) and asked for
 open it) — on a real bench it keeps the locks for them, each a lane (:mod:`hil.plugin.lanes`).
 Without either option the bench is opened when the first bench test is collected
 (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`), and one that cannot be is the same line there.
-"""
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

@@ -14,13 +14,6 @@ from pathlib import Path
 
 import pytest
 
-#: this plugin's own plugin modules (pytest_plugins below).  pytest rewrites the asserts of a module it loads as a
-#: plugin; this module imports some of them first, so they are marked before those imports — otherwise, from an
-#: editable install (whose files pytest cannot list), each import warns "already imported so cannot be rewritten"
-PLUGINS = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements", "hil.plugin.preflight",
-           "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes", "hil.plugin.usage"]
-pytest.register_assert_rewrite(*PLUGINS)
-
 from hil.bench.base import BenchBase as Bench
 from hil.bench.capabilities import CAPABILITIES, bench_capabilities, how_to_offer, unknown
 from hil.bench.faces import BenchView
@@ -46,7 +39,11 @@ from hil.sim.engine import Engine
 
 # round trips and wire bytes per test (hil_requests … JUnit properties); bench safety; labgrid places; spec() IDs;
 # the bench opened before collection; the fixtures every bench has (plc, io, faults)
-pytest_plugins = PLUGINS
+#: this plugin's own plugin modules; each says PYTEST_DONT_REWRITE (no asserts to rewrite), so importing one before
+#: pytest loads it — the command line does, the reports' entry point does — costs no "already imported" warning
+pytest_plugins = ["hil.plugin.perf", "hil.plugin.safety", "hil.plugin.lab", "hil.plugin.requirements",
+                  "hil.plugin.preflight", "hil.plugin.fixtures", "hil.plugin.working_state", "hil.plugin.lanes",
+                  "hil.plugin.usage"]
 DEFAULT_BENCH = Path("fixtures") / "benches" / "emulator.toml"
 MARKERS = {
     "needs": "needs(capability, …, reason=…): the test needs what not every bench offers (virtual_time, "

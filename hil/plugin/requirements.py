@@ -6,7 +6,9 @@ error naming the test; a test naming an **[our choice]** requirement needs the `
 bench plugin then skips it, with the reason, on a bench that does not claim it).  Each testcase carries its IDs as
 the JUnit property ``hil.requirements``; the HTML report's requirement table is built from them
 (:mod:`hil.plugin.reporting.requirements`), and ``hil spec`` prints the whole matrix (:mod:`hil.cli.spec`).
-"""
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

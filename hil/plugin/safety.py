@@ -7,7 +7,9 @@ ends non-zero naming every element it could not put back.
 * SIGTERM and SIGHUP unwind like Ctrl-C; a signal during a restore waits for it (:mod:`hil.core.signals`).
 * At the end of the session every restore that failed is retried; what is still not restored is listed and the
   exit status is non-zero.
-"""
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

@@ -1,6 +1,9 @@
 """hil's usage errors inside pytest — a bench that cannot be opened, a marker used wrongly — said in hil's one
 error-line form (``hil: error: <what> — <what to do next>``), as the command line says its own, rather than in
-pytest's ``ERROR: …`` frame.  pytest's own usage errors stay pytest's."""
+pytest's ``ERROR: …`` frame.  pytest's own usage errors stay pytest's.
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 

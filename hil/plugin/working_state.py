@@ -10,7 +10,9 @@ originals are.  A suite module marked ``working_state("pid", "scratch")`` has th
 before the first write; recovery replays them after a crash) but put back once, when the module's last test ends
 (:meth:`hil.bench.guard.Guard.hold`); every other element, EN, the outputs, the clock unless ``"clock"`` is named,
 still goes back after each test.  The kinds a bench knows are its family's (:meth:`BenchBase.working_state`).
-"""
+
+PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
+command line imported it before pytest started."""
 
 from __future__ import annotations
 
