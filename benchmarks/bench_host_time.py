@@ -26,6 +26,7 @@ run, next to the bound the test used to hold (``was``):
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import json
 import os
@@ -152,10 +153,8 @@ def _fatek_timeout(timeout: float, retries: int, write: bool = False) -> float:
     try:
         with FatekTransport(f"socket://{handle.address}", station=5, timeout=timeout, retries=retries) as client:
             start = time.perf_counter()
-            try:
+            with contextlib.suppress(ReplyTimeout):
                 client.write("R0", 1) if write else client.read("R0")
-            except ReplyTimeout:
-                pass
             return time.perf_counter() - start
     finally:
         handle.stop()
@@ -173,10 +172,8 @@ def _modbus_silence() -> float:
     try:
         with ModbusTransport.rtu(server.address, unit=9, timeout=0.2, retries=1) as wrong_unit:
             start = time.perf_counter()
-            try:
+            with contextlib.suppress(ReplyTimeout):
                 wrong_unit.read_words("D10", 2)
-            except ReplyTimeout:
-                pass
             return time.perf_counter() - start
     finally:
         server.stop()
@@ -198,10 +195,8 @@ def _lock_gives_up() -> float:
         proc = _lock_holder(tmp)
         try:
             start = time.perf_counter()
-            try:
+            with contextlib.suppress(BenchBusy):
                 BenchLock("fatek+tcp://127.0.0.1:1").acquire(wait=0.5)
-            except BenchBusy:
-                pass
             return time.perf_counter() - start
         finally:
             proc.kill()

@@ -10,9 +10,9 @@ Mutated: hil/families/fbs/sim/models/{rtc,temperature,temperature_readings,fun86
 ``hil run`` runs them (the slow tests included: virtual time), stopping at the first failure: for each model the
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
 temperatures, and the temperature suite once more on the profile with averaging and the fast rate and once on the
-default profile with 2-sample averaging; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile, as an ST40 and as a CR40).  cosmic-ray writes each
-mutant into the files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the
-suites at it); the checkout is never touched.
+default profile with 2-sample averaging; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile, as an
+ST40 and as a CR40).  cosmic-ray writes each mutant into the files it tests, so the work happens in a scratch copy of
+the working tree (PYTHONPATH points the suites at it); the checkout is never touched.
 
 Every surviving mutant is looked up in ``benchmarks/mutation-survivors.toml`` (keyed by file, operator and the
 mutated line's text, so the classification survives unrelated edits): *equivalent*, *choice* (an [our choice] the
@@ -225,7 +225,7 @@ def run(sample: int | None, timeout: float, keep_work: bool) -> int:
             share = None if sample is None else max(1, round(sample * size / everything))
             left = _sample([dbs[n][1] for n in names], share, rng)
             print(f"{group}: {left} of {size} mutants to run", flush=True)
-        for name, (config, db) in dbs.items():
+        for config, db in dbs.values():
             _cosmic_ray(tree, "exec", str(config), str(db))
             rows += _results(db, tree)
         seconds = time.monotonic() - started
@@ -284,7 +284,8 @@ def main() -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help=f"a fixed sample of {QUICK} mutants (≤ 10 min)")
     parser.add_argument("--sample", type=int, metavar="N", help="a fixed sample of N mutants")
-    parser.add_argument("--timeout", type=float, default=45.0, help="seconds per mutant's suite run (default 45; the suites take ≈ 5)")
+    parser.add_argument("--timeout", type=float, default=45.0,
+                        help="seconds per mutant's suite run (default 45; the suites take ≈ 5)")
     parser.add_argument("--keep", action="store_true", help="keep the scratch copy (the cosmic-ray sessions)")
     parser.add_argument("--report-from", metavar="DIR", type=Path,
                         help="only write the report again from a kept scratch copy (after classifying survivors)")

@@ -80,8 +80,8 @@ def bench_wires(seconds: float) -> list[dict]:
         bench = Bench(profile, target=target)
         try:
             io = bench.raw
-            small, _ = rate(lambda: io.read_words("R4128", 8), seconds)
-            big, _ = rate(lambda: io.read_words("R0", 64), seconds)
+            small, _ = rate(lambda io=io: io.read_words("R4128", 8), seconds)
+            big, _ = rate(lambda io=io: io.read_words("R0", 64), seconds)
             rows.append({"target": target, "round_trips_per_s": small, "registers_per_s_8": small * 8,
                          "registers_per_s_64": big * 64, "round_trips_per_s_64": big})
         finally:
@@ -445,8 +445,9 @@ def virtual_time_table(quick: bool) -> list[dict]:
                   "" if r["polled_virtual_s_per_wall_s"] is None else f"{r['polled_virtual_s_per_wall_s']:,.0f}")
     console.print(t)
     floor, full = vt[-1], vt[2]
-    console.print(f"{full['virtual_hours']} h of the full PLC (the Python models + numpy): [bold]{full['wall_s']:.2f} s[/] "
-                  f"at best; median of {floor['rounds']} paired rounds [bold]{floor['full_plc_over_floor']:.2f}×[/] "
+    console.print(f"{full['virtual_hours']} h of the full PLC (the Python models + numpy): "
+                  f"[bold]{full['wall_s']:.2f} s[/] at best; median of {floor['rounds']} paired rounds "
+                  f"[bold]{floor['full_plc_over_floor']:.2f}×[/] "
                   f"(range {floor['ratio_range'][0]:.2f}–{floor['ratio_range'][1]:.2f}×) the bare CPython arithmetic "
                   f"of plant + PID alone ({floor['wall_s']:.2f} s at best)")
     return vt
@@ -577,11 +578,10 @@ def bench_rfc2217(n: int) -> dict:
                 with ser2net(served[0].address, line, raw_device=served[1].address if fatek else None,
                              chardelay=chardelay) as where:
                     baseline = (lambda: open_transport(f"fatek+tcp://{where.raw}?station=1")) if fatek else \
-                        (lambda: ModbusTransport.rtu(served[1].address, unit=1, baudrate=115200))
+                        (lambda served=served: ModbusTransport.rtu(served[1].address, unit=1, baudrate=115200))
                     scheme = "fatek" if fatek else "modbus"
-                    ms = _interleaved_ms({"rfc2217": lambda: open_transport(f"{scheme}+rfc2217://{where.rfc2217}?"
-                                                                            f"{query}"),
-                                          "baseline": baseline}, n)
+                    url = f"{scheme}+rfc2217://{where.rfc2217}?{query}"
+                    ms = _interleaved_ms({"rfc2217": lambda url=url: open_transport(url), "baseline": baseline}, n)
                 rows.append({"wire": f"{'FATEK 9600 7E1' if fatek else 'Modbus RTU 115200 8E1'}",
                              "chardelay": chardelay, "rfc2217_ms": ms["rfc2217"],
                              "baseline": "socket:// to the same ser2net" if fatek else "the pty itself (no server)",
@@ -597,8 +597,8 @@ def hil_run_times() -> list[dict]:
     for target in TARGETS:
         junit = Path(tempfile.mkdtemp()) / "junit.xml"
         start = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "hil.cli.main", "run", "--target", target, "--junitxml", str(junit),
-                               "--", "-q"], cwd=ROOT, capture_output=True, text=True)
+        proc = subprocess.run([sys.executable, "-m", "hil.cli.main", "run", "--target", target,
+                               "--junitxml", str(junit), "--", "-q"], cwd=ROOT, capture_output=True, text=True)
         wall = time.perf_counter() - start
         root = ET.parse(junit).getroot() if junit.exists() else None
         tests = sum(int(s.get("tests", 0)) for s in root.iter("testsuite")) if root is not None else 0
@@ -709,10 +709,11 @@ def main(argv: list[str] | None = None) -> int:
     console.print(t)
 
     results["modbus_server"] = m = bench_modbus_servers(2.0 if args.quick else 10.0)
-    console.print(f"Modbus TCP server: hil emulator against a bare pymodbus SimDevice, {m['rounds']} interleaved rounds "
-                  f"each: median of the paired round ratios [bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×), range "
+    console.print(f"Modbus TCP server: hil emulator against a bare pymodbus SimDevice, {m['rounds']} interleaved "
+                  f"rounds each: median of the paired round ratios [bold]{m['ratio']:.2f}×[/] (target ≥ 0.8×), range "
                   f"{m['round_ratio_range'][0]:.2f}–{m['round_ratio_range'][1]:.2f}×; best rounds "
-                  f"{m['hil_requests_per_s']:,.0f} vs {m['bare_requests_per_s']:,.0f} req/s ({m['best_round_ratio']:.2f}×)")
+                  f"{m['hil_requests_per_s']:,.0f} vs {m['bare_requests_per_s']:,.0f} req/s "
+                  f"({m['best_round_ratio']:.2f}×)")
 
     results["device_operations"] = device_operations_figure(record=args.record)
 

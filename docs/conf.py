@@ -1,6 +1,6 @@
-"""Sphinx configuration of hil's documentation site: Markdown pages (MyST), the furo theme, and pages generated
-from the code at build time (the command line from the argparse parsers, :mod:`hil.cli.reference`, the requirement matrix from the suites'
-markers; docs/_ext/hil_docs.py)."""
+"""Sphinx configuration of hil's documentation site: Markdown pages (MyST), the furo theme, and pages generated from the
+code at build time (the command line from the argparse parsers, :mod:`hil.cli.reference`, the requirement matrix from
+the suites' markers; docs/_ext/hil_docs.py)."""
 
 from __future__ import annotations
 

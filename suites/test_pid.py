@@ -140,9 +140,9 @@ def _pv_blocks(bench):
         first, _, last = span.partition("-")
         m = re.fullmatch(r"([RD])(\d+)", first)
         end = re.fullmatch(r"[RD](\d+)", last or first)
-        if m and end and m.group(1) not in blocks and int(end.group(1)) - int(m.group(2)) + 1 >= 32:
-            if not bench.cannot_reach(f"{m.group(1)}{m.group(2)}-{m.group(1)}{int(m.group(2)) + 31}"):
-                blocks[m.group(1)] = int(m.group(2))
+        if (m and end and m.group(1) not in blocks and int(end.group(1)) - int(m.group(2)) + 1 >= 32
+                and not bench.cannot_reach(f"{m.group(1)}{m.group(2)}-{m.group(1)}{int(m.group(2)) + 31}")):
+            blocks[m.group(1)] = int(m.group(2))
     return sorted(blocks.items())
 
 
@@ -385,7 +385,7 @@ def test_normal_bit_exactly_at_sv_plus_minus_os(bench, pid, beyond):
     bench.plc.io.write(str(inst.operand("os", point)), os)
     for edge in ("low", "high"):
         pv, sv, words, alm = _aimed_at_the_edge(bench, pid, inst, point, os, sv_from_pv=(
-            lambda pv: pv + os + beyond if edge == "low" else pv - os - beyond), inside=beyond == 0)
+            lambda pv, edge=edge: pv + os + beyond if edge == "low" else pv - os - beyond), inside=beyond == 0)
         normal = words.normal(point)
         if beyond == 0:
             assert normal, f"PV {pv} = SV {sv} {'−' if edge == 'low' else '+'} Os {os}: normal (edges included)"
@@ -742,9 +742,9 @@ def test_prealarm_needs_10_consecutive_scans_on_a_bench(bench, pid, dip, at_r400
     """The manual's 10 consecutive scans (and a dip restarting the count), decided only from reads whose scan
     count the counter pins down exactly: the words are read between two counter reads (R in c_a + r … c_b − r, a
     read spanning r scans), so with PV ≥ R4008 first seen by scan F (c1 + r + 1 … c2) the words show R − F + 1
-    counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides nothing; when no attempt
-    pins down both 9 and 10 the test skips with the widths it saw.  ``at-r4008``: every PV exactly at R4008 (the
-    manual's "≥": equal counts from the first scan), PVs put through R4003/R4004."""
+    counted scans, known exactly when both brackets are one scan wide.  An attempt whose brackets are wider decides
+    nothing; when no attempt pins down both 9 and 10 the test skips with the widths it saw.  ``at-r4008``: every PV
+    exactly at R4008 (the manual's "≥": equal counts from the first scan), PVs put through R4003/R4004."""
     inst = _instances(pid)[0]
     _need(bench, "R4008")
     dry = _dry_widths(bench, inst.wr.offset(2))
@@ -863,8 +863,8 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     EN 0 → 1, every 1 s.  The steps show on OR: a constant error of 2.0 ° (its PV put through R4003/R4004) with
     integral action (Kc 100, Ki 100 = 1 repeat/min, Td 0) moves OR at every PID step and only then.  Meanwhile Y
     is ON for OR/16383 of each PWM period (2 s): over the 9 s at about 13 % output, the share of polls with Y on
-    is within 15 points of OR's, and Y switches on every 2 s (R4005's high byte 1).  A second point at the same error with Ki = 0, Td = 0 keeps one OR throughout
-    (no integral action)."""
+    is within 15 points of OR's, and Y switches on every 2 s (R4005's high byte 1).  A second point at the same error
+    with Ki = 0, Td = 0 keeps one OR throughout (no integral action)."""
     inst, point, plain = _integrating_point(bench, pid, plain=True)
     io = bench.plc.io
     io.write("R4005", 0x0102)  # the default: PID every 4 s, PWM period 2 s

@@ -5,8 +5,8 @@ while PV has not come into SV ± Os ("SSR or heater loop open, heater aged"), an
 output dip under R4006 starts the time again; PV in band: no warning at any output.  R4006 is 80–100 %, R4007
 60–65535 s: on a bench these tests set R4007 to its minimum, 60 s (and once to 256 s, where its high byte counts),
 and are marked slow; on the emulator they run in virtual time.  Every rise they time starts from an output seen at
-0 after the test began, so that no timer can have started before the test's own stimulus.  The open heater comes from the bench's [faults.heater_open] injector (a contactor in the
-heater line, or the emulator's thermal plant).
+0 after the test began, so that no timer can have started before the test's own stimulus.  The open heater comes from
+the bench's [faults.heater_open] injector (a contactor in the heater line, or the emulator's thermal plant).
 """
 
 import math

@@ -291,7 +291,7 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
             _retable(bench, temp, {4 + k: table[4 + k] for k in flagged}, lambda w: w.mismatch_bits == 0)
             flagged = {}
         items = {**{4 + k: table[4 + k] for k in flagged}, **{4 + k: v for k, v in words.items()}}
-        work = _retable(bench, temp, items, lambda w: w.mismatch_bits == want)
+        work = _retable(bench, temp, items, lambda w, want=want: w.mismatch_bits == want)
         what = ", ".join(f"{k + 1}: {'FFH (no module)' if v & 0xFF == 0xFF else _module_name(v)}"
                          for k, v in words.items())
         assert work.mismatch_bits == want, (

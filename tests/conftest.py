@@ -33,7 +33,8 @@ def emulator():
 
 @pytest.fixture(autouse=True)
 def _private_hil_state(tmp_path_factory, monkeypatch):
-    """Each test's bench journals and locks in its own directories, never the user's (hil.core.journal, hil.core.lock)."""
+    """Each test's bench journals and locks in its own directories, never the user's (hil.core.journal,
+    hil.core.lock)."""
     base = tmp_path_factory.mktemp("hil-state")
     monkeypatch.setenv("HIL_STATE_DIR", str(base / "state"))
     monkeypatch.setenv("HIL_HISTORY_URL", "off")  # the run history only where a test turns it on (test_history*)

@@ -73,7 +73,7 @@ def record(names: list[str] | None = None) -> list[Path]:
     for name in names or list(SCENARIOS):
         emulator = build_emulator(load_profile(EMULATOR_BENCH), EPOCH)
         emulator.advance(60.0)  # every temperature point measured (the clock reads 12:01:00)
-        with open_transport("emulator+fatek-tcp", emulator_factory=lambda: emulator) as transport:
+        with open_transport("emulator+fatek-tcp", emulator_factory=lambda emulator=emulator: emulator) as transport:
             trace = WireTrace().attach(transport)
             trace.start()
             run, expected = SCENARIOS[name]

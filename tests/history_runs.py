@@ -66,9 +66,9 @@ def env(url: str, **extra: str) -> dict[str, str]:
 
 def pytest_run(args: list[str], url: str, cwd: Path, **extra: str) -> subprocess.Popen:
     """One session of the pytest plugin in its own process (its output in ``cwd/out.txt``)."""
-    out = open(cwd / "out.txt", "wb")
-    return processes.spawn([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", *args], cwd=cwd,
-                            env=env(url, **extra), stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    with open(cwd / "out.txt", "wb") as out:  # the child has its own copy of the descriptor once spawned
+        return processes.spawn([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", *args], cwd=cwd,
+                               env=env(url, **extra), stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
 
 
 def wait_for(check, what: str, timeout: float = 60.0):

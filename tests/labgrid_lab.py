@@ -1,8 +1,8 @@
 """A real labgrid lab on 127.0.0.1 for the tests: ``labgrid-coordinator`` and ``labgrid-exporter`` (ports chosen by
 the OS), places made with ``labgrid-client`` as a lab admin would.
 
-labgrid lives in its own environment (its ``pyserial-labgrid`` fork must not replace the test environment's
-pyserial): ``scripts/e2e_matrix.py`` makes ``.venv-labgrid`` with ``pip install -e '.[labgrid]'``; ``$HIL_LABGRID_BIN`` or a
+labgrid lives in its own environment (its ``pyserial-labgrid`` fork must not replace the test environment's pyserial):
+``scripts/e2e_matrix.py`` makes ``.venv-labgrid`` with ``pip install -e '.[labgrid]'``; ``$HIL_LABGRID_BIN`` or a
 ``labgrid-coordinator`` on PATH work too.
 """
 

@@ -9,6 +9,7 @@ it: ``end`` sends the signal the test asked for, then SIGKILL to the group once 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -46,10 +47,8 @@ def run(args: list[str], *, timeout: float, **kwargs: Any) -> subprocess.Complet
 
 def signal_group(proc: subprocess.Popen, sig: int) -> None:
     """Send ``sig`` to ``proc``'s whole group (nothing when it is gone already)."""
-    try:
+    with contextlib.suppress(ProcessLookupError):
         os.killpg(proc.pid, sig)
-    except ProcessLookupError:
-        pass
 
 
 def end(proc: subprocess.Popen, sig: int = signal.SIGINT, grace: float = 30.0) -> int:
@@ -58,10 +57,8 @@ def end(proc: subprocess.Popen, sig: int = signal.SIGINT, grace: float = 30.0) -
     try:
         if proc.poll() is None:
             signal_group(proc, sig)
-            try:
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 proc.wait(timeout=grace)
-            except subprocess.TimeoutExpired:
-                pass
         signal_group(proc, signal.SIGKILL)  # the leader's own children, whether or not it has gone
         proc.wait()
     finally:

@@ -92,8 +92,9 @@ def bench_timed(text: str) -> str:
 
 @pytest.mark.e2e(leads=True)  # the gate's longest test (a minute): started first of all (tests/conftest.py)
 @pytest.mark.timeout(600)  # a hang guard
-@pytest.mark.parametrize("name, wire", [pytest.param(name, wire, marks=() if (name, wire) == GATE else pytest.mark.matrix)
-                                        for name in RUNS for wire in ("fatek-tcp", "modbus-tcp")])
+@pytest.mark.parametrize("name, wire", [
+    pytest.param(name, wire, marks=() if (name, wire) == GATE else pytest.mark.matrix)
+    for name in RUNS for wire in ("fatek-tcp", "modbus-tcp")])
 def test_the_fbs_suites_pass_against_hil_emulate_in_real_time(tmp_path, name, wire):
     emulated = tmp_path / "emulated.toml"
     text = bench_like(EMULATOR_BENCH.read_text())

@@ -3,6 +3,7 @@ restores, one run per PLC whatever the spelling, and a lock directory nobody can
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import json
 import os
@@ -98,10 +99,8 @@ class Proxy:
         except OSError:
             pass
         for s in (a, b):
-            try:
+            with contextlib.suppress(OSError):
                 s.close()
-            except OSError:
-                pass
 
     def away(self) -> None:
         self.up = False
@@ -259,7 +258,8 @@ def test_a_dead_runs_journal_is_replayed_by_the_next_session_loudly(tmp_path, em
     result = pytester.runpytest_inprocess("--bench", str(profile.path), "-q", f"--junitxml={junit}",
                                           "-p", "no:cacheprovider", "-p", "no:hypothesispytest")
     result.assert_outcomes(passed=2)
-    result.stdout.fnmatch_lines(["*hil bench recovery: a previous run on tcp://127.0.0.1:* died*restored and verified*"])
+    result.stdout.fnmatch_lines(
+        ["*hil bench recovery: a previous run on tcp://127.0.0.1:* died*restored and verified*"])
     xml = junit.read_text()
     assert 'name="hil_bench_recovery"' in xml and 'name="bench_recovery"' in xml
     import xml.etree.ElementTree as ET

@@ -1,8 +1,9 @@
 """The broken-PLC defects (RTC, temperature, FUN86) against ``hil emulate`` as a separate real-time process with a
 bench-like profile (scan counter declared), reached only over FATEK/TCP and the Modbus relay rig: each defect must
 fail at least one suite test there too, as it would on a bench.  Each defect gets its own ``hil emulate``
-(tests/broken_emulate.py); several run in parallel, in three tests that pytest-xdist spreads over its workers.  Only the suite tests the in-process broken-PLC tests name as
-catching a defect run (RTC: the RTC suites, stopping at the first failure), to keep CI short.
+(tests/broken_emulate.py); several run in parallel, in three tests that pytest-xdist spreads over its workers.  Only the
+suite tests the in-process broken-PLC tests name as catching a defect run (RTC: the RTC suites, stopping at the first
+failure), to keep CI short.
 """
 
 from __future__ import annotations
@@ -115,7 +116,8 @@ def _run_once(spec: str, files: list[str], extra: list[str], scale: float, tmp_p
                               env={**os.environ, "PYTHONUNBUFFERED": "1"})
     out = done.stdout + done.stderr
     lines = [line for line in out.splitlines() if re.search(r"\d+ (passed|failed|skipped|deselected)", line)]
-    counts = {kind: int(n) for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error)", lines[-1] if lines else "")}
+    counts = {kind: int(n)
+              for n, kind in re.findall(r"(\d+) (passed|failed|skipped|error)", lines[-1] if lines else "")}
     return counts, out
 
 

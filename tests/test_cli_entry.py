@@ -118,8 +118,8 @@ def test_missing_serial_port_names_the_path_once(capsys) -> None:
     assert err.count("/dev/ttyHIL-none") == 1 and "plugged in" in err, err
 
 
-@pytest.fixture
-def silent_listener():
+@pytest.fixture(name="silent_listener")
+def silent_listener_fixture():
     """A TCP port that accepts and never answers."""
     server = socket.socket()
     server.bind(("127.0.0.1", 0))

@@ -84,7 +84,8 @@ def _a_run_that_sets_the_clock(profile, *, dies: bool = False) -> Bench:
 
 # -- item 5: no second lost per run ----------------------------------------------------------------------------
 @pytest.mark.matrix  # ten sessions' precision in ms: the host's load is in it
-@pytest.mark.timeout(240)  # ten sessions, each a set and an exact restore (often two sets: Guard._put_exactly): ≈ 60 s alone
+# ten sessions, each a set and an exact restore (often two sets: Guard._put_exactly): ≈ 60 s alone
+@pytest.mark.timeout(240)
 def test_ten_runs_that_set_the_clock_leave_its_offset_within_50_ms(profile):
     # Ten sessions in one process: each a new bench (guard, journal, origin) on a new connection, as ten
     # `hil run`s are — what a run adds to the offset is its origin's timing and its exact restore, both here.

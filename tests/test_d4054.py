@@ -47,7 +47,8 @@ def test_every_code_decodes_exactly_as_the_csv_says() -> None:
         decoded = rate_for_code(int(row["d4054_hex"], 16))
         assert decoded.mode == row["mode"], row
         assert decoded.steps == int(row["steps"]), row
-        assert decoded.s_per_day == pytest.approx(float(row["decoded_s_per_day"]), abs=6e-5), row  # the CSV rounds to 4 places
+        # the CSV rounds to 4 places
+        assert decoded.s_per_day == pytest.approx(float(row["decoded_s_per_day"]), abs=6e-5), row
 
 
 def test_manual_worked_examples() -> None:

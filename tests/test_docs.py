@@ -124,7 +124,8 @@ def test_an_option_without_a_description_is_named() -> None:
     run = sub.add_parser("run", help="run the suites")
     run.add_argument("--quiet-ish")
     sub.add_parser("mute")
-    assert undocumented(parser) == ["hil: (the command itself)", "hil run: --quiet-ish", "hil mute: (the command itself)"]
+    assert undocumented(parser) == ["hil: (the command itself)", "hil run: --quiet-ish",
+                                    "hil mute: (the command itself)"]
 
 
 def test_the_pages_commands_are_collected_from_their_console_blocks() -> None:

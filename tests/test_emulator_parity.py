@@ -5,6 +5,8 @@ the in-process emulator must never set."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import pytest
 
 from hil.core.errors import HilError
@@ -68,19 +70,19 @@ def _run(transport) -> dict:
     outcomes: dict = {}
     for op, name, count in REQUESTS:
         if op == "bits":
-            call = lambda: transport.read_bits(name, count)  # noqa: E731
+            call = partial(transport.read_bits, name, count)
         elif op == "words":
-            call = lambda: transport.read_words(name, count)  # noqa: E731
+            call = partial(transport.read_words, name, count)
         else:
-            call = lambda: transport.read_many([name])  # noqa: E731
+            call = partial(transport.read_many, [name])
         outcomes[(op, name, count)] = _outcome(call)
     for name, value in WRITES:
-        held = _outcome(lambda: transport.read(name))
+        held = _outcome(partial(transport.read, name))
         if value is None and held[0] == "refused":
             value = 0
         elif value is None:
             value = held[1]
-        outcomes[("write", name, value)] = _outcome(lambda: transport.write(name, value))
+        outcomes[("write", name, value)] = _outcome(partial(transport.write, name, value))
     return outcomes
 
 

@@ -17,7 +17,7 @@ import pytest
 
 from tests import processes
 from tests.external import _read_endpoints
-from tests.wheel_venv import REPO, Installed, installed_hil  # noqa: F401 - a fixture
+from tests.wheel_venv import REPO, Installed, installed_hil_fixture  # noqa: F401 - the installed_hil fixture
 
 EXAMPLE = REPO / "examples" / "heat_treatment"
 TESTS = ("test_a_set_point_step_settles_in_band", "test_the_over_temperature_pre_alarm_trips",

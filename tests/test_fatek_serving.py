@@ -432,9 +432,11 @@ def test_timeout_mentions_bad_frames_discarded():
     thread = threading.Thread(target=peer, daemon=True)
     thread.start()
     try:
-        with FatekTransport(f"socket://127.0.0.1:{port}", timeout=0.3, retries=0) as client:
-            with pytest.raises(ReplyTimeout) as info:
-                client.read("R0")
+        with (
+            FatekTransport(f"socket://127.0.0.1:{port}", timeout=0.3, retries=0) as client,
+            pytest.raises(ReplyTimeout) as info,
+        ):
+            client.read("R0")
     finally:
         client_done.set()
         thread.join(60)

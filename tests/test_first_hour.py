@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.test_cli_entry import EXIT_USAGE, REPO, hil, silent_listener  # noqa: F401 - a fixture
+from tests.test_cli_entry import EXIT_USAGE, REPO, hil, silent_listener_fixture  # noqa: F401 - the silent_listener fixture
 
 
 def _refused_port() -> int:

@@ -32,7 +32,7 @@ def test_journal_keeps_first_original_and_restore_verifies(guarded, emulator):
     guarded.write_words("R100", [1, 2])
     guarded.write_words("R100", [3, 4])  # second write: original stays 7, 8
     guarded.write_bits("M10", [0, 1])
-    assert guarded.journal == {a: v for a, v in zip(_names("R100", "R101", "M10", "M11"), [7, 8, 1, 0])}
+    assert guarded.journal == dict(zip(_names("R100", "R101", "M10", "M11"), [7, 8, 1, 0]))
     restored = guarded.restore()
     assert len(restored) == 4
     assert emulator.memory.read("R100", 2) == [7, 8]

@@ -27,12 +27,12 @@ def _url(tmp: Path) -> str:
 
 def _hil_run(tmp: Path, tests: Path, **extra: str) -> subprocess.Popen:
     """``hil run`` of ``tests`` on the emulator with the history on, its output in ``tmp/out.txt``."""
-    out = open(tmp / "out.txt", "wb")
-    return processes.spawn([sys.executable, "-m", "hil.cli.main", "run", "--bench", str(EMULATOR_BENCH),
-                            "--junitxml", str(tmp / "r" / "junit.xml"), "--html", str(tmp / "r" / "report.html"),
-                            "--", str(tests), "-p", "no:cacheprovider"],
-                           cwd=tmp, env=env(_url(tmp), **extra), stdout=out, stderr=subprocess.STDOUT,
-                           stdin=subprocess.DEVNULL)
+    with open(tmp / "out.txt", "wb") as out:  # the child has its own copy of the descriptor once spawned
+        return processes.spawn([sys.executable, "-m", "hil.cli.main", "run", "--bench", str(EMULATOR_BENCH),
+                                "--junitxml", str(tmp / "r" / "junit.xml"), "--html", str(tmp / "r" / "report.html"),
+                                "--", str(tests), "-p", "no:cacheprovider"],
+                               cwd=tmp, env=env(_url(tmp), **extra), stdout=out, stderr=subprocess.STDOUT,
+                               stdin=subprocess.DEVNULL)
 
 
 def _last_run(tmp: Path) -> tuple[dict, dict[str, str]] | None:

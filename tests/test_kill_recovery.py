@@ -84,7 +84,8 @@ def differences(before: dict, after: dict, moving: set[str], time_scale: float =
     # the clock: its offset from host time kept, within what the two readings can tell (their brackets) and what a
     # restore may lose (a few of the run's round trips: 3 host seconds' worth, far from a clock left where a test
     # set it)
-    if abs(after["rtc offset"] - before["rtc offset"]) > before["rtc offset ±"] + after["rtc offset ±"] + 3 * time_scale:
+    if (abs(after["rtc offset"] - before["rtc offset"])
+            > before["rtc offset ±"] + after["rtc offset ±"] + 3 * time_scale):
         diff.append(f"RTC offset from host time moved by {after['rtc offset'] - before['rtc offset']:.0f} s")
     return diff
 

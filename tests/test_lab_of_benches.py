@@ -221,7 +221,8 @@ def test_runs_queue_for_labgrid_places_and_always_let_go(tmp_path):
     assert codes["E"] == 2, logs["E"][-3000:]  # held bench2, waited for A's endpoint lock, SIGTERM: let go
     assert "labgrid place bench2 released" in logs["E"]
     assert "hil bench -" not in logs["E"]  # the panel of an open bench: E never opened it (A's lock kept it out)
-    assert codes["F"] == 4 and "allocated to reservation" in logs["F"] and "within 2 s" in logs["F"], logs["F"][-3000:]  # --lg-wait
+    assert codes["F"] == 4 and "allocated to reservation" in logs["F"] and "within 2 s" in logs["F"], (
+        logs["F"][-3000:])  # --lg-wait
     assert "labgrid reservation" in logs["F"] and "cancelled" in logs["F"]
     assert codes["G"] == 4, logs["G"][-3000:]  # tags no place has: refused at once, naming the places there are
     assert "no place on coordinator" in logs["G"] and "bench1 (family=fbs rtc=s35390a)" in logs["G"]

@@ -238,12 +238,13 @@ def test_the_smoke_and_rtc_suites_run_in_two_lanes_on_one_paced_line(private_dir
     assert run.returncode == 0, out[-3000:]
     assert "ended without a word on the PLC" not in out, "each lane said how it left the PLC (its safety report)"
     workers = {}
-    for worker, outcome, nodeid in re.findall(r"\[(gw\d)\] \[ *\d+%\] (PASSED|SKIPPED|FAILED|ERROR) (\S+)", out):
+    for worker, _outcome, nodeid in re.findall(r"\[(gw\d)\] \[ *\d+%\] (PASSED|SKIPPED|FAILED|ERROR) (\S+)", out):
         workers.setdefault(nodeid.split("::")[0], set()).add(worker)
     rtc, smoke = workers["suites/test_rtc.py"], workers["suites/test_smoke.py"]
     assert len(rtc) == 1 and len(smoke) == 1 and rtc != smoke, workers
     import xml.etree.ElementTree as ET
-    cases = [(c.get("classname"), c.get("name")) for c in ET.parse(private_dirs / "junit.xml").getroot().iter("testcase")]
+    cases = [(c.get("classname"), c.get("name"))
+             for c in ET.parse(private_dirs / "junit.xml").getroot().iter("testcase")]
     assert len(cases) == len(set(cases)) and len(cases) >= 8, f"every test once: {sorted(cases)}"
     assert "hil: PASSED" in out or "PASSED" in out.splitlines()[-1], out[-1500:]
     left = list((private_dirs / "locks").glob("journal-*.json"))

@@ -61,8 +61,10 @@ def test_a_modbus_tcp_reply_with_transaction_id_0_is_refused():
     server = runtime.run(start())
     port = server.transport.sockets[0].getsockname()[1]
     try:
-        with ModbusTransport.tcp("127.0.0.1", port, unit=1, timeout=0.3, retries=0) as plc:
-            with pytest.raises(TransportError, match="transaction id=1 but received 0"):
-                plc.read_words("R0", 1)
+        with (
+            ModbusTransport.tcp("127.0.0.1", port, unit=1, timeout=0.3, retries=0) as plc,
+            pytest.raises(TransportError, match="transaction id=1 but received 0"),
+        ):
+            plc.read_words("R0", 1)
     finally:
         runtime.run(server.shutdown())

@@ -209,9 +209,11 @@ def test_server_refuses_unmapped_addresses_with_exception_2(tcp_server: ServerHa
 
 def test_exception_reply_becomes_plc_error_reply(tcp_server: ServerHandle) -> None:
     host, port = _tcp_address(tcp_server)
-    with ModbusTransport.tcp(host, port, unit=7, timeout=HANG_GUARD) as other_unit:
-        with pytest.raises(PlcErrorReply) as info:
-            other_unit.read("R4128")
+    with (
+        ModbusTransport.tcp(host, port, unit=7, timeout=HANG_GUARD) as other_unit,
+        pytest.raises(PlcErrorReply) as info,
+    ):
+        other_unit.read("R4128")
     message = str(info.value)
     assert info.value.code == "11" and "gateway target device failed to respond" in message
     assert "FC03" in message and "4128" in message and f"{port}?unit=7" in message

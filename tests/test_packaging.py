@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.wheel_venv import REPO, Installed, installed_hil  # noqa: F401 - a fixture
+from tests.wheel_venv import REPO, Installed, installed_hil_fixture  # noqa: F401 - the installed_hil fixture
 
 
 @pytest.mark.timeout(300)

@@ -276,7 +276,8 @@ def test_a_prealarm_count_never_runs_ahead_of_the_scans_of_a_real_time_plc_that_
                 time.sleep(rng.uniform(0.25, 0.35))
             since = emu.service(lambda mem: (mem.set("R4008", 100), emu.scans_represented)[1])
             for _ in range(rng.randint(3, 12)):
-                counted, count = emu.service(lambda mem: (emu.scans_represented - since, int(st.prealarm.max())))
+                counted, count = emu.service(
+                    lambda mem, since=since: (emu.scans_represented - since, int(st.prealarm.max())))
                 if count > counted:
                     ahead.append((trial, counted, count))
     finally:
@@ -291,7 +292,7 @@ def test_a_virtual_day_with_every_en_off_is_still_one_jump(emu):
     assert emu.scans < 10  # (counted, not timed: wall-clock limits are flaky on shared machines)
 
 
-# -- plc.pid's closed-loop trace, from any target -----------------------------------------------------------------------
+# -- plc.pid's closed-loop trace, from any target ----------------------------------------------------------------------
 @pytest.mark.parametrize("target", EMULATOR_TARGETS)
 def test_a_plot_ready_trace_from_every_target(target):
     bench = Bench(load_profile(EMULATOR_BENCH), target=target)

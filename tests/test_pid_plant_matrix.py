@@ -16,9 +16,9 @@ INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider", "-rfs")
 #: name → [plant] (time constant 60–3600 s, gain 100–1000 °C, dead time up to 10 s, cooling up to 2 °C/s)
 PLANTS = {
     # starts at 200 °C: with the heater open it cools at (200 − 25) / 90 ≈ 1.9 °C/s
-    "fast-cooling": dict(ambient=25.0, gain=300.0, tau=90.0, dead_time=0.0, initial=200.0, noise=0.05),
-    "slow-sluggish": dict(ambient=25.0, gain=1000.0, tau=3600.0, dead_time=5.0, noise=0.03),
-    "dead-time": dict(ambient=25.0, gain=100.0, tau=60.0, dead_time=10.0, noise=0.03),
+    "fast-cooling": {"ambient": 25.0, "gain": 300.0, "tau": 90.0, "dead_time": 0.0, "initial": 200.0, "noise": 0.05},
+    "slow-sluggish": {"ambient": 25.0, "gain": 1000.0, "tau": 3600.0, "dead_time": 5.0, "noise": 0.03},
+    "dead-time": {"ambient": 25.0, "gain": 100.0, "tau": 60.0, "dead_time": 10.0, "noise": 0.03},
 }
 
 

@@ -123,7 +123,8 @@ def test_init_points_editors_at_the_schema_and_its_profile_loads(tmp_path: Path)
     ('[bench]\nstation = 2\n', r"bench\.toml:1: \[bench\] name is required \(such as name = \"oven-line-1\"\)$"),
     ('[bench]\nname = "b"\ntime_scale = "fast"\n', r"bench\.toml:3: \[bench\] time_scale must be a float, not 'fast'$"),
     ('[bench]\nname = "b"\n\n[rtc]\nchip = "DS1307"\n', r"bench\.toml:5: \[rtc\] chip: chip must be 0–3 or one of"),
-    ('[bench]\nname = "b"\n[safety]\nwritable = ["R99999"]\n', r"bench\.toml:4: \[safety\] writable: 'R99999' is outside"),
+    ('[bench]\nname = "b"\n[safety]\nwritable = ["R99999"]\n',
+     r"bench\.toml:4: \[safety\] writable: 'R99999' is outside"),
     ('[bench]\nname = "b"\n[plant]\n[plant.points.3]\ntau = 0\n',
      r"bench\.toml:5: \[plant\.points\.3\] tau = 0\.0 must be 0\.1–1e\+06 s$"),
     ('[bench]\nname = "b"\n[plant]\npoints = 3\n', r"bench\.toml:4: \[plant\] points must be a table, not 3$"),
@@ -140,7 +141,8 @@ def test_init_points_editors_at_the_schema_and_its_profile_loads(tmp_path: Path)
     ('[bench]\nname = "b"\n[faults.sensor_break]\nkind = "plc-bit"\nfirst = "R40"\n',
      r"bench\.toml:5: \[faults\.sensor_break\] first: R40 is not a bit \(e\.g\. first = \"Y40\"\)$"),
     ('[bench]\nname = "b"\n[faults.sensor_break]\nkind = "plc-bit"\nfirst = "Y40"\nfirst_coil = 2\n',
-     r"bench\.toml:6: \[faults\.sensor_break\]: unknown key\(s\) for kind = 'plc-bit': first_coil \(known: first, kind\)$"),
+     r"bench\.toml:6: \[faults\.sensor_break\]: unknown key\(s\) for kind = 'plc-bit': "
+     r"first_coil \(known: first, kind\)$"),
     ('[bench]\nname = "b"\n[faults.ssr_short]\nkind = "modbus-coil"\n',
      r"bench\.toml:3: \[faults\.ssr_short\] target is required with kind = 'modbus-coil' \(such as target = "),
 ])

@@ -1,5 +1,6 @@
-"""Replaying recorded FATEK frames (hil.families.fbs.transport.replay, ``replay+fatek://`` targets): the device procedures send exactly the
-recorded frames and decode the recorded replies; anything else is a clear mismatch, never a hang."""
+"""Replaying recorded FATEK frames (hil.families.fbs.transport.replay, ``replay+fatek://`` targets): the device
+procedures send exactly the recorded frames and decode the recorded replies; anything else is a clear mismatch, never a
+hang."""
 
 from __future__ import annotations
 
@@ -40,9 +41,11 @@ def test_a_procedure_that_sends_other_frames_is_named_with_both_frames():
 
 
 def test_requests_left_unsent_are_reported():
-    with open_transport(f"replay+fatek://{FRAMES}/rtc-set-leap-day.txt?timeout=0.3") as transport:
-        with pytest.raises(ReplayMismatch, match=r"8 recorded request\(s\) never sent, the first .*read 1 from M1955"):
-            transport.replay.verify()
+    with (
+        open_transport(f"replay+fatek://{FRAMES}/rtc-set-leap-day.txt?timeout=0.3") as transport,
+        pytest.raises(ReplayMismatch, match=r"8 recorded request\(s\) never sent, the first .*read 1 from M1955"),
+    ):
+        transport.replay.verify()
 
 
 def test_a_request_after_the_recording_ended_loses_the_connection_and_is_named():

@@ -77,7 +77,8 @@ def _records() -> list[Record]:
 
 def test_html_layout_rules_filter_and_sections(tmp_path: Path) -> None:
     page = write_html(tmp_path / "r.html", _records(), [("hil.bench", "emulator")]).read_text()
-    assert "table-layout:fixed" in page and "overflow-wrap:anywhere" in page  # long ids wrap inside the page (inline CSS)
+    # long ids wrap inside the page (inline CSS)
+    assert "table-layout:fixed" in page and "overflow-wrap:anywhere" in page
     assert '<div class="filters">' in page and 'value="passed"' in page and "hide-" in page
     assert page.count('<details class="section"') >= 3
     assert "wire trace (5 calls)" in page  # the in-process target records calls, not frames

@@ -30,7 +30,7 @@ def hil_run(tmp_path_factory):
     proc = subprocess.run(
         [sys.executable, "-m", "hil.cli.main", "run", "-q", "--junitxml", str(out / "junit.xml"),
          "--html", str(out / "report.html"), "--", "-k", "drift or smoke or readings_are_in_range"],
-        cwd=out, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, timeout=120)
+        cwd=out, capture_output=True, text=True, env=env, timeout=120)
     return proc, out
 
 

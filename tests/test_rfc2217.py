@@ -153,8 +153,8 @@ def test_a_port_another_client_holds_is_a_clear_error():
     with served("fatek-serial") as (_, device), exported("ser2net", device) as where:
         first = open_transport(f"fatek+rfc2217://{where.rfc2217}?timeout=0.5")
         try:
-            with pytest.raises(TransportError, match="the server closed the connection at once.* — another client holds "
-                                                     "the port"):
+            with pytest.raises(TransportError,
+                               match="the server closed the connection at once.* — another client holds the port"):
                 open_transport(f"fatek+rfc2217://{where.rfc2217}?timeout=0.5")
             assert first.read_words("R4128", 1)  # the first client is undisturbed
         finally:

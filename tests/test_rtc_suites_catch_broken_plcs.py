@@ -209,7 +209,8 @@ class ValidatesMonthsAlternate(RtcModel):
 
     def validate(self, t):
         problems = [p for p in super().validate(t) if p != "day"]
-        if 1 <= t.month <= 12 and t.month != 2 and not 1 <= t.day <= 30 + t.month % 2 or t.month == 2 and "day" in super().validate(t):
+        if (1 <= t.month <= 12 and t.month != 2 and not 1 <= t.day <= 30 + t.month % 2
+                or t.month == 2 and "day" in super().validate(t)):
             problems.append("day")
         return problems
 

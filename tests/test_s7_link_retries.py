@@ -56,14 +56,18 @@ def silent():
 
 
 def test_read_is_tried_retries_plus_one_times(silent):
-    with ModbusS7Io.tcp("127.0.0.1", silent.port, timeout=0.15, retries=2) as link:
-        with pytest.raises(ReplyTimeout, match="3 tries of 0.15 s"):
-            link.read_v(0, 2)
+    with (
+        ModbusS7Io.tcp("127.0.0.1", silent.port, timeout=0.15, retries=2) as link,
+        pytest.raises(ReplyTimeout, match="3 tries of 0.15 s"),
+    ):
+        link.read_v(0, 2)
     assert silent.requests == 3
 
 
 def test_write_without_reply_is_sent_once_and_outcome_unknown(silent):
-    with ModbusS7Io.tcp("127.0.0.1", silent.port, timeout=0.15, retries=2) as link:
-        with pytest.raises(OutcomeUnknown, match="outcome unknown.*not retried"):
-            link.write_v(0, b"\x00\x01")
+    with (
+        ModbusS7Io.tcp("127.0.0.1", silent.port, timeout=0.15, retries=2) as link,
+        pytest.raises(OutcomeUnknown, match="outcome unknown.*not retried"),
+    ):
+        link.write_v(0, b"\x00\x01")
     assert silent.requests == 1

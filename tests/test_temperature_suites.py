@@ -154,7 +154,8 @@ class AnyModuleNameMatches(TemperatureModel):
     in TW+0's low byte (mutant temperature.py:246)."""
 
     def _plan(self, codes, table_modules, readings_word):
-        named = [self.fitted[k] if tm is not None and k < len(self.fitted) else tm for k, tm in enumerate(table_modules)]
+        named = [self.fitted[k] if tm is not None and k < len(self.fitted) else tm
+                 for k, tm in enumerate(table_modules)]
         return super()._plan(codes, named, readings_word)
 
 

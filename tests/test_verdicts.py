@@ -239,7 +239,8 @@ def test_a_signal_during_the_sessions_last_restores_still_says_interrupted(tmp_p
     proc, out = run_tiny(tmp_path, "def test_one(bench):\n    pass\n", conftest=late)
     assert proc.returncode == 2, proc.stdout
     props = junit_counts(out / "junit.xml")[1]
-    assert props["hil.verdict"] == "INTERRUPTED" and props["hil.stopped"] == "SIGTERM received at the end of the session"
+    assert (props["hil.verdict"] == "INTERRUPTED"
+            and props["hil.stopped"] == "SIGTERM received at the end of the session")
     assert html_badge(out / "report.html") == "INTERRUPTED"
     assert proc.stdout.splitlines()[-2] == "hil: INTERRUPTED — SIGTERM received at the end of the session"
 

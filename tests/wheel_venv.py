@@ -77,8 +77,8 @@ def _build(root: Path) -> dict[str, str]:
     return {"python": str(python), "site": site}
 
 
-@pytest.fixture(scope="session")
-def installed_hil(tmp_path_factory: pytest.TempPathFactory) -> Installed:
+@pytest.fixture(scope="session", name="installed_hil")
+def installed_hil_fixture(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     """hil from a wheel in a fresh venv (built once per run, whichever worker asks first)."""
     base = tmp_path_factory.getbasetemp()
     shared = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
@@ -96,4 +96,4 @@ def installed_hil(tmp_path_factory: pytest.TempPathFactory) -> Installed:
     return Installed(root, Path(result["python"]), result["site"])
 
 
-__all__ = ["Installed", "REPO", "installed_hil"]
+__all__ = ["Installed", "REPO", "installed_hil_fixture"]

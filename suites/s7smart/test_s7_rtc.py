@@ -176,7 +176,8 @@ def _refuse_each(bench, clock, cases: dict[str, bytes], *, error_code: bool) -> 
     assert not wrong, "\n".join(wrong)
     bench.wait(2)
     shown = _decode(clock.read().buffer)
-    assert shown is not None and start + dt.timedelta(seconds=2) <= shown <= start + dt.timedelta(seconds=bench.time.now() - began + 1), (
+    assert shown is not None and (
+        start + dt.timedelta(seconds=2) <= shown <= start + dt.timedelta(seconds=bench.time.now() - began + 1)), (
         f"the clock did not run on after the refusals: {shown}")
 
 
