@@ -1,6 +1,6 @@
-"""The code's shape, checked in CI (issue 41): ruff's rules over the repository and mypy over the whole package (their configuration and
-the reasons for it are in pyproject.toml), and the size bounds a maintainer can hold in their head — no function
-above cyclomatic complexity 20 (radon's measure), no class above 300 lines."""
+"""The code's shape, checked in CI (issue 41): ruff's rules over the repository and mypy over the whole package
+(their configuration and the reasons for it are in pyproject.toml), and the size bounds a maintainer can hold in
+their head — no function above cyclomatic complexity 20 (radon's measure), no class above 300 lines."""
 
 from __future__ import annotations
 
