@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
+import re
 import socket
 import time
 from collections.abc import Iterator
@@ -132,44 +133,47 @@ def test_a_host_clock_step_during_a_run_does_not_move_the_plc_clock(profile, mon
 
 
 @pytest.mark.parametrize("step", [3600.0, -3600.0])
-def test_recovery_refuses_an_origin_the_host_clock_stepped_away_from_and_says_so(profile, monkeypatch, step):
-    dead = _a_run_that_sets_the_clock(profile, dies=True)
-    left = Journal(dead.journal.key).clock()
+def test_recovery_carries_an_origin_across_a_host_clock_step_on_the_boot_clock(profile, monkeypatch, pytestconfig,
+                                                                               step):
+    # NTP steps the host's wall clock an hour either way between a killed run and its recovery: the boot clock (the
+    # reference a live session keeps the origin on) spans the time since, so the PLC's clock goes back to the offset
+    # it had before the run, and the step is reported, not carried (issue 40, item 10; a 5 ms step on a busy VM
+    # had made the refusal this replaced fail the gate)
+    before = _offset(profile)
+    _a_run_that_sets_the_clock(profile, dies=True)
     bench = Bench(profile)
     try:
         with monkeypatch.context() as stepped:
             stepped.setattr(time, "time", lambda: REAL_TIME() + step)
             report = bench.recover()
-        shown = bench.raw.read_words("R4128", 7)
     finally:
         bench.close()
-    assert not report.ok and "its origin is refused" in report.summary()
-    assert ("future" if step < 0 else "stepped") in report.summary()
-    assert shown[5] == 99, "the clock was set from an origin that cannot be trusted"
-    assert Journal(dead.journal.key).clock() == left, "the refused origin stays in the journal for a person"
-    Journal(dead.journal.key).drop_clock()
-    bench = Bench(profile)  # put the emulator's clock back for the other tests, by hand
-    try:
-        FbsPlc(bench.raw, bench.time).rtc.sync_to_host()
-    finally:
-        bench.close()
+    assert report.ok, report.summary()
+    said = " ".join(report.verified)
+    assert re.search(re.escape(f"wall clock was stepped by {step:+.0f}.") + r"\d{3} s", said), said
+    moved = _offset(profile) - before
+    bound = one_session_bound(pytestconfig)
+    assert abs(moved) <= bound, f"recovered across a {step:+.0f} s host clock step, the offset moved {moved:+.3f} s"
 
 
 def _entry(wall: float, **more) -> dict:
     return {"plc": "2026-01-01T00:00:00", "host": wall, "scale": 1.0, **more}
 
 
-def test_an_origin_older_than_the_limit_or_from_the_future_is_refused():
+def test_an_origin_too_old_in_the_future_or_from_another_boot_is_refused_a_stepped_one_carried():
     now = HostClocks(wall=1_000_000.0, since_boot=500.0, boot="b")
     with pytest.raises(OriginRefused, match="h old"):
         origin_from_journal(_entry(now.wall - ORIGIN_MAX_AGE - 1, boot="a", since_boot=1.0), HostTimebase(), now)
     with pytest.raises(OriginRefused, match="in the future"):
         origin_from_journal(_entry(now.wall + 5), HostTimebase(), now)
-    with pytest.raises(OriginRefused, match="stepped"):  # same boot: 100 s on the boot clock, 3700 on the wall
-        origin_from_journal(_entry(now.wall - 3700, boot="b", since_boot=400.0), HostTimebase(), now)
     timebase = HostTimebase()
+    # same boot: 100 s on the boot clock, 3700 on the wall — carried by the boot clock, the wall's step measured
+    stepped = origin_from_journal(_entry(now.wall - 3700, boot="b", since_boot=400.0), timebase, now)
+    assert abs(stepped.original(timebase) - dt.datetime(2026, 1, 1, 0, 1, 40)) < dt.timedelta(seconds=0.01)
+    assert stepped.host_step == pytest.approx(3600.0)
     origin = origin_from_journal(_entry(now.wall - 100.25, boot="b", since_boot=399.75), timebase, now)
     assert abs(origin.original(timebase) - dt.datetime(2026, 1, 1, 0, 1, 40, 250000)) < dt.timedelta(seconds=0.01)
+    assert origin.host_step == 0.0  # (wall and boot clocks agree)
     # another boot: nothing to compare with but the age — only a person can accept it (issue 40, item 10)
     with pytest.raises(OriginRefused, match="another boot.*--accept-host-clock"):
         origin_from_journal(_entry(now.wall - 3700, boot="a", since_boot=400.0), timebase, now)

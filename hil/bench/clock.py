@@ -47,6 +47,8 @@ class ClockOrigin:
     at: float
     scale: float
     width: float = 0.0  # ``at`` is known to ± half this (the bracket of the transition it was timed at)
+    #: a dead run's origin carried by the host's boot clock across a step of its wall clock: the step (s), else 0
+    host_step: float = 0.0
 
     def original(self, timebase: Timebase) -> dt.datetime:
         """The PLC's original time carried forward to now: its offset from the reference kept."""
@@ -64,34 +66,31 @@ class HostClockUnproven(OriginRefused):
 
 def origin_from_journal(entry: dict[str, Any], timebase: Timebase, host: HostClocks, *,
                         accept_host_clock: bool = False) -> ClockOrigin:
-    """A journaled clock origin (PLC time at host wall time ``host``, ×``scale``) on this session's ``timebase``,
-    checked against the host's clocks now: refused when it is in the future, older than :data:`ORIGIN_MAX_AGE`,
-    or when the wall clock and the boot clock disagree about the time since by more than the journal's own
-    measurement allows (:func:`step_bound`: NTP slews both alike, only a step parts them).  From another boot —
-    or where the boot clock cannot be compared — nothing can tell a step: refused (:class:`HostClockUnproven`)
-    unless ``accept_host_clock``.  Raises :class:`OriginRefused` saying which, with the figures."""
+    """A journaled clock origin (PLC time at host wall time ``host``, ×``scale``) on this session's ``timebase``.
+
+    From this boot of the host it is carried by the boot clock — the reference a live session keeps the origin on
+    (monotonic, suspend included), which no step of the wall clock moves; a step is measured (the wall clock and
+    the boot clock disagreeing about the time since by more than the journal's own measurement allows,
+    :func:`step_bound`) and reported on the origin, not carried.  From another boot — or where the boot clock cannot
+    be compared — only the wall clock spans the time since, and nothing can tell whether it was stepped: refused
+    (:class:`HostClockUnproven`) unless ``accept_host_clock``.  Refused too when older than :data:`ORIGIN_MAX_AGE`
+    or in the future.  Raises :class:`OriginRefused` saying which, with the figures."""
     plc, wall, scale = dt.datetime.fromisoformat(entry["plc"]), float(entry["host"]), float(entry["scale"])
     elapsed = host.wall - wall
     bound = step_bound(entry, host)
-    if elapsed < -bound:
-        raise OriginRefused(f"its host time is {-elapsed:.6f} s in the future: the host clock was set back since")
-    if elapsed > ORIGIN_MAX_AGE:
-        raise OriginRefused(f"it is {elapsed / 3600:.1f} h old (limit {ORIGIN_MAX_AGE / 3600:.0f} h): too long to "
-                            f"carry its offset from host time")
     booted = entry.get("since_boot")
-    if host.boot is None or entry.get("boot") != host.boot or booted is None or host.since_boot is None:
-        if not accept_host_clock:
-            raise HostClockUnproven(_unproven(entry, host, elapsed))
-    else:
-        passed = host.since_boot - float(booted)
-        step = elapsed - passed
-        if abs(step) > bound:
-            # (to the millisecond: finer would show the reading's own noise, +42.599999 for a 42.6 s step)
-            raise OriginRefused(f"the host's wall clock moved {elapsed:+.3f} s since it while its boot clock moved "
-                                f"{passed:+.3f} s: the host clock was stepped by {step:+.3f} s, beyond the "
-                                f"±{bound:.3f} s the journal's own measurement allows — its offset from host time "
-                                f"is lost")
-    return ClockOrigin(plc, timebase.now() - elapsed * scale, scale)
+    same_boot, passed = False, elapsed  # (the time since, on the clock that spans it)
+    if host.boot is not None and entry.get("boot") == host.boot and booted is not None and host.since_boot is not None:
+        same_boot, passed = True, host.since_boot - float(booted)
+    if passed < -bound:
+        raise OriginRefused(f"its host time is {-passed:.6f} s in the future: the host clock was set back since")
+    if passed > ORIGIN_MAX_AGE:
+        raise OriginRefused(f"it is {passed / 3600:.1f} h old (limit {ORIGIN_MAX_AGE / 3600:.0f} h): too long to "
+                            f"carry its offset from host time")
+    if not same_boot and not accept_host_clock:
+        raise HostClockUnproven(_unproven(entry, host, elapsed))
+    step = elapsed - passed
+    return ClockOrigin(plc, timebase.now() - passed * scale, scale, host_step=step if abs(step) > bound else 0.0)
 
 
 def step_bound(entry: dict[str, Any], host: HostClocks) -> float:
