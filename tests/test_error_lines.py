@@ -1,6 +1,7 @@
 """Every error line hil prints has one form, ``hil: error: <what was wrong> — <what to do next>``, whoever finds
 the error: argparse, a command, or the pytest plugin under ``hil run`` (issue 42).  Provoked as a user would, by
-running ``hil …``; a mistyped command or option is answered with what it most likely meant."""
+running ``hil …`` (in this process where nothing but the command line is involved, as its own process where pytest
+or a wire is); a mistyped command or option is answered with what it most likely meant."""
 
 from __future__ import annotations
 
@@ -11,12 +12,24 @@ from pathlib import Path
 
 import pytest
 
+from hil.cli.main import main
 from hil.core.errors import error_line
 from tests.test_cli_entry import EXIT_USAGE, REPO, hil
 from tests.test_first_hour import _bench_for, _refused_port
 
 #: the one form: the prefix, what was wrong, a dash, what to do next — on one line
 ONE_FORM = re.compile(r"^hil: error: \S.* — \S.*$")
+
+
+def hil_here(capsys: pytest.CaptureFixture[str], *argv: str) -> subprocess.CompletedProcess[str]:
+    """``hil …`` run by its own ``main`` in this process, its output captured: the command line's parsing and its
+    errors are the same code as in a process of their own, for a fraction of the start-up (the gate's time)."""
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # (argparse exits)
+        code = exc.code if isinstance(exc.code, int) else 1
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(["hil", *argv], code, out.out, out.err)
 
 
 def error_lines(done: subprocess.CompletedProcess) -> list[str]:
@@ -44,9 +57,8 @@ def test_the_form_is_what_then_what_to_do() -> None:
     (["drift", "measure"], "the following arguments are required: --duration — see hil drift measure --help"),
     (["history", "list", "--limit", "many"], "invalid int value: 'many' — see hil history list --help"),
 ], ids=["unknown-command", "bad-option", "missing-argument", "bad-value"])
-def test_argparse_errors_have_the_one_form_under_the_commands_usage(argv: list[str], says: str,
-                                                                     tmp_path: Path) -> None:
-    done = hil(*argv, cwd=tmp_path)
+def test_argparse_errors_have_the_one_form_under_the_commands_usage(argv: list[str], says: str, capsys) -> None:
+    done = hil_here(capsys, *argv)
     assert says in the_error_line(done)
     assert done.stderr.startswith("usage: hil"), done.stderr  # what the command takes, above the error
 
@@ -58,12 +70,12 @@ def test_argparse_errors_have_the_one_form_under_the_commands_usage(argv: list[s
     (["history", "export", "--fromat", "json"], "did you mean --format?"),
     (["rtc", "raed"], "did you mean 'read'?"),
 ], ids=["command", "run-option", "history-action", "history-export-option", "rtc-action"])
-def test_a_typo_is_answered_with_what_it_likely_meant(argv: list[str], meant: str, tmp_path: Path) -> None:
-    assert the_error_line(hil(*argv, cwd=tmp_path)).endswith(f" — {meant}")
+def test_a_typo_is_answered_with_what_it_likely_meant(argv: list[str], meant: str, capsys) -> None:
+    assert the_error_line(hil_here(capsys, *argv)).endswith(f" — {meant}")
 
 
-def test_a_bad_target_url_says_which_forms_there_are(tmp_path: Path) -> None:
-    line = the_error_line(hil("probe", "nonsense://x", cwd=tmp_path))
+def test_a_bad_target_url_says_which_forms_there_are(capsys) -> None:
+    line = the_error_line(hil_here(capsys, "probe", "nonsense://x"))
     assert "unknown scheme 'nonsense' — write one of these forms: " in line and "fatek+tcp://HOST:500" in line
 
 
