@@ -268,14 +268,18 @@ CAUGHT_BY = {
 
 def mixed_profile(text: str) -> str:
     """The emulator's profile with 8 modules of every kind but the 16-point ones, other sensors (B, E, N, R,
-    NTC 2K and 20K, PT100, T), in °F at the fast rate with 4-sample averaging: the other half of the domain."""
+    NTC 2K and 20K, PT100, T), in °F at the fast rate with 4-sample averaging, the table at an odd register (SR
+    R3001: a PLC may keep it anywhere — one that found SR + 1 as SR ^ 1 reads an even SR's count right): the other
+    half of the domain."""
     modules = ('modules = [{type = "2TC", sensor = "B"}, {type = "2TC", sensor = "E"}, {type = "2TC", sensor = "N"}, '
                '{type = "2TC", sensor = "R"}, {type = "6NTC", sensor = "2K"}, {type = "6RTD", sensor = "PT100"}, '
                '{type = "6TC", sensor = "T"}, {type = "6NTC", sensor = "20K"}]')
     out = re.sub(r"(?m)^modules = \[.*\]$", modules, text, count=1)
     out = out.replace('unit = "C"', 'unit = "F"', 1).replace('rate = "normal"', 'rate = "fast"', 1)
     out = out.replace("averaging = 1", "averaging = 4", 1)
+    out = out.replace('table = "R3000"', 'table = "R3001"', 1).replace('"R3000-R3011"', '"R3001-R3012"', 1)
     assert out.count('type = "2TC"') == 4 and 'unit = "F"' in out and 'rate = "fast"' in out
+    assert 'table = "R3001"' in out and '"R3001-R3012"' in out
     return out
 
 
