@@ -167,8 +167,8 @@ class ClockKeeper:
                                   f"\"clock\" entry from {journal.path}")
             return None
         if report.show:
-            report.planned.append(f"clock to {origin.original(self.clock.timebase):%Y-%m-%d %H:%M:%S} (its offset "
-                                  f"from host time)")
+            report.planned.append(f"clock to {origin.original(self.clock.timebase):%Y-%m-%d %H:%M:%S} "
+                                  f"({_reference(origin)})")
             return None
         return origin
 
@@ -191,13 +191,17 @@ class ClockKeeper:
         want, got = origin.original(self.clock.timebase), self.clock.read()  # read back: whole seconds
         if got is None or abs((got - want).total_seconds()) > 2.0 * max(1.0, origin.scale):
             report.failures.append(f"clock: reads {got} after the restore, expected {want:%Y-%m-%d %H:%M:%S}")
-        elif origin.host_step:
-            # (to the millisecond: finer would show the reading's own noise)
-            report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} (carried on the host's boot clock, read back: "
-                                   f"the wall clock was stepped by {origin.host_step:+.3f} s since, which moves "
-                                   f"nothing)")
         else:
-            report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} (its offset from host time, read back)")
+            report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} ({_reference(origin)}, read back)")
+
+
+def _reference(origin: ClockOrigin) -> str:
+    """What a dead run's origin was carried on to now, for the report."""
+    if not origin.host_step:
+        return "its offset from host time"
+    # (to the millisecond: finer would show the reading's own noise)
+    return (f"carried on the host's boot clock: the wall clock was stepped by {origin.host_step:+.3f} s since, which "
+            f"moves nothing")
 
 
 def _carried(origin: ClockOrigin, timebase: Timebase, shift: dt.timedelta) -> Callable[[], dt.datetime]:

@@ -1,8 +1,7 @@
 """Fixtures every bench has, whatever its family (the family's own — ``rtc``, ``pid``, ``temperature`` for an FBs —
 come with the family: :mod:`hil.families.fbs.fixtures`).  ``pytest --fixtures`` lists them with these docstrings.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

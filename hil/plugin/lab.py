@@ -7,8 +7,7 @@ pytest runs however the session ends (failures, errors, Ctrl-C; SIGTERM and SIGH
 The pytest options are ``--hil-lg-…``: labgrid's own pytest plugin (installed with it, ``-p no:labgrid`` keeps it
 out) already has ``--lg-coordinator``.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

@@ -25,8 +25,7 @@ gaps (docs/performance.md).  What keeps it safe:
   controller fails the run when one did not.  When a worker died, the controller replays the journals itself (its
   locks are still held) before it lets go, and says what that found.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

@@ -11,8 +11,7 @@ Every bench test gets:
 
 :class:`WireCounter` is usable on its own (the benchmarks count bytes with it).
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

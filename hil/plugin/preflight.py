@@ -9,8 +9,7 @@ open it) — on a real bench it keeps the locks for them, each a lane (:mod:`hil
 Without either option the bench is opened when the first bench test is collected
 (:func:`hil.plugin.pytest_plugin.pytest_collection_finish`), and one that cannot be is the same line there.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

@@ -7,8 +7,7 @@ bench plugin then skips it, with the reason, on a bench that does not claim it).
 the JUnit property ``hil.requirements``; the HTML report's requirement table is built from them
 (:mod:`hil.plugin.reporting.requirements`), and ``hil spec`` prints the whole matrix (:mod:`hil.cli.spec`).
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

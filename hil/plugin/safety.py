@@ -8,8 +8,7 @@ ends non-zero naming every element it could not put back.
 * At the end of the session every restore that failed is retried; what is still not restored is listed and the
   exit status is non-zero.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

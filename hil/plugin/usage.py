@@ -2,8 +2,7 @@
 error-line form (``hil: error: <what> — <what to do next>``), as the command line says its own, rather than in
 pytest's ``ERROR: …`` frame.  pytest's own usage errors stay pytest's.
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 

@@ -11,8 +11,7 @@ before the first write; recovery replays them after a crash) but put back once, 
 (:meth:`hil.bench.guard.Guard.hold`); every other element, EN, the outputs, the clock unless ``"clock"`` is named,
 still goes back after each test.  The kinds a bench knows are its family's (:meth:`BenchBase.working_state`).
 
-PYTEST_DONT_REWRITE: pytest leaves this plugin module's asserts alone (it has none) and does not warn when the
-command line imported it before pytest started."""
+PYTEST_DONT_REWRITE (no asserts here: see ``pytest_plugins`` in :mod:`hil.plugin.pytest_plugin`)."""
 
 from __future__ import annotations
 
