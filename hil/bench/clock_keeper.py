@@ -134,6 +134,7 @@ class ClockKeeper:
         for attempt in range(self.TRIES):
             clock.put(_carried(origin, clock.timebase, shift), True)
             if clock.transition is None:
+                _read_back_whole_seconds(clock, origin)
                 return
             shown, at, width = clock.transition()
             error = (shown - (origin.plc + dt.timedelta(seconds=at - origin.at))).total_seconds()
@@ -188,11 +189,21 @@ class ClockKeeper:
             report.failures += [f"clock (original {value}): {why}" for _, value, why in failures]
             return
         assert self.clock is not None  # (put_back failed otherwise)
-        want, got = origin.original(self.clock.timebase), self.clock.read()  # read back: whole seconds
-        if got is None or abs((got - want).total_seconds()) > 2.0 * max(1.0, origin.scale):
-            report.failures.append(f"clock: reads {got} after the restore, expected {want:%Y-%m-%d %H:%M:%S}")
+        try:  # (what it shows now, for the report: put_back verified it before its journal entry went)
+            got = _read_back_whole_seconds(self.clock, origin)
+        except HilError as exc:
+            report.failures.append(f"clock: {exc}")
         else:
             report.verified.append(f"clock = {got:%Y-%m-%d %H:%M:%S} ({_reference(origin)}, read back)")
+
+
+def _read_back_whole_seconds(clock: Clock, origin: ClockOrigin) -> dt.datetime:
+    """The clock read back as it is (whole seconds): it must show its origin carried to now, within two of its
+    seconds — else a HilError (and, before a journal entry goes, the entry stays)."""
+    want, got = origin.original(clock.timebase), clock.read()
+    if got is None or abs((got - want).total_seconds()) > 2.0 * max(1.0, origin.scale):
+        raise HilError(f"reads {got} after the restore, expected {want:%Y-%m-%d %H:%M:%S}")
+    return got
 
 
 def _reference(origin: ClockOrigin) -> str:
