@@ -499,6 +499,22 @@ def test_the_verified_list_is_exactly_what_was_read_back(plc, tmp_path, capsys):
         assert t.read("R1002") == 0 and t.status().running and t.read_disabled("M1001", 1) == [0]
 
 
+@pytest.mark.e2e
+def test_a_run_killed_before_its_return_to_run_went_out_is_put_back_in_run(plc, tmp_path, capsys):
+    # the run sent STOP, then journaled RUN ("wrote": true, the STOP kept as "earlier") and died before command 41
+    # went out: the PLC is in STOP, what the run's write before left — put back in RUN, not called changed
+    url = _url(plc)
+    key = lock_key(url)
+    journal_path(key).write_text(json.dumps(_journal(key, plc, run=_stamp({"original": True, "wrote": True,
+                                                                          "earlier": False}))))
+    with _plc(plc) as t:
+        t.set_running(False)
+    code, lines = _restore(capsys, url, "--bench", str(_profile(tmp_path, plc)))
+    assert code == 0 and "RUN/STOP = RUN" in " ".join(lines), lines
+    with _plc(plc) as t:
+        assert t.status().running
+
+
 def never_enables(emulator, profile, epoch) -> None:
     """A PLC that acknowledges command 42 "enable" and keeps the bit disabled."""
     class Sticky(bytearray):

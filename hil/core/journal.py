@@ -32,7 +32,7 @@ The schema (version 2), one JSON object::
      "clock":    null | {"plc": ISO datetime, "host": seconds, "scale": float,      # the host's wall clock, and
                          "boot"?: id, "since_boot"?: seconds,                 # its boot clock read with it:
                          "width"?: seconds, "spread"?: seconds, …},           # how well each is known
-     "run":      null | {"original": bool, "wrote": bool, …},         # RUN/STOP before command 41
+     "run":      null | {"original": bool, "wrote": bool, "earlier"?: bool, …},  # RUN/STOP before command 41
      "disabled": [NAME, …],                                             # bits command 42 disabled
      "enable":   {NAME: {"disabled": bool, "wrote": bool, "earlier"?: bool, …}}}  # command 43 before 42, and
                                                                         # the state command 42 set
@@ -296,7 +296,8 @@ def _check_clock(entry: Any) -> str | None:
 
 
 def _check_run(entry: Any) -> str | None:
-    return _fields(entry, {"original": _bool, "wrote": _bool}, {"original": "true or false", "wrote": "true or false"})
+    return (_fields(entry, {"original": _bool, "wrote": _bool}, {"original": "true or false", "wrote": "true or false"})
+            or _earlier_problem(entry, _bool, "true or false"))
 
 
 def _check_disabled(entry: Any) -> str | None:
@@ -360,7 +361,7 @@ DISABLED = register_kind(EntryKind("disabled", False, _check_disabled, _show_dis
 ENABLE = register_kind(EntryKind("enable", True, _check_enable, _show_enable, {}))
 
 
-def _earlier(old: dict) -> dict[str, Any]:
+def earlier_of(old: dict) -> dict[str, Any]:
     """The field that keeps what the previous write left, for an entry about to record a new ``wrote``."""
     return {"earlier": old["wrote"]} if old.get("wrote") is not None else {}
 
@@ -607,7 +608,7 @@ class Journal:
             for name, written in wrote.items():
                 old = entries.get(name)
                 if old is not None and written is not None and old.get("wrote") != written:
-                    entries[name] = {**old, "wrote": int(written), **_earlier(old)}
+                    entries[name] = {**old, "wrote": int(written), **earlier_of(old)}
                     changed = True
             return changed
         self._change(apply)
@@ -649,7 +650,7 @@ class Journal:
             for name, value in wrote.items():
                 old = entries.get(name)
                 if old is not None and old.get("wrote") != bool(value):
-                    entries[name] = {**old, "wrote": bool(value), **_earlier(old)}
+                    entries[name] = {**old, "wrote": bool(value), **earlier_of(old)}
                     changed = True
             return changed
         self._change(apply)
@@ -682,7 +683,7 @@ class Journal:
                 return True
             if wrote is None or old.get("wrote") == wrote:
                 return False
-            data["coils"][key] = {**old, "wrote": bool(wrote), **_earlier(old)}
+            data["coils"][key] = {**old, "wrote": bool(wrote), **earlier_of(old)}
             return True
         self._change(apply)
 

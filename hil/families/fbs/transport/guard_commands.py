@@ -15,7 +15,7 @@ from collections.abc import Callable, Iterable
 from hil.bench.guard import GuardedLink, PublicLink
 from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
 from hil.core.errors import HilError, WriteRefused
-from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, run_left
+from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, earlier_of, run_left
 from hil.families.fbs.address import Address, parse
 from hil.families.fbs.transport.base import NameLike
 
@@ -43,8 +43,10 @@ class FatekCommandsGuard(GuardedLink):
             original = self.run_original
             if original is None:
                 original = bool(self.inner.status().running)
-            if self.durable is not None:  # the original and what is about to be set, on disk first
-                self.durable.set_extra("run", {"original": original, "wrote": bool(run)})
+            if self.durable is not None:  # the original and what is about to be set, on disk first (with what the
+                # command before left: a run killed before this one goes out leaves that)
+                before = self.durable.extra("run", {})
+                self.durable.set_extra("run", {"original": original, "wrote": bool(run), **earlier_of(before)})
             self.run_original = original
             inner_call(bool(run))
 
@@ -183,7 +185,7 @@ class FatekCommandsGuard(GuardedLink):
             return
         state = {True: "RUN", False: "STOP"}
         now = bool(self.inner.status().running)  # read: what the PLC is in now
-        decision = still_the_runs(now, run["original"], [run["wrote"]])
+        decision = still_the_runs(now, run["original"], run_left(run))
         if decision == CHANGED:  # the run left it as it was; someone changed it
             report.changed.append(f"RUN/STOP is {state[now]}, the run set {state[run['wrote']]} (original "
                                   f"{state[run['original']]})")
