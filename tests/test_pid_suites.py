@@ -25,7 +25,7 @@ from tests.broken import replace_model
 from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 SUITES = [str(REPO / "suites" / "test_pid.py"), str(REPO / "suites" / "test_pid_control.py")]
-SUITE_TESTS = 35  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
+SUITE_TESTS = 36  # the pre-alarm scan counts bracketed with the scan counter the emulator's profile declares
 INNER = ("-p", "no:hypothesispytest", "-p", "no:cacheprovider")
 
 
@@ -353,6 +353,14 @@ class R4005OddCodesReadEven(Fun86Model):
         return interval, super().timing(r4005)[1]
 
 
+class R4005HighOddCodesReadEven(Fun86Model):
+    """R4005's high byte read with its bit 0 cleared: PWM code 1 → 1 s, 3 → 4 s (2 and 4 as they should)."""
+
+    def timing(self, r4005):
+        interval, _pwm = super().timing(r4005)
+        return interval, super().timing(r4005 & 0xFEFF)[1]
+
+
 class ErrLatchedUntilAnEnEdge(Fun86Model):
     """ERR, once set by a bad Sn/Zn, stays 1 while EN stays 1, whatever Sn/Zn become."""
 
@@ -472,6 +480,8 @@ CAUGHT_BY = {
     R4005ClampedInTheHighByteOnly: ["test_each_r4005_code_gives_its_interval_and_pwm_period"],
     R4005OddCodesReadEven: ["test_each_r4005_code_gives_its_interval_and_pwm_period[R4005-0301H]",
                             "test_each_r4005_code_gives_its_interval_and_pwm_period[R4005-0403H]"],
+    R4005HighOddCodesReadEven: ["test_each_r4005_code_gives_its_interval_and_pwm_period[R4005-0104H]",
+                                "test_each_r4005_code_gives_its_interval_and_pwm_period[R4005-0301H]"],
     ErrLatchedUntilAnEnEdge: ["test_err_clears_when_sn_zn_become_valid_with_en_held"],
     HeaterLoopR4007LowByte: ["test_heater_loop_warning_after_r4007_seconds_and_not_before[R4007-256]"],
     HeaterLoopTimerNotRestarted: ["test_heater_loop_timer_restarts_when_the_output_dips_below_r4006"],
