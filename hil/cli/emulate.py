@@ -115,8 +115,7 @@ def paste_line(handle: ServerHandle, profile: Profile) -> str:
     rate = profile.emulator.line
     if rate is None:
         return said + " (unpaced: any line settings, no character time)"
-    return said + (f" (paced at {rate.baudrate} {rate.bytesize}{rate.parity}{rate.stopbits}: "
-                   f"{1000 * rate.bits / rate.baudrate:.2f} ms a character)")
+    return said + f" (paced at {rate}: {1000 * rate.char_time:.2f} ms a character)"
 
 
 def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: float,

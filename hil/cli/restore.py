@@ -27,7 +27,7 @@ from hil.bench.recovery import Recovery
 from hil.cli.parser import Subparsers
 from hil.core.errors import HilError
 from hil.core.journal import Journal, inspect, journal_dir
-from hil.core.lock import BenchLock, lock_key, plc_key
+from hil.core.lock import bench_locks, lock_key
 from hil.core.paths import default_bench
 from hil.io.url import parse_target
 
@@ -58,9 +58,8 @@ def restore(url: str | None, bench: str | None, console: Console, *, show: bool 
 def _locked(profile: Profile, target: str) -> Iterator[str]:
     """The bench's locks (its endpoint's, and its PLC's when the profile names it), as a run takes them."""
     with contextlib.ExitStack() as stack:
-        stack.enter_context(BenchLock(target))
-        if profile.plc_id:
-            stack.enter_context(BenchLock(target, key=plc_key(target, profile.plc_id)))
+        for lock in bench_locks(target, profile.plc_id):
+            stack.enter_context(lock)
         yield target
 
 

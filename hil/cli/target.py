@@ -17,7 +17,7 @@ from functools import partial
 from hil.bench.profile import Profile, load_profile, plc_target
 from hil.core.errors import HilError
 from hil.core.journal import Journal
-from hil.core.lock import BenchLock, lock_key, plc_key
+from hil.core.lock import bench_locks, lock_key, plc_key
 from hil.core.paths import default_bench
 from hil.core.timebase import Timebase, timebase_for
 from hil.families.fbs.device.plc import FbsPlc
@@ -80,9 +80,8 @@ def _fbs_profile(bench: str | None) -> Profile | None:
 def _hold_locks(stack: contextlib.ExitStack[bool | None], target: str, plc_id: str | None) -> None:
     """The bench lock of the endpoint (and of the PLC's identity, where the profile names one) until ``stack``
     closes: a test run on the same PLC, however spelt, makes this command refuse."""
-    stack.enter_context(BenchLock(target).acquire())
-    if plc_id:
-        stack.enter_context(BenchLock(target, key=plc_key(target, plc_id)).acquire())
+    for lock in bench_locks(target, plc_id):
+        stack.enter_context(lock)
 
 
 def recover_first(target: str, transport: Transport, timebase: Timebase, profile: Profile | None = None) -> None:

@@ -296,3 +296,9 @@ def _user() -> str:
 
 __all__ = ["BenchLock", "BenchBusy", "describe_holder", "describe_process", "kernel_holders", "lock_dir",
            "lock_key", "open_lock_file", "plc_key", "shared_dir"]
+
+
+def bench_locks(target: str, plc_id: str | None) -> list[BenchLock]:
+    """The locks a bench is held by, in the order they are taken: its endpoint's and, where the profile names the
+    PLC (``plc_id``), the PLC's own — one lock per PLC, whatever wire reaches it (:func:`plc_key`)."""
+    return [BenchLock(target)] + ([BenchLock(target, key=plc_key(target, plc_id))] if plc_id else [])

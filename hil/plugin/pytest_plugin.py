@@ -24,7 +24,7 @@ from hil.bench.replay import Recovery
 from hil.bench.view import suite_view
 from hil.core.errors import HilError, TransportError
 from hil.core.evidence import StaleEvidence
-from hil.core.lock import BenchLock, describe_holder, plc_key
+from hil.core.lock import BenchLock, bench_locks, describe_holder
 from hil.core.paths import default_bench
 from hil.core.registry import examples
 from hil.core.signals import shielded
@@ -162,9 +162,9 @@ class BenchSession:
         wait = self.config.getoption("--hil-lock-wait") or 0.0
         if self.profile.lab is not None:  # labgrid excludes other hosts; this guards this host, also without labgrid
             self.place_lock = BenchLock(self.profile.lab.lock_target).acquire(wait=wait)
-        self.lock = BenchLock(self.target).acquire(wait=wait)
-        if self.profile.plc_id:  # one lock per PLC, whatever wire reaches it (hil.core.lock.plc_key)
-            self.plc_lock = BenchLock(self.target, key=plc_key(self.target, self.profile.plc_id)).acquire(wait=wait)
+        endpoint, *plc = bench_locks(self.target, self.profile.plc_id)
+        self.lock = endpoint.acquire(wait=wait)
+        self.plc_lock = plc[0].acquire(wait=wait) if plc else None
 
     @property
     def leased(self) -> bool:
