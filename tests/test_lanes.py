@@ -389,11 +389,17 @@ def _gone(pid: int) -> bool:
         return True
 
 
+#: the kernel's flag on a task inside exit() (include/linux/sched.h): set before it closes any file, so a process
+#: seen with it is past its last write, whatever files its descriptor table still lists
+PF_EXITING = 0x4
+
+
 def _holds_nothing(pid: int) -> bool:
-    """The process is gone, or far enough into its exit that it has closed every file (its sockets to the PLC,
-    its lock files): it can write nothing more."""
+    """The process is gone, or inside its exit (which closes its sockets to the PLC and its lock files one by one,
+    so its descriptor table may still list some just after the bench's lock is free): it can write nothing more."""
     try:
-        return _gone(pid) or not os.listdir(f"/proc/{pid}/fd")
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return fields[0] in "ZX" or bool(int(fields[6]) & PF_EXITING) or not os.listdir(f"/proc/{pid}/fd")
     except (FileNotFoundError, ProcessLookupError):
         return True
 
