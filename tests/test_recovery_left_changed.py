@@ -281,7 +281,7 @@ def test_a_journal_gets_the_same_verdicts_from_the_next_run_and_from_hil_restore
         t.write_words("R1000", left)
     kept = journal.read_bytes()
     expected = {"R1000": Outcome.RESTORED, "R1001": Outcome.CHANGED, "R1002": Outcome.REFUSED,
-                "R1003": Outcome.RESTORED}
+                "R1003": Outcome.BACK}
     try:
         _, lines = _restore(capsys, "--show", "--bench", str(narrow))
         shown = _verdicts("\n".join(lines))

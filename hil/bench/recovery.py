@@ -16,7 +16,9 @@ class Outcome(Enum):
 
     #: (the :class:`Recovery` list that holds it, its label after a replay, its label for ``show``)
     PLANNED = ("planned", "would restore", "would restore")
-    RESTORED = ("verified", "restored and verified (read back)", "already back (read)")
+    RESTORED = ("verified", "restored and verified (read back)", "restored and verified (read back)")
+    #: found holding its original: read, nothing written
+    BACK = ("back", "already back (read)", "already back (read)")
     DROPPED = ("notes", "dropped", "would drop")
     CHANGED = ("changed", "changed since — left", "changed since — left")
     REFUSED = ("refused", "refused", "refused")
@@ -42,7 +44,8 @@ class Recovery:
     bench: str
     path: str
     pending: list[str] = field(default_factory=list)  # what the journal held, one line each
-    verified: list[str] = field(default_factory=list)  # put back (or found back) and read back equal
+    verified: list[str] = field(default_factory=list)  # put back and read back equal
+    back: list[str] = field(default_factory=list)  # found holding its original: nothing written
     refused: list[str] = field(default_factory=list)  # not replayed, each with why (kept in the journal)
     changed: list[str] = field(default_factory=list)  # someone changed it since the run: left as it is (kept)
     failures: list[str] = field(default_factory=list)  # a restore that failed (kept)

@@ -209,7 +209,9 @@ def element_outcome(verdict: Verdict, now: Any = None, done: PutBack | None = No
     if decision == RESTORE and done is None:
         whose = ", the PLC's own)" if verdict.left is None else ", as the run left it)"
         return Outcome.PLANNED, f"{name} to {original} (reads {now}{whose}"
-    why = done.why(verdict.element) if decision == RESTORE and done is not None else None
+    if decision == BACK:
+        return Outcome.BACK, f"{name} = {original}"
+    why = done.why(verdict.element) if done is not None else None
     if why is not None:
         return Outcome.FAILED, f"{name} (original {original}): {why}"
     return Outcome.RESTORED, f"{name} = {original}"
@@ -254,7 +256,7 @@ def _replay(guard: Replayable, journal: Journal, report: Recovery, checks: list[
     for verdict, value in zip(checks, now):
         outcome, line = element_outcome(verdict, value, done)
         report.add(outcome, line)
-        if outcome is Outcome.RESTORED:
+        if outcome in (Outcome.RESTORED, Outcome.BACK):
             back.append(verdict.name)
     if not report.show:
         journal.drop_elements(back)

@@ -251,10 +251,11 @@ class GuardedRig(GuardedLink):
                     report.failures.append(f"rig coil {name} (original {int(value)}): {why}")
         for element in again:  # a failed one stays on disk for the next recovery, not retried with the next coils
             self.journal.pop(element, None)
-        back += [e for e in again if e.key not in failed]
+        restored = [e for e in again if e.key not in failed]
         if self.durable is not None:  # what read back as its original (a restored one is dropped already)
-            self.durable.drop_elements(e.key for e in back)
-        report.verified += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in back]
+            self.durable.drop_elements(e.key for e in back + restored)
+        for found, lines in ((back, report.back), (restored, report.verified)):
+            lines += [f"rig coil {e} = {int(entries[e.key]['original'])}" for e in elements if e in found]
 
 
 __all__ = ["CoilJournal", "GuardedRig", "RIG_PROBE", "RigCoil", "RigLink", "coil_runs", "rig_unit", "rig_wire"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 from hil.bench.guard import GuardedLink, PublicLink
-from hil.bench.replay import CHANGED, RESTORE, Recovery, age_problem, still_the_runs
+from hil.bench.replay import BACK, CHANGED, RESTORE, Recovery, age_problem, still_the_runs
 from hil.core.errors import HilError, WriteRefused
 from hil.core.journal import DISABLED, ELEMENTS, ENABLE, RUN, Journal, earlier_of, run_left
 from hil.families.fbs.address import Address, parse
@@ -189,8 +189,12 @@ class FatekCommandsGuard(GuardedLink):
         if decision == CHANGED:  # the run left it as it was; someone changed it
             report.changed.append(f"RUN/STOP is {state[now]}, the run set {state[run['wrote']]} (original "
                                   f"{state[run['original']]})")
+        elif decision == BACK:
+            report.back.append(f"RUN/STOP = {state[run['original']]}")
+            if not report.show:
+                journal.set_extra("run", None)
         elif report.show:
-            (report.planned if decision == RESTORE else report.verified).append(f"RUN/STOP = {state[run['original']]}")
+            report.planned.append(f"RUN/STOP = {state[run['original']]}")
         else:
             try:
                 self._put_running(run["original"])
@@ -226,8 +230,13 @@ class FatekCommandsGuard(GuardedLink):
             state = "disabled" if entry["disabled"] else "enabled"
             if decision == CHANGED:
                 continue
+            if decision == BACK:
+                report.back.append(f"{name} {state} (read, command 43)")
+                if not report.show:
+                    journal.drop_enable_states([name])
+                continue
             if report.show:
-                (report.planned if decision == RESTORE else report.verified).append(f"{name} {state} (command 42)")
+                report.planned.append(f"{name} {state} (command 42)")
                 continue
             try:
                 self._put_enable_state(bit, entry["disabled"])
