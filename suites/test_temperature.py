@@ -58,7 +58,7 @@ def _healthy_again(bench, temp):
     """No break bit, no 28767, and no point installed in R4010/R4011 reading 0 (one masked a moment ago)."""
     readings = temp.readings()
     installed = [readings[p] for p in _installed(bench, range(len(readings)))]
-    return temp.read_work().break_words == (0, 0) and BREAK not in readings and 0 not in installed
+    return temp.break_words() == (0, 0) and BREAK not in readings and 0 not in installed
 
 
 def _words(points):
@@ -184,7 +184,7 @@ def test_readings_are_in_range_and_units(bench, temp, measure):
         if config.rate == "fast" or len(samples) >= RESOLUTION_SAMPLES:
             break
         temp.wait_for_update(1.0)  # few points: their next readings, one update later
-    assert temp.read_work().break_words == (0, 0), "break bits set with no fault injected"
+    assert temp.break_words() == (0, 0), "break bits set with no fault injected"
     if config.rate == "normal":
         if len(samples) < RESOLUTION_SAMPLES:
             pytest.fail(f"inconclusive: {len(samples)} readings over 4 updates, fewer than {RESOLUTION_SAMPLES}, "
@@ -329,7 +329,7 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
     io.write(str(sr), 0xA557)
     bench.plc.time.wait(update + UPDATE_MARGIN_S)
     bench.settle()
-    before, words_before = temp.readings(), temp.read_work().break_words
+    before, words_before = temp.readings(), temp.break_words()
     for p in points:
         breaker.open(p)
     for marker in (0xA557, 0x56A5):
@@ -340,7 +340,7 @@ def test_nothing_is_measured_while_sr0_is_not_a556h(bench, temp, breaker):
         shown = [p for p in points if readings[p] == BREAK != before[p]]
         assert not shown, (f"SR+0 = {marker:04X}H (not A556H: no table), yet the open sensors of points {shown} "
                            f"read 28767: the PLC measured")
-        words = temp.read_work().break_words
+        words = temp.break_words()
         assert words == words_before, (f"SR+0 = {marker:04X}H (no table), yet TW+1 TW+2 went from "
                                        f"{_bits(words_before)} to {_bits(words)}: the PLC measured")
     for p in points:  # (repaired before the table is valid again: no open sensor left to be measured and waited out)
@@ -407,7 +407,7 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
 
     def check(state, broken, zero, live, extra=""):
         readings = temp.readings()
-        words = temp.read_work().break_words
+        words = temp.break_words()
         wrong = [p for p in broken if readings[p] != BREAK]
         assert not wrong, f"{state}: points {wrong} read {[readings[p] for p in wrong]}, expected 28767{extra}"
         stray = [p for p in live + others if readings[p] in (BREAK, 0)]
@@ -460,7 +460,7 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     for p in points:
         breaker.open(p)
     shown = sorted(group_b + group_c + group_d)
-    took = within_an_update("open", lambda: temp.read_work().break_words == _words(shown) and
+    took = within_an_update("open", lambda: temp.break_words() == _words(shown) and
                             reading_all([(p, lambda v: v == BREAK) for p in shown] +
                                         [(p, lambda v: v == 0) for p in group_a]))
     check("every sensor open, A masked off as they opened", shown, group_a, [])
@@ -468,7 +468,7 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
 
     mask_off(group_b + group_d)  # A unmasked, still broken; B and D, seen broken, masked off
     shown = sorted(group_a + group_c)
-    took = within_an_update("mask", lambda: temp.read_work().break_words == _words(shown) and
+    took = within_an_update("mask", lambda: temp.break_words() == _words(shown) and
                             reading_all([(p, lambda v: v == 0) for p in group_b + group_d] +
                                         [(p, lambda v: v == BREAK) for p in group_a]))
     check("A unmasked while still broken, B and D masked off, C still open", shown, group_b + group_d, [])
@@ -483,10 +483,10 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     for p in group_b + group_a + group_c + group_d:  # B first, while still masked off
         breaker.repair(p)
     mask_off(checker)
-    took = within_an_update("mask_healthy", lambda: temp.read_work().break_words == (0, 0) and reading_all(
+    took = within_an_update("mask_healthy", lambda: temp.break_words() == (0, 0) and reading_all(
         [(p, lambda v: v == 0) for p in checker] +
         [(p, lambda v: v not in (0, BREAK)) for p in points if p not in checker]))
-    readings, words = temp.readings(), temp.read_work().break_words
+    readings, words = temp.readings(), temp.break_words()
     wrong = [p for p in checker if readings[p] != 0]
     assert not wrong, (f"no sensor open, points {wrong} masked off in R4010/R4011 ({_bits(_words(checker))} cleared) "
                        f"read {[readings[p] for p in wrong]}, expected 0")
@@ -498,7 +498,7 @@ def test_sensors_broken_masked_unmasked_and_repaired(bench, temp, breaker, measu
     in_time(took, "the masked healthy points did not all read 0 (and the repaired ones their live value)")
 
     io.write_many({"R4010": mask[0], "R4011": mask[1]})
-    temp.wait_until(lambda: temp.read_work().break_words == (0, 0) and reading_all(
+    temp.wait_until(lambda: temp.break_words() == (0, 0) and reading_all(
         [(p, lambda v: v not in (0, BREAK)) for p in points] + [(p, lambda v: v != 0) for p in checker]))
     bench.settle()
     after = check("all repaired, unmasked", [], [], points)

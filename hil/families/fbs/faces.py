@@ -46,6 +46,12 @@ class FbsIO(PlcIO, Protocol):
         """Round trips one read of a handful of names costs on this wire."""
         ...
 
+    @property
+    def reads_since_write(self) -> int:
+        """Reads answered since this wire's last request that may have changed the PLC: on a port that answers at
+        a scan's end each spanned a scan, and a settle counts them (0 on a wire that does not count its reads)."""
+        ...
+
     def read_words(self, address: Name, count: int = 1) -> list[int]:
         """``count`` consecutive words from ``address`` in one request where the protocol allows (one scan)."""
         ...
@@ -172,6 +178,11 @@ class Temperature(Protocol):
 
     def read_work(self) -> WorkView:
         """The work block: execution code (56H when running), mismatch bits, break words."""
+        ...
+
+    def break_words(self) -> tuple[int, int]:
+        """TW+1 and TW+2 alone, the break bits of points 0–15 and 16–31 (one read of two words: all a poll for
+        the break bits needs, a sixth of the whole block's characters on a slow line)."""
         ...
 
     def readings(self) -> list[int]:
@@ -341,7 +352,8 @@ class Plc(Protocol):
     def settle(self, scans: int | None = None) -> None:
         """Wait for whole scans after the last write (the profile's ``settle_scans``; proved by the ladder's
         scan counter when ``[bench] scan_counter`` names one, unless ``[bench] answers_at_scan_end`` says the
-        port keeps port 0's rule: then, as without a counter, round trips that each span a scan)."""
+        port keeps port 0's rule: then, as without a counter, round trips that each span a scan — the reads
+        already answered since the last write among them)."""
         ...
 
     def read_settled(self, names: list[str]) -> list[int]:

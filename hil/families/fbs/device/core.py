@@ -42,14 +42,15 @@ class PlcCore:
         gone up by ``scans`` + 1 (the scan in progress at the first read may have begun before the write landed,
         e.g. on a port that answers at once; the one after it cannot have).  Without one — or where the profile
         says the wire reaches a port that answers at the end of a scan (``[bench] answers_at_scan_end``: ports 0,
-        1, 3, 4) — port 0's rule: each round trip spans at least one scan, so a few cheap status requests.
+        1, 3, 4) — port 0's rule: each round trip spans at least one scan, so a few cheap status requests; the
+        reads already answered since the write are such round trips too, and count.
         """
         n = self.settle_scans if scans is None else scans
         if self._proves_scans:
             if n > 0:
                 self.await_scans(n)
             return
-        for _ in range(n):
+        for _ in range(max(0, n - self.io.reads_since_write)):
             self.io.status()
 
     def settle_before_request(self) -> None:

@@ -51,6 +51,10 @@ class Temperature(faces.Temperature):
     def read_work(self) -> WorkView:
         return WorkView(self.plc.io.read_words(self.config.work, 4 + 4 * len(self.config.modules)))
 
+    def break_words(self) -> tuple[int, int]:
+        low, high = self.plc.io.read_words(self.config.work.offset(1), 2)
+        return low, high
+
     def execution_code(self) -> int:
         """TW+0's high byte alone (one word read: all a check of "56H: measuring" needs)."""
         return self.plc.io.read(str(self.config.work)) >> 8

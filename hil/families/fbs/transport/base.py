@@ -67,6 +67,11 @@ class Transport(Link, ABC):
     emulator: Emulator | None = None
     #: The emulator's server this transport talks to (an ``emulator+<wire>`` target), else None.
     server: ServerHandle | None = None
+    #: Reads answered since this link's last request that may have changed the PLC (a write, or any request not
+    #: known to be a read): on a port that answers at a scan's end each spans a scan, so a settle counts them
+    #: (:meth:`hil.families.fbs.device.core.PlcCore.settle`).  Only what is counted as a read adds to it: a
+    #: request counted otherwise starts it again, so a wire that counts nothing leaves it at 0.
+    reads_since_write = 0
 
     @property
     def requests_per_read(self) -> int:
@@ -84,7 +89,7 @@ class Transport(Link, ABC):
         out: list[int] = []
         with self._lock:
             for start, n in _chunks(count, per):
-                out += self._count(self._read_words(first.offset(start) if start else first, n))
+                out += self._count_read(self._read_words(first.offset(start) if start else first, n))
         return out
 
     def write_words(self, address: NameLike, values: Sequence[int]) -> None:
@@ -104,7 +109,7 @@ class Transport(Link, ABC):
         out: list[int] = []
         with self._lock:
             for start, n in _chunks(count, self.limits.bits):
-                out += [int(b) for b in self._count(self._read_bits(first.offset(start) if start else first, n))]
+                out += [int(b) for b in self._count_read(self._read_bits(first.offset(start) if start else first, n))]
         return out
 
     def write_bits(self, address: NameLike, values: Sequence[int | bool]) -> None:
@@ -122,7 +127,7 @@ class Transport(Link, ABC):
         out: list[int] = []
         with self._lock:
             for group in word_groups(addresses, self.limits.mixed_read_words):
-                out += self._count(self._read_many(group))
+                out += self._count_read(self._read_many(group))
         return out
 
     def write_many(self, items: Mapping[NameLike, int] | Iterable[tuple[NameLike, int]], *,
@@ -148,7 +153,7 @@ class Transport(Link, ABC):
 
     def status(self) -> PlcStatus:
         with self._lock:
-            return self._count(self._status())
+            return self._count_read(self._status())
 
     def unreachable_reason(self, address: NameLike) -> str | None:
         """Why this transport cannot reach ``address`` (e.g. D4054 over the default Modbus map), or None."""
@@ -191,8 +196,15 @@ class Transport(Link, ABC):
 
     # -- helpers ------------------------------------------------------------------------------------------------
     def _count(self, result: _R) -> _R:
-        """Count one request sent, passing its primitive's result through."""
+        """Count one request sent that may have changed the PLC, passing its primitive's result through."""
         self.requests += 1
+        self.reads_since_write = 0
+        return result
+
+    def _count_read(self, result: _R) -> _R:
+        """Count one read sent (it changes nothing on the PLC), passing its primitive's result through."""
+        self.requests += 1
+        self.reads_since_write += 1
         return result
 
     @staticmethod

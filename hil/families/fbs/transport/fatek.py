@@ -61,7 +61,7 @@ class FatekTransport(FatekExchange):
         """The decoded detailed status (command 53): unit type, OS version, sizes.  Asked once, then cached."""
         with self._lock:
             if self._identity is None:
-                self._identity = self._count(self._exchange(DetailedStatus()))
+                self._identity = self._count_read(self._exchange(DetailedStatus()))
             return self._identity
 
     def set_running(self, run: bool) -> None:
@@ -91,9 +91,9 @@ class FatekTransport(FatekExchange):
                 group = [addresses[i] for i in piece.positions]
                 if piece.run:
                     read = self._read_bits if group[0].is_bit else self._read_words
-                    values = self._count(read(group[0], len(group)))
+                    values = self._count_read(read(group[0], len(group)))
                 else:
-                    values = self._count(self._read_many(group))
+                    values = self._count_read(self._read_many(group))
                 for i, value in zip(piece.positions, values):
                     out[i] = int(value)
         return out
@@ -113,7 +113,7 @@ class FatekTransport(FatekExchange):
                     write(group[0][0], [v for _, v in group])
                 else:
                     self._write_many(group)
-                self.requests += 1  # one frame sent (Transport._count, for a primitive with no result)
+                self._count(None)
 
     # -- Transport primitives -----------------------------------------------------------------------------------
     def _read_words(self, first: Address, count: int) -> list[int]:

@@ -94,6 +94,7 @@ class GuardedTransport(FatekCommandsGuard):
     # -- reads: straight through ----------------------------------------------------------------------------
     limits = property(lambda self: self.inner.limits)
     requests_per_read = property(lambda self: self.inner.requests_per_read)
+    reads_since_write = property(lambda self: self.inner.reads_since_write)
 
     def read(self, name: NameLike) -> int:
         return self.inner.read(name)

@@ -135,6 +135,8 @@ class ModbusTransport(OverModbusWire, Transport):
     def _count(self, result: _R) -> _R:
         return result  # requests are counted per Modbus frame, by the wire
 
+    _count_read = _count  # (so no read is counted towards a settle either: reads_since_write stays 0)
+
     # -- runs -------------------------------------------------------------------------------------------------
     def _read_addresses(self, addresses: Sequence[Address]) -> list[int]:
         runs = mm.coalesce(addresses, limits=MAX_READ)  # raises UnreachableAddress before any I/O
