@@ -39,7 +39,7 @@ def bench_times(time_scale: float = 1.0, files: list[str] | None = None, line: s
     the bench then declares (``[bench] answers_at_scan_end``).  ``lanes`` > 1: as ``hil run --lanes N``.
     ``timing``/``seed``: ``hil emulate --timing bench --seed N`` (hil.sim.timing), with scans of
     ``scan_range_ms`` (``[emulator] scan_time_range``)."""
-    files = files or MAIN_SET
+    files = files or sorted(MAIN_SET)  # as hil run collects the suites' directory: by file name
     out: dict = {"time_scale": time_scale, "per_suite": {}, "lanes": lanes, "timing": timing or "instant",
                  "seed": seed, "scan_time_range_ms": scan_range_ms,
                  "wire": f"FATEK pty at {line}" if line else "FATEK/TCP"}

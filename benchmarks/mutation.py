@@ -39,7 +39,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = "hil/families/fbs/sim/models/"
-RTC_SUITES = "suites/test_rtc.py suites/test_rtc_adjust.py suites/test_rtc_validity.py suites/test_rtc_drift.py"
+RTC_SUITES = ("suites/test_rtc.py suites/test_rtc_midnight.py suites/test_rtc_adjust.py suites/test_rtc_validity.py "
+              "suites/test_rtc_drift.py")
 PID_SUITES = "suites/test_pid.py suites/test_pid_control.py"
 PYTEST = "{python} -m pytest -x -q -p no:cacheprovider "
 #: session → (the mutated file, the suites that judge it: every suite that can see the model; FUN86 reads the

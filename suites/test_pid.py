@@ -19,7 +19,9 @@ import pytest
 
 #: every test sets the SV, Os, gains and PVs it relies on before it switches a box on: those words (of boxes that are
 #: off) and the scratch PV blocks go back once, after the last test here, not after each (hil.plugin.working_state)
-pytestmark = pytest.mark.working_state("pid", "scratch")
+# line="busy": most of a PID test is requests back to back (a box's blocks written, its effects read and put back):
+# in a run with lanes on one line the main lane runs it last, after its waiting (hil.plugin.order)
+pytestmark = [pytest.mark.working_state("pid", "scratch"), pytest.mark.lane("main", line="busy")]
 
 # R4005 low byte → PID interval in seconds (20.7; ≥ 5 → 32 s)
 INTERVAL_S = {0: 1, 1: 2, 2: 4, 3: 8, 4: 16}

@@ -9,8 +9,9 @@ import pytest
 
 #: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
 #: after the last test here, not after each (hil.plugin.working_state)
-# the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes)
-pytestmark = [pytest.mark.working_state("clock"), pytest.mark.lane("clock")]
+# the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes); line="busy": sets and
+# read-backs back to back, run first in the lane, while the main lane waits (hil.plugin.order)
+pytestmark = [pytest.mark.working_state("clock"), pytest.mark.lane("clock", line="busy")]
 
 
 #: start → the time right after the M1953 edge: the window's every edge (00, 29 | 30, 59) within the minute.

@@ -19,8 +19,9 @@ from hil.families.fbs.rtc_time import FIELDS, RtcTime
 
 #: every test sets the clock it relies on: the clock goes back (to its original offset from the bench's time) once,
 #: after the last test here, not after each (hil.plugin.working_state)
-# the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes)
-pytestmark = [pytest.mark.working_state("clock"), pytest.mark.lane("clock")]
+# the clock lane: only the RTC suites touch the clock and M1952–M1955 (hil run --lanes); line="busy": sets and
+# read-backs back to back, run first in the lane, while the main lane waits (hil.plugin.order)
+pytestmark = [pytest.mark.working_state("clock"), pytest.mark.lane("clock", line="busy")]
 
 START = dt.datetime(2024, 6, 15, 8, 0, 0)
 #: R4129–R4134 of START: minute, hour, day, month, year, weekday (a Saturday)

@@ -27,6 +27,9 @@ UPDATE_S = {"2TC": (1, 2), "6TC": (2, 4), "16TC": (3, 6), "6RTD": (1, 2), "16RTD
 #: so the wire's and the host's delays only make it more lenient, never flaky)
 UPDATE_MARGIN_S = 0.5
 FAMILY = {"2TC": "TC", "6TC": "TC", "16TC": "TC", "6RTD": "RTD", "16RTD": "RTD", "6NTC": "NTC"}
+#: line="idle": most of these tests wait out the modules' update times; in a run with lanes on one line the main
+#: lane runs them first, while the other lane sends (hil.plugin.order)
+pytestmark = pytest.mark.lane("main", line="idle")
 #: 20.3.2, high byte of TW+0
 MEASURING, BAD_MODULE_COUNT, TOO_MANY_POINTS = 0x56, 0xFE, 0xFF
 #: fewest readings a normal-rate (0.1 °) check needs before "every one a whole degree" means whole degrees

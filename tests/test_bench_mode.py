@@ -25,8 +25,8 @@ from tests.conftest import EMULATOR_BENCH, REPO
 from tests.external import bench_over_the_wire, hil_emulate
 
 SUITES = REPO / "suites"
-MAIN_SET = ["test_smoke.py", "test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py",
-            "test_temperature.py", "test_pid.py"]
+MAIN_SET = ["test_smoke.py", "test_rtc.py", "test_rtc_midnight.py", "test_rtc_validity.py", "test_rtc_adjust.py",
+            "test_rtc_drift.py", "test_temperature.py", "test_pid.py"]
 PID_CONTROL = ["test_pid_control.py"]
 #: (suites, pytest's -k, time scale): the closed loop plans 35 bench minutes, so it runs at 50; the heater-loop
 #: checks hold ±2 s of bench time around R4007 (80 ms of wall time at 50, where one stalled poll on a busy host

@@ -135,8 +135,8 @@ def test_a_flood_on_a_paced_line_is_bounded_and_dropped_beyond_the_buffer():
 
 
 #: the smoke and RTC suites (the drift measurement aside: on a bench it is a slow test of hours)
-PACED_SUITES = [str(REPO / "suites" / f) for f in ("test_smoke.py", "test_rtc.py", "test_rtc_validity.py",
-                                                    "test_rtc_adjust.py")]
+PACED_SUITES = [str(REPO / "suites" / f) for f in ("test_smoke.py", "test_rtc.py", "test_rtc_midnight.py",
+                                                    "test_rtc_validity.py", "test_rtc_adjust.py")]
 
 
 # (the FATEK case in the matrix: the gate runs the smoke and RTC suites over hil emulate's paced pty in two lanes,

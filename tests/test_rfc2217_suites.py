@@ -20,7 +20,8 @@ from tests.rfc2217_servers import rfc2217_server
 from tests.test_bench_mode import ALLOWED_SKIPS, bench_like, outcome_counts
 
 SUITES = [str(REPO / "suites" / f) for f in
-          ("test_smoke.py", "test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py")]
+          ("test_smoke.py", "test_rtc.py", "test_rtc_midnight.py", "test_rtc_validity.py", "test_rtc_adjust.py",
+           "test_rtc_drift.py")]
 TIME_SCALE = 5.0  # the RTC suites keep a real bench's slack on a busy host (and the pty, ser2net and RFC 2217 hops)
 #: protocol → (the endpoint kind hil emulate prints, its option, URL scheme, query)
 WIRES = {

@@ -13,7 +13,7 @@ from tests import broken_calendar as cal
 from tests.broken import BrokenEmulator, replace_model, run_suites
 from tests.conftest import EMULATOR_BENCH
 
-RTC_SUITES = ["test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py"]
+RTC_SUITES = ["test_rtc.py", "test_rtc_midnight.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py"]
 
 HOLD, ADJUST, SET_ERROR, INSTALLED = 1952, 1953, 1955, 1954
 

@@ -7,7 +7,8 @@ import pytest
 from tests.conftest import EMULATOR_BENCH, REPO, over_targets
 
 RTC_SUITES = [str(REPO / "suites" / f) for f in
-              ("test_rtc.py", "test_rtc_validity.py", "test_rtc_adjust.py", "test_rtc_drift.py")]
+              ("test_rtc.py", "test_rtc_midnight.py", "test_rtc_validity.py", "test_rtc_adjust.py",
+               "test_rtc_drift.py")]
 
 
 @pytest.mark.parametrize("target", over_targets("emulator+modbus-rtu"))

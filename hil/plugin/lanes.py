@@ -39,13 +39,16 @@ from hil.core.errors import HilError
 from hil.core.lease import LockLender, borrow, die_with_parent
 from hil.core.registry import SCHEMES
 from hil.io.shared_line import run_in_background
+from hil.plugin.order import by_line_use, line_use
 from hil.plugin.safety import AS_FOUND, PLC_LEFT, announce, say
 from hil.plugin.stash import BENCH_SESSION, BenchState
 from hil.plugin.usage import usage_error
 
-MARKER = ("lane(name): the lane of this module's tests in a run with lanes (hil run --lanes N): tests of one lane run "
-          "in one process, in order; tests of different lanes may run at the same time on one PLC, so they must "
-          "touch no element in common (unmarked: lane \"main\")")
+MARKER = ("lane(name, line=\"busy\"|\"paced\"|\"idle\"): the lane of this module's tests in a run with lanes "
+          "(hil run --lanes N): tests of one lane run in one process, in order; tests of different lanes may run at "
+          "the same time on one PLC, so they must touch no element in common (unmarked: lane \"main\"); line: how "
+          "the module uses a shared line — requests back to back, bursts at a short cadence, or mostly waits for the "
+          "PLC —, which orders a lane's modules (hil.plugin.order)")
 DEFAULT = "main"
 #: in a worker's ``workerinput``: the controller holds the bench's locks for it (its pid)
 LEASE = "hil_lane_lease"
@@ -112,6 +115,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
     (Not ``--dist loadgroup``: pytest-xdist 3.8 names a group by rewriting ``item._nodeid``, which pytest 9.2 no
     longer reads, so its groups silently spread over the workers.)"""
+    for item in items:
+        line_use(item)  # (a bad line= is an error in any run, not only one with lanes)
     given = getattr(config, "workerinput", None)
     if not given or not given.get(SPLIT):
         return
@@ -121,10 +126,12 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     kept = [item for item in items if lane_of(item) in mine]
     dropped = [item for item in items if lane_of(item) not in mine]
     # the main lane has the line first; the others fill its idle time (hil.io.shared_line)
-    run_in_background(DEFAULT not in mine and DEFAULT in names)
+    background = DEFAULT not in mine and DEFAULT in names
+    run_in_background(background)
+    by_line_use(kept, background)
     if dropped:
         config.hook.pytest_deselected(items=dropped)
-        items[:] = kept
+    items[:] = kept
 
 
 def _worker_index(given: dict) -> int:

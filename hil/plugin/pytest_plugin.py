@@ -29,7 +29,7 @@ from hil.core.paths import default_bench
 from hil.core.registry import examples
 from hil.core.signals import shielded
 from hil.io.url import Target, parse_target
-from hil.plugin import bench_time, hookspecs, lanes, working_state
+from hil.plugin import bench_time, hookspecs, lanes, order, working_state
 from hil.plugin.lab import hold_place, let_go
 from hil.plugin.preflight import unreachable
 from hil.plugin.safety import announce
@@ -254,8 +254,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         raise usage_error(str(exc)) from None
     destructive_ok = config.getoption("--hil-allow-destructive") or profile.safety.allow_destructive
     offered = bench_capabilities(target, profile.scan_counter, profile.offers)
-    # A PLC straight from power-on is one nothing in this session has touched yet: those tests go first.
-    items.sort(key=lambda item: not any("power_on_state" in m.args for m in item.iter_markers("needs")))
+    order.power_on_first(items)
     _deselect_other_families(config, items, profile)
     run_slow = target.in_process or config.getoption("--hil-run-slow")
     for item in items:
