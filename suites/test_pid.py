@@ -898,7 +898,11 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
                                        f"{share:.0%} of 16383: Y must be ON for OR/16383 of each PWM period")
     rises = [t for (_, before, _), (_, y, t) in zip(polls, polls[1:]) if y and not before]
     assert len(rises) >= 3, f"Y switched on {len(rises)} times in 9 s: with a PWM period of 2 s, 4 or 5 times"
-    period = (rises[-1] - rises[0]) / (len(rises) - 1)
+    # Y is ON for about a quarter second of each period: a poll held up longer (a busy host, another lane's turn on
+    # a shared line) misses that rise, and one interval spans two periods — counted as two, never as one long one
+    intervals = [b - a for a, b in zip(rises, rises[1:])]
+    periods = [i / max(1, round(i / min(intervals))) for i in intervals]
+    period = sum(periods) / len(periods)
     assert 1.5 <= period <= 2.5, (f"Y switches on every {period:.2f} s: R4005's high byte 1 gives a PWM period of "
                                   f"2 s (rises at {[round(t - rises[0], 2) for t in rises]})")
     pid.restart(inst)

@@ -19,8 +19,9 @@ named lanes), as :func:`run_in_background` says; a process that says neither tak
 client takes the line only while no foreground client wants it: a foreground one holds a shared lock on a second
 file (``….want``) from before it asks for the line until :data:`LINGER` after it let go of it (so across
 back-to-back exchanges), and a background one must take that file's lock exclusively before it asks.  So the main
-lane runs as it would alone but for a background exchange already on the line when it asks (one frame, tens of
-milliseconds at 9600 bit/s), and the background lanes fill the line's idle time: the main lane's waits for the PLC.
+lane runs as it would alone but for a background turn already on the line when it asks (one frame, tens of
+milliseconds at 9600 bit/s, or one procedure that holds the line: an RTC set's five), and the background lanes
+fill the line's idle time: the main lane's waits for the PLC.
 
 A wait for the line is bounded (:data:`WAIT`, ``$HIL_LINE_WAIT`` seconds): a process that keeps it longer — another
 user's run, a stuck tool — is named (pid, user, command, from the kernel's lock table) instead of hanging the

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Callable, Iterable, Mapping, Sequence
+from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Protocol
 
 from hil.bench.faces import BenchTime, BenchWithFaults, FaultInjector, Faults, PlcIO
@@ -44,6 +45,12 @@ class FbsIO(PlcIO, Protocol):
     @property
     def requests_per_read(self) -> int:
         """Round trips one read of a handful of names costs on this wire."""
+        ...
+
+    def exclusive(self) -> AbstractContextManager[None]:
+        """``with io.exclusive():`` — the wire is this procedure's across several requests: where other processes
+        take turns on it (a run's lanes on one serial line), none of theirs comes between, and it waits for its
+        turn once rather than before each request."""
         ...
 
     @property

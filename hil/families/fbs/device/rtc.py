@@ -107,8 +107,10 @@ class Rtc(faces.Rtc):
         the wire allows (no settle between): on a port that services each request at the end of a scan the PLC
         sees the 1 for one scan only."""
         value = RtcTime.from_datetime(time) if isinstance(time, dt.datetime) else time
-        self._begin_set(value)
-        return self._finish_set(value, settled=pulse)
+        # one turn on a line other lanes share: the procedure's round trips wait for it once, not each in turn
+        with self.plc.io.exclusive():
+            self._begin_set(value)
+            return self._finish_set(value, settled=pulse)
 
     def clock(self) -> Clock:
         """The RTC as the bench's guard keeps it: a write to the read-out R4128–R4134, M1952/M1953 or D4054 may
@@ -231,13 +233,14 @@ class Rtc(faces.Rtc):
         port 0's rule otherwise), so that scan ran with the 0 read, whoever wrote it last, and the 1 lands at the
         frame's scan end at the earliest.  Only a 1 read costs a write of 0 and a whole scan holding it."""
         io = self.plc.io
-        if self.plc.read_settled([reg.RTC_ADJUST_30S])[0]:
+        with io.exclusive():  # (one turn on a shared line, as a set)
+            if self.plc.read_settled([reg.RTC_ADJUST_30S])[0]:
+                io.write(reg.RTC_ADJUST_30S, 0)
+                self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
+            io.write(reg.RTC_ADJUST_30S, 1)
+            self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
             io.write(reg.RTC_ADJUST_30S, 0)
-            self.plc.settle_before_request()  # the 0 held across a whole scan (proved with a scan counter)
-        io.write(reg.RTC_ADJUST_30S, 1)
-        self.plc.settle_before_request()  # the write of 0 below is serviced a scan later at the earliest
-        io.write(reg.RTC_ADJUST_30S, 0)
-        self.plc.settle_before_request()  # the 0 seen before anyone looks at the effect or fires again
+            self.plc.settle_before_request()  # the 0 seen before anyone looks at the effect or fires again
 
 
 class Drift:
