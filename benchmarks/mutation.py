@@ -11,8 +11,14 @@ Mutated: hil/families/fbs/sim/models/{rtc,temperature,temperature_readings,fun86
 suites that can see it (RTC: the four RTC suites; temperature: the temperature and PID suites, FUN86 reads the
 temperatures, and the temperature suite once more on the profile with averaging and the fast rate and once on the
 default profile with 2-sample averaging; FUN86: the PID suites; S7: suites/s7smart with the S7-200 SMART profile, as an
-ST40 and as a CR40).  cosmic-ray writes each mutant into the files it tests, so the work happens in a scratch copy of
-the working tree (PYTHONPATH points the suites at it); the checkout is never touched.
+ST40 and as a CR40).  The FBs models' sessions then run tests/test_fast_forward.py, only once the suites pass: it
+compares the emulator with itself, virtual time jumped and stepped scan by scan (the same memory, every change of
+FUN86's outputs at the same scan, the jump a fraction of the scans, a long jump's catch-up bounded), so it judges
+only the models' scheduling for the in-process engine (``next_event`` and what only it uses), which no bench's wire
+can show; a mutant of behaviour changes both runs alike and passes it, so behaviour is still judged by the suites
+alone.  cosmic-ray writes each mutant into the
+files it tests, so the work happens in a scratch copy of the working tree (PYTHONPATH points the suites at it); the
+checkout is never touched.
 
 Every surviving mutant is looked up in ``benchmarks/mutation-survivors.toml`` (keyed by file, operator and the
 mutated line's text, so the classification survives unrelated edits): *equivalent*, *choice* (an [our choice] the
@@ -43,10 +49,19 @@ RTC_SUITES = ("suites/test_rtc.py suites/test_rtc_midnight.py suites/test_rtc_ad
               "suites/test_rtc_drift.py")
 PID_SUITES = "suites/test_pid.py suites/test_pid_control.py"
 PYTEST = "{python} -m pytest -x -q -p no:cacheprovider "
+#: the scheduling judge of the FBs models (see the docstring): after their suites, only if those pass
+FAST_FORWARD = PYTEST + "tests/test_fast_forward.py"
+
+
+def _in_turn(*commands: str) -> str:
+    """One test command running ``commands`` in turn, each only if those before it passed."""
+    return "sh -c " + shlex.quote(" && ".join(commands))
+
+
 #: session → (the mutated file, the suites that judge it: every suite that can see the model; FUN86 reads the
 #: temperatures, so the temperature model is judged by the PID suites too)
 SESSIONS = {
-    "rtc": (MODELS + "rtc.py", PYTEST + RTC_SUITES),
+    "rtc": (MODELS + "rtc.py", _in_turn(PYTEST + RTC_SUITES, FAST_FORWARD)),
     # (and the temperature suite again on CI's other temperature profile — 8 modules of the other kinds, °F, the fast
     # rate, 4-sample averaging: tests/test_temperature_suites.py's mixed_profile —, where averaging and the fast
     # rate's resolution run at all; the default profile has neither)
@@ -54,15 +69,17 @@ SESSIONS = {
     # averaging: averaged-temperature.toml)
     # (and in bench timing, where the model reads its table once per cycle and refreshes each module at its phase:
     # bench-timed.toml)
-    "temperature": ([MODELS + "temperature.py", MODELS + "temperature_readings.py"], "sh -c " + shlex.quote(
-        PYTEST + "suites/test_temperature.py " + PID_SUITES + " && " + PYTEST + "suites/test_temperature.py --bench "
-        + "mixed-temperature.toml && " + PYTEST + "suites/test_temperature.py --bench averaged-temperature.toml && "
-        + PYTEST + "suites/test_temperature.py --bench bench-timed.toml")),
-    "fun86": ([MODELS + f"fun86{part}.py" for part in ("", "_law", "_pwm", "_alarms")], PYTEST + PID_SUITES),
+    "temperature": ([MODELS + "temperature.py", MODELS + "temperature_readings.py"], _in_turn(
+        PYTEST + "suites/test_temperature.py " + PID_SUITES,
+        *(PYTEST + f"suites/test_temperature.py --bench {profile}.toml"
+          for profile in ("mixed-temperature", "averaged-temperature", "bench-timed")),
+        FAST_FORWARD)),
+    "fun86": ([MODELS + f"fun86{part}.py" for part in ("", "_law", "_pwm", "_alarms")],
+              _in_turn(PYTEST + PID_SUITES, FAST_FORWARD)),
     # (and once more as a CR40, a CPU without a clock: cr40.toml)
-    "s7": ("hil/families/s7smart/sim/clock.py", "sh -c " + shlex.quote(
-        PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml && " + PYTEST
-        + "suites/s7smart --bench cr40.toml")),
+    "s7": ("hil/families/s7smart/sim/clock.py", _in_turn(
+        PYTEST + "suites/s7smart --bench fixtures/benches/s7-200smart.toml",
+        PYTEST + "suites/s7smart --bench cr40.toml")),
 }
 #: the sample is drawn per group (in this order), over the group's mutants sorted by file, operator, occurrence
 GROUPS = {"fbs": ("rtc", "temperature", "fun86"), "s7": ("s7",)}

@@ -988,13 +988,17 @@ def test_each_r4005_code_gives_its_interval_and_pwm_period(bench, pid, low, high
         f"saw {len(rises)} rises, {periods} s apart")
 
 
+TD_UNDER_A_MINUTE = 50  # Td in 0.01 min: 0.50 min
+
+
 @pytest.mark.spec("PID-LAW-1", "PID-LAW-3")
 def test_derivative_acts_on_a_pv_change_and_td_0_has_none(bench, pid):
     """20.7's law: Mn = Kc·En + Σ Kc·Ki·Ts·En + Kc·Td·(PVn − PVn−1)/Ts.  Two points at the same Kc (10), Ki 0, SV
-    and PV (PVs through R4003/R4004), one with Td = 1.00 min, the other Td = 0, PID every 1 s: with PV steady they
-    show the same OR (the D term is 0 when PVn = PVn−1); at the PID step after both PVs rise 1.0 ° the Td point's
-    OR differs from the other's (whatever its sign or size: exact values are not the bench's); one step later, PV
-    steady again, they are equal again.  (Td = 0: no derivative, PID-LAW-3.)"""
+    and PV (PVs through R4003/R4004), one with Td = 0.50 min (Td counts 0.01 min: a Td under a minute acts too), the
+    other Td = 0, PID every 1 s: with PV steady they show the same OR (the D term is 0 when PVn = PVn−1); at the PID
+    step after both PVs rise 1.0 ° the Td point's OR differs from the other's by its D term, Kc·Td·ΔPV/Ts = 10 ×
+    30 s × 1.0 °/1 s (whatever its sign or size: exact values are not the bench's); one step later, PV steady again,
+    they are equal again.  (Td = 0: no derivative, PID-LAW-3.)"""
     instances, block = _fake_instances(bench, pid)
     inst = instances[0]
     _need(bench, "R4005")
@@ -1004,7 +1008,7 @@ def test_derivative_acts_on_a_pv_change_and_td_0_has_none(bench, pid):
         pytest.skip(f"{inst.name} has no two neighbouring enabled points (OR of both in one read)")
     d_point, plain = pair
     io = bench.plc.io
-    for p, td in ((d_point, 100), (plain, 0)):
+    for p, td in ((d_point, TD_UNDER_A_MINUTE), (plain, 0)):
         io.write_many({str(inst.operand("sv", p)): 1500, str(inst.operand("os", p)): 0})
         pid.set_gains(p, 10, 0, td)
     _write_pvs(bench, block, {d_point: 1000, plain: 1000})
@@ -1024,16 +1028,16 @@ def test_derivative_acts_on_a_pv_change_and_td_0_has_none(bench, pid):
             bench.wait(0.1)
 
     steady = outputs_after_a_step(None)  # PV steady over at least one PID step after the edge's
-    assert steady[0] == steady[1], (f"points {d_point} (Td 1.00 min) and {plain} (Td 0) at the same Kc, Ki 0, SV and "
+    assert steady[0] == steady[1], (f"points {d_point} (Td 0.50 min) and {plain} (Td 0) at the same Kc, Ki 0, SV and "
                                     f"steady PV: OR {steady[0]} and {steady[1]}, the D term is 0 with PVn = PVn−1")
     _write_pvs(bench, block, {d_point: 1010, plain: 1010})  # +1.0 °
     moved = outputs_after_a_step(steady[1])
     assert moved[1] != steady[1], f"point {plain}: PV 1.0 ° nearer SV at Kc 10, yet OR stayed {steady[1]}"
-    assert moved[0] != moved[1], (f"at the PID step after PV rose 1.0 °, point {d_point} (Td 1.00 min) shows OR "
+    assert moved[0] != moved[1], (f"at the PID step after PV rose 1.0 °, point {d_point} (Td 0.50 min) shows OR "
                                   f"{moved[0]}, the same as point {plain} (Td 0): no derivative action")
     bench.wait(1.5)  # the next step, PV steady again
     again = tuple(io.read_words(first, 2))
-    assert again[0] == again[1], (f"PV steady again: points {d_point} (Td 1.00 min) and {plain} (Td 0) show OR "
+    assert again[0] == again[1], (f"PV steady again: points {d_point} (Td 0.50 min) and {plain} (Td 0) show OR "
                                   f"{again[0]} and {again[1]}: the D term is 0 with PVn = PVn−1")
 
 

@@ -237,12 +237,13 @@ def test_installed_mask_defaults_to_ffffh(bench, temp):
 
 @pytest.mark.spec("TEMP-WORK-3", "TEMP-MAX-1", "TEMP-WORK-4", "TEMP-TBL-4", "TEMP-WORK-6", "TEMP-TBL-3")
 def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
-    """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8, FFH for more
-    than 32 points, and bit k of TW+0's low byte flags table module k + 1 not matching the module fitted — tried
-    with every module, the even ones and then the odd ones (each bit seen set and clear), the entry's module name
-    replaced by FFH (no module) and by another module kind (its code in the harness's code table, which the bench's
-    own table uses).  The harness then puts the table back, and the code returns to 56H.  Needs the
-    table (SR … SR+11) in [safety] writable; the guard restores it whatever happens."""
+    """20.3.2: the execution code is FEH for a module count (TW+3 low byte) of 0 or more than 8 (tried with 0, 9 and
+    FFH: the byte's edges and the first count past 8), FFH for more than 32 points, and bit k of TW+0's low byte flags
+    table module k + 1 not matching the module fitted — tried with every module, the even ones and then the odd ones
+    (each bit seen set and clear), the entry's module name replaced by FFH (no module) and by another module kind (its
+    code in the harness's code table, which the bench's own table uses).  The harness then puts the table back, and
+    the code returns to 56H.  Needs the table (SR … SR+11) in [safety] writable; the guard restores it whatever
+    happens."""
     config = temp.config
     sr = config.table
     _need(bench, f"{sr}-{sr.offset(4 + 8 - 1)}")
@@ -250,14 +251,16 @@ def test_work_block_codes_for_a_table_that_does_not_fit(bench, temp):
     n = len(config.modules)
     before = temp.readings()
 
-    # Each bad count from the valid table (56H), so that FEH is news: a PLC that takes the table at its next cycle
-    # still shows the last one's code and TW+3 until then.
-    for count in (0, 9):
-        work = _retable(bench, temp, {1: count}, lambda w: w.execution_code == BAD_MODULE_COUNT)
+    # The bad counts one after the other, from the valid table (56H) and back to it once: each wait is for FEH with
+    # TW+3 counting the new count, which the block before did not show (a PLC that takes the table at its next cycle
+    # still shows the last one's code and TW+3 until then) — three counts for the waits of two.
+    for count in (0, 9, 0xFF):
+        work = _retable(bench, temp, {1: count},
+                        lambda w, c=count: w.execution_code == BAD_MODULE_COUNT and w.module_count == c)
         assert work.execution_code == BAD_MODULE_COUNT, (
             f"module count {count} in SR+1: execution code {work.execution_code:02X}H, expected FEH")
         assert work.module_count == count, f"module count {count}: TW+3 low byte {work.module_count}"
-        _put_back_count(bench, temp, n)
+    _put_back_count(bench, temp, n)
 
     biggest = max(range(n), key=lambda k: POINTS[config.modules[k].type.name])
     size = POINTS[config.modules[biggest].type.name]

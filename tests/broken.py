@@ -26,14 +26,20 @@ class BrokenEmulator:
         return emulator
 
 
+def inline_suites(pytester: pytest.Pytester, files: list[str], plugin: object | None = None,
+                  *extra: str, bench: Path = EMULATOR_BENCH) -> pytest.HookRecorder:
+    """Run suite ``files`` in-process on the emulator bench (or ``bench``); the inner run's recorder (its ``ret``:
+    the run's exit code)."""
+    paths = [str(SUITES / f) for f in files]
+    # no:hypothesispytest: pytester restores sys.modules after each run, so every inner run would re-import it
+    return pytester.inline_run(*paths, "--bench", str(bench), "-p", "no:cacheprovider", "-p", "no:hypothesispytest",
+                               *extra, plugins=[plugin] if plugin else [])
+
+
 def run_suites(pytester: pytest.Pytester, files: list[str], plugin: object | None = None,
                *extra: str, bench: Path = EMULATOR_BENCH) -> tuple[list[str], list[str]]:
     """Run suite ``files`` in-process on the emulator bench (or ``bench``); return (passed, failed) test ids."""
-    paths = [str(SUITES / f) for f in files]
-    # no:hypothesispytest: pytester restores sys.modules after each run, so every inner run would re-import it
-    recorder = pytester.inline_run(*paths, "--bench", str(bench), "-p", "no:cacheprovider",
-                                   "-p", "no:hypothesispytest", *extra,
-                                   plugins=[plugin] if plugin else [])
+    recorder = inline_suites(pytester, files, plugin, *extra, bench=bench)
     passed, _skipped, failed = recorder.listoutcomes()
     return [r.nodeid for r in passed], [r.nodeid for r in failed]
 
@@ -45,4 +51,4 @@ def replace_model(emulator: Emulator, cls: type, replacement: object) -> None:
     emulator.models[index] = replacement
 
 
-__all__ = ["BrokenEmulator", "run_suites", "replace_model", "Path"]
+__all__ = ["BrokenEmulator", "inline_suites", "run_suites", "replace_model", "Path"]

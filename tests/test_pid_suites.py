@@ -136,6 +136,13 @@ class NoDerivativeAction(Fun86Model):
         return dataclasses.replace(law, derivative=law.derivative * 0)
 
 
+class TdInWholeMinutes(Fun86Model):
+    """Td taken in whole minutes (its 0.01 min truncated): a Td under a minute has no D term."""
+
+    def law(self, inst, kc, ki, td, heating, ts):
+        return super().law(inst, kc, ki, np.asarray(td) // 100 * 100, heating, ts)
+
+
 class NoErrForSnPlusZn33(Fun86Model):
     def valid(self, sn, zn):
         return 0 <= sn <= 31 and 1 <= zn <= 32 and sn + zn <= 33
@@ -452,6 +459,7 @@ CAUGHT_BY = {
     HeaterLoopOnePercentEarly: ["test_heater_loop_warns_from_exactly_r4006"],
     HeaterLoopOnePercentLate: ["test_heater_loop_warns_from_exactly_r4006"],
     NoDerivativeAction: ["test_derivative_acts_on_a_pv_change_and_td_0_has_none"],
+    TdInWholeMinutes: ["test_derivative_acts_on_a_pv_change_and_td_0_has_none"],
     NoErrForSnPlusZn33: ["test_err_exactly_for_invalid_sn_zn"],
     DisabledPointStillDriven: ["test_disabled_point_output_is_forced_off"],
     R4004Ignored: ["test_pvs_come_from_where_r4003_and_r4004_say", "test_prealarm_of_every_point_at_r4008"],

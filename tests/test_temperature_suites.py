@@ -136,6 +136,14 @@ class NoFEHForCountZero(TemperatureModel):
         return EXEC_IDLE if code == EXEC_BAD_MODULE_COUNT and self._table_count == 0 else code
 
 
+class CountByteModulo255(TemperatureModel):
+    """TW+3's module count byte is the count modulo 255 rather than its low byte: a count of FFH reads 0."""
+
+    def _write_work(self, mem, work, block, table):
+        count = block[3] & 0xFF
+        super()._write_work(mem, work, [*block[:3], block[3] - count + count % 0xFF, *block[4:]], table)
+
+
 class NoFFHForTooManyPoints(TemperatureModel):
     """More than 32 points still reports 56H."""
 
@@ -252,6 +260,7 @@ CAUGHT_BY = {
     CelsiusWhenFahrenheit: ["test_readings_are_in_range_and_units"],
     WholeDegreesAtNormalRate: ["test_readings_are_in_range_and_units"],
     NoFEHForCountZero: ["test_work_block_codes_for_a_table_that_does_not_fit"],
+    CountByteModulo255: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     NoFFHForTooManyPoints: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     MismatchBitsNeverSet: ["test_work_block_codes_for_a_table_that_does_not_fit"],
     AnyModuleNameMatches: ["test_work_block_codes_for_a_table_that_does_not_fit"],

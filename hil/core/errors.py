@@ -75,6 +75,12 @@ class TargetError(HilError, ValueError):
     """A target URL that cannot be understood; the message lists the forms that are."""
 
 
+class EmulatorFault(HilError):
+    """The emulator broke a rule every PLC keeps — a bug in one of its models, not a PLC's answer (a model changed a
+    memory bank's size).  Raised by the scan, so the request served after it fails: a suite sees this error, never
+    what the broken model left in memory."""
+
+
 
 #: Where every error line starts, so a user (and a script) finds hil's complaint whatever printed it.
 ERROR_PREFIX = "hil: error: "

@@ -3,7 +3,8 @@ wall-driven (``hil emulate``).
 
 Requests from any wire are serviced at a scan boundary, as port 0 of a real FBs answers at the end of a scan:
 :meth:`Engine.service` completes one scan and then runs the request against memory, under one lock.  A family
-subclasses it with its memory (and whatever a power-on leaves there); the engine knows no family.
+subclasses it with its memory (and whatever a power-on leaves there); the engine knows no family — only that the
+memory names its banks (``memory.banks()``: name → a list or bytearray), whose sizes a PLC never changes.
 """
 
 from __future__ import annotations
@@ -12,11 +13,11 @@ import collections
 import math
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sized
 from typing import Any, TypeVar
 
 from hil import __version__
-from hil.core.errors import InvalidValue
+from hil.core.errors import EmulatorFault, InvalidValue
 from hil.sim.model import Model
 from hil.sim.timing import INSTANT, Timing
 
@@ -47,6 +48,10 @@ class Engine:
         self.station = station
         self.seed = seed
         self.memory = memory
+        #: the memory's banks and their sizes: a model that changes one is a broken emulator (_check_sizes)
+        self._banks: list[tuple[str, Sized]] = list(memory.banks().items())
+        self._bank_list = [bank for _, bank in self._banks]
+        self._sizes = tuple(map(len, self._bank_list))
         self.models: list[Model[Any]] = []
         self.lock = threading.RLock()
         self.stats: collections.Counter[str] = collections.Counter()
@@ -66,6 +71,7 @@ class Engine:
     def add_model(self, model: Model[Any]) -> None:
         with self.lock:
             model.power_on(self)
+            self._check_sizes(model)
             self.models.append(model)
 
     def model(self, cls: type[T]) -> T | None:
@@ -76,11 +82,24 @@ class Engine:
     def scan(self) -> None:
         with self.lock:
             self.tick()
+            banks, sizes = self._bank_list, self._sizes
             for model in self.models:
                 model.scan(self)
+                if tuple(map(len, banks)) != sizes:  # (one length per bank: the check costs ≈ 1 µs a model)
+                    self._check_sizes(model)
             self.end_scan()
             for observer in self.observers:
                 observer(self)
+
+    def _check_sizes(self, model: Model[Any]) -> None:
+        """A PLC's memory has a fixed size: raise :class:`EmulatorFault` naming ``model`` and the banks it resized
+        (a slice assignment of the wrong length inserts or drops elements, and every later element moves — the
+        registers a request reads would then be other registers, and a suite could pass on them)."""
+        resized = [f"{name} from {size} to {len(bank)} elements" for (name, bank), size in zip(self._banks, self._sizes)
+                   if len(bank) != size]
+        if resized:
+            raise EmulatorFault(f"the {model.name!r} model ({type(model).__name__}) changed the size of memory: "
+                                f"{'; '.join(resized)} — a PLC's memory has a fixed size")
 
     def tick(self) -> None:
         """The clock of one scan."""
@@ -131,13 +150,17 @@ class Engine:
             self.stats["requests"] += 1
             return request(self.memory)
 
-    def _service_pending(self) -> None:
-        """Answer every request that waited for the scan just completed (real time; caller holds the lock)."""
+    def _service_pending(self, error: BaseException | None = None) -> None:
+        """Answer every request that waited for the scan just completed (real time; caller holds the lock) — with
+        ``error``, when that scan failed."""
         with self._pending_lock:
             batch, self._pending = self._pending, []
         for pending in batch:
             self.stats["requests"] += 1
-            pending.run(self.memory)
+            if error is None:
+                pending.run(self.memory)
+            else:
+                pending.fail(error)
 
     def advance(self, seconds: float) -> None:
         """Let ``seconds`` of virtual time pass, jumping over spans in which no model needs a scan."""
@@ -190,9 +213,14 @@ class Engine:
         finally:
             with self._pending_lock:
                 self.realtime = False
-            with self.lock:  # whoever still waits gets the virtual-time service: one scan, then the request
+            with self.lock:  # whoever still waits gets the virtual-time service: one scan, then the request — or
+                # that scan's error (a broken model stopped the clock): answered, not left waiting for ever
                 if self._pending:
-                    self.scan()
+                    try:
+                        self.scan()
+                    except BaseException as exc:
+                        self._service_pending(exc)
+                        raise
                     self._service_pending()
 
 
@@ -212,6 +240,10 @@ class _Pending:
             self.value = self.request(memory)
         except BaseException as exc:  # noqa: BLE001 - handed to the waiting thread, raised there
             self.error = exc
+        self.done.set()
+
+    def fail(self, error: BaseException) -> None:
+        self.error = error
         self.done.set()
 
     def result(self) -> Any:

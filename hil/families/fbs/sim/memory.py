@@ -10,7 +10,7 @@ from a wire server or from the in-process transport alike — go through :meth:`
 from __future__ import annotations
 
 import copy
-from collections.abc import Sequence
+from collections.abc import Sequence, Sized
 
 from hil.core.errors import PlcErrorReply
 from hil.families.fbs.address import (
@@ -106,6 +106,11 @@ class Memory:
                 self.set(a.offset(n), v)
 
     # -- whole-memory views for tests and tools ---------------------------------------------------------------
+    def banks(self) -> dict[str, Sized]:
+        """Every bank by name, for the engine's check that no model changes a bank's size."""
+        return {**self.bits, **self.words, f"DRC{COUNTER32_FIRST}–": self.counters32,
+                **{f"{kind} (disabled)": flags for kind, flags in self.disabled.items()}}
+
     def snapshot(self) -> dict:
         """A deep copy of every bank; compare two snapshots to prove nothing changed."""
         return {"bits": copy.deepcopy(self.bits), "words": copy.deepcopy(self.words),

@@ -4,6 +4,7 @@ that read and write it (clock.py) and the engine that holds it (cpu.py)."""
 from __future__ import annotations
 
 import copy
+from collections.abc import Sized
 
 from hil.families.s7smart.address import AREA_BYTES, S7Address, parse_s7
 
@@ -13,6 +14,10 @@ class S7Memory:
 
     def __init__(self) -> None:
         self.areas: dict[str, bytearray] = {a: bytearray(n) for a, n in AREA_BYTES.items()}
+
+    def banks(self) -> dict[str, Sized]:
+        """Every area by name, for the engine's check that no model changes an area's size."""
+        return dict(self.areas)
 
     @property
     def v(self) -> bytearray:
