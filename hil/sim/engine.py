@@ -82,24 +82,25 @@ class Engine:
     def scan(self) -> None:
         with self.lock:
             self.tick()
-            banks, sizes = self._bank_list, self._sizes
             for model in self.models:
                 model.scan(self)
-                if tuple(map(len, banks)) != sizes:  # (one length per bank: the check costs ≈ 1 µs a model)
-                    self._check_sizes(model)
+            if tuple(map(len, self._bank_list)) != self._sizes:  # (once a scan: a length per bank, under 1 µs)
+                self._check_sizes(*self.models)
             self.end_scan()
             for observer in self.observers:
                 observer(self)
 
-    def _check_sizes(self, model: Model[Any]) -> None:
-        """A PLC's memory has a fixed size: raise :class:`EmulatorFault` naming ``model`` and the banks it resized
-        (a slice assignment of the wrong length inserts or drops elements, and every later element moves — the
-        registers a request reads would then be other registers, and a suite could pass on them)."""
+    def _check_sizes(self, *models: Model[Any]) -> None:
+        """A PLC's memory has a fixed size: raise :class:`EmulatorFault` naming the banks resized and the model —
+        or, after a scan, the models — that may have done it (a slice assignment of the wrong length inserts or
+        drops elements, and every later element moves: the registers a request reads would then be other
+        registers, and a suite could pass on them)."""
         resized = [f"{name} from {size} to {len(bank)} elements" for (name, bank), size in zip(self._banks, self._sizes)
                    if len(bank) != size]
         if resized:
-            raise EmulatorFault(f"the {model.name!r} model ({type(model).__name__}) changed the size of memory: "
-                                f"{'; '.join(resized)} — a PLC's memory has a fixed size")
+            who = " or ".join(f"{m.name!r} ({type(m).__name__})" for m in models)
+            raise EmulatorFault(f"the {who} model changed the size of memory: {'; '.join(resized)} — a PLC's memory "
+                                f"has a fixed size")
 
     def tick(self) -> None:
         """The clock of one scan."""
