@@ -139,6 +139,12 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
     emulator = build_emulator(profile, epoch)
     servers: list[ServerHandle] = []
     stop = threading.Event()
+    # Before the first endpoint line: a client may stop us as soon as it has read it (a Ctrl-C or SIGTERM then ends
+    # the run cleanly, after the start-up, rather than as an interruption).  Not stop.set() in the handler: it runs
+    # in the main thread, which may hold the Event's own lock inside stop.wait() (the real-time loop waits on it
+    # every scan) — set it from another thread.
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: threading.Thread(target=stop.set, daemon=True).start())
     try:
         for wire, where in endpoints:
             host, port = split_host_port(where) if where else ("127.0.0.1", 0)
@@ -154,10 +160,6 @@ def emulate(bench: str, endpoints: list[tuple[str, str | None]], time_scale: flo
         print(f"hil emulate: seed {profile.emulator.seed}, timing {profile.emulator.timing_plan().describe()} "
               f"(replay: --timing {profile.emulator.timing} --seed {profile.emulator.seed})", file=sys.stderr,
               flush=True)
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            # not stop.set() in the handler: it runs in the main thread, which may hold the Event's own lock
-            # inside stop.wait() (the real-time loop waits on it every scan) — set it from another thread
-            signal.signal(sig, lambda *_: threading.Thread(target=stop.set, daemon=True).start())
         # The clock starts at host time: catch up the whole second dropped from the epoch and the start-up
         emulator.advance_to(emulator.now + max(0.0, time.time() - epoch.timestamp()))
         if live:  # after the endpoint lines: clients parse those, the panel is for people
