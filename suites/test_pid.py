@@ -874,12 +874,9 @@ def test_a_new_pid_interval_waits_for_en_to_go_0_and_back_to_1(bench, pid):
     # box keeps its outputs while EN is 0).  The step comes at EN's edge or (a PLC may) up to an interval, 4 s, after
     # it; should the old OR equal the first step's, the second step moves it — both points of the box are computed
     # at each step, so the plain point's OR is fresh then too.
-    left = pid.output(point)
-    stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1",
-                           lambda: pid.output(point) != left)
-    pid.restart(inst)  # EN 0 → 1: in force from now
+    stepped = _en_edge_awaiting_a_step(bench, pid, inst, point)  # EN 0 → 1: in force from now
     assert stepped.within(2 * 4 + 1, every=0.1), (
-        f"point {point} (integral action at a constant error): OR stayed {left} for two PID intervals after EN 0 → 1")
+        f"point {point} (integral action at a constant error): OR did not move for two PID intervals after EN 0 → 1")
     io.write("R4005", 0x0100)  # PID every 1 s — only from the next EN 0 → 1
     flat = pid.output(plain) if plain is not None else None  # after the first step
     held, polls = _steps(bench, pid, point, 9.0)
@@ -924,6 +921,19 @@ TABLE_CODES = [pytest.param(1, 3, id="R4005-0301H"), pytest.param(3, 4, id="R400
                pytest.param(4, 1, id="R4005-0104H"), pytest.param(3, 2, id="R4005-0203H")]
 
 
+def _en_edge_awaiting_a_step(bench, pid, inst, point):
+    """EN 0 → 1, and the expectation of ``point``'s first PID step after it: its OR is read once the box has
+    stopped (EN 0 held across scans; FUN86 leaves its outputs while EN is 0), so that a step of the box still
+    running as before — it may land between a read and the write of EN — cannot be taken for it."""
+    pid.enable(inst, False, heating=None)
+    bench.settle()
+    left = pid.output(point)
+    stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1", lambda: pid.output(point) != left)
+    pid.enable(inst, True, heating=None)
+    bench.settle()
+    return stepped
+
+
 def _integrating_point(bench, pid, *, plain=False):
     """(instance, point, plain) switched on with PVs of the suite's choosing: ``point`` 2.0 ° below SV, Kc 100, Ki 100
     (1 repeat/min), Td 0 — OR moves at every PID step and only then (see the test above); with ``plain``, the next
@@ -964,10 +974,7 @@ def test_each_r4005_code_gives_its_interval_and_pwm_period(bench, pid, low, high
     bench.plc.io.write("R4005", high << 8 | low)
     # the first PID step after EN's edge — at it or (a PLC may) up to an interval after it — as fresh evidence: the
     # integrating point's OR leaves what an earlier test left (or, equal to that by chance, at the second step)
-    left = pid.output(point)
-    stepped = bench.expect(f"point {point}'s OR moves at a PID step after EN 0 → 1",
-                           lambda: pid.output(point) != left)
-    pid.restart(inst)  # in force from this EN edge
+    stepped = _en_edge_awaiting_a_step(bench, pid, inst, point)  # in force from this EN edge
     every = min(1.0, min(interval, period) / 16)
     assert stepped.within(2 * interval + 2, every=every), f"point {point}: no PID step after EN's edge"
     steps, polls = _steps(bench, pid, point, 2 * max(interval, period) + 6, every=every, witness=plain)
