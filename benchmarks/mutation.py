@@ -44,6 +44,10 @@ from collections import Counter
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from benchmarks.figures import record as record_figure  # noqa: E402
+
 MODELS = "hil/families/fbs/sim/models/"
 RTC_SUITES = ("suites/test_rtc.py suites/test_rtc_midnight.py suites/test_rtc_adjust.py suites/test_rtc_validity.py "
               "suites/test_rtc_drift.py")
@@ -307,11 +311,30 @@ def main() -> int:
     parser.add_argument("--keep", action="store_true", help="keep the scratch copy (the cosmic-ray sessions)")
     parser.add_argument("--report-from", metavar="DIR", type=Path,
                         help="only write the report again from a kept scratch copy (after classifying survivors)")
+    parser.add_argument("--record", action="store_true",
+                        help="also write the score (reports/mutation/score.json's summary) to docs/figures/"
+                             "mutation-sample-N.json, which the documentation site shows (docs/_ext/hil_docs.py): "
+                             "figures never typed by hand; alone, records the last run's")
     args = parser.parse_args()
     sample = QUICK if args.quick else args.sample
     if args.report_from is not None:
-        return report_again(args.report_from)
-    return run(sample, args.timeout, args.keep)
+        done = report_again(args.report_from)
+    elif sample is not None or not args.record:
+        done = run(sample, args.timeout, args.keep)
+    else:
+        done = 0
+    if args.record and done == 0:
+        print(f"recorded in {record_last_score()}")
+    return done
+
+
+def record_last_score() -> Path:
+    """The last run's summary (without its per-mutant rows), stamped, as docs/figures/mutation-sample-N.json (or
+    mutation-all.json for every mutant)."""
+    summary = json.loads((ROOT / "reports" / "mutation" / "score.json").read_text(encoding="utf-8"))
+    summary.pop("mutants", None)
+    name = "mutation-all" if summary["sample"] is None else f"mutation-sample-{summary['sample']}"
+    return record_figure(summary, name)
 
 
 def report_again(work: Path) -> int:

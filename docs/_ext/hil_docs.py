@@ -80,6 +80,23 @@ def bench_time_tables() -> str:
     return "\n".join(out)
 
 
+def mutation_scores() -> str:
+    """The mutation scores ``benchmarks/mutation.py --record`` wrote (docs/figures/mutation-*.json): per run its
+    sample, the mutants killed and the survivors by kind, the score and the score of what a bench could show."""
+    out = ["| run | mutants run (of all) | killed | survivors: equivalent · [our choice] · not observable · gap | "
+           "score | of what a bench could show | measured |", "|---|---|---|---|---|---|---|"]
+    for path in sorted(FIGURES.glob("mutation-*.json")):
+        run = json.loads(path.read_text(encoding="utf-8"))
+        kinds = run["survivors_by_kind"]
+        gaps = kinds.get("gap", 0) + kinds.get("unclassified", 0)
+        which = "every mutant" if run["sample"] is None else f"`--sample {run['sample']}`, seed {run['seed']}"
+        out.append(f"| {which} | {run['run']} ({sum(run['mutants_total'].values())}) | {run['killed']} | "
+                   f"{kinds.get('equivalent', 0)} · {kinds.get('choice', 0)} · {kinds.get('not_observable', 0)} · "
+                   f"{gaps} | **{run['score_percent']} %** | {run['score_observable_percent']} % | "
+                   f"{run['measured']}, commit `{run['commit']}` |")
+    return "\n".join([*out, ""])
+
+
 def device_operations_table() -> str:
     """The FATEK bytes per device operation ``benchmarks/run.py --record`` measured (docs/figures/
     device-operations.json): per procedure its round trips and bytes against the fewest the frame format allows, on a
@@ -105,6 +122,7 @@ def _generate(app: Any) -> None:
     _write("requirements.md", requirement_matrix())
     _write("bench-time.md", bench_time_tables())
     _write("device-operations.md", device_operations_table())
+    _write("mutation.md", mutation_scores())
     _write("commands.md", command_reference(build_parser()))
     _write("profile-keys.md", profile_keys())
     _write("layers.svg", layers_svg(DOCS.parent / "pyproject.toml", DOCS.parent))
