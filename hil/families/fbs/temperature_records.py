@@ -8,6 +8,9 @@ from dataclasses import dataclass
 
 from hil.families.fbs import registers as reg
 
+#: the work block's break words, TW+1 (points 0–15) and TW+2 (points 16–31): their offset from TW
+BREAK_WORDS_AT = 1
+
 
 @dataclass(frozen=True)
 class TableView:
@@ -46,7 +49,7 @@ class WorkView:
     @property
     def break_words(self) -> tuple[int, int]:
         """(TW+1, TW+2): break bits of points 0–15 and 16–31."""
-        return self.words[1], self.words[2]
+        return self.words[BREAK_WORDS_AT], self.words[BREAK_WORDS_AT + 1]
 
     @property
     def break_points(self) -> list[int]:

@@ -15,7 +15,7 @@ from hil.families.fbs import registers as reg
 from hil.families.fbs.device.waiting import POLLS_PER_PERIOD, poll_until
 from hil.families.fbs.registers import signed16 as signed  # (a reading word as the signed 0.1° value it holds)
 from hil.families.fbs.temperature import TemperatureConfig
-from hil.families.fbs.temperature_records import TableView, WorkView
+from hil.families.fbs.temperature_records import BREAK_WORDS_AT, TableView, WorkView
 
 if TYPE_CHECKING:
     from hil.families.fbs.device.core import PlcCore
@@ -52,7 +52,7 @@ class Temperature(faces.Temperature):
         return WorkView(self.plc.io.read_words(self.config.work, 4 + 4 * len(self.config.modules)))
 
     def break_words(self) -> tuple[int, int]:
-        low, high = self.plc.io.read_words(self.config.work.offset(1), 2)
+        low, high = self.plc.io.read_words(self.config.work.offset(BREAK_WORDS_AT), 2)
         return low, high
 
     def execution_code(self) -> int:
